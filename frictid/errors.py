@@ -1,0 +1,36 @@
+"""Every exception frictid raises on purpose.
+
+Each message says what is wrong, where (file, column, row, key) and how to fix it. Only the CLI turns
+these into exit codes: :class:`FrictidInputError` and its subclasses give exit code 2.
+"""
+from __future__ import annotations
+
+
+class FrictidInputError(ValueError):
+    """Bad usage or bad input: the user can fix it. Exit code 2."""
+
+
+class LogFormatError(FrictidInputError):
+    """A joint log cannot be read or fails validation. Collects every problem found."""
+
+    def __init__(self, path: str, problems: list[str]):
+        self.path = path
+        self.problems = list(problems)
+        head = f"{path}: " if path else ""
+        if len(self.problems) == 1:
+            msg = head + self.problems[0]
+        else:
+            msg = head + f"{len(self.problems)} problems:\n" + "\n".join(f"  - {p}" for p in self.problems)
+        super().__init__(msg)
+
+
+class ConfigError(FrictidInputError):
+    """A plant, recipe, mapping or parameter file is invalid."""
+
+
+class NotIdentifiableError(FrictidInputError):
+    """The data cannot support what was asked (used where a verdict file cannot be written)."""
+
+
+class QualityGateError(Exception):
+    """A quality gate (``frictid compare`` tolerance) failed. Exit code 3."""

@@ -1,0 +1,1 @@
+"""Pure numerics: friction models as vectorised functions of numpy arrays with named parameters."""

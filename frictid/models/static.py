@@ -1,0 +1,223 @@
+"""Static (steady-state) friction maps, MODELS.md section 2.
+
+Every map is written ``F_ss(w) = g(|w|) sgn(w) + f(w)``: a level ``g`` (Coulomb plus Stribeck) that the
+LuGre model uses as its bristle limit, and a velocity-growing part ``f`` (viscous and higher orders).
+All maps share one canonical form so that compiled kernels (plant, replay) need only one formula::
+
+    g(v) = a0 + a1 exp(-(v/vs1)^d1) + a2 (1 - exp(-v/vs2))          v = |w|
+    f(w) = b1 w + b2 w|w| + b3 w^3
+
+:data:`CANON` names the nine canonical numbers. A per-sign ("_asym") model has one canonical vector for
+``w > 0`` and one for ``w < 0``; each branch uses the same odd formula with its own numbers.
+
+Convention: in 001 Table 1 the ``w < 0`` branch writes ``alpha4 w^2``; here the odd form ``alpha4 w|w|`` is
+used on both branches, so that table's ``alpha4`` for ``w < 0`` enters with its sign flipped.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .params import Param
+
+CANON = ("a0", "a1", "vs1", "d1", "a2", "vs2", "b1", "b2", "b3")
+N_CANON = len(CANON)
+
+
+def _level(v, a0, a1, vs1, d1, a2, vs2):
+    """Level g(v) [F] of the canonical form at speed v = |w| >= 0."""
+    out = a0 + 0.0 * v
+    if a1 != 0.0:
+        out = out + a1 * np.exp(-np.power(v / vs1, d1))
+    if a2 != 0.0:
+        out = out + a2 * (1.0 - np.exp(-v / vs2))
+    return out
+
+
+def canonical_level(w, c):
+    """g(|w|) [F] for a canonical vector c (length 9)."""
+    return _level(np.abs(w), c[0], c[1], c[2], c[3], c[4], c[5])
+
+
+def canonical_viscous(w, c):
+    """f(w) [F] for a canonical vector c."""
+    w = np.asarray(w, dtype=float)
+    return c[6] * w + c[7] * w * np.abs(w) + c[8] * w**3
+
+
+def canonical_friction(w, c_pos, c_neg=None):
+    """Steady-state friction F_ss(w) [F] from canonical vectors for w >= 0 and w < 0."""
+    w = np.asarray(w, dtype=float)
+    c_neg = c_pos if c_neg is None else c_neg
+    fp = canonical_level(w, c_pos) * np.sign(w) + canonical_viscous(w, c_pos)
+    fn = canonical_level(w, c_neg) * np.sign(w) + canonical_viscous(w, c_neg)
+    return np.where(w >= 0, fp, fn)
+
+
+# ---------------------------------------------------------------------------------------------------
+# The named maps. Each is a vectorised function of w [q/s] and named parameters, returning F [F].
+
+
+def coulomb_viscous(w, Fc, sigma2):
+    """Coulomb plus viscous friction ``Fc sgn(w) + sigma2 w``.
+
+    w : joint velocity [rad/s]; Fc : Coulomb level [N m]; sigma2 : viscous coefficient [N m s/rad].
+    """
+    w = np.asarray(w, dtype=float)
+    return Fc * np.sign(w) + sigma2 * w
+
+
+def stribeck(w, Fc, Fs, vs, delta, sigma2):
+    """Stribeck map ``(Fc + (Fs - Fc) exp(-|w/vs|^delta)) sgn(w) + sigma2 w`` (000, 003, 004).
+
+    Fc : Coulomb level [N m]; Fs : static (break-away) level [N m]; vs : Stribeck velocity [rad/s];
+    delta : exponent [1] (2 in 000/003); sigma2 : viscous coefficient [N m s/rad].
+    """
+    w = np.asarray(w, dtype=float)
+    g = Fc + (Fs - Fc) * np.exp(-np.power(np.abs(w) / vs, delta))
+    return g * np.sign(w) + sigma2 * w
+
+
+def stribeck_2exp(w, alpha0, alpha1, alpha2, alpha3, alpha4, ws1, ws2):
+    """Two-exponential Stribeck map of Bona et al. (001 eq 6-7, 004 eq 3).
+
+    ``g = alpha0 + alpha1 exp(-|w|/ws1) + alpha2 (1 - exp(-|w|/ws2))`` [N m],
+    ``F = g sgn(w) + alpha3 w + alpha4 w|w|``; ws1, ws2 [rad/s].
+    """
+    w = np.asarray(w, dtype=float)
+    v = np.abs(w)
+    g = alpha0 + alpha1 * np.exp(-v / ws1) + alpha2 * (1.0 - np.exp(-v / ws2))
+    return g * np.sign(w) + alpha3 * w + alpha4 * w * v
+
+
+def polynomial(w, c0, c1, c2, c3):
+    """Third-order polynomial ``c0 sgn(w) + c1 w + c2 w|w| + c3 w^3`` (002 eq 1, 003 eq 11). Linear in c."""
+    w = np.asarray(w, dtype=float)
+    return c0 * np.sign(w) + c1 * w + c2 * w * np.abs(w) + c3 * w**3
+
+
+# Canonical conversions: named parameters -> 9-vector.
+
+def _canon_cv(Fc, sigma2):
+    return np.array([Fc, 0.0, 1.0, 1.0, 0.0, 1.0, sigma2, 0.0, 0.0])
+
+
+def _canon_stribeck(Fc, Fs, vs, delta, sigma2):
+    return np.array([Fc, Fs - Fc, vs, delta, 0.0, 1.0, sigma2, 0.0, 0.0])
+
+
+def _canon_2exp(alpha0, alpha1, alpha2, alpha3, alpha4, ws1, ws2):
+    return np.array([alpha0, alpha1, ws1, 1.0, alpha2, ws2, alpha3, alpha4, 0.0])
+
+
+def _canon_poly(c0, c1, c2, c3):
+    return np.array([c0, 0.0, 1.0, 1.0, 0.0, 1.0, c1, c2, c3])
+
+
+@dataclass(frozen=True)
+class StaticMap:
+    """A named static map: its function, parameter table and canonical conversion."""
+
+    name: str
+    func: Callable
+    table: tuple[Param, ...]
+    to_canonical: Callable
+    linear: bool = False  # linear in its parameters (polynomial, coulomb_viscous)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.table)
+
+    def __call__(self, w, **params):
+        return self.func(w, **params)
+
+    def canonical(self, params: dict) -> np.ndarray:
+        return self.to_canonical(**{n: params[n] for n in self.names})
+
+
+# Dimensions: F force, W velocity, D force/velocity, D2 force/velocity^2, D3 force/velocity^3, 1 none.
+STATIC_MAPS: dict[str, StaticMap] = {
+    "coulomb_viscous": StaticMap(
+        "coulomb_viscous", coulomb_viscous,
+        (Param("Fc", "F", 0.0, 10.0, 0.5, 0.1, "Coulomb level"),
+         Param("sigma2", "D", -10.0, 10.0, 0.2, 0.1, "viscous coefficient")),
+        _canon_cv, linear=True),
+    "stribeck": StaticMap(
+        "stribeck", stribeck,
+        (Param("Fc", "F", 0.0, 10.0, 0.5, 0.1, "Coulomb level"),
+         Param("Fs", "F", 0.0, 20.0, 0.7, 0.1, "static (break-away) level"),
+         Param("vs", "W", 1e-5, 2.0, 0.05, 0.05, "Stribeck velocity"),
+         Param("delta", "1", 0.3, 5.0, 2.0, 1.0, "Stribeck exponent"),
+         Param("sigma2", "D", -10.0, 10.0, 0.2, 0.1, "viscous coefficient")),
+        _canon_stribeck),
+    "stribeck_2exp": StaticMap(
+        "stribeck_2exp", stribeck_2exp,
+        (Param("alpha0", "F", -20.0, 20.0, 0.5, 0.1, "base level"),
+         Param("alpha1", "F", -20.0, 20.0, 0.2, 0.1, "Stribeck amplitude"),
+         Param("alpha2", "F", -20.0, 20.0, 0.0, 0.1, "second-exponential amplitude"),
+         Param("alpha3", "D", -10.0, 10.0, 0.2, 0.1, "viscous coefficient"),
+         Param("alpha4", "D2", -10.0, 10.0, 0.0, 0.1, "quadratic coefficient"),
+         Param("ws1", "W", 1e-5, 2.0, 0.05, 0.05, "Stribeck velocity"),
+         Param("ws2", "W", 1e-5, 2.0, 0.2, 0.05, "second velocity")),
+        _canon_2exp),
+    "polynomial": StaticMap(
+        "polynomial", polynomial,
+        (Param("c0", "F", -10.0, 10.0, 0.5, 0.1, "Coulomb term"),
+         Param("c1", "D", -20.0, 20.0, 0.2, 0.1, "linear term"),
+         Param("c2", "D2", -20.0, 20.0, 0.0, 0.1, "quadratic term"),
+         Param("c3", "D3", -20.0, 20.0, 0.0, 0.1, "cubic term")),
+        _canon_poly, linear=True),
+}
+
+
+def map_names() -> list[str]:
+    """Names of the static maps and their per-sign variants."""
+    return [n for m in STATIC_MAPS for n in (m, m + "_asym")]
+
+
+def split_asym(name: str) -> tuple[StaticMap, bool]:
+    """The base map of a model name and whether it is the per-sign variant."""
+    asym = name.endswith("_asym")
+    base = name[: -len("_asym")] if asym else name
+    if base not in STATIC_MAPS:
+        raise KeyError(f"unknown static map {name!r}; known: {', '.join(map_names())}")
+    return STATIC_MAPS[base], asym
+
+
+def canonical_pair(name: str, params: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Canonical vectors (w >= 0, w < 0) of a static map given by name and a dict of named parameters.
+
+    A per-sign model takes parameters suffixed ``_pos`` and ``_neg``.
+    """
+    smap, asym = split_asym(name)
+    if not asym:
+        c = smap.canonical(params)
+        return c, c.copy()
+    pos = {n: params[n + "_pos"] for n in smap.names}
+    neg = {n: params[n + "_neg"] for n in smap.names}
+    return smap.canonical(pos), smap.canonical(neg)
+
+
+def evaluate(name: str, w, params: dict) -> np.ndarray:
+    """Steady-state friction [F] of the named static map (symmetric or ``_asym``) at velocities w."""
+    smap, asym = split_asym(name)
+    w = np.asarray(w, dtype=float)
+    if not asym:
+        return smap.func(w, **{n: params[n] for n in smap.names})
+    fp = smap.func(w, **{n: params[n + "_pos"] for n in smap.names})
+    fn = smap.func(w, **{n: params[n + "_neg"] for n in smap.names})
+    return np.where(w >= 0, fp, fn)
+
+
+def param_table(name: str) -> tuple[Param, ...]:
+    """Parameter table of a static map, per-sign variants with suffixed names."""
+    smap, asym = split_asym(name)
+    if not asym:
+        return smap.table
+    return tuple(
+        Param(p.name + suffix, p.dim, p.lower, p.upper, p.start, p.scale, p.doc + side)
+        for suffix, side in (("_pos", " (w > 0)"), ("_neg", " (w < 0)"))
+        for p in smap.table
+    )
