@@ -1,0 +1,74 @@
+"""Command-line entry point. Thin: parse, call one pipeline function, turn exceptions into exit codes.
+
+Exit codes: 0 success; 2 bad usage or bad input; 3 a quality gate failed; 1 unexpected internal error.
+"""
+from __future__ import annotations
+
+import importlib
+import os
+import signal
+import sys
+import traceback
+
+import typer
+
+from ..errors import FrictidInputError, QualityGateError
+from .app import app
+
+try:  # typer >= 0.24 carries its own click
+    from typer._click.exceptions import ClickException
+except ImportError:  # pragma: no cover - older typer on click
+    from click import ClickException
+
+
+COMMANDS = ("simulate", "segments", "fit", "report", "compare")
+for _name in COMMANDS:  # each command module registers itself on `app`
+    try:
+        importlib.import_module(f"{__name__}.{_name}")
+    except ModuleNotFoundError as _exc:
+        if _exc.name != f"{__name__}.{_name}":
+            raise
+
+
+def _on_sigterm(signum, frame):  # turn SIGTERM into SystemExit so atomic writers clean up
+    raise SystemExit(128 + signum)
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv or bool(os.environ.get("FRICTID_DEBUG"))
+    argv = [a for a in argv if a != "--debug"]
+    signal.signal(signal.SIGTERM, _on_sigterm)
+    code = 0
+    try:
+        rv = app(args=argv, prog_name="frictid", standalone_mode=False)
+        code = rv if isinstance(rv, int) else 0
+    except typer.Exit as exc:
+        code = exc.exit_code
+    except ClickException as exc:
+        exc.show()
+        code = 2
+    except (typer.Abort, KeyboardInterrupt):
+        print("frictid: interrupted; no output was written", file=sys.stderr)
+        code = 130
+    except FrictidInputError as exc:
+        if debug:
+            traceback.print_exc()
+        print(f"frictid: error: {exc}", file=sys.stderr)
+        code = 2
+    except QualityGateError as exc:
+        if debug:
+            traceback.print_exc()
+        print(f"frictid: gate failed: {exc}", file=sys.stderr)
+        code = 3
+    except BrokenPipeError:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        code = 1
+    except Exception as exc:  # noqa: BLE001 - the one place that turns bugs into exit code 1
+        if debug:
+            traceback.print_exc()
+        print(f"frictid: internal error: {exc.__class__.__name__}: {exc} "
+              "(run again with --debug for the traceback, and please report it)", file=sys.stderr)
+        code = 1
+    sys.exit(code)

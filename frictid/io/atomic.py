@@ -1,0 +1,70 @@
+"""Atomic output: write to a temporary file in the target's folder, then rename over the target.
+
+An interrupted or failed run leaves any previous output untouched and no partial file under the target's
+name. Standard output (``-``) is written directly.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import tempfile
+from pathlib import Path
+from typing import IO, Iterator
+
+from ..errors import FrictidInputError
+
+
+def is_stdio(path) -> bool:
+    return str(path) == "-"
+
+
+def check_output_path(path, inputs=()) -> None:
+    """Refuse an output path that is an input or whose folder does not exist (before any work is done)."""
+    if is_stdio(path):
+        return
+    p = Path(path)
+    if p.is_dir():
+        raise FrictidInputError(f"{p}: is a folder; give a file name for the output")
+    if not p.parent.exists():
+        raise FrictidInputError(f"{p}: folder {p.parent} does not exist; create it first")
+    for src in inputs:
+        if is_stdio(src):
+            continue
+        try:
+            if p.exists() and Path(src).exists() and os.path.samefile(p, src):
+                raise FrictidInputError(
+                    f"{p}: is also an input; frictid never overwrites an input, choose another output name")
+        except OSError:
+            continue
+
+
+@contextlib.contextmanager
+def atomic_path(path) -> Iterator[str]:
+    """Yield a temporary path beside ``path``; on success rename it to ``path``, on failure delete it."""
+    p = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=str(p.parent or "."))
+    os.close(fd)
+    try:
+        yield tmp
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, p)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def atomic_open(path, mode: str = "w", encoding: str | None = "utf-8") -> Iterator[IO]:
+    """Open ``path`` for writing atomically; ``-`` gives standard output (text or binary)."""
+    if is_stdio(path):
+        stream = sys.stdout.buffer if "b" in mode else sys.stdout
+        yield stream
+        stream.flush()
+        return
+    with atomic_path(path) as tmp:
+        kwargs = {} if "b" in mode else {"encoding": encoding, "newline": ""}
+        with open(tmp, mode, **kwargs) as fh:
+            yield fh

@@ -1,0 +1,594 @@
+"""Joint logs in and out: the one door through which measured data enter frictid.
+
+:func:`read_logs` reads CSV, Parquet or standard input, renames vendor columns (``--map``), converts
+units (``--units``), validates everything once and reports every problem in one :class:`LogFormatError`,
+then splits the long-format table into one :class:`~frictid.data.JointLog` per joint.
+Only the needed columns are read. :func:`write_logs` writes the same format atomically.
+
+NaN policy: a missing value in ``t`` is an error. Rows with a missing value in ``q``, ``qd``, ``tau`` or an
+optional channel are dropped with a warning when they are at most 1 % of the joint's rows; more is an
+error. Infinite values are always an error.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.csv as pacsv
+import pyarrow.parquet as pq
+import yaml
+
+from ..data import OPTIONAL_CHANNELS, TRUTH_COLUMNS, JointLog
+from ..errors import ConfigError, FrictidInputError, LogFormatError
+from .atomic import atomic_path, is_stdio
+from .units import conversion, parse_units
+
+CORE = ("t", "q", "qd", "tau")
+KNOWN = CORE + ("joint",) + OPTIONAL_CHANNELS + TRUTH_COLUMNS
+META_KEY = "frictid"
+MIN_SAMPLES = 10
+MAX_NAN_FRACTION = 0.01
+HUGE = 1e9
+PARQUET_MAGIC = b"PAR1"
+
+
+@dataclass
+class LogSpec:
+    """How to read a log: renames, units, scale factors, a column list for headerless CSV, the axis.
+
+    Built from ``--map``/``--units`` on the command line, a mapping file (``--map FILE.yaml``), the
+    Parquet metadata or a sidecar ``<log>.meta.yaml``; later sources override earlier ones.
+    """
+
+    rename: dict[str, str] = field(default_factory=dict)
+    units: dict[str, str] = field(default_factory=dict)
+    scale: dict[str, float] = field(default_factory=dict)
+    columns: list[str] | None = None
+    axis: str | None = None
+    meta: dict = field(default_factory=dict)
+
+    def merged(self, other: "LogSpec") -> "LogSpec":
+        return LogSpec(
+            rename={**self.rename, **other.rename},
+            units={**self.units, **other.units},
+            scale={**self.scale, **other.scale},
+            columns=other.columns if other.columns is not None else self.columns,
+            axis=other.axis or self.axis,
+            meta={**self.meta, **other.meta},
+        )
+
+
+_SPEC_KEYS = {"map", "units", "scale", "columns", "axis", "meta", "schema", "joints", "truth"}
+
+
+def spec_from_dict(d: dict, where: str) -> LogSpec:
+    """A :class:`LogSpec` from a mapping-file or metadata dictionary (keys: map, units, scale, columns,
+    axis, meta)."""
+    if not isinstance(d, dict):
+        raise ConfigError(f"{where}: expected a mapping with keys map, units, scale, columns, axis, meta")
+    unknown = set(d) - _SPEC_KEYS
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {', '.join(sorted(unknown))}; "
+                          f"known: {', '.join(sorted(_SPEC_KEYS - {'schema', 'joints', 'truth'}))}")
+    rename = d.get("map") or {}
+    units = d.get("units") or {}
+    scale = d.get("scale") or {}
+    for key, val in (("map", rename), ("units", units), ("scale", scale)):
+        if not isinstance(val, dict):
+            raise ConfigError(f"{where}: {key}: expected a mapping of column names")
+    try:
+        scale = {str(k): float(v) for k, v in scale.items()}
+    except (TypeError, ValueError):
+        raise ConfigError(f"{where}: scale: every value must be a number (a factor to multiply by)") from None
+    axis = d.get("axis")
+    if axis not in (None, "rotary", "linear"):
+        raise ConfigError(f"{where}: axis: must be rotary or linear, not {axis!r}")
+    cols = d.get("columns")
+    if cols is not None and not (isinstance(cols, list) and all(isinstance(c, str) for c in cols)):
+        raise ConfigError(f"{where}: columns: expected a list of column names")
+    return LogSpec({str(k): str(v) for k, v in rename.items()}, {str(k): str(v) for k, v in units.items()},
+                   scale, cols, axis, dict(d.get("meta") or {}))
+
+
+def parse_mapping(text: str | None) -> LogSpec:
+    """``--map``: either ``position=q,torque=tau`` (source=target) or the path of a mapping YAML file."""
+    if not text:
+        return LogSpec()
+    if text.endswith((".yaml", ".yml")):
+        p = Path(text)
+        if not p.is_file():
+            raise ConfigError(f"--map {text}: mapping file not found")
+        try:
+            d = yaml.safe_load(p.read_text()) or {}
+        except yaml.YAMLError as exc:
+            raise ConfigError(f"{p}: not valid YAML ({exc.__class__.__name__}: {exc})") from None
+        return spec_from_dict(d, str(p))
+    rename = {}
+    for item in text.split(","):
+        item = item.strip()
+        if not item:
+            continue
+        if "=" not in item:
+            raise FrictidInputError(f"--map: {item!r} is not SOURCE=TARGET (e.g. --map position=q,torque=tau)")
+        src, dst = (s.strip() for s in item.split("=", 1))
+        if dst not in KNOWN:
+            raise FrictidInputError(f"--map: target {dst!r} is not a log column; known: {', '.join(KNOWN)}")
+        rename[src] = dst
+    return LogSpec(rename=rename)
+
+
+def make_spec(mapping: str | None = None, units: str | None = None) -> LogSpec:
+    """The :class:`LogSpec` given on the command line."""
+    spec = parse_mapping(mapping)
+    return spec.merged(LogSpec(units=parse_units(units)))
+
+
+# ---------------------------------------------------------------------------------------------------
+# reading
+
+
+def _read_source(path: str):
+    """(label, bytes-or-path, is_parquet). Standard input is read into memory once."""
+    if is_stdio(path):
+        data = sys.stdin.buffer.read()
+        return "<stdin>", io.BytesIO(data), data[:4] == PARQUET_MAGIC
+    p = Path(path)
+    if not p.exists():
+        raise LogFormatError(str(p), ["file not found"])
+    if p.is_dir():
+        raise LogFormatError(str(p), ["is a folder, not a log file"])
+    if p.stat().st_size == 0:
+        raise LogFormatError(str(p), ["file is empty; a log needs a header row and samples"])
+    with open(p, "rb") as fh:
+        magic = fh.read(4)
+    return str(p), str(p), magic == PARQUET_MAGIC or p.suffix.lower() in (".parquet", ".pq")
+
+
+def _sidecar_spec(path: str) -> tuple[LogSpec, dict]:
+    if is_stdio(path):
+        return LogSpec(), {}
+    side = Path(str(path) + ".meta.yaml")
+    if not side.is_file():
+        alt = Path(path).with_suffix(".meta.yaml")
+        side = alt if alt.is_file() else side
+    if not side.is_file():
+        return LogSpec(), {}
+    try:
+        d = yaml.safe_load(side.read_text()) or {}
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{side}: not valid YAML ({exc})") from None
+    return spec_from_dict(d, str(side)), d
+
+
+def _csv_header(src, label: str, spec: LogSpec) -> tuple[list[str], bool]:
+    """Column names of a CSV and whether the file has a header row."""
+    if spec.columns is not None:
+        return list(spec.columns), False
+    if isinstance(src, io.BytesIO):
+        first = src.getvalue().split(b"\n", 1)[0]
+    else:
+        with open(src, "rb") as fh:
+            first = fh.readline(1 << 16)
+    try:
+        text = first.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise LogFormatError(label, ["line 1 is not UTF-8 text; is this a CSV file? "
+                                     "(binary logs: use Parquet or a .mat mapping)"]) from None
+    names = next(csv.reader([text.strip("\r\n")]), [])
+    names = [n.strip() for n in names]
+    if not any(names):
+        raise LogFormatError(label, ["line 1 is empty; a CSV log starts with a header row (t,q,tau,...)"])
+    return names, True
+
+
+def _read_table(src, label: str, is_parquet: bool, spec: LogSpec) -> tuple[pa.Table, dict]:
+    """Read only the columns frictid uses; returns the table (columns under their source names) and
+    the file's own metadata."""
+    wanted_targets = set(KNOWN)
+    file_meta: dict = {}
+    if is_parquet:
+        try:
+            pf = pq.ParquetFile(src)
+        except (pa.ArrowInvalid, OSError) as exc:
+            raise LogFormatError(label, [f"cannot be read as Parquet ({exc}); is the file complete?"]) from None
+        raw = (pf.schema_arrow.metadata or {}).get(META_KEY.encode())
+        if raw:
+            try:
+                file_meta = json.loads(raw)
+            except ValueError:
+                file_meta = {}
+        names = pf.schema_arrow.names
+        fspec = spec_from_dict({k: v for k, v in file_meta.items() if k in _SPEC_KEYS}, f"{label} metadata")
+        eff = fspec.merged(spec)
+        cols = [c for c in names if eff.rename.get(c, c) in wanted_targets]
+        try:
+            return pf.read(columns=cols), file_meta
+        except (pa.ArrowInvalid, OSError) as exc:
+            raise LogFormatError(label, [f"cannot be read as Parquet ({exc}); is the file complete?"]) from None
+    names, has_header = _csv_header(src, label, spec)
+    cols = [c for c in names if spec.rename.get(c, c) in wanted_targets]
+    if len(names) == 1 and any(ch in names[0] for ch in ";\t| "):
+        sep = next(ch for ch in ";\t| " if ch in names[0])
+        raise LogFormatError(label, [f"the header has one column {names[0]!r}: the file looks "
+                                     f"{sep!r}-separated; frictid reads comma-separated CSV "
+                                     "(convert it, or save as Parquet)"])
+    read_opts = pacsv.ReadOptions(column_names=names, skip_rows=1 if has_header else 0,
+                                  block_size=1 << 24)
+    conv = pacsv.ConvertOptions(include_columns=cols,
+                                column_types={c: pa.string() for c in cols
+                                              if spec.rename.get(c, c) in ("joint", "segment")})
+    if isinstance(src, io.BytesIO):
+        src.seek(0)
+    try:
+        table = pacsv.read_csv(src, read_options=read_opts, convert_options=conv)
+    except (pa.ArrowInvalid, pa.ArrowTypeError, OSError) as exc:
+        msg = str(exc).split("\n")[0]
+        raise LogFormatError(label, [f"cannot be parsed as CSV: {msg}; check the delimiter (comma), "
+                                     "the header and that every row has the same number of fields"]) from None
+    return table, file_meta
+
+
+def _first_non_numeric(col: pa.ChunkedArray) -> tuple[int, str] | None:
+    import pandas as pd  # io layer: pandas' parser gives the exact bad cell
+
+    s = col.to_pandas()
+    num = pd.to_numeric(s, errors="coerce")
+    bad = num.isna() & s.notna() & (s.astype(str).str.strip() != "")
+    if bad.any():
+        i = int(np.flatnonzero(bad.to_numpy())[0])
+        return i, str(s.iloc[i])
+    return None
+
+
+def _to_float(col: pa.ChunkedArray) -> np.ndarray:
+    if pa.types.is_string(col.type) or pa.types.is_large_string(col.type):
+        import pandas as pd
+
+        return pd.to_numeric(col.to_pandas(), errors="coerce").to_numpy(dtype=float)
+    arr = col.to_numpy()
+    return arr if arr.dtype == np.float64 else arr.astype(np.float64)
+
+
+def _row_label(i: int, has_header: bool = True) -> str:
+    return f"row {i + 1} (line {i + 2})" if has_header else f"row {i + 1}"
+
+
+def read_logs(path: str, mapping: str | LogSpec | None = None, units: str | None = None) -> list[JointLog]:
+    """Read, validate and split one log file (or ``-`` for standard input).
+
+    mapping : ``--map`` text, a mapping file path, or a :class:`LogSpec`. units : ``--units`` text.
+    Raises :class:`LogFormatError` listing every problem found.
+    """
+    spec = mapping if isinstance(mapping, LogSpec) else make_spec(mapping, units)
+    if isinstance(mapping, LogSpec) and units:
+        spec = spec.merged(LogSpec(units=parse_units(units)))
+    label, src, is_parquet = _read_source(str(path))
+    side_spec, side_meta = _sidecar_spec(str(path))
+    spec_for_read = side_spec.merged(spec)
+    table, file_meta = _read_table(src, label, is_parquet, spec_for_read)
+    file_spec = spec_from_dict({k: v for k, v in file_meta.items() if k in _SPEC_KEYS}, f"{label} metadata")
+    eff = file_spec.merged(side_spec).merged(spec)
+    meta_all = {**file_meta, **side_meta}
+    return _validate_and_split(table, label, eff, meta_all, has_header=eff.columns is None or is_parquet)
+
+
+def _validate_and_split(table: pa.Table, label: str, spec: LogSpec, meta_all: dict,
+                        has_header: bool) -> list[JointLog]:
+    problems: list[str] = []
+    warnings: list[str] = []
+    # rename to canonical names; refuse two sources for one target
+    cols: dict[str, pa.ChunkedArray] = {}
+    for name in table.column_names:
+        target = spec.rename.get(name, name)
+        if target in cols:
+            problems.append(f"columns {name!r} and another both map to {target!r}; keep one (--map)")
+            continue
+        cols[target] = table.column(name)
+    n_rows = table.num_rows
+    for req in ("t", "tau"):
+        if req not in cols:
+            problems.append(f"required column {req!r} is missing (columns found: "
+                            f"{', '.join(table.column_names) or 'none'}); rename with --map SOURCE={req}")
+    if "q" not in cols and "qd" not in cols:
+        problems.append("neither 'q' (position) nor 'qd' (velocity) is present; one is required "
+                        "(rename with --map SOURCE=q)")
+    if problems:
+        raise LogFormatError(label, problems)
+    if n_rows == 0:
+        raise LogFormatError(label, ["the log has a header but no samples"])
+
+    numeric = [c for c in cols if c not in ("joint", "segment")]
+    arrays: dict[str, np.ndarray] = {}
+    for c in numeric:
+        col = cols[c]
+        if pa.types.is_string(col.type) or pa.types.is_large_string(col.type) or pa.types.is_binary(col.type):
+            bad = _first_non_numeric(col)
+            if bad is not None:
+                problems.append(f"column {c!r}: {_row_label(bad[0], has_header)} holds {bad[1][:40]!r}, "
+                                "not a number; fix the value or drop the row")
+                continue
+        if not (pa.types.is_integer(col.type) or pa.types.is_floating(col.type)
+                or pa.types.is_string(col.type) or pa.types.is_large_string(col.type)
+                or pa.types.is_null(col.type) or pa.types.is_boolean(col.type)):
+            problems.append(f"column {c!r} has type {col.type}, not numeric")
+            continue
+        arr = _to_float(col)
+        if c in spec.scale:
+            arr = arr * spec.scale[c]
+        arrays[c] = arr
+    if problems:
+        raise LogFormatError(label, problems)
+
+    # units -> SI, axis
+    axis = spec.axis
+    unit_axes = set()
+    for c, u in spec.units.items():
+        if c not in arrays:
+            if c in KNOWN:
+                continue
+            raise FrictidInputError(f"--units: column {c!r} is not in {label}")
+        factor, offset, ax = conversion(c, u)
+        if factor != 1.0 or offset != 0.0:
+            arrays[c] = arrays[c] * factor + offset
+        if ax:
+            unit_axes.add(ax)
+    if len(unit_axes) > 1:
+        raise FrictidInputError(f"{label}: units mix rotary and linear axes ({spec.units}); "
+                                "declare q, qd and tau in matching units")
+    if axis is None:
+        axis = unit_axes.pop() if unit_axes else "rotary"
+
+    # joints
+    if "joint" in cols:
+        import pandas as pd
+
+        jcol = cols["joint"].to_pandas()
+        if jcol.isna().any():
+            i = int(np.flatnonzero(jcol.isna().to_numpy())[0])
+            raise LogFormatError(label, [f"column 'joint': {_row_label(i, has_header)} is empty"])
+        if pd.api.types.is_float_dtype(jcol) and np.all(np.mod(jcol.to_numpy(), 1) == 0):
+            jcol = jcol.astype(np.int64)
+        codes, uniques = pd.factorize(jcol.astype(str), sort=False)
+        joint_ids = [str(u) for u in uniques]
+    else:
+        codes = None
+        joint_ids = [str(spec.meta.get("joint", "1"))]
+
+    seg_truth = cols["segment"].to_numpy(zero_copy_only=False).astype(str) if "segment" in cols else None
+    per_joint_meta = (meta_all.get("joints") or {}) if isinstance(meta_all.get("joints"), dict) else {}
+    truth_meta = meta_all.get("truth") or {}
+    logs: list[JointLog] = []
+    for k, jid in enumerate(joint_ids):
+        idx = None if codes is None else np.flatnonzero(codes == k)
+        rows = np.arange(n_rows) if idx is None else idx
+        a = dict(arrays) if idx is None else {c: v[idx] for c, v in arrays.items()}
+        jprob: list[str] = []
+        jwarn: list[str] = []
+        where = f"joint {jid}: " if codes is not None else ""
+        t = a["t"]
+        if not np.all(np.isfinite(t)):
+            i = int(np.flatnonzero(~np.isfinite(t))[0])
+            jprob.append(f"{where}column 't': {_row_label(rows[i], has_header)} is not a finite time")
+        # inf / huge anywhere
+        for c in a:
+            if c in ("t", "cycle"):
+                continue
+            v = a[c]
+            bad = np.isinf(v) | (np.abs(np.nan_to_num(v)) >= HUGE)
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                jprob.append(f"{where}column {c!r}: {_row_label(rows[i], has_header)} holds {v[i]:g}, which is "
+                             "infinite or implausibly large; check the units and scaling")
+        if jprob:
+            problems.extend(jprob)
+            continue
+        # NaN rows
+        checked = [c for c in a if c not in ("t", "cycle")]
+        nan_any = np.zeros(len(t), dtype=bool)
+        for c in checked:
+            nan_any |= np.isnan(a[c])
+        if nan_any.any():
+            frac = nan_any.mean()
+            i = int(np.flatnonzero(nan_any)[0])
+            first_col = next(c for c in checked if np.isnan(a[c][i]))
+            if frac > MAX_NAN_FRACTION:
+                jprob.append(f"{where}{int(nan_any.sum())} rows ({100 * frac:.1f} %) have missing values, "
+                             f"first at {_row_label(rows[i], has_header)} in column {first_col!r}; "
+                             f"at most {100 * MAX_NAN_FRACTION:g} % are dropped automatically: clean the log")
+            else:
+                jwarn.append(f"{where}dropped {int(nan_any.sum())} rows with missing values "
+                             f"(first at {_row_label(rows[i], has_header)}, column {first_col!r})")
+                keep = ~nan_any
+                a = {c: v[keep] for c, v in a.items()}
+                rows = rows[keep]
+                t = a["t"]
+        if len(t) < MIN_SAMPLES:
+            jprob.append(f"{where}only {len(t)} samples; at least {MIN_SAMPLES} are needed")
+        elif np.all(np.isfinite(t)):
+            dt = np.diff(t)
+            if np.any(dt <= 0):
+                i = int(np.flatnonzero(dt <= 0)[0]) + 1
+                what = "repeats" if dt[i - 1] == 0 else "goes back"
+                jprob.append(f"{where}column 't': time {what} at {_row_label(rows[i], has_header)} "
+                             f"({t[i - 1]:g} -> {t[i]:g} s); time must increase strictly within a joint "
+                             "(sort the log, or split joints with a 'joint' column)")
+            else:
+                med = float(np.median(dt))
+                jitter = float(np.percentile(np.abs(dt - med), 95)) / med if med > 0 else 0.0
+                if jitter > 0.1:
+                    jwarn.append(f"{where}sample period jitters (95th percentile deviation {100 * jitter:.0f} % "
+                                 f"of the median {med:g} s)")
+        if not jprob and "q" in a and "q" not in spec.units and axis == "rotary":
+            msg = _degrees_check(t, a["q"], a.get("qd"))
+            if msg:
+                jprob.append(where + msg)
+        if jprob:
+            problems.extend(jprob)
+            continue
+        jmeta = dict(spec.meta)
+        jm = per_joint_meta.get(jid) or {}
+        jmeta.update(jm.get("meta") or {})
+        jaxis = jm.get("axis", axis) if not spec.axis and not unit_axes else axis
+        channels = {c: a[c] for c in OPTIONAL_CHANNELS if c in a}
+        truth = {}
+        if seg_truth is not None:
+            truth["segment"] = seg_truth[rows]
+        if "cycle" in a:
+            truth["cycle"] = np.nan_to_num(a["cycle"], nan=-1).astype(np.int64)
+        if jid in truth_meta:
+            truth["params"] = truth_meta[jid]
+        logs.append(JointLog(joint=jid, t=t, tau=a["tau"], q=a.get("q"), qd=a.get("qd"), channels=channels,
+                             axis=jaxis, meta=jmeta, source=label, truth=truth, warnings=warnings + jwarn))
+    if problems:
+        raise LogFormatError(label, problems)
+    return logs
+
+
+def _degrees_check(t: np.ndarray, q: np.ndarray, qd: np.ndarray | None) -> str | None:
+    """A message when a position column in rad looks like degrees, else None."""
+    span = float(np.max(q) - np.min(q))
+    if span <= 2 * math.pi:
+        return None
+    if qd is not None and np.any(np.abs(qd) > 0):
+        dq = np.gradient(q, t)
+        moving = np.abs(qd) > 0.2 * np.max(np.abs(qd))
+        if moving.sum() >= 5:
+            ratio = float(np.median(dq[moving] / qd[moving]))
+            if 40.0 < ratio < 80.0:
+                return (f"column 'q' changes {ratio:.0f} times faster than 'qd': q looks like degrees; "
+                        "declare --units q=deg (or --units q=rad if it really is radians)")
+        return None
+    vmax = float(np.percentile(np.abs(np.diff(q) / np.diff(t)), 99))
+    if span > 90.0 and vmax > 50.0:
+        return (f"column 'q' spans {span:.0f} rad at up to {vmax:.0f} rad/s, which suggests degrees given as "
+                "radians; declare --units q=deg (or --units q=rad if it really is radians)")
+    return None
+
+
+def read_many(paths, mapping=None, units=None) -> list[JointLog]:
+    """Read several logs; problems from all files are reported together."""
+    logs, errors = [], []
+    for p in paths:
+        try:
+            logs.extend(read_logs(p, mapping, units))
+        except LogFormatError as exc:
+            errors.append(str(exc))
+    if errors:
+        raise LogFormatError("", errors)
+    return logs
+
+
+# ---------------------------------------------------------------------------------------------------
+# writing
+
+
+def _builtin(x):
+    """JSON/YAML-safe copy of nested numpy values."""
+    if isinstance(x, dict):
+        return {str(k): _builtin(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_builtin(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _builtin(x.tolist())
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+def logs_metadata(logs: list[JointLog]) -> dict:
+    """The metadata block written with a log: axis, units and meta per joint, the plant's truth."""
+    meta = {"schema": 1, "joints": {}, "truth": {}}
+    for lg in logs:
+        meta["joints"][lg.joint] = {"axis": lg.axis, "units": lg.units, "meta": _builtin(lg.meta)}
+        if "params" in lg.truth:
+            meta["truth"][lg.joint] = _builtin(lg.truth["params"])
+    if not meta["truth"]:
+        del meta["truth"]
+    return meta
+
+
+def logs_table(logs: list[JointLog]) -> pa.Table:
+    """The long-format table of several joints (columns t, joint, q, qd, tau, channels, truth)."""
+    parts = []
+    for lg in logs:
+        cols: dict[str, pa.Array] = {"t": pa.array(lg.t), "joint": pa.array(np.full(lg.n, lg.joint))}
+        if lg.q is not None:
+            cols["q"] = pa.array(lg.q)
+        if lg.qd is not None:
+            cols["qd"] = pa.array(lg.qd)
+        cols["tau"] = pa.array(lg.tau)
+        for c in OPTIONAL_CHANNELS:
+            if c in lg.channels:
+                cols[c] = pa.array(np.asarray(lg.channels[c], dtype=float))
+        if "segment" in lg.truth:
+            cols["segment"] = pa.array(np.asarray(lg.truth["segment"]).astype(str))
+        if "cycle" in lg.truth:
+            cols["cycle"] = pa.array(np.asarray(lg.truth["cycle"], dtype=np.int64))
+        parts.append(pa.table(cols))
+    return pa.concat_tables(parts, promote_options="default") if len(parts) > 1 else parts[0]
+
+
+def output_format(path: str, fmt: str | None) -> str:
+    if fmt:
+        fmt = fmt.lower()
+        if fmt not in ("csv", "parquet"):
+            raise FrictidInputError(f"--format {fmt}: use csv or parquet")
+        return fmt
+    if is_stdio(path):
+        return "csv"
+    suf = Path(path).suffix.lower()
+    if suf in (".parquet", ".pq"):
+        return "parquet"
+    if suf == ".csv":
+        return "csv"
+    raise FrictidInputError(f"{path}: cannot tell the format from the suffix {suf or '(none)'!r}; "
+                            "use .csv or .parquet, or pass --format")
+
+
+def write_logs(logs: list[JointLog], path: str, fmt: str | None = None) -> None:
+    """Write joint logs atomically as CSV (metadata in ``<path>.meta.yaml``) or Parquet (metadata in the
+    schema under the key ``frictid``). ``-`` writes CSV to standard output (metadata is not written)."""
+    fmt = output_format(path, fmt)
+    table = logs_table(logs)
+    meta = logs_metadata(logs)
+    if fmt == "parquet":
+        table = table.replace_schema_metadata({META_KEY: json.dumps(meta)})
+        if is_stdio(path):
+            buf = pa.BufferOutputStream()
+            pq.write_table(table, buf)
+            sys.stdout.buffer.write(buf.getvalue().to_pybytes())
+            sys.stdout.buffer.flush()
+            return
+        with atomic_path(path) as tmp:
+            pq.write_table(table, tmp)
+        return
+    if is_stdio(path):
+        pacsv.write_csv(table, sys.stdout.buffer)
+        sys.stdout.buffer.flush()
+        return
+    side = str(path) + ".meta.yaml"
+    with atomic_path(path) as tmp, atomic_path(side) as tmp_side:
+        pacsv.write_csv(table, tmp)
+        with open(tmp_side, "w", encoding="utf-8") as fh:
+            yaml.safe_dump(meta, fh, sort_keys=False)
+
+
+def file_sha256(path: str) -> str | None:
+    """SHA-256 of a file, or None for standard input."""
+    import hashlib
+
+    if is_stdio(path) or not os.path.isfile(path):
+        return None
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
