@@ -1,0 +1,135 @@
+"""The joint-log format: round trips, mapping and units, and validation at the door."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import hand_log
+from frictid.errors import FrictidInputError, LogFormatError
+from frictid.io.logs import read_logs, write_logs
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+def test_round_trip_keeps_values_joints_and_truth(tmp_path, suffix):
+    logs = [hand_log(joint="1"), hand_log(joint="elbow", seed=1)]
+    logs[1].axis = "linear"
+    logs[0].truth = {"segment": np.array(["rest"] * logs[0].n), "cycle": np.full(logs[0].n, -1),
+                     "params": {"J": 0.7}}
+    path = tmp_path / f"log{suffix}"
+    write_logs(logs, str(path))
+    back = read_logs(str(path))
+    assert [b.joint for b in back] == ["1", "elbow"]
+    for a, b in zip(logs, back):
+        for name in ("t", "q", "qd", "tau"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+        np.testing.assert_array_equal(a.channels["temp_env"], b.channels["temp_env"])
+    assert back[0].truth["params"] == {"J": 0.7}
+    assert list(back[0].truth["segment"][:3]) == ["rest"] * 3
+    assert back[1].axis == "linear" and back[1].units["tau"] == "N"
+
+
+def test_map_and_units_convert_to_si(tmp_path):
+    lg = hand_log()
+    df = pd.DataFrame({"time_ms": lg.t * 1e3, "pos_deg": np.degrees(lg.q), "torque": lg.tau * 1e3,
+                       "extra": 1.0})
+    path = tmp_path / "vendor.csv"
+    df.to_csv(path, index=False)
+    (back,) = read_logs(str(path), "time_ms=t,pos_deg=q,torque=tau", "t=ms,q=deg,tau=mNm")
+    np.testing.assert_allclose(back.t, lg.t, rtol=1e-12)
+    np.testing.assert_allclose(back.q, lg.q, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(back.tau, lg.tau, rtol=1e-12)
+    assert back.qd is None
+
+
+def test_linear_units_make_a_linear_axis(tmp_path):
+    lg = hand_log()
+    pd.DataFrame({"t": lg.t, "q": lg.q * 1e3, "tau": lg.tau}).to_csv(tmp_path / "s.csv", index=False)
+    (back,) = read_logs(str(tmp_path / "s.csv"), units="q=mm,tau=N")
+    assert back.axis == "linear" and back.units == {"q": "m", "qd": "m/s", "tau": "N"}
+    np.testing.assert_allclose(back.q, lg.q, rtol=1e-12, atol=1e-15)
+
+
+def test_mapping_file_with_headerless_csv_and_scale(tmp_path):
+    lg = hand_log()
+    np.savetxt(tmp_path / "raw.csv", np.column_stack([lg.t, lg.q, lg.tau / 0.5]), delimiter=",")
+    (tmp_path / "map.yaml").write_text("columns: [time, angle, current]\n"
+                                       "map: {time: t, angle: q, current: tau}\nscale: {tau: 0.5}\n")
+    (back,) = read_logs(str(tmp_path / "raw.csv"), str(tmp_path / "map.yaml"))
+    np.testing.assert_allclose(back.tau, lg.tau, rtol=1e-12)
+    assert back.n == lg.n
+
+
+def test_sidecar_metadata_is_read(tmp_path):
+    lg = hand_log()
+    pd.DataFrame({"t": lg.t, "pos": lg.q, "tau": lg.tau}).to_csv(tmp_path / "s.csv", index=False)
+    (tmp_path / "s.csv.meta.yaml").write_text("map: {pos: q}\nmeta: {robot: test-arm, inertia: 0.5}\n")
+    (back,) = read_logs(str(tmp_path / "s.csv"))
+    assert back.meta["robot"] == "test-arm"
+    np.testing.assert_array_equal(back.q, lg.q)
+
+
+def _write(tmp_path, df, name="bad.csv"):
+    path = tmp_path / name
+    df.to_csv(path, index=False)
+    return str(path)
+
+
+def test_every_problem_is_reported_at_once(tmp_path):
+    lg = hand_log()
+    df = pd.DataFrame({"time": lg.t, "q": lg.q})
+    with pytest.raises(LogFormatError) as exc:
+        read_logs(_write(tmp_path, df))
+    msg = str(exc.value)
+    assert "'t'" in msg and "'tau'" in msg and "--map" in msg
+
+
+@pytest.mark.parametrize("corrupt, words", [
+    (lambda df: df.assign(tau=df.tau.astype(object).where(df.index != 7, "abc")), ["'tau'", "row 8", "abc"]),
+    (lambda df: df.assign(t=df.t.where(df.index != 5, df.t[3])), ["'t'", "row 6", "increase"]),
+    (lambda df: df.assign(tau=df.tau.where(df.index != 9, np.inf)), ["'tau'", "row 10", "infinite"]),
+    (lambda df: df.assign(tau=df.tau.where(df.index % 10 != 0, np.nan)), ["missing values", "row 1"]),
+    (lambda df: df.head(3), ["only 3 samples"]),
+    (lambda df: df.assign(q=np.degrees(df.q) * 40, qd=df.qd * 40), ["degrees"]),
+])
+def test_bad_values_name_column_and_row(tmp_path, corrupt, words):
+    lg = hand_log()
+    df = pd.DataFrame({"t": lg.t, "q": lg.q, "qd": lg.qd, "tau": lg.tau})
+    with pytest.raises(LogFormatError) as exc:
+        read_logs(_write(tmp_path, corrupt(df)))
+    for w in words:
+        assert w in str(exc.value), str(exc.value)
+
+
+def test_few_missing_values_are_dropped_with_a_warning(tmp_path):
+    lg = hand_log(n=1000)
+    df = pd.DataFrame({"t": lg.t, "q": lg.q, "tau": lg.tau})
+    df.loc[17, "tau"] = np.nan
+    (back,) = read_logs(_write(tmp_path, df))
+    assert back.n == 999 and any("dropped 1 rows" in w for w in back.warnings)
+
+
+def test_degrees_declared_as_radians_is_accepted_when_said(tmp_path):
+    lg = hand_log()
+    df = pd.DataFrame({"t": lg.t, "q": lg.q * 400, "tau": lg.tau})
+    path = _write(tmp_path, df)
+    with pytest.raises(LogFormatError):
+        read_logs(path)
+    (back,) = read_logs(path, units="q=rad")
+    assert back.n == lg.n
+
+
+@pytest.mark.parametrize("content", [b"", b"\x00\xff\xfe garbage \x89PNG\r\n", b"t,q,tau\n",
+                                     b"t;q;tau\n0;1;2\n", b"PAR1 truncated"])
+def test_unreadable_files_are_clean_errors(tmp_path, content):
+    path = tmp_path / "x.csv"
+    path.write_bytes(content)
+    with pytest.raises(FrictidInputError):
+        read_logs(str(path))
+
+
+def test_unknown_extra_columns_are_not_an_error(tmp_path):
+    lg = hand_log()
+    df = pd.DataFrame({"t": lg.t, "q": lg.q, "tau": lg.tau, "motor_temp_raw": "x", "note": "hello"})
+    (back,) = read_logs(_write(tmp_path, df))
+    assert back.n == lg.n
