@@ -1,0 +1,231 @@
+"""Inertia, gravity, torque offset and polynomial friction by linear least squares (002 eq 4-11).
+
+``tau = J a + c0 sgn(w) + c1 w + c2 w|w| + c3 w^3 + Px cos q + Py sin q + offset (+ payload terms)``
+
+One row per moving sample is never stacked into a matrix: the normal equations ``X^T X`` and ``X^T y``
+are accumulated chunk by chunk (:class:`NormalEquations`), one set per segment so that held-out
+(leave-segments-out) fits are a subtraction. Columns are rescaled before solving, and columns that the
+data cannot separate (a joint that never moves through a gravity angle, no acceleration) are reported.
+
+The standard errors account for the autocorrelation of the residuals (consecutive samples are not
+independent): the classical covariance ``s^2 (X^T X)^-1`` is inflated by ``(1 + rho) / (1 - rho)`` with
+``rho`` the lag-1 autocorrelation of the residuals within segments.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Regressor names in their canonical order.
+ALL_COLUMNS = ("J", "c0", "c1", "c2", "c3", "Px", "Py", "Mx", "My", "offset")
+
+#: Default chunk length [samples] of the accumulation.
+CHUNK = 262_144
+
+
+def column(name: str, q, w, a, payload, axis: str = "rotary") -> np.ndarray:
+    """One regressor evaluated on a chunk: q [q], w [q/s], a [q/s^2], payload [kg]."""
+    if name == "J":
+        return a
+    if name == "c0":
+        return np.sign(w)
+    if name == "c1":
+        return w
+    if name == "c2":
+        return w * np.abs(w)
+    if name == "c3":
+        return w * w * w
+    if name == "Px":
+        return np.cos(q)
+    if name == "Py":
+        return np.sin(q)
+    if name == "Mx":
+        return payload * (np.cos(q) if axis == "rotary" else 1.0)
+    if name == "My":
+        return payload * np.sin(q)
+    if name == "offset":
+        return np.ones_like(w)
+    raise KeyError(name)
+
+
+@dataclass
+class NormalEquations:
+    """Sufficient statistics of a linear least-squares problem: X^T X, X^T y, y^T y and n."""
+
+    p: int
+    XtX: np.ndarray = None
+    Xty: np.ndarray = None
+    yty: float = 0.0
+    n: int = 0
+    # lag-1 products of the residuals, filled by a second pass (see residual_autocorrelation)
+
+    def __post_init__(self):
+        if self.XtX is None:
+            self.XtX = np.zeros((self.p, self.p))
+        if self.Xty is None:
+            self.Xty = np.zeros(self.p)
+
+    def add(self, X: np.ndarray, y: np.ndarray) -> None:
+        self.XtX += X.T @ X
+        self.Xty += X.T @ y
+        self.yty += float(y @ y)
+        self.n += int(y.shape[0])
+
+    def __add__(self, other: "NormalEquations") -> "NormalEquations":
+        return NormalEquations(self.p, self.XtX + other.XtX, self.Xty + other.Xty, self.yty + other.yty,
+                               self.n + other.n)
+
+    def __sub__(self, other: "NormalEquations") -> "NormalEquations":
+        return NormalEquations(self.p, self.XtX - other.XtX, self.Xty - other.Xty, self.yty - other.yty,
+                               self.n - other.n)
+
+    @staticmethod
+    def total(parts) -> "NormalEquations":
+        parts = list(parts)
+        out = NormalEquations(parts[0].p)
+        for s in parts:
+            out = out + s
+        return out
+
+
+@dataclass
+class LinearFit:
+    """Solution of the normal equations.
+
+    names, coef, stderr (None where not identifiable), cov, s2 (residual variance), n, dof, rho (lag-1
+    residual autocorrelation used to inflate the errors), dependent (names the data cannot separate).
+    """
+
+    names: tuple[str, ...]
+    coef: np.ndarray
+    cov: np.ndarray
+    s2: float
+    n: int
+    dof: int
+    rho: float = 0.0
+    dependent: list[str] = field(default_factory=list)
+
+    def value(self, name: str) -> float:
+        return float(self.coef[self.names.index(name)])
+
+    def stderr(self, name: str) -> float | None:
+        if name in self.dependent:
+            return None
+        k = self.names.index(name)
+        v = self.cov[k, k]
+        return math.sqrt(v) if np.isfinite(v) and v >= 0 else None
+
+    def as_dict(self) -> dict[str, float]:
+        return {n: float(c) for n, c in zip(self.names, self.coef)}
+
+    def predict(self, X: np.ndarray) -> np.ndarray:
+        return X @ self.coef
+
+
+def solve(ne: NormalEquations, names: tuple[str, ...], rcond: float = 1e-10, rho: float = 0.0) -> LinearFit:
+    """Least-squares solution of the normal equations with column scaling and a rank check."""
+    p = ne.p
+    d = np.sqrt(np.maximum(np.diag(ne.XtX), 0.0))
+    d[d == 0] = 1.0
+    A = ne.XtX / np.outer(d, d)
+    U, sv, Vt = np.linalg.svd(A)
+    ok = sv > rcond * (sv.max() if sv.size and sv.max() > 0 else 1.0)
+    # a looser threshold flags columns that are numerically nearly collinear
+    weak = sv < 1e-7 * (sv.max() if sv.size and sv.max() > 0 else 1.0)
+    Ainv = (Vt[ok].T / sv[ok]) @ Vt[ok]
+    b = (Ainv @ (ne.Xty / d)) / d
+    rss = float(ne.yty - 2 * b @ ne.Xty + b @ ne.XtX @ b)
+    rank = int(ok.sum())
+    dof = ne.n - rank
+    s2 = max(rss, 0.0) / dof if dof > 0 else math.nan
+    infl = (1 + rho) / (1 - rho) if 0 < rho < 1 else 1.0
+    cov = s2 * infl * Ainv / np.outer(d, d)
+    dependent = []
+    if weak.any():
+        null = Vt[weak]
+        for j, nm in enumerate(names):
+            if np.max(np.abs(null[:, j])) > 0.1 or np.diag(ne.XtX)[j] == 0:
+                dependent.append(nm)
+    for j, nm in enumerate(names):
+        if np.diag(ne.XtX)[j] == 0 and nm not in dependent:
+            dependent.append(nm)
+    return LinearFit(tuple(names), b, cov, s2, ne.n, dof, rho, dependent)
+
+
+def _chunks(i0: int, i1: int, chunk: int):
+    for a in range(i0, i1, chunk):
+        yield a, min(a + chunk, i1)
+
+
+def sample_mask(w, a, min_speed: float) -> np.ndarray:
+    """Moving samples: |w| above ``min_speed`` and finite w, a."""
+    return np.isfinite(w) & np.isfinite(a) & (np.abs(w) > min_speed)
+
+
+def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = None, min_speed: float = 0.0,
+               axis: str = "rotary", chunk: int = CHUNK) -> list[NormalEquations]:
+    """Normal equations of ``tau - known terms = X(names) b``, one set per index range (i0, i1).
+
+    q [q] (may be None if no gravity column is asked), w [q/s], a [q/s^2], tau [F], payload [kg] or None.
+    known : regressor name -> known coefficient, moved to the left-hand side. Only samples with
+    |w| > min_speed enter.
+    """
+    known = dict(known or {})
+    out = []
+    for i0, i1 in ranges:
+        ne = NormalEquations(len(names))
+        for a0, a1 in _chunks(i0, i1, chunk):
+            ww = w[a0:a1]
+            aa = a[a0:a1]
+            m = sample_mask(ww, aa, min_speed) & np.isfinite(tau[a0:a1])
+            if q is not None:
+                m &= np.isfinite(q[a0:a1])
+            if not m.any():
+                continue
+            ww, aa = ww[m], aa[m]
+            qq = q[a0:a1][m] if q is not None else None
+            pl = payload[a0:a1][m] if payload is not None else None
+            y = tau[a0:a1][m].astype(float)
+            for nm, val in known.items():
+                y = y - val * column(nm, qq, ww, aa, pl, axis)
+            X = np.empty((ww.shape[0], len(names)))
+            for j, nm in enumerate(names):
+                X[:, j] = column(nm, qq, ww, aa, pl, axis)
+            ne.add(X, y)
+        out.append(ne)
+    return out
+
+
+def residual_autocorrelation(fit: LinearFit, ranges, q, w, a, tau, payload=None, known: dict | None = None,
+                             min_speed: float = 0.0, axis: str = "rotary", chunk: int = CHUNK) -> float:
+    """Lag-1 autocorrelation of the residuals of ``fit`` over consecutive moving samples in the ranges."""
+    known = dict(known or {})
+    s0 = s1 = 0.0
+    for i0, i1 in ranges:
+        prev = None
+        for a0, a1 in _chunks(i0, i1, chunk):
+            ww, aa = w[a0:a1], a[a0:a1]
+            m = sample_mask(ww, aa, min_speed) & np.isfinite(tau[a0:a1])
+            if q is not None:
+                m &= np.isfinite(q[a0:a1])
+            qq = q[a0:a1] if q is not None else None
+            pl = payload[a0:a1] if payload is not None else None
+            y = tau[a0:a1].astype(float)
+            for nm, val in known.items():
+                y = y - val * column(nm, qq, ww, aa, pl, axis)
+            pred = np.zeros_like(y)
+            for j, nm in enumerate(fit.names):
+                pred += fit.coef[j] * column(nm, qq, ww, aa, pl, axis)
+            r = np.where(m, y - pred, np.nan)
+            if prev is not None:
+                r = np.concatenate([[prev], r])
+            both = np.isfinite(r[1:]) & np.isfinite(r[:-1])
+            s1 += float(np.sum(r[1:][both] * r[:-1][both]))
+            fin = np.isfinite(r[1:]) if prev is not None else np.isfinite(r)
+            s0 += float(np.sum((r[1:] if prev is not None else r)[fin] ** 2))
+            prev = r[-1]
+    if s0 <= 0:
+        return 0.0
+    return float(np.clip(s1 / s0, 0.0, 0.999))

@@ -1,0 +1,443 @@
+"""Static friction maps from constant-velocity plateaus (MODELS.md section 2, 001 eq 8-9, 000 eq 11).
+
+Each constant-velocity segment gives one averaged point ``(w, F)`` with its standard error
+(:func:`plateau_points`). The maps are fitted to these points by bounded nonlinear least squares
+(:func:`fit_static`) whose bounds, start and scale come from the parameter tables of
+:mod:`frictid.models.static` scaled to the data. Where the problem is not convex (the Stribeck velocities)
+a grid of starts is tried: for each value of the nonlinear parameters the linear ones are solved exactly
+(variable projection), and the best few starts are refined with all parameters free.
+
+Standard errors come from the Jacobian at the optimum, ``cov = s^2 (J^T J)^-1`` with ``s^2`` the
+reduced chi-square (the plateau standard errors weight the points, the scatter sets the scale).
+A parameter is marked ``identifiable: false`` with the reason when it sits at a bound, when its relative
+error exceeds 100 % and matters at the data scale, when the Jacobian is rank-deficient along it, or when
+there are no data for it (a per-sign branch without plateaus).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from frictid.models import static as sm
+from frictid.models.params import Param, data_scale, scaled_table, unit_of
+
+from .result import ModelFit, ParamEstimate
+
+#: Nonlinear parameters of each map (the rest enter linearly).
+NONLINEAR = {"coulomb_viscous": (), "polynomial": (), "stribeck": ("vs", "delta"),
+             "stribeck_2exp": ("ws1", "ws2")}
+
+#: Power of the velocity scale by which a parameter of this dimension multiplies into a torque.
+_IMPACT_POWER = {"F": 0, "D": 1, "D2": 2, "D3": 3}
+
+#: Relative size (of the torque scale) below which an uncertain parameter does not matter.
+NEGLIGIBLE = 0.01
+
+
+@dataclass
+class Plateaus:
+    """Averaged steady-state points, one per constant-velocity segment.
+
+    w [q/s], F [F]: plateau means; F_se, w_se: their standard errors (batch means, robust to the
+    autocorrelation of samples); n: samples used; t_start, t_end [s]; seg: index into the segment list.
+    """
+
+    w: np.ndarray
+    F: np.ndarray
+    F_se: np.ndarray
+    w_se: np.ndarray
+    n: np.ndarray
+    t_start: np.ndarray
+    t_end: np.ndarray
+    seg: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.w.shape[0])
+
+    def subset(self, mask) -> "Plateaus":
+        mask = np.asarray(mask)
+        return Plateaus(*(getattr(self, f)[mask] for f in
+                          ("w", "F", "F_se", "w_se", "n", "t_start", "t_end", "seg")))
+
+
+def _batch_se(x: np.ndarray, n_batches: int) -> float:
+    """Standard error of the mean of x from the spread of ``n_batches`` batch means."""
+    n = x.shape[0]
+    if n < 2:
+        return math.nan
+    nb = max(2, min(n_batches, n // 2 if n >= 4 else n))
+    edges = np.linspace(0, n, nb + 1).astype(int)
+    means = np.add.reduceat(x, edges[:-1]) / np.diff(edges)
+    return float(np.std(means, ddof=1) / math.sqrt(nb))
+
+
+def plateau_points(t, w, F, segments, trim: float = 0.1, n_batches: int = 10,
+                   min_speed: float = 0.0) -> Plateaus:
+    """One averaged ``(w, F)`` point per constant-velocity segment.
+
+    t [s], w [q/s], F [F] : per-sample time, velocity and friction torque (``tau - J a - G - offset``).
+    segments : :class:`frictid.data.Segment` list (only ``constant_velocity`` ones are used).
+    trim : fraction cut from each end of a plateau (transients). Plateaus whose velocity changes sign or
+    whose mean speed is below ``min_speed`` are skipped.
+    """
+    rows = []
+    for k, s in enumerate(segments):
+        if s.kind != "constant_velocity":
+            continue
+        m = s.i1 - s.i0
+        cut = int(trim * m)
+        i0, i1 = s.i0 + cut, s.i1 - cut
+        if i1 - i0 < 4:
+            continue
+        ww = np.asarray(w[i0:i1], dtype=float)
+        ff = np.asarray(F[i0:i1], dtype=float)
+        ok = np.isfinite(ww) & np.isfinite(ff)
+        ww, ff = ww[ok], ff[ok]
+        if ww.shape[0] < 4:
+            continue
+        wm = float(ww.mean())
+        if abs(wm) <= min_speed or np.mean(np.sign(ww) == np.sign(wm)) < 0.95:
+            continue
+        rows.append((wm, float(ff.mean()), _batch_se(ff, n_batches), _batch_se(ww, n_batches),
+                     ww.shape[0], float(t[s.i0]), float(t[s.i1 - 1]), k))
+    if not rows:
+        z = np.zeros(0)
+        return Plateaus(z, z, z, z, z.astype(int), z, z, z.astype(int))
+    a = list(zip(*rows))
+    return Plateaus(np.array(a[0]), np.array(a[1]), np.array(a[2]), np.array(a[3]),
+                    np.array(a[4], dtype=int), np.array(a[5]), np.array(a[6]), np.array(a[7], dtype=int))
+
+
+# ---------------------------------------------------------------------------------------------------
+# Linear sub-problems (variable projection starts)
+
+
+def _columns(base: str, w: np.ndarray, nl: dict) -> np.ndarray:
+    """Regressors of the linear parameters of map ``base`` at fixed nonlinear parameters ``nl``."""
+    s = np.sign(w)
+    v = np.abs(w)
+    if base == "coulomb_viscous":
+        return np.column_stack([s, w])
+    if base == "polynomial":
+        return np.column_stack([s, w, w * v, w**3])
+    if base == "stribeck":
+        e = np.exp(-np.power(v / nl["vs"], nl["delta"]))
+        return np.column_stack([s, s * e, w])
+    if base == "stribeck_2exp":
+        e1 = np.exp(-v / nl["ws1"])
+        e2 = 1.0 - np.exp(-v / nl["ws2"])
+        return np.column_stack([s, s * e1, s * e2, w, w * v])
+    raise KeyError(base)
+
+
+def _linear_to_named(base: str, b: np.ndarray, nl: dict) -> dict:
+    if base == "coulomb_viscous":
+        return {"Fc": b[0], "sigma2": b[1]}
+    if base == "polynomial":
+        return {"c0": b[0], "c1": b[1], "c2": b[2], "c3": b[3]}
+    if base == "stribeck":
+        return {"Fc": b[0], "Fs": b[0] + b[1], "vs": nl["vs"], "delta": nl["delta"], "sigma2": b[2]}
+    if base == "stribeck_2exp":
+        return {"alpha0": b[0], "alpha1": b[1], "alpha2": b[2], "alpha3": b[3], "alpha4": b[4],
+                "ws1": nl["ws1"], "ws2": nl["ws2"]}
+    raise KeyError(base)
+
+
+def guess_starts(base: str, w, F, weights, lo: dict, hi: dict, fixed: dict, n_grid: int = 8) -> list[dict]:
+    """Data-derived starting points for map ``base``: linear parameters solved exactly on a grid of the
+    nonlinear ones (Stribeck velocities log-spaced over the plateau speeds), best first."""
+    v = np.abs(w)
+    vmin = max(float(v.min()), 1e-9)
+    vmax = max(float(v.max()), vmin * 10)
+    grids: list[dict] = []
+    if base == "stribeck":
+        vs_grid = [fixed["vs"]] if "vs" in fixed else np.geomspace(vmin * 0.5, vmax * 0.7, n_grid)
+        d_grid = [fixed["delta"]] if "delta" in fixed else [1.0, 2.0]
+        grids = [{"vs": a, "delta": d} for a in vs_grid for d in d_grid]
+    elif base == "stribeck_2exp":
+        g = np.geomspace(vmin * 0.5, vmax * 0.7, max(4, n_grid // 2 + 1))
+        g1 = [fixed["ws1"]] if "ws1" in fixed else g
+        g2 = [fixed["ws2"]] if "ws2" in fixed else g
+        grids = [{"ws1": a, "ws2": b} for a in g1 for b in g2]
+    else:
+        grids = [{}]
+    out = []
+    for nl in grids:
+        nl = {k: float(np.clip(x, lo.get(k, -np.inf), hi.get(k, np.inf))) for k, x in nl.items()}
+        X = _columns(base, w, nl) * weights[:, None]
+        y = F * weights
+        b, *_ = np.linalg.lstsq(X, y, rcond=None)
+        named = _linear_to_named(base, b, nl)
+        named.update(fixed)
+        cost = float(np.sum((X @ b - y) ** 2))
+        out.append((cost, named))
+    out.sort(key=lambda c: c[0])
+    return [named for _, named in out]
+
+
+# ---------------------------------------------------------------------------------------------------
+# The bounded nonlinear fit of one branch
+
+
+@dataclass
+class BranchFit:
+    """Fit of one symmetric map on one set of points (internal)."""
+
+    values: dict
+    stderr: dict
+    reasons: dict
+    fixed: dict
+    cov: np.ndarray | None
+    free: list
+    cost: float
+    success: bool
+    message: str
+
+
+def _scales(w, F):
+    F0 = float(np.max(np.abs(F))) if len(F) else 1.0
+    w0 = float(np.max(np.abs(w))) if len(w) else 1.0
+    return (F0 if F0 > 0 else 1.0), (w0 if w0 > 0 else 1.0)
+
+
+def _weights(F_se, F0, n):
+    if F_se is None:
+        return np.ones(n)
+    se = np.asarray(F_se, dtype=float).copy()
+    good = np.isfinite(se) & (se > 0)
+    if not good.any():
+        return np.ones(n)
+    floor = max(0.5 * float(np.median(se[good])), 1e-9 * F0)
+    se[~good] = floor
+    return 1.0 / np.maximum(se, floor)
+
+
+def fit_branch(base: str, w, F, F_se=None, fixed: dict | None = None, n_refine: int = 3,
+               scales: tuple[float, float] | None = None) -> BranchFit:
+    """Fit symmetric map ``base`` to points (w [q/s], F [F]) by bounded, weighted least squares.
+
+    fixed : parameters held at given values. scales : (F0, w0) data scales for the bounds (default:
+    the largest |F| and |w| of the points).
+    """
+    smap = sm.STATIC_MAPS[base]
+    table: tuple[Param, ...] = smap.table
+    names = [p.name for p in table]
+    fixed = dict(fixed or {})
+    w = np.asarray(w, dtype=float)
+    F = np.asarray(F, dtype=float)
+    n = w.shape[0]
+    F0, w0 = scales if scales else _scales(w, F)
+    lo, hi, x0_tab, xs = scaled_table(table, F0, w0)
+    lo_d = dict(zip(names, lo))
+    hi_d = dict(zip(names, hi))
+    free = [k for k, nm in enumerate(names) if nm not in fixed]
+    p = len(free)
+    wts = _weights(F_se, F0, n)
+
+    def full(xf):
+        x = np.array([fixed.get(nm, 0.0) for nm in names], dtype=float)
+        x[free] = xf
+        return x
+
+    def resid(xf):
+        x = full(xf)
+        return (smap.func(w, **dict(zip(names, x))) - F) * wts
+
+    lo_f, hi_f, xs_f = lo[free], hi[free], xs[free]
+    margin = 1e-9 * (hi_f - lo_f)
+    starts = guess_starts(base, w, F, wts, lo_d, hi_d, fixed) if n > 0 else []
+    starts.append(dict(zip(names, x0_tab)))  # the table's own start, always tried
+    best = None
+    for st in starts[:n_refine] + starts[-1:]:
+        x0 = np.array([st[names[k]] for k in free], dtype=float)
+        x0 = np.clip(x0, lo_f + margin, hi_f - margin)
+        if n == 0:
+            break
+        try:
+            res = least_squares(resid, x0, bounds=(lo_f, hi_f), x_scale=xs_f, method="trf",
+                                max_nfev=200 * (p + 1))
+        except ValueError as exc:  # e.g. non-finite residuals from a degenerate start
+            continue
+        if not np.all(np.isfinite(res.fun)):
+            continue
+        if best is None or res.cost < best.cost:
+            best = res
+    if best is None:
+        vals = {nm: None for nm in names}
+        vals.update(fixed)
+        why = "no data" if n == 0 else "optimiser failed"
+        return BranchFit(vals, {nm: None for nm in names}, {nm: why for nm in names if nm not in fixed},
+                         fixed, None, [names[k] for k in free], math.nan, False, why)
+
+    x = full(best.x)
+    values = dict(zip(names, (float(v) for v in x)))
+    stderr: dict = {nm: None for nm in names}
+    reasons: dict = {}
+    cov = None
+    dof = n - p
+    if dof <= 0:
+        for k in free:
+            reasons[names[k]] = (f"{n} points for {p} free parameters: no residual left to estimate "
+                                 "the error")
+    else:
+        Jm = best.jac
+        s2 = 2.0 * best.cost / dof
+        Js = Jm * xs_f[None, :]
+        U, sv, Vt = np.linalg.svd(Js, full_matrices=False)
+        tol = sv.max() * 1e-9 if sv.size and sv.max() > 0 else 1.0
+        ok = sv > tol
+        inv = (Vt[ok].T / sv[ok] ** 2) @ Vt[ok]
+        cov = s2 * inv * np.outer(xs_f, xs_f)
+        null = Vt[~ok]
+        for j, k in enumerate(free):
+            nm = names[k]
+            se = math.sqrt(max(cov[j, j], 0.0))
+            stderr[nm] = se
+            if null.size and np.max(np.abs(null[:, j])) > 0.1:
+                reasons[nm] = "not separable from other parameters (Jacobian rank-deficient)"
+    for j, k in enumerate(free):
+        nm = names[k]
+        if nm in reasons:
+            continue
+        span = hi_f[j] - lo_f[j]
+        if best.active_mask[j] != 0 or x[k] - lo_f[j] < 1e-6 * span or hi_f[j] - x[k] < 1e-6 * span:
+            side = "lower" if x[k] - lo_f[j] < hi_f[j] - x[k] else "upper"
+            reasons[nm] = f"at its {side} bound ({lo_f[j] if side == 'lower' else hi_f[j]:.4g})"
+            continue
+        se = stderr[nm]
+        if se is not None and (x[k] == 0 or se > abs(x[k])):
+            dim = table[k].dim
+            powr = _IMPACT_POWER.get(dim)
+            impact = None if powr is None else se * w0**powr
+            if impact is None or impact > NEGLIGIBLE * F0:
+                rel = se / abs(x[k]) if x[k] != 0 else math.inf
+                reasons[nm] = f"relative error {100 * rel:.0f} % (above 100 %)"
+    return BranchFit(values, stderr, reasons, fixed, cov, [names[k] for k in free], float(best.cost),
+                     bool(best.success), str(best.message))
+
+
+# ---------------------------------------------------------------------------------------------------
+# Public entry: symmetric or per-sign map on plateau points
+
+
+def _aic(rss: float, n: int, k: int) -> float | None:
+    """Akaike information criterion with the small-sample correction (AICc) for Gaussian residuals."""
+    if n <= 0 or rss <= 0:
+        return None
+    aic = n * math.log(rss / n) + 2 * k
+    if n - k - 1 > 0:
+        aic += 2 * k * (k + 1) / (n - k - 1)
+    else:
+        return None
+    return aic
+
+
+def metrics(name: str, values: dict, w, F, k: int) -> dict:
+    """rms [F], n, k and aic of a static map's values on points (w, F)."""
+    pred = predict(name, values, w)
+    r = pred - F
+    ok = np.isfinite(r)
+    n = int(ok.sum())
+    rss = float(np.sum(r[ok] ** 2))
+    return {"rms": math.sqrt(rss / n) if n else None, "n": n, "k": int(k), "aic": _aic(rss, n, k)}
+
+
+def predict(name: str, values: dict, w) -> np.ndarray:
+    """Friction [F] of static map ``name`` (symmetric or ``_asym``) at w; NaN where a branch is unknown."""
+    w = np.asarray(w, dtype=float)
+    smap, asym = sm.split_asym(name)
+    if not asym:
+        if any(values.get(n) is None for n in smap.names):
+            return np.full(w.shape, np.nan)
+        return sm.evaluate(name, w, values)
+    out = np.full(w.shape, np.nan)
+    for suf, m in (("_pos", w >= 0), ("_neg", w < 0)):
+        vals = {n: values.get(n + suf) for n in smap.names}
+        if any(v is None for v in vals.values()):
+            continue
+        out[m] = smap.func(w[m], **vals)
+    return out
+
+
+def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | float = "auto",
+               fixed: dict | None = None) -> ModelFit:
+    """Fit static map ``name`` (``stribeck``, ``polynomial_asym``, ...) to plateau points.
+
+    w [q/s], F [F], F_se [F] : plateau means and standard errors. axis : "rotary" or "linear" (units).
+    delta : Stribeck exponent, "auto" (free when the data pin it, else fixed at 2 as in 000/003), "free",
+    or a number to hold it at. fixed : other parameters to hold (name -> value, suffixed for _asym).
+    A per-sign model is fitted branch by branch (the branches share no parameter).
+    """
+    w = np.asarray(w, dtype=float)
+    F = np.asarray(F, dtype=float)
+    F_se = None if F_se is None else np.asarray(F_se, dtype=float)
+    smap, asym = sm.split_asym(name)
+    base = smap.name
+    fixed = dict(fixed or {})
+    F0, w0 = _scales(w, F)
+    notes: list[str] = []
+    if not asym:
+        branches = [("", w, F, F_se, "")]
+    else:
+        pos, neg = w > 0, w < 0
+        branches = [("_pos", w[pos], F[pos], None if F_se is None else F_se[pos], "positive"),
+                    ("_neg", -w[neg], -F[neg], None if F_se is None else F_se[neg], "negative")]
+    params: dict[str, ParamEstimate] = {}
+    covs = []
+    k_total = 0
+    success = True
+    for suf, bw, bF, bse, side in branches:
+        bfixed = {n: fixed[n + suf] for n in smap.names if n + suf in fixed}
+        p_free = len(smap.names) - len(bfixed)
+        if base == "stribeck" and "delta" not in bfixed and delta != "free" and delta != "auto":
+            bfixed["delta"] = float(delta)
+        n = bw.shape[0]
+        if base == "stribeck" and delta == "auto" and "delta" not in bfixed and n <= p_free:
+            bfixed["delta"] = 2.0
+            notes.append(f"delta{suf} fixed at 2 (000/003): {n} plateaus are too few to free it")
+        p_free = len(smap.names) - len(bfixed)
+        if n < p_free:
+            what = f"{side}-velocity plateaus" if side else "plateaus"
+            why = f"no {what}" if n == 0 else f"only {n} {what} for {p_free} parameters"
+            for prm in smap.table:
+                unit = unit_of(prm.dim, axis)
+                if prm.name in bfixed:
+                    params[prm.name + suf] = ParamEstimate(prm.name + suf, bfixed[prm.name], None, unit,
+                                                           False, why, fixed=True)
+                else:
+                    params[prm.name + suf] = ParamEstimate(prm.name + suf, None, None, unit, False, why)
+            success = False
+            continue
+        bf = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0))
+        if base == "stribeck" and delta == "auto" and "delta" in bf.reasons and "delta" not in bfixed:
+            why = bf.reasons["delta"]
+            bfixed["delta"] = 2.0
+            bf2 = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0))
+            notes.append(f"delta{suf} fixed at 2 (000/003): free, it was not identifiable ({why})")
+            bf = bf2
+        success = success and bf.success
+        k_total += len(bf.free)
+        if bf.cov is not None:
+            covs.append(bf.cov)
+        for prm in smap.table:
+            nm = prm.name
+            unit = unit_of(prm.dim, axis)
+            if nm in bf.fixed:
+                params[nm + suf] = ParamEstimate(nm + suf, bf.fixed[nm], None, unit, True,
+                                                 "held fixed", fixed=True)
+            else:
+                r = bf.reasons.get(nm, "")
+                params[nm + suf] = ParamEstimate(nm + suf, bf.values[nm], bf.stderr[nm], unit, not r, r)
+    values = {k: v.value for k, v in params.items()}
+    met = metrics(name, values, w, F, k_total)
+    cov = None
+    if covs:
+        from scipy.linalg import block_diag
+        cov = block_diag(*covs)
+    mf = ModelFit(name=name, map=name, params=params, metrics=met, notes=notes, success=success, cov=cov,
+                  method="bounded nonlinear least squares on plateau points, multi-start"
+                  if not smap.linear else "bounded least squares on plateau points")
+    return mf
