@@ -1,0 +1,65 @@
+"""Chunked normal-equation least squares for J, gravity, offset and the polynomial (002 eq 4-11)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from frictid.fit.regression import NormalEquations, accumulate, residual_autocorrelation, solve
+
+NAMES = ("J", "c0", "c1", "c2", "c3", "Px", "Py", "offset")
+
+
+def _excitation(n=60_000, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 1e-3
+    q = 0.8 * np.sin(0.7 * t) + 0.5 * np.sin(1.9 * t + 1)
+    w = 0.56 * np.cos(0.7 * t) + 0.95 * np.cos(1.9 * t + 1)
+    a = -0.392 * np.sin(0.7 * t) - 1.805 * np.sin(1.9 * t + 1)
+    tau = 1.3 * a + 2 * np.sign(w) + 0.5 * w + 0.1 * w * abs(w) + 3 * np.cos(q) + np.sin(q) + 0.2
+    return q, w, a, tau + rng.normal(0, 0.05, n)
+
+
+def test_recovers_inertia_gravity_offset_and_chunking_is_exact():
+    q, w, a, tau = _excitation()
+    n = w.size
+    whole = accumulate([(0, n)], NAMES, q, w, a, tau, min_speed=0.01)[0]
+    parts = accumulate([(0, 1000), (1000, n)], NAMES, q, w, a, tau, min_speed=0.01, chunk=777)
+    tot = NormalEquations.total(parts)
+    assert np.allclose(tot.XtX, whole.XtX) and np.allclose(tot.Xty, whole.Xty)
+    f = solve(tot, NAMES)
+    for nm, v in dict(J=1.3, c0=2.0, c1=0.5, Px=3.0, Py=1.0, offset=0.2).items():
+        assert f.value(nm) == pytest.approx(v, abs=0.01), nm
+    assert not f.dependent
+
+
+def test_known_terms_move_to_left_side():
+    q, w, a, tau = _excitation()
+    names = ("c0", "c1", "c2", "c3", "offset")
+    ne = accumulate([(0, w.size)], names, q, w, a, tau, known={"J": 1.3, "Px": 3.0, "Py": 1.0},
+                    min_speed=0.01)[0]
+    f = solve(ne, names)
+    assert f.value("c0") == pytest.approx(2.0, abs=0.01)
+
+
+def test_collinear_gravity_is_reported():
+    # joint held at one angle: cos q and sin q are constants, not separable from the offset
+    q, w, a, tau = _excitation()
+    q = np.full_like(q, 0.3)
+    f = solve(accumulate([(0, w.size)], NAMES, q, w, a, tau, min_speed=0.01)[0], NAMES)
+    assert {"Px", "Py", "offset"} <= set(f.dependent)
+    assert f.stderr("Px") is None
+
+
+def test_autocorrelation_inflates_errors():
+    q, w, a, tau = _excitation()
+    rng = np.random.default_rng(3)
+    e = np.zeros(w.size)
+    for i in range(1, w.size):  # AR(1) noise, rho = 0.9
+        e[i] = 0.9 * e[i - 1] + rng.normal(0, 0.05)
+    tau = tau + e
+    ne = accumulate([(0, w.size)], NAMES, q, w, a, tau, min_speed=0.01)[0]
+    f0 = solve(ne, NAMES)
+    rho = residual_autocorrelation(f0, [(0, w.size)], q, w, a, tau, min_speed=0.01)
+    assert 0.65 < rho < 0.85  # AR(1) 0.9 diluted by the white noise: 0.9 * 0.0132 / 0.0157
+    f1 = solve(ne, NAMES, rho=rho)
+    assert f1.stderr("J") > 2.3 * f0.stderr("J")  # sqrt((1 + rho) / (1 - rho))
