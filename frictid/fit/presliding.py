@@ -1,0 +1,257 @@
+"""LuGre dynamic parameters: sigma0 from ramp-presliding segments, sigma1 from step transients
+(MODELS.md sections 3-4; 000 eq 12-16, 001).
+
+sigma0. Under a slow torque ramp below break-away the joint creeps by micro-displacements and the
+bristle state ``z`` follows the LuGre equation written in the displacement domain (rate independent)::
+
+    dz/dq = 1 - sigma0 sgn(dq) z / g
+
+so along the measured position path ``F = sigma0 z`` (plus a negligible ``sigma1 dz/dt``). For small
+deflections ``z ~ q - q0`` and ``sigma0`` is the slope of torque against displacement (000 eq 12-15); the
+displacement-domain integration keeps that slope exact when the bristles start to saturate. The start
+state is the equilibrium ``z0 = F(t0) / sigma0``. ``g`` is the static map's level at zero speed.
+
+sigma1. Each step segment is simulated (joint + LuGre, semi-implicit integration that is stable for the
+stiff bristle dynamics) from the measured torque, and ``sigma1`` minimises the squared difference between
+simulated and measured position (simulation error). Without steps, the near-critical-damping rule of 000
+eq 16 is used: ``sigma1 = 2 zeta sqrt(sigma0 J) - sigma2`` with ``zeta`` in [0.8, 1] (0.9 +- 0.058, the
+standard deviation of a uniform distribution on that range), and the file says so.
+
+Encoder resolution. When the presliding displacement spans fewer than :data:`MIN_COUNTS` encoder counts
+(001's 2 pi/76800 rad encoder against a stiffness of 5e4 N m/rad) sigma0 is reported not identifiable
+instead of a number fitted to quantisation steps.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+#: Minimum presliding displacement, in encoder counts, for sigma0 to be identifiable.
+MIN_COUNTS = 20
+
+#: Damping ratio range of the critical-damping rule (000 eq 16).
+ZETA = (0.8, 1.0)
+
+
+def encoder_resolution(q: np.ndarray) -> float:
+    """Quantisation step [q] of a position signal: the smallest non-zero change when at least a third of
+    the sample-to-sample changes are exactly zero (a quantised encoder), else 0 (continuous)."""
+    q = np.asarray(q, dtype=float)
+    d = np.abs(np.diff(q))
+    d = d[np.isfinite(d)]
+    if d.size < 10:
+        return 0.0
+    zero = d <= 1e-15 * max(1.0, float(np.max(np.abs(q))))
+    if zero.mean() < 1.0 / 3.0:
+        return 0.0
+    nz = d[~zero]
+    if nz.size == 0:
+        return 0.0
+    return float(np.min(nz))
+
+
+def bristle_path(q: np.ndarray, z0: float, sigma0: float, g: float) -> np.ndarray:
+    """Bristle deflection z [q] along a position path q [q] (LuGre in the displacement domain, exact for
+    a piecewise-constant sign of motion between samples). g : bristle limit level [F] (> 0)."""
+    z = np.empty_like(q, dtype=float)
+    z[0] = z0
+    zmax = g / sigma0
+    dq = np.diff(q)
+    zi = z0
+    for i in range(dq.shape[0]):
+        d = dq[i]
+        if d != 0.0:
+            s = 1.0 if d > 0 else -1.0
+            # dz/dq = 1 - s z/zmax on this step: z -> s zmax + (z - s zmax) exp(-|d|/zmax)
+            zi = s * zmax + (zi - s * zmax) * math.exp(-abs(d) / zmax)
+        z[i + 1] = zi
+    return z
+
+
+@dataclass
+class DynamicEstimate:
+    """sigma0 / sigma1 estimate: value, stderr, identifiable, reason, source and fit details."""
+
+    value: float | None
+    stderr: float | None
+    identifiable: bool
+    reason: str = ""
+    source: str = ""
+    n_segments: int = 0
+    rms: float | None = None
+    details: dict = field(default_factory=dict)
+
+
+def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0: float, resolution: float = 0.0,
+               F_scale: float | None = None) -> DynamicEstimate:
+    """sigma0 [F/q] from ramp-presliding segments.
+
+    ramps : list of (q [q], F [F]) per segment, F the friction torque ``tau - G - offset`` (a ~ 0).
+    g0 : static friction level at zero speed [F]. resolution : encoder step [q] (0 when continuous).
+    """
+    if not ramps:
+        return DynamicEstimate(None, None, False, "no ramp-presliding segments", "ramps")
+    g0 = abs(float(g0)) if g0 and np.isfinite(g0) else None
+    spans = [float(np.ptp(q)) for q, _ in ramps]
+    span = max(spans)
+    if span <= 0:
+        return DynamicEstimate(None, None, False, "no measurable displacement during the ramps "
+                               "(the encoder does not resolve the presliding displacement)", "ramps",
+                               len(ramps))
+    if resolution > 0 and span / resolution < MIN_COUNTS:
+        return DynamicEstimate(None, None, False,
+                               f"the encoder does not resolve the presliding displacement: it spans "
+                               f"{span / resolution:.1f} counts of {resolution:.3g} (at least {MIN_COUNTS} needed)",
+                               "ramps", len(ramps), details={"span_counts": span / resolution})
+    # data-derived start: slope of F against displacement over the lower half of each ramp
+    slopes = []
+    for q, F in ramps:
+        x = q - q[0]
+        lim = 0.5 * (g0 if g0 else np.max(np.abs(F)))
+        m = np.abs(F) < lim
+        if m.sum() > 5 and np.ptp(x[m]) > 0:
+            slopes.append(abs(np.polyfit(x[m], F[m], 1)[0]))
+    s_start = float(np.median(slopes)) if slopes else (g0 or 1.0) / span
+    if g0 is None:
+        g0 = 1.5 * max(float(np.max(np.abs(F))) for _, F in ramps)
+
+    def resid(p):
+        s0 = math.exp(p[0])
+        out = []
+        for q, F in ramps:
+            z0 = float(np.clip(F[0] / s0, -0.999 * g0 / s0, 0.999 * g0 / s0))
+            out.append(s0 * bristle_path(q, z0, s0, g0) - F)
+        return np.concatenate(out)
+
+    best = None
+    for f in (1.0, 0.3, 3.0):
+        try:
+            r = least_squares(resid, [math.log(s_start * f)], method="lm", x_scale=1.0)
+        except ValueError:
+            continue
+        if best is None or r.cost < best.cost:
+            best = r
+    if best is None:
+        return DynamicEstimate(None, None, False, "optimiser failed", "ramps", len(ramps))
+    s0 = math.exp(best.x[0])
+    n = best.fun.size
+    s2 = 2 * best.cost / max(n - 1, 1)
+    # consecutive samples are correlated: count each ramp as ~ span/resolution (or 50) independent points
+    n_eff = sum(min(q.size, max(10, int(np.ptp(q) / resolution) if resolution > 0 else 50)) for q, _ in ramps)
+    JtJ = float(best.jac[:, 0] @ best.jac[:, 0])
+    se_log = math.sqrt(s2 / JtJ * n / max(n_eff, 1)) if JtJ > 0 else math.inf
+    se = s0 * se_log
+    rms = math.sqrt(2 * best.cost / n)
+    reason = ""
+    if not np.isfinite(se) or se > s0:
+        reason = f"relative error {100 * se / s0:.0f} % (above 100 %)" if np.isfinite(se) else "no sensitivity"
+    det = {"span": span, "start_slope": s_start, "g0": g0}
+    if resolution > 0:
+        det["span_counts"] = span / resolution
+    return DynamicEstimate(s0, se, not reason, reason, "ramps: torque against displacement "
+                           "(LuGre in the displacement domain)", len(ramps), rms, det)
+
+
+def simulate_step(t: np.ndarray, u: np.ndarray, q0: float, w0: float, J: float, sigma0: float,
+                  sigma1: float, level, viscous, z0: float, substeps: int = 4) -> np.ndarray:
+    """Position [q] of ``J w' = u - sigma0 z - sigma1 z' - f(w)``, ``z' = w - sigma0 |w| z / g(w)``.
+
+    u [F] : net driving torque (tau - gravity - offset) per sample; level(w) -> g [F] and viscous(w) -> f
+    [F] are scalar callables. Semi-implicit: the linear part (z, w, sigma1, the slope of f) is implicit,
+    with the bristle gain ``sigma0 |w| / g`` frozen over a substep.
+    """
+    n = t.shape[0]
+    q = np.empty(n)
+    q[0] = q0
+    qi, wi, zi = q0, w0, z0
+    eps = 1e-9
+    for i in range(n - 1):
+        h = (t[i + 1] - t[i]) / substeps
+        ui = u[i]
+        for _ in range(substeps):
+            g = max(level(wi), 1e-12)
+            k = sigma0 * abs(wi) / g
+            fd = (viscous(wi + eps) - viscous(wi - eps)) / (2 * eps)
+            fr = viscous(wi) - fd * wi
+            A = zi / (1 + h * k)
+            B = h / (1 + h * k)
+            lhs = J / h + sigma0 * B + sigma1 * (1 - k * B) + fd
+            rhs = J * wi / h + ui - fr - sigma0 * A + sigma1 * k * A
+            wi = rhs / lhs
+            zi = A + B * wi
+            qi = qi + h * wi
+        q[i + 1] = qi
+    return q
+
+
+def fit_sigma1_steps(steps: list[tuple[np.ndarray, np.ndarray, np.ndarray]], J: float, sigma0: float,
+                     level, viscous, sigma2: float, resolution: float = 0.0) -> DynamicEstimate:
+    """sigma1 [F s/q] by simulation-error fit on step segments.
+
+    steps : list of (t [s], q [q], u [F]) per step segment, u = tau - gravity - offset.
+    """
+    usable = []
+    for t, q, u in steps:
+        if resolution > 0 and np.ptp(q) / resolution < MIN_COUNTS:
+            continue
+        usable.append((t, q, u))
+    if not usable:
+        why = "no step segments" if not steps else "the encoder does not resolve the step transients"
+        return DynamicEstimate(None, None, False, why, "steps", len(steps))
+    crit = 2 * math.sqrt(sigma0 * J)
+    hi = 20 * crit
+
+    def resid(p):
+        s1 = p[0]
+        out = []
+        for t, q, u in usable:
+            z0 = float(np.clip(u[0] / sigma0, -level(0.0) / sigma0, level(0.0) / sigma0))
+            qs = simulate_step(t, u, q[0], 0.0, J, sigma0, s1, level, viscous, z0)
+            out.append((qs - q) / max(np.ptp(q), 1e-15))
+        return np.concatenate(out)
+
+    best = None
+    for s in (0.9 * crit, 0.2 * crit, 3 * crit):
+        try:
+            r = least_squares(resid, [min(max(s, 1e-9), hi * 0.99)], bounds=([0.0], [hi]), x_scale=[crit])
+        except ValueError:
+            continue
+        if best is None or r.cost < best.cost:
+            best = r
+    if best is None:
+        return DynamicEstimate(None, None, False, "optimiser failed", "steps", len(steps))
+    s1 = float(best.x[0])
+    n = best.fun.size
+    n_eff = max(len(usable) * 20, 2)
+    s2 = 2 * best.cost / max(n - 1, 1)
+    JtJ = float(best.jac[:, 0] @ best.jac[:, 0])
+    se = math.sqrt(s2 / JtJ * n / n_eff) if JtJ > 0 else math.inf
+    reason = ""
+    if best.active_mask[0] != 0 or s1 <= 1e-9 * crit or s1 >= 0.999 * hi:
+        reason = "at its bound"
+    elif not np.isfinite(se) or se > abs(s1):
+        reason = "relative error above 100 %"
+    return DynamicEstimate(s1, se, not reason, reason, "steps: simulation-error fit", len(usable),
+                           math.sqrt(2 * best.cost / n), {"critical": crit})
+
+
+def sigma1_rule(sigma0: float, sigma0_se: float | None, J: float, J_se: float | None, sigma2: float,
+                sigma2_se: float | None = None) -> DynamicEstimate:
+    """sigma1 [F s/q] by the near-critical-damping rule (000 eq 16) with zeta uniform on [0.8, 1]."""
+    zeta = 0.5 * (ZETA[0] + ZETA[1])
+    zeta_sd = (ZETA[1] - ZETA[0]) / math.sqrt(12)
+    root = math.sqrt(max(sigma0 * J, 0.0))
+    val = 2 * zeta * root - sigma2
+    var = (2 * root * zeta_sd) ** 2
+    if sigma0_se:
+        var += (zeta * math.sqrt(J / sigma0) * sigma0_se) ** 2
+    if J_se:
+        var += (zeta * math.sqrt(sigma0 / J) * J_se) ** 2
+    if sigma2_se:
+        var += sigma2_se ** 2
+    return DynamicEstimate(val, math.sqrt(var), True, "",
+                           "critical-damping rule sigma1 = 2 zeta sqrt(sigma0 J) - sigma2, zeta 0.8-1 "
+                           "(000 eq 16): no usable step segments", 0, None, {"zeta": zeta})
