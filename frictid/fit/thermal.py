@@ -1,0 +1,409 @@
+"""Thermal friction models from duty-cycle segments (MODELS.md section 5; 002 eq 12-31).
+
+1. Cycle by cycle: the polynomial friction ``c0 sgn(w) + c1 w + c2 w|w| + c3 w^3`` is identified by
+   least squares on each duty cycle's moving samples (:func:`prepare`).
+2. The joint temperature ``T`` is not measured: it follows the heat balance
+   ``C dT/dt = W - K (T - Tenv)`` driven by the model's own friction power ``W = F(w, T) w``. ``W`` is
+   affine in ``T`` for both laws, so over short bins of the log (power held per bin, computed from the
+   measured velocity) the balance is integrated exactly. This refines 002's once-per-cycle update.
+3. All thermal parameters are fitted together (002 used fmincon) by least squares on the difference
+   between each cycle's identified friction and the model's friction at that cycle's mean temperature,
+   measured as the RMS over the cycle's own samples (``(c_model - c_cycle)^T M (c_model - c_cycle)`` with
+   ``M = X^T X / n`` of the cycle).
+
+Laws: ``thermal4``: ``c_i(T) = c_i0 [alpha (T - T0) + beta]`` with ``c_i0`` from the cold first cycle of
+the first run (002: identified at ``T0 = Tenv``), free: alpha, beta, C. ``thermal6``:
+``c_i(T) = c_i0 + c_i' (T - T0)``, free: c_i0, c_i', C.
+
+The temperature scale. Without a joint temperature measurement, scaling K, C by ``lambda`` and the
+temperature slopes by ``lambda`` leaves every friction prediction unchanged: only ``C/K`` (the time
+constant) and the slopes per watt are identifiable. K is then held at :data:`K_REF` (1 W/K) and the file
+says so; with a ``temp_joint`` channel, K is fitted too (the measured cycle temperatures enter the fit).
+The time constant ``t_c = C / (K - dW/dT)`` (002 eq 23, 31) is reported at the mean duty-cycle power.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+#: Heat transfer held fixed when T is unmeasured [W/K]; sets the temperature scale only.
+K_REF = 1.0
+
+#: Thermal models this module fits.
+THERMAL_MODELS = ("thermal4", "thermal6")
+
+
+def _basis(w):
+    """Regressors of the polynomial friction: sgn(w), w, w|w|, w^3."""
+    return np.column_stack([np.sign(w), w, w * np.abs(w), w**3])
+
+
+def _power_basis(w):
+    """Per-sample friction power of each polynomial term: basis_i(w) w = |w|, w^2, |w|^3, w^4 [q^i/s^i]."""
+    v = np.abs(w)
+    return np.column_stack([v, w * w, v**3, w**4])
+
+
+@dataclass
+class ThermalRun:
+    """One duty-cycle run (one log): bins for the heat balance and the per-cycle friction.
+
+    bin_h [s]: bin lengths; bin_P: (nbins, 4) mean power basis per bin; bin_Tenv [degC]; bin_T_meas
+    [degC] or NaN. cycle_c: (ncycles, 4) cycle LS coefficients; cycle_L: (ncycles, 4, 4) Cholesky factors
+    of the cycles' M = X^T X / n; cycle_bins: (ncycles, nbins) weights of each bin in each cycle's
+    mean temperature; cycle_n: samples; cycle_id; cycle_t: (start, end) [s]; T_init [degC].
+    """
+
+    bin_h: np.ndarray
+    bin_P: np.ndarray
+    bin_Tenv: np.ndarray
+    bin_T_meas: np.ndarray
+    cycle_c: np.ndarray
+    cycle_L: np.ndarray
+    cycle_W: np.ndarray
+    cycle_n: np.ndarray
+    cycle_id: np.ndarray
+    cycle_t: np.ndarray
+    cycle_T_meas: np.ndarray
+    T_init: float
+    has_T: bool = False
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def n_cycles(self) -> int:
+        return int(self.cycle_c.shape[0])
+
+
+def prepare(t, w, F, cycles: list[tuple[int, int, int]], temp_env=None, temp_joint=None,
+            min_speed: float = 0.0, bin_s: float | None = None, max_bins: int = 4000) -> ThermalRun | None:
+    """Bin one log for the heat balance and identify the friction of each duty cycle.
+
+    t [s], w [q/s], F [F] (friction torque tau - J a - G - offset), temp_env, temp_joint [degC] or None.
+    cycles : (i0, i1, cycle id) per duty cycle, in time order. Returns None when no cycle has moving samples.
+    """
+    t = np.asarray(t, float)
+    w = np.asarray(w, float)
+    F = np.asarray(F, float)
+    cycles = sorted(cycles, key=lambda c: c[0])
+    i_start, i_end = cycles[0][0], max(c[1] for c in cycles)
+    span = t[i_end - 1] - t[i_start]
+    if span <= 0:
+        return None
+    if bin_s is None:
+        bin_s = max(1.0, span / max_bins)
+    nb = max(1, int(math.ceil(span / bin_s)))
+    edges_t = t[i_start] + np.arange(nb + 1) * (span / nb)
+    idx = np.arange(i_start, i_end)
+    b = np.minimum(((t[idx] - t[i_start]) / (span / nb)).astype(int), nb - 1)
+    counts = np.bincount(b, minlength=nb).astype(float)
+    Pb = _power_basis(np.where(np.isfinite(w[idx]), w[idx], 0.0))
+    bin_P = np.column_stack([np.bincount(b, weights=Pb[:, i], minlength=nb) for i in range(4)])
+    bin_P = bin_P / np.maximum(counts, 1)[:, None]
+    bin_h = np.diff(edges_t)
+    te = (np.full(idx.size, 20.0) if temp_env is None else np.asarray(temp_env, float)[idx])
+    bin_Tenv = np.bincount(b, weights=te, minlength=nb) / np.maximum(counts, 1)
+    empty = counts == 0
+    if empty.any():  # carry the last known ambient temperature over empty bins
+        for k in np.flatnonzero(empty):
+            bin_Tenv[k] = bin_Tenv[k - 1] if k > 0 else float(te[0])
+    has_T = temp_joint is not None
+    if has_T:
+        tj = np.asarray(temp_joint, float)[idx]
+        bin_T_meas = np.bincount(b, weights=tj, minlength=nb) / np.maximum(counts, 1)
+        bin_T_meas[empty] = np.nan
+    else:
+        bin_T_meas = np.full(nb, np.nan)
+    rows = []
+    for i0, i1, cid in cycles:
+        ww, ff = w[i0:i1], F[i0:i1]
+        m = np.isfinite(ww) & np.isfinite(ff) & (np.abs(ww) > min_speed)
+        if m.sum() < 20 or not (ww[m] > 0).any() or not (ww[m] < 0).any():
+            continue
+        X = _basis(ww[m])
+        d = np.sqrt(np.mean(X * X, axis=0))
+        d[d == 0] = 1
+        c, *_ = np.linalg.lstsq(X / d, ff[m], rcond=None)
+        c = c / d
+        M = X.T @ X / m.sum()
+        try:
+            L = np.linalg.cholesky(M + 1e-12 * np.trace(M) * np.eye(4))
+        except np.linalg.LinAlgError:
+            continue
+        # weight of each bin in the cycle's mean temperature: its moving samples in this cycle
+        bi = b[(np.arange(i0, i1) - i_start)[m]]
+        wts = np.bincount(bi, minlength=nb).astype(float)
+        Tm = float(np.nanmean(np.asarray(temp_joint, float)[i0:i1][m])) if has_T else math.nan
+        rows.append((c, L, wts / wts.sum(), int(m.sum()), cid, (float(t[i0]), float(t[i1 - 1])), Tm))
+    if not rows:
+        return None
+    T_init = float(bin_T_meas[0]) if has_T and np.isfinite(bin_T_meas[0]) else float(bin_Tenv[0])
+    return ThermalRun(bin_h, bin_P, bin_Tenv, bin_T_meas,
+                      np.array([r[0] for r in rows]), np.array([r[1] for r in rows]),
+                      np.array([r[2] for r in rows]), np.array([r[3] for r in rows]),
+                      np.array([r[4] for r in rows]), np.array([r[5] for r in rows]),
+                      np.array([r[6] for r in rows]), T_init, has_T)
+
+
+def simulate_temperature(run: ThermalRun, c0, s_alpha, s_beta, dc, C, K, T0):
+    """Mean temperature per bin [degC] of the heat balance with power ``sum_i c_i(T) P_i`` affine in T.
+
+    c_i(T) = c0_i (s_alpha (T - T0) + s_beta) + dc_i (T - T0). Returns (T_mean per bin, T at bin ends).
+    """
+    nb = run.bin_h.shape[0]
+    Tm = np.empty(nb)
+    x = run.T_init - T0
+    W0 = run.bin_P @ (np.asarray(c0) * s_beta)
+    W1 = run.bin_P @ (np.asarray(c0) * s_alpha + np.asarray(dc))
+    for k in range(nb):
+        h = run.bin_h[k]
+        e = run.bin_Tenv[k] - T0
+        a = K - W1[k]
+        r = a / C
+        if abs(r * h) < 1e-9:
+            drift = (W0[k] + K * e - a * x) / C
+            Tm[k] = x + 0.5 * drift * h
+            x = x + drift * h
+        else:
+            x_inf = (W0[k] + K * e) / a
+            ex = math.exp(-r * h) if r * h > -700 else math.inf
+            Tm[k] = x_inf + (x - x_inf) * (-math.expm1(-r * h)) / (r * h)
+            x = x_inf + (x - x_inf) * ex
+    return Tm + T0
+
+
+@dataclass
+class _Layout:
+    """Which numbers of the parameter vector are free for a law."""
+
+    model: str
+    names: list
+    c_ref: np.ndarray
+    fit_K: bool
+
+
+def _unpack(lay: _Layout, x):
+    d = dict(zip(lay.names, x))
+    C = math.exp(d["logC"])
+    K = math.exp(d["logK"]) if lay.fit_K else K_REF
+    if lay.model == "thermal4":
+        return lay.c_ref, d["alpha"], d["beta"], np.zeros(4), C, K
+    c0 = np.array([d[f"c{i}"] for i in range(4)])
+    dc = np.array([d[f"dc{i}"] for i in range(4)])
+    return c0, 0.0, 1.0, dc, C, K
+
+
+def _coef_at(c0, sa, sb, dc, dT):
+    return c0 * (sa * dT + sb) + dc * dT
+
+
+def _residuals(x, lay: _Layout, runs, T0, use, T_scale, F_scale):
+    c0, sa, sb, dc, C, K = _unpack(lay, x)
+    out = []
+    for r, u in zip(runs, use):
+        Tb = simulate_temperature(r, c0, sa, sb, dc, C, K, T0)
+        Tc = r.cycle_W @ Tb
+        for k in np.flatnonzero(u):
+            cm = _coef_at(c0, sa, sb, dc, Tc[k] - T0)
+            out.append(r.cycle_L[k].T @ (cm - r.cycle_c[k]) / F_scale)
+        if lay.fit_K and r.has_T:
+            ok = np.isfinite(r.cycle_T_meas) & u
+            out.append((Tc[ok] - r.cycle_T_meas[ok]) / T_scale)
+    return np.concatenate(out) if out else np.zeros(0)
+
+
+@dataclass
+class ThermalFit:
+    """Result of one thermal law: values, stderr, reasons, T0, the time constant and metrics."""
+
+    model: str
+    values: dict
+    stderr: dict
+    reasons: dict
+    fixed: dict
+    T0: float
+    time_constant: float | None
+    time_constant_se: float | None
+    rms: float | None
+    n_cycles: int
+    k: int
+    cost: float
+    success: bool
+    cycle_T: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+
+
+def _pred_rms(lay, x, runs, T0, mask_list):
+    """RMS [F] over cycles in mask_list of the model against each cycle's identified friction."""
+    r = _residuals(x, lay, runs, T0, mask_list, 1.0, 1.0)
+    if lay.fit_K:  # drop temperature residuals: they come after the friction ones of each run
+        n = sum(4 * int(m.sum()) for m in mask_list)
+        parts, pos = [], 0
+        for run, m in zip(runs, mask_list):
+            parts.append(r[pos:pos + 4 * int(m.sum())])
+            pos += 4 * int(m.sum())
+            if run.has_T:
+                pos += int((np.isfinite(run.cycle_T_meas) & m).sum())
+        r = np.concatenate(parts) if parts else r[:n]
+    n_c = sum(int(m.sum()) for m in mask_list)
+    return math.sqrt(float(r @ r) / n_c) if n_c else None
+
+
+def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 4) -> ThermalFit | None:
+    """Fit ``thermal4`` or ``thermal6`` to duty-cycle runs. masks : per run, the cycles used (training)."""
+    runs = [r for r in runs if r is not None and r.n_cycles > 0]
+    if not runs:
+        return None
+    masks = [np.ones(r.n_cycles, bool) for r in runs] if masks is None else masks
+    T0 = runs[0].T_init
+    fit_K = all(r.has_T for r in runs)
+    c_ref = runs[0].cycle_c[0].copy()
+    F_scale = max(float(np.sqrt(np.mean([np.sum((r.cycle_L[k].T @ r.cycle_c[k]) ** 2) / 4
+                                         for r in runs for k in range(r.n_cycles)]))), 1e-12)
+    span = sum(float(r.bin_h.sum()) for r in runs) / len(runs)
+    if model == "thermal4":
+        names = ["alpha", "beta", "logC"]
+    elif model == "thermal6":
+        names = [f"c{i}" for i in range(4)] + [f"dc{i}" for i in range(4)] + ["logC"]
+    else:
+        raise KeyError(f"unknown thermal model {model!r}; known: {', '.join(THERMAL_MODELS)}")
+    if fit_K:
+        names.append("logK")
+    lay = _Layout(model, names, c_ref, fit_K)
+    n_obs = sum(4 * int(m.sum()) for m in masks)
+    if sum(int(m.sum()) for m in masks) < 3 or n_obs <= len(names):
+        return None
+    best = None
+    K0 = 1.0 if not fit_K else K_REF
+    for tau in np.geomspace(span / 30, span, n_starts):
+        start = {"alpha": 0.0, "beta": 1.0, "logC": math.log(K0 * tau), "logK": math.log(K0)}
+        for i in range(4):
+            start[f"c{i}"] = c_ref[i]
+            start[f"dc{i}"] = 0.0
+        x0 = np.array([start[n] for n in names])
+        try:
+            res = least_squares(_residuals, x0, args=(lay, runs, T0, masks, 1.0, F_scale), method="trf",
+                                max_nfev=400)
+        except (ValueError, OverflowError, FloatingPointError):
+            continue
+        if not np.all(np.isfinite(res.fun)):
+            continue
+        if best is None or res.cost < best.cost:
+            best = res
+    if best is None:
+        return None
+    x = best.x
+    p = len(names)
+    dof = best.fun.size - p
+    s2 = 2 * best.cost / dof if dof > 0 else math.nan
+    Jm = best.jac
+    U, sv, Vt = np.linalg.svd(Jm, full_matrices=False)
+    ok = sv > 1e-10 * sv.max() if sv.size else np.zeros(0, bool)
+    cov = s2 * (Vt[ok].T / sv[ok] ** 2) @ Vt[ok]
+    se = np.sqrt(np.maximum(np.diag(cov), 0)) if np.isfinite(s2) else np.full(p, np.nan)
+    weak = Vt[sv < 1e-7 * sv.max()] if sv.size else np.zeros((0, p))
+    c0, sa, sb, dc, C, K = _unpack(lay, x)
+    values, stderr, reasons = {}, {}, {}
+    for j, n in enumerate(names):
+        if n.startswith("log"):
+            v = math.exp(x[j])
+            values[n[3:]] = v
+            stderr[n[3:]] = v * se[j] if np.isfinite(se[j]) else None
+            key = n[3:]
+        else:
+            values[n] = float(x[j])
+            stderr[n] = float(se[j]) if np.isfinite(se[j]) else None
+            key = n
+        if weak.size and np.max(np.abs(weak[:, j])) > 0.1:
+            reasons[key] = "not separable from other parameters (Jacobian rank-deficient)"
+        elif n.startswith("log") and np.isfinite(se[j]) and se[j] > 1.0:
+            reasons[key] = f"relative error {100 * math.expm1(se[j]):.0f} % (above 100 %)"
+    fixed = {}
+    if model == "thermal4":
+        for i in range(4):
+            fixed[f"c{i}"] = float(c_ref[i])
+    if not fit_K:
+        fixed["K"] = K_REF
+    # time constant at the mean duty power: t_c = C / (K - dW/dT)
+    P_mean = np.concatenate([r.bin_P for r in runs]).mean(axis=0)
+
+    def tc_of(xx):
+        c0_, sa_, sb_, dc_, C_, K_ = _unpack(lay, xx)
+        W1 = float(P_mean @ (c0_ * sa_ + dc_))
+        den = K_ - W1
+        return C_ / den if den > 0 else math.inf
+
+    tc = tc_of(x)
+    tc_se = None
+    if np.isfinite(tc) and np.all(np.isfinite(cov)):
+        g = np.zeros(p)
+        for j in range(p):
+            hstep = 1e-6 * max(1.0, abs(x[j]))
+            xp = x.copy()
+            xp[j] += hstep
+            g[j] = (tc_of(xp) - tc) / hstep
+        tc_se = math.sqrt(max(float(g @ cov @ g), 0.0))
+    rms = _pred_rms(lay, x, runs, T0, masks)
+    cycle_T = []
+    for r in runs:
+        Tb = simulate_temperature(r, c0, sa, sb, dc, C, K, T0)
+        cycle_T.append((r.cycle_W @ Tb).tolist())
+    notes = []
+    if not fit_K:
+        notes.append(f"joint temperature not measured: K held at {K_REF} W/K (it only sets the temperature "
+                     "scale; C/K and the slopes per watt are what the data identify)")
+    tf = ThermalFit(model, values, stderr, reasons, fixed, T0, tc, tc_se, rms,
+                    sum(int(m.sum()) for m in masks), p, float(best.cost), bool(best.success), cycle_T, notes)
+    tf._lay = lay  # for held-out evaluation
+    tf._x = x
+    return tf
+
+
+def heldout(runs: list[ThermalRun], model: str, n_folds: int = 3) -> tuple[float | None, float | None]:
+    """Held-out RMS [F] of a thermal law and of a temperature-blind constant polynomial, by cycles.
+
+    Cycles are assigned to folds by their order (every ``n_folds``-th cycle), so each fold spans the
+    warm-up; the heat balance still runs through held-out cycles (their power comes from the measured
+    velocity), but their friction never enters the fit. Returns (rms_thermal, rms_constant).
+    """
+    runs = [r for r in runs if r is not None and r.n_cycles > 0]
+    if not runs or sum(r.n_cycles for r in runs) < 2 * n_folds:
+        return None, None
+    se_t = se_c = 0.0
+    n_t = 0
+    for f in range(n_folds):
+        train = [np.arange(r.n_cycles) % n_folds != f for r in runs]
+        test = [~m for m in train]
+        tf = fit_thermal(runs, model, masks=train, n_starts=3)
+        if tf is None:
+            return None, None
+        r_t = _pred_rms(tf._lay, tf._x, runs, tf.T0, test)
+        # constant polynomial: the sample-weighted mean of the training cycles' coefficients
+        cs = np.concatenate([r.cycle_c[m] for r, m in zip(runs, train)])
+        ns = np.concatenate([r.cycle_n[m] for r, m in zip(runs, train)])
+        cbar = (cs * ns[:, None]).sum(0) / ns.sum()
+        e2 = 0.0
+        nc = 0
+        for r, m in zip(runs, test):
+            for k in np.flatnonzero(m):
+                d = r.cycle_L[k].T @ (cbar - r.cycle_c[k])
+                e2 += float(d @ d)
+                nc += 1
+        se_t += r_t**2 * nc
+        se_c += e2
+        n_t += nc
+    return math.sqrt(se_t / n_t), math.sqrt(se_c / n_t)
+
+
+def predict_coefficients(tf: ThermalFit, T) -> np.ndarray:
+    """Polynomial coefficients c0..c3 of a fitted law at joint temperature(s) T [degC]."""
+    T = np.atleast_1d(np.asarray(T, float))
+    v = tf.values
+    if tf.model == "thermal4":
+        c0 = np.array([tf.fixed[f"c{i}"] for i in range(4)])
+        return c0[None, :] * (v["alpha"] * (T[:, None] - tf.T0) + v["beta"])
+    c0 = np.array([v[f"c{i}"] for i in range(4)])
+    dc = np.array([v[f"dc{i}"] for i in range(4)])
+    return c0[None, :] + dc[None, :] * (T[:, None] - tf.T0)
