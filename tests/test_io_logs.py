@@ -133,3 +133,33 @@ def test_unknown_extra_columns_are_not_an_error(tmp_path):
     df = pd.DataFrame({"t": lg.t, "q": lg.q, "tau": lg.tau, "motor_temp_raw": "x", "note": "hello"})
     (back,) = read_logs(_write(tmp_path, df))
     assert back.n == lg.n
+
+
+def test_mat_file_with_struct_fields_per_joint_rows_and_scale(tmp_path):
+    import scipy.io
+
+    lg = hand_log()
+    pos = np.vstack([np.degrees(lg.q), 2 * np.degrees(lg.q)])
+    rec = {"time": lg.t, "pos_deg": pos, "torque": np.vstack([lg.tau, lg.tau]) / 4.0}
+    scipy.io.savemat(tmp_path / "run.mat", {"rec": rec, "gain": np.array([4.0, 8.0])})
+    (tmp_path / "map.yaml").write_text(
+        "variables: {t: rec.time, q: rec.pos_deg, tau: rec.torque}\n"
+        "scale: {tau: gain}\nunits: {q: deg}\njoints: [shoulder, elbow]\n")
+    a, b = read_logs(str(tmp_path / "run.mat"), str(tmp_path / "map.yaml"))
+    assert (a.joint, b.joint) == ("shoulder", "elbow")
+    np.testing.assert_allclose(a.q, lg.q, atol=1e-12)
+    np.testing.assert_allclose(b.tau, 2 * lg.tau, rtol=1e-12)
+    (tmp_path / "bad.yaml").write_text("variables: {t: rec.time, q: rec.nope, tau: rec.torque}\n")
+    with pytest.raises(LogFormatError, match="nope"):
+        read_logs(str(tmp_path / "run.mat"), str(tmp_path / "bad.yaml"))
+
+
+def test_csv_with_preamble_and_semicolons_through_a_mapping_file(tmp_path):
+    lg = hand_log()
+    body = "\n".join(f"{t * 1e3:.3f};{q:.9f};{tau:.9f}" for t, q, tau in zip(lg.t, lg.q, lg.tau))
+    (tmp_path / "epos.csv").write_text("Date:;today\nRecorded samples:;400\nms;rad;Nm\n" + body + "\n")
+    (tmp_path / "map.yaml").write_text("columns: [time, pos, torque]\ndelimiter: ';'\nskip_rows: 3\n"
+                                       "map: {time: t, pos: q, torque: tau}\nunits: {t: ms}\n")
+    (back,) = read_logs(str(tmp_path / "epos.csv"), str(tmp_path / "map.yaml"))
+    assert back.n == lg.n
+    np.testing.assert_allclose(back.tau, lg.tau, atol=1e-8)

@@ -54,6 +54,10 @@ class LogSpec:
     columns: list[str] | None = None
     axis: str | None = None
     meta: dict = field(default_factory=dict)
+    variables: dict[str, str] = field(default_factory=dict)
+    joints: list[str] | None = None
+    delimiter: str | None = None
+    skip_rows: int = 0
 
     def merged(self, other: "LogSpec") -> "LogSpec":
         return LogSpec(
@@ -63,10 +67,15 @@ class LogSpec:
             columns=other.columns if other.columns is not None else self.columns,
             axis=other.axis or self.axis,
             meta={**self.meta, **other.meta},
+            variables={**self.variables, **other.variables},
+            joints=other.joints if other.joints is not None else self.joints,
+            delimiter=other.delimiter or self.delimiter,
+            skip_rows=other.skip_rows or self.skip_rows,
         )
 
 
-_SPEC_KEYS = {"map", "units", "scale", "columns", "axis", "meta", "schema", "joints", "truth"}
+_SPEC_KEYS = {"map", "units", "scale", "columns", "axis", "meta", "variables", "delimiter", "skip_rows",
+              "schema", "joints", "truth"}
 
 
 def spec_from_dict(d: dict, where: str) -> LogSpec:
@@ -84,10 +93,22 @@ def spec_from_dict(d: dict, where: str) -> LogSpec:
     for key, val in (("map", rename), ("units", units), ("scale", scale)):
         if not isinstance(val, dict):
             raise ConfigError(f"{where}: {key}: expected a mapping of column names")
-    try:
-        scale = {str(k): float(v) for k, v in scale.items()}
-    except (TypeError, ValueError):
-        raise ConfigError(f"{where}: scale: every value must be a number (a factor to multiply by)") from None
+    for k, v in scale.items():
+        ok = isinstance(v, (int, float, str)) or (isinstance(v, list) and all(isinstance(x, (int, float)) for x in v))
+        if not ok or isinstance(v, bool):
+            raise ConfigError(f"{where}: scale.{k}: must be a number, a list of numbers (one per joint) "
+                              "or the name of a variable in a .mat file")
+    variables = d.get("variables") or {}
+    if not isinstance(variables, dict):
+        raise ConfigError(f"{where}: variables: expected a mapping COLUMN: VARIABLE (e.g. q: rec.pos)")
+    joints = d.get("joints")
+    joint_names = [str(j) for j in joints] if isinstance(joints, list) else None
+    delim = d.get("delimiter")
+    if delim is not None and (not isinstance(delim, str) or len(delim) != 1):
+        raise ConfigError(f"{where}: delimiter: must be one character, e.g. ';'")
+    skip = d.get("skip_rows", 0)
+    if not isinstance(skip, int) or skip < 0:
+        raise ConfigError(f"{where}: skip_rows: must be a whole number >= 0")
     axis = d.get("axis")
     if axis not in (None, "rotary", "linear"):
         raise ConfigError(f"{where}: axis: must be rotary or linear, not {axis!r}")
@@ -95,7 +116,8 @@ def spec_from_dict(d: dict, where: str) -> LogSpec:
     if cols is not None and not (isinstance(cols, list) and all(isinstance(c, str) for c in cols)):
         raise ConfigError(f"{where}: columns: expected a list of column names")
     return LogSpec({str(k): str(v) for k, v in rename.items()}, {str(k): str(v) for k, v in units.items()},
-                   scale, cols, axis, dict(d.get("meta") or {}))
+                   dict(scale), cols, axis, dict(d.get("meta") or {}), {str(k): str(v) for k, v in variables.items()},
+                   joint_names, delim, skip)
 
 
 def parse_mapping(text: str | None) -> LogSpec:
@@ -173,16 +195,19 @@ def _csv_header(src, label: str, spec: LogSpec) -> tuple[list[str], bool]:
     if spec.columns is not None:
         return list(spec.columns), False
     if isinstance(src, io.BytesIO):
-        first = src.getvalue().split(b"\n", 1)[0]
+        lines = src.getvalue().split(b"\n", spec.skip_rows + 1)
+        first = lines[spec.skip_rows] if len(lines) > spec.skip_rows else b""
     else:
         with open(src, "rb") as fh:
+            for _ in range(spec.skip_rows):
+                fh.readline(1 << 16)
             first = fh.readline(1 << 16)
     try:
         text = first.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise LogFormatError(label, ["line 1 is not UTF-8 text; is this a CSV file? "
                                      "(binary logs: use Parquet or a .mat mapping)"]) from None
-    names = next(csv.reader([text.strip("\r\n")]), [])
+    names = next(csv.reader([text.strip("\r\n")], delimiter=spec.delimiter or ","), [])
     names = [n.strip() for n in names]
     if not any(names):
         raise LogFormatError(label, ["line 1 is empty; a CSV log starts with a header row (t,q,tau,...)"])
@@ -215,20 +240,21 @@ def _read_table(src, label: str, is_parquet: bool, spec: LogSpec) -> tuple[pa.Ta
             raise LogFormatError(label, [f"cannot be read as Parquet ({exc}); is the file complete?"]) from None
     names, has_header = _csv_header(src, label, spec)
     cols = [c for c in names if spec.rename.get(c, c) in wanted_targets]
-    if len(names) == 1 and any(ch in names[0] for ch in ";\t| "):
+    if len(names) == 1 and spec.delimiter is None and any(ch in names[0] for ch in ";\t| "):
         sep = next(ch for ch in ";\t| " if ch in names[0])
         raise LogFormatError(label, [f"the header has one column {names[0]!r}: the file looks "
                                      f"{sep!r}-separated; frictid reads comma-separated CSV "
                                      "(convert it, or save as Parquet)"])
-    read_opts = pacsv.ReadOptions(column_names=names, skip_rows=1 if has_header else 0,
+    read_opts = pacsv.ReadOptions(column_names=names, skip_rows=spec.skip_rows + (1 if has_header else 0),
                                   block_size=1 << 24)
+    parse_opts = pacsv.ParseOptions(delimiter=spec.delimiter or ",")
     conv = pacsv.ConvertOptions(include_columns=cols,
                                 column_types={c: pa.string() for c in cols
                                               if spec.rename.get(c, c) in ("joint", "segment")})
     if isinstance(src, io.BytesIO):
         src.seek(0)
     try:
-        table = pacsv.read_csv(src, read_options=read_opts, convert_options=conv)
+        table = pacsv.read_csv(src, read_options=read_opts, parse_options=parse_opts, convert_options=conv)
     except (pa.ArrowInvalid, pa.ArrowTypeError, OSError) as exc:
         msg = str(exc).split("\n")[0]
         raise LogFormatError(label, [f"cannot be parsed as CSV: {msg}; check the delimiter (comma), "
@@ -273,6 +299,12 @@ def read_logs(path: str, mapping: str | LogSpec | None = None, units: str | None
     label, src, is_parquet = _read_source(str(path))
     side_spec, side_meta = _sidecar_spec(str(path))
     spec_for_read = side_spec.merged(spec)
+    if str(path).lower().endswith(".mat"):
+        from .matlab import read_mat
+
+        table = read_mat(label, spec_for_read.variables, spec_for_read.scale, spec_for_read.joints)
+        eff = LogSpec(units=spec_for_read.units, axis=spec_for_read.axis, meta=spec_for_read.meta)
+        return _validate_and_split(table, label, eff, side_meta, has_header=False)
     table, file_meta = _read_table(src, label, is_parquet, spec_for_read)
     file_spec = spec_from_dict({k: v for k, v in file_meta.items() if k in _SPEC_KEYS}, f"{label} metadata")
     eff = file_spec.merged(side_spec).merged(spec)
@@ -322,7 +354,10 @@ def _validate_and_split(table: pa.Table, label: str, spec: LogSpec, meta_all: di
             continue
         arr = _to_float(col)
         if c in spec.scale:
-            arr = arr * spec.scale[c]
+            factor = spec.scale[c]
+            if not isinstance(factor, (int, float)):
+                raise ConfigError(f"{label}: scale.{c}: a CSV or Parquet log takes a number here")
+            arr = arr * factor
         arrays[c] = arr
     if problems:
         raise LogFormatError(label, problems)
