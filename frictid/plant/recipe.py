@@ -1,0 +1,411 @@
+"""Recipe compilation: experiments -> per-sample reference profiles, control mode and truth labels.
+
+Each experiment of a recipe appends pieces to a :class:`Program` for one joint. A piece has a control
+mode (open-loop torque, position PID, velocity PI), references ``q_ref``, ``qd_ref``, a feedforward or
+open-loop torque ``tau_ff`` (closed loop: ``J a_ref + G(q_ref)``; open loop: ``G(q_hold)`` plus the
+experiment's torque), and a provisional label. Velocity plateaus and closed-loop rests are refined
+after the simulation from the true velocity (see :func:`refine_labels`), so that the labels say where
+the joint really was at constant velocity or at rest, not where the reference was.
+
+Velocities are fractions of ``limits.velocity``, accelerations of ``limits.acceleration``, torques of
+the joint's break-away level (the lowest level ``g`` over the velocity range, the largest torque that
+cannot make the joint slide) unless an experiment sets ``relative: false``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..data import SEGMENT_KINDS
+from ..models.static import canonical_level, canonical_pair
+from .config import Joint, Plant, friction_params
+from .effects import compile_effects
+from .kernel import MODE_PID, MODE_TORQUE, MODE_VEL
+
+L = {k: i for i, k in enumerate(SEGMENT_KINDS)}
+G0 = 9.81
+
+
+@dataclass
+class Program:
+    """Per-sample inputs of one joint's run, built piece by piece."""
+
+    plant: Plant
+    joint: Joint
+    scale: float = 1.0
+    q: float = 0.0                       # reference position at the end of the program [q]
+    temp_env: float = 25.0
+    payload: float = 0.0
+    run: int = 0
+    cycle: int = -1
+    pieces: list = field(default_factory=list)
+    plateaus: list = field(default_factory=list)   # (i0, i1, v_ref)
+    rests: list = field(default_factory=list)      # (i0, i1) closed-loop rests to refine
+    n: int = 0
+    _reset_next: bool = False
+
+    @property
+    def fs(self) -> float:
+        return float(self.plant.sensors.sample_rate)
+
+    @property
+    def h(self) -> float:
+        return 1.0 / self.fs
+
+    def ns(self, duration: float, scaled: bool = True) -> int:
+        """Samples in a duration [s] (times the duration scale when ``scaled``), at least 1."""
+        d = duration * (self.scale if scaled else 1.0)
+        return max(1, int(round(d * self.fs)))
+
+    def G(self, q):
+        g = self.joint.gravity
+        return (g.Px * np.cos(q) + g.Py * np.sin(q) + g.offset
+                + self.payload * G0 * g.payload_arm * np.cos(q))
+
+    # -- raw append -----------------------------------------------------------------------------
+    def add(self, mode, q_ref, qd_ref, tau_ff, label, cycle=None):
+        n = len(q_ref)
+        reset = np.zeros(n, dtype=np.bool_)
+        if self._reset_next:
+            reset[0] = True
+            self._reset_next = False
+        self.pieces.append(dict(
+            mode=np.full(n, mode, dtype=np.int64), q_ref=np.asarray(q_ref, float),
+            qd_ref=np.asarray(qd_ref, float), tau_ff=np.asarray(tau_ff, float),
+            label=np.full(n, L[label], dtype=np.int8),
+            cycle=np.full(n, self.cycle if cycle is None else cycle, dtype=np.int64),
+            temp_env=np.full(n, self.temp_env), payload=np.full(n, self.payload),
+            run=np.full(n, self.run, dtype=np.int64), reset=reset))
+        i0 = self.n
+        self.n += n
+        return i0, self.n
+
+    # -- pieces -------------------------------------------------------------------------------------
+    def hold(self, n, label="rest", refine=True):
+        """Closed-loop (PID) rest at the current reference position for n samples."""
+        i0, i1 = self.add(MODE_PID, np.full(n, self.q), np.zeros(n), np.full(n, self.G(self.q)), label)
+        if refine and label == "rest":
+            self.rests.append((i0, i1))
+        return i0, i1
+
+    def open_loop(self, tau, label):
+        """Open-loop torque ``G(q_hold) + tau`` (array) at the current reference position."""
+        n = len(tau)
+        return self.add(MODE_TORQUE, np.full(n, self.q), np.zeros(n), self.G(self.q) + np.asarray(tau), label)
+
+    def velocity_piece(self, v0, v1, n, label, mode=MODE_PID):
+        """Velocity ramp v0 -> v1 [q/s] over n samples (constant if equal); position integrates exactly."""
+        h = self.h
+        D = n * h
+        a = (v1 - v0) / D
+        t = np.arange(n) * h
+        qd = v0 + a * t
+        q = self.q + v0 * t + 0.5 * a * t * t
+        tau = self.joint.J * a + self.G(q)
+        idx = self.add(mode, q, qd, tau, label)
+        self.q = self.q + v0 * D + 0.5 * a * D * D
+        return idx
+
+    def ptp(self, q_target, vmax, amax, label="other", mode=MODE_PID):
+        """Trapezoidal point-to-point move to q_target with peak speed vmax [q/s], acceleration amax."""
+        d = q_target - self.q
+        if abs(d) < 1e-15:
+            return
+        sgn = np.sign(d)
+        d = abs(d)
+        h = self.h
+        vp = min(vmax, np.sqrt(d * amax))
+        na = max(1, int(round(vp / amax / h)))
+        nc = max(0, int(round((d - vp * vp / amax) / vp / h)))
+        vp = d / (h * (na + nc))
+        self.velocity_piece(0.0, sgn * vp, na, label, mode)
+        if nc:
+            self.velocity_piece(sgn * vp, sgn * vp, nc, label, mode)
+        self.velocity_piece(sgn * vp, 0.0, na, label, mode)
+        self.q = float(q_target)
+
+    def finish(self) -> dict:
+        keys = self.pieces[0].keys()
+        return {k: np.concatenate([p[k] for p in self.pieces]) for k in keys}
+
+
+def ptp_time(d, vmax, amax) -> float:
+    """Duration [s] of a trapezoidal move over distance d."""
+    d = abs(d)
+    vp = min(vmax, np.sqrt(d * amax))
+    return vp / amax * 2 + max(0.0, (d - vp * vp / amax) / vp) if d > 0 else 0.0
+
+
+# ---------------------------------------------------------------------------------------------------
+# Plant-derived scales
+
+
+def travel(joint: Joint, axis: str) -> tuple[float, float]:
+    """Usable travel [q]: declared position limits shrunk by 5 % each side, else unbounded."""
+    lim = joint.limits.position
+    if lim is None:
+        return -np.inf, np.inf
+    span = lim[1] - lim[0]
+    return lim[0] + 0.05 * span, lim[1] - 0.05 * span
+
+
+def breakaway(joint: Joint) -> tuple[float, float]:
+    """Largest torque [F] per sign (w > 0, w < 0) that cannot make the joint slide (lowest level g)."""
+    c_pos, c_neg = canonical_pair(joint.friction.map, friction_params(joint.friction))
+    ce = compile_effects(joint.effects)
+    v = np.concatenate([[0.0], np.geomspace(1e-6, 1.0, 200)]) * joint.limits.velocity
+    low = (1.0 - ce.pos_amp)
+    return (float(canonical_level(v, c_pos).min()) * low,
+            float(canonical_level(v, c_neg).min()) * low * ce.neg_factor)
+
+
+def _signs(s: str) -> list[float]:
+    return {"both": [1.0, -1.0], "positive": [1.0], "negative": [-1.0]}[s]
+
+
+def _levels(spec) -> np.ndarray:
+    if isinstance(spec, list):
+        return np.asarray(spec, dtype=float)
+    if spec.count == 1:
+        return np.array([spec.min])
+    if spec.spacing == "log":
+        return np.geomspace(spec.min, spec.max, spec.count)
+    return np.linspace(spec.min, spec.max, spec.count)
+
+
+# ---------------------------------------------------------------------------------------------------
+# Experiments
+
+
+def _constant_velocity(pr: Program, ex, axis: str):
+    j = pr.joint
+    vmax, amax = j.limits.velocity, j.limits.acceleration
+    levels = _levels(ex.velocities) * (vmax if ex.relative else 1.0)
+    acc = ex.accel * amax
+    lo, hi = travel(j, axis)
+    bounded = np.isfinite(lo)
+    mode = MODE_VEL if ex.control == "velocity_pi" else MODE_PID
+    signs = _signs(ex.signs)
+    for v in levels:
+        v = float(v)
+        if bounded:
+            room = (hi - lo) - v * v / acc
+            tp = min(ex.plateau * pr.scale, room / v)
+            tp = max(tp, ex.min_plateau * pr.scale)
+        else:
+            tp = ex.plateau * pr.scale
+        na = max(1, int(round(v / acc * pr.fs)))
+        npl = max(1, int(round(tp * pr.fs)))
+        for k, s in enumerate(signs):
+            start = lo if s > 0 else hi
+            if bounded and (k == 0 or len(signs) == 1):
+                if abs(pr.q - start) > 1e-12:
+                    pr.ptp(start, 0.5 * vmax, 0.5 * amax)
+                    pr.hold(pr.ns(ex.gap))
+            pr.velocity_piece(0.0, s * v, na, "other", mode)
+            i0, i1 = pr.velocity_piece(s * v, s * v, npl, "other", mode)
+            pr.plateaus.append((i0, i1, s * v))
+            pr.velocity_piece(s * v, 0.0, na, "other", mode)
+            pr.hold(pr.ns(ex.gap))
+
+
+def _ramp_presliding(pr: Program, ex):
+    fb = breakaway(pr.joint)
+    for s in _signs(ex.signs):
+        ref = fb[0] if s > 0 else fb[1]
+        for peak in ex.peaks:
+            P = s * peak * (ref if ex.relative else 1.0)
+            pr.open_loop(np.zeros(pr.ns(ex.settle)), "rest")
+            nu, nh, nd = pr.ns(ex.ramp_up), pr.ns(ex.hold), pr.ns(ex.ramp_down)
+            prof = np.concatenate([P * np.arange(1, nu + 1) / nu, np.full(nh, P),
+                                   P * (1.0 - np.arange(1, nd + 1) / nd)])
+            pr.open_loop(prof, "ramp_presliding")
+        pr.open_loop(np.zeros(pr.ns(ex.settle)), "rest")
+
+
+def _torque_steps(pr: Program, ex):
+    fb = breakaway(pr.joint)
+    for s in _signs(ex.signs):
+        ref = fb[0] if s > 0 else fb[1]
+        for lvl in ex.levels:
+            P = s * lvl * (ref if ex.relative else 1.0)
+            pr.open_loop(np.zeros(pr.ns(ex.settle)), "rest")
+            pr.open_loop(np.full(pr.ns(ex.hold), P), "step")
+            pr.open_loop(np.zeros(pr.ns(ex.release)), "step")
+        pr.open_loop(np.zeros(pr.ns(ex.settle)), "rest")
+
+
+def _ptp_endpoints(pr: Program, ex, axis: str) -> tuple[float, float]:
+    j = pr.joint
+    lo, hi = travel(j, axis)
+    a, b = ex.positions_deg
+    if axis == "rotary" and not ex.relative_positions:
+        qa, qb = np.deg2rad(a), np.deg2rad(b)
+        if not (np.isfinite(lo) and (qa < lo or qb > hi)):
+            return float(qa), float(qb)
+    # linear axes and ranges that cannot hold the degrees: 15 % .. 85 % of the travel
+    if not np.isfinite(lo):
+        span = 2.0 * j.limits.velocity  # two seconds at full speed
+        lo, hi = -0.5 * span, 0.5 * span
+    return lo + 0.15 * (hi - lo), lo + 0.85 * (hi - lo)
+
+
+def _ptp_program(pr: Program, ex, qa, qb, slot_samples: int, label: str):
+    """Moves qa -> qb -> qa at each speed, repeated while they fit in the slot, then hold at qa."""
+    j = pr.joint
+    vmax, amax = j.limits.velocity, ex.accel * j.limits.acceleration
+    speeds = [s * vmax for s in ex.speeds]
+    budget = 0.97 * slot_samples / pr.fs
+
+    def prog_time(d):
+        return sum(2 * ptp_time(d, v, amax) for v in speeds)
+
+    d = abs(qb - qa)
+    if prog_time(d) > budget:
+        lo_, hi_ = 0.0, 1.0
+        for _ in range(40):
+            mid = 0.5 * (lo_ + hi_)
+            lo_, hi_ = (mid, hi_) if prog_time(d * mid) <= budget else (lo_, mid)
+        qb = qa + (qb - qa) * lo_
+    start = pr.n
+    T = prog_time(abs(qb - qa))
+    reps = max(1, int(budget // T)) if T > 0 else 0
+    for _ in range(reps):
+        for v in speeds:
+            pr.ptp(qb, v, amax, label)
+            pr.ptp(qa, v, amax, label)
+    used = pr.n - start
+    if slot_samples - used > 0:
+        pr.hold(slot_samples - used, label, refine=False)
+
+
+def _duty_cycle(pr: Program, ex, axis: str, cycle_counter: list):
+    qa, qb = _ptp_endpoints(pr, ex, axis)
+    j = pr.joint
+    if abs(pr.q - qa) > 1e-12:
+        pr.ptp(qa, 0.5 * j.limits.velocity, 0.5 * j.limits.acceleration)
+        pr.hold(pr.ns(1.0))
+    if ex.cold_start:
+        pr._reset_next = True
+    cyc_n = pr.ns(ex.cycle_time)
+    slot_n = cyc_n // ex.slots
+    moving = max(1, int(round(ex.duty * ex.slots)))
+    for _ in range(ex.cycles):
+        pr.cycle = cycle_counter[0]
+        cycle_counter[0] += 1
+        start = pr.n
+        for s in range(ex.slots):
+            n_s = slot_n if s < ex.slots - 1 else cyc_n - slot_n * (ex.slots - 1)
+            if s < moving:
+                _ptp_program(pr, ex, qa, qb, n_s, "duty_cycle")
+            else:
+                pr.hold(n_s, "duty_cycle", refine=False)
+        assert pr.n - start == cyc_n
+    pr.cycle = -1
+
+
+def _multisine(pr: Program, ex, axis: str):
+    j = pr.joint
+    n = pr.ns(ex.duration)
+    t = np.arange(n) / pr.fs
+    N = ex.harmonics
+    f0 = max(ex.f0, 1.0 / (n / pr.fs))  # at least one base period in a shortened run
+    kk = np.arange(1, N + 1)
+    phi = -np.pi * kk * (kk - 1) / N  # Schroeder phases: low crest factor
+    shape = np.sin(2 * np.pi * f0 * np.outer(t, kk) + phi).sum(axis=1)
+    # smooth fade-in/out over one base period (or 20 % of the run)
+    tf = min(1.0 / f0, 0.2 * t[-1] if n > 1 else 1.0)
+    env = np.ones(n)
+    if tf > 0:
+        a = np.clip(t / tf, 0, 1)
+        b = np.clip((t[-1] - t) / tf, 0, 1)
+        env = np.sin(0.5 * np.pi * a) ** 2 * np.sin(0.5 * np.pi * b) ** 2
+    x = env * shape
+    xd = np.gradient(x, t) if n > 2 else np.zeros(n)
+    xdd = np.gradient(xd, t) if n > 2 else np.zeros(n)
+    lo, hi = travel(j, axis)
+    centre = pr.q if not np.isfinite(lo) else 0.5 * (lo + hi)
+    amp_pos = ex.amplitude if ex.amplitude is not None else (0.45 * (hi - lo) if np.isfinite(lo) else np.inf)
+    k = min(ex.velocity * j.limits.velocity / max(np.abs(xd).max(), 1e-12),
+            j.limits.acceleration / max(np.abs(xdd).max(), 1e-12),
+            amp_pos / max(np.abs(x).max(), 1e-12))
+    if abs(pr.q - centre) > 1e-12:
+        pr.ptp(centre, 0.5 * j.limits.velocity, 0.5 * j.limits.acceleration)
+        pr.hold(pr.ns(0.5))
+    q = centre + k * x
+    tau = j.J * k * xdd + pr.G(q)
+    pr.add(MODE_PID, q, k * xd, tau, "other")
+    pr.q = float(q[-1])
+
+
+def compile_recipe(recipe, plant: Plant, joint: Joint, scale: float = 1.0) -> Program:
+    """The full per-sample program of one joint for a recipe."""
+    th = joint.thermal
+    base_env = recipe.temp_env if recipe.temp_env is not None else th.Tenv
+    lo, hi = travel(joint, plant.axis)
+    q0 = 0.0 if not np.isfinite(lo) else float(np.clip(0.0, lo, hi))
+    pr = Program(plant=plant, joint=joint, scale=scale, q=q0, temp_env=base_env, payload=recipe.payload)
+    pr.hold(pr.ns(recipe.start_rest))
+    cycles = [0]
+    for run, ex in enumerate(recipe.experiments):
+        pr.run = run
+        pr.temp_env = ex.temp_env if ex.temp_env is not None else base_env
+        pr.payload = ex.payload if ex.payload is not None else recipe.payload
+        if ex.cold_start and ex.kind not in ("duty_cycle", "validation_ptp"):
+            pr._reset_next = True
+        k = ex.kind
+        if k == "constant_velocity":
+            _constant_velocity(pr, ex, plant.axis)
+        elif k == "ramp_presliding":
+            _ramp_presliding(pr, ex)
+        elif k == "torque_steps":
+            _torque_steps(pr, ex)
+        elif k in ("duty_cycle", "validation_ptp"):
+            _duty_cycle(pr, ex, plant.axis, cycles)
+        elif k == "multisine":
+            _multisine(pr, ex, plant.axis)
+        elif k == "rest":
+            pr.hold(pr.ns(ex.duration))
+        if ex.rest > 0:
+            pr.hold(pr.ns(ex.rest))
+    return pr
+
+
+# ---------------------------------------------------------------------------------------------------
+# Labels from the simulated motion
+
+
+def _smooth(x, m):
+    if m <= 1:
+        return x
+    xp = np.pad(x, (m // 2, m - 1 - m // 2), mode="edge")
+    c = np.concatenate([[0.0], np.cumsum(xp)])
+    return (c[m:] - c[:-m]) / m
+
+
+def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program) -> np.ndarray:
+    """Honest labels: plateau samples become constant_velocity only once the true velocity has settled
+    within 2 % (plus 0.1 % of the velocity limit) of the reference for the rest of the plateau; leading
+    samples of a closed-loop rest stay ``other`` until the joint has stopped."""
+    label = label.copy()
+    vmax = pr.joint.limits.velocity
+    m = max(1, int(round(0.01 * pr.fs)))
+    for i0, i1, v in pr.plateaus:
+        seg = _smooth(w[i0:i1], m)
+        tol = 0.02 * abs(v) + 1e-3 * vmax
+        bad = np.flatnonzero(np.abs(seg - v) > tol)
+        start = i0 if bad.size == 0 else i0 + int(bad[-1]) + 1
+        if (i1 - start) >= 0.3 * (i1 - i0) and (i1 - start) > 2 * m:
+            label[start:i1] = L["constant_velocity"]
+    tol_rest = 5e-3 * vmax
+    for i0, i1 in pr.rests:
+        seg = _smooth(w[i0:i1], m)
+        bad = np.flatnonzero(np.abs(seg) > tol_rest)
+        if bad.size:
+            last = int(bad[-1]) + 1
+            if last <= 0.5 * (i1 - i0):
+                label[i0:i0 + last] = L["other"]
+            else:
+                label[i0:i1] = L["other"]
+    return label
