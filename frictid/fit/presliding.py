@@ -85,16 +85,19 @@ class DynamicEstimate:
     details: dict = field(default_factory=dict)
 
 
-def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0: float, resolution: float = 0.0,
-               F_scale: float | None = None) -> DynamicEstimate:
+def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float = 0.0) -> DynamicEstimate:
     """sigma0 [F/q] from ramp-presliding segments.
 
     ramps : list of (q [q], F [F]) per segment, F the friction torque ``tau - G - offset`` (a ~ 0).
-    g0 : static friction level at zero speed [F]. resolution : encoder step [q] (0 when continuous).
+    g0 : static friction level at zero speed [F], one number or one per ramp (per-sign maps).
+    resolution : encoder step [q] (0 when continuous).
     """
     if not ramps:
         return DynamicEstimate(None, None, False, "no ramp-presliding segments", "ramps")
-    g0 = abs(float(g0)) if g0 and np.isfinite(g0) else None
+    g0s = list(np.broadcast_to(np.asarray(g0 if g0 is not None else np.nan, dtype=float), (len(ramps),)))
+    if not all(np.isfinite(g) and g > 0 for g in g0s):
+        g0s = [1.5 * float(np.max(np.abs(F))) for _, F in ramps]
+    g0s = [abs(float(g)) for g in g0s]
     spans = [float(np.ptp(q)) for q, _ in ramps]
     span = max(spans)
     if span <= 0:
@@ -108,20 +111,18 @@ def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0: float, resolution
                                "ramps", len(ramps), details={"span_counts": span / resolution})
     # data-derived start: slope of F against displacement over the lower half of each ramp
     slopes = []
-    for q, F in ramps:
+    for (q, F), g0 in zip(ramps, g0s):
         x = q - q[0]
-        lim = 0.5 * (g0 if g0 else np.max(np.abs(F)))
+        lim = 0.5 * g0
         m = np.abs(F) < lim
         if m.sum() > 5 and np.ptp(x[m]) > 0:
             slopes.append(abs(np.polyfit(x[m], F[m], 1)[0]))
-    s_start = float(np.median(slopes)) if slopes else (g0 or 1.0) / span
-    if g0 is None:
-        g0 = 1.5 * max(float(np.max(np.abs(F))) for _, F in ramps)
+    s_start = float(np.median(slopes)) if slopes else max(g0s) / span
 
     def resid(p):
         s0 = math.exp(p[0])
         out = []
-        for q, F in ramps:
+        for (q, F), g0 in zip(ramps, g0s):
             z0 = float(np.clip(F[0] / s0, -0.999 * g0 / s0, 0.999 * g0 / s0))
             out.append(s0 * bristle_path(q, z0, s0, g0) - F)
         return np.concatenate(out)
@@ -148,7 +149,7 @@ def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0: float, resolution
     reason = ""
     if not np.isfinite(se) or se > s0:
         reason = f"relative error {100 * se / s0:.0f} % (above 100 %)" if np.isfinite(se) else "no sensitivity"
-    det = {"span": span, "start_slope": s_start, "g0": g0}
+    det = {"span": span, "start_slope": s_start, "g0": g0s}
     if resolution > 0:
         det["span_counts"] = span / resolution
     return DynamicEstimate(s0, se, not reason, reason, "ramps: torque against displacement "

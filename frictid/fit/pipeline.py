@@ -1,0 +1,645 @@
+"""The identification pipeline behind ``frictid fit`` and :func:`frictid.fit`.
+
+For each joint: velocity and acceleration (Savitzky-Golay), segments, then
+
+1. inertia, gravity and torque offset with the polynomial friction by chunked least squares on the moving
+   samples (002 eq 4-11), unless the log metadata gives them (:mod:`.regression`);
+2. the friction torque ``F = tau - J a - G(q) - offset`` and one averaged point per constant-velocity
+   plateau (:func:`.static.plateau_points`);
+3. every static map and its per-sign variant on the plateau points (:mod:`.static`), each with a held-out
+   error by segment folds; the polynomial also from step 1 (``polynomial_ls``);
+4. the base model chosen by held-out error and AIC (:mod:`.select`);
+5. LuGre on top of the chosen map: sigma0 from ramps, sigma1 from steps or the critical-damping rule
+   (:mod:`.presliding`); LuGre replaces its map as the chosen model only when its dynamic parameters are
+   identifiable and it predicts held-out presliding segments better than the map alone;
+6. thermal4 / thermal6 from duty cycles with ``temp_env`` (:mod:`.thermal`), reported with their
+   held-out gain over a temperature-blind polynomial; they never enter the choice (the diagnosis does).
+
+Reading files is delegated to :func:`frictid.io.logs.read_logs` (imported when paths are given).
+True plant parameters (``JointLog.truth``) are never read here.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from typing import Callable, Iterable
+
+import numpy as np
+
+from frictid.data import SEGMENT_KINDS, JointLog, Segment
+from frictid.errors import FrictidInputError
+from frictid.models import static as sm
+from frictid.models.params import unit_of
+
+from . import presliding as pre
+from . import regression as rg
+from . import select as sel
+from . import thermal as th
+from .result import FitResult, JointFit, ModelFit, ParamEstimate
+from .static import NEGLIGIBLE, Plateaus, fit_static, metrics, plateau_points, predict
+
+#: Velocity-only models (candidates for the choice), in the order they are reported.
+BASE_MODELS = tuple(sm.map_names()) + ("polynomial_ls",)
+#: Every model name `fit` knows.
+ALL_MODELS = BASE_MODELS + ("lugre",) + th.THERMAL_MODELS
+#: Segment kinds whose moving samples enter the inertia/gravity regression.
+REGRESSION_EXCLUDE = ("ramp_presliding", "step", "rest")
+#: Moving samples: |w| above this fraction of the 99.5th percentile of |w|.
+MIN_SPEED_FRACTION = 0.02
+
+
+@dataclass
+class _Prep:
+    """One log of a joint, ready for fitting."""
+
+    log: JointLog
+    index: int  # source index
+    w: np.ndarray
+    a: np.ndarray
+    segments: list[Segment]
+    F: np.ndarray | None = None
+    G: np.ndarray | None = None
+    warnings: list[str] = field(default_factory=list)
+
+
+def parse_models(models) -> list[str]:
+    """Model names from a list or a comma-separated string; ``None`` or ``all`` means every model."""
+    if models is None:
+        return list(ALL_MODELS)
+    if isinstance(models, str):
+        models = [m.strip() for m in models.split(",") if m.strip()]
+    out = []
+    for m in models:
+        if m == "all":
+            out.extend(ALL_MODELS)
+        elif m in ALL_MODELS:
+            out.append(m)
+        else:
+            raise FrictidInputError(f"--models: unknown model {m!r}; known: {', '.join(ALL_MODELS)}")
+    return list(dict.fromkeys(out))
+
+
+def _load(paths_or_logs, mapping, units) -> tuple[list[JointLog], list[dict]]:
+    if isinstance(paths_or_logs, (str, os.PathLike, JointLog)):
+        paths_or_logs = [paths_or_logs]
+    logs: list[JointLog] = []
+    sources: list[dict] = []
+    errors: list[str] = []
+    for item in paths_or_logs:
+        if isinstance(item, JointLog):
+            logs.append(item)
+            sources.append({"path": item.source or "<memory>", "sha256": None, "rows": item.n})
+            item._fit_source = len(sources) - 1
+            continue
+        from frictid.errors import LogFormatError
+        from frictid.io.logs import file_sha256, read_logs
+        try:
+            got = read_logs(str(item), mapping, units)
+        except LogFormatError as exc:
+            errors.append(str(exc))
+            continue
+        sources.append({"path": str(item), "sha256": file_sha256(str(item)), "rows": int(sum(g.n for g in got))})
+        for g in got:
+            g._fit_source = len(sources) - 1
+        logs.extend(got)
+    if errors:
+        from frictid.errors import LogFormatError
+        raise LogFormatError("", errors)
+    if not logs:
+        raise FrictidInputError("fit: no logs given")
+    return logs, sources
+
+
+def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, units=None, *,
+        n_folds: int = 5, segmenter: Callable | None = None, differentiate: Callable | None = None
+        ) -> FitResult:
+    """Identify friction models for every joint (or one) of one or more logs.
+
+    paths_or_logs : a path, a :class:`~frictid.data.JointLog`, or a list of either (several logs of the
+    same joint are fitted together). joint : only this joint. models : names or a comma list (default
+    all of :data:`ALL_MODELS`). mapping, units : as ``--map`` / ``--units`` of :func:`frictid.io.logs.read_logs`.
+    n_folds : folds of the held-out split. segmenter(log) -> segments and differentiate(log) -> (w, a)
+    default to :func:`frictid.segments.find_segments` and :func:`frictid.segments.derivatives`.
+
+    Returns a :class:`~frictid.fit.result.FitResult`; ``.write(path)`` writes the parameter file.
+    """
+    wanted = parse_models(models)
+    logs, sources = _load(paths_or_logs, mapping, units)
+    by_joint: dict[str, list[JointLog]] = {}
+    for lg in logs:
+        by_joint.setdefault(str(lg.joint), []).append(lg)
+    if joint is not None:
+        if str(joint) not in by_joint:
+            raise FrictidInputError(f"--joint {joint}: not in the logs; joints found: {', '.join(by_joint)}")
+        by_joint = {str(joint): by_joint[str(joint)]}
+    if segmenter is None or differentiate is None:
+        from frictid import segments as _seg
+        segmenter = segmenter or _seg.find_segments
+        differentiate = differentiate or _seg.derivatives
+    res = FitResult(sources=sources, settings={"models": wanted, "n_folds": n_folds,
+                                                "heldout": "segment folds (plateaus sorted by velocity, "
+                                                           "rank mod n_folds); duty cycles by cycle"})
+    for j, jlogs in by_joint.items():
+        res.joints[j] = fit_joint(jlogs, wanted, n_folds, segmenter, differentiate)
+    return res
+
+
+# ---------------------------------------------------------------------------------------------------
+
+
+def _meta_value(meta: dict, *keys):
+    for k in keys:
+        if k in meta and meta[k] is not None:
+            v = meta[k]
+            if isinstance(v, dict):
+                return v.get("value"), v.get("stderr")
+            try:
+                return float(v), None
+            except (TypeError, ValueError):
+                continue
+    return None, None
+
+
+def known_from_meta(meta: dict) -> dict[str, tuple[float, float | None]]:
+    """Inertia, gravity and offset given by the log metadata: name -> (value, stderr or None).
+
+    Keys: ``inertia`` (or ``J``), ``gravity`` ({Px, Py} or [Px, Py]), ``offset`` (or ``tau_offset``); each a
+    number or a mapping with ``value`` (and ``stderr``).
+    """
+    out = {}
+    v, s = _meta_value(meta, "inertia", "J")
+    if v is not None:
+        out["J"] = (float(v), s)
+    g = meta.get("gravity")
+    if isinstance(g, dict):
+        for k in ("Px", "Py"):
+            if k in g:
+                gv, gs = _meta_value(g, k)
+                if gv is not None:
+                    out[k] = (float(gv), gs)
+    elif isinstance(g, (list, tuple)) and len(g) == 2:
+        out["Px"], out["Py"] = (float(g[0]), None), (float(g[1]), None)
+    v, s = _meta_value(meta, "offset", "tau_offset")
+    if v is not None:
+        out["offset"] = (float(v), s)
+    return out
+
+
+def _dims(name: str) -> str:
+    return {"J": "J", "c0": "F", "c1": "D", "c2": "D2", "c3": "D3", "Px": "F", "Py": "F", "Mx": "M",
+            "My": "M", "offset": "F"}[name]
+
+
+def _unit(dim: str, axis: str) -> str:
+    if dim == "J":
+        return "kg m^2" if axis == "rotary" else "kg"
+    if dim == "M":
+        return "N m/kg" if axis == "rotary" else "N/kg"
+    return unit_of(dim, axis)
+
+
+def _speed_power(dim: str) -> int | None:
+    return {"F": 0, "D": 1, "D2": 2, "D3": 3}.get(dim)
+
+
+def _reg_estimate(name, fit_: rg.LinearFit | None, axis, F0, w0, a0, why_none="") -> ParamEstimate:
+    dim = _dims(name)
+    unit = _unit(dim, axis)
+    if fit_ is None or name not in fit_.names:
+        return ParamEstimate(name, None, None, unit, False, why_none or "not estimated")
+    v = fit_.value(name)
+    se = fit_.stderr(name)
+    if fit_.n == 0:
+        return ParamEstimate(name, None, None, unit, False, why_none or "no moving samples")
+    if name in fit_.dependent:
+        why = {"J": "no acceleration in the moving samples that the other terms cannot explain",
+               "Px": "the joint does not move through enough of its range to separate gravity from the offset",
+               "Py": "the joint does not move through enough of its range to separate gravity from the offset",
+               "offset": "not separable from gravity or the Coulomb term (one velocity sign or a fixed angle)",
+               }.get(name, "not separable from other regressors")
+        return ParamEstimate(name, v, None, unit, False, why)
+    reason = ""
+    if se is None or not np.isfinite(se):
+        reason = "no error estimate (too few samples)"
+    elif se > abs(v):
+        if name == "J":
+            impact = se * a0
+        elif dim == "M":
+            impact = None
+        else:
+            p = _speed_power(dim)
+            impact = se * w0**p if p is not None else None
+        if impact is None or impact > NEGLIGIBLE * F0:
+            reason = f"relative error {100 * se / abs(v):.0f} % (above 100 %)" if v else "relative error above 100 %"
+    if name == "J" and v <= 0 and not reason:
+        reason = "not positive: the data do not determine the inertia"
+    return ParamEstimate(name, v, se, unit, not reason, reason)
+
+
+def _static_params_pe(mf: ModelFit) -> dict[str, ParamEstimate]:
+    return {k: ParamEstimate(**vars(p)) for k, p in mf.params.items()}
+
+
+def _scalar_map(c_pos, c_neg):
+    """Scalar level g(w) and viscous f(w) callables of canonical vectors (for the step simulation)."""
+    def level(w):
+        c = c_pos if w >= 0 else c_neg
+        v = abs(w)
+        out = c[0]
+        if c[1] != 0.0:
+            out += c[1] * math.exp(-((v / c[2]) ** c[3]))
+        if c[4] != 0.0:
+            out += c[4] * (1.0 - math.exp(-v / c[5]))
+        return out
+
+    def viscous(w):
+        c = c_pos if w >= 0 else c_neg
+        return c[6] * w + c[7] * w * abs(w) + c[8] * w**3
+    return level, viscous
+
+
+def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter, differentiate) -> JointFit:
+    """Identify everything for one joint from its logs (see the module docstring)."""
+    axis = jlogs[0].axis
+    jf = JointFit(joint=str(jlogs[0].joint), axis=axis, units=dict(jlogs[0].units))
+    if any(lg.axis != axis for lg in jlogs):
+        raise FrictidInputError(f"joint {jf.joint}: logs disagree on the axis (rotary / linear)")
+    preps: list[_Prep] = []
+    for lg in jlogs:
+        w, a = differentiate(lg)
+        segs = list(segmenter(lg))
+        preps.append(_Prep(lg, getattr(lg, "_fit_source", 0), np.asarray(w, float), np.asarray(a, float), segs))
+        jf.warnings.extend(lg.warnings)
+    jf.segments = {k: 0 for k in SEGMENT_KINDS}
+    for p in preps:
+        for s in p.segments:
+            jf.segments[s.kind] = jf.segments.get(s.kind, 0) + 1
+    used: dict[str, list] = {}
+
+    # scales of the data
+    allw = np.concatenate([p.w[np.isfinite(p.w)] for p in preps])
+    allt = np.concatenate([p.log.tau[np.isfinite(p.log.tau)] for p in preps])
+    alla = np.concatenate([p.a[np.isfinite(p.a)] for p in preps])
+    w0 = float(np.percentile(np.abs(allw), 99.5)) if allw.size else 0.0
+    F0 = float(np.percentile(np.abs(allt - np.median(allt)), 99.5)) if allt.size else 0.0
+    a0 = float(np.percentile(np.abs(alla), 99.5)) if alla.size else 0.0
+    F0 = F0 if F0 > 0 else 1.0
+    min_speed = MIN_SPEED_FRACTION * w0
+    if w0 <= 0:
+        jf.warnings.append("no motion in the logs: nothing that depends on velocity can be identified")
+
+    # ---- 1. inertia, gravity, offset (+ polynomial) by least squares
+    known = {}
+    for p in preps:
+        known.update(known_from_meta(p.log.meta or {}))
+    has_q = all(p.log.q is not None for p in preps)
+    has_payload = all("payload" in p.log.channels for p in preps)
+    names = ["J", "c0", "c1", "c2", "c3"]
+    if has_q and axis == "rotary":
+        names += ["Px", "Py"]
+    if has_payload and has_q:
+        names += ["Mx"] + (["My"] if axis == "rotary" else [])
+    names += ["offset"]
+    free_names = tuple(n for n in names if n not in known)
+    known_coef = {n: known[n][0] for n in names if n in known}
+    seg_ne: list[tuple[int, int, rg.NormalEquations]] = []
+    for pi, p in enumerate(preps):
+        ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in REGRESSION_EXCLUDE]
+        seg_ids = [si for si, s in enumerate(p.segments) if s.kind not in REGRESSION_EXCLUDE]
+        if not p.segments:  # no segmentation: every sample is a candidate
+            ranges, seg_ids = [(0, p.log.n)], [-1]
+        nes = rg.accumulate(ranges, free_names, p.log.q, p.w, p.a, p.log.tau,
+                            p.log.channels.get("payload"), known_coef, min_speed, axis)
+        seg_ne += [(pi, si, ne) for si, ne in zip(seg_ids, nes)]
+    reg_fit = None
+    if seg_ne and free_names:
+        total = rg.NormalEquations.total(ne for *_, ne in seg_ne)
+        if total.n > len(free_names):
+            reg_fit = rg.solve(total, free_names)
+            rho = 0.0
+            for pi, p in enumerate(preps):
+                ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in REGRESSION_EXCLUDE] or [(0, p.log.n)]
+                rho = max(rho, rg.residual_autocorrelation(reg_fit, ranges, p.log.q, p.w, p.a, p.log.tau,
+                                                           p.log.channels.get("payload"), known_coef,
+                                                           min_speed, axis))
+            reg_fit = rg.solve(total, free_names, rho=rho)
+    why_reg = "no moving samples" if reg_fit is None else ""
+
+    def est(name):
+        if name in known:
+            v, s = known[name]
+            return ParamEstimate(name, v, s, _unit(_dims(name), axis), True, "", source="log metadata")
+        return _reg_estimate(name, reg_fit, axis, F0, w0, a0, why_reg)
+
+    jf.inertia = est("J")
+    if axis == "rotary":
+        if has_q:
+            jf.gravity = {n: est(n) for n in ("Px", "Py")}
+            px, py = jf.gravity["Px"], jf.gravity["Py"]
+            if px.value is not None and py.value is not None:
+                amp = math.hypot(px.value, py.value)
+                se = None
+                if px.stderr is not None and py.stderr is not None and amp > 0:
+                    se = math.hypot(px.value * px.stderr, py.value * py.stderr) / amp
+                ok = px.identifiable and py.identifiable
+                jf.gravity["amplitude"] = ParamEstimate("amplitude", amp, se, _unit("F", axis), ok,
+                                                        "" if ok else "Px or Py not identifiable")
+        else:
+            jf.gravity = {n: ParamEstimate(n, None, None, _unit("F", axis), False, "no position channel")
+                          for n in ("Px", "Py")}
+    else:
+        jf.warnings.append("linear axis: a constant gravity force is part of the offset")
+    for n in ("Mx", "My"):
+        if n in names:
+            jf.gravity[n] = est(n)
+    jf.offset = est("offset")
+    for n, pe in [("J", jf.inertia), ("offset", jf.offset), *jf.gravity.items()]:
+        if not pe.identifiable:
+            jf.not_identified.append({"what": n, "reason": pe.reason})
+
+    # ---- 2. friction torque and plateaus
+    coef = {n: (pe.value if pe.value is not None else 0.0) for n, pe in
+            [("J", jf.inertia), ("offset", jf.offset), *jf.gravity.items()] if n != "amplitude"}
+    pls = []
+    for pi_, p in enumerate(preps):
+        q = p.log.q
+        G = np.zeros(p.log.n)
+        if q is not None and axis == "rotary":
+            G = coef.get("Px", 0.0) * np.cos(q) + coef.get("Py", 0.0) * np.sin(q)
+        if "payload" in p.log.channels and q is not None:
+            pl_ = p.log.channels["payload"]
+            G = G + coef.get("Mx", 0.0) * pl_ * (np.cos(q) if axis == "rotary" else 1.0)
+            if axis == "rotary":
+                G = G + coef.get("My", 0.0) * pl_ * np.sin(q)
+        G = G + coef.get("offset", 0.0)
+        p.G = G
+        p.F = p.log.tau - coef.get("J", 0.0) * np.nan_to_num(p.a) - G
+        pl = plateau_points(p.log.t, p.w, p.F, p.segments)
+        pls.append((pi_, pl))
+    # one Plateaus for all logs; keys[i] = (prep index, segment index) of plateau i
+    cat = [(pi_, pl) for pi_, pl in pls if len(pl)]
+    if cat:
+        keys = np.array([(pi_, si) for pi_, pl in cat for si in pl.seg], dtype=int).reshape(-1, 2)
+        plat = Plateaus(*(np.concatenate([getattr(c, f) for _, c in cat]) for f in
+                          ("w", "F", "F_se", "w_se", "n", "t_start", "t_end", "seg")))
+    else:
+        keys = np.zeros((0, 2), int)
+        z = np.zeros(0)
+        plat = Plateaus(z, z, z, z, z.astype(int), z, z, z.astype(int))
+    used["constant_velocity"] = [[float(a), float(b), preps[int(k[0])].index] for a, b, k in
+                                 zip(plat.t_start, plat.t_end, keys)]
+    npos, nneg = int((plat.w > 0).sum()), int((plat.w < 0).sum())
+    if len(plat) == 0:
+        jf.warnings.append("no usable constant-velocity plateaus: the static maps cannot be fitted")
+    elif nneg == 0 or npos == 0:
+        side = "positive" if nneg == 0 else "negative"
+        jf.warnings.append(f"one velocity sign only ({side}-velocity plateaus): symmetric maps assume the "
+                           "other sign mirrors it; per-sign parameters of the other sign are not identifiable")
+
+    # ---- 3. static maps
+    static_names = [m for m in wanted if m in sm.map_names()]
+    for name in static_names:
+        if len(plat) == 0:
+            jf.not_identified.append({"what": name, "reason": "no constant-velocity plateaus"})
+            continue
+        mf = fit_static(name, plat.w, plat.F, plat.F_se, axis=axis)
+        mf.metrics["rms_heldout"] = sel.heldout_static(name, plat, n_folds, axis=axis)
+        jf.models[name] = mf
+    if "polynomial_ls" in wanted:
+        mf = _polynomial_ls(reg_fit, seg_ne, plat, keys, free_names,
+                            axis, F0, w0, a0, n_folds, why_reg)
+        if mf is not None:
+            jf.models["polynomial_ls"] = mf
+        else:
+            jf.not_identified.append({"what": "polynomial_ls", "reason": why_reg or "no moving samples"})
+
+    # ---- 4. choice among the velocity-only static models
+    cands = [m for m in BASE_MODELS if m in jf.models]
+    selected, rec = sel.choose(jf.models, cands)
+    jf.selected, jf.selection = selected, rec
+
+    # ---- 5. LuGre on top of the chosen map
+    if "lugre" in wanted:
+        _lugre(jf, preps, selected, used, axis, F0, w0)
+
+    # ---- 6. thermal
+    th_wanted = [m for m in wanted if m in th.THERMAL_MODELS]
+    if th_wanted:
+        _thermal(jf, preps, th_wanted, used, axis, min_speed, n_folds)
+
+    jf.segments_used = used
+    if jf.selected is None:
+        jf.warnings.append("no model could be chosen: " + str(rec.get("reason", "")))
+    return jf
+
+
+def _polynomial_ls(reg_fit, seg_ne, plat, keys, free_names, axis, F0, w0, a0, n_folds, why) -> ModelFit | None:
+    if reg_fit is None or not all(c in free_names for c in ("c0", "c1", "c2", "c3")):
+        return None
+    params = {c: _reg_estimate(c, reg_fit, axis, F0, w0, a0) for c in ("c0", "c1", "c2", "c3")}
+    values = {c: params[c].value for c in params}
+    met = metrics("polynomial", values, plat.w, plat.F, 4) if len(plat) else {"rms": None, "n": 0, "k": 4,
+                                                                              "aic": None}
+    met["rms_heldout"] = None
+    if len(plat) >= 4:
+        nf = n_folds if len(plat) >= 2 * n_folds else max(2, len(plat) // 2)
+        folds = sel.plateau_folds(plat.w, nf)
+        total = rg.NormalEquations.total(ne for *_, ne in seg_ne)
+        pred = np.full(len(plat), np.nan)
+        lookup = {(pi, si): ne for pi, si, ne in seg_ne}
+        for f in range(nf):
+            out = rg.NormalEquations(total.p)
+            for (pi, si), fo in zip(keys, folds):
+                if fo == f and (int(pi), int(si)) in lookup:
+                    out = out + lookup[(int(pi), int(si))]
+            fitf = rg.solve(total - out, free_names)
+            vals = {c: fitf.value(c) for c in ("c0", "c1", "c2", "c3")}
+            pred[folds == f] = sm.polynomial(plat.w[folds == f], **vals)
+        r = pred - plat.F
+        if np.all(np.isfinite(r)):
+            met["rms_heldout"] = float(np.sqrt(np.mean(r**2)))
+    return ModelFit("polynomial_ls", "polynomial", params, met,
+                    method="linear least squares on all moving samples with J, gravity and offset (002 eq 4-11)")
+
+
+def _lugre(jf: JointFit, preps, selected, used, axis, F0, w0) -> None:
+    base_name = selected if selected in jf.models else None
+    if base_name is None:
+        jf.not_identified.append({"what": "lugre", "reason": "no static map to build on"})
+        return
+    base = jf.models[base_name]
+    vals = base.values()
+    smap_name = base.map
+    if any(v is None for v in vals.values()):
+        jf.not_identified.append({"what": "lugre", "reason": f"{base_name} has unknown parameters"})
+        return
+    c_pos, c_neg = sm.canonical_pair(smap_name, vals)
+    level, viscous = _scalar_map(c_pos, c_neg)
+    ramps, ramp_t, ramp_w = [], [], []
+    steps = []
+    for p in preps:
+        if p.log.q is None:
+            continue
+        for s in p.segments:
+            if s.kind == "ramp_presliding" and s.n >= 10:
+                ramps.append((np.asarray(p.log.q[s.i0:s.i1], float), p.F[s.i0:s.i1]))
+                ramp_t.append([float(s.t_start), float(s.t_end), p.index])
+                ramp_w.append(p.w[s.i0:s.i1])
+            elif s.kind == "step" and s.n >= 10:
+                u = p.log.tau[s.i0:s.i1] - p.G[s.i0:s.i1]
+                steps.append((p.log.t[s.i0:s.i1], np.asarray(p.log.q[s.i0:s.i1], float), u, s, p.index))
+    res_meta = [p.log.meta.get("encoder_resolution") for p in preps if p.log.meta]
+    res_meta = [float(r) for r in res_meta if r]
+    qcat = np.concatenate([q for q, _ in ramps] + [st[1] for st in steps]) if (ramps or steps) else np.zeros(0)
+    resolution = res_meta[0] if res_meta else (pre.encoder_resolution(qcat) if qcat.size else 0.0)
+    g_of = [abs(level(1e-12 if np.mean(F) >= 0 else -1e-12)) for _, F in ramps]
+    s0 = pre.fit_sigma0(ramps, g_of, resolution)
+    J = jf.inertia.value if jf.inertia and jf.inertia.value else None
+    sig2 = c_pos[6] if abs(c_pos[6]) > 0 else 0.0
+    if s0.identifiable and J:
+        s1 = pre.fit_sigma1_steps([(t, q, u) for t, q, u, *_ in steps], J, s0.value, level, viscous, sig2,
+                                  resolution)
+        if not s1.identifiable:
+            why_steps = s1.reason
+            s1 = pre.sigma1_rule(s0.value, s0.stderr, J, jf.inertia.stderr, sig2)
+            s1.source += f" ({why_steps})"
+        else:
+            used["step"] = [[float(s.t_start), float(s.t_end), src] for *_, s, src in steps]
+    else:
+        why = "needs sigma0" if not s0.identifiable else "needs the inertia J"
+        s1 = pre.DynamicEstimate(None, None, False, f"{why}, which is not identifiable", "")
+    if ramps:
+        used["ramp_presliding"] = ramp_t
+    params = _static_params_pe(base)
+    params["sigma0"] = ParamEstimate("sigma0", s0.value, s0.stderr, unit_of("K", axis), s0.identifiable,
+                                     s0.reason, source=s0.source)
+    params["sigma1"] = ParamEstimate("sigma1", s1.value, s1.stderr, unit_of("D", axis), s1.identifiable,
+                                     s1.reason, source=s1.source)
+    met = dict(base.metrics)
+    met["k"] = int((met.get("k") or 0) + 2)
+    notes = [f"static part: {base_name}"]
+    # presliding prediction: LuGre (sigma0 bristles along the measured path) against the static map alone
+    if s0.identifiable and ramps:
+        lug, stat, held = [], [], []
+        for i, ((q, F), g0, w) in enumerate(zip(ramps, g_of, ramp_w)):
+            z0 = float(np.clip(F[0] / s0.value, -g0 / s0.value, g0 / s0.value))
+            lug.append(s0.value * pre.bristle_path(q, z0, s0.value, g0) - F)
+            stat.append(predict(base_name if base_name != "polynomial_ls" else "polynomial", vals, w) - F)
+            if len(ramps) >= 2:
+                rest = [r for k, r in enumerate(ramps) if k != i]
+                gr = [g for k, g in enumerate(g_of) if k != i]
+                e = pre.fit_sigma0(rest, gr, resolution)
+                if e.value:
+                    z0h = float(np.clip(F[0] / e.value, -g0 / e.value, g0 / e.value))
+                    held.append(e.value * pre.bristle_path(q, z0h, e.value, g0) - F)
+        rl = float(np.sqrt(np.mean(np.concatenate(lug) ** 2)))
+        rs = float(np.sqrt(np.nanmean(np.concatenate(stat) ** 2)))
+        met["rms_presliding"] = rl
+        met["rms_presliding_static"] = rs
+        met["rms_presliding_heldout"] = float(np.sqrt(np.mean(np.concatenate(held) ** 2))) if held else None
+    mf = ModelFit("lugre", smap_name if base_name != "polynomial_ls" else "polynomial", params, met,
+                  method="static map on plateaus; sigma0 from ramps (torque against displacement); sigma1 "
+                         + ("from steps (simulation error)" if "steps" in s1.source else
+                            "by the critical-damping rule" if "rule" in s1.source else "not identified"),
+                  notes=notes, extra={"static_model": base_name})
+    jf.models["lugre"] = mf
+    for n in ("sigma0", "sigma1"):
+        if not params[n].identifiable:
+            jf.not_identified.append({"what": f"lugre.{n}", "reason": params[n].reason})
+    # the choice: LuGre replaces its map when identifiable and better on held-out presliding segments
+    rh = met.get("rms_presliding_heldout")
+    if mf.identifiable and rh is not None and rh < met["rms_presliding_static"]:
+        jf.selection["lugre"] = (f"chosen: held-out presliding RMS {rh:.4g} against {met['rms_presliding_static']:.4g} "
+                                 f"for {base_name} alone")
+        jf.selected = "lugre"
+    else:
+        why = ("not all dynamic parameters identifiable" if not mf.identifiable else
+               "fewer than two ramp segments: no held-out presliding error" if rh is None else
+               "no better than the static map on held-out presliding segments")
+        jf.selection["lugre"] = f"not chosen: {why}"
+
+
+def _thermal(jf: JointFit, preps, th_wanted, used, axis, min_speed, n_folds) -> None:
+    runs = []
+    cyc_used = []
+    reasons = []
+    for p in preps:
+        duty = [s for s in p.segments if s.kind == "duty_cycle"]
+        if not duty:
+            continue
+        if "temp_env" not in p.log.channels:
+            reasons.append("duty cycles without a temp_env channel")
+            continue
+        groups: dict[int, list[Segment]] = {}
+        for k, s in enumerate(duty):
+            groups.setdefault(s.cycle if s.cycle is not None else k, []).append(s)
+        cycles = [(min(s.i0 for s in g), max(s.i1 for s in g), cid) for cid, g in groups.items()]
+        run = th.prepare(p.log.t, p.w, p.F, cycles, p.log.channels["temp_env"],
+                         p.log.channels.get("temp_joint"), min_speed)
+        if run is not None:
+            runs.append(run)
+            cyc_used += [[float(a), float(b), p.index] for a, b in run.cycle_t]
+    if not runs:
+        why = reasons[0] if reasons else "no duty-cycle segments"
+        for m in th_wanted:
+            jf.not_identified.append({"what": m, "reason": why})
+        return
+    used["duty_cycle"] = cyc_used
+    F_unit = unit_of("F", axis)
+    for m in th_wanted:
+        tf = th.fit_thermal(runs, m)
+        if tf is None:
+            jf.not_identified.append({"what": m, "reason": "too few duty cycles with motion in both directions"})
+            continue
+        r_h, r_c = th.heldout(runs, m, n_folds=3)
+        params: dict[str, ParamEstimate] = {}
+        cdims = ("F", "D", "D2", "D3")
+        for i, dim in enumerate(cdims):
+            n = f"c{i}"
+            if n in tf.fixed:
+                params[n] = ParamEstimate(n, tf.fixed[n], None, unit_of(dim, axis), True,
+                                          "from the cold first cycle (002: identified at T0)", fixed=True)
+            else:
+                params[n] = ParamEstimate(n, tf.values[n], tf.stderr[n], unit_of(dim, axis),
+                                          n not in tf.reasons, tf.reasons.get(n, ""))
+        if m == "thermal6":
+            for i, dim in enumerate(cdims):
+                n = f"dc{i}"
+                params[n] = ParamEstimate(n, tf.values[n], tf.stderr[n], unit_of(dim, axis) + "/K",
+                                          n not in tf.reasons, tf.reasons.get(n, ""))
+        else:
+            params["alpha"] = ParamEstimate("alpha", tf.values["alpha"], tf.stderr["alpha"], "1/K",
+                                            "alpha" not in tf.reasons, tf.reasons.get("alpha", ""))
+            params["beta"] = ParamEstimate("beta", tf.values["beta"], tf.stderr["beta"], "1",
+                                           "beta" not in tf.reasons, tf.reasons.get("beta", ""))
+        if "K" in tf.fixed:
+            params["K"] = ParamEstimate("K", tf.fixed["K"], None, "W/K", True,
+                                        "held: the joint temperature is not measured, K only sets its scale",
+                                        fixed=True)
+        else:
+            params["K"] = ParamEstimate("K", tf.values["K"], tf.stderr["K"], "W/K", "K" not in tf.reasons,
+                                        tf.reasons.get("K", ""))
+        params["C"] = ParamEstimate("C", tf.values["C"], tf.stderr["C"], "J/K", "C" not in tf.reasons,
+                                    tf.reasons.get("C", ""))
+        params["T0"] = ParamEstimate("T0", tf.T0, None, "degC", True, "ambient temperature at the cold start",
+                                     fixed=True)
+        n = tf.n_cycles
+        rss = (tf.rms or 0.0) ** 2 * n
+        aic = sel_aic(rss, n, tf.k)
+        met = {"rms": tf.rms, "rms_heldout": r_h, "rms_heldout_constant": r_c,
+               "heldout_gain": (1 - r_h / r_c) if (r_h is not None and r_c) else None,
+               "aic": aic, "n": n, "k": tf.k}
+        extra = {"time_constant": {"value": tf.time_constant, "stderr": tf.time_constant_se, "unit": "s"},
+                 "cycle_temperature": [[round(x, 4) for x in ct] for ct in tf.cycle_T]}
+        jf.models[m] = ModelFit(m, "polynomial", params, met, notes=tf.notes, success=tf.success,
+                                method="cycle-by-cycle polynomial least squares, then all thermal parameters "
+                                       "together against the cycles' friction (002 section V)", extra=extra)
+        for nm, pe in params.items():
+            if not pe.identifiable:
+                jf.not_identified.append({"what": f"{m}.{nm}", "reason": pe.reason})
+
+
+def sel_aic(rss, n, k):
+    from .static import _aic
+    return _aic(rss, n, k)

@@ -1,0 +1,88 @@
+"""Model choice per joint: error on held-out segments and an information criterion.
+
+Held-out error. The plateaus (one per constant-velocity segment) are split into ``n_folds`` folds by
+segment, never by sample: sorted by velocity, plateau ``k`` goes to fold ``k mod n_folds``, so every fold
+spans both signs and all speeds. Each model is refitted without a fold and predicts it;
+``rms_heldout`` is the RMS of those predictions over all plateaus.
+
+Choice (:func:`choose`). Among the base models whose parameters are all identifiable, those whose
+held-out RMS is within :data:`TOLERANCE` (5 %) of the best are equally good on new data; of these the one
+with the lowest AIC (small-sample corrected) is chosen, which prefers the simpler model when the data do
+not need the richer one. When no model is fully identifiable the same rule runs over all models, with a
+warning.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .static import Plateaus, fit_static, predict
+
+#: Held-out RMS within this fraction of the best counts as equally good.
+TOLERANCE = 0.05
+
+
+def plateau_folds(w: np.ndarray, n_folds: int) -> np.ndarray:
+    """Fold index per plateau: velocity-sorted rank modulo n_folds."""
+    order = np.argsort(w, kind="stable")
+    folds = np.empty(w.shape[0], dtype=int)
+    folds[order] = np.arange(w.shape[0]) % n_folds
+    return folds
+
+
+def heldout_static(name: str, pl: Plateaus, n_folds: int = 5, axis: str = "rotary", **kw) -> float | None:
+    """Held-out RMS [F] of static map ``name`` over the plateaus (leave-fold-out by segment)."""
+    n = len(pl)
+    if n < 2 * n_folds:
+        n_folds = max(2, n // 2) if n >= 4 else 0
+    if n_folds < 2:
+        return None
+    folds = plateau_folds(pl.w, n_folds)
+    pred = np.full(n, np.nan)
+    for f in range(n_folds):
+        tr = folds != f
+        m = fit_static(name, pl.w[tr], pl.F[tr], pl.F_se[tr], axis=axis, **kw)
+        pred[~tr] = predict(name, m.values(), pl.w[~tr])
+    r = pred - pl.F
+    if not np.all(np.isfinite(r)):
+        return None
+    return float(math.sqrt(np.mean(r**2)))
+
+
+def choose(models: dict, candidates: list[str] | None = None, tolerance: float = TOLERANCE
+           ) -> tuple[str | None, dict]:
+    """Choose a base model. models : name -> :class:`~frictid.fit.result.ModelFit`.
+
+    Returns (name or None, a record of the rule, the ranking and why).
+    """
+    names = [n for n in (candidates or list(models)) if n in models]
+    ranked = []
+    for n in names:
+        m = models[n]
+        ranked.append({"model": n, "rms_heldout": m.metrics.get("rms_heldout"), "aic": m.metrics.get("aic"),
+                       "k": m.metrics.get("k"), "identifiable": m.identifiable})
+    rec: dict = {"rule": f"lowest AIC among identifiable models whose held-out RMS is within "
+                         f"{100 * tolerance:.0f} % of the best", "tolerance": tolerance}
+    pool = [r for r in ranked if r["identifiable"] and r["rms_heldout"] is not None]
+    if not pool:
+        pool = [r for r in ranked if r["rms_heldout"] is not None]
+        if pool:
+            rec["warning"] = "no model has all its parameters identifiable; chosen among all models"
+    if not pool:
+        pool = [r for r in ranked if r["aic"] is not None]
+        if not pool:
+            rec["reason"] = "no model could be fitted"
+            rec["ranking"] = ranked
+            return None, rec
+        rec["warning"] = "too few plateaus for held-out errors; chosen by AIC alone"
+        best = min(pool, key=lambda r: r["aic"])
+    else:
+        best_rms = min(r["rms_heldout"] for r in pool)
+        near = [r for r in pool if r["rms_heldout"] <= (1 + tolerance) * best_rms]
+        best = min(near, key=lambda r: (r["aic"] if r["aic"] is not None else math.inf, r["k"] or 0))
+        rec["best_heldout"] = min(pool, key=lambda r: r["rms_heldout"])["model"]
+        rec["equally_good"] = [r["model"] for r in near]
+    ranked.sort(key=lambda r: (r["rms_heldout"] is None, r["rms_heldout"] or 0.0))
+    rec["ranking"] = ranked
+    return best["model"], rec

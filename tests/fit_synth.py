@@ -1,0 +1,86 @@
+"""Synthetic joint logs with known parameters and known segments, for the fit tests.
+
+Kinematics are prescribed and the torque follows from inverse dynamics with a static friction map (a
+fast stand-in for the plant); ramps are simulated with the LuGre step of :mod:`frictid.fit.presliding`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from frictid.data import JointLog, Segment
+from frictid.models import static as sm
+
+TRUE = dict(J=0.8, Px=6.0, Py=-2.0, offset=0.3,
+            stribeck=dict(Fc=2.0, Fs=3.0, vs=0.08, delta=2.0, sigma2=1.2))
+
+
+def smooth_step(x):
+    x = np.clip(x, 0, 1)
+    return x * x * x * (10 - 15 * x + 6 * x * x)
+
+
+def synth_log(speeds=None, dt=2e-3, hold=1.5, move=0.6, noise=0.02, seed=0, true=TRUE, excitation=True,
+              ramps=0, joint="1") -> JointLog:
+    """Plateaus at ``speeds`` (rad/s) joined by smooth transitions, an excitation part, and optional ramps."""
+    rng = np.random.default_rng(seed)
+    if speeds is None:
+        v = np.geomspace(0.01, 2.0, 10)
+        speeds = np.concatenate([v, -v])
+    ts, ws, kinds = [], [], []
+    t = 0.0
+    w_prev = 0.0
+    for v in speeds:
+        n_m = int(move / dt)
+        x = np.arange(n_m) / n_m
+        ws.append(w_prev + (v - w_prev) * smooth_step(x))
+        kinds += ["other"] * n_m
+        n_h = int(hold / dt)
+        ws.append(np.full(n_h, v))
+        kinds += ["constant_velocity"] * n_h
+        w_prev = v
+    n_m = int(move / dt)
+    ws.append(w_prev * (1 - smooth_step(np.arange(n_m) / n_m)))
+    kinds += ["other"] * n_m
+    if excitation:
+        tt = np.arange(int(20.0 / dt)) * dt
+        we = 1.2 * np.sin(2 * np.pi * 0.3 * tt) * np.sin(np.pi * tt / 20.0) + 0.6 * np.sin(2 * np.pi * 0.9 * tt) \
+            * np.sin(np.pi * tt / 20.0) ** 2
+        ws.append(we)
+        kinds += ["other"] * tt.size
+    w = np.concatenate(ws)
+    n = w.size
+    t = np.arange(n) * dt
+    q = np.cumsum(w) * dt - 1.0
+    a = np.gradient(w, dt)
+    F = sm.stribeck(w, **true["stribeck"])
+    tau = true["J"] * a + F + true["Px"] * np.cos(q) + true["Py"] * np.sin(q) + true["offset"]
+    tau = tau + rng.normal(0, noise, n)
+    qn = q + rng.normal(0, 1e-6, n)
+    lab = np.array(kinds)
+    log = JointLog(joint=joint, t=t, tau=tau, q=qn, qd=None, channels={"temp_env": np.full(n, 21.0)})
+    log.truth = {"segment": lab, "params": true, "w": w, "a": a}
+    return log
+
+
+def truth_segments(log: JointLog) -> list[Segment]:
+    """Segments from the truth labels (tests only)."""
+    lab = log.truth["segment"]
+    out = []
+    i = 0
+    n = lab.size
+    while i < n:
+        j = i
+        while j < n and lab[j] == lab[i]:
+            j += 1
+        cyc = None
+        if "cycle" in log.truth:
+            c = int(log.truth["cycle"][i])
+            cyc = c if c >= 0 else None
+        out.append(Segment(str(lab[i]), i, j, float(log.t[i]), float(log.t[j - 1]), cycle=cyc))
+        i = j
+    return out
+
+
+def truth_derivatives(log: JointLog):
+    """Exact velocity and acceleration (tests only)."""
+    return log.truth["w"], log.truth["a"]
