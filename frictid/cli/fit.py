@@ -1,19 +1,59 @@
-"""``frictid fit``: identify friction models (not yet available)."""
+"""``frictid fit``: identify friction models from logs and write the parameter YAML."""
 from __future__ import annotations
 
+import json
 from typing import Annotated, List, Optional
 
 import typer
 
 from .app import app
+from .common import Console, JsonOpt, MapOpt, QuietOpt, UnitsOpt
 
 
 @app.command()
 def fit(
     logs: Annotated[Optional[List[str]], typer.Argument(help="Joint logs (CSV, Parquet, - for stdin).")] = None,
-    output: Annotated[Optional[str], typer.Option("-o", "--output", help="Parameter YAML to write.")] = None,
+    output: Annotated[Optional[str], typer.Option("-o", "--output", help="Parameter YAML to write (- for stdout).")] = None,
+    joint: Annotated[Optional[str], typer.Option("--joint", help="Fit only this joint.")] = None,
+    models: Annotated[Optional[str], typer.Option(
+        "--models", help="Comma list of models (default all): coulomb_viscous, stribeck, stribeck_2exp, "
+                         "polynomial (each also _asym), polynomial_ls, lugre, thermal4, thermal6.")] = None,
+    mapping: MapOpt = None,
+    units: UnitsOpt = None,
+    quiet: QuietOpt = False,
+    as_json: JsonOpt = False,
 ) -> None:
-    """Identify friction models and write a parameter YAML (not yet available)."""
+    """Find the segments, identify every model the data support, choose one, write the parameter file."""
     from ..errors import FrictidInputError
+    from ..fit.pipeline import fit as run_fit, parse_models
+    from ..io.atomic import check_output_path
+    from ..io.params import write_params
 
-    raise FrictidInputError("fit: not yet available in this version")
+    con = Console(quiet)
+    if not logs:
+        raise FrictidInputError("fit: give at least one log (e.g. frictid fit run.csv -o params.yaml)")
+    if not output:
+        raise FrictidInputError("fit: give the parameter file to write with -o PARAMS.yaml")
+    if logs.count("-") > 1:
+        raise FrictidInputError("fit: standard input (-) can be given only once")
+    if as_json and output == "-":
+        raise FrictidInputError("fit: --json prints on standard output; write the parameters to a file (-o FILE)")
+    check_output_path(output, logs)
+    parse_models(models)  # refuse unknown names before reading anything
+    res = run_fit(logs, joint=joint, models=models, mapping=mapping, units=units)
+    write_params(res, output)
+    summary = {}
+    for j, jf in res.joints.items():
+        m = jf.model
+        summary[j] = {"selected": jf.selected, "rms_heldout": m.metrics.get("rms_heldout") if m else None,
+                      "warnings": jf.warnings, "not_identified": len(jf.not_identified)}
+        sel = f"{jf.selected}" if jf.selected else "no model"
+        con.info(f"frictid: joint {j}: {sel}" + (f" (held-out RMS {summary[j]['rms_heldout']:.4g} "
+                                                  f"{jf.units.get('tau', '')})" if summary[j]["rms_heldout"] else "")
+                 + (f", {len(jf.not_identified)} item(s) not identifiable" if jf.not_identified else ""))
+        for w in jf.warnings:
+            con.warn(f"joint {j}: {w}")
+    if output != "-":
+        con.info(f"frictid: wrote {output}")
+    if as_json:
+        typer.echo(json.dumps({"output": output, "joints": summary}, default=str))

@@ -1,0 +1,113 @@
+"""The parameter file (schema 1): validation, atomic writing and loading. See docs/parameter-file.md.
+
+:func:`write_params` validates a :class:`~frictid.fit.result.FitResult` (or its dictionary) against the
+schema before anything is written, then writes it atomically (``-`` writes to standard output).
+:func:`read_params` loads a file back into a ``FitResult`` with the same values: every float is written
+by YAML's shortest round-tripping representation.
+"""
+from __future__ import annotations
+
+from typing import Any, Literal, Optional, Union
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from ..errors import ConfigError
+from ..fit.result import FitResult, dump_yaml
+from .atomic import atomic_open
+from .params_load import load_params_dict
+
+Number = Optional[float]
+
+
+class _Open(BaseModel):
+    model_config = ConfigDict(extra="allow")
+
+
+class _Closed(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class ParamEntry(_Closed):
+    """One number: value and standard error in ``unit``; identifiable false with a reason when the data
+    could not pin it down; fixed when held at a stated value; source when it did not come from a fit."""
+
+    value: Number
+    stderr: Number = None
+    unit: str
+    identifiable: bool
+    reason: Optional[str] = None
+    fixed: Optional[bool] = None
+    source: Optional[str] = None
+
+
+class ModelEntry(_Open):
+    map: str
+    method: str = ""
+    params: dict[str, ParamEntry]
+    metrics: dict[str, Union[float, int, None]] = Field(default_factory=dict)
+    notes: list[str] = Field(default_factory=list)
+
+
+class JointEntry(_Closed):
+    axis: Literal["rotary", "linear"] = "rotary"
+    units: dict[str, str] = Field(default_factory=dict)
+    inertia: Optional[ParamEntry] = None
+    gravity: dict[str, ParamEntry] = Field(default_factory=dict)
+    offset: Optional[ParamEntry] = None
+    segments: dict[str, int] = Field(default_factory=dict)
+    segments_used: dict[str, list[list[float]]] = Field(default_factory=dict)
+    models: dict[str, ModelEntry] = Field(default_factory=dict)
+    selected: Optional[str] = None
+    selection: dict[str, Any] = Field(default_factory=dict)
+    not_identified: list[dict[str, str]] = Field(default_factory=list)
+    warnings: list[str] = Field(default_factory=list)
+    diagnosis: list[Any] = Field(default_factory=list)
+
+
+class Source(_Open):
+    path: str
+    sha256: Optional[str] = None
+    rows: int
+
+
+class ParamFile(_Closed):
+    """The whole file (schema 1)."""
+
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+    schema_: Literal[1] = Field(alias="schema")
+    frictid: str
+    joints: dict[str, JointEntry]
+    sources: list[Source] = Field(default_factory=list)
+    settings: dict[str, Any] = Field(default_factory=dict)
+
+
+def validate_params(d: dict, where: str = "parameter file") -> ParamFile:
+    """Check a parameter-file dictionary against schema 1; every problem in one :class:`ConfigError`."""
+    try:
+        pf = ParamFile.model_validate(d)
+    except ValidationError as exc:
+        probs = []
+        for e in exc.errors():
+            loc = ".".join(str(x) for x in e["loc"])
+            probs.append(f"{loc}: {e['msg']}")
+        raise ConfigError(f"{where}: {len(probs)} problem(s):\n" + "\n".join(f"  - {p}" for p in probs)) from None
+    for j, je in pf.joints.items():
+        if je.selected is not None and je.selected not in je.models:
+            raise ConfigError(f"{where}: joints.{j}.selected: {je.selected!r} is not one of its models")
+    return pf
+
+
+def write_params(result: FitResult | dict, path: str) -> None:
+    """Validate, then write the parameter file atomically (``-``: standard output)."""
+    d = result.to_dict() if isinstance(result, FitResult) else result
+    validate_params(d)
+    text = dump_yaml(d)
+    with atomic_open(path, "w") as fh:
+        fh.write(text)
+
+
+def read_params(path: str) -> FitResult:
+    """Load and validate a parameter file into a :class:`FitResult` (same values as written)."""
+    d = load_params_dict(path)
+    validate_params(d, str(path))
+    return FitResult.from_dict(d)
