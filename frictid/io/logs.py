@@ -381,33 +381,28 @@ def _validate_and_split(table: pa.Table, label: str, spec: LogSpec, meta_all: di
     if axis is None:
         axis = unit_axes.pop() if unit_axes else "rotary"
 
-    # joints
+    # joints: contiguous blocks are sliced (no copies); interleaved rows are gathered
+    blocks: list[tuple[str, slice | np.ndarray]]
     if "joint" in cols:
-        import pandas as pd
-
-        jcol = cols["joint"].to_pandas()
-        if jcol.isna().any():
-            i = int(np.flatnonzero(jcol.isna().to_numpy())[0])
+        jcol = cols["joint"]
+        if jcol.null_count:
+            i = int(np.flatnonzero(jcol.is_null().to_numpy(zero_copy_only=False))[0])
             raise LogFormatError(label, [f"column 'joint': {_row_label(i, has_header)} is empty"])
-        if pd.api.types.is_float_dtype(jcol) and np.all(np.mod(jcol.to_numpy(), 1) == 0):
-            jcol = jcol.astype(np.int64)
-        codes, uniques = pd.factorize(jcol.astype(str), sort=False)
-        joint_ids = [str(u) for u in uniques]
+        blocks = _joint_blocks(jcol)
     else:
-        codes = None
-        joint_ids = [str(spec.meta.get("joint", "1"))]
+        blocks = [(str(spec.meta.get("joint", "1")), slice(0, n_rows))]
+    multi = "joint" in cols
 
     seg_truth = cols["segment"].to_numpy(zero_copy_only=False).astype(str) if "segment" in cols else None
     per_joint_meta = (meta_all.get("joints") or {}) if isinstance(meta_all.get("joints"), dict) else {}
     truth_meta = meta_all.get("truth") or {}
     logs: list[JointLog] = []
-    for k, jid in enumerate(joint_ids):
-        idx = None if codes is None else np.flatnonzero(codes == k)
-        rows = np.arange(n_rows) if idx is None else idx
-        a = dict(arrays) if idx is None else {c: v[idx] for c, v in arrays.items()}
+    for jid, sel in blocks:
+        rows = np.arange(sel.start, sel.stop) if isinstance(sel, slice) else sel
+        a = {c: v[sel] for c, v in arrays.items()}
         jprob: list[str] = []
         jwarn: list[str] = []
-        where = f"joint {jid}: " if codes is not None else ""
+        where = f"joint {jid}: " if multi else ""
         t = a["t"]
         if not np.all(np.isfinite(t)):
             i = int(np.flatnonzero(~np.isfinite(t))[0])
@@ -417,7 +412,7 @@ def _validate_and_split(table: pa.Table, label: str, spec: LogSpec, meta_all: di
             if c in ("t", "cycle"):
                 continue
             v = a[c]
-            bad = np.isinf(v) | (np.abs(np.nan_to_num(v)) >= HUGE)
+            bad = np.abs(v) >= HUGE  # inf included, NaN not
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
                 jprob.append(f"{where}column {c!r}: {_row_label(rows[i], has_header)} holds {v[i]:g}, which is "
@@ -485,6 +480,31 @@ def _validate_and_split(table: pa.Table, label: str, spec: LogSpec, meta_all: di
     if problems:
         raise LogFormatError(label, problems)
     return logs
+
+
+def _joint_blocks(jcol: pa.ChunkedArray) -> list[tuple[str, slice | np.ndarray]]:
+    """(joint id, selector) per joint, in order of first appearance: slices for contiguous blocks."""
+    col = jcol.combine_chunks()
+    if pa.types.is_floating(col.type):
+        v = col.to_numpy()
+        if np.all(np.mod(v, 1) == 0):
+            col = pa.array(v.astype(np.int64))
+    if pa.types.is_integer(col.type):
+        codes = col.to_numpy()
+        names = None
+    else:
+        enc = col.cast(pa.string()).dictionary_encode()
+        codes = enc.indices.to_numpy()
+        names = enc.dictionary.to_pylist()
+    starts = np.concatenate(([0], np.flatnonzero(codes[1:] != codes[:-1]) + 1))
+    run_codes = codes[starts]
+    label = (lambda c: str(c)) if names is None else (lambda c: str(names[c]))
+    if len(np.unique(run_codes)) == len(run_codes):
+        ends = np.append(starts[1:], len(codes))
+        return [(label(c), slice(int(s), int(e))) for c, s, e in zip(run_codes, starts, ends)]
+    _, first = np.unique(codes, return_index=True)
+    order = codes[np.sort(first)]
+    return [(label(c), np.flatnonzero(codes == c)) for c in order]
 
 
 def _degrees_check(t: np.ndarray, q: np.ndarray, qd: np.ndarray | None) -> str | None:
