@@ -15,6 +15,12 @@ from typing import IO, Iterator
 from ..errors import FrictidInputError
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def is_stdio(path) -> bool:
     return str(path) == "-"
 
@@ -45,6 +51,7 @@ def atomic_path(path) -> Iterator[str]:
     p = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=str(p.parent or "."))
     os.close(fd)
+    os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
     try:
         yield tmp
         with open(tmp, "rb+") as fh:
