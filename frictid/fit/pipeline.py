@@ -487,8 +487,9 @@ def _lugre(jf: JointFit, preps, selected, used, axis, F0, w0) -> None:
                 ramp_t.append([float(s.t_start), float(s.t_end), p.index])
                 ramp_w.append(p.w[s.i0:s.i1])
             elif s.kind == "step" and s.n >= 10:
-                u = p.log.tau[s.i0:s.i1] - p.G[s.i0:s.i1]
-                steps.append((p.log.t[s.i0:s.i1], np.asarray(p.log.q[s.i0:s.i1], float), u, s, p.index))
+                i0 = max(s.i0 - 1, 0)  # one sample before: the rest state the step starts from
+                u = p.log.tau[i0:s.i1] - p.G[i0:s.i1]
+                steps.append((p.log.t[i0:s.i1], np.asarray(p.log.q[i0:s.i1], float), u, s, p.index))
     res_meta = [p.log.meta.get("encoder_resolution") for p in preps if p.log.meta]
     res_meta = [float(r) for r in res_meta if r]
     qcat = np.concatenate([q for q, _ in ramps] + [st[1] for st in steps]) if (ramps or steps) else np.zeros(0)
