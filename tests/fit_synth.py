@@ -68,14 +68,14 @@ def truth_segments(log: JointLog) -> list[Segment]:
     out = []
     i = 0
     n = lab.size
+    cyc_all = np.asarray(log.truth.get("cycle", np.full(n, -1)))
+    run_all = np.asarray(log.truth.get("run", np.zeros(n, int)))
     while i < n:
         j = i
-        while j < n and lab[j] == lab[i]:
+        while j < n and lab[j] == lab[i] and cyc_all[j] == cyc_all[i] and run_all[j] == run_all[i]:
             j += 1
-        cyc = None
-        if "cycle" in log.truth:
-            c = int(log.truth["cycle"][i])
-            cyc = c if c >= 0 else None
+        c = int(cyc_all[i])
+        cyc = c if c >= 0 else None
         out.append(Segment(str(lab[i]), i, j, float(log.t[i]), float(log.t[j - 1]), cycle=cyc))
         i = j
     return out

@@ -303,90 +303,28 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
     names += ["offset"]
     free_names = tuple(n for n in names if n not in known)
     known_coef = {n: known[n][0] for n in names if n in known}
-    seg_ne: list[tuple[int, int, rg.NormalEquations]] = []
-    for pi, p in enumerate(preps):
-        ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in REGRESSION_EXCLUDE]
-        seg_ids = [si for si, s in enumerate(p.segments) if s.kind not in REGRESSION_EXCLUDE]
-        if not p.segments:  # no segmentation: every sample is a candidate
-            ranges, seg_ids = [(0, p.log.n)], [-1]
-        nes = rg.accumulate(ranges, free_names, p.log.q, p.w, p.a, p.log.tau,
-                            p.log.channels.get("payload"), known_coef, min_speed, axis)
-        seg_ne += [(pi, si, ne) for si, ne in zip(seg_ids, nes)]
-    reg_fit = None
-    if seg_ne and free_names:
-        total = rg.NormalEquations.total(ne for *_, ne in seg_ne)
-        if total.n > len(free_names):
-            reg_fit = rg.solve(total, free_names)
-            rho = 0.0
-            for pi, p in enumerate(preps):
-                ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in REGRESSION_EXCLUDE] or [(0, p.log.n)]
-                rho = max(rho, rg.residual_autocorrelation(reg_fit, ranges, p.log.q, p.w, p.a, p.log.tau,
-                                                           p.log.channels.get("payload"), known_coef,
-                                                           min_speed, axis))
-            reg_fit = rg.solve(total, free_names, rho=rho)
+    reg_fit, seg_ne = _regress(preps, free_names, known_coef, min_speed, axis)
     why_reg = "no moving samples" if reg_fit is None else ""
+    _set_mechanics(jf, reg_fit, known, names, has_q, axis, F0, w0, a0, why_reg, "")
 
-    def est(name):
-        if name in known:
-            v, s = known[name]
-            return ParamEstimate(name, v, s, _unit(_dims(name), axis), True, "", source="log metadata")
-        return _reg_estimate(name, reg_fit, axis, F0, w0, a0, why_reg)
-
-    jf.inertia = est("J")
-    if axis == "rotary":
-        if has_q:
-            jf.gravity = {n: est(n) for n in ("Px", "Py")}
-            px, py = jf.gravity["Px"], jf.gravity["Py"]
-            if px.value is not None and py.value is not None:
-                amp = math.hypot(px.value, py.value)
-                se = None
-                if px.stderr is not None and py.stderr is not None and amp > 0:
-                    se = math.hypot(px.value * px.stderr, py.value * py.stderr) / amp
-                ok = px.identifiable and py.identifiable
-                jf.gravity["amplitude"] = ParamEstimate("amplitude", amp, se, _unit("F", axis), ok,
-                                                        "" if ok else "Px or Py not identifiable")
-        else:
-            jf.gravity = {n: ParamEstimate(n, None, None, _unit("F", axis), False, "no position channel")
-                          for n in ("Px", "Py")}
-    else:
-        jf.warnings.append("linear axis: a constant gravity force is part of the offset")
-    for n in ("Mx", "My"):
-        if n in names:
-            jf.gravity[n] = est(n)
-    jf.offset = est("offset")
+    # ---- 2. friction torque and plateaus
+    plat, keys = _plateaus(jf, preps, axis)
+    # stage 2: with a static map from the plateaus, J / gravity / offset again with that map as the
+    # friction (the polynomial cannot follow a Stribeck drop, which then leaks into J; see docs/fit.md)
+    mech = tuple(n for n in free_names if n not in ("c0", "c1", "c2", "c3"))
+    fmap = _stage2_map(plat) if mech and reg_fit is not None else None
+    if fmap is not None:
+        name2, friction, v_low = fmap
+        v_low = min(max(min_speed, v_low), 0.5 * w0)
+        reg2, _ = _regress(preps, mech, known_coef, v_low, axis, friction=friction)
+        if reg2 is not None:
+            _set_mechanics(jf, reg2, known, names, has_q, axis, F0, w0, a0, why_reg,
+                           f"least squares with the plateau map {name2} as the friction, "
+                           f"|w| > {v_low:.3g}")
+            plat, keys = _plateaus(jf, preps, axis)
     for n, pe in [("J", jf.inertia), ("offset", jf.offset), *jf.gravity.items()]:
         if not pe.identifiable:
             jf.not_identified.append({"what": n, "reason": pe.reason})
-
-    # ---- 2. friction torque and plateaus
-    coef = {n: (pe.value if pe.value is not None else 0.0) for n, pe in
-            [("J", jf.inertia), ("offset", jf.offset), *jf.gravity.items()] if n != "amplitude"}
-    pls = []
-    for pi_, p in enumerate(preps):
-        q = p.log.q
-        G = np.zeros(p.log.n)
-        if q is not None and axis == "rotary":
-            G = coef.get("Px", 0.0) * np.cos(q) + coef.get("Py", 0.0) * np.sin(q)
-        if "payload" in p.log.channels and q is not None:
-            pl_ = p.log.channels["payload"]
-            G = G + coef.get("Mx", 0.0) * pl_ * (np.cos(q) if axis == "rotary" else 1.0)
-            if axis == "rotary":
-                G = G + coef.get("My", 0.0) * pl_ * np.sin(q)
-        G = G + coef.get("offset", 0.0)
-        p.G = G
-        p.F = p.log.tau - coef.get("J", 0.0) * np.nan_to_num(p.a) - G
-        pl = plateau_points(p.log.t, p.w, p.F, p.segments)
-        pls.append((pi_, pl))
-    # one Plateaus for all logs; keys[i] = (prep index, segment index) of plateau i
-    cat = [(pi_, pl) for pi_, pl in pls if len(pl)]
-    if cat:
-        keys = np.array([(pi_, si) for pi_, pl in cat for si in pl.seg], dtype=int).reshape(-1, 2)
-        plat = Plateaus(*(np.concatenate([getattr(c, f) for _, c in cat]) for f in
-                          ("w", "F", "F_se", "w_se", "n", "t_start", "t_end", "seg")))
-    else:
-        keys = np.zeros((0, 2), int)
-        z = np.zeros(0)
-        plat = Plateaus(z, z, z, z, z.astype(int), z, z, z.astype(int))
     used["constant_velocity"] = [[float(a), float(b), preps[int(k[0])].index] for a, b, k in
                                  zip(plat.t_start, plat.t_end, keys)]
     npos, nneg = int((plat.w > 0).sum()), int((plat.w < 0).sum())
@@ -432,6 +370,127 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
     if jf.selected is None:
         jf.warnings.append("no model could be chosen: " + str(rec.get("reason", "")))
     return jf
+
+
+def _regress(preps, names, known_coef, min_speed, axis, friction=None):
+    """Chunked least squares over the moving samples of every log; per-segment normal equations."""
+    seg_ne: list[tuple[int, int, rg.NormalEquations]] = []
+    for pi, p in enumerate(preps):
+        ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in REGRESSION_EXCLUDE]
+        seg_ids = [si for si, s in enumerate(p.segments) if s.kind not in REGRESSION_EXCLUDE]
+        if not p.segments:  # no segmentation: every sample is a candidate
+            ranges, seg_ids = [(0, p.log.n)], [-1]
+        nes = rg.accumulate(ranges, names, p.log.q, p.w, p.a, p.log.tau, p.log.channels.get("payload"),
+                            known_coef, min_speed, axis, friction=friction)
+        seg_ne += [(pi, si, ne) for si, ne in zip(seg_ids, nes)]
+    if not seg_ne or not names:
+        return None, seg_ne
+    total = rg.NormalEquations.total(ne for *_, ne in seg_ne)
+    if total.n <= len(names):
+        return None, seg_ne
+    fit_ = rg.solve(total, names)
+    rho = 0.0
+    for p in preps:
+        ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in REGRESSION_EXCLUDE] or [(0, p.log.n)]
+        rho = max(rho, rg.residual_autocorrelation(fit_, ranges, p.log.q, p.w, p.a, p.log.tau,
+                                                   p.log.channels.get("payload"), known_coef, min_speed, axis,
+                                                   friction=friction))
+    return rg.solve(total, names, rho=rho), seg_ne
+
+
+def _set_mechanics(jf, reg_fit, known, names, has_q, axis, F0, w0, a0, why_reg, source):
+    """Inertia, gravity and offset estimates of a joint from a regression (or the metadata)."""
+    def est(name):
+        if name in known:
+            v, s = known[name]
+            return ParamEstimate(name, v, s, _unit(_dims(name), axis), True, "", source="log metadata")
+        pe = _reg_estimate(name, reg_fit, axis, F0, w0, a0, why_reg)
+        pe.source = source
+        return pe
+
+    jf.inertia = est("J")
+    jf.gravity = {}
+    if axis == "rotary":
+        if has_q:
+            jf.gravity = {n: est(n) for n in ("Px", "Py")}
+            px, py = jf.gravity["Px"], jf.gravity["Py"]
+            if px.value is not None and py.value is not None:
+                amp = math.hypot(px.value, py.value)
+                se = None
+                if px.stderr is not None and py.stderr is not None and amp > 0:
+                    se = math.hypot(px.value * px.stderr, py.value * py.stderr) / amp
+                ok = px.identifiable and py.identifiable
+                jf.gravity["amplitude"] = ParamEstimate("amplitude", amp, se, _unit("F", axis), ok,
+                                                        "" if ok else "Px or Py not identifiable")
+        else:
+            jf.gravity = {n: ParamEstimate(n, None, None, _unit("F", axis), False, "no position channel")
+                          for n in ("Px", "Py")}
+    elif "linear axis: a constant gravity force is part of the offset" not in jf.warnings:
+        jf.warnings.append("linear axis: a constant gravity force is part of the offset")
+    for n in ("Mx", "My"):
+        if n in names:
+            jf.gravity[n] = est(n)
+    jf.offset = est("offset")
+
+
+def _plateaus(jf, preps, axis):
+    """Friction torque per sample (stored on each prep) and the plateau points of all logs."""
+    coef = {n: (pe.value if pe.value is not None else 0.0) for n, pe in
+            [("J", jf.inertia), ("offset", jf.offset), *jf.gravity.items()] if n != "amplitude"}
+    pls = []
+    for pi_, p in enumerate(preps):
+        q = p.log.q
+        G = np.zeros(p.log.n)
+        if q is not None and axis == "rotary":
+            G = coef.get("Px", 0.0) * np.cos(q) + coef.get("Py", 0.0) * np.sin(q)
+        if "payload" in p.log.channels and q is not None:
+            pl_ = p.log.channels["payload"]
+            G = G + coef.get("Mx", 0.0) * pl_ * (np.cos(q) if axis == "rotary" else 1.0)
+            if axis == "rotary":
+                G = G + coef.get("My", 0.0) * pl_ * np.sin(q)
+        G = G + coef.get("offset", 0.0)
+        p.G = G
+        p.F = p.log.tau - coef.get("J", 0.0) * np.nan_to_num(p.a) - G
+        pls.append((pi_, plateau_points(p.log.t, p.w, p.F, p.segments)))
+    # one Plateaus for all logs; keys[i] = (prep index, segment index) of plateau i
+    cat = [(pi_, pl) for pi_, pl in pls if len(pl)]
+    if cat:
+        keys = np.array([(pi_, si) for pi_, pl in cat for si in pl.seg], dtype=int).reshape(-1, 2)
+        plat = Plateaus(*(np.concatenate([getattr(c, f) for _, c in cat]) for f in
+                          ("w", "F", "F_se", "w_se", "n", "t_start", "t_end", "seg")))
+    else:
+        keys = np.zeros((0, 2), int)
+        z = np.zeros(0)
+        plat = Plateaus(z, z, z, z, z.astype(int), z, z, z.astype(int))
+    return plat, keys
+
+
+#: Maps tried for the stage-2 friction (no held-out split: only the best in-sample curve is needed).
+STAGE2_MAPS = ("stribeck_asym", "stribeck_2exp_asym", "polynomial_asym")
+
+
+def _stage2_map(plat):
+    """The best-fitting per-sign static map on the plateaus, as a callable w -> F, or None when the
+    plateaus do not cover both signs well enough."""
+    if (plat.w > 0).sum() < 6 or (plat.w < 0).sum() < 6:
+        return None
+    best = None
+    for name in STAGE2_MAPS:
+        mf = fit_static(name, plat.w, plat.F, plat.F_se)
+        vals = mf.values()
+        if any(v is None for v in vals.values()) or mf.metrics.get("rms") is None:
+            continue
+        if best is None or mf.metrics["rms"] < best[1]:
+            best = (name, mf.metrics["rms"], vals)
+    if best is None:
+        return None
+    name, _, vals = best
+    # below ~3 Stribeck velocities the friction is dominated by the Stribeck drop and presliding lag,
+    # which a static map does not follow through reversals: those samples do not enter stage 2
+    speeds = [v for k, v in vals.items() if k.split("_")[0] in ("vs", "ws1", "ws2")]
+    v_low = 3.0 * max(speeds) if speeds else 0.0
+    return name, (lambda w, _n=name, _v=vals: predict(_n, _v, w)), v_low
+
 
 
 def _polynomial_ls(reg_fit, seg_ne, plat, keys, free_names, axis, F0, w0, a0, n_folds, why) -> ModelFit | None:

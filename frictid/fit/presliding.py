@@ -164,8 +164,11 @@ def simulate_step(t: np.ndarray, u: np.ndarray, q0: float, w0: float, J: float, 
     [F] and viscous(w) -> f [F] are scalar callables. Each substep is the exact step of the system
     linearised at its start (:func:`frictid.models.lugre.lugre_step`), stable for the stiff bristles.
     """
+    import inspect
+
     from frictid.models.lugre import lugre_step
 
+    with_dg = "dg" in inspect.signature(getattr(lugre_step, "py_func", lugre_step)).parameters
     n = t.shape[0]
     q = np.empty(n)
     q[0] = q0
@@ -178,13 +181,18 @@ def simulate_step(t: np.ndarray, u: np.ndarray, q0: float, w0: float, J: float, 
             g = max(level(wi), 1e-12)
             f = viscous(wi)
             fp = (viscous(wi + eps) - viscous(wi - eps)) / (2 * eps)
-            qi, wi, zi = lugre_step(qi, wi, zi, ui, h, J, sigma0, sigma1, g, f, fp)
+            if with_dg:  # the kernel linearises with the slope of g too
+                dg = (level(abs(wi) + eps) - level(max(abs(wi) - eps, 0.0))) / (2 * eps)
+                qi, wi, zi = lugre_step(qi, wi, zi, ui, h, J, sigma0, sigma1, g, dg, f, fp)
+            else:
+                qi, wi, zi = lugre_step(qi, wi, zi, ui, h, J, sigma0, sigma1, g, f, fp)
         q[i + 1] = qi
     return q
 
 
 def fit_sigma1_steps(steps: list[tuple[np.ndarray, np.ndarray, np.ndarray]], J: float, sigma0: float,
-                     level, viscous, sigma2: float, resolution: float = 0.0) -> DynamicEstimate:
+                     level, viscous, sigma2: float, resolution: float = 0.0, min_steps: int = 3
+                     ) -> DynamicEstimate:
     """sigma1 [F s/q] by simulation-error fit on step segments.
 
     steps : list of (t [s], q [q], u [F]) per step segment, u = tau - gravity - offset.
@@ -194,8 +202,10 @@ def fit_sigma1_steps(steps: list[tuple[np.ndarray, np.ndarray, np.ndarray]], J: 
         if resolution > 0 and np.ptp(q) / resolution < MIN_COUNTS:
             continue
         usable.append((t, q, u))
-    if not usable:
-        why = "no step segments" if not steps else "the encoder does not resolve the step transients"
+    if len(usable) < min_steps:
+        why = ("no step segments" if not steps else
+               f"{len(usable)} of {len(steps)} step segments resolved by the encoder (at least {min_steps} "
+               "needed for an error estimate from their spread)")
         return DynamicEstimate(None, None, False, why, "steps", len(steps))
     crit = 2 * math.sqrt(sigma0 * J)
     hi = 20 * crit
@@ -229,7 +239,7 @@ def fit_sigma1_steps(steps: list[tuple[np.ndarray, np.ndarray, np.ndarray]], J: 
     if len(usable) >= 3:  # step-to-step spread: honest when quantisation or noise bias single steps
         singles = []
         for st in usable:
-            e = fit_sigma1_steps([st], J, sigma0, level, viscous, sigma2, 0.0)
+            e = fit_sigma1_steps([st], J, sigma0, level, viscous, sigma2, 0.0, min_steps=1)
             if e.value is not None:
                 singles.append(e.value)
         if len(singles) >= 3:

@@ -165,12 +165,12 @@ def sample_mask(w, a, min_speed: float) -> np.ndarray:
 
 
 def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = None, min_speed: float = 0.0,
-               axis: str = "rotary", chunk: int = CHUNK) -> list[NormalEquations]:
+               axis: str = "rotary", chunk: int = CHUNK, friction=None) -> list[NormalEquations]:
     """Normal equations of ``tau - known terms = X(names) b``, one set per index range (i0, i1).
 
     q [q] (may be None if no gravity column is asked), w [q/s], a [q/s^2], tau [F], payload [kg] or None.
-    known : regressor name -> known coefficient, moved to the left-hand side. Only samples with
-    |w| > min_speed enter.
+    known : regressor name -> known coefficient, moved to the left-hand side. friction : optional known
+    friction map w -> F [F], also moved to the left-hand side. Only samples with |w| > min_speed enter.
     """
     known = dict(known or {})
     out = []
@@ -190,6 +190,8 @@ def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = N
             y = tau[a0:a1][m].astype(float)
             for nm, val in known.items():
                 y = y - val * column(nm, qq, ww, aa, pl, axis)
+            if friction is not None:
+                y = y - friction(ww)
             X = np.empty((ww.shape[0], len(names)))
             for j, nm in enumerate(names):
                 X[:, j] = column(nm, qq, ww, aa, pl, axis)
@@ -199,7 +201,8 @@ def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = N
 
 
 def residual_autocorrelation(fit: LinearFit, ranges, q, w, a, tau, payload=None, known: dict | None = None,
-                             min_speed: float = 0.0, axis: str = "rotary", chunk: int = CHUNK) -> float:
+                             min_speed: float = 0.0, axis: str = "rotary", chunk: int = CHUNK,
+                             friction=None) -> float:
     """Lag-1 autocorrelation of the residuals of ``fit`` over consecutive moving samples in the ranges."""
     known = dict(known or {})
     s0 = s1 = 0.0
@@ -215,6 +218,8 @@ def residual_autocorrelation(fit: LinearFit, ranges, q, w, a, tau, payload=None,
             y = tau[a0:a1].astype(float)
             for nm, val in known.items():
                 y = y - val * column(nm, qq, ww, aa, pl, axis)
+            if friction is not None:
+                y = y - np.nan_to_num(friction(np.nan_to_num(ww)))
             pred = np.zeros_like(y)
             for j, nm in enumerate(fit.names):
                 pred += fit.coef[j] * column(nm, qq, ww, aa, pl, axis)
