@@ -23,9 +23,10 @@ import math
 import numpy as np
 from numba import njit
 
-from ..models.lugre import (dviscous_nb, level_nb, lugre_step, lugre_step_ref, thermal_canon_nb,
+from ..models.lugre import (dviscous_nb, level_slope_nb, lugre_step, lugre_step_ref, thermal_canon_nb,
                             viscous_nb)
 from ..models.static import canonical_level, canonical_viscous
+from ..models.lugre import _FM
 
 # Indices into the parameter vector p.
 P_J, P_S0P, P_S0N, P_S1P, P_S1N = 0, 1, 2, 3, 4
@@ -38,7 +39,7 @@ N_P = 22
 MODE_TORQUE, MODE_PID, MODE_VEL = 0, 1, 2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath=_FM)
 def _gravity(q, pay, p):
     G = p[P_GOFF]
     if p[P_PX] != 0.0 or p[P_PY] != 0.0:
@@ -48,7 +49,7 @@ def _gravity(q, pay, p):
     return G
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy", fastmath=_FM)
 def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, gmul, fmul,
                    nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0):
     """Run the closed loop over n samples. Returns (q, w, z, F, T, u, qm, qdm), each of length n.
@@ -87,12 +88,15 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
     hs = h / nsub
     integ = 0.0
     prev_mode = -1
+    T_used = -1e300
     for k in range(n):
         if reset_T[k]:
             T = Tenv[k]
-        if th_code != 0:
+        # the map at temperature T; T moves slowly, so refresh only after a change of 1e-4 K
+        if th_code != 0 and abs(T - T_used) > 1e-4:
             thermal_canon_nb(c_pos, dc_pos, th_code, theta, T, cp)
             thermal_canon_nb(c_neg, dc_neg, th_code, theta, T, cn)
+            T_used = T
         # sensors
         qm = q + nq[k]
         if qres > 0.0:
@@ -132,22 +136,29 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
         Fk = 0.0
         for s in range(nsub):
             c = cp if w >= 0.0 else cn
+            lev, dlev = level_slope_nb(abs(w), c)
             gm = lmul
-            if amp != 0.0:
-                gm *= 1.0 + amp * math.sin(kper * q + ph)
-            g = gm * level_nb(abs(w), c)
-            f = fm * viscous_nb(w, c)
-            fp = fm * dviscous_nb(w, c)
             if z >= 0.0:
                 s0 = p[P_S0P]
                 s1 = p[P_S1P]
             else:
                 s0 = p[P_S0N]
                 s1 = p[P_S1N]
-            if s == 0:
+            f = fm * viscous_nb(w, c)
+            if amp != 0.0:
+                if s == 0:
+                    g = gm * (1.0 + amp * math.sin(kper * q + ph)) * lev
+                    Fk = s0 * z + s1 * (w - s0 * abs(w) / g * z) + f
+                # the level along the step is taken at the predicted end position, so that z, which
+                # settles within the step in sliding, lands on g(q1)/sigma0 rather than lagging a step
+                gm *= 1.0 + amp * math.sin(kper * (q + hs * w) + ph)
+            g = gm * lev
+            dg = gm * dlev
+            fp = fm * dviscous_nb(w, c)
+            if s == 0 and amp == 0.0:
                 Fk = s0 * z + s1 * (w - s0 * abs(w) / g * z) + f
             G = _gravity(q + 0.5 * hs * w, payload[k], p)
-            q, w, z = lugre_step(q, w, z, u - G, hs, J, s0, s1, g, f, fp)
+            q, w, z = lugre_step(q, w, z, u - G, hs, J, s0, s1, g, dg, f, fp)
         F_o[k] = Fk
         Tss = Tenv[k] + Fk * w_o[k] / p[P_K]
         T = Tss + (T - Tss) * eK
@@ -191,20 +202,28 @@ def simulate_joint_ref(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, rese
         hs = h / nsub
         for s in range(nsub):
             c = cp if w >= 0 else cn
-            gm = gmul[k] * (1 + p[P_LOAD] * abs(u))
+            gm0 = gmul[k] * (1 + p[P_LOAD] * abs(u))
+            gm = gm0
             if p[P_PAMP]:
-                gm *= 1 + p[P_PAMP] * np.sin(2 * np.pi / p[P_PPER] * q + p[P_PPH])
+                gm = gm0 * (1 + p[P_PAMP] * np.sin(2 * np.pi / p[P_PPER] * q + p[P_PPH]))
+                g_now = gm * float(canonical_level(w, c))
+                gm = gm0 * (1 + p[P_PAMP] * np.sin(2 * np.pi / p[P_PPER] * (q + hs * w) + p[P_PPH]))
             g = gm * float(canonical_level(w, c))
+            if not p[P_PAMP]:
+                g_now = g
+            dv = 1e-6 * max(1e-3, abs(w))
+            dg = gm * float((canonical_level(abs(w) + dv, c) - canonical_level(max(abs(w) - dv, 0.0), c))
+                            / (abs(w) + dv - max(abs(w) - dv, 0.0)))
             f = fmul[k] * float(canonical_viscous(w, c))
             dw = 1e-7 * max(1.0, abs(w))
             fp = fmul[k] * float((canonical_viscous(w + dw, c) - canonical_viscous(w - dw, c)) / (2 * dw))
             s0, s1 = (p[P_S0P], p[P_S1P]) if z >= 0 else (p[P_S0N], p[P_S1N])
             if s == 0:
-                out["F"][k] = s0 * z + s1 * (w - s0 * abs(w) / g * z) + f
+                out["F"][k] = s0 * z + s1 * (w - s0 * abs(w) / g_now * z) + f
             qmid = q + 0.5 * hs * w
             G = (p[P_GOFF] + p[P_PX] * np.cos(qmid) + p[P_PY] * np.sin(qmid)
                  + payload[k] * p[P_PAY] * np.cos(qmid))
-            q, w, z = lugre_step_ref(q, w, z, u - G, hs, p[P_J], s0, s1, g, f, fp)
+            q, w, z = lugre_step_ref(q, w, z, u - G, hs, p[P_J], s0, s1, g, dg, f, fp)
         P = out["F"][k] * out["w"][k]
         Tss = Tenv[k] + P / p[P_K]
         T = Tss + (T - Tss) * np.exp(-p[P_K] * h / p[P_C])

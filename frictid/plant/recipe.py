@@ -344,7 +344,12 @@ def compile_recipe(recipe, plant: Plant, joint: Joint, scale: float = 1.0) -> Pr
     th = joint.thermal
     base_env = recipe.temp_env if recipe.temp_env is not None else th.Tenv
     lo, hi = travel(joint, plant.axis)
-    q0 = 0.0 if not np.isfinite(lo) else float(np.clip(0.0, lo, hi))
+    if not np.isfinite(lo):
+        q0 = 0.0
+    elif plant.axis == "linear":
+        q0 = 0.5 * (lo + hi)
+    else:
+        q0 = float(np.clip(0.0, lo, hi))
     pr = Program(plant=plant, joint=joint, scale=scale, q=q0, temp_env=base_env, payload=recipe.payload)
     pr.hold(pr.ns(recipe.start_rest))
     cycles = [0]

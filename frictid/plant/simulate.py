@@ -108,24 +108,37 @@ def _progress_bar(enabled: bool, total: int):
     return prog, task
 
 
-def simulate_joint_program(plant: Plant, joint: Joint, recipe, seed_seq, scale=1.0, reference=False):
-    """Compile and run one joint; returns a JointLog."""
+def prepare_joint(plant: Plant, joint: Joint, recipe, seed_seq=0, scale=1.0):
+    """Compile a recipe for one joint; returns (program, kernel_args dict, extras) ready for the kernel.
+
+    kernel_args are the keyword arguments of :func:`frictid.plant.kernel.simulate_joint`.
+    """
     pr = compile_recipe(recipe, plant, joint, scale)
     prog = pr.finish()
     n = pr.n
-    fs = pr.fs
-    h = 1.0 / fs
+    h = 1.0 / pr.fs
     t = np.arange(n) * h
     rng = np.random.default_rng(seed_seq)
     nq, nqd, ntau = draw_noise(rng, n, plant.sensors)
     p, c_pos, c_neg, dc9, code, theta, ce, gains = kernel_inputs(plant, joint)
     gmul, fmul = ce.multipliers(t, prog["run"], prog["payload"])
-    T_init = float(prog["temp_env"][0])
-    state0 = np.array([float(prog["q_ref"][0]), 0.0, 0.0, T_init])
+    state0 = np.array([float(prog["q_ref"][0]), 0.0, 0.0, float(prog["temp_env"][0])])
+    args = dict(h=h, nsub=int(plant.substeps), mode=prog["mode"], q_ref=prog["q_ref"],
+                qd_ref=prog["qd_ref"], tau_ff=prog["tau_ff"], Tenv=prog["temp_env"],
+                payload=prog["payload"], reset_T=prog["reset"], gmul=gmul, fmul=fmul, nq=nq, nqd=nqd,
+                p=p, c_pos=c_pos, c_neg=c_neg, dc_pos=dc9, dc_neg=dc9, th_code=code, theta=theta,
+                state0=state0)
+    extras = dict(program=pr, t=t, ntau=ntau, effects=ce, gains=gains)
+    return prog, args, extras
+
+
+def simulate_joint_program(plant: Plant, joint: Joint, recipe, seed_seq, scale=1.0, reference=False):
+    """Compile and run one joint; returns a JointLog."""
+    prog, args, ex = prepare_joint(plant, joint, recipe, seed_seq, scale)
+    pr, t, ntau, ce, gains = ex["program"], ex["t"], ex["ntau"], ex["effects"], ex["gains"]
+    fs = pr.fs
     fn = simulate_joint_ref if reference else simulate_joint
-    q, w, z, F, T, u, qm, qdm = fn(h, int(plant.substeps), prog["mode"], prog["q_ref"], prog["qd_ref"],
-                                   prog["tau_ff"], prog["temp_env"], prog["payload"], prog["reset"],
-                                   gmul, fmul, nq, nqd, p, c_pos, c_neg, dc9, dc9, code, theta, state0)
+    q, w, z, F, T, u, qm, qdm = fn(**args)
     q_log, qd_log, tau_log = logged_signals(qm, qdm, u, ntau, plant.sensors, ce.torque_offset)
     labels = refine_labels(prog["label"], w, pr)
     channels = {"q_ref": prog["q_ref"], "qd_ref": prog["qd_ref"], "tau_ref": prog["tau_ff"]}
