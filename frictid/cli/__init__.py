@@ -43,6 +43,8 @@ def main(argv: list[str] | None = None) -> None:
     try:
         rv = app(args=argv, prog_name="frictid", standalone_mode=False)
         code = rv if isinstance(rv, int) else 0
+        if code == 130:  # typer turns Ctrl-C into a returned 130 when not standalone
+            print("frictid: interrupted; no output was written", file=sys.stderr)
     except typer.Exit as exc:
         code = exc.exit_code
     except ClickException as exc:
