@@ -1,0 +1,131 @@
+"""Segment tables out: one row per segment, as CSV, Parquet or JSON, written atomically.
+
+Columns: ``joint, kind, t_start, t_end, n`` first, then ``i0, i1`` (sample indices, end exclusive),
+``cycle`` (duty-cycle index, empty otherwise), ``source`` (the log), then every per-kind statistic
+(see ``docs/segments.md``), empty where a statistic does not apply to a row's kind. Units follow the log:
+rad or m, rad/s or m/s, N m or N, s.
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..data import JointLog, Segment
+from ..errors import FrictidInputError
+from .atomic import atomic_path, is_stdio
+
+FIRST_COLUMNS = ["joint", "kind", "t_start", "t_end", "n", "i0", "i1", "cycle", "source"]
+FORMATS = ("csv", "parquet", "json")
+
+
+def segments_frame(items: list[tuple[JointLog, list[Segment]]]) -> pd.DataFrame:
+    """One row per segment of each ``(log, segments)`` pair, in the order given."""
+    from ..segments import STAT_COLUMNS
+
+    rows = []
+    for log, segs in items:
+        for s in segs:
+            row = {"joint": str(log.joint), "kind": s.kind, "t_start": float(s.t_start), "t_end": float(s.t_end),
+                   "n": int(s.n), "i0": int(s.i0), "i1": int(s.i1),
+                   "cycle": s.cycle if s.cycle is not None else pd.NA, "source": log.source or ""}
+            row.update({k: float(v) for k, v in s.stats.items()})
+            rows.append(row)
+    extra = [c for c in STAT_COLUMNS if any(c in r for r in rows)]
+    extra += sorted({k for r in rows for k in r} - set(FIRST_COLUMNS) - set(extra))
+    df = pd.DataFrame(rows, columns=FIRST_COLUMNS + extra)
+    df["cycle"] = df["cycle"].astype("Int64")
+    df["n"] = df["n"].astype("int64")
+    df["i0"] = df["i0"].astype("int64")
+    df["i1"] = df["i1"].astype("int64")
+    for c in ("joint", "kind", "source"):
+        df[c] = df[c].astype(str)
+    for c in ["t_start", "t_end"] + extra:
+        df[c] = df[c].astype(float)
+    return df
+
+
+def table_format(path: str, fmt: str | None = None) -> str:
+    """csv, parquet or json, from ``fmt`` or the suffix of ``path`` (``-`` is CSV)."""
+    if fmt:
+        fmt = fmt.lower()
+        if fmt not in FORMATS:
+            raise FrictidInputError(f"--format {fmt}: use csv, parquet or json")
+        return fmt
+    if is_stdio(path):
+        return "csv"
+    suf = Path(path).suffix.lower()
+    fmt = {".csv": "csv", ".parquet": "parquet", ".pq": "parquet", ".json": "json"}.get(suf)
+    if fmt is None:
+        raise FrictidInputError(f"{path}: cannot tell the format from the suffix {suf or '(none)'!r}; "
+                                "use .csv, .parquet or .json, or pass --format")
+    return fmt
+
+
+def _json_records(df: pd.DataFrame) -> list[dict]:
+    recs = []
+    for rec in df.to_dict(orient="records"):
+        out = {}
+        for k, v in rec.items():
+            if v is pd.NA or v is None:
+                out[k] = None
+            elif isinstance(v, (float, np.floating)):
+                out[k] = float(v) if math.isfinite(v) else None
+            elif isinstance(v, np.integer):
+                out[k] = int(v)
+            else:
+                out[k] = v
+        recs.append(out)
+    return recs
+
+
+def write_segments(df: pd.DataFrame, path: str, fmt: str | None = None) -> None:
+    """Write a segment table atomically (temporary file beside ``path``, then rename); ``-`` is stdout."""
+    fmt = table_format(path, fmt)
+    if fmt == "csv":
+        text = df.to_csv(index=False, float_format="%.9g", na_rep="")
+        if is_stdio(path):
+            sys.stdout.write(text)
+            sys.stdout.flush()
+            return
+        with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as fh:
+            fh.write(text)
+        return
+    if fmt == "json":
+        text = json.dumps({"schema": 1, "columns": list(df.columns), "segments": _json_records(df)}, indent=1)
+        if is_stdio(path):
+            sys.stdout.write(text + "\n")
+            sys.stdout.flush()
+            return
+        with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text + "\n")
+        return
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    if is_stdio(path):
+        buf = pa.BufferOutputStream()
+        pq.write_table(table, buf)
+        sys.stdout.buffer.write(buf.getvalue().to_pybytes())
+        sys.stdout.buffer.flush()
+        return
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp)
+
+
+def read_segments(path: str) -> pd.DataFrame:
+    """Read a segment table written by :func:`write_segments` (CSV, Parquet or JSON)."""
+    fmt = table_format(path)
+    if fmt == "parquet":
+        return pd.read_parquet(path)
+    if fmt == "json":
+        with open(path, encoding="utf-8") as fh:
+            d = json.load(fh)
+        return pd.DataFrame(d["segments"], columns=d["columns"])
+    return pd.read_csv(path, dtype={"joint": str, "source": str}, keep_default_na=False,
+                       na_values=[""]).astype({"cycle": "Int64"})

@@ -1,0 +1,438 @@
+"""Find the identification experiments in one joint log (MODELS.md section 4).
+
+The log is described by a few per-sample features measured at two time scales (``T_MIN``, the shortest
+segment, and ``T_JUMP``, the longest rise of a torque step), each compared with its own noise level:
+
+- ``wc`` : mean velocity over ``2h`` samples; *still* where ``|wc| < K_NOISE sigma(wc)``.
+- ``dv`` : velocity change across a sample (mean of ``w`` over the ``h`` samples after minus before);
+  *steady* where ``|dv| < max(K_NOISE sigma(dv), R_STEADY |wc|)``.
+- ``s`` : torque slope at scale ``h``; ramps are runs of one sign of ``s``, steps are jumps of ``tau`` that
+  complete within ``T_JUMP``.
+
+Then, in order (each sample gets one kind; earlier kinds win):
+
+1. duty cycles: motion bursts that start at a constant period (:func:`find_duty_cycles`);
+2. steps: a torque jump from a still joint that is still again before the next torque event;
+3. ramps: monotonic torque runs of a still or steadily creeping joint, in chains that start and end
+   still, with a torque change of at least ``K_RAMP`` noise levels and ``R_RAMP`` of the torque level;
+4. constant velocity: steady, moving runs of at least ``T_MIN``;
+5. rest: still runs of at least ``T_MIN``; everything else is *other*.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..data import JointLog, Segment
+from . import stats as _stats
+from .runs import box_mean, box_slope, drop_short, fill_short, label_runs, runs
+from .scales import Scales, derivatives, estimate_scales, local_noise, log_position
+
+#: Noise multiple for "clearly nonzero".
+K_NOISE = 5.0
+#: Shortest segment [s]; also the time scale of the velocity and torque features.
+T_MIN = 0.2
+#: Longest rise of a torque step [s] (a faster torque change is a step, a slower one a ramp).
+T_JUMP = 0.01
+#: A joint moving slower than this fraction of the log's top speed is still (when above the noise).
+R_STILL = 0.005
+#: Relative velocity tolerance of a constant-velocity plateau.
+R_STEADY = 0.02
+#: A ramp changes the torque by at least this fraction of the log's torque range ...
+R_RAMP = 0.05
+#: ... and by at least this many torque noise levels (also the smallest step).
+K_RAMP = 10.0
+#: A ramp is a straight line: residual standard deviation at most this many torque noise levels ...
+R_LINE = 1.5
+#: ... and no significant bend larger than this fraction of its torque change.
+R_BEND = 0.02
+
+KIND_CODE = {"constant_velocity": 0, "ramp_presliding": 1, "step": 2, "duty_cycle": 3, "rest": 4, "other": 5}
+CODE_KIND = {v: k for k, v in KIND_CODE.items()}
+
+
+@dataclass
+class Features:
+    """Per-sample features of one log and the noise levels they are compared with."""
+
+    sc: Scales
+    t: np.ndarray
+    q: np.ndarray
+    tau: np.ndarray
+    w: np.ndarray
+    a: np.ndarray
+    h: int
+    n_min: int
+    wc: np.ndarray
+    dv: np.ndarray
+    still: np.ndarray
+    still_fine: np.ndarray
+    steady: np.ndarray
+    s: np.ndarray
+    sigma_tau_loc: np.ndarray
+    sigma_wc: float
+    sigma_dv: float
+    sigma_s: float
+
+
+def features(log: JointLog, sc: Scales | None = None) -> Features:
+    """Compute :class:`Features` (velocity, acceleration, still/steady masks, torque slope)."""
+    sc = sc or estimate_scales(log)
+    n, dt = log.n, sc.dt
+    n_min = max(10, int(round(T_MIN / dt)))
+    h = max(2, n_min // 2)
+    w, a = derivatives(log, sc, smooth_logged=True)
+    q = log_position(log)
+    tau = np.asarray(log.tau, dtype=float)
+    if sc.qd_logged:
+        wc = box_mean(log.qd, 2 * h + 1)
+        sigma_wc = sc.sigma_qd / math.sqrt(2 * h + 1)
+        sigma_dv = sc.sigma_qd * math.sqrt(2.0 / h)
+    else:
+        i = np.arange(n)
+        lo, hi = np.clip(i - h, 0, n - 1), np.clip(i + h, 0, n - 1)
+        wc = (q[hi] - q[lo]) / (np.maximum(hi - lo, 1) * dt)
+        sigma_wc = sc.sigma_q * math.sqrt(2.0) / (2 * h * dt)
+        sigma_dv = 2.0 * sc.sigma_q / (h * dt)
+    sigma_wc = max(sigma_wc, sc.sigma_w / math.sqrt(max(1.0, 2 * h / sc.window_w)))
+    sigma_dv = max(sigma_dv, sc.sigma_w * math.sqrt(2.0 / max(1.0, h / sc.window_w)))
+    dv = box_slope(w, h, dt) * (h * dt)
+    floor = R_STILL * sc.w_scale
+    still = np.abs(wc) < max(K_NOISE * sigma_wc, floor)
+    still_fine = fill_short(np.abs(w) < max(K_NOISE * sc.sigma_w, floor), sc.window_w, False)
+    steady = np.abs(dv) < np.maximum(K_NOISE * sigma_dv, R_STEADY * np.abs(wc))
+    s = box_slope(tau, h, dt)
+    floor = max(sc.tau_step / math.sqrt(12.0), 1e-9 * max(sc.tau_range, 1e-300))
+    sigma_tau_loc = np.maximum(local_noise(tau, n_min), floor)
+    sigma_s = max(sc.sigma_tau, 1e-12 * max(sc.tau_range, 1e-300)) * math.sqrt(2.0 / h) / (h * dt)
+    return Features(sc=sc, t=np.asarray(log.t, dtype=float), q=q, tau=tau, w=w, a=a, h=h, n_min=n_min,
+                    wc=wc, dv=dv, still=still, still_fine=still_fine, steady=steady, s=s, sigma_tau_loc=sigma_tau_loc, sigma_wc=sigma_wc, sigma_dv=sigma_dv,
+                    sigma_s=sigma_s)
+
+
+# ---------------------------------------------------------------------------------------------------
+# Steps
+
+
+def find_jumps(f: Features) -> np.ndarray:
+    """Sample indices of torque jumps: a change of at least ``K_NOISE`` noise levels completed within
+    ``T_JUMP`` (the change over 4 ``T_JUMP`` is no larger), one index per jump (the steepest sample)."""
+    sc = f.sc
+    hj = max(1, int(round(T_JUMP / sc.dt)))
+    d1 = box_slope(f.tau, hj, sc.dt) * (hj * sc.dt)
+    d4 = box_slope(f.tau, 4 * hj, sc.dt) * (4 * hj * sc.dt)
+    thr = K_NOISE * f.sigma_tau_loc * math.sqrt(2.0 / hj)
+    big = np.abs(d1) > thr
+    s, e = runs(big)
+    if s.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    # steepest sample of each run
+    absd = np.abs(d1)
+    peak = np.array([s0 + int(np.argmax(absd[s0:e0])) for s0, e0 in zip(s, e)], dtype=np.int64)
+    inst = np.abs(d1[peak]) >= 0.75 * np.abs(d4[peak])
+    return peak[inst]
+
+
+def _step(f: Features, j: int, hj: int, events: np.ndarray, code: np.ndarray) -> tuple[int, int] | None:
+    """The step segment of the jump at ``j``: from the jump to the next torque event or to the end of the
+    still stretch that follows the transient; None unless the joint is still before the jump and has
+    settled within the first half of the segment."""
+    n = f.t.size
+    i0 = j - hj // 2
+    before = f.still_fine[max(0, i0 - f.h): i0]
+    if before.size == 0 or before.mean() < 0.8:
+        return None
+    nxt = events[events > j + hj]
+    end = int(nxt[0]) - hj // 2 if nxt.size else n
+    settled = np.flatnonzero(f.still[j + hj: end])
+    if settled.size == 0:
+        return None
+    k = j + hj + int(settled[0])
+    moving = np.flatnonzero(~f.still_fine[k:end])
+    i1 = k + int(moving[0]) if moving.size else end
+    # open-loop torque: flat before the jump, and the step lasts while it stays flat (a controller that
+    # takes over a still joint makes it wander)
+    i1 = _flat_end(f, j + hj, i1)
+    if i1 - i0 < f.n_min or (k - i0) > 0.5 * (i1 - i0) or np.any(code[i0:i1] >= 0):
+        return None
+    if not _flat(f, max(0, i0 - f.n_min), i0 - hj):
+        return None
+    return i0, i1
+
+
+def _flat_end(f: Features, a: int, b: int) -> int:
+    """End of the flat torque that starts at ``a`` (at most ``b``): the first chunk of ``m`` samples whose
+    mean leaves the level of the first chunks by more than ``K_NOISE`` standard errors."""
+    m = max(f.sc.window_w, f.h // 4, 2)
+    nchunk = (b - a) // m
+    if nchunk < 3:
+        return b
+    x = f.tau[a:a + nchunk * m].reshape(nchunk, m).mean(axis=1)
+    level = float(np.median(x[:3]))
+    tol = K_NOISE * float(np.median(f.sigma_tau_loc[a:a + 3 * m])) / math.sqrt(m) + f.sc.tau_step
+    off = np.flatnonzero(np.abs(x - level) > tol)
+    return b if off.size == 0 else a + int(off[0]) * m
+
+
+def _flat(f: Features, a: int, b: int) -> bool:
+    """True if the torque over ``[a, b)`` is constant within its noise: the means of chunks of ``m``
+    samples stay within ``K_NOISE`` standard errors (plus one torque quantum) of their median."""
+    m = max(f.sc.window_w, f.h // 4, 2)
+    nchunk = (b - a) // m
+    if nchunk < 2:
+        return True
+    x = f.tau[a:a + nchunk * m].reshape(nchunk, m).mean(axis=1)
+    tol = K_NOISE * float(np.median(f.sigma_tau_loc[a:b])) / math.sqrt(m) + f.sc.tau_step
+    return bool(np.max(np.abs(x - np.median(x))) <= tol)
+
+
+def grow(core: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """The runs of ``ok`` that contain at least one sample of ``core`` (hysteresis thresholding)."""
+    s, e = runs(ok)
+    if s.size == 0:
+        return np.zeros_like(ok, dtype=bool)
+    c = np.concatenate(([0], np.cumsum(core & ok)))
+    keep = (c[e] - c[s]) > 0
+    out = np.zeros_like(ok, dtype=bool)
+    from .runs import paint
+
+    paint(out, s[keep], e[keep], True)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------
+# Main
+
+
+def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]:
+    """Kind code per sample, the segments, and the features (None for a log too short to segment)."""
+    n = log.n
+    sc = estimate_scales(log)
+    n_min = max(10, int(round(T_MIN / sc.dt)))
+    if n < 2 * n_min:
+        return np.full(n, KIND_CODE["other"], dtype=np.int8), [], None
+    f = features(log, sc)
+    code = np.full(n, -1, dtype=np.int8)
+    segs: list[Segment] = []
+
+    # 1. duty cycles
+    for i0, i1, cyc in find_duty_cycles(f):
+        code[i0:i1] = KIND_CODE["duty_cycle"]
+        segs.append(_segment(f, "duty_cycle", i0, i1, cycle=cyc))
+
+    # torque events: jumps, and runs of one slope sign
+    jumps = find_jumps(f)
+    jumps = jumps[code[jumps] < 0]
+    ramps = _ramp_list(f, code, jumps)
+    events = np.sort(np.concatenate([jumps, np.array([r[0] for r in ramps], dtype=np.int64)]))
+
+    # 2. steps: still before, settled (still) again within the hold
+    hj = max(1, int(round(T_JUMP / sc.dt)))
+    for j in jumps:
+        seg = _step(f, int(j), hj, events, code)
+        if seg is not None:
+            code[seg[0]:seg[1]] = KIND_CODE["step"]
+            segs.append(_segment(f, "step", *seg))
+
+    # 3. ramps
+    for i0, i1 in _ramps(f, ramps):
+        code[i0:i1] = KIND_CODE["ramp_presliding"]
+        segs.append(_segment(f, "ramp_presliding", i0, i1))
+
+    # 4. constant velocity
+    cv = f.steady & ~f.still & (code < 0)
+    cv = fill_short(cv, max(2, f.h // 4), False)
+    cv = drop_short(cv, n_min)
+    for i0, i1 in zip(*runs(cv)):
+        i0, i1 = _extend_plateau(f, int(i0), int(i1), code)
+        if i1 - i0 < n_min or not _same_sign(f.w[i0:i1]) or _bent(f, i0, i1):
+            continue
+        code[i0:i1] = KIND_CODE["constant_velocity"]
+        segs.append(_segment(f, "constant_velocity", i0, i1))
+
+    # 5. rest: still runs (fine scale) that hold a still sample at the coarse scale, with a torque that
+    # does not change by more than R_RAMP of its range within T_MIN (a controller loading a stuck joint)
+    hf = max(f.sc.window_w, f.h // 4)
+    sf = box_slope(f.tau, hf, sc.dt)
+    sig_sf = f.sigma_tau_loc * math.sqrt(2.0 / hf) / (hf * sc.dt)
+    calm = np.abs(sf) <= np.maximum(K_NOISE * sig_sf, R_RAMP * sc.tau_range / T_MIN)
+    rest = grow(f.still & calm & (code < 0), f.still_fine & calm & (code < 0))
+    rest = drop_short(rest, n_min)
+    code[rest] = KIND_CODE["rest"]
+    code[code < 0] = KIND_CODE["other"]
+    for i0, i1 in zip(*runs(rest)):
+        segs.append(_segment(f, "rest", int(i0), int(i1)))
+    for i0, i1 in zip(*runs(code == KIND_CODE["other"])):
+        segs.append(_segment(f, "other", int(i0), int(i1)))
+    segs.sort(key=lambda s: (s.i0, s.i1))
+    return code, segs, f
+
+
+def _same_sign(w: np.ndarray) -> bool:
+    m = float(np.mean(w))
+    return m != 0 and float(np.mean(np.sign(w) == np.sign(m))) > 0.95
+
+
+def _bent(f: Features, i0: int, i1: int) -> bool:
+    """True if the velocity over ``[i0, i1)`` follows a significant parabola (a velocity peak of a
+    smooth trajectory) that bends by more than ``R_STEADY / 2`` of its mean."""
+    w = f.w[i0:i1]
+    x = f.t[i0:i1] - f.t[i0:i1].mean()
+    x2 = x * x - float(np.mean(x * x))
+    A = np.column_stack([x2, x, np.ones_like(x)])
+    coef, *_ = np.linalg.lstsq(A, w, rcond=None)
+    # noise of w is correlated over the derivative window: count one sample per window
+    n_eff = max(3.0, w.size / max(1, f.sc.window_w))
+    se = f.sc.sigma_w * math.sqrt(w.size / n_eff) / math.sqrt(max(float(np.dot(x2, x2)), 1e-300))
+    bend = abs(coef[0]) * float(np.max(np.abs(x2)))
+    return bool(abs(coef[0]) > K_NOISE * se and bend > 0.5 * R_STEADY * abs(float(np.mean(w))))
+
+
+def _extend_plateau(f: Features, i0: int, i1: int, code: np.ndarray) -> tuple[int, int]:
+    """Grow a steady run into its edges while the smoothed velocity stays within the plateau's band."""
+    w = f.w
+    core = w[i0:i1]
+    wm = float(np.median(core))
+    tol = max(K_NOISE * f.sc.sigma_w, R_STEADY * abs(wm))
+    lim = 2 * f.h
+    lo = max(0, i0 - lim)
+    left = w[lo:i0][::-1]
+    bad = (np.abs(left - wm) > tol) | (code[lo:i0][::-1] >= 0)
+    k = int(np.argmax(bad)) if bad.any() else left.size
+    i0n = i0 - k
+    hi = min(w.size, i1 + lim)
+    right = w[i1:hi]
+    bad = (np.abs(right - wm) > tol) | (code[i1:hi] >= 0)
+    k = int(np.argmax(bad)) if bad.any() else right.size
+    i1n = i1 + k
+    # trim inward while the ends are outside the band (the steady mask is wider than the plateau)
+    inner = np.flatnonzero(np.abs(w[i0n:i1n] - wm) <= tol)
+    if inner.size:
+        i0n, i1n = i0n + int(inner[0]), i0n + int(inner[-1]) + 1
+    return i0n, i1n
+
+
+# ---------------------------------------------------------------------------------------------------
+# Ramps
+
+
+def _ramp_candidates(f: Features, code: np.ndarray, scale: int) -> np.ndarray:
+    """(start, end, sign) rows of monotonic torque runs at half-width ``scale`` samples, outside already
+    classified samples; edges where the slope falls to half the run's median (the corners of a ramp)."""
+    out = []
+    dt = f.sc.dt
+    s = f.s if scale == f.h else box_slope(f.tau, scale, dt)
+    sigma_s = f.sigma_s * (f.h / scale) ** 1.5
+    thr = 2.0 * sigma_s
+    for sign in (1, -1):
+        m = (sign * s > thr) & (code < 0)
+        m = fill_short(m, scale, False)
+        m = drop_short(m, f.n_min)
+        for s0, e0 in zip(*runs(m)):
+            seg = sign * s[s0:e0]
+            half = 0.5 * float(np.median(seg))
+            inside = np.flatnonzero(seg >= half)
+            if inside.size == 0:
+                continue
+            out.append((int(s0 + inside[0]), int(s0 + inside[-1] + 1), sign))
+    if not out:
+        return np.zeros((0, 3), dtype=np.int64)
+    return np.array(sorted(out), dtype=np.int64)
+
+
+def _ramp_ok(f: Features, i0: int, i1: int, sign: int, tau_b: np.ndarray, code: np.ndarray) -> bool:
+    """A torque run is a presliding ramp candidate: long enough, a large enough torque change, a straight
+    line within the noise (an open-loop ramp, not a controller wandering) and no sliding."""
+    sc = f.sc
+    if i1 - i0 < f.n_min or np.any(code[i0:i1] >= 0):
+        return False
+    dtau = tau_b[i1 - 1] - tau_b[i0]
+    if sign * dtau < max(K_RAMP * sc.sigma_tau, R_RAMP * sc.tau_range):
+        return False
+    if not _straight(f.t[i0:i1], f.tau[i0:i1], float(np.median(f.sigma_tau_loc[i0:i1])), abs(dtau)):
+        return False
+    return bool(np.mean(f.steady[i0:i1] | f.still[i0:i1]) >= 0.98)
+
+
+def _ramp_list(f: Features, code: np.ndarray, jumps: np.ndarray) -> list[tuple[int, int, int]]:
+    """Qualified ramp candidates at the feature scale, plus those found only at four times that scale
+    (slow ramps in noisy torque), without the runs that contain a torque jump."""
+    hq = max(1, f.h // 2)
+    tau_b = box_mean(f.tau, hq)
+    cands = []
+    for scale in (f.h, 4 * f.h):
+        cand = _ramp_candidates(f, code, scale)
+        if cand.size and jumps.size:
+            k = np.searchsorted(jumps, cand[:, 0])
+            has_jump = (k < jumps.size) & (jumps[np.minimum(k, jumps.size - 1)] < cand[:, 1])
+            cand = cand[~has_jump]
+        for i0, i1, sign in cand:
+            if _ramp_ok(f, int(i0), int(i1), int(sign), tau_b, code):
+                cands.append((abs(float(tau_b[i1 - 1] - tau_b[i0])), scale, int(i0), int(i1), int(sign)))
+    # overlapping candidates: the one with the largest torque change (a whole ramp, not a fragment)
+    cands.sort(key=lambda c: (-c[0], c[1]))
+    chosen: list[tuple[int, int, int]] = []
+    for _, _, i0, i1, sign in cands:
+        if not any(min(i1, b) > max(i0, a) for a, b, _ in chosen):
+            chosen.append((i0, i1, sign))
+    return sorted(chosen)
+
+
+def _straight(t: np.ndarray, y: np.ndarray, sigma: float, dtau: float) -> bool:
+    """True if ``y(t)`` is a straight line within its noise ``sigma``: the residual of a line fit is at most
+    ``R_LINE`` sigma, and a quadratic term is either insignificant (``K_NOISE`` standard errors) or bends
+    the line by less than ``R_BEND`` of the torque change ``dtau``."""
+    x = t - t.mean()
+    x2 = x * x - float(np.mean(x * x))
+    A = np.column_stack([x2, x, np.ones_like(x)])
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    lin = np.polyfit(x, y, 1)
+    r_lin = y - np.polyval(lin, x)
+    if float(np.std(r_lin)) > R_LINE * sigma:
+        return False
+    r = y - A @ coef
+    s2 = float(np.dot(r, r)) / max(1, y.size - 3)
+    se = math.sqrt(s2 / max(float(np.dot(x2, x2)), 1e-300))
+    bend = abs(coef[0]) * float(np.max(np.abs(x2)))
+    return not (abs(coef[0]) > K_NOISE * se and bend > R_BEND * dtau)
+
+
+def _ramps(f: Features, ok: list[tuple[int, int, int]]) -> list[tuple[int, int]]:
+    """The ramps that belong to chains starting and ending with a still joint."""
+    out = []
+    k = 0
+    while k < len(ok):
+        j = k
+        while j + 1 < len(ok) and _connected(f, ok[j][1], ok[j + 1][0]):
+            j += 1
+        s0, e1 = ok[k][0], ok[j][1]
+        before = f.still[max(0, s0 - f.h): s0]
+        after = f.still[e1: e1 + f.h]
+        if before.size and after.size and before.mean() > 0.8 and after.mean() > 0.8:
+            out.extend((a, b) for a, b, _ in ok[k: j + 1])
+        k = j + 1
+    return out
+
+
+def _connected(f: Features, e0: int, s1: int) -> bool:
+    """Two ramps belong to one chain when the joint does not slide between them."""
+    if s1 <= e0:
+        return True
+    gap = slice(e0, s1)
+    return bool(np.all(f.steady[gap] | f.still[gap]))
+
+
+# ---------------------------------------------------------------------------------------------------
+# Duty cycles
+
+
+def find_duty_cycles(f: Features) -> list[tuple[int, int, int]]:
+    """(start, end, cycle index) of each duty cycle: motion bursts starting at a constant period."""
+    return []
+
+
+def _segment(f: Features, kind: str, i0: int, i1: int, cycle: int | None = None) -> Segment:
+    return Segment(kind=kind, i0=int(i0), i1=int(i1), t_start=float(f.t[i0]), t_end=float(f.t[i1 - 1]),
+                   cycle=cycle, stats=_stats.segment_stats(f, kind, int(i0), int(i1), cycle))

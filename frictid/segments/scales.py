@@ -1,0 +1,248 @@
+"""The scales of one log, measured from the log itself, and its velocity and acceleration.
+
+Every threshold of the segmentation is a multiple of one of these numbers, so the same code runs on a
+0.03 N linear slide and a 300 N m hydraulic joint, at 100 Hz and at 10 kHz, with the velocity logged or not:
+
+- ``dt`` : median sample period [s].
+- ``q_step`` : encoder step [rad | m] (the smallest nonzero ``|dq|`` when every ``dq`` is a multiple of
+  it; 0 when the position is not quantised).
+- ``sigma_q``, ``sigma_qd``, ``sigma_tau`` : white-noise level of position, logged velocity and torque, a
+  robust MAD of the fourth difference (a high-pass residual blind to any cubic trend), floored by the
+  quantisation noise ``step / sqrt(12)``.
+- ``tau_range`` : robust torque range [N m | N] (0.1 to 99.9 percentile).
+- ``w_scale``, ``a_scale`` : robust top speed and acceleration of the log (99th percentile of coarse
+  differences over ``T_PILOT``).
+- ``window_w``, ``window_a`` : the Savitzky-Golay windows [samples] of the velocity and the acceleration,
+  the shortest that bring their noise below ``REL_NOISE`` of ``w_scale`` and ``a_scale``, capped at
+  ``T_WINDOW_MAX`` seconds.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy.signal import savgol_coeffs, savgol_filter
+
+from ..data import JointLog
+from ..errors import LogFormatError
+
+#: MAD -> standard deviation of a normal distribution.
+MAD_TO_SIGMA = 1.482602218505602
+#: Variance gain of the fourth difference of white noise: C(8, 4).
+DIFF4_GAIN = 70.0
+#: Savitzky-Golay polynomial order of the differentiators.
+POLYORDER = 2
+#: Shortest window [samples] (polyorder + 3).
+MIN_WINDOW = 5
+#: Longest window [s]: transients of a few tens of ms must survive differentiation.
+T_WINDOW_MAX = 0.05
+#: The differentiator's noise target, a fraction of the log's speed (acceleration) scale.
+REL_NOISE = 2e-3
+#: Noise floor of a noise-free signal, a fraction of its range (keeps every threshold above rounding).
+REL_FLOOR = 1e-9
+#: Lag of the pilot (coarse) differences that measure the speed and acceleration scales [s].
+T_PILOT = 0.05
+
+
+@dataclass(frozen=True)
+class Scales:
+    """Scales of one joint log (see the module docstring). Units: [q] = rad or m, [F] = N m or N."""
+
+    n: int
+    dt: float
+    q_step: float
+    sigma_q: float
+    sigma_qd: float
+    tau_step: float
+    sigma_tau: float
+    tau_range: float
+    w_scale: float
+    a_scale: float
+    window_w: int
+    window_a: int
+    sigma_w: float
+    sigma_a: float
+    qd_logged: bool
+
+    @property
+    def fs(self) -> float:
+        """Sample rate [Hz]."""
+        return 1.0 / self.dt
+
+    def to_dict(self) -> dict:
+        return {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in asdict(self).items()}
+
+
+def noise_sigma(x: np.ndarray) -> float:
+    """Robust white-noise standard deviation of ``x``: MAD of its fourth difference / sqrt(70)."""
+    x = np.asarray(x, dtype=float)
+    if x.size < 6:
+        return 0.0
+    d = np.diff(x, 4)
+    return float(MAD_TO_SIGMA * np.median(np.abs(d)) / math.sqrt(DIFF4_GAIN))
+
+
+def local_noise(x: np.ndarray, block: int) -> np.ndarray:
+    """Per-sample robust noise standard deviation of ``x`` (noise that changes along the log, e.g. a
+    controller switched on): the MAD of the fourth difference in blocks of ``block`` samples, the larger
+    of each block's and its neighbours' values (so a boundary is covered from both sides)."""
+    x = np.asarray(x, dtype=float)
+    n = x.size
+    block = max(8, int(block))
+    if n < 2 * block:
+        return np.full(n, noise_sigma(x))
+    d = np.abs(np.diff(x, 4))
+    nb = d.size // block
+    sig = MAD_TO_SIGMA * np.median(d[:nb * block].reshape(nb, block), axis=1) / math.sqrt(DIFF4_GAIN)
+    if d.size > nb * block:
+        sig = np.append(sig, MAD_TO_SIGMA * np.median(d[nb * block:]) / math.sqrt(DIFF4_GAIN)
+                        if d.size - nb * block >= 8 else sig[-1])
+    padded = np.concatenate(([sig[0]], sig, [sig[-1]]))
+    sig = np.maximum(np.maximum(padded[:-2], padded[1:-1]), padded[2:])
+    idx = np.minimum(np.arange(n) // block, sig.size - 1)
+    return sig[idx]
+
+
+def quantum(x: np.ndarray) -> float:
+    """Quantisation step of ``x``: the smallest nonzero ``|dx|`` if (nearly) every ``|dx|`` is an integer
+    multiple of it, else 0 (``x`` is not quantised)."""
+    x = np.asarray(x, dtype=float)
+    if x.size < 3:
+        return 0.0
+    d = np.abs(np.diff(x))
+    tol = 1e-9 * max(float(np.max(np.abs(x))), 1e-300)
+    nz = d[d > tol]
+    if nz.size < 10:
+        return 0.0
+    step = float(np.min(nz))
+    r = nz / step
+    r = r[r < 1e6]
+    on_grid = np.abs(r - np.round(r)) < 0.05
+    return step if on_grid.mean() > 0.95 else 0.0
+
+
+def _odd(n: float) -> int:
+    k = int(math.ceil(n))
+    return k if k % 2 == 1 else k + 1
+
+
+def _sg_noise_gain(window: int, deriv: int, dt: float) -> float:
+    """Output standard deviation per unit input white noise of a Savitzky-Golay filter."""
+    c = savgol_coeffs(window, POLYORDER, deriv=deriv, delta=dt)
+    return float(np.sqrt(np.sum(c * c)))
+
+
+def _choose_window(sigma_in: float, target: float, deriv: int, dt: float, n_max: int) -> int:
+    """The shortest odd window whose output noise (input ``sigma_in``, derivative ``deriv``) is below
+    ``target``; at most ``n_max``."""
+    n_max = max(MIN_WINDOW, n_max if n_max % 2 else n_max - 1)
+    if sigma_in <= 0 or not math.isfinite(target) or target <= 0:
+        return MIN_WINDOW if sigma_in <= 0 else n_max
+    # noise of a polyorder-2 SG derivative falls as N^-(2 deriv + 1)/2: start from that law, then check
+    gain5 = _sg_noise_gain(MIN_WINDOW, deriv, dt) * sigma_in
+    if gain5 <= target:
+        return MIN_WINDOW
+    est = MIN_WINDOW * (gain5 / target) ** (2.0 / (2 * deriv + 1))
+    w = min(_odd(est), n_max)
+    while w < n_max and _sg_noise_gain(w, deriv, dt) * sigma_in > target:
+        w = min(_odd(w * 1.2), n_max)
+    return w
+
+
+def log_position(log: JointLog) -> np.ndarray:
+    """Position [q]: as logged, or the trapezoidal integral of the logged velocity from 0."""
+    if log.q is not None:
+        return np.asarray(log.q, dtype=float)
+    qd = np.asarray(log.qd, dtype=float)
+    q = np.empty_like(qd)
+    q[0] = 0.0
+    np.cumsum(0.5 * (qd[1:] + qd[:-1]) * np.diff(log.t), out=q[1:])
+    return q
+
+
+def _check(log: JointLog) -> None:
+    problems = []
+    if log.q is None and log.qd is None:
+        problems.append("neither position 'q' nor velocity 'qd' is present; one is required")
+    for name in ("t", "tau", "q", "qd"):
+        v = getattr(log, name)
+        if v is not None and not np.all(np.isfinite(v)):
+            problems.append(f"column {name!r} holds missing or infinite values; read logs with "
+                            "frictid.io.logs.read_logs, which drops or refuses them")
+    if log.n >= 2 and np.any(np.diff(log.t) <= 0):
+        problems.append("column 't': time must increase strictly")
+    if problems:
+        raise LogFormatError(log.source or f"joint {log.joint}", problems)
+
+
+def estimate_scales(log: JointLog) -> Scales:
+    """Measure the noise levels, encoder step, torque range, speed scales and derivative windows of
+    ``log``. Raises :class:`LogFormatError` on non-finite values or non-increasing time."""
+    _check(log)
+    n = log.n
+    dt = log.dt if n > 1 else 1.0
+    tau = np.asarray(log.tau, dtype=float)
+    q = log_position(log)
+    lag = max(1, min(n // 4, int(round(T_PILOT / dt))))
+    n_max = max(MIN_WINDOW, min(_odd(T_WINDOW_MAX / dt), n // 2 if (n // 2) % 2 else n // 2 - 1))
+
+    lo, hi = np.percentile(tau, [0.1, 99.9]) if n else (0.0, 0.0)
+    tau_range = float(hi - lo)
+    q_range = float(np.ptp(q)) if n else 0.0
+    q_step = quantum(q) if log.q is not None else 0.0
+    sigma_q = max(noise_sigma(q), q_step / math.sqrt(12.0), REL_FLOOR * max(q_range, np.max(np.abs(q))))
+    tau_step = quantum(tau)
+    sigma_tau = max(noise_sigma(tau), tau_step / math.sqrt(12.0), REL_FLOOR * max(tau_range, 1e-300))
+
+    if n > 2 * lag:
+        w_pilot = (q[2 * lag:] - q[:-2 * lag]) / (2 * lag * dt)
+        w_scale = float(np.percentile(np.abs(w_pilot), 99))
+        a_pilot = (q[2 * lag:] - 2 * q[lag:-lag] + q[:-2 * lag]) / (lag * dt) ** 2
+        a_scale = float(np.percentile(np.abs(a_pilot), 99))
+    else:
+        w_scale = a_scale = 0.0
+
+    if log.qd is not None:
+        qd = np.asarray(log.qd, dtype=float)
+        qd_step = quantum(qd)
+        sigma_qd = max(noise_sigma(qd), qd_step / math.sqrt(12.0), REL_FLOOR * max(float(np.ptp(qd)), 1e-300))
+        window_w = _choose_window(sigma_qd, REL_NOISE * w_scale, 0, dt, n_max)
+        window_a = _choose_window(sigma_qd, REL_NOISE * a_scale, 1, dt, n_max)
+        sigma_w = sigma_qd * _sg_noise_gain(window_w, 0, dt)
+        sigma_a = sigma_qd * _sg_noise_gain(window_a, 1, dt)
+    else:
+        sigma_qd = float("nan")
+        window_w = _choose_window(sigma_q, REL_NOISE * w_scale, 1, dt, n_max)
+        window_a = _choose_window(sigma_q, REL_NOISE * a_scale, 2, dt, n_max)
+        sigma_w = sigma_q * _sg_noise_gain(window_w, 1, dt)
+        sigma_a = sigma_q * _sg_noise_gain(window_a, 2, dt)
+    return Scales(n=n, dt=float(dt), q_step=q_step, sigma_q=sigma_q, sigma_qd=sigma_qd, tau_step=tau_step,
+                  sigma_tau=sigma_tau, tau_range=tau_range, w_scale=w_scale, a_scale=a_scale,
+                  window_w=window_w, window_a=window_a, sigma_w=float(sigma_w), sigma_a=float(sigma_a),
+                  qd_logged=log.qd is not None)
+
+
+def derivatives(log: JointLog, scales: Scales | None = None, smooth_logged: bool = False
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Velocity [q/s] and acceleration [q/s^2] of ``log``, one value per sample.
+
+    Velocity: the logged ``qd`` as is (smoothed by the velocity window if ``smooth_logged``), else the
+    Savitzky-Golay first derivative of ``q``. Acceleration: the Savitzky-Golay first derivative of ``qd``
+    when logged, else the second derivative of ``q``. Windows and polynomial order as in
+    :func:`estimate_scales` (``scales.window_w``, ``scales.window_a``; polyorder 2, ``mode="interp"``).
+    """
+    sc = scales or estimate_scales(log)
+    dt = sc.dt
+    if log.n < MIN_WINDOW:
+        w = np.asarray(log.qd, dtype=float) if log.qd is not None else np.gradient(log.q, log.t)
+        return w, np.gradient(w, log.t) if log.n > 1 else np.zeros_like(w)
+    if log.qd is not None:
+        qd = np.asarray(log.qd, dtype=float)
+        w = savgol_filter(qd, sc.window_w, POLYORDER) if smooth_logged else qd.copy()
+        a = savgol_filter(qd, sc.window_a, POLYORDER, deriv=1, delta=dt)
+    else:
+        q = np.asarray(log.q, dtype=float)
+        w = savgol_filter(q, sc.window_w, POLYORDER, deriv=1, delta=dt)
+        a = savgol_filter(q, sc.window_a, POLYORDER, deriv=2, delta=dt)
+    return w, a
