@@ -45,6 +45,8 @@ BASE_MODELS = tuple(sm.map_names()) + ("polynomial_ls",)
 ALL_MODELS = BASE_MODELS + ("lugre",) + th.THERMAL_MODELS
 #: Segment kinds whose moving samples enter the inertia/gravity regression.
 REGRESSION_EXCLUDE = ("ramp_presliding", "step", "rest")
+#: Samples of plateaus / excitation above which duty cycles stay out of the J / gravity regression.
+MIN_OTHER_SAMPLES = 2000
 #: Moving samples: |w| above this fraction of the 99.5th percentile of |w|.
 MIN_SPEED_FRACTION = 0.02
 
@@ -372,12 +374,24 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
     return jf
 
 
+def _regression_exclude(preps) -> tuple[str, ...]:
+    """Segment kinds kept out of the inertia/gravity regression. Duty cycles are kept out when other
+    moving segments (plateaus, excitation) provide at least :data:`MIN_OTHER_SAMPLES` samples: friction
+    changes with temperature during duty cycles (002 section IV) and a constant-friction regression over
+    them biases J and gravity."""
+    other = sum(s.n for p in preps for s in p.segments
+                if s.kind not in REGRESSION_EXCLUDE and s.kind != "duty_cycle")
+    has_duty = any(s.kind == "duty_cycle" for p in preps for s in p.segments)
+    return REGRESSION_EXCLUDE + (("duty_cycle",) if has_duty and other >= MIN_OTHER_SAMPLES else ())
+
+
 def _regress(preps, names, known_coef, min_speed, axis, friction=None):
     """Chunked least squares over the moving samples of every log; per-segment normal equations."""
     seg_ne: list[tuple[int, int, rg.NormalEquations]] = []
+    excl = _regression_exclude(preps)
     for pi, p in enumerate(preps):
-        ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in REGRESSION_EXCLUDE]
-        seg_ids = [si for si, s in enumerate(p.segments) if s.kind not in REGRESSION_EXCLUDE]
+        ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in excl]
+        seg_ids = [si for si, s in enumerate(p.segments) if s.kind not in excl]
         if not p.segments:  # no segmentation: every sample is a candidate
             ranges, seg_ids = [(0, p.log.n)], [-1]
         nes = rg.accumulate(ranges, names, p.log.q, p.w, p.a, p.log.tau, p.log.channels.get("payload"),
@@ -391,7 +405,7 @@ def _regress(preps, names, known_coef, min_speed, axis, friction=None):
     fit_ = rg.solve(total, names)
     rho = 0.0
     for p in preps:
-        ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in REGRESSION_EXCLUDE] or [(0, p.log.n)]
+        ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in excl] or [(0, p.log.n)]
         rho = max(rho, rg.residual_autocorrelation(fit_, ranges, p.log.q, p.w, p.a, p.log.tau,
                                                    p.log.channels.get("payload"), known_coef, min_speed, axis,
                                                    friction=friction))
@@ -493,13 +507,43 @@ def _stage2_map(plat):
 
 
 
+def _sample_metrics(reg_fit, seg_ne, names, n_folds) -> dict:
+    """rms, held-out rms (segments in folds by order), aic and n of a regression on its moving samples."""
+    total = rg.NormalEquations.total(ne for *_, ne in seg_ne)
+    k = len(names)
+
+    def rss(b, ne):
+        return max(float(ne.yty - 2 * b @ ne.Xty + b @ ne.XtX @ b), 0.0)
+
+    r_all = rss(reg_fit.coef, total)
+    n = total.n
+    met = {"rms": math.sqrt(r_all / n) if n else None, "n": int(n), "k": k,
+           "aic": (n * math.log(r_all / n) + 2 * k) if n and r_all > 0 else None, "rms_heldout": None,
+           "basis": "moving samples"}
+    blocks = [ne for *_, ne in seg_ne if ne.n > 0]
+    if len(blocks) >= 2:
+        nf = min(n_folds, len(blocks))
+        e2 = 0.0
+        nn = 0
+        for f in range(nf):
+            out = rg.NormalEquations.total(blocks[i] for i in range(len(blocks)) if i % nf == f)
+            fit_f = rg.solve(total - out, names)
+            e2 += rss(fit_f.coef, out)
+            nn += out.n
+        met["rms_heldout"] = math.sqrt(e2 / nn) if nn else None
+    return met
+
+
 def _polynomial_ls(reg_fit, seg_ne, plat, keys, free_names, axis, F0, w0, a0, n_folds, why) -> ModelFit | None:
     if reg_fit is None or not all(c in free_names for c in ("c0", "c1", "c2", "c3")):
         return None
     params = {c: _reg_estimate(c, reg_fit, axis, F0, w0, a0) for c in ("c0", "c1", "c2", "c3")}
     values = {c: params[c].value for c in params}
-    met = metrics("polynomial", values, plat.w, plat.F, 4) if len(plat) else {"rms": None, "n": 0, "k": 4,
-                                                                              "aic": None}
+    if not len(plat):
+        return ModelFit("polynomial_ls", "polynomial", params, _sample_metrics(reg_fit, seg_ne, free_names, n_folds),
+                        method="linear least squares on all moving samples with J, gravity and offset "
+                               "(002 eq 4-11); no plateaus: metrics on the moving samples, held out by segment")
+    met = metrics("polynomial", values, plat.w, plat.F, 4)
     met["rms_heldout"] = None
     if len(plat) >= 4:
         nf = n_folds if len(plat) >= 2 * n_folds else max(2, len(plat) // 2)
@@ -634,18 +678,33 @@ def _thermal(jf: JointFit, preps, th_wanted, used, axis, min_speed, n_folds) -> 
         groups: dict[int, list[Segment]] = {}
         for k, s in enumerate(duty):
             groups.setdefault(s.cycle if s.cycle is not None else k, []).append(s)
-        cycles = [(min(s.i0 for s in g), max(s.i1 for s in g), cid) for cid, g in groups.items()]
-        run = th.prepare(p.log.t, p.w, p.F, cycles, p.log.channels["temp_env"],
-                         p.log.channels.get("temp_joint"), min_speed)
-        if run is not None:
-            runs.append(run)
-            cyc_used += [[float(a), float(b), p.index] for a, b in run.cycle_t]
+        cycles = sorted((min(s.i0 for s in g), max(s.i1 for s in g), cid) for cid, g in groups.items())
+        # runs: contiguous cycles; a gap between cycles is a rest that ends a run, and the next run is
+        # taken to start cold (T = Tenv), as in 002's protocol (a night of rest before each run)
+        med = float(np.median([c[1] - c[0] for c in cycles]))
+        blocks, cur = [], [cycles[0]]
+        for c in cycles[1:]:
+            if c[0] - cur[-1][1] > max(10, 0.002 * med):
+                blocks.append(cur)
+                cur = []
+            cur.append(c)
+        blocks.append(cur)
+        for blk in blocks:
+            run = th.prepare(p.log.t, p.w, p.F, blk, p.log.channels["temp_env"],
+                             p.log.channels.get("temp_joint"), min_speed,
+                             bin_s=max(med * p.log.dt / th.BINS_PER_CYCLE, p.log.dt))
+            if run is not None:
+                runs.append(run)
+                cyc_used += [[float(a), float(b), p.index] for a, b in run.cycle_t]
     if not runs:
         why = reasons[0] if reasons else "no duty-cycle segments"
         for m in th_wanted:
             jf.not_identified.append({"what": m, "reason": why})
         return
     used["duty_cycle"] = cyc_used
+    if len(runs) > 1:
+        jf.warnings.append(f"duty cycles form {len(runs)} runs separated by rests; each run is taken to "
+                           "start cold (joint temperature = temp_env), as in 002's protocol")
     F_unit = unit_of("F", axis)
     for m in th_wanted:
         tf = th.fit_thermal(runs, m)

@@ -32,6 +32,9 @@ from scipy.optimize import least_squares
 #: Heat transfer held fixed when T is unmeasured [W/K]; sets the temperature scale only.
 K_REF = 1.0
 
+#: Heat-balance bins per duty cycle (power held per bin).
+BINS_PER_CYCLE = 8
+
 #: Thermal models this module fits.
 THERMAL_MODELS = ("thermal4", "thermal6")
 
@@ -319,7 +322,7 @@ def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 
         if weak.size and np.max(np.abs(weak[:, j])) > 0.1:
             reasons[key] = "not separable from other parameters (Jacobian rank-deficient)"
         elif n.startswith("log") and np.isfinite(se[j]) and se[j] > 1.0:
-            reasons[key] = f"relative error {100 * math.expm1(se[j]):.0f} % (above 100 %)"
+            reasons[key] = f"relative error {100 * math.expm1(min(se[j], 50.0)):.3g} % (above 100 %)"
     fixed = {}
     if model == "thermal4":
         for i in range(4):
