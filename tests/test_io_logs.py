@@ -163,3 +163,32 @@ def test_csv_with_preamble_and_semicolons_through_a_mapping_file(tmp_path):
     (back,) = read_logs(str(tmp_path / "epos.csv"), str(tmp_path / "map.yaml"))
     assert back.n == lg.n
     np.testing.assert_allclose(back.tau, lg.tau, atol=1e-8)
+
+
+def test_preamble_skipped_to_a_marker_and_number_prefixes_kept(tmp_path):
+    lg = hand_log(n=50)
+    rows = "\n".join(f"{t * 1e3:.1f};{qd:.6f};{tau:.6f},," for t, qd, tau in zip(lg.t, lg.qd, lg.tau))
+    (tmp_path / "run.csv").write_text("Date:;x\nScale:;1;True,,\n;vel;torque,,\nms;rpm;%,,\n" + rows + "\n")
+    (tmp_path / "map.yaml").write_text(
+        "skip_to: 'ms;'\ndelimiter: ';'\ncolumns: [time, vel, torque]\nbad_rows: number_prefix\n"
+        "map: {time: t, vel: qd, torque: tau}\nunits: {t: ms, qd: rpm}\nscale: {tau: -1.0}\n")
+    (back,) = read_logs(str(tmp_path / "run.csv"), str(tmp_path / "map.yaml"))
+    assert back.q is None and back.n == 50
+    np.testing.assert_allclose(back.tau, -lg.tau, atol=1e-6)
+    np.testing.assert_allclose(back.qd, lg.qd * np.pi / 30, atol=1e-6)
+    (tmp_path / "strict.yaml").write_text((tmp_path / "map.yaml").read_text().replace("number_prefix", "error"))
+    with pytest.raises(LogFormatError, match="not a number"):
+        read_logs(str(tmp_path / "run.csv"), str(tmp_path / "strict.yaml"))
+
+
+def test_folder_of_signal_files_with_interleaved_joints(tmp_path):
+    a, b = hand_log(seed=1), hand_log(seed=2)
+    np.savetxt(tmp_path / "time.txt", a.t)
+    np.savetxt(tmp_path / "pos.txt", np.column_stack([a.q, b.q]).ravel())
+    np.savetxt(tmp_path / "trq.txt", np.column_stack([a.tau, b.tau]).ravel())
+    (tmp_path / "map.yaml").write_text("files: {t: time.txt, q: pos.txt, tau: trq.txt}\njoints: [j1, j2]\n")
+    j1, j2 = read_logs(str(tmp_path), str(tmp_path / "map.yaml"))
+    np.testing.assert_allclose(j2.tau, b.tau, rtol=1e-12)
+    assert (j1.joint, j2.joint, j1.n) == ("j1", "j2", a.n)
+    with pytest.raises(LogFormatError, match="folder"):
+        read_logs(str(tmp_path))

@@ -58,6 +58,9 @@ class LogSpec:
     joints: list[str] | None = None
     delimiter: str | None = None
     skip_rows: int = 0
+    skip_to: str | None = None
+    bad_rows: str = "error"
+    files: dict[str, str] = field(default_factory=dict)
 
     def merged(self, other: "LogSpec") -> "LogSpec":
         return LogSpec(
@@ -71,10 +74,14 @@ class LogSpec:
             joints=other.joints if other.joints is not None else self.joints,
             delimiter=other.delimiter or self.delimiter,
             skip_rows=other.skip_rows or self.skip_rows,
+            skip_to=other.skip_to or self.skip_to,
+            bad_rows=other.bad_rows if other.bad_rows != "error" else self.bad_rows,
+            files={**self.files, **other.files},
         )
 
 
 _SPEC_KEYS = {"map", "units", "scale", "columns", "axis", "meta", "variables", "delimiter", "skip_rows",
+              "skip_to", "bad_rows", "files",
               "schema", "joints", "truth"}
 
 
@@ -109,6 +116,15 @@ def spec_from_dict(d: dict, where: str) -> LogSpec:
     skip = d.get("skip_rows", 0)
     if not isinstance(skip, int) or skip < 0:
         raise ConfigError(f"{where}: skip_rows: must be a whole number >= 0")
+    skip_to = d.get("skip_to")
+    if skip_to is not None and not isinstance(skip_to, str):
+        raise ConfigError(f"{where}: skip_to: must be the text a line starts with (e.g. 'ms;')")
+    bad_rows = d.get("bad_rows", "error")
+    if bad_rows not in ("error", "drop", "number_prefix"):
+        raise ConfigError(f"{where}: bad_rows: must be error, drop or number_prefix, not {bad_rows!r}")
+    files = d.get("files") or {}
+    if not isinstance(files, dict):
+        raise ConfigError(f"{where}: files: expected a mapping COLUMN: FILE (one text file per signal)")
     axis = d.get("axis")
     if axis not in (None, "rotary", "linear"):
         raise ConfigError(f"{where}: axis: must be rotary or linear, not {axis!r}")
@@ -117,7 +133,7 @@ def spec_from_dict(d: dict, where: str) -> LogSpec:
         raise ConfigError(f"{where}: columns: expected a list of column names")
     return LogSpec({str(k): str(v) for k, v in rename.items()}, {str(k): str(v) for k, v in units.items()},
                    dict(scale), cols, axis, dict(d.get("meta") or {}), {str(k): str(v) for k, v in variables.items()},
-                   joint_names, delim, skip)
+                   joint_names, delim, skip, skip_to, bad_rows, {str(k): str(v) for k, v in files.items()})
 
 
 def parse_mapping(text: str | None) -> LogSpec:
@@ -159,14 +175,14 @@ def make_spec(mapping: str | None = None, units: str | None = None) -> LogSpec:
 
 def _read_source(path: str):
     """(label, bytes-or-path, is_parquet). Standard input is read into memory once."""
+    if Path(path).is_dir():
+        return str(path), str(path), False
     if is_stdio(path):
         data = sys.stdin.buffer.read()
         return "<stdin>", io.BytesIO(data), data[:4] == PARQUET_MAGIC
     p = Path(path)
     if not p.exists():
         raise LogFormatError(str(p), ["file not found"])
-    if p.is_dir():
-        raise LogFormatError(str(p), ["is a folder, not a log file"])
     if p.stat().st_size == 0:
         raise LogFormatError(str(p), ["file is empty; a log needs a header row and samples"])
     with open(p, "rb") as fh:
@@ -188,6 +204,18 @@ def _sidecar_spec(path: str) -> tuple[LogSpec, dict]:
     except yaml.YAMLError as exc:
         raise ConfigError(f"{side}: not valid YAML ({exc})") from None
     return spec_from_dict(d, str(side)), d
+
+
+def _skip_to(src, label: str, spec: LogSpec) -> LogSpec:
+    """Resolve ``skip_to`` (skip every line up to and including the first that starts with it)."""
+    if not spec.skip_to:
+        return spec
+    prefix = spec.skip_to.encode("utf-8")
+    data = src.getvalue() if isinstance(src, io.BytesIO) else open(src, "rb").read(1 << 20)
+    for i, line in enumerate(data.split(b"\n")):
+        if line.lstrip(b"\xef\xbb\xbf").startswith(prefix):
+            return LogSpec(**{**spec.__dict__, "skip_rows": i + 1, "skip_to": None})
+    raise LogFormatError(label, [f"no line starts with {spec.skip_to!r} (skip_to in the mapping file)"])
 
 
 def _csv_header(src, label: str, spec: LogSpec) -> tuple[list[str], bool]:
@@ -238,6 +266,7 @@ def _read_table(src, label: str, is_parquet: bool, spec: LogSpec) -> tuple[pa.Ta
             return pf.read(columns=cols), file_meta
         except (pa.ArrowInvalid, OSError) as exc:
             raise LogFormatError(label, [f"cannot be read as Parquet ({exc}); is the file complete?"]) from None
+    spec = _skip_to(src, label, spec)
     names, has_header = _csv_header(src, label, spec)
     cols = [c for c in names if spec.rename.get(c, c) in wanted_targets]
     if len(names) == 1 and spec.delimiter is None and any(ch in names[0] for ch in ";\t| "):
@@ -247,7 +276,8 @@ def _read_table(src, label: str, is_parquet: bool, spec: LogSpec) -> tuple[pa.Ta
                                      "(convert it, or save as Parquet)"])
     read_opts = pacsv.ReadOptions(column_names=names, skip_rows=spec.skip_rows + (1 if has_header else 0),
                                   block_size=1 << 24)
-    parse_opts = pacsv.ParseOptions(delimiter=spec.delimiter or ",")
+    parse_opts = pacsv.ParseOptions(delimiter=spec.delimiter or ",",
+                                    invalid_row_handler=(lambda row: "skip") if spec.bad_rows == "drop" else None)
     conv = pacsv.ConvertOptions(include_columns=cols,
                                 column_types={c: pa.string() for c in cols
                                               if spec.rename.get(c, c) in ("joint", "segment")})
@@ -272,6 +302,18 @@ def _first_non_numeric(col: pa.ChunkedArray) -> tuple[int, str] | None:
         i = int(np.flatnonzero(bad.to_numpy())[0])
         return i, str(s.iloc[i])
     return None
+
+
+_NUMBER = r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
+
+
+def _number_prefix(col: pa.ChunkedArray) -> pa.ChunkedArray:
+    """Keep the leading number of each cell ('-10.6,,' -> '-10.6'); cells without one stay as they are."""
+    import pandas as pd
+
+    s = col.to_pandas().astype("string")
+    num = s.str.extract(_NUMBER, expand=False)
+    return pa.chunked_array([pa.array(num.where(num.notna(), s).astype(object).tolist(), type=pa.string())])
 
 
 def _to_float(col: pa.ChunkedArray) -> np.ndarray:
@@ -299,6 +341,15 @@ def read_logs(path: str, mapping: str | LogSpec | None = None, units: str | None
     label, src, is_parquet = _read_source(str(path))
     side_spec, side_meta = _sidecar_spec(str(path))
     spec_for_read = side_spec.merged(spec)
+    if Path(str(path)).is_dir():
+        if not spec_for_read.files:
+            raise LogFormatError(label, ["is a folder; a folder log needs a mapping file with `files:` "
+                                         "(one text file per signal), see docs/log-format.md"])
+        from .matlab import read_signal_files
+
+        table = read_signal_files(label, spec_for_read.files, spec_for_read.scale, spec_for_read.joints)
+        eff = LogSpec(units=spec_for_read.units, axis=spec_for_read.axis, meta=spec_for_read.meta)
+        return _validate_and_split(table, label, eff, side_meta, has_header=False)
     if str(path).lower().endswith(".mat"):
         from .matlab import read_mat
 
@@ -339,11 +390,20 @@ def _validate_and_split(table: pa.Table, label: str, spec: LogSpec, meta_all: di
 
     numeric = [c for c in cols if c not in ("joint", "segment")]
     arrays: dict[str, np.ndarray] = {}
+    dropped = np.zeros(n_rows, dtype=bool)
     for c in numeric:
         col = cols[c]
         if pa.types.is_string(col.type) or pa.types.is_large_string(col.type) or pa.types.is_binary(col.type):
             bad = _first_non_numeric(col)
-            if bad is not None:
+            if bad is not None and spec.bad_rows == "number_prefix":
+                col = _number_prefix(col)
+                bad = _first_non_numeric(col)
+            if bad is not None and spec.bad_rows in ("drop", "number_prefix"):
+                import pandas as pd
+
+                s_ = col.to_pandas()
+                dropped |= (pd.to_numeric(s_, errors="coerce").isna() & s_.notna()).to_numpy()
+            elif bad is not None:
                 problems.append(f"column {c!r}: {_row_label(bad[0], has_header)} holds {bad[1][:40]!r}, "
                                 "not a number; fix the value or drop the row")
                 continue
@@ -361,6 +421,14 @@ def _validate_and_split(table: pa.Table, label: str, spec: LogSpec, meta_all: di
         arrays[c] = arr
     if problems:
         raise LogFormatError(label, problems)
+    if dropped.any():
+        i = int(np.flatnonzero(dropped)[0])
+        warnings.append(f"dropped {int(dropped.sum())} rows with non-numeric values (bad_rows: drop), "
+                        f"first at {_row_label(i, has_header)}")
+        keep = ~dropped
+        arrays = {c: v[keep] for c, v in arrays.items()}
+        cols = {c: (v.filter(pa.array(keep)) if c in ("joint", "segment") else v) for c, v in cols.items()}
+        n_rows = int(keep.sum())
 
     # units -> SI, axis
     axis = spec.axis

@@ -85,17 +85,62 @@ def read_mat(path: str, variables: dict, scale: dict, joints: list | None) -> pa
             raise LogFormatError(path, [f"variable {src!r} has {a.ndim} dimensions; expected 1 or 2"])
         cols[target] = a
         n_joints = max(n_joints, a.shape[0])
+    scales = {target: _scale_value(scale[target], data, path, n_joints) for target in cols if target in scale}
+    return long_table(t, cols, scales, joints, path)
+
+
+def long_table(t: np.ndarray, cols: dict[str, np.ndarray], scales: dict[str, np.ndarray],
+               joints: list | None, label: str) -> pa.Table:
+    """Long-format table from per-joint rows: each value of ``cols`` has shape (1 or n_joints, len(t))."""
+    n = t.size
+    n_joints = max((a.shape[0] for a in cols.values()), default=1)
     names = [str(j) for j in joints] if joints else [str(i + 1) for i in range(n_joints)]
     if len(names) < n_joints:
-        raise ConfigError(f"{path}: joints: {len(names)} names for {n_joints} joints")
+        raise ConfigError(f"{label}: joints: {len(names)} names for {n_joints} joints")
     names = names[:n_joints]
     out = {"t": np.tile(t, n_joints), "joint": np.repeat(np.array(names, dtype=object), n)}
     for target, a in cols.items():
         if a.shape[0] == 1 and n_joints > 1:
             a = np.repeat(a, n_joints, axis=0)
-        if target in scale:
-            a = a * _scale_value(scale[target], data, path, n_joints)[:, None]
+        if target in scales:
+            a = a * scales[target][:n_joints, None]
         out[target] = a.reshape(-1)
     if n_joints == 1:
         del out["joint"]
     return pa.table({k: pa.array(v) for k, v in out.items()})
+
+
+def read_signal_files(folder: str, files: dict, scale: dict, joints: list | None) -> pa.Table:
+    """One plain-text file per signal (numbers separated by whitespace or newlines), several joints
+    interleaved sample by sample (``q1 q2 ... qn`` of the first sample, then the second, ...)."""
+    from pathlib import Path
+
+    base = Path(folder)
+    if "t" not in files:
+        raise ConfigError(f"{folder}: files: needs t (the time file)")
+
+    def load(target):
+        p = base / files[target]
+        if not p.is_file():
+            raise LogFormatError(str(p), [f"file for column {target!r} not found (files: in the mapping)"])
+        try:
+            return np.loadtxt(p, dtype=float).ravel()
+        except ValueError as exc:
+            raise LogFormatError(str(p), [f"not plain numbers ({exc})"]) from None
+
+    t = load("t")
+    cols = {}
+    for target in files:
+        if target == "t":
+            continue
+        v = load(target)
+        if v.size % t.size:
+            raise LogFormatError(str(base / files[target]), [
+                f"{v.size} values are not a whole number of joints for {t.size} time samples"])
+        cols[target] = v.reshape(t.size, -1).T
+    scales = {}
+    for target, f in scale.items():
+        if target in cols:
+            v = np.atleast_1d(np.asarray(f, dtype=float))
+            scales[target] = np.full(cols[target].shape[0], v[0]) if v.size == 1 else v
+    return long_table(t, cols, scales, joints, folder)
