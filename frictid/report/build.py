@@ -1,0 +1,599 @@
+"""Assemble the HTML report: per joint a summary, the figures, the model table, the diagnosis and the
+provenance, rendered by the jinja2 template ``templates/report.html`` into one self-contained file.
+
+Entry points: :func:`build_report` (HTML as a string) and :func:`write_report` (atomically to a file).
+The parameter file is the schema-1 dictionary of :mod:`frictid.io.params_load`; logs are
+:class:`~frictid.data.JointLog` objects (re-read by the caller with the same ``--map``/``--units`` as the
+fit). Sections that the data cannot support are still written, saying why they are empty.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import math
+import re
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+from frictid.data import JointLog
+
+from . import content as ct
+
+#: Most logs drawn as separate timelines per joint (all logs still feed the other figures).
+MAX_TIMELINES = 4
+
+SECTIONS = (
+    ("summary", "Summary"),
+    ("timeline", "Segment timeline"),
+    ("friction-map", "Friction-velocity map"),
+    ("presliding", "Presliding"),
+    ("thermal", "Thermal"),
+    ("models", "Model comparison"),
+    ("diagnosis", "Diagnosis"),
+    ("provenance", "Provenance"),
+)
+
+
+# ---------------------------------------------------------------------------------------------------
+# numbers as text
+
+
+def fmt_num(v, digits: int = 4) -> str:
+    """A number with ``digits`` significant digits ("—" when missing)."""
+    if v is None:
+        return "—"
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        return str(v)
+    if not math.isfinite(v):
+        return "—"
+    if v == 0:
+        return "0"
+    if abs(v) >= 1e6 or abs(v) < 1e-3:
+        return f"{v:.{max(digits - 1, 1)}e}"
+    return f"{v:.{digits}g}"
+
+
+def fmt_pm(v, se) -> str:
+    """``value ± stderr`` with the value rounded to the second significant digit of its error."""
+    v = ct.pvalue(v)
+    se = ct.pvalue(se)
+    if v is None:
+        return "—"
+    if se is None or se <= 0:
+        return fmt_num(v)
+    if abs(v) >= 1e6 or (abs(v) < 1e-3 and v != 0) or se >= 1e6:
+        return f"{v:.3e} ± {se:.1e}"
+    dec = max(0, 1 - int(math.floor(math.log10(se))))
+    dec = min(dec, 8)
+    return f"{v:.{dec}f} ± {se:.{dec}f}"
+
+
+def slug(s: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_-]+", "-", str(s)).strip("-") or "joint"
+
+
+def param_rows(params: dict) -> list[dict]:
+    """Table rows of a ``params`` mapping: name, value ± stderr, unit, identifiable, reason, fixed."""
+    rows = []
+    for name, p in (params or {}).items():
+        if not isinstance(p, dict):
+            p = {"value": p}
+        rows.append({"name": name, "value": fmt_pm(p.get("value"), p.get("stderr")), "unit": p.get("unit", ""),
+                     "identifiable": bool(p.get("identifiable", True)), "fixed": bool(p.get("fixed", False)),
+                     "reason": p.get("reason", "") or "", "source": p.get("source", "") or ""})
+    return rows
+
+
+def rigid_rows(jd: dict) -> list[dict]:
+    """Inertia, gravity and offset rows."""
+    params = {}
+    if isinstance(jd.get("inertia"), dict):
+        params["J (inertia)"] = jd["inertia"]
+    for k, p in (jd.get("gravity") or {}).items():
+        if isinstance(p, dict):
+            params[f"{k} (gravity)"] = p
+    if isinstance(jd.get("offset"), dict):
+        params["offset"] = jd["offset"]
+    return param_rows(params)
+
+
+def _compact_params(params: dict) -> str:
+    parts = []
+    for name, p in (params or {}).items():
+        if not isinstance(p, dict):
+            continue
+        flag = "" if p.get("identifiable", True) or p.get("fixed") else " (not identifiable)"
+        fixed = " (fixed)" if p.get("fixed") else ""
+        parts.append(f"{name} = {fmt_pm(p.get('value'), p.get('stderr'))} {p.get('unit', '')}{fixed}{flag}".strip())
+    return "; ".join(parts)
+
+
+def model_rows(jd: dict) -> list[dict]:
+    """Model comparison rows, in the order of the fit's ranking, then the others."""
+    models = jd.get("models") or {}
+    ranking = [r.get("model") for r in ((jd.get("selection") or {}).get("ranking") or []) if isinstance(r, dict)]
+    order = [m for m in ranking if m in models] + [m for m in models if m not in ranking]
+    rows = []
+    for name in order:
+        md = models[name]
+        if not isinstance(md, dict):
+            continue
+        met = md.get("metrics") or {}
+        extras = []
+        for k in ("rms_presliding", "rms_presliding_static", "rms_presliding_heldout", "heldout_gain"):
+            if met.get(k) is not None:
+                extras.append(f"{k} = {fmt_num(met[k])}")
+        tc = md.get("time_constant")
+        if isinstance(tc, dict) and tc.get("value") is not None:
+            extras.append(f"time constant = {fmt_pm(tc.get('value'), tc.get('stderr'))} {tc.get('unit', 's')}")
+        params = md.get("params") or {}
+        ident = all(p.get("identifiable", True) or p.get("fixed") for p in params.values() if isinstance(p, dict))
+        basis = ("duty cycles" if name.startswith("thermal") else
+                 "all moving samples" if name == "polynomial_ls" else "plateau points")
+        rows.append({"name": name, "selected": name == jd.get("selected"), "map": md.get("map", ""),
+                     "method": md.get("method", ""), "rms": fmt_num(met.get("rms")),
+                     "rms_heldout": fmt_num(met.get("rms_heldout")), "aic": fmt_num(met.get("aic"), 5),
+                     "n": met.get("n", "—"), "k": met.get("k", len(params)), "params": _compact_params(params),
+                     "identifiable": ident, "extras": "; ".join(extras), "basis": basis,
+                     "notes": list(md.get("notes") or [])})
+    return rows
+
+
+def _round(v, digits: int = 7):
+    return None if v is None else float(f"{v:.{digits}g}")
+
+
+def yaml_snippet(jname: str, jd: dict) -> str:
+    """A copyable YAML block of the chosen model: values with units, and the rigid-body terms."""
+    import yaml
+
+    sel = jd.get("selected")
+    md = (jd.get("models") or {}).get(sel) or {}
+    body: dict[str, Any] = {"model": sel, "map": md.get("map", sel)}
+    if md.get("static_model"):
+        body["static_model"] = md["static_model"]
+    body["params"] = {n: _round(ct.pvalue(p)) for n, p in (md.get("params") or {}).items()}
+    body["units"] = {n: p.get("unit", "") for n, p in (md.get("params") or {}).items() if isinstance(p, dict)}
+    rig = {}
+    if ct.pvalue(jd.get("inertia")) is not None:
+        rig["J"] = _round(ct.pvalue(jd["inertia"]))
+    for k, p in (jd.get("gravity") or {}).items():
+        if k != "amplitude" and ct.pvalue(p) is not None:
+            rig[k] = _round(ct.pvalue(p))
+    if ct.pvalue(jd.get("offset")) is not None:
+        rig["offset"] = _round(ct.pvalue(jd["offset"]))
+    if rig:
+        body["rigid_body"] = rig
+    return yaml.safe_dump({"joints": {str(jname): body}}, sort_keys=False, default_flow_style=False, width=100,
+                          allow_unicode=True)
+
+
+# ---------------------------------------------------------------------------------------------------
+# one joint
+
+
+@dataclass
+class Section:
+    """One part of a joint's report: present with figures and text, or absent with the reason."""
+
+    key: str
+    title: str
+    present: bool = True
+    why: str = ""
+    figures: list = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    data: dict = field(default_factory=dict)
+
+
+def _coverage_lines(cov: dict, units: dict) -> list[str]:
+    lines = []
+    wu = units.get("qd", "rad/s")
+    for key, name in (("pos", "w > 0"), ("neg", "w < 0")):
+        r = cov.get(key)
+        if r:
+            lines.append(f"Velocity {name}: {fmt_num(r[0], 3)} to {fmt_num(r[1], 3)} {wu} over {r[2]} plateau points")
+        elif cov.get("from_logs"):
+            lines.append(f"Velocity {name}: no plateau points")
+    src = "in the logs" if cov.get("from_logs") else "in the parameter file (no logs given)"
+    lines.append(f"Segments {src}: {cov['plateaus']} constant-velocity plateaus ({cov['plateaus_used']} usable as "
+                 f"points), {cov['ramps']} presliding ramps, {cov['steps']} steps, {cov['cycles']} duty cycles")
+    if cov.get("duration") is not None:
+        lines.append(f"Log duration {fmt_num(cov['duration'], 4)} s, {cov['samples']} samples")
+    return lines
+
+
+def _not_identified(jd: dict) -> list[dict]:
+    out, seen = [], set()
+    for item in jd.get("not_identified") or []:
+        if isinstance(item, dict):
+            key = (item.get("what"), item.get("reason"))
+            if key not in seen:
+                seen.add(key)
+                out.append({"what": str(item.get("what", "")), "reason": str(item.get("reason", ""))})
+    sel = jd.get("selected")
+    md = (jd.get("models") or {}).get(sel) or {}
+    for n, p in (md.get("params") or {}).items():
+        if isinstance(p, dict) and not p.get("identifiable", True) and not p.get("fixed"):
+            key = (f"{sel}.{n}", p.get("reason", ""))
+            if key not in seen and (f"{sel}.{n}", p.get("reason")) not in seen:
+                seen.add(key)
+                out.append({"what": f"{sel}.{n}", "reason": str(p.get("reason", "")) or "not identifiable"})
+    return out
+
+
+def _units(jd: dict, datas: list[ct.LogData]) -> dict:
+    if datas:
+        return dict(datas[0].log.units)
+    u = dict(jd.get("units") or {})
+    if jd.get("axis") == "linear":
+        base = {"q": "m", "qd": "m/s", "tau": "N"}
+    else:
+        base = {"q": "rad", "qd": "rad/s", "tau": "N m"}
+    base.update({k: v for k, v in u.items() if k in base and v})
+    return base
+
+
+def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | None = None) -> dict:
+    """The template context of one joint: summary, sections with their figures, tables, snippet."""
+    from . import figures as fg
+
+    timings = timings if timings is not None else {}
+    jid = "j-" + slug(jname)
+    units = _units(jd, datas)
+    models = jd.get("models") or {}
+    sel = jd.get("selected")
+    selmd = models.get(sel) if sel else None
+    secs: dict[str, Section] = {k: Section(k, t) for k, t in SECTIONS}
+    no_logs = ("No log was given for this joint: this part is drawn from the logs "
+               "(frictid report PARAMS.yaml LOG... with the --map/--units the fit used).")
+
+    def salt(part, i=0):
+        return f"{jid}-{part}-{i}"
+
+    # plateau points and coverage
+    t0 = time.perf_counter()
+    pl = ct.plateaus(datas) if datas else ct.plateaus([])
+    cov = ct.coverage(datas, pl, jd)
+    timings["plateaus"] = timings.get("plateaus", 0.0) + time.perf_counter() - t0
+
+    # ---- summary
+    s = secs["summary"]
+    s.data = {
+        "selected": sel, "method": (selmd or {}).get("method", ""), "map": (selmd or {}).get("map", ""),
+        "selection": _selection_text(jd), "key_params": param_rows((selmd or {}).get("params") or {}),
+        "rigid": rigid_rows(jd), "coverage": _coverage_lines(cov, units), "not_identified": _not_identified(jd),
+        "warnings": [str(w) for w in (jd.get("warnings") or [])], "notes": list((selmd or {}).get("notes") or []),
+    }
+    if sel is None:
+        s.notes.append("No model was chosen for this joint" + (
+            f": {(jd.get('selection') or {}).get('reason')}" if (jd.get("selection") or {}).get("reason") else "."))
+
+    # ---- timeline
+    s = secs["timeline"]
+    t0 = time.perf_counter()
+    if not datas:
+        s.present, s.why = False, no_logs
+    else:
+        for i, d in enumerate(datas[:MAX_TIMELINES]):
+            lg = d.log
+            segs = [(x.kind, float(lg.t[x.i0]), float(lg.t[x.i1 - 1])) for x in d.segments]
+            title = f"Joint {jname}: {d.label or 'log'}"
+            s.figures.append(fg.timeline(lg.t, lg.q, d.w, lg.tau, segs, units, title, salt("timeline", i)))
+        if len(datas) > MAX_TIMELINES:
+            s.notes.append(f"{len(datas) - MAX_TIMELINES} more logs of this joint are not drawn here "
+                           "(they enter every other figure).")
+        if not any(d.segments for d in datas):
+            s.notes.append("No segment was found in the logs: nothing is shaded.")
+        if any(d.log.q is None for d in datas):
+            s.notes.append("A log without position: its position panel is left out.")
+    timings["timeline"] = timings.get("timeline", 0.0) + time.perf_counter() - t0
+
+    # ---- friction map
+    s = secs["friction-map"]
+    t0 = time.perf_counter()
+    grids = ct.velocity_grids(pl, datas)
+    if not datas and not ct.static_models(jd):
+        s.present, s.why = False, ("No static friction model in the parameter file and no log given: the map "
+                                   "needs constant-velocity plateaus at several velocities of both signs "
+                                   "(recipes/constant_velocity_sweep.yaml).")
+    else:
+        curves = ct.model_curves(jd, grids)
+        if not curves and not len(pl):
+            s.present, s.why = False, ("No constant-velocity plateau in the logs and no static model in the "
+                                       "parameter file: the map needs plateaus at several constant velocities "
+                                       "of both signs (recipes/constant_velocity_sweep.yaml).")
+        else:
+            s.figures.append(fg.friction_map(pl, curves, grids, units, salt("map")))
+            if not datas:
+                s.notes.append("No log given: the plateau points are not drawn, and the velocity axis spans "
+                               f"±{fmt_num(grids['lin'][-1], 3)} {units['qd']} by default.")
+            elif not len(pl):
+                s.notes.append("No usable constant-velocity plateau in the logs: only the model curves are drawn.")
+            if not curves:
+                s.notes.append("No static model could be evaluated: only the plateau points are drawn.")
+            for side, name in (("pos", "positive"), ("neg", "negative")):
+                if datas and len(pl) and cov.get(side) is None:
+                    s.notes.append(f"No {name}-velocity plateau: the {name} branch of every model is an "
+                                   "extrapolation.")
+            s.data["n_points"] = len(pl)
+            s.data["n_models"] = len(curves)
+    timings["map"] = timings.get("map", 0.0) + time.perf_counter() - t0
+
+    # ---- presliding
+    s = secs["presliding"]
+    t0 = time.perf_counter()
+    lp = ct.lugre_params(jd)
+    if lp:
+        s.data["sigma"] = param_rows({k: v for k, v in (models["lugre"].get("params") or {}).items()
+                                      if k in ("sigma0", "sigma1")})
+    if not datas:
+        s.present = False
+        s.why = no_logs + (" The identified sigma0 / sigma1 are listed in the model table." if lp else "")
+    else:
+        ramps, rinfo = ct.ramp_curves(datas, jd)
+        steps, sinfo = ct.step_curves(datas, jd)
+        if not ramps and not steps:
+            s.present = False
+            s.why = ("No presliding ramp and no torque step in the logs: sigma0 needs slow open-loop torque ramps "
+                     "kept below break-away (recipes/ramp_presliding.yaml), sigma1 torque steps "
+                     "(recipes/torque_steps.yaml).")
+        else:
+            s0, s1 = (lp or {}).get("sigma0") or {}, (lp or {}).get("sigma1") or {}
+            lab0 = f"LuGre, sigma0 = {fmt_pm(s0.get('value'), s0.get('stderr'))} {s0.get('unit', '')}"
+            lab1 = f"LuGre, sigma1 = {fmt_pm(s1.get('value'), s1.get('stderr'))} {s1.get('unit', '')}"
+            s.figures.append(fg.presliding(ramps, steps, units, lab0, lab1, salt("presliding")))
+            if rinfo["n_total"] > len(ramps):
+                s.notes.append(f"{len(ramps)} of {rinfo['n_total']} ramps drawn, spread over the log.")
+            if sinfo["n_total"] > len(steps):
+                s.notes.append(f"{len(steps)} of {sinfo['n_total']} steps drawn, spread over the log.")
+            if ramps and not any(r["model"] is not None for r in ramps):
+                s.notes.append("No model curve on the ramps: " + (
+                    f"sigma0 is not identified ({s0.get('reason') or 'no value'})." if lp else
+                    "the parameter file has no LuGre model."))
+            if steps and not any(x["model"] is not None for x in steps):
+                s.notes.append("No simulated transient: " + (
+                    f"sigma1 is not identified ({s1.get('reason') or 'no value'})." if lp and s1.get("value") is None
+                    else "the inertia J is not known." if lp and not sinfo.get("J") else
+                    "sigma0 is not identified." if lp else "the parameter file has no LuGre model."))
+            if not ramps:
+                s.notes.append("No presliding ramp in the logs (sigma0 needs recipes/ramp_presliding.yaml).")
+            if not steps:
+                s.notes.append("No torque step in the logs (sigma1 needs recipes/torque_steps.yaml).")
+    timings["presliding"] = timings.get("presliding", 0.0) + time.perf_counter() - t0
+
+    # ---- thermal
+    s = secs["thermal"]
+    t0 = time.perf_counter()
+    th_reasons = [x["reason"] for x in _not_identified(jd) if x["what"] in ct.THERMAL_LAWS]
+    th_models = [n for n in models if n in ct.THERMAL_LAWS]
+    s.data["models"] = [{"name": n, "params": param_rows(models[n].get("params") or {}),
+                         "notes": list(models[n].get("notes") or []),
+                         "time_constant": models[n].get("time_constant")} for n in th_models]
+    if not datas:
+        s.present = False
+        s.why = no_logs + (" The thermal parameters are listed below." if th_models else
+                           (" The fit says: " + "; ".join(sorted(set(th_reasons))) + "." if th_reasons else ""))
+    else:
+        cycles, tmods, tinfo = ct.thermal_cycles(datas, jd)
+        if not cycles:
+            s.present = False
+            s.why = ("No duty cycle in the logs: the thermal models need repeated cycles of motion and rest "
+                     "from a cold start, with a temp_env channel (recipes/duty_cycle.yaml)."
+                     + (" The fit says: " + "; ".join(sorted(set(th_reasons))) + "." if th_reasons else ""))
+        else:
+            s.figures.append(fg.thermal(cycles, tmods, units, salt("thermal")))
+            s.notes.append(f"{len(cycles)} cycles, from {tinfo['source']}.")
+            if not tmods:
+                s.notes.append("No thermal model in the parameter file"
+                               + (": " + "; ".join(sorted(set(th_reasons))) if th_reasons else "")
+                               + ". Only the measured friction per cycle is drawn.")
+            for m in tmods:
+                if not np.any(np.isfinite(m["T"])):
+                    s.notes.append(f"{m['name']}: the parameter file gives no per-cycle temperature "
+                                   "(cycle_temperature), so its curve is not drawn.")
+    timings["thermal"] = timings.get("thermal", 0.0) + time.perf_counter() - t0
+
+    # ---- models
+    s = secs["models"]
+    s.data["rows"] = model_rows(jd)
+    if not s.data["rows"]:
+        s.present, s.why = False, "No model was fitted for this joint."
+    sel_rec = jd.get("selection") or {}
+    s.data["rule"] = sel_rec.get("rule", "")
+
+    # ---- diagnosis and replay
+    s = secs["diagnosis"]
+    t0 = time.perf_counter()
+    findings = []
+    for i, f in enumerate(jd.get("diagnosis") or []):
+        if not isinstance(f, dict):
+            f = {"cause": str(f)}
+        row = {"cause": f.get("cause", ""), "evidence": f.get("evidence", ""),
+               "statistic": f.get("statistic", ""), "extension": f.get("extension", ""),
+               "rms_before": fmt_num(f.get("rms_before")), "rms_after": fmt_num(f.get("rms_after")),
+               "gain": _fmt_gain(f.get("gain")), "heldout": f.get("heldout"), "figure": None, "note": ""}
+        if isinstance(row["statistic"], dict):
+            row["statistic"] = ", ".join(f"{k} = {fmt_num(v) if isinstance(v, (int, float)) else v}"
+                                         for k, v in row["statistic"].items())
+        if isinstance(row["extension"], dict):
+            row["extension"] = _compact_params(row["extension"].get("params") or {}) or str(row["extension"])
+        if datas:
+            res = ct.diagnosis_residuals(datas, jd, f)
+            if res is not None:
+                row["figure"] = fg.diagnosis(f, res, units, salt("diagnosis", i))
+                if res.get("given") is None:
+                    row["note"] = ("Only the residual before the extension is drawn: the parameter file does not "
+                                   "carry the binned residual after it.")
+            else:
+                row["note"] = "No residual drawn: the chosen model cannot be evaluated along the log."
+        else:
+            row["note"] = "No residual drawn: no log given."
+        findings.append(row)
+    s.data["findings"] = findings
+    replays = []
+    vmin = ct.min_speed(datas)
+    for i, d in enumerate(datas[:MAX_TIMELINES]):
+        tm = ct.replay_torque(d, jd, vmin)
+        if tm is None or not np.any(np.isfinite(tm)):
+            continue
+        rms = float(np.sqrt(np.nanmean((d.log.tau - tm) ** 2)))
+        title = f"Replay of {d.label or 'the log'}: RMS {fmt_num(rms, 3)} {units['tau']} on the moving samples"
+        replays.append(fg.replay(d.log.t, d.log.tau, tm, units, title, salt("replay", i)))
+    s.figures = replays
+    if not findings:
+        s.notes.append("The parameter file has no diagnosis entries: the diagnosis step has not run on this "
+                       "identification, or found nothing to add.")
+    if datas and not replays:
+        s.notes.append("No replay: the chosen model has no static map that can be evaluated along the log.")
+    if replays:
+        sm_ = ct.selected_static(jd)
+        s.notes.append(f"Replay: J a + G(q) + offset + the steady-state friction of {sm_['name']} "
+                       f"({sm_['map']}) along the measured motion (inverse dynamics; the bristle state and the "
+                       "temperature are not simulated). Samples slower than "
+                       f"{fmt_num(vmin, 3)} {units['qd']} are not replayed: at rest a static map cannot tell "
+                       "which friction between -Fs and Fs holds the joint.")
+    if not findings and not replays:
+        s.present = False
+        s.why = " ".join(s.notes) + ("" if datas else " " + no_logs)
+        s.notes = []
+    timings["diagnosis"] = timings.get("diagnosis", 0.0) + time.perf_counter() - t0
+
+    # ---- provenance (per joint: the snippet)
+    s = secs["provenance"]
+    if sel:
+        s.data["yaml"] = yaml_snippet(jname, jd)
+    else:
+        s.data["yaml"] = ""
+        s.notes.append("No model was chosen: there is no snippet to copy.")
+    s.data["logs"] = [{"label": d.label, "sha256": d.sha256, "rows": d.log.n,
+                       "source": d.source_index} for d in datas]
+
+    key = s_summary_key(secs["summary"].data["key_params"])
+    return {"name": jname, "id": jid, "units": units, "sections": [secs[k] for k, _ in SECTIONS],
+            "section": secs, "selected": sel, "key": key, "n_findings": len(findings),
+            "n_not_identified": len(secs["summary"].data["not_identified"]),
+            "rms_heldout": fmt_num(((selmd or {}).get("metrics") or {}).get("rms_heldout"))}
+
+
+def s_summary_key(rows: list[dict], most: int = 4) -> list[str]:
+    """Up to ``most`` parameters of the chosen model as short text for the index."""
+    return [f"{r['name']} = {r['value']} {r['unit']}".strip() for r in rows[:most]]
+
+
+def _fmt_gain(g) -> str:
+    v = ct.pvalue(g)
+    if v is None:
+        return "—"
+    return f"{100 * v:.1f} %" if abs(v) <= 1.5 else fmt_num(v)
+
+
+def _selection_text(jd: dict) -> str:
+    rec = jd.get("selection") or {}
+    parts = []
+    if rec.get("rule"):
+        parts.append(f"Rule: {rec['rule']}.")
+    if rec.get("best_heldout"):
+        parts.append(f"Lowest held-out RMS: {rec['best_heldout']}.")
+    if isinstance(rec.get("lugre"), str):
+        parts.append(f"LuGre: {rec['lugre']}.")
+    if rec.get("reason"):
+        parts.append(str(rec["reason"]))
+    return " ".join(parts)
+
+
+# ---------------------------------------------------------------------------------------------------
+# the whole report
+
+
+def _environment():
+    import jinja2
+
+    env = jinja2.Environment(loader=jinja2.PackageLoader("frictid.report", "templates"),
+                             autoescape=jinja2.select_autoescape(["html"]), trim_blocks=True, lstrip_blocks=True,
+                             undefined=jinja2.StrictUndefined)
+    env.filters["num"] = fmt_num
+    return env
+
+
+def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params_path: str = "",
+                 command: str = "", segmenter: Callable | None = None, differentiate: Callable | None = None,
+                 generated: str | None = None, timings: dict | None = None) -> str:
+    """The report as one HTML string.
+
+    params : the parameter file as a dictionary (schema 1). logs : the joint logs to draw (any joints; logs
+    of joints not in the file are listed and skipped). params_path, command : shown under provenance.
+    segmenter(log) -> segments and differentiate(log) -> (w, a) default to :func:`frictid.segments.find_segments`
+    and :func:`frictid.segments.derivatives` (the fit's). generated : a timestamp text (default: now, UTC).
+    timings : a dict that receives the seconds spent per part.
+    """
+    from frictid import __version__
+    from frictid.io.logs import file_sha256
+
+    timings = timings if timings is not None else {}
+    logs = list(logs or [])
+    if logs and (segmenter is None or differentiate is None):
+        from frictid import segments as _seg
+        segmenter = segmenter or _seg.find_segments
+        differentiate = differentiate or _seg.derivatives
+    joints = params.get("joints") or {}
+    sources = [s for s in (params.get("sources") or []) if isinstance(s, dict)]
+    hashes: dict[str, str | None] = {}
+    notes = []
+    by_joint: dict[str, list[ct.LogData]] = {}
+    t0 = time.perf_counter()
+    for lg in logs:
+        jn = str(lg.joint)
+        if jn not in joints:
+            continue
+        d = ct.prepare_log(lg, joints[jn], segmenter, differentiate)
+        if d.label and d.label not in hashes:
+            hashes[d.label] = file_sha256(d.label)
+        d.sha256 = hashes.get(d.label)
+        by_joint.setdefault(jn, []).append(d)
+    timings["segments"] = time.perf_counter() - t0
+    skipped = sorted({str(lg.joint) for lg in logs} - set(map(str, joints)))
+    if skipped:
+        notes.append(f"Logs of joint(s) {', '.join(skipped)} are not drawn: the parameter file has no entry for them.")
+    for jn, ds in by_joint.items():
+        ct.match_sources(ds, sources)
+    inputs = []
+    for lg in logs:
+        label = lg.source or "<memory>"
+        if any(i["path"] == label and i["joint"] == str(lg.joint) for i in inputs):
+            continue
+        d = next((x for x in by_joint.get(str(lg.joint), []) if x.log is lg), None)
+        inputs.append({"path": label, "joint": str(lg.joint), "rows": lg.n, "sha256": hashes.get(label),
+                       "source": None if d is None else d.source_index})
+    for i in inputs:
+        if i["source"] is None and str(i["joint"]) in joints and sources:
+            notes.append(f"{i['path']}: not among the files the fit read (different hash and name); its curves are "
+                         "compared with parameters identified from other data.")
+    jctx = []
+    for jn, jd in joints.items():
+        if not isinstance(jd, dict):
+            continue
+        jctx.append(joint_report(str(jn), jd, by_joint.get(str(jn), []), timings))
+    t0 = time.perf_counter()
+    env = _environment()
+    html = env.get_template("report.html").render(
+        title=params_path or "parameter file", params_path=params_path, joints=jctx, sources=sources,
+        inputs=inputs, notes=notes, file_version=str(params.get("frictid", "")), version=__version__,
+        schema=params.get("schema"), settings=params.get("settings") or {}, command=command,
+        generated=generated or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        has_logs=bool(logs))
+    timings["html"] = time.perf_counter() - t0
+    return html
+
+
+def write_report(path: str, params: dict, logs: Iterable[JointLog] | None = None, **kw) -> int:
+    """Build the report and write it atomically to ``path`` (``-`` for standard output). Returns bytes."""
+    from frictid.io.atomic import atomic_open
+
+    html = build_report(params, logs, **kw)
+    with atomic_open(path, "w") as fh:
+        fh.write(html)
+    return len(html.encode("utf-8"))

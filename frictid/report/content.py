@@ -1,0 +1,651 @@
+"""What the report draws, computed from a parameter file (schema 1) and the logs it came from.
+
+numpy only: no matplotlib, no HTML. Everything here recomputes from the logs what the figures show; the
+identification itself is never redone. The friction torque is ``F = tau - J a - G(q) - offset`` with the
+identified inertia, gravity and offset of the parameter file, and the velocity and acceleration from the
+same Savitzky-Golay derivatives the fit uses (:func:`frictid.segments.derivatives`), so the plateau points
+drawn are the ones the fit saw (:func:`frictid.fit.static.plateau_points`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from frictid.data import JointLog, Segment
+from frictid.models import static as sm
+
+#: Moving samples: |w| above this fraction of the 99.5th percentile of |w| (as the fit).
+MIN_SPEED_FRACTION = 0.02
+#: Most ramps and steps drawn per joint (the fit uses them all; the figure would only get crowded).
+MAX_RAMPS_DRAWN = 8
+MAX_STEPS_DRAWN = 6
+#: Samples drawn per ramp / step transient at most (stride decimation of the drawn curve only).
+MAX_CURVE_POINTS = 600
+
+
+# ---------------------------------------------------------------------------------------------------
+# reading the parameter file
+
+
+def pvalue(d: Any) -> float | None:
+    """The ``value`` of a parameter entry (a mapping with value/stderr/unit, or a bare number)."""
+    if d is None:
+        return None
+    if isinstance(d, dict):
+        d = d.get("value")
+    try:
+        v = float(d)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+def pstderr(d: Any) -> float | None:
+    if not isinstance(d, dict):
+        return None
+    return pvalue(d.get("stderr"))
+
+
+def rigid_terms(jd: dict) -> dict[str, float]:
+    """Inertia, gravity and offset values of a joint entry (0 where unknown): J, Px, Py, Mx, My, offset."""
+    out = {"J": pvalue(jd.get("inertia")) or 0.0, "offset": pvalue(jd.get("offset")) or 0.0}
+    grav = jd.get("gravity") or {}
+    if isinstance(grav, dict):
+        for k in ("Px", "Py", "Mx", "My"):
+            out[k] = pvalue(grav.get(k)) or 0.0
+    return out
+
+
+def model_values(md: dict) -> dict[str, float | None]:
+    """Parameter values of one model entry by name."""
+    return {n: pvalue(p) for n, p in (md.get("params") or {}).items()}
+
+
+def static_map_of(name: str, md: dict) -> str | None:
+    """The static map that evaluates a model's steady state, or None (thermal models, unknown maps)."""
+    if name.startswith("thermal") or name == "exponential":
+        return None
+    m = md.get("map") or name
+    try:
+        sm.split_asym(m)
+    except KeyError:
+        return None
+    return m
+
+
+def evaluate_static(mapname: str, values: dict, w) -> np.ndarray | None:
+    """Steady-state friction [F] of a static map at w, or None when a parameter is missing."""
+    smap, asym = sm.split_asym(mapname)
+    names = [n + s for n in smap.names for s in (("_pos", "_neg") if asym else ("",))]
+    if any(values.get(n) is None for n in names):
+        return None
+    with np.errstate(all="ignore"):
+        return sm.evaluate(mapname, np.asarray(w, float), values)
+
+
+def static_models(jd: dict) -> list[dict]:
+    """Every model of a joint whose steady state is a static map with all values known.
+
+    Returns dicts: name, map, values, selected (bool). ``lugre`` is left out when its static part is
+    another listed model (its steady state is that model's curve).
+    """
+    models = jd.get("models") or {}
+    sel = jd.get("selected")
+    out = []
+    for name, md in models.items():
+        if not isinstance(md, dict):
+            continue
+        m = static_map_of(name, md)
+        if m is None:
+            continue
+        vals = model_values(md)
+        if name == "lugre":
+            base = md.get("static_model")
+            if base in models and sel != "lugre":
+                continue
+        if evaluate_static(m, vals, np.array([0.1])) is None:
+            continue
+        out.append({"name": name, "map": m, "values": vals, "selected": name == sel
+                    or (sel == "lugre" and name == (models.get("lugre") or {}).get("static_model"))})
+    return out
+
+
+def selected_static(jd: dict) -> dict | None:
+    """The static map of the selected model (LuGre's static part when LuGre is selected)."""
+    sel = jd.get("selected")
+    models = jd.get("models") or {}
+    if sel not in models:
+        return None
+    md = models[sel]
+    m = static_map_of(sel, md)
+    if m is None:
+        return None
+    vals = model_values(md)
+    if evaluate_static(m, vals, np.array([0.1])) is None:
+        return None
+    return {"name": sel, "map": m, "values": vals}
+
+
+# ---------------------------------------------------------------------------------------------------
+# one log of a joint
+
+
+@dataclass
+class LogData:
+    """One log of a joint with what every figure needs: velocity, acceleration, friction torque, segments.
+
+    w [q/s], a [q/s^2]: derivatives as the fit computes them; G [F]: gravity plus offset; F [F]: friction
+    torque ``tau - J a - G``. label: the file it came from. sha256: of that file (None for stdin).
+    """
+
+    log: JointLog
+    w: np.ndarray
+    a: np.ndarray
+    G: np.ndarray
+    F: np.ndarray
+    segments: list[Segment]
+    label: str = ""
+    sha256: str | None = None
+    source_index: int | None = None
+    notes: list[str] = field(default_factory=list)
+
+
+def gravity_torque(log: JointLog, terms: dict[str, float]) -> np.ndarray:
+    """Gravity plus payload plus offset [F] along a log (as the fit models it)."""
+    n = log.n
+    G = np.zeros(n)
+    q = log.q
+    if q is not None and log.axis == "rotary":
+        G = terms.get("Px", 0.0) * np.cos(q) + terms.get("Py", 0.0) * np.sin(q)
+    if "payload" in log.channels and q is not None:
+        pl = np.asarray(log.channels["payload"], float)
+        G = G + terms.get("Mx", 0.0) * pl * (np.cos(q) if log.axis == "rotary" else 1.0)
+        if log.axis == "rotary":
+            G = G + terms.get("My", 0.0) * pl * np.sin(q)
+    return G + terms.get("offset", 0.0)
+
+
+def prepare_log(log: JointLog, jd: dict, segmenter: Callable, differentiate: Callable) -> LogData:
+    """Derivatives, segments and the friction torque of one log for the joint entry ``jd``."""
+    w, a = differentiate(log)
+    w = np.asarray(w, float)
+    a = np.asarray(a, float)
+    segs = list(segmenter(log))
+    terms = rigid_terms(jd)
+    G = gravity_torque(log, terms)
+    F = np.asarray(log.tau, float) - terms["J"] * np.nan_to_num(a) - G
+    return LogData(log=log, w=w, a=a, G=G, F=F, segments=segs, label=log.source or "")
+
+
+def match_sources(datas: list[LogData], sources: list[dict]) -> None:
+    """Set ``source_index`` of each log: the parameter file's source with the same hash, else the same
+    file name, else (one log, one source) that one."""
+    for d in datas:
+        for i, s in enumerate(sources):
+            if d.sha256 and s.get("sha256") and d.sha256 == s.get("sha256"):
+                d.source_index = i
+                break
+        else:
+            for i, s in enumerate(sources):
+                if d.label and s.get("path") and Path(str(s["path"])).name == Path(d.label).name:
+                    d.source_index = i
+                    break
+    if len(datas) == 1 and len(sources) == 1 and datas[0].source_index is None:
+        datas[0].source_index = 0
+
+
+def min_speed(datas: list[LogData]) -> float:
+    w = np.concatenate([np.abs(d.w[np.isfinite(d.w)]) for d in datas]) if datas else np.zeros(0)
+    return MIN_SPEED_FRACTION * float(np.percentile(w, 99.5)) if w.size else 0.0
+
+
+# ---------------------------------------------------------------------------------------------------
+# static map: plateau points and model curves
+
+
+@dataclass
+class PlateauSet:
+    """Plateau points of a joint: w [q/s], F [F] and their standard errors; log index per point."""
+
+    w: np.ndarray
+    F: np.ndarray
+    F_se: np.ndarray
+    w_se: np.ndarray
+    log_index: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.w.shape[0])
+
+
+def plateaus(datas: list[LogData]) -> PlateauSet:
+    """One averaged (w, F) point per constant-velocity segment of every log (as the fit computes it)."""
+    from frictid.fit.static import plateau_points
+
+    parts = []
+    for k, d in enumerate(datas):
+        p = plateau_points(d.log.t, d.w, d.F, d.segments)
+        if len(p):
+            parts.append((p, np.full(len(p), k)))
+    if not parts:
+        z = np.zeros(0)
+        return PlateauSet(z, z, z, z, z.astype(int))
+    cat = lambda f: np.concatenate([getattr(p, f) for p, _ in parts])  # noqa: E731
+    return PlateauSet(cat("w"), cat("F"), np.nan_to_num(cat("F_se")), np.nan_to_num(cat("w_se")),
+                      np.concatenate([k for _, k in parts]))
+
+
+def velocity_grids(pl: PlateauSet, datas: list[LogData]) -> dict[str, np.ndarray]:
+    """Velocity grids [q/s] for the model curves: linear over both signs, logarithmic per sign."""
+    if len(pl):
+        wmax = float(np.max(np.abs(pl.w)))
+        wmin = float(np.min(np.abs(pl.w[pl.w != 0]))) if np.any(pl.w != 0) else wmax / 100
+    else:
+        wabs = np.concatenate([np.abs(d.w) for d in datas]) if datas else np.zeros(0)
+        wmax = float(np.percentile(wabs, 99.5)) if wabs.size else 1.0
+        wmin = wmax / 300
+    wmax = wmax if wmax > 0 else 1.0
+    wmin = min(max(wmin, wmax * 1e-5), wmax / 3)
+    lin = np.linspace(0.0, 1.08 * wmax, 400)[1:]
+    lin = np.unique(np.concatenate([lin, np.geomspace(wmin / 3, wmax, 150)]))
+    logg = np.geomspace(wmin / 3, 1.3 * wmax, 250)
+    return {"lin": np.concatenate([-lin[::-1], lin]), "log": logg}
+
+
+def model_curves(jd: dict, grids: dict[str, np.ndarray]) -> list[dict]:
+    """Each static model evaluated on the grids: name, selected, lin (F on the linear grid), pos, neg
+    (|F| on the log grid for w > 0 and w < 0)."""
+    out = []
+    for m in static_models(jd):
+        lin = evaluate_static(m["map"], m["values"], grids["lin"])
+        pos = evaluate_static(m["map"], m["values"], grids["log"])
+        neg = evaluate_static(m["map"], m["values"], -grids["log"])
+        out.append({"name": m["name"], "selected": m["selected"], "lin": lin, "pos": pos,
+                    "neg": None if neg is None else -neg})
+    out.sort(key=lambda c: (not c["selected"], c["name"]))
+    return out
+
+
+def coverage(datas: list[LogData], pl: PlateauSet, jd: dict) -> dict:
+    """What the data covered: velocity range per sign, counts of plateaus, ramps, steps and cycles."""
+    out: dict[str, Any] = {"from_logs": bool(datas)}
+    counts = {"constant_velocity": 0, "ramp_presliding": 0, "step": 0, "duty_cycle": 0}
+    cycles = set()
+    if datas:
+        for k, d in enumerate(datas):
+            for s in d.segments:
+                if s.kind in counts:
+                    counts[s.kind] += 1
+                if s.kind == "duty_cycle":
+                    cycles.add((k, s.cycle if s.cycle is not None else s.i0))
+        out["duration"] = float(sum(d.log.t[-1] - d.log.t[0] for d in datas if d.log.n > 1))
+        out["samples"] = int(sum(d.log.n for d in datas))
+    else:
+        seg = jd.get("segments") or {}
+        for k in counts:
+            counts[k] = int(seg.get(k, 0) or 0)
+        used = (jd.get("segments_used") or {}).get("duty_cycle") or []
+        cycles = set(range(len(used)))
+    out["plateaus"] = counts["constant_velocity"]
+    out["plateaus_used"] = len(pl) if datas else len((jd.get("segments_used") or {}).get("constant_velocity") or [])
+    out["ramps"] = counts["ramp_presliding"]
+    out["steps"] = counts["step"]
+    out["cycles"] = len(cycles)
+    for sign, name in ((1, "pos"), (-1, "neg")):
+        sel = pl.w[np.sign(pl.w) == sign] if len(pl) else np.zeros(0)
+        out[name] = (float(np.min(np.abs(sel))), float(np.max(np.abs(sel))), int(sel.size)) if sel.size else None
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------
+# presliding: ramps and steps
+
+
+def _canon_level(c: np.ndarray, v: float) -> float:
+    out = c[0]
+    if c[1] != 0.0:
+        out += c[1] * math.exp(-((v / c[2]) ** c[3]))
+    if c[4] != 0.0:
+        out += c[4] * (1.0 - math.exp(-v / c[5]))
+    return float(out)
+
+
+def scalar_map(mapname: str, values: dict):
+    """Scalar level g(w) [F] and viscous f(w) [F] of a static map (for the step simulation)."""
+    c_pos, c_neg = sm.canonical_pair(mapname, values)
+
+    def level(w):
+        return _canon_level(c_pos if w >= 0 else c_neg, abs(w))
+
+    def viscous(w):
+        c = c_pos if w >= 0 else c_neg
+        return float(c[6] * w + c[7] * w * abs(w) + c[8] * w**3)
+    return level, viscous, c_pos, c_neg
+
+
+def _stride(n: int, most: int) -> slice:
+    return slice(None, None, max(1, int(math.ceil(n / most))))
+
+
+def _spread(items: list, most: int) -> list:
+    """At most ``most`` items spread evenly over the list (first and last kept)."""
+    if len(items) <= most:
+        return items
+    idx = np.unique(np.round(np.linspace(0, len(items) - 1, most)).astype(int))
+    return [items[i] for i in idx]
+
+
+def lugre_params(jd: dict) -> dict | None:
+    """LuGre's static map, its values and sigma0 / sigma1 entries, or None when there is no LuGre."""
+    md = (jd.get("models") or {}).get("lugre")
+    if not isinstance(md, dict):
+        return None
+    vals = model_values(md)
+    m = static_map_of("lugre", md)
+    params = md.get("params") or {}
+    return {"map": m, "values": vals, "sigma0": params.get("sigma0") or {}, "sigma1": params.get("sigma1") or {}}
+
+
+def ramp_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
+    """Torque against displacement for each ramp-presliding segment (at most :data:`MAX_RAMPS_DRAWN`),
+    with LuGre's bristle path at the identified sigma0 when there is one. Returns (curves, info)."""
+    from frictid.fit.presliding import bristle_path
+
+    lp = lugre_params(jd)
+    s0 = pvalue(lp["sigma0"]) if lp else None
+    info = {"sigma0": lp["sigma0"] if lp else None, "n_total": 0}
+    level = None
+    if lp and lp["map"] and s0 and evaluate_static(lp["map"], lp["values"], np.array([0.1])) is not None:
+        level, _, _, _ = scalar_map(lp["map"], lp["values"])
+    items = []
+    for d in datas:
+        if d.log.q is None:
+            continue
+        for s in d.segments:
+            if s.kind == "ramp_presliding" and s.n >= 10:
+                items.append((d, s))
+    info["n_total"] = len(items)
+    curves = []
+    for d, s in _spread(items, MAX_RAMPS_DRAWN):
+        q = np.asarray(d.log.q[s.i0:s.i1], float)
+        F = d.F[s.i0:s.i1]
+        model = None
+        if level is not None:
+            g0 = abs(level(1e-12 if np.mean(F) >= 0 else -1e-12))
+            if g0 > 0:
+                z0 = float(np.clip(F[0] / s0, -g0 / s0, g0 / s0))
+                model = s0 * bristle_path(q, z0, s0, g0)
+        st = _stride(q.size, MAX_CURVE_POINTS)
+        curves.append({"x": (q - q[0])[st], "F": F[st], "model": None if model is None else model[st],
+                       "t0": float(d.log.t[s.i0])})
+    return curves, info
+
+
+def step_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
+    """Measured step transients (position from its start against time) and LuGre's simulated ones when
+    J, sigma0 and sigma1 are known (at most :data:`MAX_STEPS_DRAWN`). Returns (curves, info)."""
+    from frictid.fit.presliding import simulate_step
+
+    lp = lugre_params(jd)
+    J = pvalue(jd.get("inertia"))
+    s0 = pvalue(lp["sigma0"]) if lp else None
+    s1 = pvalue(lp["sigma1"]) if lp else None
+    info = {"sigma1": lp["sigma1"] if lp else None, "n_total": 0, "J": J}
+    can = bool(lp and lp["map"] and J and J > 0 and s0 and s1 is not None
+               and evaluate_static(lp["map"], lp["values"], np.array([0.1])) is not None)
+    if can:
+        level, viscous, _, _ = scalar_map(lp["map"], lp["values"])
+    items = []
+    for d in datas:
+        if d.log.q is None:
+            continue
+        for s in d.segments:
+            if s.kind == "step" and s.n >= 10:
+                items.append((d, s))
+    info["n_total"] = len(items)
+    curves = []
+    for d, s in _spread(items, MAX_STEPS_DRAWN):
+        t = np.asarray(d.log.t[s.i0:s.i1], float)
+        q = np.asarray(d.log.q[s.i0:s.i1], float)
+        u = np.asarray(d.log.tau[s.i0:s.i1], float) - d.G[s.i0:s.i1]
+        model = None
+        if can:
+            g0 = max(level(0.0), 1e-12)
+            z0 = float(np.clip(u[0] / s0, -g0 / s0, g0 / s0))
+            try:
+                with np.errstate(all="ignore"):
+                    model = simulate_step(t, u, q[0], 0.0, J, s0, s1, level, viscous, z0)
+                if not np.all(np.isfinite(model)):
+                    model = None
+            except (ArithmeticError, ValueError):
+                model = None
+        st = _stride(t.size, MAX_CURVE_POINTS)
+        curves.append({"t": (t - t[0])[st], "x": (q - q[0])[st], "model": None if model is None else
+                       (model - q[0])[st], "t0": float(t[0])})
+    return curves, info
+
+
+# ---------------------------------------------------------------------------------------------------
+# thermal
+
+
+THERMAL_LAWS = ("thermal4", "thermal6", "exponential")
+
+
+def thermal_coefficients(name: str, values: dict, T) -> np.ndarray | None:
+    """Polynomial coefficients c0..c3 of a thermal law at joint temperature(s) T [degC], shape (n, 4)."""
+    T = np.atleast_1d(np.asarray(T, float))
+    c = [values.get(f"c{i}") for i in range(4)]
+    T0 = values.get("T0")
+    if any(v is None for v in c) or T0 is None:
+        return None
+    c = np.array(c, float)
+    dT = (T - T0)[:, None]
+    if name == "thermal4":
+        a, b = values.get("alpha"), values.get("beta")
+        if a is None or b is None:
+            return None
+        return c[None, :] * (a * dT + b)
+    if name == "thermal6":
+        dc = [values.get(f"dc{i}") for i in range(4)]
+        if any(v is None for v in dc):
+            return None
+        return c[None, :] + np.array(dc, float)[None, :] * dT
+    if name == "exponential":
+        lam = values.get("lam")
+        if lam is None:
+            return None
+        return c[None, :] * np.exp(-lam * dT)
+    return None
+
+
+def thermal_cycles(datas: list[LogData], jd: dict) -> tuple[list[dict], list[dict], dict]:
+    """Friction per duty cycle (RMS over the cycle's moving samples, as 002's F_rms) against time, and for
+    each thermal model its friction at its own estimated cycle temperature.
+
+    Cycles are those the fit used (``segments_used.duty_cycle``: start, end, source) when the parameter
+    file lists them, else the duty-cycle segments found in the logs. Returns (cycles, models, info):
+    cycles: t [s] mid-cycle, F_rms [F], temp_env, temp_joint [degC] (NaN when not logged), log index;
+    models: name, selected, T [degC] per cycle (NaN where unknown), F_rms [F] per cycle.
+    """
+    models = jd.get("models") or {}
+    th_names = [n for n in models if n in THERMAL_LAWS and isinstance(models[n], dict)]
+    used = (jd.get("segments_used") or {}).get("duty_cycle") or []
+    windows: list[tuple[int, float, float, int]] = []  # (log index, t0, t1, position in used)
+    info = {"source": "", "n_models": len(th_names)}
+    if used:
+        by_src = {d.source_index: k for k, d in enumerate(datas) if d.source_index is not None}
+        for pos, row in enumerate(used):
+            try:
+                t0, t1 = float(row[0]), float(row[1])
+                src = int(row[2]) if len(row) > 2 else 0
+            except (TypeError, ValueError, IndexError):
+                continue
+            k = by_src.get(src, 0 if len(datas) == 1 else None)
+            if k is not None:
+                windows.append((k, t0, t1, pos))
+        info["source"] = "the cycles the fit used"
+    if not windows:
+        for k, d in enumerate(datas):
+            groups: dict[Any, list[Segment]] = {}
+            for s in d.segments:
+                if s.kind == "duty_cycle":
+                    groups.setdefault(s.cycle if s.cycle is not None else s.i0, []).append(s)
+            for g in groups.values():
+                windows.append((k, float(d.log.t[min(s.i0 for s in g)]), float(d.log.t[max(s.i1 for s in g) - 1]), -1))
+        info["source"] = "the duty-cycle segments found in the logs"
+    if not windows:
+        return [], [], info
+    vmin = min_speed(datas)
+    cycles = []
+    wins = []
+    for k, t0, t1, pos in windows:
+        d = datas[k]
+        i0, i1 = np.searchsorted(d.log.t, [t0, t1 + 1e-9])
+        if i1 - i0 < 4:
+            continue
+        ww = d.w[i0:i1]
+        mv = np.abs(ww) > vmin
+        if mv.sum() < 4:
+            continue
+        F = d.F[i0:i1][mv]
+        te = d.log.channels.get("temp_env")
+        tj = d.log.channels.get("temp_joint")
+        cycles.append({"t": 0.5 * (t0 + t1), "F_rms": float(np.sqrt(np.mean(F**2))),
+                       "temp_env": float(np.mean(te[i0:i1])) if te is not None else math.nan,
+                       "temp_joint": float(np.mean(tj[i0:i1])) if tj is not None else math.nan,
+                       "log": k, "pos": pos})
+        wins.append(ww[mv])
+    out_models = []
+    for name in th_names:
+        md = models[name]
+        vals = model_values(md)
+        flat = [x for run in (md.get("cycle_temperature") or []) for x in (run if isinstance(run, list) else [run])]
+        T = np.full(len(cycles), np.nan)
+        Fm = np.full(len(cycles), np.nan)
+        for i, (c, ww) in enumerate(zip(cycles, wins)):
+            if 0 <= c["pos"] < len(flat):
+                T[i] = pvalue(flat[c["pos"]]) if pvalue(flat[c["pos"]]) is not None else np.nan
+            if np.isfinite(T[i]):
+                co = thermal_coefficients(name, vals, T[i])
+                if co is not None:
+                    Fm[i] = float(np.sqrt(np.mean(sm.polynomial(ww, *co[0]) ** 2)))
+        out_models.append({"name": name, "selected": name == jd.get("selected"), "T": T, "F_rms": Fm,
+                           "time_constant": md.get("time_constant")})
+    return cycles, out_models, info
+
+
+# ---------------------------------------------------------------------------------------------------
+# replay and diagnosis
+
+
+def replay_torque(d: LogData, jd: dict, vmin: float | None = None) -> np.ndarray | None:
+    """Model torque along a log: ``J a + G(q) + offset + F_ss(w)`` with the selected model's static map
+    (LuGre's static part when LuGre is selected). None when no static model can be evaluated.
+
+    vmin [q/s]: samples slower than this are NaN (not replayed): at rest a static map cannot say which
+    friction between -Fs and Fs balances the load, and the sign of a noisy velocity would decide it."""
+    sel = selected_static(jd)
+    if sel is None:
+        return None
+    Fss = evaluate_static(sel["map"], sel["values"], d.w)
+    if Fss is None:
+        return None
+    J = rigid_terms(jd)["J"]
+    out = J * np.nan_to_num(d.a) + d.G + Fss
+    if vmin is not None:
+        out[np.abs(d.w) <= vmin] = np.nan
+    return out
+
+
+#: The variable a diagnosis cause is drawn against: keyword in the cause -> (variable key, label).
+CAUSE_VARIABLES = (
+    ("temp", "time"), ("warm", "time"), ("thermal", "time"), ("drift", "time"), ("wear", "time"),
+    ("time", "time"), ("position", "q"), ("load", "load"), ("payload", "load"), ("torque", "load"),
+    ("asym", "w"), ("sign", "w"), ("velocity", "w"), ("revers", "w"), ("presliding", "w"),
+    ("stick", "w"), ("hyster", "w"), ("lag", "w"), ("elastic", "a"), ("inertia", "a"),
+    ("accel", "a"),
+)
+
+
+def cause_variable(cause: str) -> str:
+    c = (cause or "").lower()
+    for key, var in CAUSE_VARIABLES:
+        if key in c:
+            return var
+    return "time"
+
+
+def variable_values(var: str, d: LogData) -> tuple[np.ndarray, str]:
+    """Samples of a cause variable and its label with unit."""
+    u = d.log.units
+    if var == "q" and d.log.q is not None:
+        return np.asarray(d.log.q, float), f"position [{u['q']}]"
+    if var == "load":
+        if "payload" in d.log.channels:
+            return np.asarray(d.log.channels["payload"], float), "payload [kg]"
+        return np.abs(np.asarray(d.log.tau, float)), f"|transmitted torque| [{u['tau']}]"
+    if var == "w":
+        return d.w, f"velocity [{u['qd']}]"
+    if var == "a":
+        return d.a, f"acceleration [{u['qd']}/s]".replace("/s/s", "/s^2")
+    if "temp_joint" in d.log.channels and var == "temperature":
+        return np.asarray(d.log.channels["temp_joint"], float), "joint temperature [degC]"
+    return np.asarray(d.log.t, float), "time [s]"
+
+
+def binned(x: np.ndarray, y: np.ndarray, nbins: int = 30) -> dict:
+    """Mean of y in equal-count bins of x: centre, mean, standard error, count."""
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    if x.size < 2 * nbins:
+        nbins = max(1, x.size // 2)
+    if x.size == 0:
+        z = np.zeros(0)
+        return {"x": z, "mean": z, "se": z, "n": z}
+    order = np.argsort(x, kind="stable")
+    xs, ys = x[order], y[order]
+    edges = np.linspace(0, xs.size, nbins + 1).astype(int)
+    cx, m, se, n = [], [], [], []
+    for a, b in zip(edges[:-1], edges[1:]):
+        if b - a < 1:
+            continue
+        cx.append(float(np.mean(xs[a:b])))
+        m.append(float(np.mean(ys[a:b])))
+        se.append(float(np.std(ys[a:b], ddof=1) / math.sqrt(b - a)) if b - a > 1 else 0.0)
+        n.append(b - a)
+    return {"x": np.array(cx), "mean": np.array(m), "se": np.array(se), "n": np.array(n)}
+
+
+def diagnosis_residuals(datas: list[LogData], jd: dict, finding: dict) -> dict | None:
+    """Residual ``tau - tau_model`` of the selected model on moving samples against the finding's cause
+    variable, binned (before the extension). The after-curve comes from the finding itself when the
+    diagnosis step writes one (``binned: {x, before, after}``)."""
+    var = cause_variable(str(finding.get("cause", "")))
+    xs, rs, label = [], [], ""
+    vmin = min_speed(datas)
+    for d in datas:
+        tm = replay_torque(d, jd, vmin)
+        if tm is None:
+            return None
+        x, label = variable_values(var, d)
+        mv = np.abs(d.w) > vmin
+        xs.append(x[mv])
+        rs.append((np.asarray(d.log.tau, float) - tm)[mv])
+    if not xs:
+        return None
+    x = np.concatenate(xs)
+    r = np.concatenate(rs)
+    out = {"variable": var, "label": label, "before": binned(x, r)}
+    given = finding.get("binned")
+    if isinstance(given, dict) and given.get("x") is not None and given.get("after") is not None:
+        try:
+            out["given"] = {"x": np.asarray(given["x"], float), "after": np.asarray(given["after"], float),
+                            "before": (np.asarray(given["before"], float) if given.get("before") is not None
+                                       else None)}
+        except (TypeError, ValueError):
+            pass
+    return out
