@@ -1,0 +1,458 @@
+"""Replay: what an identified model predicts along a measured log, and what it gets wrong.
+
+:func:`joint_model` turns one model of a parameter file (any of ``models:``, the chosen one by default)
+into a :class:`ReplayModel`: canonical static vectors, LuGre stiffness and damping, a thermal law, the
+rigid-body terms (inertia, gravity, offset) and the diagnosis extensions (position, load, drift, offset).
+:func:`replay` then runs it along a :class:`~frictid.data.JointLog`:
+
+- ``F_model``: friction along the measured velocity (LuGre state integrated along it, the thermal state
+  along the predicted friction power), by the compiled kernel of :mod:`frictid.models.replay_kernel`.
+  A static map has no state at rest: within :data:`STICK_NOISE` velocity noise levels of zero it follows
+  Karnopp's stick law (the friction balances the net applied torque, up to the level);
+- ``tau_model = J a + G(q) + offset + F_model`` and the residual ``tau - tau_model``;
+- optionally (:func:`closed_loop`) the closed loop re-simulated with the identified model, the log's
+  references and a known controller, giving the simulated motion ``q_model``.
+
+The extension multipliers are functions of measured quantities only (:func:`level_multiplier`), the same
+functions the diagnosis fits with, so that what :mod:`frictid.diagnose` measures is what replay predicts.
+Numbers only: no files, no pandas. True plant parameters (``JointLog.truth``) are never read.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from datetime import datetime
+
+import numpy as np
+
+from .data import JointLog
+from .errors import ConfigError, FrictidInputError
+from .models import static as sm
+from .models.replay_kernel import replay_friction
+from .models.thermal import thermal_code
+
+#: Parameter names of the diagnosis extensions (see docs/parameter-file.md, "Extended models").
+EXTENSION_PARAMS = {
+    "position": ("pos_amp", "pos_period", "pos_phase", "pos_q0", "pos_lin", "pos_quad"),
+    "load": ("load_tau", "load_gravity", "load_payload"),
+    "offset": ("tau_offset",),
+    "drift": ("drift_per_hour", "drift_t0"),
+    "stribeck": ("str_amp", "str_vs", "str_delta"),
+    "presliding": ("sigma0", "sigma1"),
+    "inertia": ("J",),
+    "gravity": ("Px", "Py"),
+    "temperature": ("alpha", "beta", "lam", "dc0", "dc1", "dc2", "dc3", "C", "K", "T0"),
+}
+
+
+@dataclass
+class ReplayModel:
+    """Everything needed to predict the torque of one joint. Units: [q] rad or m, [F] N m or N.
+
+    name, map : model name and static map. c_pos, c_neg : canonical vectors (w >= 0, w < 0).
+    sigma0, sigma1 : LuGre (None: static map). J [kg m^2 | kg], Px, Py [F], Mx, My [F/kg], offset [F]:
+    rigid-body terms. thermal : law ('thermal4', 'thermal6', 'exponential') and its numbers, or None.
+    ext : extension parameters by name (``pos_amp``, ``load_tau``, ``drift_per_hour``, ``tau_offset``, ...).
+    """
+
+    name: str
+    map: str
+    c_pos: np.ndarray
+    c_neg: np.ndarray
+    axis: str = "rotary"
+    sigma0: tuple[float, float] | None = None
+    sigma1: tuple[float, float] = (0.0, 0.0)
+    J: float = 0.0
+    Px: float = 0.0
+    Py: float = 0.0
+    Mx: float = 0.0
+    My: float = 0.0
+    offset: float = 0.0
+    thermal: dict | None = None
+    ext: dict = field(default_factory=dict)
+
+    def gravity(self, q, payload=None):
+        """Gravity and offset torque G(q) [F] (payload [kg] per sample or None)."""
+        n = 0 if q is None else np.shape(q)[0]
+        G = np.full(n, self.offset, dtype=float) if q is not None else np.asarray(self.offset, dtype=float)
+        if q is None:
+            return G
+        q = np.asarray(q, dtype=float)
+        if self.axis == "rotary":
+            G = G + self.Px * np.cos(q) + self.Py * np.sin(q)
+        if payload is not None:
+            pay = np.asarray(payload, dtype=float)
+            G = G + (self.Mx * pay * (np.cos(q) if self.axis == "rotary" else 1.0))
+            if self.axis == "rotary":
+                G = G + self.My * pay * np.sin(q)
+        return G
+
+
+# ---------------------------------------------------------------------------------------------------
+# Extension multipliers (shared with frictid.diagnose)
+
+
+def position_factor(q, ext: dict) -> np.ndarray:
+    """Level multiplier [1] of the position extension at positions q [q].
+
+    Periodic: ``1 + pos_amp sin(2 pi q / pos_period + pos_phase)``; smooth (non-periodic):
+    ``1 + pos_lin (q - pos_q0) + pos_quad (q - pos_q0)^2``. Absent parameters count as zero.
+    """
+    q = np.asarray(q, dtype=float)
+    out = np.ones_like(q)
+    amp = ext.get("pos_amp")
+    if amp:
+        out = out + amp * np.sin(2 * np.pi * q / ext["pos_period"] + ext.get("pos_phase", 0.0))
+    lin, quad = ext.get("pos_lin") or 0.0, ext.get("pos_quad") or 0.0
+    if lin or quad:
+        d = q - (ext.get("pos_q0") or 0.0)
+        out = out * (1.0 + lin * d + quad * d * d)
+    return out
+
+
+def load_factor(tau_abs, G_abs, payload, ext: dict) -> np.ndarray | float:
+    """Level multiplier [1] of the load extension: ``1 + load_tau |tau| + load_gravity |G| + load_payload m``.
+
+    tau_abs : transmitted torque |tau| [F]; G_abs : |gravity torque| [F]; payload [kg] (arrays or None).
+    """
+    out = 1.0
+    for key, x in (("load_tau", tau_abs), ("load_gravity", G_abs), ("load_payload", payload)):
+        k = ext.get(key)
+        if k and x is not None:
+            out = out + k * np.asarray(x, dtype=float)
+    return out
+
+
+def drift_factor(t_abs, ext: dict) -> np.ndarray | float:
+    """Whole-map multiplier [1] of the drift extension: ``1 + drift_per_hour (t_abs - drift_t0) / 3600``."""
+    k = ext.get("drift_per_hour")
+    if not k or t_abs is None:
+        return 1.0
+    return 1.0 + k * (np.asarray(t_abs, dtype=float) - (ext.get("drift_t0") or 0.0)) / 3600.0
+
+
+def log_start_time(log: JointLog) -> float | None:
+    """Recording start of a log [s since the epoch] from metadata ``start_time`` / ``recorded_at``
+    (a number of seconds or an ISO 8601 date-time), or None."""
+    for key in ("start_time", "recorded_at"):
+        v = (log.meta or {}).get(key)
+        if v is None:
+            continue
+        if isinstance(v, (int, float)):
+            return float(v)
+        if isinstance(v, datetime):
+            return v.timestamp()
+        try:
+            return datetime.fromisoformat(str(v).replace("Z", "+00:00")).timestamp()
+        except ValueError:
+            continue
+    return None
+
+
+# ---------------------------------------------------------------------------------------------------
+# From the parameter file
+
+
+def _value(params: dict, name: str):
+    p = params.get(name)
+    if p is None:
+        return None
+    v = p.value if hasattr(p, "value") else (p.get("value") if isinstance(p, dict) else p)
+    return None if v is None else float(v)
+
+
+def _static_params(mapname: str, params: dict) -> dict:
+    names = [p.name for p in sm.param_table(mapname)]
+    vals = {n: _value(params, n) for n in names}
+    missing = [n for n, v in vals.items() if v is None]
+    if missing:
+        raise ConfigError(f"model parameters {', '.join(missing)} of map {mapname} have no value")
+    return vals
+
+
+def joint_model(jf, name: str | None = None) -> ReplayModel:
+    """The :class:`ReplayModel` of model ``name`` (default: the selected one) of a joint's fit.
+
+    jf : a :class:`frictid.fit.result.JointFit` (a loaded parameter file's ``joints[j]``).
+    Raises :class:`~frictid.errors.ConfigError` when the model is missing or incomplete.
+    """
+    name = name or jf.selected
+    if not name:
+        raise ConfigError(f"joint {jf.joint}: the parameter file has no selected model; name one with --model")
+    if name not in jf.models:
+        raise ConfigError(f"joint {jf.joint}: no model {name!r} in the parameter file; models: "
+                          + ", ".join(jf.models))
+    mf = jf.models[name]
+    params = mf.params
+    mapname = mf.map
+    try:
+        sm.split_asym(mapname)
+    except KeyError as exc:
+        raise ConfigError(f"joint {jf.joint}, model {name}: {exc.args[0]}") from None
+    c_pos, c_neg = sm.canonical_pair(mapname, _static_params(mapname, params))
+    ext = {}
+    for names in EXTENSION_PARAMS.values():
+        for n in names:
+            v = _value(params, n)
+            if v is not None:
+                ext[n] = v
+    # stribeck extension: the canonical Stribeck slot of a map that has none
+    if ext.get("str_amp"):
+        for c in (c_pos, c_neg):
+            c[1], c[2], c[3] = ext["str_amp"], ext["str_vs"], ext.get("str_delta", 2.0)
+
+    def rb(pe, default=0.0):
+        return float(pe.value) if pe is not None and pe.value is not None else default
+
+    m = ReplayModel(name=name, map=mapname, c_pos=c_pos, c_neg=c_neg, axis=jf.axis,
+                    J=rb(jf.inertia), offset=rb(jf.offset),
+                    Px=rb(jf.gravity.get("Px")), Py=rb(jf.gravity.get("Py")),
+                    Mx=rb(jf.gravity.get("Mx")), My=rb(jf.gravity.get("My")), ext=ext)
+    for k in ("J", "Px", "Py"):
+        if k in ext:
+            setattr(m, k, ext[k])
+    if "sigma0" in ext:
+        s0n = _value(params, "sigma0_neg")
+        s1n = _value(params, "sigma1_neg")
+        s1 = ext.get("sigma1", 0.0)
+        m.sigma0 = (ext["sigma0"], s0n if s0n is not None else ext["sigma0"])
+        m.sigma1 = (s1, s1n if s1n is not None else s1)
+    law = ("thermal6" if "dc0" in ext else "thermal4" if "alpha" in ext else
+           "exponential" if "lam" in ext else None)
+    if law:
+        missing = [k for k in ("C", "K") if k not in ext]
+        source = (mf.extra or {}).get("temperature", "heat_balance")
+        if missing and source != "temp_joint":
+            raise ConfigError(f"joint {jf.joint}, model {name}: thermal law {law} without {', '.join(missing)}")
+        m.thermal = {"law": law, "alpha": ext.get("alpha", 0.0), "beta": ext.get("beta", 1.0),
+                     "lam": ext.get("lam", 0.0), "T0": ext.get("T0", 25.0),
+                     "dc": [ext.get(f"dc{i}", 0.0) for i in range(4)],
+                     "C": ext.get("C"), "K": ext.get("K"), "source": source}
+    return m
+
+
+# ---------------------------------------------------------------------------------------------------
+# Replay along a log
+
+#: A static model's stick zone: |w| up to this many velocity noise levels (Karnopp).
+STICK_NOISE = 5.0
+
+
+@dataclass
+class ReplayResult:
+    """Per-sample output of :func:`replay` (one value per log sample).
+
+    F_model [F] friction, tau_model [F] torque, residual [F] = tau - tau_model, z [q] bristle deflection,
+    T [degC] joint temperature (NaN without a thermal law), w, a [q/s, q/s^2] the velocity and
+    acceleration used; q_model, qd_model, tau_cmd from :func:`closed_loop` (None unless it ran).
+    """
+
+    F_model: np.ndarray
+    tau_model: np.ndarray
+    residual: np.ndarray
+    z: np.ndarray
+    T: np.ndarray
+    w: np.ndarray
+    a: np.ndarray
+    q_model: np.ndarray | None = None
+    qd_model: np.ndarray | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def rms(self) -> float:
+        r = self.residual[np.isfinite(self.residual)]
+        return float(np.sqrt(np.mean(r * r))) if r.size else math.nan
+
+
+def multipliers(model: ReplayModel, t_abs, q, tau, payload, G=None) -> tuple[np.ndarray, np.ndarray]:
+    """Level and viscous multipliers (gmul, fmul) [1] per sample for the model's extensions.
+
+    t_abs [s] time on the drift clock; q [q] or None; tau [F] measured (or commanded) torque; payload [kg]
+    or None; G [F] the gravity torque (default from the model).
+    """
+    ext = model.ext
+    n = np.shape(tau)[0]
+    gmul = np.ones(n)
+    if q is not None and (ext.get("pos_amp") or ext.get("pos_lin") or ext.get("pos_quad")):
+        gmul = gmul * position_factor(q, ext)
+    if ext.get("load_tau") or ext.get("load_gravity") or ext.get("load_payload"):
+        if G is None and q is not None:
+            G = model.gravity(q, payload) - model.offset
+        gmul = gmul * load_factor(np.abs(tau), None if G is None else np.abs(G), payload, ext)
+    d = drift_factor(t_abs, ext)
+    fmul = np.ones(n) * d
+    gmul = gmul * d
+    return np.ascontiguousarray(gmul), np.ascontiguousarray(fmul)
+
+
+def thermal_input(model: ReplayModel, log: JointLog, n: int) -> dict | None:
+    """The thermal dict of :func:`frictid.models.replay_kernel.replay_friction` for a log, or None."""
+    th = model.thermal
+    if not th:
+        return None
+    code, theta, dc9 = thermal_code(th["law"], th["alpha"], th["beta"], th["lam"], th["T0"], th["dc"])
+    out = {"code": code, "theta": theta, "dc_pos": dc9, "dc_neg": dc9}
+    if th.get("source") == "temp_joint":
+        if "temp_joint" not in log.channels:
+            raise FrictidInputError(f"{log.source or 'log'}: joint {log.joint}: model {model.name} reads the "
+                                    "joint temperature, but the log has no temp_joint column")
+        out["T"] = np.asarray(log.channels["temp_joint"], dtype=float)
+        return out
+    Tenv = log.channels.get("temp_env")
+    Tenv = np.full(n, th["T0"]) if Tenv is None else np.asarray(Tenv, dtype=float)
+    out.update(C=th["C"], K=th["K"], Tenv=Tenv, T_init=float(Tenv[0]) if n else th["T0"])
+    return out
+
+
+def replay(log: JointLog, model: ReplayModel, w=None, a=None, t_offset: float | None = None) -> ReplayResult:
+    """Predicted friction and torque of ``model`` along ``log`` (one value per sample).
+
+    w, a : velocity [q/s] and acceleration [q/s^2] to use (default: :func:`frictid.segments.derivatives`,
+    as the fit uses them). t_offset [s] : where the log starts on the drift clock (default: its metadata
+    ``start_time`` when the model was identified with one, else 0).
+    """
+    from .segments import derivatives, estimate_scales
+    sc = estimate_scales(log)
+    if w is None or a is None:
+        w0, a0 = derivatives(log, sc)
+        w = w0 if w is None else w
+        a = a0 if a is None else a
+    w = np.asarray(w, dtype=float)
+    a = np.asarray(a, dtype=float)
+    n = log.n
+    notes = []
+    payload = log.channels.get("payload")
+    q = None if log.q is None else np.asarray(log.q, dtype=float)
+    G = model.gravity(q, payload) if q is not None else np.full(n, model.offset)
+    if q is None and (model.Px or model.Py):
+        notes.append("velocity-only log: gravity not applied")
+    if t_offset is None:
+        start = log_start_time(log)
+        t_offset = (start if (start is not None and model.ext.get("drift_t0")) else 0.0)
+    gmul, fmul = multipliers(model, log.t + t_offset, q, log.tau, payload, None if q is None else G - model.offset)
+    th = thermal_input(model, log, n)
+    sig0 = model.sigma0
+    off = model.ext.get("tau_offset", 0.0)
+    u_net = np.asarray(log.tau, dtype=float) - model.J * np.nan_to_num(a) - G - off
+    w_stick = STICK_NOISE * sc.sigma_w if sig0 is None else 0.0
+    F, z, T = replay_friction(log.t, np.nan_to_num(w), model.c_pos, model.c_neg, gmul=gmul, fmul=fmul,
+                              sigma0=sig0, sigma1=model.sigma1 if sig0 is not None else 0.0, thermal=th,
+                              u_stick=u_net if sig0 is None else None, w_stick=w_stick)
+    F = F + off
+    tau_model = model.J * np.nan_to_num(a) + G + F
+    return ReplayResult(F_model=F, tau_model=tau_model, residual=np.asarray(log.tau) - tau_model, z=z, T=T,
+                        w=w, a=a, notes=notes)
+
+
+# ---------------------------------------------------------------------------------------------------
+# Closed loop
+
+
+def controller_from_meta(meta: dict) -> dict | None:
+    """Controller gains from log metadata ``control: {kp, kd, ki}`` (position PID) or ``{kv, kvi}``
+    (velocity PI), with optional ``type`` (``position`` / ``velocity``) and ``tau_max``; None when absent."""
+    c = (meta or {}).get("control")
+    if not isinstance(c, dict):
+        return None
+    out = {}
+    for k in ("kp", "kd", "ki", "kv", "kvi", "tau_max"):
+        if c.get(k) is not None:
+            try:
+                out[k] = float(c[k])
+            except (TypeError, ValueError):
+                raise FrictidInputError(f"log metadata control.{k}: not a number ({c[k]!r})") from None
+    if not out:
+        return None
+    out["type"] = str(c.get("type") or ("velocity" if "kv" in out and "kp" not in out else "position"))
+    return out
+
+
+def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness: float | None = None
+                ) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Re-simulate the closed loop with the identified model; returns (q_model, qd_model, notes).
+
+    The log's ``q_ref`` (``qd_ref`` and ``tau_ref`` as feedforward when present) drive the controller
+    ``gains`` (``kp, kd, ki`` position PID or ``kv, kvi`` velocity PI, ``type``, ``tau_max``) on the plant
+    kernel of :mod:`frictid.plant.kernel`, at the log's median sample period, noise-free, from the log's
+    first measured position. A static model runs with stiff, critically damped bristles (presliding
+    displacement 1e-6 of the position scale), which reproduces its steady state.
+    """
+    from .plant.kernel import (MODE_PID, MODE_VEL, N_P, P_C, P_GOFF, P_J, P_K, P_KD, P_KI, P_KP, P_KV, P_KVI,
+                               P_LOAD, P_PAMP, P_PAY, P_PPER, P_PPH, P_PX, P_PY, P_S0N, P_S0P, P_S1N, P_S1P, P_TMAX,
+                               simulate_joint)
+    notes = []
+    if "q_ref" not in log.channels:
+        raise FrictidInputError(f"joint {log.joint}: closed-loop replay needs a q_ref column")
+    if model.J <= 0:
+        raise FrictidInputError(f"joint {log.joint}: closed-loop replay needs a positive inertia in the model")
+    n = log.n
+    h = log.dt
+    q_ref = np.asarray(log.channels["q_ref"], dtype=float)
+    qd_ref = np.asarray(log.channels.get("qd_ref", np.gradient(q_ref, log.t)), dtype=float)
+    tau_ff = np.asarray(log.channels.get("tau_ref", np.zeros(n)), dtype=float)
+    velocity = gains.get("type") == "velocity"
+    mode = np.full(n, MODE_VEL if velocity else MODE_PID, dtype=np.int64)
+    payload = np.asarray(log.channels.get("payload", np.zeros(n)), dtype=float)
+    ext = model.ext
+    p = np.zeros(N_P)
+    p[P_J] = model.J
+    q_scale = float(np.ptp(log.q)) if log.q is not None and n else 1.0
+    g_max = float(np.max(np.abs(sm.canonical_level(np.array([0.0]), model.c_pos)))) or 1.0
+    if model.sigma0 is not None:
+        p[P_S0P], p[P_S0N] = model.sigma0
+        p[P_S1P], p[P_S1N] = model.sigma1
+    else:
+        s0 = rigid_stiffness or g_max / max(1e-6 * max(q_scale, 1e-9), 1e-15)
+        s1 = 2.0 * math.sqrt(s0 * model.J)
+        p[P_S0P] = p[P_S0N] = s0
+        p[P_S1P] = p[P_S1N] = s1
+        notes.append(f"static model: stiff bristles sigma0 = {s0:.3g}, critically damped, in the closed loop")
+    p[P_PX], p[P_PY], p[P_GOFF] = model.Px, model.Py, model.offset + ext.get("tau_offset", 0.0)
+    p[P_TMAX] = gains.get("tau_max", 1e300)
+    for key, idx in (("kp", P_KP), ("kd", P_KD), ("ki", P_KI), ("kv", P_KV), ("kvi", P_KVI)):
+        p[idx] = gains.get(key, 0.0)
+    # position (periodic) and load (|u|) act inside the kernel; the rest through gmul/fmul
+    if ext.get("pos_amp"):
+        p[P_PAMP], p[P_PPER], p[P_PPH] = ext["pos_amp"], ext["pos_period"], ext.get("pos_phase", 0.0)
+    p[P_LOAD] = ext.get("load_tau", 0.0)
+    sub = dict(ext)
+    for k in ("pos_amp", "load_tau", "tau_offset"):
+        sub.pop(k, None)
+    side = ReplayModel(**{**model.__dict__, "ext": sub})
+    q_meas = np.asarray(log.q if log.q is not None else q_ref, dtype=float)
+    G_meas = model.gravity(q_meas, payload) - model.offset
+    if model.Mx and model.axis == "rotary":
+        p[P_PAY] = model.Mx  # the kernel's payload gravity: m P_PAY cos q
+    if model.My or (model.Mx and model.axis != "rotary"):
+        notes.append("closed loop: payload gravity other than Mx m cos q is not simulated")
+    start = log_start_time(log)
+    t_off = start if (start is not None and ext.get("drift_t0")) else 0.0
+    gmul, fmul = multipliers(side, log.t + t_off, q_meas, log.tau, payload, G_meas)
+    th = thermal_input(model, log, n)
+    if th is not None:
+        if "T" in th:
+            notes.append("closed loop: the thermal law reads temp_joint, which the kernel cannot; thermal "
+                         "part held at the first temperature")
+            code, theta, dc9 = th["code"], th["theta"], th["dc_pos"]
+            Tenv = np.full(n, float(th["T"][0]))
+            C, K = 1e300, 1.0
+        else:
+            code, theta, dc9 = th["code"], th["theta"], th["dc_pos"]
+            Tenv, C, K = th["Tenv"], th["C"], th["K"]
+        p[P_C], p[P_K] = C, K
+    else:
+        code, theta, dc9 = 0, np.zeros(4), np.zeros(9)
+        Tenv = np.full(n, 25.0)
+        p[P_C], p[P_K] = 1.0, 1.0
+    w0 = float(log.qd[0]) if log.qd is not None else 0.0
+    state0 = np.array([float(q_meas[0]), w0, 0.0, float(Tenv[0])])
+    zeros = np.zeros(n)
+    out = simulate_joint(h=h, nsub=1, mode=mode, q_ref=q_ref, qd_ref=qd_ref, tau_ff=tau_ff,
+                         Tenv=np.ascontiguousarray(Tenv, dtype=float), payload=payload,
+                         reset_T=np.zeros(n, dtype=np.bool_), gmul=gmul, fmul=fmul, nq=zeros, nqd=zeros, p=p,
+                         c_pos=model.c_pos, c_neg=model.c_neg, dc_pos=dc9, dc_neg=dc9, th_code=code,
+                         theta=theta, state0=state0)
+    q_model, qd_model = out[0], out[1]
+    if velocity:
+        notes.append("velocity PI loop on qd_ref")
+    return q_model, qd_model, notes
