@@ -16,7 +16,7 @@ from typing import Annotated, Any, Literal, Union
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, create_model
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, create_model
 
 from ..errors import ConfigError
 from ..models.static import STATIC_MAPS, canonical_pair, map_names, param_table
@@ -246,11 +246,19 @@ class LevelSpacing(Strict):
 Signs = Literal["both", "positive", "negative"]
 
 
+def _spacing_or_list(v):
+    return "list" if isinstance(v, list) else "spacing"
+
+
+Velocities = Annotated[Union[Annotated[LevelSpacing, Tag("spacing")], Annotated[list[Pos], Tag("list")]],
+                       Discriminator(_spacing_or_list)]
+
+
 class ConstantVelocity(ExperimentBase):
     """Closed-loop plateaus at log-spaced velocities (fractions of limits.velocity), both signs."""
 
     kind: Literal["constant_velocity"]
-    velocities: LevelSpacing | list[Pos]
+    velocities: Velocities
     relative: bool = True
     signs: Signs = "both"
     plateau: Pos = Field(3.0, description="plateau length [s] (shortened to fit the travel)")
@@ -350,19 +358,23 @@ class Recipe(Strict):
 
 
 def _fmt_loc(loc: tuple) -> str:
+    """'joints.1.friction.Fs' from a pydantic location, without the tags that unions insert."""
     parts = []
-    skip_tag = False
+    skip = False
     for i, x in enumerate(loc):
-        if skip_tag:
-            skip_tag = False
+        if skip:
+            skip = False
             continue
         parts.append(str(x))
-        # discriminated unions insert the tag ("stribeck", "position", ...) into the location
-        if x in ("friction",) or (isinstance(x, int) and i > 0 and loc[i - 1] in ("effects", "experiments")):
-            if i + 1 < len(loc) and isinstance(loc[i + 1], str) and (
-                loc[i + 1] in FRICTION_MODELS or loc[i + 1] in _EFFECT_KINDS or loc[i + 1] in _EXP_KINDS
-            ):
-                skip_tag = True
+        nxt = loc[i + 1] if i + 1 < len(loc) else None
+        if not isinstance(nxt, str):
+            continue
+        prev = loc[i - 1] if i > 0 else None
+        if ((x == "friction" and nxt in FRICTION_MODELS)
+                or (isinstance(x, int) and prev == "effects" and nxt in _EFFECT_KINDS)
+                or (isinstance(x, int) and prev == "experiments" and nxt in _EXP_KINDS)
+                or (x == "velocities" and nxt in ("spacing", "list"))):
+            skip = True
     return ".".join(parts)
 
 

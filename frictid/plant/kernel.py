@@ -174,11 +174,14 @@ def simulate_joint_ref(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, rese
     out = {k: np.empty(n) for k in ("q", "w", "z", "F", "T", "u", "qm", "qdm")}
     q, w, z, T = (float(x) for x in state0)
     integ, prev = 0.0, -1
+    cp, cn, T_used = c_pos, c_neg, None
     for k in range(n):
         if reset_T[k]:
             T = Tenv[k]
-        cp = canonical_at(c_pos, T, th_code, theta, dc_pos) if th_code else c_pos
-        cn = canonical_at(c_neg, T, th_code, theta, dc_neg) if th_code else c_neg
+        if th_code and (T_used is None or abs(T - T_used) > 1e-4):  # same refresh rule as the kernel
+            cp = canonical_at(c_pos, T, th_code, theta, dc_pos)
+            cn = canonical_at(c_neg, T, th_code, theta, dc_neg)
+            T_used = T
         qm = q + nq[k]
         if p[P_QRES] > 0:
             qm = np.floor(qm / p[P_QRES] + 0.5) * p[P_QRES]

@@ -1,0 +1,128 @@
+"""LuGre kernels and thermal laws: compiled == numpy twins, exactness checks, hand values."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from frictid.models import thermal as th
+from frictid.models.lugre import lugre_friction, lugre_step, lugre_step_ref
+from frictid.models.static import canonical_friction, canonical_level, canonical_pair
+
+C_POS, C_NEG = canonical_pair("stribeck_asym", dict(Fc_pos=2.0, Fs_pos=3.0, vs_pos=0.05, delta_pos=1.5,
+                                                    sigma2_pos=0.4, Fc_neg=2.5, Fs_neg=3.2, vs_neg=0.08,
+                                                    delta_neg=2.0, sigma2_neg=0.3))
+
+
+def test_step_kernel_equals_expm_twin():
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        q, w, z = rng.normal(), rng.normal() * rng.choice([0.0, 1e-6, 1e-2, 1.0]), rng.normal() * 1e-4
+        args = (rng.normal() * 20, 10 ** rng.uniform(-4, -2), 10 ** rng.uniform(-2, 1),
+                10 ** rng.uniform(3, 5.5), 10 ** rng.uniform(0, 3), rng.uniform(1, 20), rng.normal() * 10,
+                rng.normal(), abs(rng.normal()))
+        a = np.array(lugre_step(q, w, z, *args))
+        b = np.array(lugre_step_ref(q, w, z, *args))
+        # compare the increments (the states themselves can be much larger)
+        x0 = np.array([q, w, z])
+        assert np.allclose(a - x0, b - x0, rtol=1e-7, atol=1e-13 * (1 + np.abs(b - x0).max()))
+
+
+def test_step_kernel_second_order_against_radau():
+    """Open-loop torque ramp through break-away: error vs a tight Radau solution shrinks ~4x per halving."""
+    J, s0, s1 = 0.5, 2e4, 50.0
+
+    def g_of(w):
+        return float(canonical_level(w, C_POS if w >= 0 else C_NEG))
+
+    def tau(t):
+        return 4.0 * t  # crosses break-away (3) at 0.75 s
+
+    def rhs(t, x):
+        q, w, z = x
+        c = C_POS if w >= 0 else C_NEG
+        zd = w - s0 * abs(w) / g_of(w) * z
+        F = s0 * z + s1 * zd + c[6] * w
+        return [w, (tau(t) - F) / J, zd]
+
+    T_end = 1.2
+    ref = solve_ivp(rhs, (0, T_end), [0, 0, 0], method="Radau", rtol=1e-11, atol=1e-14, dense_output=True)
+    errs = []
+    for h in (1e-3, 5e-4, 2.5e-4):
+        n = int(round(T_end / h))
+        x = np.zeros(3)
+        out = np.empty(n)
+        for k in range(n):
+            q, w, z = x
+            c = C_POS if w >= 0 else C_NEG
+            g = float(canonical_level(w, c))
+            dv = 1e-7
+            dg = float(canonical_level(abs(w) + dv, c) - canonical_level(abs(w), c)) / dv
+            # torque held at the step's midpoint value (ZOH of the continuous ramp)
+            x = np.array(lugre_step(q, w, z, tau((k + 0.5) * h), h, J, s0, s1, g, dg, c[6] * w, c[6]))
+            out[k] = x[1]
+        w_ref = ref.sol(np.arange(1, n + 1) * h)[1]
+        errs.append(np.sqrt(np.mean((out - w_ref) ** 2)) / np.sqrt(np.mean(w_ref**2)))
+    assert errs[0] < 2e-3
+    assert errs[1] < errs[0] / 2.5 and errs[2] < errs[1] / 2.5
+
+
+@pytest.mark.parametrize("thermal", [False, True])
+def test_replay_kernel_equals_numpy_twin(thermal):
+    rng = np.random.default_rng(2)
+    t = np.cumsum(rng.uniform(0.5e-3, 1.5e-3, 600))
+    w = 0.3 * np.sin(2 * np.pi * 1.3 * t) + 0.01 * rng.normal(size=t.size)
+    kw = dict(sigma0=(3e4, 1.5e4), sigma1=(60.0, 40.0), z0=1e-5)
+    if thermal:
+        code, theta, dc9 = th.thermal_code("thermal6", T0=25.0, dc=(-0.05, -0.01, 0.0, 0.0))
+        kw["thermal"] = dict(code=code, theta=theta, dc_pos=dc9, dc_neg=dc9, C=2.0, K=0.5, Tenv=25.0)
+    F1, z1, T1 = lugre_friction(t, w, C_POS, C_NEG, **kw)
+    F2, z2, T2 = lugre_friction(t, w, C_POS, C_NEG, reference=True, **kw)
+    assert np.allclose(F1, F2, rtol=1e-10, atol=1e-12)
+    assert np.allclose(z1, z2, rtol=1e-10, atol=1e-16)
+    if thermal:
+        assert np.allclose(T1, T2, rtol=1e-12)
+        assert T1[-1] > 25.0  # friction power warmed the joint
+    else:
+        assert np.isnan(T1).all()
+
+
+def test_replay_steady_state_is_static_map():
+    t = np.arange(3000) * 1e-3
+    for v in (-1.0, -0.03, 0.02, 0.5):
+        F, z, _ = lugre_friction(t, np.full(t.size, v), C_POS, C_NEG, sigma0=1e4, sigma1=30.0)
+        assert F[-1] == pytest.approx(float(canonical_friction(v, C_POS, C_NEG)), rel=1e-9)
+
+
+def test_replay_presliding_is_a_spring():
+    t = np.arange(2000) * 1e-4
+    x = 1e-6 * np.sin(2 * np.pi * 5 * t)            # displacement far below g/sigma0 = 2e-4
+    w = np.gradient(x, t)
+    F, z, _ = lugre_friction(t, w, C_POS, C_NEG, sigma0=1e4, sigma1=0.0)
+    assert np.allclose(F, 1e4 * x, atol=2e-2 * 1e4 * 1e-6)
+
+
+def test_thermal_laws_by_hand():
+    assert th.thermal4(10.0, 45.0, alpha=-0.01, beta=1.0, T0=25.0) == pytest.approx(8.0)
+    assert th.exponential(10.0, 35.0, lam=0.02, T0=25.0) == pytest.approx(10.0 * np.exp(-0.2))
+    c = th.thermal6_coefficients([45, 30, -4, 1.5], [-0.6, -0.4, 0.05, -0.02], 35.0, 25.0)
+    assert c.tolist() == pytest.approx([39.0, 26.0, -3.5, 1.3])
+    assert th.thermal6(2.0, 35.0, [45, 30, -4, 1.5], [-0.6, -0.4, 0.05, -0.02], 25.0) == pytest.approx(
+        39.0 + 52.0 - 14.0 + 10.4)
+    # canonical rule agrees with each law
+    c0 = np.array([45.0, 0, 1, 1, 0, 1, 30.0, -4.0, 1.5])
+    code, theta, dc9 = th.thermal_code("thermal6", T0=25.0, dc=(-0.6, -0.4, 0.05, -0.02))
+    cT = th.canonical_at(c0, 35.0, code, theta, dc9)
+    assert canonical_friction(2.0, cT) == pytest.approx(39.0 + 52.0 - 14.0 + 10.4)
+    code, theta, dc9 = th.thermal_code("thermal4", alpha=-0.01, beta=1.0, T0=25.0)
+    assert canonical_friction(2.0, th.canonical_at(c0, 45.0, code, theta, dc9)) == pytest.approx(
+        0.8 * canonical_friction(2.0, c0))
+
+
+def test_heat_step_exact_and_steady_state():
+    C, K, P, Tenv = 300.0, 2.0, 50.0, 20.0
+    T = th.heat_step(20.0, P, Tenv, C, K, 150.0)
+    assert T == pytest.approx(Tenv + P / K * (1 - np.exp(-K * 150.0 / C)))
+    t = np.arange(0, 3000.0, 1.0)
+    Ts = th.heat_balance(np.full(t.size, P), t, Tenv, C, K)
+    assert Ts[-1] - Tenv == pytest.approx(th.steady_temperature_rise(P, K), rel=1e-3)
