@@ -92,3 +92,9 @@ def test_plateau_points_average_and_stderr():
     # white noise: se ~ 0.1 / sqrt(1200)
     assert 0.001 < p.F_se[0] < 0.006
     assert list(p.seg) == [0, 2]
+
+
+def test_bristle_path_compiled_matches_reference():
+    from frictid.fit.presliding import bristle_path, bristle_path_ref
+    q = np.cumsum(np.random.default_rng(4).normal(0, 1e-5, 500))
+    assert np.allclose(bristle_path(q, 1e-5, 1e4, 2.0), bristle_path_ref(q, 1e-5, 1e4, 2.0))

@@ -27,6 +27,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 from scipy.optimize import least_squares
 
 #: Minimum presliding displacement, in encoder counts, for sigma0 to be identifiable.
@@ -56,6 +57,11 @@ def encoder_resolution(q: np.ndarray) -> float:
 def bristle_path(q: np.ndarray, z0: float, sigma0: float, g: float) -> np.ndarray:
     """Bristle deflection z [q] along a position path q [q] (LuGre in the displacement domain, exact for
     a piecewise-constant sign of motion between samples). g : bristle limit level [F] (> 0)."""
+    return _bristle_path_nb(np.ascontiguousarray(q, dtype=float), float(z0), float(sigma0), float(g))
+
+
+def bristle_path_ref(q: np.ndarray, z0: float, sigma0: float, g: float) -> np.ndarray:
+    """Pure-python twin of :func:`bristle_path` (for tests)."""
     z = np.empty_like(q, dtype=float)
     z[0] = z0
     zmax = g / sigma0
@@ -66,6 +72,22 @@ def bristle_path(q: np.ndarray, z0: float, sigma0: float, g: float) -> np.ndarra
         if d != 0.0:
             s = 1.0 if d > 0 else -1.0
             # dz/dq = 1 - s z/zmax on this step: z -> s zmax + (z - s zmax) exp(-|d|/zmax)
+            zi = s * zmax + (zi - s * zmax) * math.exp(-abs(d) / zmax)
+        z[i + 1] = zi
+    return z
+
+
+@njit(cache=True)
+def _bristle_path_nb(q, z0, sigma0, g):
+    n = q.shape[0]
+    z = np.empty(n)
+    z[0] = z0
+    zmax = g / sigma0
+    zi = z0
+    for i in range(n - 1):
+        d = q[i + 1] - q[i]
+        if d != 0.0:
+            s = 1.0 if d > 0 else -1.0
             zi = s * zmax + (zi - s * zmax) * math.exp(-abs(d) / zmax)
         z[i + 1] = zi
     return z
