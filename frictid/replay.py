@@ -456,3 +456,62 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
     if velocity:
         notes.append("velocity PI loop on qd_ref")
     return q_model, qd_model, notes
+
+
+# ---------------------------------------------------------------------------------------------------
+# The command's pipeline
+
+
+def replay_logs(logs: list[JointLog], result, model: str | None = None, plant=None,
+                closed: bool | None = None) -> tuple[list[ReplayResult], dict]:
+    """Replay every joint log with its joint's model from a parameter file.
+
+    logs : joint logs (from :func:`frictid.io.logs.read_logs`). result : a
+    :class:`frictid.fit.result.FitResult`. model : model name (default: each joint's ``selected``).
+    plant : a plant (path, name or loaded) whose joints' controllers close the loop. closed : force the
+    closed-loop re-simulation on (True: an error when impossible) or off (False); None: whenever the log
+    has ``q_ref`` and a controller is known (the plant, or ``control:`` gains in the log's metadata).
+
+    Returns (results, info) with info = per joint the model used, the residual RMS and notes.
+    """
+    pl = None
+    if plant is not None:
+        from .plant import load_plant
+        pl = load_plant(plant)
+    out, info = [], {}
+    for lg in logs:
+        j = str(lg.joint)
+        if j not in result.joints:
+            raise FrictidInputError(f"joint {j} of the log is not in the parameter file (joints: "
+                                    + ", ".join(result.joints) + ")")
+        jf = result.joints[j]
+        if jf.axis != lg.axis:
+            raise FrictidInputError(f"joint {j}: the log is {lg.axis} but the parameter file is {jf.axis}")
+        m = joint_model(jf, model)
+        r = replay(lg, m)
+        gains = None
+        if pl is not None:
+            try:
+                from .plant.simulate import controller_gains
+                pj = pl.joint(j)
+                gains = dict(controller_gains(pj), type="position", tau_max=float(pj.limits.torque))
+            except ConfigError:
+                gains = None
+        gains = gains or controller_from_meta(lg.meta)
+        can = "q_ref" in lg.channels and gains is not None and m.J > 0
+        if closed and not can:
+            why = ("no q_ref column" if "q_ref" not in lg.channels else
+                   "no controller (give --plant, or control: gains in the log metadata)" if gains is None
+                   else "no positive inertia in the model")
+            raise FrictidInputError(f"joint {j}: cannot re-simulate the closed loop: {why}")
+        if can and closed is not False:
+            r.q_model, r.qd_model, notes = closed_loop(lg, m, gains)
+            r.notes.extend(notes)
+        rec = {"model": m.name, "rms_residual": r.rms, "closed_loop": r.q_model is not None}
+        if r.q_model is not None and lg.q is not None:
+            rec["rms_q_error"] = float(np.sqrt(np.mean((np.asarray(lg.q) - r.q_model) ** 2)))
+        if r.notes:
+            rec["notes"] = list(r.notes)
+        info[j] = rec
+        out.append(r)
+    return out, info
