@@ -7,7 +7,7 @@ from typing import Annotated, Optional
 import typer
 
 from .app import app
-from .common import QuietOpt, Console
+from .common import Console, MapOpt, QuietOpt, UnitsOpt
 
 
 def resolve_recipe(name: str, folder: str = "recipes") -> str:
@@ -30,15 +30,35 @@ def simulate(
         "--plant", help="Plant YAML (path, or a name in recipes/plants/); default: the recipe's plant.")] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed; the same seed gives the same log.")] = 0,
     fmt: Annotated[Optional[str], typer.Option("--format", help="csv or parquet (default: from the suffix).")] = None,
+    params: Annotated[Optional[str], typer.Option(
+        "--params", help="Parameter YAML from frictid fit: replay its model along --replay LOG.")] = None,
+    replay_log: Annotated[Optional[str], typer.Option(
+        "--replay", help="Measured log to replay the model along (with --params); writes tau_model, "
+                         "residual and, with a known controller, q_model.")] = None,
+    model: Annotated[Optional[str], typer.Option(
+        "--model", help="With --replay: the model to run (default: each joint's selected model).")] = None,
+    mapping: MapOpt = None,
+    units: UnitsOpt = None,
     quiet: QuietOpt = False,
 ) -> None:
-    """Simulate a recipe on a plant and write a joint log with truth labels."""
+    """Simulate a recipe on a plant and write a joint log with truth labels; or, with --params and
+    --replay, run an identified model along a measured log and write its prediction and residual."""
     from ..errors import FrictidInputError
     from ..io.atomic import check_output_path
     from ..io.logs import output_format, write_logs
     from ..plant import simulate_recipe
 
     con = Console(quiet)
+    if params is not None or replay_log is not None:
+        if params is None or replay_log is None:
+            raise FrictidInputError("simulate: --params and --replay go together "
+                                    "(frictid simulate --params PARAMS.yaml --replay LOG -o OUT)")
+        if recipe is not None:
+            raise FrictidInputError("simulate: give either a recipe or --params/--replay, not both")
+        _replay(params, replay_log, output, plant, model, fmt, mapping, units, con)
+        return
+    if model is not None or mapping is not None or units is not None:
+        raise FrictidInputError("simulate: --model, --map and --units apply to --replay only")
     if recipe is None:
         raise FrictidInputError("simulate: give a recipe (e.g. recipes/constant_velocity_sweep.yaml)")
     check_output_path(output, [recipe] + ([plant] if plant else []))
@@ -48,3 +68,25 @@ def simulate(
     write_logs(logs, output, fmt)
     rows = sum(lg.n for lg in logs)
     con.info(f"frictid: wrote {rows} rows ({len(logs)} joint{'s' if len(logs) != 1 else ''}) to {output}")
+
+
+def _replay(params, log_path, output, plant, model, fmt, mapping, units, con) -> None:
+    from ..io.atomic import check_output_path
+    from ..io.logs import output_format, read_logs
+    from ..io.params import read_params
+    from ..io.replay_out import write_replay
+    from ..replay import replay_logs
+
+    check_output_path(output, [params, log_path] + ([plant] if plant else []))
+    fmt = output_format(output, fmt)
+    res = read_params(params)
+    logs = read_logs(log_path, mapping, units)
+    plant_path = resolve_recipe(plant, "recipes/plants") if plant else None
+    results, info = replay_logs(logs, res, model=model, plant=plant_path)
+    write_replay(logs, results, output, fmt, {"params": str(params), "log": str(log_path), "joints": info})
+    for j, rec in info.items():
+        msg = f"frictid: joint {j}: {rec['model']}, residual RMS {rec['rms_residual']:.4g}"
+        if rec.get("rms_q_error") is not None:
+            msg += f", closed-loop position error RMS {rec['rms_q_error']:.4g}"
+        con.info(msg)
+    con.info(f"frictid: wrote {sum(lg.n for lg in logs)} rows to {output}")
