@@ -108,7 +108,8 @@ def _compact_params(params: dict) -> str:
             continue
         flag = "" if p.get("identifiable", True) or p.get("fixed") else " (not identifiable)"
         fixed = " (fixed)" if p.get("fixed") else ""
-        parts.append(f"{name} = {fmt_pm(p.get('value'), p.get('stderr'))} {p.get('unit', '')}{fixed}{flag}".strip())
+        unit = "" if p.get("unit") in ("1", None) else p.get("unit")
+        parts.append(f"{name} = {fmt_pm(p.get('value'), p.get('stderr'))} {unit}".strip() + fixed + flag)
     return "; ".join(parts)
 
 
@@ -408,6 +409,12 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
     # ---- diagnosis and replay
     s = secs["diagnosis"]
     t0 = time.perf_counter()
+    vmin = ct.min_speed(datas)
+    runs: dict[int, ct.Replay] = {}
+    for k, d in enumerate(datas):
+        r = ct.replay_log(d, jname, jd, closed=k < MAX_TIMELINES, vmin=vmin)
+        if r is not None:
+            runs[k] = r
     findings = []
     for i, f in enumerate(jd.get("diagnosis") or []):
         if not isinstance(f, dict):
@@ -420,42 +427,49 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
             row["statistic"] = ", ".join(f"{k} = {fmt_num(v) if isinstance(v, (int, float)) else v}"
                                          for k, v in row["statistic"].items())
         if isinstance(row["extension"], dict):
-            row["extension"] = _compact_params(row["extension"].get("params") or {}) or str(row["extension"])
+            ext = row["extension"]
+            row["extension"] = " ".join(x for x in (str(ext.get("name") or ext.get("model") or ""),
+                                                    _compact_params(ext.get("params") or {})) if x) or str(ext)
         if datas:
-            res = ct.diagnosis_residuals(datas, jd, f)
+            res = ct.diagnosis_residuals(datas, jname, jd, f, runs)
             if res is not None:
                 row["figure"] = fg.diagnosis(f, res, units, salt("diagnosis", i))
                 if res.get("given") is None:
-                    row["note"] = ("Only the residual before the extension is drawn: the parameter file does not "
-                                   "carry the binned residual after it.")
+                    row["note"] = ("Only the residual before the extension is drawn: the parameter file holds "
+                                   "neither the extended model nor the binned residual after it.")
             else:
-                row["note"] = "No residual drawn: the chosen model cannot be evaluated along the log."
+                row["note"] = "No residual drawn: the chosen model cannot be run along the log."
         else:
             row["note"] = "No residual drawn: no log given."
         findings.append(row)
     s.data["findings"] = findings
     replays = []
-    vmin = ct.min_speed(datas)
-    for i, d in enumerate(datas[:MAX_TIMELINES]):
-        tm = ct.replay_torque(d, jd, vmin)
-        if tm is None or not np.any(np.isfinite(tm)):
+    for k, d in enumerate(datas[:MAX_TIMELINES]):
+        r = runs.get(k)
+        if r is None:
             continue
-        rms = float(np.sqrt(np.nanmean((d.log.tau - tm) ** 2)))
-        title = f"Replay of {d.label or 'the log'}: RMS {fmt_num(rms, 3)} {units['tau']} on the moving samples"
-        replays.append(fg.replay(d.log.t, d.log.tau, tm, units, title, salt("replay", i)))
+        res_ = r.residual(d)
+        rms = float(np.sqrt(np.nanmean(res_ ** 2)))
+        title = f"Replay of {r.model} along {d.label or 'the log'}: torque residual RMS {fmt_num(rms, 3)} {units['tau']}"
+        replays.append(fg.replay(d.log.t, d.log.tau, r.tau_model, units, title, salt("replay", k),
+                                 q=d.log.q, q_model=r.q_model))
+        if r.how == "static":
+            s.notes.append(f"{d.label or 'log'}: replayed with the steady-state map of {r.model} only "
+                           f"(J a + G(q) + offset + F_ss(w)); samples slower than {fmt_num(vmin, 3)} "
+                           f"{units['qd']} are left out, as a static map cannot tell the friction at rest.")
+        for n in r.notes:
+            s.notes.append(f"{d.label or 'log'}: {n}")
     s.figures = replays
+    if replays and any(runs[k].how == "replay" for k in runs):
+        s.notes.append("Replay: the chosen model run along the measured motion by frictid.replay "
+                       "(tau_model = J a + G(q) + offset + F_model, with the LuGre and thermal states and "
+                       "Karnopp's stick law at rest); in closed loop, the position simulated with the log's "
+                       "references and controller.")
     if not findings:
         s.notes.append("The parameter file has no diagnosis entries: the diagnosis step has not run on this "
                        "identification, or found nothing to add.")
     if datas and not replays:
-        s.notes.append("No replay: the chosen model has no static map that can be evaluated along the log.")
-    if replays:
-        sm_ = ct.selected_static(jd)
-        s.notes.append(f"Replay: J a + G(q) + offset + the steady-state friction of {sm_['name']} "
-                       f"({sm_['map']}) along the measured motion (inverse dynamics; the bristle state and the "
-                       "temperature are not simulated). Samples slower than "
-                       f"{fmt_num(vmin, 3)} {units['qd']} are not replayed: at rest a static map cannot tell "
-                       "which friction between -Fs and Fs holds the joint.")
+        s.notes.append("No replay: the chosen model cannot be run along the log.")
     if not findings and not replays:
         s.present = False
         s.why = " ".join(s.notes) + ("" if datas else " " + no_logs)

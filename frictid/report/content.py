@@ -109,8 +109,12 @@ def static_models(jd: dict) -> list[dict]:
                 continue
         if evaluate_static(m, vals, np.array([0.1])) is None:
             continue
-        out.append({"name": name, "map": m, "values": vals, "selected": name == sel
-                    or (sel == "lugre" and name == (models.get("lugre") or {}).get("static_model"))})
+        label = name
+        if name == sel:
+            label += " (chosen)"
+        if name == "lugre":
+            label += f", steady state of {md.get('static_model') or m}"
+        out.append({"name": name, "map": m, "values": vals, "selected": name == sel, "label": label})
     return out
 
 
@@ -263,7 +267,7 @@ def model_curves(jd: dict, grids: dict[str, np.ndarray]) -> list[dict]:
         lin = evaluate_static(m["map"], m["values"], grids["lin"])
         pos = evaluate_static(m["map"], m["values"], grids["log"])
         neg = evaluate_static(m["map"], m["values"], -grids["log"])
-        out.append({"name": m["name"], "selected": m["selected"], "lin": lin, "pos": pos,
+        out.append({"name": m["name"], "label": m["label"], "selected": m["selected"], "lin": lin, "pos": pos,
                     "neg": None if neg is None else -neg})
     out.sort(key=lambda c: (not c["selected"], c["name"]))
     return out
@@ -462,9 +466,16 @@ def thermal_coefficients(name: str, values: dict, T) -> np.ndarray | None:
     return None
 
 
+def _poly_basis(w: np.ndarray) -> np.ndarray:
+    """Regressors of the polynomial friction c0 sgn(w) + c1 w + c2 w|w| + c3 w^3."""
+    return np.column_stack([np.sign(w), w, w * np.abs(w), w**3])
+
+
 def thermal_cycles(datas: list[LogData], jd: dict) -> tuple[list[dict], list[dict], dict]:
-    """Friction per duty cycle (RMS over the cycle's moving samples, as 002's F_rms) against time, and for
-    each thermal model its friction at its own estimated cycle temperature.
+    """Friction per duty cycle against time, and for each thermal model its friction at its own estimated
+    cycle temperature. Both are 002's ``F_rms``: the RMS over the cycle's moving samples of the polynomial
+    friction, identified by least squares on the cycle (measured) or given by the law at the cycle's
+    temperature (model); the noise of the torque does not enter.
 
     Cycles are those the fit used (``segments_used.duty_cycle``: start, end, source) when the parameter
     file lists them, else the duty-cycle segments found in the logs. Returns (cycles, models, info):
@@ -512,9 +523,11 @@ def thermal_cycles(datas: list[LogData], jd: dict) -> tuple[list[dict], list[dic
         if mv.sum() < 4:
             continue
         F = d.F[i0:i1][mv]
+        X = _poly_basis(ww[mv])
+        coef, *_ = np.linalg.lstsq(X, F, rcond=None)  # the cycle's own friction, as the fit identifies it
         te = d.log.channels.get("temp_env")
         tj = d.log.channels.get("temp_joint")
-        cycles.append({"t": 0.5 * (t0 + t1), "F_rms": float(np.sqrt(np.mean(F**2))),
+        cycles.append({"t": 0.5 * (t0 + t1), "F_rms": float(np.sqrt(np.mean((X @ coef) ** 2))),
                        "temp_env": float(np.mean(te[i0:i1])) if te is not None else math.nan,
                        "temp_joint": float(np.mean(tj[i0:i1])) if tj is not None else math.nan,
                        "log": k, "pos": pos})
@@ -542,23 +555,97 @@ def thermal_cycles(datas: list[LogData], jd: dict) -> tuple[list[dict], list[dic
 # replay and diagnosis
 
 
-def replay_torque(d: LogData, jd: dict, vmin: float | None = None) -> np.ndarray | None:
-    """Model torque along a log: ``J a + G(q) + offset + F_ss(w)`` with the selected model's static map
-    (LuGre's static part when LuGre is selected). None when no static model can be evaluated.
-
-    vmin [q/s]: samples slower than this are NaN (not replayed): at rest a static map cannot say which
-    friction between -Fs and Fs balances the load, and the sign of a noisy velocity would decide it."""
+def static_replay(d: LogData, jd: dict, vmin: float | None = None) -> np.ndarray | None:
+    """Fallback model torque ``J a + G(q) + offset + F_ss(w)`` with the selected model's static map, used
+    when :func:`frictid.replay.replay` cannot build the model. Samples slower than ``vmin`` [q/s] are NaN:
+    at rest a static map cannot tell which friction between -Fs and Fs holds the joint."""
     sel = selected_static(jd)
     if sel is None:
         return None
     Fss = evaluate_static(sel["map"], sel["values"], d.w)
     if Fss is None:
         return None
-    J = rigid_terms(jd)["J"]
-    out = J * np.nan_to_num(d.a) + d.G + Fss
+    out = rigid_terms(jd)["J"] * np.nan_to_num(d.a) + d.G + Fss
     if vmin is not None:
         out[np.abs(d.w) <= vmin] = np.nan
     return out
+
+
+@dataclass
+class Replay:
+    """A model run along a log: torque (and, in closed loop, position) measured against the model."""
+
+    model: str
+    tau_model: np.ndarray
+    q_model: np.ndarray | None = None
+    how: str = ""
+    notes: list[str] = field(default_factory=list)
+
+    def residual(self, d: LogData) -> np.ndarray:
+        return np.asarray(d.log.tau, float) - self.tau_model
+
+
+def replay_log(d: LogData, jname: str, jd: dict, model: str | None = None, closed: bool = True,
+               vmin: float | None = None) -> Replay | None:
+    """Run a model of the joint (default: the chosen one) along a log with :mod:`frictid.replay` (LuGre
+    state, thermal state, Karnopp stick at rest, diagnosis extensions); the closed loop is re-simulated
+    when the log has ``q_ref`` and its metadata the controller gains. Falls back on the static map alone
+    (:func:`static_replay`) when the replay cannot build the model. None when neither can."""
+    from frictid.errors import FrictidInputError
+    from frictid.fit.result import JointFit
+
+    try:
+        from frictid import replay as rp
+    except ImportError:  # pragma: no cover - replay not available
+        rp = None
+    name = model or jd.get("selected")
+    if rp is not None and name:
+        try:
+            jf = JointFit.from_dict(jname, jd)
+            m = rp.joint_model(jf, name)
+            with np.errstate(all="ignore"):
+                r = rp.replay(d.log, m, w=d.w, a=d.a)
+            out = Replay(name, np.asarray(r.tau_model, float), how="replay", notes=list(r.notes))
+            gains = rp.controller_from_meta(d.log.meta or {}) if closed else None
+            if gains is not None and "q_ref" in d.log.channels and m.J > 0 and d.log.q is not None:
+                with np.errstate(all="ignore"):
+                    q_model, _, notes = rp.closed_loop(d.log, m, gains)
+                if np.all(np.isfinite(q_model)):
+                    out.q_model = np.asarray(q_model, float)
+                    out.notes.extend(notes)
+            if np.any(np.isfinite(out.tau_model)):
+                return out
+        except (FrictidInputError, KeyError, ValueError, TypeError, ArithmeticError):
+            pass
+    if model is not None and model != jd.get("selected"):
+        return None
+    tm = static_replay(d, jd, vmin)
+    if tm is None:
+        return None
+    sel = selected_static(jd)
+    return Replay(sel["name"], tm, how="static")
+
+
+def extension_model(jd: dict, finding: dict) -> tuple[str, dict] | None:
+    """The model that carries a finding's extension: a model named by the finding (``model``, or
+    ``extension`` as a name or ``{model: ...}``), else the chosen model with the extension's ``params``
+    added. Returns (model name, joint entry to replay it from) or None."""
+    models = jd.get("models") or {}
+    ext = finding.get("extension")
+    names = [finding.get("model"), ext if isinstance(ext, str) else None,
+             ext.get("model") if isinstance(ext, dict) else None]
+    for n in names:
+        if isinstance(n, str) and n in models:
+            return n, jd
+    if isinstance(ext, dict) and isinstance(ext.get("params"), dict) and jd.get("selected") in models:
+        import copy
+        jd2 = copy.deepcopy(jd)
+        sel = jd2["selected"]
+        params = jd2["models"][sel].setdefault("params", {})
+        for k, v in ext["params"].items():
+            params[k] = v if isinstance(v, dict) else {"value": v}
+        return sel, jd2
+    return None
 
 
 #: The variable a diagnosis cause is drawn against: keyword in the cause -> (variable key, label).
@@ -620,32 +707,40 @@ def binned(x: np.ndarray, y: np.ndarray, nbins: int = 30) -> dict:
     return {"x": np.array(cx), "mean": np.array(m), "se": np.array(se), "n": np.array(n)}
 
 
-def diagnosis_residuals(datas: list[LogData], jd: dict, finding: dict) -> dict | None:
-    """Residual ``tau - tau_model`` of the selected model on moving samples against the finding's cause
-    variable, binned (before the extension). The after-curve comes from the finding itself when the
-    diagnosis step writes one (``binned: {x, before, after}``)."""
+def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dict,
+                        replays: dict | None = None) -> dict | None:
+    """Residual ``tau - tau_model`` on the moving samples against the finding's cause variable, binned:
+    before (the chosen model) and after (the model with the finding's extension, when the parameter file
+    holds it; or the finding's own ``binned: {x, before, after}``). ``replays`` caches the chosen model's
+    replay per log index."""
     var = cause_variable(str(finding.get("cause", "")))
-    xs, rs, label = [], [], ""
     vmin = min_speed(datas)
-    for d in datas:
-        tm = replay_torque(d, jd, vmin)
-        if tm is None:
+    ext = extension_model(jd, finding)
+    xs, rb, ra, label = [], [], [], ""
+    for k, d in enumerate(datas):
+        before = (replays or {}).get(k) or replay_log(d, jname, jd, closed=False, vmin=vmin)
+        if before is None:
             return None
         x, label = variable_values(var, d)
         mv = np.abs(d.w) > vmin
         xs.append(x[mv])
-        rs.append((np.asarray(d.log.tau, float) - tm)[mv])
+        rb.append(before.residual(d)[mv])
+        if ext is not None:
+            after = replay_log(d, jname, ext[1], model=ext[0], closed=False, vmin=vmin)
+            ra.append(after.residual(d)[mv] if after is not None else np.full(int(mv.sum()), np.nan))
     if not xs:
         return None
     x = np.concatenate(xs)
-    r = np.concatenate(rs)
-    out = {"variable": var, "label": label, "before": binned(x, r)}
+    out = {"variable": var, "label": label, "before": binned(x, np.concatenate(rb))}
+    if ra and np.any(np.isfinite(np.concatenate(ra))):
+        aft = binned(x, np.concatenate(ra))
+        out["given"] = {"x": aft["x"], "after": aft["mean"], "before": None, "model": ext[0]}
     given = finding.get("binned")
-    if isinstance(given, dict) and given.get("x") is not None and given.get("after") is not None:
+    if "given" not in out and isinstance(given, dict) and given.get("x") is not None and given.get("after") is not None:
         try:
             out["given"] = {"x": np.asarray(given["x"], float), "after": np.asarray(given["after"], float),
                             "before": (np.asarray(given["before"], float) if given.get("before") is not None
-                                       else None)}
+                                       else None), "model": None}
         except (TypeError, ValueError):
             pass
     return out

@@ -89,6 +89,7 @@ class Rendered:
     width: int
     height: int
     points: int = 0
+    axes: list = None  # (x label, y label, x tick labels shown) per axes, for checks
 
     @property
     def nbytes(self) -> int:
@@ -125,8 +126,9 @@ def render(fig, alt: str, salt: str, points: int = 0, png_above: int = PNG_ABOVE
     buf = io.BytesIO()
     if points > png_above:
         fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
-        return Rendered("png", base64.b64encode(buf.getvalue()).decode("ascii"), alt, w, h, points)
+        return Rendered("png", base64.b64encode(buf.getvalue()).decode("ascii"), alt, w, h, points, _labels(fig))
     fig.savefig(buf, format="svg", metadata={"Date": None, "Creator": None})
+    axes = _labels(fig)
     svg = buf.getvalue().decode("utf-8")
     svg = _SVG_HEAD.sub(r"\1", svg, count=1)
     head_end = svg.index(">")
@@ -135,7 +137,16 @@ def render(fig, alt: str, salt: str, points: int = 0, png_above: int = PNG_ABOVE
            + svg[head_end:])
     svg = re.sub(r"<metadata>.*?</metadata>\s*", "", svg, count=1, flags=re.S)
     svg = svg.replace("font-family: 'DejaVu Sans'", FONT_STACK)
-    return Rendered("svg", svg, alt, w, h, points)
+    return Rendered("svg", svg, alt, w, h, points, axes)
+
+
+def _labels(fig) -> list[tuple[str, str, bool]]:
+    """(x label, y label, whether x tick labels are shown) of every axes of a drawn figure."""
+    out = []
+    for ax in fig.axes:
+        shown = any(t.get_visible() and t.get_text() for t in ax.get_xticklabels())
+        out.append((ax.get_xlabel(), ax.get_ylabel(), shown))
+    return out
 
 
 def _attr(s: str) -> str:
@@ -298,7 +309,7 @@ def friction_map(pl, curves: list[dict], grids: dict, units: dict, salt: str) ->
         for i, c in enumerate(curves):
             colour, ls, _ = SERIES[i % len(SERIES)]
             lw = 2.6 if c["selected"] else 1.3
-            label = c["name"] + (" (selected)" if c["selected"] else "")
+            label = c.get("label") or c["name"]
             z = 5 if c["selected"] else 3
             if c["lin"] is not None:
                 ln, = ax.plot(grids["lin"], c["lin"], color=colour, ls=ls, lw=lw, label=label, zorder=z)
@@ -382,11 +393,12 @@ def presliding(ramps: list[dict], steps: list[dict], units: dict, sigma0_label: 
                 f, xu = si_scale(np.concatenate([s["x"] for s in items]), units["q"])
                 for i, s in enumerate(items):
                     colour, _, mk = SERIES[i % len(SERIES)]
-                    ax.plot(s["t"] * 1e3, s["x"] / f, color=colour, lw=1.1, marker=mk, ms=3,
-                            markevery=max(1, len(s["t"]) // 6))
+                    every = max(1, len(s["t"]) // 6)
+                    ax.plot(s["t"] * 1e3, s["x"] / f, color=colour, lw=1.1, marker=mk, ms=3, markevery=every)
                     points += len(s["t"])
                     if s["model"] is not None:
-                        ax.plot(s["t"] * 1e3, s["model"] / f, color=BLACK, lw=1.4, ls=(0, (4, 2)))
+                        ax.plot(s["t"] * 1e3, s["model"] / f, color=colour, lw=1.5, ls=(0, (4, 2)), marker=mk,
+                                ms=4, mfc="white", markevery=(every // 2, every))
                         points += len(s["t"])
                 ax.set_xlabel("time from step start [ms]")
                 ax.set_ylabel(f"displacement [{xu}]")
@@ -394,7 +406,8 @@ def presliding(ramps: list[dict], steps: list[dict], units: dict, sigma0_label: 
                 from matplotlib.lines import Line2D
                 hs = [Line2D([], [], color=GREY, lw=1.1, marker="o", ms=3, label="measured (one colour per step)")]
                 if any(s["model"] is not None for s in items):
-                    hs.append(Line2D([], [], color=BLACK, lw=1.4, ls=(0, (4, 2)), label=sigma1_label))
+                    hs.append(Line2D([], [], color=GREY, lw=1.5, ls=(0, (4, 2)), marker="o", mfc="white", ms=4,
+                                     label=sigma1_label + " (dashed, same colour)"))
                 ax.legend(handles=hs, loc="best", frameon=False)
         alt = f"Presliding: {len(ramps)} ramps (torque against displacement) and {len(steps)} step transients"
         return render(fig, alt, salt, points)
@@ -448,8 +461,10 @@ def diagnosis(finding: dict, res: dict, units: dict, salt: str) -> Rendered:
                     color=BLACK, lw=1.0, ecolor=BLACK, label="before: chosen model")
         g = res.get("given")
         if g is not None:
+            ext = finding.get("extension")
+            name = g.get("model") or (ext.get("name") or ext.get("model") if isinstance(ext, dict) else ext)
             ax.plot(g["x"] / xdiv, g["after"], color=VERMILLION, ls=(0, (5, 2)), marker="s", ms=4, lw=1.6,
-                    label=f"after: with {finding.get('extension', 'the extension')}")
+                    label=f"after: with the extension ({name or 'as the diagnosis gives it'})")
         ax.set_xlabel(xl)
         ax.set_ylabel(f"torque residual [{units['tau']}]")
         ax.set_title(f"Residual against {xl.split(' [')[0]}: {finding.get('cause', 'finding')}", loc="left")
@@ -458,26 +473,39 @@ def diagnosis(finding: dict, res: dict, units: dict, salt: str) -> Rendered:
         return render(fig, alt, salt, int(b["x"].size * 2))
 
 
-def replay(t, tau, tau_model, units: dict, title: str, salt: str) -> Rendered:
-    """Measured torque and the model's replay along the log, and their difference."""
+def replay(t, tau, tau_model, units: dict, title: str, salt: str, q=None, q_model=None) -> Rendered:
+    """Measured torque and the model's replay along the log and their difference; with a closed-loop
+    re-simulation, the measured and simulated position and their difference too."""
     t = np.asarray(t, float)
     lo, hi = float(t[0]), float(t[-1])
     div, tlabel = time_axis(hi - lo)
+    closed = q is not None and q_model is not None
     with rc_context(salt):
-        fig = new_figure(4.6)
-        ax, axr = fig.subplots(2, 1, sharex=True, height_ratios=[2.0, 1.2])
-        x1, y1 = minmax_decimate(t, tau)
-        x2, y2 = minmax_decimate(t, tau_model)
-        x3, y3 = minmax_decimate(t, np.asarray(tau, float) - np.asarray(tau_model, float))
-        ax.plot(x1 / div, y1, color=BLACK, lw=0.7, label="measured")
-        ax.plot(x2 / div, y2, color=VERMILLION, lw=0.9, ls=(0, (4, 1.5)), label="model")
-        axr.plot(x3 / div, y3, color=BLUE, lw=0.7)
-        axr.axhline(0, color=GREY, lw=0.6)
-        ax.set_ylabel(f"torque [{units['tau']}]")
-        axr.set_ylabel(f"measured − model [{units['tau']}]")
-        axr.set_xlabel(tlabel)
-        ax.set_xlim(lo / div, hi / div)
-        ax.set_title(title, loc="left")
-        ax.legend(loc="upper right", frameon=False, ncol=2)
-        alt = f"{title}: measured and model torque against time, and their difference"
-        return render(fig, alt, salt, x1.size + x2.size + x3.size)
+        fig = new_figure(7.6 if closed else 4.6)
+        ratios = [2.0, 1.2] + ([2.0, 1.2] if closed else [])
+        axes = fig.subplots(len(ratios), 1, sharex=True, height_ratios=ratios)
+        pairs = [(axes[0], axes[1], tau, tau_model, "torque", units["tau"])]
+        if closed:
+            pairs.append((axes[2], axes[3], q, q_model, "position", units["q"]))
+        points = 0
+        for ax, axr, meas, model, name, unit in pairs:
+            meas = np.asarray(meas, float)
+            model = np.asarray(model, float)
+            x1, y1 = minmax_decimate(t, meas)
+            x2, y2 = minmax_decimate(t, model)
+            x3, y3 = minmax_decimate(t, meas - model)
+            points += x1.size + x2.size + x3.size
+            ax.plot(x1 / div, y1, color=BLACK, lw=0.7, label="measured")
+            ax.plot(x2 / div, y2, color=VERMILLION, lw=0.9, ls=(0, (4, 1.5)),
+                    label="model" if name == "torque" else "simulated (closed loop)")
+            axr.plot(x3 / div, y3, color=BLUE, lw=0.7)
+            axr.axhline(0, color=GREY, lw=0.6)
+            ax.set_ylabel(f"{name} [{unit}]")
+            axr.set_ylabel(f"difference [{unit}]")
+            ax.legend(loc="upper right", frameon=False, ncol=2)
+        axes[-1].set_xlabel(tlabel)
+        axes[0].set_xlim(lo / div, hi / div)
+        axes[0].set_title(title, loc="left")
+        alt = (f"{title}: measured and model torque against time and their difference"
+               + ("; measured and simulated position in closed loop" if closed else ""))
+        return render(fig, alt, salt, points)
