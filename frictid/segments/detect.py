@@ -27,6 +27,7 @@ import numpy as np
 
 from ..data import JointLog, Segment
 from . import stats as _stats
+from .duty import duty_cycles
 from .runs import box_mean, box_slope, drop_short, fill_short, label_runs, runs
 from .scales import Scales, derivatives, estimate_scales, local_noise, log_position
 
@@ -429,8 +430,10 @@ def _connected(f: Features, e0: int, s1: int) -> bool:
 
 
 def find_duty_cycles(f: Features) -> list[tuple[int, int, int]]:
-    """(start, end, cycle index) of each duty cycle: motion bursts starting at a constant period."""
-    return []
+    """(start, end, cycle index) of each duty cycle (see :mod:`.duty`)."""
+    gap_min = max(3, f.sc.window_w // 2)
+    tol = max(2 * f.sc.window_w, int(round(2 * T_JUMP / f.sc.dt)))
+    return duty_cycles(f.w, ~f.still_fine, gap_min, f.n_min, tol)
 
 
 def _segment(f: Features, kind: str, i0: int, i1: int, cycle: int | None = None) -> Segment:
