@@ -137,7 +137,20 @@ def render(fig, alt: str, salt: str, points: int = 0, png_above: int = PNG_ABOVE
            + svg[head_end:])
     svg = re.sub(r"<metadata>.*?</metadata>\s*", "", svg, count=1, flags=re.S)
     svg = svg.replace("font-family: 'DejaVu Sans'", FONT_STACK)
+    svg = _prefix_ids(svg, re.sub(r"[^A-Za-z0-9_-]", "-", salt) + "-")
     return Rendered("svg", svg, alt, w, h, points, axes)
+
+
+_ID = re.compile(r'\bid="([^"]+)"')
+_REF = re.compile(r'(href="#|url\(#)([^")]+)')
+
+
+def _prefix_ids(svg: str, prefix: str) -> str:
+    """Make the element ids of one inline SVG unique in the page (matplotlib numbers them per figure:
+    axes_1, patch_1, ...) and keep its internal references (href="#...", url(#...)) pointing at them."""
+    ids = set(_ID.findall(svg))
+    svg = _ID.sub(lambda m: f'id="{prefix}{m.group(1)}"', svg)
+    return _REF.sub(lambda m: m.group(1) + (prefix + m.group(2) if m.group(2) in ids else m.group(2)), svg)
 
 
 def _labels(fig) -> list[tuple[str, str, bool]]:

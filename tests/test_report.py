@@ -1,0 +1,429 @@
+"""frictid report: the HTML parses, every section is there for a log that supports it and explains itself
+when absent, figures carry units and survive greyscale, nothing is fetched from outside, and the command's
+exit codes and atomic output.
+
+The scenario is one short plant log with every experiment kind (plateaus, ramps, steps, duty cycles) and a
+real identification of it; the segments come from the plant's truth labels (tests may read them), so the
+report is tested independently of how well the segmenter finds duty cycles.
+"""
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from html.parser import HTMLParser
+
+import numpy as np
+import pytest
+import yaml
+
+from frictid.data import JointLog, Segment
+
+SECTION_KEYS = ("summary", "timeline", "friction-map", "presliding", "thermal", "models", "diagnosis",
+                "provenance")
+
+RECIPE = {
+    "name": "report_all_kinds",
+    "description": "every experiment kind on one joint, short (report tests)",
+    "default_plant": "geared_industrial",
+    "temp_env": 25.0,
+    "start_rest": 0.5,
+    "experiments": [
+        {"kind": "constant_velocity", "velocities": {"min": 0.02, "max": 0.9, "count": 5, "spacing": "log"},
+         "relative": True, "signs": "both", "plateau": 1.0, "min_plateau": 0.4, "accel": 0.5, "gap": 0.2,
+         "rest": 0.5},
+        {"kind": "ramp_presliding", "peaks": [0.3, 0.6], "relative": True, "signs": "both", "ramp_up": 1.0,
+         "hold": 0.3, "ramp_down": 1.0, "settle": 0.5, "rest": 0.5},
+        {"kind": "torque_steps", "levels": [0.3, 0.6], "relative": True, "signs": "both", "hold": 0.3,
+         "release": 0.2, "settle": 0.3, "rest": 0.5},
+        {"kind": "duty_cycle", "duty": 0.5, "cycles": 6, "cycle_time": 12.0, "slots": 4, "cold_start": True,
+         "rest": 1.0},
+    ],
+}
+#: Models fitted for the scenario (the rest of the fit's models only cost time here).
+MODELS = "coulomb_viscous,stribeck,polynomial,lugre,thermal4"
+
+FINDING = {"cause": "position dependence", "evidence": "the residual follows the position (test finding)",
+           "statistic": {"F": 12.5, "p": 0.001},
+           "extension": {"name": "position", "params": {"pos_amp": 0.02, "pos_period": 1.0, "pos_phase": 0.0}},
+           "rms_before": 1.2, "rms_after": 0.9, "gain": 0.25, "heldout": True}
+
+
+def truth_segments(log: JointLog) -> list[Segment]:
+    """Segments from the plant's truth labels: one per run of (kind, cycle)."""
+    lab = np.asarray(log.truth["segment"]).astype(str)
+    cyc = np.asarray(log.truth.get("cycle", np.full(log.n, -1)))
+    key = np.char.add(lab, cyc.astype(str))
+    cut = np.flatnonzero(key[1:] != key[:-1]) + 1
+    out = []
+    for a, b in zip(np.r_[0, cut], np.r_[cut, log.n]):
+        c = int(cyc[a])
+        out.append(Segment(str(lab[a]), int(a), int(b), float(log.t[a]), float(log.t[b - 1]),
+                           c if c >= 0 else None))
+    return out
+
+
+_SCENARIO: dict = {}
+
+
+def build_scenario(tmp_path_factory) -> dict:
+    """The scenario's files (log, parameter file with a diagnosis entry), built once per test session."""
+    if _SCENARIO:
+        return _SCENARIO
+    import frictid
+    from frictid.io.logs import write_logs
+    from frictid.plant import simulate_recipe
+
+    d = tmp_path_factory.mktemp("report")
+    recipe = d / "recipe.yaml"
+    recipe.write_text(yaml.safe_dump(RECIPE))
+    log_path = d / "run.parquet"
+    write_logs(simulate_recipe(str(recipe), seed=3), str(log_path))
+    res = frictid.fit([str(log_path)], models=MODELS, segmenter=truth_segments)
+    params = res.to_dict()
+    joint = next(iter(params["joints"]))
+    params["joints"][joint]["diagnosis"] = [dict(FINDING)]
+    params_path = d / "params.yaml"
+    params_path.write_text(yaml.safe_dump(params, sort_keys=False))
+    _SCENARIO.update(dir=d, log=str(log_path), params=str(params_path), joint=joint)
+    return _SCENARIO
+
+
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory):
+    return build_scenario(tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def full_report(scenario):
+    """(html, params dict, logs) of the scenario with every section."""
+    from frictid.io.logs import read_many
+    from frictid.io.params_load import load_params_dict
+    from frictid.report import build_report
+
+    params = load_params_dict(scenario["params"])
+    logs = read_many([scenario["log"]])
+    html = build_report(params, logs, params_path=scenario["params"], command="frictid report (test)",
+                        segmenter=truth_segments)
+    return html, params, logs
+
+
+# ---------------------------------------------------------------------------------------------------
+# helpers
+
+
+VOID = {"area", "base", "br", "col", "embed", "hr", "img", "input", "link", "meta", "source", "track", "wbr"}
+
+
+class Balance(HTMLParser):
+    """Checks that every element is closed in order (outside inline SVG, which is checked as XML)."""
+
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.stack: list[str] = []
+        self.errors: list[str] = []
+        self.sections: list[dict] = []
+        self.ids: list[str] = []
+        self.imgs = 0
+        self.svgs = 0
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if "id" in a:
+            self.ids.append(a["id"])
+        if tag == "section":
+            self.sections.append(a)
+        if tag == "img":
+            self.imgs += 1
+        if tag == "svg" and "svg" not in self.stack:
+            self.svgs += 1
+        if tag not in VOID:
+            self.stack.append(tag)
+
+    def handle_startendtag(self, tag, attrs):
+        a = dict(attrs)
+        if "id" in a:
+            self.ids.append(a["id"])
+
+    def handle_endtag(self, tag):
+        if tag in VOID:
+            return
+        if not self.stack or self.stack[-1] != tag:
+            self.errors.append(f"</{tag}> closes {self.stack[-1] if self.stack else 'nothing'}")
+            if tag in self.stack:
+                while self.stack and self.stack.pop() != tag:
+                    pass
+            return
+        self.stack.pop()
+
+
+def parse(html: str) -> Balance:
+    p = Balance()
+    p.feed(html)
+    p.close()
+    return p
+
+
+def sections_of(html: str) -> dict[str, dict[str, str]]:
+    """joint id -> section key -> data-present, from the section elements."""
+    out: dict[str, dict[str, str]] = {}
+    for a in parse(html).sections:
+        key = a.get("data-section", "")
+        if "part" in (a.get("class") or "").split() and a.get("id", "").endswith("-" + key):
+            out.setdefault(a["id"][: -len(key) - 1], {})[key] = a.get("data-present")
+    return out
+
+
+def section_text(html: str, jid: str, key: str) -> str:
+    m = re.search(rf'<section class="part[^"]*" id="{jid}-{key}".*?</section>', html, re.S)
+    assert m, f"section {key} missing"
+    return re.sub(r"<[^>]+>", " ", m.group(0))
+
+
+# ---------------------------------------------------------------------------------------------------
+# the report
+
+
+def test_html_parses_and_inline_svg_is_well_formed_xml(full_report):
+    html, _, _ = full_report
+    assert html.startswith("<!DOCTYPE html>")
+    p = parse(html)
+    assert not p.errors, p.errors[:5]
+    assert not p.stack, f"unclosed: {p.stack[:5]}"
+    dup = {i for i in p.ids if p.ids.count(i) > 1}
+    assert not dup, f"duplicate ids: {sorted(dup)[:5]}"
+    svgs = re.findall(r"<svg\b.*?</svg>", html, re.S)
+    assert len(svgs) == p.svgs >= 6
+    for svg in svgs:
+        root = ET.fromstring(svg)
+        assert root.get("viewBox") and root.get("role") == "img" and root.get("aria-label")
+
+
+def test_every_section_is_present_for_a_log_that_supports_it(full_report, scenario):
+    html, params, _ = full_report
+    secs = sections_of(html)
+    jid = "j-" + scenario["joint"]
+    assert set(secs[jid]) == set(SECTION_KEYS)
+    assert all(v == "yes" for v in secs[jid].values()), secs[jid]
+    jd = params["joints"][scenario["joint"]]
+    # the summary names the chosen model, its parameters with errors and units, and the coverage
+    summary = section_text(html, jid, "summary")
+    assert f"Chosen model: {jd['selected']}" in summary
+    assert "±" in summary and "N m" in summary
+    assert re.search(r"Velocity w &gt; 0: [0-9.]+ to [0-9.]+ rad/s over \d+ plateau points", summary)
+    assert re.search(r"\d+ constant-velocity plateaus .*\d+ presliding ramps, \d+ steps, 6 duty cycles", summary)
+    # every model of the file is in the comparison table, the chosen one marked
+    models = section_text(html, jid, "models")
+    for name in jd["models"]:
+        assert name in models
+    assert "chosen" in models
+    # the diagnosis: the finding, its figure (before and after) and the replay
+    diag = section_text(html, jid, "diagnosis")
+    assert "position dependence" in diag and "25.0 %" in diag
+    assert "Residual against position" in html
+    assert "after: with the extension" in html
+    assert "Replay of" in html
+    # provenance: the hash of the log, the command, the YAML snippet of the chosen model that loads back
+    from frictid.io.logs import file_sha256
+    assert file_sha256(scenario["log"]) in html
+    snippet = re.search(rf'<pre id="{jid}-yaml">(.*?)</pre>', html, re.S).group(1)
+    import html as _html
+    d = yaml.safe_load(_html.unescape(snippet))
+    assert d["joints"][scenario["joint"]]["model"] == jd["selected"]
+
+
+def test_plateau_points_are_the_fits(full_report, scenario):
+    """The map draws exactly the plateaus the fit used (same segments, same friction torque)."""
+    html, params, _ = full_report
+    jd = params["joints"][scenario["joint"]]
+    n_used = len(jd["segments_used"]["constant_velocity"])
+    assert f"Friction against velocity: {n_used} plateau points" in html
+
+
+def test_sections_explain_themselves_when_absent(scenario):
+    from frictid.io.logs import read_many
+    from frictid.io.params_load import load_params_dict
+    from frictid.report import build_report
+
+    params = load_params_dict(scenario["params"])
+    jid = "j-" + scenario["joint"]
+    # no log: what needs the log says so; the rest comes from the parameter file
+    html = build_report(params, [], params_path="p.yaml")
+    secs = sections_of(html)[jid]
+    assert secs["timeline"] == "no" and secs["summary"] == "yes" and secs["models"] == "yes"
+    assert secs["friction-map"] == "yes"  # the model curves need no log
+    for key in ("timeline", "presliding", "thermal"):
+        assert "No log was given" in section_text(html, jid, key)
+    # only the plateau part of the log: no ramps, steps or duty cycles, and each section says what it needs
+    lg = read_many([scenario["log"]])[0]
+    kinds = np.asarray(lg.truth["segment"]).astype(str)
+    end = int(np.flatnonzero(kinds == "ramp_presliding")[0])
+    part = JointLog(joint=lg.joint, t=lg.t[:end], tau=lg.tau[:end], q=lg.q[:end],
+                    qd=None if lg.qd is None else lg.qd[:end],
+                    channels={k: v[:end] for k, v in lg.channels.items()}, axis=lg.axis, meta=lg.meta,
+                    source=lg.source, truth={"segment": kinds[:end], "cycle": np.asarray(lg.truth["cycle"])[:end]})
+    html = build_report(params, [part], segmenter=truth_segments)
+    secs = sections_of(html)[jid]
+    assert secs["timeline"] == "yes" and secs["friction-map"] == "yes"
+    assert secs["presliding"] == "no" and secs["thermal"] == "no"
+    assert "recipes/ramp_presliding.yaml" in section_text(html, jid, "presliding")
+    assert "recipes/duty_cycle.yaml" in section_text(html, jid, "thermal")
+    assert "not among the files the fit read" not in html  # same file name as the fit's source
+
+
+def test_several_joints_get_an_index(scenario):
+    from frictid.io.params_load import load_params_dict
+    from frictid.report import build_report
+
+    params = load_params_dict(scenario["params"])
+    j = scenario["joint"]
+    params["joints"]["second joint"] = dict(params["joints"][j], diagnosis=[])
+    html = build_report(params, [])
+    assert '<nav id="index"' in html
+    assert 'href="#j-second-joint"' in html and f'href="#j-{j}"' in html
+    assert set(sections_of(html)) == {f"j-{j}", "j-second-joint"}
+    single = load_params_dict(scenario["params"])
+    assert '<nav id="index"' not in build_report(single, [])
+
+
+def test_the_report_is_self_contained(full_report):
+    html, _, _ = full_report
+    for m in re.finditer(r'\b(?:src|href)\s*=\s*"([^"]*)"', html):
+        assert m.group(1).startswith(("#", "data:")), m.group(0)
+    for m in re.finditer(r"url\(([^)]*)\)", html):
+        assert m.group(1).strip("'\"").startswith(("#", "data:")), m.group(0)
+    low = html.lower()
+    assert "<link" not in low and "@import" not in low and "@font-face" not in low
+    assert not re.search(r"<script[^>]*\bsrc=", low)
+    assert "default-src 'none'" in html  # the page may not fetch anything even if a figure tried
+
+
+def test_report_size_is_modest(full_report):
+    html, _, _ = full_report
+    assert len(html.encode()) < 1_500_000
+
+
+# ---------------------------------------------------------------------------------------------------
+# figures
+
+
+def test_every_axis_carries_its_unit(scenario):
+    from frictid.io.logs import read_many
+    from frictid.io.params_load import load_params_dict
+    from frictid.report import content as ct
+    from frictid.report.build import joint_report
+    from frictid.segments import derivatives
+
+    params = load_params_dict(scenario["params"])
+    jd = params["joints"][scenario["joint"]]
+    datas = [ct.prepare_log(lg, jd, truth_segments, derivatives) for lg in read_many([scenario["log"]])]
+    ctx = joint_report(scenario["joint"], jd, datas)
+    figs = [f for s in ctx["sections"] for f in s.figures]
+    figs += [r["figure"] for r in ctx["section"]["diagnosis"].data["findings"] if r["figure"] is not None]
+    assert len(figs) >= 6
+    unit = re.compile(r"\[[^\]]+\]")
+    for f in figs:
+        assert f.axes
+        for xl, yl, x_shown in f.axes:
+            assert yl == "segment kind" or unit.search(yl), (f.alt, yl)
+            if x_shown:
+                assert unit.search(xl), (f.alt, xl)
+
+
+def test_series_are_told_apart_without_colour():
+    from frictid.report.figures import KIND_STYLE, SERIES
+
+    styles = [(str(ls), mk) for _, ls, mk in SERIES]
+    assert len(set(s[0] for s in styles)) == len(styles)  # dash patterns alone separate the models
+    assert len(set(s[1] for s in styles)) == len(styles)  # and so do the markers
+    assert len({c for c, _ in KIND_STYLE.values()}) == len(KIND_STYLE)  # the timeline also has one row per kind
+    assert "#F0E442" not in [c for c, _, _ in SERIES]  # Okabe-Ito yellow vanishes on paper
+
+
+def test_minmax_decimation_keeps_every_extreme():
+    from frictid.report.figures import minmax_decimate
+
+    rng = np.random.default_rng(1)
+    t = np.arange(100_003) * 1e-3
+    y = np.cumsum(rng.standard_normal(t.size))
+    y[777] = 1e6
+    xd, yd = minmax_decimate(t, y, columns=500)
+    assert xd.size <= 1000 and np.all(np.diff(xd) >= 0)
+    assert yd.max() == 1e6 and yd.min() == y.min()
+    k = int(np.ceil(t.size / 500))
+    last = int(np.ceil(t.size / k)) - 1
+    for c in (0, 123, last):  # each column's minimum and maximum are drawn
+        blk = y[c * k:(c + 1) * k]
+        assert blk.min() in yd and blk.max() in yd
+    short = np.arange(10.0)
+    assert np.array_equal(minmax_decimate(short, short)[1], short)
+
+
+def test_kind_spans_are_bounded_by_the_pixels():
+    from frictid.report.figures import kind_spans
+
+    segs = [("step", i * 1.0, i * 1.0 + 0.2) for i in range(20_000)]
+    spans = kind_spans(segs, 0.0, 20_000.0, columns=1000)
+    assert 1 <= len(spans["step"]) <= 500
+    assert kind_spans([("rest", 0.0, 10.0)], 0.0, 10.0, columns=100) == {"rest": [(0.0, 10.0)]}
+
+
+def test_numbers_are_rounded_to_their_uncertainty():
+    from frictid.report.build import fmt_num, fmt_pm
+
+    assert fmt_pm(44.72235, 0.0643) == "44.722 ± 0.064"
+    assert fmt_pm(1.5e7, 2e5) == "1.500e+07 ± 2.0e+05"
+    assert fmt_pm({"value": 2.0, "stderr": None}, None) == "2"
+    assert fmt_pm(None, 1.0) == "—"
+    assert fmt_num(float("nan")) == "—"
+
+
+def test_numerics_never_import_matplotlib():
+    code = ("import sys; import frictid.models.static, frictid.fit.static, frictid.segments, frictid.report, "
+            "frictid.report.content, frictid.report.build; "
+            "assert 'matplotlib' not in sys.modules, 'matplotlib imported'")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-800:]
+
+
+# ---------------------------------------------------------------------------------------------------
+# the command
+
+
+def test_cli_writes_the_report_atomically(scenario, cli, tmp_path):
+    out = tmp_path / "report.html"
+    r = cli("report", scenario["params"], scenario["log"], "-o", out)
+    assert r.code == 0, r
+    assert "wrote" in r.err and out.stat().st_size > 10_000
+    html = out.read_text()
+    assert not parse(html).errors
+    assert f"frictid report {scenario['params']} {scenario['log']} -o {out}" in html
+    # without logs, and to standard output
+    r = cli("report", scenario["params"], "-o", "-")
+    assert r.code == 0 and r.out.startswith("<!DOCTYPE html>")
+    assert [p.name for p in tmp_path.iterdir()] == ["report.html"]  # no temporary file left
+
+
+@pytest.mark.parametrize("case", ["no-params", "no-output", "missing-params", "output-is-input", "no-folder",
+                                  "bad-log", "not-params"])
+def test_cli_input_errors_exit_2_and_write_nothing(case, scenario, cli, tmp_path):
+    out = tmp_path / "r.html"
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,tau\n0,1\nx,2\n")
+    notp = tmp_path / "notp.yaml"
+    notp.write_text("schema: 7\njoints: {}\n")
+    args = {
+        "no-params": ["report", "-o", out],
+        "no-output": ["report", scenario["params"]],
+        "missing-params": ["report", tmp_path / "nope.yaml", "-o", out],
+        "output-is-input": ["report", scenario["params"], "-o", scenario["params"]],
+        "no-folder": ["report", scenario["params"], "-o", tmp_path / "no" / "r.html"],
+        "bad-log": ["report", scenario["params"], bad, "-o", out],
+        "not-params": ["report", notp, "-o", out],
+    }[case]
+    r = cli(*args)
+    assert r.code == 2, r
+    assert "error" in r.err and "Traceback" not in r.err
+    assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.csv", "notp.yaml"]
