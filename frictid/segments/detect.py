@@ -39,6 +39,8 @@ T_MIN = 0.2
 T_JUMP = 0.01
 #: A joint moving slower than this fraction of the log's top speed is still (when above the noise).
 R_STILL = 0.005
+#: Fewest plateaus at distinct velocities that make a constant-velocity experiment (a static map).
+MIN_PLATEAUS = 3
 #: Relative velocity tolerance of a constant-velocity plateau.
 R_STEADY = 0.02
 #: A ramp changes the torque by at least this fraction of the log's torque range ...
@@ -246,12 +248,17 @@ def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]
     cv = f.steady & ~f.still & (code < 0)
     cv = fill_short(cv, max(2, f.h // 4), False)
     cv = drop_short(cv, n_min)
+    plateaus = []
     for i0, i1 in zip(*runs(cv)):
         i0, i1 = _extend_plateau(f, int(i0), int(i1), code)
         if i1 - i0 < n_min or not _same_sign(f.w[i0:i1]) or _bent(f, i0, i1):
             continue
-        code[i0:i1] = KIND_CODE["constant_velocity"]
-        segs.append(_segment(f, "constant_velocity", i0, i1))
+        plateaus.append((i0, i1, float(np.median(f.w[i0:i1]))))
+    # a static map needs plateaus at several speeds; one or two steady stretches are moves, not a sweep
+    if _distinct_speeds([p[2] for p in plateaus]) >= MIN_PLATEAUS:
+        for i0, i1, _ in plateaus:
+            code[i0:i1] = KIND_CODE["constant_velocity"]
+            segs.append(_segment(f, "constant_velocity", i0, i1))
 
     # 5. rest: still runs (fine scale) that hold a still sample at the coarse scale, with a torque that
     # does not change by more than R_RAMP of its range within T_MIN (a controller loading a stuck joint)
@@ -269,6 +276,15 @@ def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]
         segs.append(_segment(f, "other", int(i0), int(i1)))
     segs.sort(key=lambda s: (s.i0, s.i1))
     return code, segs, f
+
+
+def _distinct_speeds(w: list[float]) -> int:
+    """Number of distinct plateau velocities (signed; equal within ``R_STEADY``)."""
+    levels: list[float] = []
+    for v in sorted(w):
+        if not levels or abs(v - levels[-1]) > R_STEADY * max(abs(v), abs(levels[-1])):
+            levels.append(v)
+    return len(levels)
 
 
 def _same_sign(w: np.ndarray) -> bool:

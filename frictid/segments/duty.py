@@ -33,25 +33,54 @@ LOOKAHEAD = 64
 R_PERIOD = 0.005
 #: Autocorrelation peaks above this value give candidate periods in continuous motion.
 R_AUTOCORR = 0.8
+#: Autocorrelation peaks of the whole log's velocity above this value are tried as periods everywhere.
+R_AUTOCORR_LOG = 0.3
 #: Points per cycle compared (the velocity is decimated to this many).
 N_PROFILE = 2000
 
 
-def motion_onsets(moving: np.ndarray, gap_min: int) -> np.ndarray:
+def motion_onsets(moving: np.ndarray, gap_min: int) -> tuple[np.ndarray, np.ndarray]:
     """Onsets (sample indices) of motion after a still stretch of at least ``gap_min`` samples, or at
-    the start of the log."""
+    the start of the log, and the length of that still stretch."""
     s, e = runs(moving)
     if s.size == 0:
-        return s
+        return s, s
     prev_end = np.concatenate(([0], e[:-1]))
-    keep = ((s - prev_end) >= gap_min) | (s == 0)
-    return s[keep]
+    gap = s - prev_end
+    keep = (gap >= gap_min) | (s == 0)
+    return s[keep], gap[keep]
 
 
-def _difference(w: np.ndarray, a: int, b: int, P: int) -> float:
-    """Relative RMS difference of the velocity over ``[a, a+P)`` and ``[b, b+P)`` (inf if outside)."""
+class _Signal:
+    """The velocity, with cumulative counts of resting samples (inside still stretches of at least
+    ``rest_min`` samples) and of moving samples."""
+
+    def __init__(self, w: np.ndarray, moving: np.ndarray, rest_min: int):
+        self.w = w
+        self.size = w.size
+        s, e = runs(~moving)
+        long = (e - s) >= rest_min
+        delta = np.zeros(w.size + 1, dtype=np.int64)
+        np.add.at(delta, s[long], 1)
+        np.add.at(delta, e[long], -1)
+        self.rests = np.concatenate(([0], np.cumsum(np.cumsum(delta[:-1]) > 0)))
+        self.moves = np.concatenate(([0], np.cumsum(moving)))
+
+    def rest_and_motion(self, a: int, b: int) -> bool:
+        """The window ``[a, b)`` holds part of a rest and some motion."""
+        a, b = max(a, 0), min(b, self.size)
+        return bool(self.rests[b] - self.rests[a] > 0 and self.moves[b] - self.moves[a] > 0)
+
+
+def _difference(sig: _Signal, a: int, b: int, P: int) -> float:
+    """Relative RMS difference of the velocity over ``[a, a+P)`` and ``[b, b+P)``; inf if a window is
+    outside the log or does not hold both motion and part of a rest (duty cycles alternate motion and
+    rest; a plateau or a smooth excitation repeats too, but never rests)."""
     stride = max(1, P // N_PROFILE)
+    w = sig.w
     if a < 0 or b < 0 or max(a, b) + P > w.size:
+        return np.inf
+    if not (sig.rest_and_motion(a, a + P) and sig.rest_and_motion(b, b + P)):
         return np.inf
     x, y = w[a:a + P:stride], w[b:b + P:stride]
     scale = max(float(np.sqrt(np.mean(x * x))), float(np.sqrt(np.mean(y * y))))
@@ -60,12 +89,12 @@ def _difference(w: np.ndarray, a: int, b: int, P: int) -> float:
     return float(np.sqrt(np.mean((x - y) ** 2))) / scale
 
 
-def _similar(w: np.ndarray, a: int, b: int, P: int) -> bool:
+def _similar(w: _Signal, a: int, b: int, P: int) -> bool:
     """Velocity over ``[a, a+P)`` and ``[b, b+P)`` agree within ``R_SHAPE`` (relative RMS)."""
     return _difference(w, a, b, P) <= R_SHAPE
 
 
-def _next_start(onsets: np.ndarray, w: np.ndarray, prev: int, target: int, P: int, tol: int,
+def _next_start(onsets: np.ndarray, w: _Signal, prev: int, target: int, P: int, tol: int,
                 virtual: bool) -> int | None:
     """Start of the cycle after the one at ``prev``: the onset within ``tol`` of ``target`` or, when
     ``virtual``, ``target`` itself, whichever repeats the previous cycle best; None if none does."""
@@ -80,7 +109,7 @@ def _next_start(onsets: np.ndarray, w: np.ndarray, prev: int, target: int, P: in
     return cands[k] if diffs[k] <= R_SHAPE else None
 
 
-def _chain(onsets: np.ndarray, w: np.ndarray, start: int, P: int, tol: int, virtual: bool) -> list[int]:
+def _chain(onsets: np.ndarray, w: _Signal, start: int, P: int, tol: int, virtual: bool) -> list[int]:
     """Cycle starts of the chain from ``start`` with period ``P`` samples."""
     chain = [start]
     period = float(P)
@@ -92,7 +121,7 @@ def _chain(onsets: np.ndarray, w: np.ndarray, start: int, P: int, tol: int, virt
         period = (chain[-1] - chain[0]) / (len(chain) - 1)
 
 
-def _extend_back(onsets: np.ndarray, w: np.ndarray, chain: list[int], P: int, tol: int, floor: int
+def _extend_back(onsets: np.ndarray, w: _Signal, chain: list[int], P: int, tol: int, floor: int
                  ) -> list[int]:
     """Prepend earlier cycles with the same profile: at an onset one period back, or exactly one period
     back when the joint was already moving (the run's first cycle follows its approach move)."""
@@ -112,58 +141,91 @@ def _extend_back(onsets: np.ndarray, w: np.ndarray, chain: list[int], P: int, to
         out.insert(0, cands[k])
 
 
-def _autocorr_periods(w: np.ndarray, a: int, b: int, p_min: int) -> list[int]:
-    """Lags [samples] of the autocorrelation peaks (above ``R_AUTOCORR``) of the velocity over
-    ``[a, b)``, at most ``(b - a) / MIN_CYCLES`` long."""
+def _autocorr_periods(w: np.ndarray, a: int, b: int, p_min: int, level: float = R_AUTOCORR,
+                      most: int = 8) -> list[int]:
+    """Lags [samples] of the autocorrelation peaks (above ``level``, the ``most`` highest) of the
+    velocity over ``[a, b)``, at most ``(b - a) / MIN_CYCLES`` long. The velocity is averaged in bins so
+    that at most 2^16 points are transformed."""
     L = b - a
     stride = max(1, L // 65536)
-    x = w[a:b:stride]
-    m = x.size
+    m = L // stride
     if m < 8:
         return []
+    x = w[a:a + m * stride].reshape(m, stride).mean(axis=1)
     nfft = 1 << int(np.ceil(np.log2(2 * m)))
     spec = np.fft.rfft(x, nfft)
     ac = np.fft.irfft(spec * np.conj(spec), nfft)[:m]
-    overlap = np.arange(m, 0, -1, dtype=float)
-    e = np.cumsum((x * x)[::-1])[::-1]  # energy of the tail x[k:]
-    e_head = np.cumsum(x * x)[::-1]     # energy of x[:m-k]
-    norm = np.sqrt(np.maximum(e * e_head, 1e-300))
-    r = ac / norm
+    xx = x * x
+    tail = np.cumsum(xx[::-1])[::-1]          # energy of x[k:]
+    head = np.cumsum(xx)[::-1]                # energy of x[:m-k]
+    r = ac / np.sqrt(np.maximum(tail * head, 1e-300))
     lo = max(2, p_min // stride)
     hi = m // MIN_CYCLES
     if hi <= lo + 2:
         return []
     seg = r[lo:hi]
-    peak = (seg[1:-1] > seg[:-2]) & (seg[1:-1] >= seg[2:]) & (seg[1:-1] >= R_AUTOCORR)
-    lags = (np.flatnonzero(peak) + 1 + lo) * stride
-    del overlap
-    return [int(v) for v in lags[:8]]
+    peak = np.flatnonzero((seg[1:-1] > seg[:-2]) & (seg[1:-1] >= seg[2:]) & (seg[1:-1] >= level)) + 1
+    if peak.size > most:
+        peak = peak[np.argsort(seg[peak])[::-1][:most]]
+    return [int(v) for v in np.sort((peak + lo) * stride)]
 
 
-def _best_chain(onsets: np.ndarray, w: np.ndarray, i: int, tol_min: int, extra: list[int]):
+def _best_chain(onsets: np.ndarray, w: _Signal, i: int, tol_min: int, extra: list[int], p_min: int):
     """(cover, starts, period) of the best chain from onset ``i``, or None."""
     n = w.size
     start = int(onsets[i])
-    # continuous-motion periods first: a chain allowed to continue without onsets covers the same
-    # cycles as one that needs them, and more
-    cands = [(p, True) for p in extra]
-    cands += [(int(onsets[j] - start), False) for j in range(i + 1, min(onsets.size, i + 1 + LOOKAHEAD))]
+    cands = list(extra) + [int(onsets[j] - start) for j in range(i + 1, min(onsets.size, i + 1 + LOOKAHEAD))]
     best = None
     tried: list[int] = []
-    for P, virtual in cands:
-        if P <= 0 or start + MIN_CYCLES * P > n + tol_min:
+    for P in cands:
+        if P < p_min or start + MIN_CYCLES * P > w.size + tol_min:
             continue
         tol = max(tol_min, int(R_PERIOD * P))
         if any(abs(P - p) <= tol for p in tried):
             continue
         tried.append(P)
-        ch = _chain(onsets, w, start, P, tol, virtual)
+        ch = _chain(onsets, w, start, P, tol, True)
         if len(ch) < MIN_CYCLES:
             continue
         cover = ch[-1] + P - start
         if best is None or cover > best[0] + 2 * tol or (cover >= best[0] - 2 * tol and P < best[2]):
             best = (cover, ch, P)
     return best
+
+
+def _settle(onsets: np.ndarray, w: _Signal, ch: list[int], P: int, tol_min: int, p_min: int
+            ) -> tuple[list[int], int]:
+    """Fundamental period and phase of a chain. Period: the shortest P / m that chains as far from the
+    second cycle on (the first may hold the run's approach). Phase: the earliest onset within the first
+    period from which the next period repeats about as well as it does from the best such onset (the
+    run starts where the repetition starts)."""
+    if len(ch) < 2:
+        return ch, P
+    end = ch[-1] + P
+    anchor = ch[1]
+    for m in range(6, 1, -1):
+        q = int(round(P / m))
+        if q < p_min:
+            continue
+        tol = max(tol_min, int(R_PERIOD * q))
+        sub = _chain(onsets, w, anchor, q, tol, True)
+        if sub[-1] + q >= end - tol and len(sub) >= MIN_CYCLES:
+            P = q
+            break
+    lo = int(np.searchsorted(onsets, ch[0]))
+    hi = int(np.searchsorted(onsets, ch[0] + P))
+    cands = [int(c) for c in onsets[lo:hi]] or [ch[0]]
+    diffs = np.array([_difference(w, c, c + P, P) for c in cands])
+    if np.all(~np.isfinite(diffs)):
+        return ch, P
+    best = float(np.nanmin(diffs))
+    ok = np.flatnonzero(diffs <= max(2.0 * best, best + 0.05))
+    start = cands[int(ok[0])]
+    tol = max(tol_min, int(R_PERIOD * P))
+    out = _chain(onsets, w, start, P, tol, True)
+    if len(out) < MIN_CYCLES:
+        return ch, P
+    return out, P
 
 
 def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, tol_min: int
@@ -174,10 +236,14 @@ def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, 
     rest_min : shortest rest that separates two stretches of motion [samples]. tol_min : onset jitter.
     """
     n = w.size
-    onsets = motion_onsets(moving, gap_min)
+    onsets, gaps = motion_onsets(moving, gap_min)
     if onsets.size == 0:
         return []
-    # stretches of motion without a rest: their starts may open cycles that never stop
+    # periods that repeat somewhere in the log, and stretches of motion without a rest (their starts
+    # may open cycles that never stop)
+    common = _autocorr_periods(w, 0, n, 2 * gap_min, R_AUTOCORR_LOG, 16)
+    raw = w
+    w = _Signal(raw, moving, rest_min)  # noqa: PLW2901 - the chain functions take the signal object
     bs, be = runs(fill_short(moving, rest_min, False))
     block_end = {int(s): int(e) for s, e in zip(bs, be)}
     claimed = -1
@@ -190,11 +256,14 @@ def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, 
         best, bi = None, i
         k = i
         while k < onsets.size and (k == i or (best is not None and onsets[k] < onsets[i] + best[2])):
-            extra = []
+            if k > i and gaps[k] < rest_min:  # later starts: only after a rest
+                k += 1
+                continue
+            extra = list(common)
             e = block_end.get(int(onsets[k]))
             if e is not None and e - onsets[k] >= MIN_CYCLES * 2 * gap_min:
-                extra = _autocorr_periods(w, int(onsets[k]), e, 2 * gap_min)
-            cand = _best_chain(onsets, w, k, tol_min, extra)
+                extra += _autocorr_periods(raw, int(onsets[k]), e, 2 * gap_min)
+            cand = _best_chain(onsets, w, k, tol_min, extra, 2 * rest_min)
             if cand is not None and (best is None or cand[0] > best[0] + 2 * tol_min):
                 best, bi = cand, k
             k += 1
@@ -202,6 +271,7 @@ def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, 
             i += 1
             continue
         _, ch, P = best
+        ch, P = _settle(onsets, w, ch, P, tol_min, 2 * gap_min)
         ch = _extend_back(onsets, w, ch, P, max(tol_min, int(R_PERIOD * P)), claimed)
         starts = np.asarray(ch, dtype=np.int64)
         period = int(round((starts[-1] - starts[0]) / (starts.size - 1)))
@@ -211,7 +281,7 @@ def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, 
     return _whole_cycles(chains, w)
 
 
-def _whole_cycles(chains: list[tuple[np.ndarray, int]], w: np.ndarray) -> list[tuple[np.ndarray, int]]:
+def _whole_cycles(chains: list[tuple[np.ndarray, int]], w: _Signal) -> list[tuple[np.ndarray, int]]:
     """A chain of period P whose cycle repeats the first P of another chain's period Q = m P (the joint
     moves in every slot of a Q cycle, so nothing marks the cycle start) takes the period Q."""
     out = []
