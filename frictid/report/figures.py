@@ -289,10 +289,11 @@ def timeline(t, q, w, tau, segments, units: dict, title: str, salt: str) -> Rend
         rib.tick_params(labelbottom=False)
         rib.set_title(title, loc="left")
         for ax, (name, y, unit) in zip(axes, rows):
-            for k in SHADED:
-                colour, _ = KIND_STYLE[k]
-                for a, b in spans.get(k, []):
-                    ax.axvspan(a / div, (a + b) / div, color=colour, alpha=0.13, lw=0)
+            for k in SHADED:  # one collection per kind, spanning the axes' height
+                rects = [(a / div, b / div) for a, b in spans.get(k, [])]
+                if rects:
+                    ax.broken_barh(rects, (0, 1), transform=ax.get_xaxis_transform(), facecolors=KIND_STYLE[k][0],
+                                   alpha=0.13, edgecolor="none", zorder=0)
             xd, yd = minmax_decimate(t, np.asarray(y, float))
             points += xd.size
             ax.plot(xd / div, yd, color=BLACK, lw=0.7)

@@ -1,0 +1,135 @@
+"""Report benchmark: size and time of the HTML report of a 6-joint, one-hour, 1 kHz log.
+
+    python benchmarks/bench_report.py               # 6 joints x 60 min at 1 kHz (21.6 M samples)
+    python benchmarks/bench_report.py --quick       # 2 joints x 5 min, for a smoke run
+    python benchmarks/bench_report.py --keep DIR    # keep the report (and its screenshot) in DIR
+
+The logs: a 10-minute plant run per joint (plateaus, presliding ramps, torque steps, duty cycles on the
+geared industrial joint, one seed per joint) repeated end to end to one hour. The parameter file: one
+real identification of a short run of the same recipe, copied to every joint, with a diagnosis entry.
+The report is built as ``frictid report`` builds it (the real segmenter on every log), timed per part,
+then loaded in headless Chromium when one is installed (load time to the load event).
+
+Targets (issue): under 5 MB, and under 10 s to render.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+
+RECIPE = {
+    "name": "bench_report",
+    "description": "every experiment kind, about ten minutes",
+    "default_plant": "geared_industrial",
+    "temp_env": 25.0,
+    "start_rest": 1.0,
+    "experiments": [
+        {"kind": "constant_velocity", "velocities": {"min": 0.01, "max": 0.95, "count": 10, "spacing": "log"},
+         "relative": True, "signs": "both", "plateau": 3.0, "min_plateau": 0.5, "accel": 0.5, "gap": 0.3,
+         "rest": 1.0},
+        {"kind": "ramp_presliding", "peaks": [0.3, 0.6], "relative": True, "signs": "both", "ramp_up": 3.0,
+         "hold": 1.0, "ramp_down": 3.0, "settle": 1.0, "rest": 1.0},
+        {"kind": "torque_steps", "levels": [0.3, 0.6], "relative": True, "signs": "both", "hold": 0.5,
+         "release": 0.3, "settle": 0.5, "rest": 1.0},
+        {"kind": "duty_cycle", "duty": 0.5, "cycles": 10, "cycle_time": 48.0, "slots": 4, "cold_start": True,
+         "rest": 2.0},
+    ],
+}
+
+
+def tile(log, joint: str, minutes: float):
+    """The log repeated end to end up to ``minutes`` (time continues, every channel repeats)."""
+    from frictid.data import JointLog
+
+    span = float(log.t[-1] - log.t[0]) + log.dt
+    reps = int(np.ceil(minutes * 60.0 / span))
+    n = int(round(minutes * 60.0 / log.dt))
+    t = (np.arange(reps)[:, None] * span + (log.t - log.t[0])[None, :]).ravel()[:n]
+
+    def rep(x):
+        return None if x is None else np.tile(np.asarray(x), reps)[:n]
+    return JointLog(joint=joint, t=t, tau=rep(log.tau), q=rep(log.q), qd=rep(log.qd),
+                    channels={k: rep(v) for k, v in log.channels.items()}, axis=log.axis, meta=dict(log.meta),
+                    source=f"bench:{joint}")
+
+
+def make_inputs(n_joints: int, minutes: float, workdir: Path):
+    import frictid
+    from frictid.plant import simulate_recipe
+
+    recipe = workdir / "bench_recipe.yaml"
+    recipe.write_text(yaml.safe_dump(RECIPE))
+    t0 = time.perf_counter()
+    base = [simulate_recipe(str(recipe), seed=s)[0] for s in range(n_joints)]
+    logs = [tile(b, f"j{i + 1}", minutes) for i, b in enumerate(base)]
+    t_sim = time.perf_counter() - t0
+    # one identification of a short run (plateaus, ramps, steps), copied to every joint
+    short = simulate_recipe(str(recipe), seed=99, duration_scale=0.1)[0]
+    t0 = time.perf_counter()
+    res = frictid.fit([short], models="coulomb_viscous,stribeck,polynomial,lugre")
+    t_fit = time.perf_counter() - t0
+    d = res.to_dict()
+    jd = next(iter(d["joints"].values()))
+    jd["diagnosis"] = [{"cause": "position dependence", "evidence": "benchmark finding", "statistic": {"F": 3.0},
+                        "extension": {"name": "position", "params": {"pos_amp": 0.02, "pos_period": 1.0}},
+                        "rms_before": 1.0, "rms_after": 0.9, "gain": 0.1, "heldout": True}]
+    d["joints"] = {lg.joint: jd for lg in logs}
+    return d, logs, t_sim, t_fit
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--joints", type=int, default=6)
+    ap.add_argument("--minutes", type=float, default=60.0)
+    ap.add_argument("--quick", action="store_true", help="2 joints x 5 minutes")
+    ap.add_argument("--keep", help="folder to keep the report and the screenshot in")
+    ap.add_argument("--no-browser", action="store_true")
+    a = ap.parse_args(argv)
+    if a.quick:
+        a.joints, a.minutes = 2, 5.0
+    work = Path(a.keep) if a.keep else Path(tempfile.mkdtemp(prefix="bench-report-"))
+    work.mkdir(parents=True, exist_ok=True)
+    params, logs, t_sim, t_fit = make_inputs(a.joints, a.minutes, work)
+    n = sum(lg.n for lg in logs)
+    print(f"inputs: {a.joints} joints x {a.minutes:g} min, {n / 1e6:.1f} M samples "
+          f"(simulated in {t_sim:.1f} s; parameter file fitted in {t_fit:.1f} s)")
+
+    from frictid.report import write_report
+
+    out = work / "report.html"
+    timings: dict = {}
+    t0 = time.perf_counter()
+    size = write_report(str(out), params, logs, params_path="bench_params.yaml",
+                        command="python benchmarks/bench_report.py", timings=timings)
+    total = time.perf_counter() - t0
+    parts = ", ".join(f"{k} {v:.1f} s" for k, v in timings.items())
+    print(f"report: {size / 1e6:.2f} MB in {total:.1f} s ({parts})")
+    print(f"  segmentation and derivatives (the fit's own, on every sample): {timings.get('segments', 0):.1f} s; "
+          f"figures and HTML: {total - timings.get('segments', 0):.1f} s")
+    ok = size < 5e6
+    if not a.no_browser:
+        sys.path.insert(0, str(ROOT / "tests"))
+        from test_report_browser import find_browser, load_report
+        exe = find_browser()
+        if exe is None:
+            print("browser: no Chromium installed; load time not measured")
+        else:
+            r = load_report(exe, out, work / "report.png")
+            c = r["checks"]
+            print(f"browser: loaded in {r['load_s']:.2f} s, {c['figures']} figures, page {c['height']} px high, "
+                  f"console errors {len(r['errors'])}, overflow {len(c['overflow'])}")
+            ok = ok and r["load_s"] < 10.0 and not r["errors"]
+    print(f"targets (< 5 MB, browser < 10 s): {'met' if ok else 'NOT met'}; report in {out}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
