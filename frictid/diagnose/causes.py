@@ -1,0 +1,211 @@
+"""The candidate causes: for each, the extension terms it proposes and how their nonlinear settings
+(period, time constant, Stribeck velocity) are chosen, on training data only.
+
+Every proposal is made inside a held-out fold from that fold's training samples, so the choice of a
+period or a time constant is part of what the held-out error judges.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .model import Context, Evaluator, Structure, Term
+from .samples import Samples
+
+#: The causes, in the order the issue names them (``presliding`` is judged on ramp and step segments).
+CAUSES = ("temperature", "position", "load", "asymmetry", "stribeck", "presliding", "inertia", "gravity",
+          "offset", "drift")
+
+#: Extension name -> (cause, role, number of coefficients).
+EXTENSIONS = {
+    "thermal4": ("temperature", "whole_factor", 1),
+    "thermal6": ("temperature", "thermal6", 4),
+    "position_periodic": ("position", "level_factor", 2),
+    "position_smooth": ("position", "level_factor", 2),
+    "load_tau": ("load", "level_factor", 1),
+    "load_gravity": ("load", "level_factor", 1),
+    "load_payload": ("load", "level_factor", 1),
+    "asym": ("asymmetry", "asym", None),  # as many as the base map's amplitudes
+    "stribeck": ("stribeck", "stribeck", 1),
+    "inertia": ("inertia", "additive", 1),
+    "gravity": ("gravity", "additive", 2),
+    "offset": ("offset", "additive", 1),
+    "drift": ("drift", "whole_factor", 1),
+}
+
+#: Time constants tried for the thermal state, per decade.
+TAU_PER_DECADE = 5
+#: Fewest periods the position range must hold for a periodic term.
+MIN_PERIODS = 2.0
+
+
+def n_coef(ext: str, st: Structure) -> int:
+    k = EXTENSIONS[ext][2]
+    return len(st.slots()) if k is None else k
+
+
+def candidates(S: Samples, st: Structure) -> list[str]:
+    """Extensions worth testing on these samples on top of structure st (one cause enters once)."""
+    have = {t.cause for t in st.terms}
+    out = []
+    span_h = float(S.th.max() - S.th.min())
+    if "temperature" not in have and span_h * 3600 > 20 * _dt(S):
+        out += ["thermal4", "thermal6"]
+    if "position" not in have and S.q is not None and np.ptp(S.q) > 0:
+        out.append("position_smooth")
+        if _period_range(S) is not None:
+            out.append("position_periodic")
+    if "load" not in have:
+        out.append("load_tau")
+        if np.std(S.G) > 1e-9 * (np.std(S.F) + 1e-300) and np.std(S.G) > 0:
+            out.append("load_gravity")
+        if S.payload is not None and np.std(S.payload) > 0:
+            out.append("load_payload")
+    if "asymmetry" not in have and (S.w > 0).any() and (S.w < 0).any():
+        out.append("asym")
+    if "stribeck" not in have and 1 not in st.slots():
+        out.append("stribeck")
+    if "inertia" not in have and np.std(S.a) > 0:
+        out.append("inertia")
+    if "gravity" not in have and S.q is not None and S.axis_rotary and np.ptp(S.q) > 0:
+        out.append("gravity")
+    if "offset" not in have:
+        out.append("offset")
+    if "drift" not in have and span_h > 0:
+        out.append("drift")
+    return out
+
+
+def _dt(S: Samples) -> float:
+    lg = S.logs[0]
+    return float(np.median(np.diff(lg.t))) if lg.n > 1 else 1.0
+
+
+def _period_range(S: Samples):
+    """(shortest, longest) period [q] a periodic position term may have, or None."""
+    rng = float(np.ptp(S.q))
+    dq = float(np.median(np.abs(S.w))) * _dt(S) * max(S.decimation, 1)
+    p_min = max(10 * dq, rng / 2000.0)
+    p_max = rng / MIN_PERIODS
+    return (p_min, p_max) if p_max > 2 * p_min else None
+
+
+def tau_grid(S: Samples) -> np.ndarray:
+    """Thermal time constants [s] tried: from 1/100 of the recording span to 3 spans."""
+    span = max(float(S.th.max() - S.th.min()) * 3600.0, 10 * _dt(S))
+    lo, hi = span / 100.0, 3.0 * span
+    n = max(3, int(round(TAU_PER_DECADE * math.log10(hi / lo))) + 1)
+    return np.geomspace(lo, hi, n)
+
+
+def _fit_rms(ctx: Context, st: Structure, idx) -> float:
+    return Evaluator(st, ctx).fit(idx).rms
+
+
+def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.ndarray, level: np.ndarray
+            ) -> Term | None:
+    """The term of extension ``ext`` on top of st, its settings chosen on the training samples idx.
+
+    resid : the current model's residual on idx (training); level : the current model's signed level
+    ``mL g`` on idx (for the periodogram of the position term).
+    """
+    S = ctx.S
+    cause, role, _ = EXTENSIONS[ext]
+    if ext in ("thermal4", "thermal6"):
+        best = None
+        sources = ["heat_balance"] + (["temp_joint"] if S.temp_joint is not None else [])
+        for src in sources:
+            taus = tau_grid(S) if src == "heat_balance" else [1.0]
+            for tc in taus:
+                term = Term(cause, ext, role, (("source", src), ("tau_c", float(tc))))
+                r = _fit_rms(ctx, st.plus(term), idx)
+                if best is None or r < best[0]:
+                    best = (r, term)
+        return best[1] if best else None
+    if ext == "position_periodic":
+        P = best_period(S.q[idx], resid, level, _period_range(S))
+        return None if P is None else Term(cause, ext, role, (("period", float(P)),))
+    if ext == "position_smooth":
+        q0 = float(0.5 * (S.q.max() + S.q.min()))
+        qs = float(0.5 * np.ptp(S.q)) or 1.0
+        return Term(cause, ext, role, (("q0", q0), ("qs", qs)))
+    if ext.startswith("load_"):
+        var = {"load_tau": np.abs(S.tau), "load_gravity": np.abs(S.G), "load_payload": S.payload}[ext]
+        sc = float(np.sqrt(np.mean(var * var))) or 1.0
+        return Term(cause, ext, role, (("scale", sc),))
+    if ext == "stribeck":
+        best = None
+        for vs in np.geomspace(max(S.v_min, 1e-12), S.w0 / 3.0, 12):
+            for d in (1.0, 2.0):
+                term = Term(cause, ext, role, (("vs", float(vs)), ("delta", d)))
+                r = _fit_rms(ctx, st.plus(term), idx)
+                if best is None or r < best[0]:
+                    best = (r, term)
+        return best[1]
+    return Term(cause, ext, role, ())
+
+
+def best_period(q, resid, level, prange, n_keep: int = 3) -> float | None:
+    """Period [q] of the level modulation ``level (a sin + b cos)(2 pi q / P)`` that best explains resid.
+
+    A least-squares periodogram over frequencies ``1/P`` from ``1/P_max`` to ``1/P_min`` at a quarter
+    cycle over the range: the sums of its 2x2 normal equations come from FFTs of ``resid * level`` and
+    ``level^2`` binned in position (bins of ``P_min / 8``); the best few peaks are then refined with the
+    exact sums on a fine grid.
+    """
+    if prange is None or q.size < 20:
+        return None
+    p_min, p_max = prange
+    q = np.asarray(q, float)
+    rr = np.asarray(resid, float) * np.asarray(level, float)
+    gg = np.asarray(level, float) ** 2
+    q0 = float(q.min())
+    rng = float(np.ptp(q))
+    h = p_min / 8.0
+    nb = int(rng / h) + 1
+    j = np.minimum(((q - q0) / h).astype(np.int64), nb - 1)
+    A = np.bincount(j, weights=rr, minlength=nb)
+    B = np.bincount(j, weights=gg, minlength=nb)
+    N = 1 << int(math.ceil(math.log2(max(8 * nb, 16))))
+    FA = np.fft.rfft(A, N)
+    FB = np.fft.rfft(B, N)
+    k = np.arange(FA.size)
+    f = k / (N * h)
+    ok = (f >= 1.0 / p_max) & (f <= 1.0 / p_min) & (2 * k < FB.size)
+    if not ok.any():
+        return None
+    k, f = k[ok], f[ok]
+    qc = q0 + 0.5 * h  # bin centres q0 + (j + 1/2) h
+    Cr = FA[k] * np.exp(-2j * np.pi * f * qc)
+    D = FB[2 * k] * np.exp(-4j * np.pi * f * qc)
+    sB = B.sum()
+    cr, sr = Cr.real, -Cr.imag
+    cc, ss, sc = 0.5 * (sB + D.real), 0.5 * (sB - D.real), -0.5 * D.imag
+    det = ss * cc - sc * sc
+    det = np.where(det > 0, det, np.inf)
+    score = (cc * sr * sr - 2 * sc * sr * cr + ss * cr * cr) / det
+
+    m = min(q.size, 20000)
+    sel = np.linspace(0, q.size - 1, m).astype(int)
+    qq, r1, g1 = q[sel], np.asarray(resid, float)[sel], np.asarray(level, float)[sel]
+
+    def exact(freqs):
+        ph = 2 * np.pi * np.outer(freqs, qq)
+        s_, c_ = np.sin(ph) * g1, np.cos(ph) * g1
+        a, b, x = (s_ * s_).sum(1), (c_ * c_).sum(1), (s_ * c_).sum(1)
+        u, v = s_ @ r1, c_ @ r1
+        dd = a * b - x * x
+        dd = np.where(dd > 0, dd, np.inf)
+        return (b * u * u - 2 * x * u * v + a * v * v) / dd
+
+    df = 1.0 / (N * h)
+    best_f, best_s = None, -np.inf
+    for i in np.argsort(score)[::-1][:n_keep]:
+        fine = np.linspace(f[i] - 2 * df, f[i] + 2 * df, 17)
+        fine = fine[fine > 0]
+        s2 = exact(fine)
+        jj = int(np.argmax(s2))
+        if s2[jj] > best_s:
+            best_s, best_f = s2[jj], fine[jj]
+    return None if best_f is None else 1.0 / best_f

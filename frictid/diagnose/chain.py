@@ -1,0 +1,192 @@
+"""The diagnosis chain: test every candidate cause on held-out segments, extend the model with the
+best significant one, repeat; then write the findings and the extended models.
+
+Judging a candidate (:func:`evaluate`). In each of the ``n_folds`` folds the current model and the
+extended one are both refitted on the other folds (the extension's period, time constant or variable
+chosen there too) and predict the held-out fold; every sliding sample is predicted exactly once by fits
+that never saw its segment. Then, per held-out group ``g`` (a segment or a chunk of one),
+``d_g = sum (r_before^2 - r_after^2)``; the candidate is *significant* when the mean of ``d_g`` is
+positive with a one-sided Student t statistic over the groups above the ``1 - ALPHA / m`` quantile
+(``m`` candidates tested at this step: Bonferroni). Samples within a group are never treated as
+independent. The gain is ``1 - rms_after / rms_before`` over all held-out samples.
+
+Worth it (:func:`worth_it`). A significant extension enters the model when its gain is at least
+:data:`GAIN_MIN` and the RMS it explains, ``sqrt(rms_before^2 - rms_after^2)``, is at least
+:data:`EXPLAINED_MIN` of the friction RMS: very large logs make tiny, real but useless corrections
+significant (a 1 % inertia error), and a model term must pay for itself.
+
+Choice among the worthy candidates (:func:`choose`): the lowest held-out RMS, except that a candidate
+with fewer coefficients wins when the best is not significantly better than it (the same paired test
+between the two). This keeps a torque offset from being named an asymmetry (per-sign amplitudes can
+absorb an offset, with more coefficients).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from .causes import EXTENSIONS, candidates, n_coef, propose
+from .model import Coef, Context, Evaluator, Structure, Term
+from .samples import Samples
+
+#: Family-wise false-finding level of one step of the chain (split over its candidates).
+ALPHA = 0.01
+#: Smallest held-out gain worth a model term.
+GAIN_MIN = 0.05
+#: Smallest RMS a term must explain, as a fraction of the friction RMS.
+EXPLAINED_MIN = 0.02
+#: Longest chain.
+MAX_STEPS = 6
+
+
+@dataclass
+class Trial:
+    """One candidate extension judged on held-out folds."""
+
+    ext: str
+    cause: str
+    pred_before: np.ndarray
+    pred_after: np.ndarray
+    fold_terms: list
+    fold_coefs: list
+    rms_before: float
+    rms_after: float
+    gain: float
+    t: float
+    p: float
+    groups: int
+    explained: float
+    k: int
+    d: np.ndarray = field(repr=False, default=None)
+
+    def record(self) -> dict:
+        return {"extension": self.ext, "rms_before": self.rms_before, "rms_after": self.rms_after,
+                "gain": self.gain, "t": self.t, "p": self.p}
+
+
+def group_d(S: Samples, rb: np.ndarray, ra: np.ndarray) -> np.ndarray:
+    """Per held-out group: sum of (r_before^2 - r_after^2)."""
+    return np.bincount(S.group, weights=rb * rb - ra * ra, minlength=S.n_groups)
+
+
+def paired_t(d: np.ndarray) -> tuple[float, float]:
+    """One-sided t statistic and p-value that the mean of d is positive (groups as the units)."""
+    d = d[np.isfinite(d)]
+    G = d.size
+    if G < 3:
+        return 0.0, 1.0
+    sd = float(np.std(d, ddof=1))
+    if sd == 0:
+        return (math.inf, 0.0) if d.mean() > 0 else (0.0, 1.0)
+    t = float(d.mean() / (sd / math.sqrt(G)))
+    return t, float(stats.t.sf(t, G - 1))
+
+
+class Chain:
+    """Runs the diagnosis on one joint's samples from a base structure."""
+
+    def __init__(self, S: Samples, base: Structure):
+        self.S = S
+        self.ctx = Context(S)
+        self.st = base
+        self.idx_all = np.arange(S.n)
+        self.F_rms = float(np.sqrt(np.mean(S.F ** 2)))
+        self.steps: list[dict] = []
+        self.history: list[tuple[Structure, Coef, np.ndarray]] = []
+        self._before(base)
+
+    # -- the current model, refitted per fold ---------------------------------------------------------
+    def _before(self, st: Structure):
+        S = self.S
+        ev = Evaluator(st, self.ctx)
+        pred = np.empty(S.n)
+        self.train_info = []
+        for f in range(S.n_folds):
+            tr = np.flatnonzero(S.fold != f)
+            te = np.flatnonzero(S.fold == f)
+            c = ev.fit(tr)
+            pred[te] = ev.predict(c, te)
+            self.train_info.append((tr, te, S.F[tr] - ev.predict(c, tr), ev.level(c, tr), c))
+        self.pred = pred
+        self.coef = ev.fit(self.idx_all)
+        self.history.append((st, self.coef, pred))
+
+    @property
+    def rms_heldout(self) -> float:
+        r = self.S.F - self.pred
+        return float(np.sqrt(np.mean(r * r)))
+
+    # -- one candidate -------------------------------------------------------------------------------
+    def evaluate(self, ext: str, m: int) -> Trial | None:
+        S = self.S
+        after = np.empty(S.n)
+        terms, coefs = [], []
+        for f, (tr, te, res, lev, _) in enumerate(self.train_info):
+            term = propose(ext, self.ctx, self.st, tr, res, lev)
+            if term is None:
+                return None
+            ev = Evaluator(self.st.plus(term), self.ctx)
+            c = ev.fit(tr)
+            after[te] = ev.predict(c, te)
+            terms.append(term)
+            coefs.append(c)
+        rb = S.F - self.pred
+        ra = S.F - after
+        d = group_d(S, rb, ra)
+        t, p = paired_t(d)
+        rms_b = float(np.sqrt(np.mean(rb * rb)))
+        rms_a = float(np.sqrt(np.mean(ra * ra)))
+        gain = 1.0 - rms_a / rms_b if rms_b > 0 else 0.0
+        expl = math.sqrt(max(rms_b ** 2 - rms_a ** 2, 0.0))
+        return Trial(ext, EXTENSIONS[ext][0], self.pred.copy(), after, terms, coefs, rms_b, rms_a, gain, t, p,
+                     int(np.count_nonzero(np.bincount(S.group, minlength=S.n_groups))), expl,
+                     n_coef(ext, self.st), d)
+
+    def significant(self, tr: Trial, m: int) -> bool:
+        return tr.p < ALPHA / max(m, 1)
+
+    def worth_it(self, tr: Trial) -> bool:
+        return tr.gain >= GAIN_MIN and tr.explained >= EXPLAINED_MIN * self.F_rms
+
+    def choose(self, trials: list[Trial], m: int) -> Trial | None:
+        ok = [t for t in trials if self.significant(t, m) and self.worth_it(t)]
+        if not ok:
+            return None
+        ok.sort(key=lambda t: t.rms_after)
+        best = ok[0]
+        # a simpler candidate wins when the best is not significantly better than it
+        for t in sorted(ok[1:], key=lambda t: (t.k, t.rms_after)):
+            if t.k >= best.k:
+                continue
+            _, p = paired_t(group_d(self.S, self.S.F - t.pred_after, self.S.F - best.pred_after))
+            if p >= ALPHA / max(m, 1):
+                best = t
+        return best
+
+    # -- the loop --------------------------------------------------------------------------------------
+    def run(self, max_steps: int = MAX_STEPS) -> list[dict]:
+        for _ in range(max_steps):
+            exts = candidates(self.S, self.st)
+            if not exts:
+                break
+            m = len(exts)
+            trials = [t for t in (self.evaluate(e, m) for e in exts) if t is not None]
+            best = self.choose(trials, m)
+            step = {"tested": [t.record() for t in trials], "m": m}
+            if best is None:
+                step["chosen"] = None
+                self.steps.append(step)
+                break
+            res = self.S.F - self.pred
+            ev0 = Evaluator(self.st, self.ctx)
+            term = propose(best.ext, self.ctx, self.st, self.idx_all, res, ev0.level(self.coef, self.idx_all))
+            st_new = self.st.plus(term)
+            step.update(chosen=best, term=term, structure=st_new, before=self.st, coef_before=self.coef)
+            self.steps.append(step)
+            self.st = st_new
+            self._before(st_new)
+            step["coef"] = self.coef
+        return self.steps

@@ -1,0 +1,411 @@
+"""The diagnosis' model family: a base static map and the extension terms, fitted by alternating least
+squares, converted to parameter-file entries that :mod:`frictid.replay` runs.
+
+A model predicts the friction torque of a sliding sample as (the same structure as the replay kernel)::
+
+    F = mA (mL (g(w) + dc0 x sgn w) + f(w) + x (dc1 w + dc2 w|w| + dc3 w^3)) + sum_j gamma_j phi_j
+
+- ``g(w) = sgn(w) [a0 + a1 e1(|w|) + a2 e2(|w|)]`` and ``f(w) = b1 w + b2 w|w| + b3 w^3``: the base map's
+  canonical form (:mod:`frictid.models.static`) with its shape parameters (Stribeck velocities and
+  exponent) held at the base fit's values, so the amplitudes enter linearly; per-sign amplitudes when
+  the ``asym`` extension is in; a Stribeck column when the ``stribeck`` extension adds one;
+- ``mL = prod_i (1 + phi_i gamma_i)``: level factors (``position_periodic`` sin/cos of ``2 pi q / P``,
+  ``position_smooth`` ``q - q0`` and ``(q - q0)^2``, ``load_*`` the transmitted torque, the gravity torque or
+  the payload);
+- ``mA``: whole-map factors (``drift`` hours on the drift clock, ``thermal4`` the thermal state ``x``);
+- ``thermal6``: slopes of a0, b1, b2, b3 per kelvin of ``x`` (002's c0'..c3');
+- additive terms: ``offset`` (1), ``inertia`` (acceleration), ``gravity`` (cos q, sin q).
+
+Given the factors the model is linear in the amplitudes and additive terms; given everything else it is
+linear in each factor's coefficients. :func:`fit` alternates these least-squares problems
+(:data:`N_SWEEPS` sweeps), which converges in a few sweeps because the factors stay near one.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..models import static as sm
+from .samples import Samples
+
+#: Alternating least-squares sweeps.
+N_SWEEPS = 4
+
+#: Canonical slots: level (a0, a1, a2) and viscous (b1, b2, b3).
+LEVEL_SLOTS = (0, 1, 4)
+VISCOUS_SLOTS = (6, 7, 8)
+
+#: Which canonical slots each base map uses.
+MAP_SLOTS = {
+    "coulomb_viscous": (0, 6),
+    "stribeck": (0, 1, 6),
+    "stribeck_2exp": (0, 1, 4, 6, 7),
+    "polynomial": (0, 6, 7, 8),
+}
+
+
+@dataclass(frozen=True)
+class Term:
+    """One extension. ext : its name; role : how it enters; nl : its nonlinear settings (period, time
+    constant, variable, ...), chosen before the linear fit."""
+
+    cause: str
+    ext: str
+    role: str  # level_factor, whole_factor, thermal6, additive, stribeck, asym
+    nl: tuple = ()
+
+    @property
+    def settings(self) -> dict:
+        return dict(self.nl)
+
+
+@dataclass
+class Structure:
+    """A base map (symmetric, shapes fixed) and the extension terms, in the order they were found."""
+
+    map: str
+    shapes: np.ndarray  # canonical vector of the base fit (only vs1, d1, vs2 are used)
+    terms: tuple = ()
+
+    @property
+    def asym(self) -> bool:
+        return any(t.role == "asym" for t in self.terms)
+
+    def has(self, ext_or_cause: str) -> bool:
+        return any(t.ext == ext_or_cause or t.cause == ext_or_cause for t in self.terms)
+
+    def plus(self, term: Term) -> "Structure":
+        return replace(self, terms=tuple(self.terms) + (term,))
+
+    @property
+    def name(self) -> str:
+        return "+".join([self.map] + [t.ext for t in self.terms])
+
+    def slots(self) -> tuple:
+        s = list(MAP_SLOTS[self.map])
+        if any(t.role == "stribeck" for t in self.terms) and 1 not in s:
+            s.append(1)
+        return tuple(sorted(s))
+
+
+@dataclass
+class Coef:
+    """Coefficients of a fitted :class:`Structure`: base amplitudes per canonical slot (and per sign),
+    thermal6 slopes, and each term's gamma (by term index)."""
+
+    base_pos: dict
+    base_neg: dict
+    dc: np.ndarray = field(default_factory=lambda: np.zeros(4))
+    gamma: dict = field(default_factory=dict)
+    rms: float = float("nan")
+    n: int = 0
+
+
+class Context:
+    """Column cache for one :class:`Samples` (columns of the base map and of each term)."""
+
+    def __init__(self, S: Samples):
+        self.S = S
+        self._cache: dict = {}
+        self.sgn = np.sign(S.w)
+        self.v = np.abs(S.w)
+
+    def base_column(self, slot: int, shapes, term_nl=None) -> np.ndarray:
+        key = ("base", slot, tuple(np.round(shapes[[2, 3, 5]], 12)), term_nl)
+        if key not in self._cache:
+            w, v, s = self.S.w, self.v, self.sgn
+            if slot == 0:
+                c = s
+            elif slot == 1:
+                vs, d = (shapes[2], shapes[3]) if term_nl is None else term_nl
+                c = s * np.exp(-np.power(v / vs, d))
+            elif slot == 4:
+                c = s * (1.0 - np.exp(-v / shapes[5]))
+            elif slot == 6:
+                c = w
+            elif slot == 7:
+                c = w * v
+            else:
+                c = w ** 3
+            self._cache[key] = c
+        return self._cache[key]
+
+    def term_columns(self, term: Term) -> np.ndarray:
+        key = ("term", term.ext, term.nl)
+        if key in self._cache:
+            return self._cache[key]
+        S, nl = self.S, term.settings
+        if term.ext == "position_periodic":
+            ph = 2 * np.pi * S.q / nl["period"]
+            c = np.column_stack([np.sin(ph), np.cos(ph)])
+        elif term.ext == "position_smooth":
+            d = (S.q - nl["q0"]) / nl["qs"]
+            c = np.column_stack([d, d * d])
+        elif term.ext.startswith("load_"):
+            var = {"load_tau": np.abs(S.tau), "load_gravity": np.abs(S.G),
+                   "load_payload": S.payload}[term.ext]
+            c = (var / nl["scale"])[:, None]
+        elif term.ext == "drift":
+            c = S.th[:, None]
+        elif term.ext in ("thermal4", "thermal6"):
+            x = self.thermal(nl["tau_c"], nl.get("source", "heat_balance"))
+            if term.ext == "thermal4":
+                c = x[:, None]
+            else:
+                w, v = S.w, self.v
+                c = np.column_stack([self.sgn * x, w * x, w * v * x, w ** 3 * x])
+        elif term.ext == "offset":
+            c = np.ones((S.n, 1))
+        elif term.ext == "inertia":
+            c = S.a[:, None]
+        elif term.ext == "gravity":
+            c = np.column_stack([np.cos(S.q), np.sin(S.q)])
+        else:
+            raise KeyError(term.ext)
+        self._cache[key] = c
+        return c
+
+    def thermal(self, tau_c: float, source: str = "heat_balance") -> np.ndarray:
+        key = ("thermal", round(float(tau_c), 9), source)
+        if key not in self._cache:
+            self._cache[key] = self.S.thermal_state(tau_c, measured=(source == "temp_joint"))
+        return self._cache[key]
+
+
+def _lstsq(X: np.ndarray, y: np.ndarray) -> np.ndarray:
+    if X.shape[1] == 0:
+        return np.zeros(0)
+    d = np.sqrt(np.einsum("ij,ij->j", X, X) / X.shape[0])
+    d[~(d > 0)] = 1.0
+    Xs = X / d
+    # normal equations of the scaled columns, solved by a rank-revealing pseudo-inverse
+    b = np.linalg.pinv(Xs.T @ Xs, rcond=1e-10, hermitian=True) @ (Xs.T @ y)
+    return b / d
+
+
+class Evaluator:
+    """Design pieces of one structure on one :class:`Context`, with :meth:`fit` and :meth:`predict`."""
+
+    def __init__(self, st: Structure, ctx: Context):
+        self.st, self.ctx = st, ctx
+        S = ctx.S
+        strib = next((t for t in st.terms if t.role == "stribeck"), None)
+        self.slots = st.slots()
+        cols = {}
+        for sl in self.slots:
+            nl = (strib.settings["vs"], strib.settings["delta"]) if (strib and sl == 1 and
+                                                                     1 not in MAP_SLOTS[st.map]) else None
+            cols[sl] = ctx.base_column(sl, st.shapes, nl)
+        self.base_cols = cols
+        self.pos = S.w >= 0
+        self.lf = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "level_factor"]
+        self.af = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "whole_factor"]
+        self.add = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "additive"]
+        self.t6 = next(((i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "thermal6"), None)
+
+    # pieces -----------------------------------------------------------------------------------------
+    def _gf(self, c: Coef, idx):
+        """Level part g (signed, incl. thermal6 dc0) and viscous part f at samples idx."""
+        g = np.zeros(idx.size)
+        f = np.zeros(idx.size)
+        pos = self.pos[idx]
+        for sl, col in self.base_cols.items():
+            amp = np.where(pos, c.base_pos.get(sl, 0.0), c.base_neg.get(sl, 0.0))
+            if sl in LEVEL_SLOTS:
+                g += amp * col[idx]
+            else:
+                f += amp * col[idx]
+        if self.t6 is not None:
+            X = self.t6[2][idx]
+            g += X[:, 0] * c.dc[0]
+            f += X[:, 1:] @ c.dc[1:]
+        return g, f
+
+    def _factor(self, group, c: Coef, idx, skip=None):
+        m = np.ones(idx.size)
+        for i, t, X in group:
+            if i == skip:
+                continue
+            m *= 1.0 + X[idx] @ np.atleast_1d(c.gamma.get(i, np.zeros(X.shape[1])))
+        return m
+
+    def _additive(self, c: Coef, idx):
+        out = np.zeros(idx.size)
+        for i, t, X in self.add:
+            out += X[idx] @ np.atleast_1d(c.gamma.get(i, np.zeros(X.shape[1])))
+        return out
+
+    def level(self, c: Coef, idx) -> np.ndarray:
+        """The signed friction level ``mA mL g`` [F] at samples idx (what level factors multiply)."""
+        g, f = self._gf(c, idx)
+        return self._factor(self.af, c, idx) * self._factor(self.lf, c, idx) * g
+
+    def predict(self, c: Coef, idx=None) -> np.ndarray:
+        idx = np.arange(self.ctx.S.n) if idx is None else idx
+        g, f = self._gf(c, idx)
+        return self._factor(self.af, c, idx) * (self._factor(self.lf, c, idx) * g + f) + self._additive(c, idx)
+
+    # fit ----------------------------------------------------------------------------------------------
+    def _linear_block(self, c: Coef, idx, y):
+        mL = self._factor(self.lf, c, idx)
+        mA = self._factor(self.af, c, idx)
+        pos = self.pos[idx]
+        asym = self.st.asym
+        cols, keys = [], []
+        for sl, col in self.base_cols.items():
+            x = col[idx] * (mA * mL if sl in LEVEL_SLOTS else mA)
+            if asym:
+                cols += [x * pos, x * ~pos]
+                keys += [("p", sl), ("n", sl)]
+            else:
+                cols.append(x)
+                keys.append(("b", sl))
+        if self.t6 is not None:
+            X = self.t6[2][idx]
+            cols.append(X[:, 0] * mA * mL)
+            keys.append(("dc", 0))
+            for j in range(1, 4):
+                cols.append(X[:, j] * mA)
+                keys.append(("dc", j))
+        for i, t, X in self.add:
+            for j in range(X.shape[1]):
+                cols.append(X[idx, j])
+                keys.append(("add", i, j))
+        b = _lstsq(np.column_stack(cols), y)
+        bp, bn = {}, {}
+        dc = np.zeros(4)
+        gam = {i: np.zeros(X.shape[1]) for i, t, X in self.add}
+        for key, v in zip(keys, b):
+            if key[0] == "b":
+                bp[key[1]] = bn[key[1]] = float(v)
+            elif key[0] == "p":
+                bp[key[1]] = float(v)
+            elif key[0] == "n":
+                bn[key[1]] = float(v)
+            elif key[0] == "dc":
+                dc[key[1]] = float(v)
+            else:
+                gam[key[1]][key[2]] = float(v)
+        c.base_pos, c.base_neg, c.dc = bp, bn, dc
+        c.gamma.update(gam)
+
+    def _factor_step(self, c: Coef, idx, y, i, X, level: bool):
+        g, f = self._gf(c, idx)
+        add = self._additive(c, idx)
+        if level:
+            mA = self._factor(self.af, c, idx)
+            mLx = self._factor(self.lf, c, idx, skip=i)
+            base = mA * (mLx * g + f) + add
+            D = (mA * mLx * g)[:, None] * X[idx]
+        else:
+            mL = self._factor(self.lf, c, idx)
+            mAx = self._factor(self.af, c, idx, skip=i)
+            inner = mL * g + f
+            base = mAx * inner + add
+            D = (mAx * inner)[:, None] * X[idx]
+        c.gamma[i] = _lstsq(D, y - base)
+
+    def fit(self, idx=None, start: Coef | None = None) -> Coef:
+        """Least-squares coefficients on samples idx (default all), alternating the linear blocks."""
+        S = self.ctx.S
+        idx = np.arange(S.n) if idx is None else np.asarray(idx)
+        y = S.F[idx]
+        c = Coef({}, {}, np.zeros(4), {})
+        if start is not None:
+            c.gamma = {i: np.array(v, float) for i, v in start.gamma.items()}
+        for i, t, X in self.lf + self.af:
+            c.gamma.setdefault(i, np.zeros(X.shape[1]))
+        sweeps = N_SWEEPS if (self.lf or self.af) else 1
+        for _ in range(sweeps):
+            self._linear_block(c, idx, y)
+            for i, t, X in self.lf:
+                self._factor_step(c, idx, y, i, X, level=True)
+            for i, t, X in self.af:
+                self._factor_step(c, idx, y, i, X, level=False)
+        if self.lf or self.af:
+            self._linear_block(c, idx, y)
+        r = y - self.predict(c, idx)
+        c.rms = float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
+        c.n = int(idx.size)
+        return c
+
+
+# ---------------------------------------------------------------------------------------------------
+# Conversion to parameter-file values
+
+
+def canonical_vectors(st: Structure, c: Coef) -> tuple[np.ndarray, np.ndarray]:
+    """Canonical 9-vectors (w >= 0, w < 0) of a fitted structure (thermal and factors excluded)."""
+    out = []
+    strib = next((t for t in st.terms if t.role == "stribeck"), None)
+    for amps in (c.base_pos, c.base_neg):
+        v = np.array(st.shapes, dtype=float).copy()
+        for sl in (0, 1, 4, 6, 7, 8):
+            v[sl] = amps.get(sl, 0.0)
+        if strib is not None and 1 not in MAP_SLOTS[st.map]:
+            v[2], v[3] = strib.settings["vs"], strib.settings["delta"]
+        out.append(v)
+    return out[0], out[1]
+
+
+def named_static(mapname: str, cvec: np.ndarray) -> dict:
+    """Named parameters of a base map from its canonical vector (inverse of static.py's conversions)."""
+    a0, a1, vs1, d1, a2, vs2, b1, b2, b3 = (float(x) for x in cvec)
+    if mapname == "coulomb_viscous":
+        return {"Fc": a0, "sigma2": b1}
+    if mapname == "stribeck":
+        return {"Fc": a0, "Fs": a0 + a1, "vs": vs1, "delta": d1, "sigma2": b1}
+    if mapname == "stribeck_2exp":
+        return {"alpha0": a0, "alpha1": a1, "alpha2": a2, "alpha3": b1, "alpha4": b2, "ws1": vs1, "ws2": vs2}
+    if mapname == "polynomial":
+        return {"c0": a0, "c1": b1, "c2": b2, "c3": b3}
+    raise KeyError(mapname)
+
+
+def model_values(st: Structure, c: Coef, S: Samples, rigid: dict) -> tuple[str, dict]:
+    """(map name, {param: value}) of a fitted structure, in the parameter-file names that
+    :func:`frictid.replay.joint_model` reads. rigid : the fit's J, Px, Py (corrected by inertia/gravity)."""
+    cp, cn = canonical_vectors(st, c)
+    vals: dict = {}
+    mapname = st.map + ("_asym" if st.asym else "")
+    if st.asym:
+        for suf, cv in (("_pos", cp), ("_neg", cn)):
+            vals.update({k + suf: v for k, v in named_static(st.map, cv).items()})
+    else:
+        vals.update(named_static(st.map, cp))
+    for i, t in enumerate(st.terms):
+        g = np.atleast_1d(c.gamma.get(i, np.zeros(0)))
+        nl = t.settings
+        if t.ext == "position_periodic":
+            a, b = float(g[0]), float(g[1])
+            vals.update(pos_amp=float(np.hypot(a, b)), pos_period=nl["period"], pos_phase=float(np.arctan2(b, a)))
+        elif t.ext == "position_smooth":
+            vals.update(pos_q0=nl["q0"], pos_lin=float(g[0]) / nl["qs"], pos_quad=float(g[1]) / nl["qs"] ** 2)
+        elif t.ext.startswith("load_"):
+            vals[t.ext] = float(g[0]) / nl["scale"]
+        elif t.ext == "drift":
+            vals["drift_per_hour"] = float(g[0])
+            vals["drift_t0"] = float(S.clock_t0) if S.clock_real else 0.0
+        elif t.ext == "thermal4":
+            vals.update(alpha=float(g[0]), beta=1.0, C=float(nl["tau_c"]), K=1.0, T0=float(S.T0))
+        elif t.ext == "thermal6":
+            vals.update({f"dc{j}": float(c.dc[j]) for j in range(4)})
+            vals.update(C=float(nl["tau_c"]), K=1.0, T0=float(S.T0))
+        elif t.ext == "offset":
+            vals["tau_offset"] = float(g[0])
+        elif t.ext == "inertia":
+            vals["J"] = rigid.get("J", 0.0) + float(g[0])
+        elif t.ext == "gravity":
+            vals["Px"] = rigid.get("Px", 0.0) + float(g[0])
+            vals["Py"] = rigid.get("Py", 0.0) + float(g[1])
+        elif t.ext == "stribeck":
+            vals.update(str_amp=float(cp[1]), str_vs=float(nl["vs"]), str_delta=float(nl["delta"]))
+            if st.asym:
+                vals["str_amp"] = float(0.5 * (cp[1] + cn[1]))
+    if any(t.ext in ("thermal4", "thermal6") for t in st.terms):
+        th = next(t for t in st.terms if t.ext in ("thermal4", "thermal6"))
+        if th.settings.get("source") == "temp_joint":
+            vals.pop("C", None)
+            vals.pop("K", None)
+    return mapname, vals

@@ -1,0 +1,278 @@
+"""The samples the diagnosis works on, their held-out groups and folds, and the slow variables.
+
+From each log of a joint (as the fit prepared it: velocity, acceleration, friction torque
+``F = tau - J a - G``, segments) the diagnosis keeps the *sliding* samples: moving faster than
+``v_min``, outside ramp, step and rest segments, and away from the start and end of every run of one
+velocity sign (the first and last ``edge`` samples: differentiation transients and the presliding lag of
+a reversal, which the static map does not describe and which the ``presliding`` cause handles on its own).
+
+Held-out groups are whole segments (a plateau, a duty cycle, a transition), long ones cut into chunks of
+at most :data:`MAX_GROUPS_TARGET`-th of the sliding time, never single samples: samples are strongly
+autocorrelated, so every comparison is made on groups that no fit saw. Groups are assigned to folds in
+time order, group ``k`` to fold ``k mod n_folds``, so that each fold spans the whole recording (slow
+effects are interpolated, not extrapolated).
+
+Slow variables: the drift clock (hours, from each log's metadata ``start_time`` when every log has one,
+else the logs laid end to end in the given order) and the thermal state of the heat balance
+``C dT/dt = P - K (T - Tenv)`` (K held at 1 W/K: without a measured joint temperature only ``C/K`` and
+the slopes per watt are identifiable), driven by a friction power per sample and integrated exactly
+(first-order hold of nothing: the power is held over each sample period) with :func:`scipy.signal.lfilter`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import lfilter
+
+#: Segment kinds the sliding samples never come from.
+EXCLUDED_KINDS = ("ramp_presliding", "step", "rest")
+#: Aim for at least this many held-out groups (long segments are cut into chunks).
+MAX_GROUPS_TARGET = 60
+#: At most this many samples enter the fits (evenly decimated beyond).
+N_MAX = 20000
+
+
+@dataclass
+class DiagLog:
+    """One log of a joint, as the fit prepared it (arrays of one value per sample).
+
+    t [s], q [q] or None, w [q/s], a [q/s^2], tau [F], F [F] friction torque ``tau - J a - G``, G [F]
+    the gravity torque removed (without the offset), offset [F] the offset removed, segments, channels
+    (temp_env, temp_joint, payload, ...), start [s] on the drift clock or None (metadata start time).
+    """
+
+    t: np.ndarray
+    q: np.ndarray | None
+    w: np.ndarray
+    a: np.ndarray
+    tau: np.ndarray
+    F: np.ndarray
+    G: np.ndarray
+    offset: float
+    segments: list
+    channels: dict = field(default_factory=dict)
+    start: float | None = None
+    source: int = 0
+
+    @property
+    def n(self) -> int:
+        return int(self.t.shape[0])
+
+
+@dataclass
+class Samples:
+    """The sliding samples of all logs of a joint (concatenated, decimated) and their groups.
+
+    Per sample: t [s] log time, th [h] drift clock, q, w, a, tau, F, G, payload, temp_env, temp_joint
+    (NaN where absent), li (log index), k (index in its log), group, fold. Per log: the full arrays the
+    thermal state needs. w0 [q/s] velocity scale, F_rms [F] friction scale, v_min [q/s].
+    """
+
+    t: np.ndarray
+    th: np.ndarray
+    q: np.ndarray | None
+    w: np.ndarray
+    a: np.ndarray
+    tau: np.ndarray
+    F: np.ndarray
+    G: np.ndarray
+    payload: np.ndarray | None
+    temp_env: np.ndarray | None
+    temp_joint: np.ndarray | None
+    li: np.ndarray
+    k: np.ndarray
+    group: np.ndarray
+    fold: np.ndarray
+    logs: list
+    n_folds: int
+    v_min: float
+    w0: float
+    T0: float
+    clock_t0: float
+    clock_real: bool
+    group_t: np.ndarray
+    decimation: int = 1
+    axis: str = "rotary"
+
+    @property
+    def axis_rotary(self) -> bool:
+        return self.axis == "rotary"
+
+    @property
+    def n(self) -> int:
+        return int(self.w.shape[0])
+
+    @property
+    def n_groups(self) -> int:
+        return int(self.group_t.shape[0])
+
+    def train(self, f: int) -> np.ndarray:
+        return self.fold != f
+
+    def thermal_state(self, tau_c: float, power: list[np.ndarray] | None = None,
+                      measured: bool = False) -> np.ndarray:
+        """Joint temperature rise ``T - T0`` [K] at the samples, for a time constant tau_c [s].
+
+        power : friction power [W] per sample of each full log (default: the measured ``F w``).
+        measured : use the logged ``temp_joint`` instead of the heat balance.
+        """
+        out = np.empty(self.n)
+        for i, lg in enumerate(self.logs):
+            sel = self.li == i
+            if not sel.any():
+                continue
+            if measured:
+                x = np.asarray(lg.channels["temp_joint"], float) - self.T0
+            else:
+                P = np.nan_to_num(lg.F * lg.w) if power is None else power[i]
+                Tenv = lg.channels.get("temp_env")
+                Tenv = np.full(lg.n, self.T0) if Tenv is None else np.asarray(Tenv, float)
+                x = heat_balance_rise(lg.t, P, Tenv - self.T0, tau_c)
+            out[sel] = x[self.k[sel]]
+        return out
+
+
+def heat_balance_rise(t, P, dTenv, tau_c, K: float = 1.0) -> np.ndarray:
+    """``x = T - T0`` [K] of ``C dT/dt = P - K (T - Tenv)`` with C = K tau_c, from x(0) = dTenv[0].
+
+    Exact for P and Tenv held over each sample period (a uniform period is assumed: the median).
+    """
+    t = np.asarray(t, float)
+    u = np.asarray(dTenv, float) + np.asarray(P, float) / K
+    if t.size < 2:
+        return u.copy()
+    h = float(np.median(np.diff(t)))
+    e = math.exp(-h / tau_c)
+    # x[k+1] = e x[k] + (1 - e) u[k]
+    y, _ = lfilter([0.0, 1.0 - e], [1.0, -e], u, zi=[float(dTenv[0])])
+    return y
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(start, end) of the runs of True in mask (end exclusive)."""
+    m = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    d = np.diff(m)
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
+
+
+def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None,
+                  n_max: int = N_MAX, axis: str = "rotary") -> Samples | None:
+    """The :class:`Samples` of a joint's logs, or None when fewer than ``2 n_folds`` groups slide."""
+    allw = np.concatenate([np.abs(lg.w[np.isfinite(lg.w)]) for lg in logs])
+    if not allw.size:
+        return None
+    w0 = float(np.percentile(allw, 99.5))
+    if w0 <= 0:
+        return None
+    v_min = 0.02 * w0
+    # drift clock
+    starts = [lg.start for lg in logs]
+    real = all(s is not None for s in starts)
+    offs = []
+    acc = 0.0
+    for lg, s in zip(logs, starts):
+        if real:
+            offs.append(float(s))
+        else:
+            offs.append(acc - float(lg.t[0]))
+            acc += float(lg.t[-1] - lg.t[0]) + float(np.median(np.diff(lg.t)) if lg.n > 1 else 0.0)
+    clock_t0 = min(o + float(lg.t[0]) for o, lg in zip(offs, logs))
+    rows = []   # per log: (indices, seg id per index)
+    for i, lg in enumerate(logs):
+        n = lg.n
+        seg_id = np.full(n, -1, dtype=np.int64)
+        kind_ok = np.ones(n, dtype=bool)
+        for si, s in enumerate(lg.segments):
+            seg_id[s.i0:s.i1] = si
+            if s.kind in EXCLUDED_KINDS:
+                kind_ok[s.i0:s.i1] = False
+        w = np.nan_to_num(lg.w)
+        ok = np.isfinite(lg.F) & np.isfinite(lg.w) & np.isfinite(lg.a) & kind_ok
+        pos, neg = (w > v_min) & ok, (w < -v_min) & ok
+        dt = float(np.median(np.diff(lg.t))) if n > 1 else 1.0
+        e = edge if edge is not None else max(5, int(round(0.05 / dt)))
+        keep = np.zeros(n, dtype=bool)
+        for m in (pos, neg):
+            for a, b in _runs(m):
+                if b - a > 2 * e:
+                    keep[a + e:b - e] = True
+        idx = np.flatnonzero(keep)
+        rows.append((idx, seg_id[idx]))
+    total = sum(r[0].size for r in rows)
+    if total == 0:
+        return None
+    dec = max(1, int(math.ceil(total / n_max)))
+    # groups: (log, segment, chunk) with chunks of at most L seconds
+    sliding_time = sum(float(np.median(np.diff(lg.t))) * r[0].size for lg, r in zip(logs, rows) if lg.n > 1)
+    L = max(sliding_time / MAX_GROUPS_TARGET, 1e-9)
+    parts = {k: [] for k in ("t", "th", "li", "k", "gkey")}
+    for i, (lg, (idx, sid)) in enumerate(zip(logs, rows)):
+        if not idx.size:
+            continue
+        # a new group starts at a segment change or a gap in the kept samples, and every L seconds
+        brk = np.ones(idx.size, dtype=bool)
+        brk[1:] = (np.diff(sid) != 0) | (np.diff(idx) > 1 + 2 * (edge or 1) + 10)
+        run_id = np.cumsum(brk) - 1
+        t = lg.t[idx]
+        run_t0 = t[brk][run_id]
+        chunk = np.floor((t - run_t0) / L).astype(np.int64)
+        gkey = run_id * 100000 + chunk
+        sel = np.arange(0, idx.size, dec)
+        parts["t"].append(t[sel])
+        parts["th"].append((t[sel] + offs[i] - clock_t0) / 3600.0)
+        parts["li"].append(np.full(sel.size, i))
+        parts["k"].append(idx[sel])
+        parts["gkey"].append(gkey[sel] + i * 10 ** 12)
+    cat = {k: np.concatenate(v) for k, v in parts.items()}
+    _, group = np.unique(cat["gkey"], return_inverse=True)
+    ng = int(group.max()) + 1
+    # merge groups too small to matter (fewer than 5 samples) into their predecessor in time
+    counts = np.bincount(group, minlength=ng)
+    gt = np.full(ng, np.inf)
+    np.minimum.at(gt, group, cat["th"])
+    order = np.argsort(gt, kind="stable")
+    remap = np.arange(ng)
+    anchor = None
+    for g in order:
+        if counts[g] >= 5 or anchor is None:
+            anchor = g
+        else:
+            remap[g] = anchor
+    group = remap[group]
+    _, group = np.unique(group, return_inverse=True)
+    ng = int(group.max()) + 1
+    if ng < 2 * n_folds:
+        return None
+    gt = np.full(ng, np.inf)
+    np.minimum.at(gt, group, cat["th"])
+    rank = np.empty(ng, dtype=np.int64)
+    rank[np.argsort(gt, kind="stable")] = np.arange(ng)
+    fold = rank[group] % n_folds
+
+    def take(name, full=None):
+        out = []
+        for i, lg in enumerate(logs):
+            sel = cat["li"] == i
+            arr = full(lg) if full else lg.channels.get(name)
+            if arr is None:
+                return None
+            out.append(np.asarray(arr, float)[cat["k"][sel]])
+        # li is sorted by log (parts appended log by log), so concatenation matches
+        return np.concatenate(out)
+
+    has_q = all(lg.q is not None for lg in logs)
+    env = take("temp_env")
+    T0 = 25.0
+    for lg in logs:
+        if "temp_env" in lg.channels and lg.n:
+            T0 = float(np.asarray(lg.channels["temp_env"], float)[0])
+            break
+    return Samples(
+        t=cat["t"], th=cat["th"], q=take("q", lambda lg: lg.q) if has_q else None,
+        w=take("w", lambda lg: lg.w), a=take("a", lambda lg: lg.a), tau=take("tau", lambda lg: lg.tau),
+        F=take("F", lambda lg: lg.F), G=take("G", lambda lg: lg.G), payload=take("payload"),
+        temp_env=env, temp_joint=take("temp_joint"), li=cat["li"], k=cat["k"], group=group, fold=fold,
+        logs=logs, n_folds=n_folds, v_min=v_min, w0=w0, T0=T0, clock_t0=clock_t0, clock_real=real,
+        group_t=gt, decimation=dec, axis=axis)
