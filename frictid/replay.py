@@ -211,6 +211,9 @@ def joint_model(jf, name: str | None = None) -> ReplayModel:
     for k in ("J", "Px", "Py"):
         if k in ext:
             setattr(m, k, ext[k])
+    if (mf.extra or {}).get("extensions") is not None:
+        # a diagnosis model: the torque offset is one of its terms (tau_offset), not the fit's estimate
+        m.offset = 0.0
     if "sigma0" in ext:
         s0n = _value(params, "sigma0_neg")
         s1n = _value(params, "sigma1_neg")
