@@ -18,6 +18,8 @@ def fit(
     models: Annotated[Optional[str], typer.Option(
         "--models", help="Comma list of models (default all): coulomb_viscous, stribeck, stribeck_2exp, "
                          "polynomial (each also _asym), polynomial_ls, lugre, thermal4, thermal6.")] = None,
+    no_diagnose: Annotated[bool, typer.Option(
+        "--no-diagnose", help="Skip the diagnosis (no extensions beyond the velocity-only models).")] = False,
     mapping: MapOpt = None,
     units: UnitsOpt = None,
     quiet: QuietOpt = False,
@@ -40,7 +42,7 @@ def fit(
         raise FrictidInputError("fit: --json prints on standard output; write the parameters to a file (-o FILE)")
     check_output_path(output, logs)
     parse_models(models)  # refuse unknown names before reading anything
-    res = run_fit(logs, joint=joint, models=models, mapping=mapping, units=units)
+    res = run_fit(logs, joint=joint, models=models, mapping=mapping, units=units, diagnose=not no_diagnose)
     write_params(res, output)
     summary = {}
     for j, jf in res.joints.items():

@@ -114,8 +114,8 @@ def _load(paths_or_logs, mapping, units) -> tuple[list[JointLog], list[dict]]:
 
 
 def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, units=None, *,
-        n_folds: int = 5, segmenter: Callable | None = None, differentiate: Callable | None = None
-        ) -> FitResult:
+        n_folds: int = 5, segmenter: Callable | None = None, differentiate: Callable | None = None,
+        diagnose: bool = True) -> FitResult:
     """Identify friction models for every joint (or one) of one or more logs.
 
     paths_or_logs : a path, a :class:`~frictid.data.JointLog`, or a list of either (several logs of the
@@ -123,6 +123,8 @@ def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, unit
     all of :data:`ALL_MODELS`). mapping, units : as ``--map`` / ``--units`` of :func:`frictid.io.logs.read_logs`.
     n_folds : folds of the held-out split. segmenter(log) -> segments and differentiate(log) -> (w, a)
     default to :func:`frictid.segments.find_segments` and :func:`frictid.segments.derivatives`.
+    diagnose : run :func:`frictid.diagnose.diagnose_joint` on every joint (extensions beyond the base
+    model enter only through its findings; ``selected`` then names the end of its chain).
 
     Returns a :class:`~frictid.fit.result.FitResult`; ``.write(path)`` writes the parameter file.
     """
@@ -143,7 +145,8 @@ def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, unit
                                                 "heldout": "segment folds (plateaus sorted by velocity, "
                                                            "rank mod n_folds); duty cycles by cycle"})
     for j, jlogs in by_joint.items():
-        res.joints[j] = fit_joint(jlogs, wanted, n_folds, segmenter, differentiate)
+        res.joints[j] = fit_joint(jlogs, wanted, n_folds, segmenter, differentiate, diagnose=diagnose)
+    res.settings["diagnose"] = bool(diagnose)
     return res
 
 
@@ -261,7 +264,8 @@ def _scalar_map(c_pos, c_neg):
     return level, viscous
 
 
-def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter, differentiate) -> JointFit:
+def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter, differentiate,
+              diagnose: bool = False) -> JointFit:
     """Identify everything for one joint from its logs (see the module docstring)."""
     axis = jlogs[0].axis
     jf = JointFit(joint=str(jlogs[0].joint), axis=axis, units=dict(jlogs[0].units))
@@ -368,6 +372,10 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
     if th_wanted:
         _thermal(jf, preps, th_wanted, used, axis, min_speed, n_folds)
 
+    # ---- 7. diagnosis: every extension beyond the base model enters through a finding (frictid.diagnose)
+    if diagnose and jf.selected is not None:
+        _diagnose(jf, preps)
+
     jf.segments_used = used
     if jf.selected is None:
         jf.warnings.append("no model could be chosen: " + str(rec.get("reason", "")))
@@ -445,6 +453,19 @@ def _set_mechanics(jf, reg_fit, known, names, has_q, axis, F0, w0, a0, why_reg, 
         if n in names:
             jf.gravity[n] = est(n)
     jf.offset = est("offset")
+
+
+def _diagnose(jf: JointFit, preps) -> None:
+    """Hand the prepared logs (friction torque with the offset left in) to the diagnosis."""
+    from frictid.diagnose import DiagLog, diagnose_joint
+    from frictid.replay import log_start_time
+
+    off = jf.offset.value if jf.offset is not None and jf.offset.value is not None else 0.0
+    logs = [DiagLog(t=p.log.t, q=p.log.q, w=p.w, a=p.a, tau=p.log.tau, F=p.F + off, G=p.G - off, offset=off,
+                    segments=p.segments, channels=p.log.channels, start=log_start_time(p.log), source=p.index)
+            for p in preps if p.F is not None]
+    if logs:
+        diagnose_joint(jf, logs)
 
 
 def _plateaus(jf, preps, axis):
