@@ -287,6 +287,27 @@ def test_several_joints_get_an_index(scenario):
     assert '<nav id="index"' not in build_report(single, [])
 
 
+@pytest.mark.parametrize("joint", [
+    {},
+    {"selected": None, "models": {}, "diagnosis": ["a finding given as text"]},
+    {"axis": "linear", "units": {"q": "m", "qd": "m/s", "tau": "N"}, "selected": "coulomb_viscous",
+     "models": {"coulomb_viscous": {"map": "coulomb_viscous", "params": {
+         "Fc": {"value": 3.0, "stderr": 0.1, "unit": "N"}, "sigma2": {"value": None, "stderr": None, "unit": "N s/m",
+                                                                      "identifiable": False, "reason": "no data"}}}}},
+])
+def test_sparse_parameter_files_still_give_a_report(joint, scenario):
+    """Keys the report reads may be missing (readers ignore what they do not know, and tolerate gaps)."""
+    from frictid.io.logs import read_many
+    from frictid.report import build_report
+
+    for logs in ([], read_many([scenario["log"]])):
+        params = {"schema": 1, "joints": {scenario["joint"]: joint}}
+        html = build_report(params, logs, segmenter=truth_segments)
+        p = parse(html)
+        assert not p.errors and not p.stack
+        assert set(sections_of(html)[f"j-{scenario['joint']}"]) == set(SECTION_KEYS)
+
+
 def test_the_report_is_self_contained(full_report):
     html, _, _ = full_report
     for m in re.finditer(r'\b(?:src|href)\s*=\s*"([^"]*)"', html):

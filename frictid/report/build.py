@@ -328,6 +328,7 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
     s = secs["presliding"]
     t0 = time.perf_counter()
     lp = ct.lugre_params(jd)
+    s.data["sigma"] = []
     if lp:
         s.data["sigma"] = param_rows({k: v for k, v in (models["lugre"].get("params") or {}).items()
                                       if k in ("sigma0", "sigma1")})
