@@ -29,7 +29,11 @@ class CompiledEffects:
 
     def multipliers(self, t, run, payload):
         """(gmul, fmul) per sample: level and viscous multipliers from drift and payload."""
-        drift = 1.0 + self.drift_per_hour * np.asarray(t) / 3600.0 + self.drift_per_run * np.asarray(run)
+        t = np.asarray(t)
+        if not (self.drift_per_hour or self.drift_per_run or self.payload_coeff):
+            one = np.ones(t.shape)
+            return one, one
+        drift = 1.0 + self.drift_per_hour * t / 3600.0 + self.drift_per_run * np.asarray(run)
         gmul = drift * (1.0 + self.payload_coeff * np.asarray(payload))
         return np.ascontiguousarray(gmul, dtype=float), np.ascontiguousarray(drift, dtype=float)
 

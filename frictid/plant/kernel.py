@@ -49,6 +49,70 @@ def _gravity(q, pay, p):
     return G
 
 
+#: Pieces a step is cut into when the velocity changes sign within it.
+REFINE = 8
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+def _substep_lev(q, w, z, u, hs, c, lev, dlev, p, lmul, fm, amp, kper, ph, pay):
+    """One plant step of length hs with the applied torque u held; c is the branch of sgn(w) and
+    (lev, dlev) its level and slope at |w|. Returns (q, w, z)."""
+    gm = lmul
+    if amp != 0.0:
+        # the level along the step is taken at the predicted end position, so that z, which settles
+        # within the step in sliding, lands on g(q1)/sigma0 rather than lagging a step behind
+        gm *= 1.0 + amp * math.sin(kper * (q + hs * w) + ph)
+    if z >= 0.0:
+        s0 = p[P_S0P]
+        s1 = p[P_S1P]
+    else:
+        s0 = p[P_S0N]
+        s1 = p[P_S1N]
+    G = _gravity(q + 0.5 * hs * w, pay, p)
+    return lugre_step(q, w, z, u - G, hs, p[P_J], s0, s1, gm * lev, gm * dlev,
+                      fm * viscous_nb(w, c), fm * dviscous_nb(w, c))
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+def _substep(q, w, z, u, hs, cp, cn, p, lmul, fm, amp, kper, ph, pay):
+    """:func:`_substep_lev` with the branch and level looked up from w."""
+    c = cp if w >= 0.0 else cn
+    lev, dlev = level_slope_nb(abs(w), c)
+    return _substep_lev(q, w, z, u, hs, c, lev, dlev, p, lmul, fm, amp, kper, ph, pay)
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FM)
+def _needs_refine(w, w1, z, z1, s0, hs, g, p):
+    """Whether a step from (w, z) to (w1, z1) must be redone in pieces.
+
+    ``ah = s0 max|w| h / g`` is how far the bristles move in one step relative to their deflection
+    limit; ``s0 |z| / g`` how loaded they are. Refine on a velocity reversal with loaded bristles
+    (``ah s0|z|/g > 1e-3``), on a bristle sign change with per-sign stiffness, and on a velocity change
+    of more than 10 % with ``ah > 0.05`` (the steep part of a Stribeck curve).
+    """
+    wm = max(abs(w), abs(w1))
+    ah = wm * s0 * hs / g
+    if w1 * w < 0.0 and ah * s0 * abs(z) / g > 1e-3:
+        return True
+    if z1 * z < 0.0 and p[P_S0P] != p[P_S0N] and ah > 1e-2:
+        return True
+    return abs(w1 - w) > 0.1 * wm and ah > 0.05
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FM)
+def _refined(q, w, z, u, hs, cp, cn, p, lmul, fm, amp, kper, ph, pay):
+    """The step hs cut into REFINE pieces; a piece in which the velocity changes sign is cut again."""
+    hr = hs / REFINE
+    for _ in range(REFINE):
+        q1, w1, z1 = _substep(q, w, z, u, hr, cp, cn, p, lmul, fm, amp, kper, ph, pay)
+        if w1 * w < 0.0:
+            q1, w1, z1 = q, w, z
+            for _ in range(REFINE):
+                q1, w1, z1 = _substep(q1, w1, z1, u, hr / REFINE, cp, cn, p, lmul, fm, amp, kper, ph, pay)
+        q, w, z = q1, w1, z1
+    return q, w, z
+
+
 @njit(cache=True, error_model="numpy", fastmath=_FM)
 def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, gmul, fmul,
                    nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0):
@@ -133,32 +197,28 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
         qdm_o[k] = qdm
         lmul = gmul[k] * (1.0 + load * abs(u))
         fm = fmul[k]
-        Fk = 0.0
+        pay = payload[k]
+        # friction at the sample, from the state and the level at the current position
+        c = cp if w >= 0.0 else cn
+        lev, dlev = level_slope_nb(abs(w), c)
+        g = lmul * lev
+        if amp != 0.0:
+            g *= 1.0 + amp * math.sin(kper * q + ph)
+        s0 = p[P_S0P] if z >= 0.0 else p[P_S0N]
+        s1 = p[P_S1P] if z >= 0.0 else p[P_S1N]
+        Fk = s0 * z + s1 * (w - s0 * abs(w) / g * z) + fm * viscous_nb(w, c)
         for s in range(nsub):
-            c = cp if w >= 0.0 else cn
-            lev, dlev = level_slope_nb(abs(w), c)
-            gm = lmul
-            if z >= 0.0:
-                s0 = p[P_S0P]
-                s1 = p[P_S1P]
+            if s == 0:
+                q1, w1, z1 = _substep_lev(q, w, z, u, hs, c, lev, dlev, p, lmul, fm, amp, kper, ph, pay)
             else:
-                s0 = p[P_S0N]
-                s1 = p[P_S1N]
-            f = fm * viscous_nb(w, c)
-            if amp != 0.0:
-                if s == 0:
-                    g = gm * (1.0 + amp * math.sin(kper * q + ph)) * lev
-                    Fk = s0 * z + s1 * (w - s0 * abs(w) / g * z) + f
-                # the level along the step is taken at the predicted end position, so that z, which
-                # settles within the step in sliding, lands on g(q1)/sigma0 rather than lagging a step
-                gm *= 1.0 + amp * math.sin(kper * (q + hs * w) + ph)
-            g = gm * lev
-            dg = gm * dlev
-            fp = fm * dviscous_nb(w, c)
-            if s == 0 and amp == 0.0:
-                Fk = s0 * z + s1 * (w - s0 * abs(w) / g * z) + f
-            G = _gravity(q + 0.5 * hs * w, payload[k], p)
-            q, w, z = lugre_step(q, w, z, u - G, hs, J, s0, s1, g, dg, f, fp)
+                q1, w1, z1 = _substep(q, w, z, u, hs, cp, cn, p, lmul, fm, amp, kper, ph, pay)
+            if _needs_refine(w, w1, z, z1, s0, hs, g, p):
+                # the linearisation at the step's start does not hold across the |w| kink of dz/dt
+                # (z' jumps from ~0 to ~2w when w reverses in sliding), across z = 0 with per-sign
+                # stiffness, or along a steep Stribeck curve: redo this step in REFINE pieces (rare:
+                # starts, stops and reversals; dithering at rest does not qualify)
+                q1, w1, z1 = _refined(q, w, z, u, hs, cp, cn, p, lmul, fm, amp, kper, ph, pay)
+            q, w, z = q1, w1, z1
         F_o[k] = Fk
         Tss = Tenv[k] + Fk * w_o[k] / p[P_K]
         T = Tss + (T - Tss) * eK
@@ -203,30 +263,44 @@ def simulate_joint_ref(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, rese
         for key, val in (("q", q), ("w", w), ("z", z), ("T", T), ("u", u), ("qm", qm), ("qdm", qdm)):
             out[key][k] = val
         hs = h / nsub
-        for s in range(nsub):
+        gm0 = gmul[k] * (1 + p[P_LOAD] * abs(u))
+        c = cp if w >= 0 else cn
+        g_now = gm0 * float(canonical_level(w, c))
+        if p[P_PAMP]:
+            g_now *= 1 + p[P_PAMP] * np.sin(2 * np.pi / p[P_PPER] * q + p[P_PPH])
+        s0, s1 = (p[P_S0P], p[P_S1P]) if z >= 0 else (p[P_S0N], p[P_S1N])
+        out["F"][k] = s0 * z + s1 * (w - s0 * abs(w) / g_now * z) + fmul[k] * float(canonical_viscous(w, c))
+
+        def step(q, w, z, hs, k=k, gm0=gm0, cp=cp, cn=cn, u=u):
             c = cp if w >= 0 else cn
-            gm0 = gmul[k] * (1 + p[P_LOAD] * abs(u))
             gm = gm0
             if p[P_PAMP]:
-                gm = gm0 * (1 + p[P_PAMP] * np.sin(2 * np.pi / p[P_PPER] * q + p[P_PPH]))
-                g_now = gm * float(canonical_level(w, c))
                 gm = gm0 * (1 + p[P_PAMP] * np.sin(2 * np.pi / p[P_PPER] * (q + hs * w) + p[P_PPH]))
             g = gm * float(canonical_level(w, c))
-            if not p[P_PAMP]:
-                g_now = g
             dv = 1e-6 * max(1e-3, abs(w))
-            dg = gm * float((canonical_level(abs(w) + dv, c) - canonical_level(max(abs(w) - dv, 0.0), c))
-                            / (abs(w) + dv - max(abs(w) - dv, 0.0)))
+            lo = max(abs(w) - dv, 0.0)
+            dg = gm * float((canonical_level(abs(w) + dv, c) - canonical_level(lo, c)) / (abs(w) + dv - lo))
             f = fmul[k] * float(canonical_viscous(w, c))
             dw = 1e-7 * max(1.0, abs(w))
             fp = fmul[k] * float((canonical_viscous(w + dw, c) - canonical_viscous(w - dw, c)) / (2 * dw))
             s0, s1 = (p[P_S0P], p[P_S1P]) if z >= 0 else (p[P_S0N], p[P_S1N])
-            if s == 0:
-                out["F"][k] = s0 * z + s1 * (w - s0 * abs(w) / g_now * z) + f
             qmid = q + 0.5 * hs * w
             G = (p[P_GOFF] + p[P_PX] * np.cos(qmid) + p[P_PY] * np.sin(qmid)
                  + payload[k] * p[P_PAY] * np.cos(qmid))
-            q, w, z = lugre_step_ref(q, w, z, u - G, hs, p[P_J], s0, s1, g, dg, f, fp)
+            return lugre_step_ref(q, w, z, u - G, hs, p[P_J], s0, s1, g, dg, f, fp)
+
+        for _s in range(nsub):
+            q1, w1, z1 = step(q, w, z, hs)
+            if _needs_refine.py_func(w, w1, z, z1, s0, hs, g_now, p):
+                q1, w1, z1 = q, w, z
+                for _ in range(REFINE):
+                    q2, w2, z2 = step(q1, w1, z1, hs / REFINE)
+                    if w2 * w1 < 0:
+                        q2, w2, z2 = q1, w1, z1
+                        for _ in range(REFINE):
+                            q2, w2, z2 = step(q2, w2, z2, hs / REFINE**2)
+                    q1, w1, z1 = q2, w2, z2
+            q, w, z = q1, w1, z1
         P = out["F"][k] * out["w"][k]
         Tss = Tenv[k] + P / p[P_K]
         T = Tss + (T - Tss) * np.exp(-p[P_K] * h / p[P_C])

@@ -59,24 +59,24 @@ class Program:
         return max(1, int(round(d * self.fs)))
 
     def G(self, q):
+        """Gravity torque [F] at reference positions q (the controller's model feedforward)."""
         g = self.joint.gravity
-        return (g.Px * np.cos(q) + g.Py * np.sin(q) + g.offset
-                + self.payload * G0 * g.payload_arm * np.cos(q))
+        out = g.offset + 0.0 * np.asarray(q, dtype=float)
+        if g.Px or g.Py:
+            out = out + g.Px * np.cos(q) + g.Py * np.sin(q)
+        if self.payload and g.payload_arm:
+            out = out + self.payload * G0 * g.payload_arm * np.cos(q)
+        return out
 
     # -- raw append -----------------------------------------------------------------------------
     def add(self, mode, q_ref, qd_ref, tau_ff, label, cycle=None):
         n = len(q_ref)
-        reset = np.zeros(n, dtype=np.bool_)
-        if self._reset_next:
-            reset[0] = True
-            self._reset_next = False
-        self.pieces.append(dict(
-            mode=np.full(n, mode, dtype=np.int64), q_ref=np.asarray(q_ref, float),
-            qd_ref=np.asarray(qd_ref, float), tau_ff=np.asarray(tau_ff, float),
-            label=np.full(n, L[label], dtype=np.int8),
-            cycle=np.full(n, self.cycle if cycle is None else cycle, dtype=np.int64),
-            temp_env=np.full(n, self.temp_env), payload=np.full(n, self.payload),
-            run=np.full(n, self.run, dtype=np.int64), reset=reset))
+        reset = self._reset_next
+        self._reset_next = False
+        # constant fields are kept as scalars and expanded once in finish()
+        self.pieces.append((n, int(mode), np.asarray(q_ref, float), np.asarray(qd_ref, float),
+                            np.asarray(tau_ff, float), L[label], self.cycle if cycle is None else cycle,
+                            self.temp_env, self.payload, self.run, reset))
         i0 = self.n
         self.n += n
         return i0, self.n
@@ -126,8 +126,25 @@ class Program:
         self.q = float(q_target)
 
     def finish(self) -> dict:
-        keys = self.pieces[0].keys()
-        return {k: np.concatenate([p[k] for p in self.pieces]) for k in keys}
+        """Per-sample arrays of the whole program."""
+        cols = list(zip(*self.pieces))
+        ns = np.array(cols[0], dtype=np.int64)
+        out = {
+            "mode": np.repeat(np.array(cols[1], dtype=np.int64), ns),
+            "q_ref": np.concatenate(cols[2]),
+            "qd_ref": np.concatenate(cols[3]),
+            "tau_ff": np.concatenate(cols[4]),
+            "label": np.repeat(np.array(cols[5], dtype=np.int8), ns),
+            "cycle": np.repeat(np.array(cols[6], dtype=np.int64), ns),
+            "temp_env": np.repeat(np.array(cols[7], dtype=float), ns),
+            "payload": np.repeat(np.array(cols[8], dtype=float), ns),
+            "run": np.repeat(np.array(cols[9], dtype=np.int64), ns),
+        }
+        reset = np.zeros(self.n, dtype=np.bool_)
+        starts = np.concatenate([[0], np.cumsum(ns)[:-1]])
+        reset[starts[np.array(cols[10], dtype=bool)]] = True
+        out["reset"] = reset
+        return out
 
 
 def ptp_time(d, vmax, amax) -> float:

@@ -161,6 +161,8 @@ def simulate_joint_program(plant: Plant, joint: Joint, recipe, seed_seq, scale=1
         "axis": plant.axis,
         "generator": "frictid.plant.simulate_recipe",
         "duration_scale": scale,
+        # the drive's controller is known to whoever ran the experiment (used by closed-loop replay)
+        "control": dict(gains, type="position", tau_max=float(joint.limits.torque)),
     }
     truth = {
         "segment": _KINDS[labels],
