@@ -169,3 +169,78 @@ class Tally:
             p, r, f1 = self.prf(k)
             lines.append(f"{k:<18} {self.n_true[k]:>6d} {self.n_det[k]:>6d} {p:>9.3f} {r:>7.3f} {f1:>6.3f}")
         return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------------------
+# Plant variants and logs the shipped recipes do not make
+
+PLANTS = ("direct_drive", "geared_industrial", "hydraulic", "linear_slide")
+
+
+def plant_variant(name: str, noise: float = 1.0, sample_rate: float | None = None):
+    """A shipped plant with its sensor noise (tau, q, qd) multiplied by ``noise`` and optionally another
+    sample rate [Hz]. The encoder quantum is kept."""
+    from frictid.plant.config import load_plant, resolve_plant_path
+
+    import yaml
+
+    with open(resolve_plant_path(name)) as fh:
+        d = yaml.safe_load(fh)
+    s = d.setdefault("sensors", {})
+    for k in ("tau_noise", "q_noise", "qd_noise"):
+        s[k] = float(s.get(k, 0.0)) * noise
+    if sample_rate is not None:
+        s["sample_rate"] = float(sample_rate)
+    return load_plant(d, where=f"{name} (noise x{noise:g})")
+
+
+def random_ptp_logs(plant, seed: int = 0, moves: int = 40, joints=None):
+    """Random point-to-point motion (no experiment): closed-loop moves to random targets at random speeds
+    and accelerations, with random dwells, on every joint of ``plant``. Truth labels are ``other`` for
+    moves and ``rest`` for dwells (refined like the plant's closed-loop rests).
+
+    Built from the plant's own program pieces (:class:`frictid.plant.recipe.Program`): the recipe
+    compiler is replaced by this program for the duration of the call.
+    """
+    import frictid.plant.simulate as sim
+    from frictid.plant.config import Recipe
+    from frictid.plant.recipe import Program, travel
+
+    rng = np.random.default_rng(seed)
+    recipe = Recipe.model_validate({"name": "random_ptp", "default_plant": plant.name,
+                                    "experiments": [{"kind": "rest", "duration": 1.0}]})
+
+    def program(rec, pl, joint, scale=1.0):
+        lo, hi = travel(joint, pl.axis)
+        if not np.isfinite(lo):
+            lo, hi = -2.0 * joint.limits.velocity, 2.0 * joint.limits.velocity
+        pr = Program(plant=pl, joint=joint, scale=scale, q=0.5 * (lo + hi), temp_env=25.0)
+        pr.hold(pr.ns(1.0))
+        for _ in range(moves):
+            target = float(rng.uniform(lo, hi))
+            v = float(rng.uniform(0.05, 1.0)) * joint.limits.velocity
+            a = float(rng.uniform(0.2, 1.0)) * joint.limits.acceleration
+            pr.ptp(target, v, a)
+            pr.hold(pr.ns(float(rng.uniform(0.05, 3.0))))
+        return pr
+
+    saved = sim.compile_recipe
+    sim.compile_recipe = program
+    try:
+        names = joints or [j.name for j in plant.joints]
+        seeds = np.random.SeedSequence(seed).spawn(len(names))
+        return [sim.simulate_joint_program(plant, plant.joint(nm), recipe, ss, 1.0) for nm, ss in zip(names, seeds)]
+    finally:
+        sim.compile_recipe = saved
+
+
+def decimated(log, k: int):
+    """Every ``k``-th sample of a log (a logger recording slower than the drive controls), truth included."""
+    from dataclasses import replace
+
+    def cut(x):
+        return x[::k] if isinstance(x, np.ndarray) and x.shape[:1] == (log.n,) else x
+
+    return replace(log, t=log.t[::k], q=cut(log.q), qd=cut(log.qd), tau=cut(log.tau),
+                   channels={c: cut(v) for c, v in log.channels.items()},
+                   truth={c: cut(v) for c, v in log.truth.items()})

@@ -51,6 +51,8 @@ K_RAMP = 10.0
 R_LINE = 1.5
 #: ... and no significant bend larger than this fraction of its torque change.
 R_BEND = 0.02
+#: A group of ramps returns to its starting torque within this fraction of its largest excursion.
+R_RETURN = 0.1
 
 KIND_CODE = {"constant_velocity": 0, "ramp_presliding": 1, "step": 2, "duty_cycle": 3, "rest": 4, "other": 5}
 CODE_KIND = {v: k for k, v in KIND_CODE.items()}
@@ -144,7 +146,9 @@ def _step(f: Features, j: int, hj: int, events: np.ndarray, code: np.ndarray) ->
     settled within the first half of the segment."""
     n = f.t.size
     i0 = j - hj // 2
-    before = f.still_fine[max(0, i0 - f.h): i0]
+    if i0 < f.h:  # nothing before the jump to judge it by
+        return None
+    before = f.still_fine[i0 - f.h: i0]
     if before.size == 0 or before.mean() < 0.8:
         return None
     nxt = events[events > j + hj]
@@ -350,10 +354,13 @@ def _ramp_candidates(f: Features, code: np.ndarray, scale: int) -> np.ndarray:
         for s0, e0 in zip(*runs(m)):
             seg = sign * s[s0:e0]
             half = 0.5 * float(np.median(seg))
-            inside = np.flatnonzero(seg >= half)
-            if inside.size == 0:
+            # the longest stretch at or above half the typical slope (the corners of the ramp), short
+            # dips closed: noise next to a ramp must not drag its edges out
+            a, b = runs(fill_short(seg >= half, max(1, scale // 4), False))
+            if a.size == 0:
                 continue
-            out.append((int(s0 + inside[0]), int(s0 + inside[-1] + 1), sign))
+            k = int(np.argmax(b - a))
+            out.append((int(s0 + a[k]), int(s0 + b[k]), sign))
     if not out:
         return np.zeros((0, 3), dtype=np.int64)
     return np.array(sorted(out), dtype=np.int64)
@@ -417,20 +424,45 @@ def _straight(t: np.ndarray, y: np.ndarray, sigma: float, dtau: float) -> bool:
 
 
 def _ramps(f: Features, ok: list[tuple[int, int, int]]) -> list[tuple[int, int]]:
-    """The ramps that belong to chains starting and ending with a still joint."""
-    out = []
+    """The ramps that belong to groups that load and unload the joint: the group starts at a hold (a
+    still joint under a flat torque) and its connected ramps bring the torque back to that hold's level
+    at a hold. A controller unwinding its integrator on a stuck joint after a move makes a one-way ramp
+    between two different levels."""
+    out: list[tuple[int, int]] = []
+    gap = f.sc.window_w + f.h // 4
+    n = f.t.size
     k = 0
     while k < len(ok):
-        j = k
-        while j + 1 < len(ok) and _connected(f, ok[j][1], ok[j + 1][0]):
-            j += 1
-        s0, e1 = ok[k][0], ok[j][1]
-        before = f.still[max(0, s0 - f.h): s0]
-        after = f.still[e1: e1 + f.h]
-        if before.size and after.size and before.mean() > 0.8 and after.mean() > 0.8:
-            out.extend((a, b) for a, b, _ in ok[k: j + 1])
-        k = j + 1
+        s0 = ok[k][0]
+        level0 = _hold_level(f, max(0, s0 - gap - f.n_min), max(0, s0 - gap))
+        done = k + 1
+        if level0 is not None:
+            peak = 0.0
+            j = k
+            while True:
+                i0, i1, _ = ok[j]
+                seg = f.tau[i0:i1]
+                peak = max(peak, float(np.max(np.abs(seg - level0))))
+                level = _hold_level(f, min(n, i1 + gap), min(n, i1 + gap + f.n_min))
+                sig = float(np.median(f.sigma_tau_loc[i0:i1]))
+                both = len({sg for _, _, sg in ok[k: j + 1]}) == 2
+                if both and level is not None and abs(level - level0) <= max(
+                        K_NOISE * sig / math.sqrt(f.n_min), R_RETURN * peak):
+                    out.extend((a, b) for a, b, _ in ok[k: j + 1])
+                    done = j + 1
+                    break
+                if j + 1 >= len(ok) or not _connected(f, ok[j][1], ok[j + 1][0]):
+                    break
+                j += 1
+        k = done
     return out
+
+
+def _hold_level(f: Features, a: int, b: int) -> float | None:
+    """Torque level over ``[a, b)`` if the joint is still there under a flat torque, else None."""
+    if b - a < max(2, f.n_min // 2) or f.still[a:b].mean() <= 0.8 or not _flat(f, a, b):
+        return None
+    return float(np.mean(f.tau[a:b]))
 
 
 def _connected(f: Features, e0: int, s1: int) -> bool:

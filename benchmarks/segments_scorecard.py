@@ -1,0 +1,241 @@
+"""Scorecard of ``frictid segments`` against the plant's truth labels.
+
+    python benchmarks/segments_scorecard.py            # the full card (a few minutes on one core)
+    python benchmarks/segments_scorecard.py --quick    # a smaller set (what the tests assert)
+
+Prints, per segment kind, precision / recall / F1 where a detected segment is a true positive when a truth
+segment of the same kind overlaps it with intersection-over-union >= 0.8:
+
+1. every shipped recipe x every shipped plant x three sensor-noise levels (0.3x, 1x, 3x the plant's
+   tau/q/qd noise), against the truth adapted to the segment definitions (``tests/segscore.py``:
+   ``adapted_truth_segments``: presliding ramps one per monotonic piece, a step lasting until the next
+   input) and, for reference, against the labels as written;
+2. sessions that concatenate every experiment with rests and repositioning moves (every plant x noise);
+3. logs without any experiment (random point-to-point motion): the number of ramp_presliding and step
+   segments found, which must be zero;
+4. sample rate and velocity channel: 100 Hz and 10 kHz, qd logged or not (a subset of recipes);
+5. timing of ``find_segments`` on logs of 1 million and 10 million samples.
+
+The plant's truth labels are read here and in the tests only, never by ``frictid.segments``.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT))
+
+from segscore import (PLANTS, Tally, adapted_truth_segments, decimated, plant_variant,  # noqa: E402
+                      random_ptp_logs, simulate_with_modes, truth_segments)
+
+from frictid.data import SEGMENT_KINDS  # noqa: E402
+from frictid.segments import find_segments  # noqa: E402
+
+RECIPES = ("constant_velocity_sweep", "ramp_presliding", "torque_steps", "multisine", "duty_cycle",
+           "validation_ptp")
+#: Kinds whose F1 is held to the target (``other`` is the complement: the plant labels fragments of a
+#: few samples between segments, e.g. the last samples of a deceleration, as ``other``).
+GATED = ("constant_velocity", "ramp_presliding", "step", "duty_cycle", "rest")
+TARGET = 0.95
+
+
+def session_recipe(duty_cycle_time: float = 40.0) -> dict:
+    """Every experiment in one log, with rests and the plant's repositioning moves in between."""
+    return {
+        "name": "session",
+        "description": "all experiments concatenated, rests and repositioning moves between them",
+        "default_plant": "direct_drive",
+        "start_rest": 2.0,
+        "experiments": [
+            {"kind": "constant_velocity", "velocities": {"min": 0.02, "max": 0.9, "count": 6},
+             "plateau": 2.0, "rest": 2.0},
+            {"kind": "ramp_presliding", "peaks": [0.5], "ramp_up": 3.0, "hold": 1.0, "ramp_down": 3.0,
+             "rest": 1.5},
+            {"kind": "torque_steps", "levels": [0.4], "rest": 1.5},
+            {"kind": "multisine", "duration": 20.0, "f0": 0.1, "rest": 2.0},
+            {"kind": "duty_cycle", "duty": 0.5, "cycles": 4, "cycle_time": duty_cycle_time, "slots": 4,
+             "rest": 2.0},
+            {"kind": "rest", "duration": 2.0, "rest": 0.0},
+        ],
+    }
+
+
+def tally_logs(logs, tally_adapted: Tally, tally_raw: Tally | None = None) -> float:
+    seconds = 0.0
+    for lg in logs:
+        t0 = time.perf_counter()
+        segs = find_segments(lg)
+        seconds += time.perf_counter() - t0
+        tally_adapted.add(adapted_truth_segments(lg), segs)
+        if tally_raw is not None:
+            tally_raw.add(truth_segments(lg), segs)
+    return seconds
+
+
+def verdict(t: Tally, kinds=GATED) -> str:
+    bad = []
+    for k in kinds:
+        p, r, f1 = t.prf(k)
+        if t.n_true[k] and not f1 >= TARGET:
+            bad.append(f"{k} F1 {f1:.3f}")
+    return "PASS (F1 >= 0.95 for " + ", ".join(kinds) + ")" if not bad else "BELOW TARGET: " + "; ".join(bad)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="the smaller set the tests assert")
+    ap.add_argument("--duty-scale", type=float, default=0.25,
+                    help="duration scale of the duty-cycle recipes (1 = 002's 4-minute cycles)")
+    ap.add_argument("--noise", default="0.3,1,3", help="sensor-noise multipliers")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--no-timing", action="store_true")
+    args = ap.parse_args(argv)
+    noises = [float(x) for x in args.noise.split(",")]
+    plants = PLANTS
+    recipes = RECIPES
+    duty_scale = args.duty_scale
+    if args.quick:
+        noises = [1.0]
+        duty_scale = min(duty_scale, 0.25)
+    out = []
+
+    def say(s=""):
+        print(s, flush=True)
+        out.append(s)
+
+    say(f"frictid segments scorecard ({'quick' if args.quick else 'full'}; IoU >= 0.8; target F1 >= {TARGET})")
+    say(f"noise levels x{', x'.join(f'{x:g}' for x in noises)}; duty-cycle recipes at duration scale "
+        f"{duty_scale:g}; seed {args.seed}")
+    say()
+
+    # 1. recipes x plants x noise
+    main_t, raw_t = Tally(), Tally()
+    per_recipe = {r: Tally() for r in recipes}
+    n_samples, seconds = 0, 0.0
+    for rec in recipes:
+        scale = duty_scale if rec in ("duty_cycle", "validation_ptp") else 1.0
+        for pl in plants:
+            for nz in noises:
+                logs = simulate_with_modes(rec, plant_variant(pl, nz), seed=args.seed, duration_scale=scale)
+                t = Tally()
+                seconds += tally_logs(logs, t, raw_t)
+                n_samples += sum(lg.n for lg in logs)
+                main_t.merge(t)
+                per_recipe[rec].merge(t)
+    say(f"1. every recipe ({len(recipes)}) x every plant ({len(plants)}) x {len(noises)} noise level(s): "
+        f"{n_samples / 1e6:.1f} M samples, segmented in {seconds:.1f} s")
+    say("   against the truth adapted to the segment definitions:")
+    say(_indent(main_t.table()))
+    say("   " + verdict(main_t))
+    say("   against the plant's labels as written (ramp up+hold+down = one segment, step hold+release = one):")
+    say(_indent(raw_t.table()))
+    say("   per recipe (F1 of the kinds present in its truth):")
+    for rec, t in per_recipe.items():
+        f1s = ", ".join(f"{k} {t.prf(k)[2]:.3f}" for k in SEGMENT_KINDS if t.n_true[k] and k != "other")
+        say(f"     {rec:<24} {f1s}")
+    say()
+
+    # 2. concatenated sessions
+    sess_t = Tally()
+    recipe = session_recipe(40.0 if not args.quick else 40.0)
+    for pl in plants:
+        for nz in noises:
+            logs = simulate_with_modes(recipe, plant_variant(pl, nz), seed=args.seed)
+            tally_logs(logs, sess_t)
+    say(f"2. sessions: every experiment in one log with rests and repositioning moves "
+        f"({len(plants)} plants x {len(noises)} noise level(s)):")
+    say(_indent(sess_t.table()))
+    say("   " + verdict(sess_t))
+    say()
+
+    # 3. no experiment
+    seeds = [args.seed] if args.quick else [args.seed, args.seed + 1, args.seed + 2]
+    found = {"ramp_presliding": 0, "step": 0, "duty_cycle": 0, "constant_velocity": 0}
+    n_logs = 0
+    for pl in plants:
+        for nz in noises:
+            for sd in seeds:
+                for lg in random_ptp_logs(plant_variant(pl, nz), seed=sd):
+                    n_logs += 1
+                    for s in find_segments(lg):
+                        if s.kind in found:
+                            found[s.kind] += 1
+    say(f"3. no experiment: random point-to-point motion, {n_logs} joint logs "
+        f"({len(plants)} plants x {len(noises)} noise x {len(seeds)} seeds, 40 moves each):")
+    say(f"   ramp_presliding found: {found['ramp_presliding']}, step found: {found['step']}, "
+        f"duty_cycle found: {found['duty_cycle']}  -> "
+        + ("PASS" if found["ramp_presliding"] == 0 and found["step"] == 0 else "FAIL"))
+    say(f"   (constant_velocity found on cruise phases of the moves: {found['constant_velocity']}; the "
+        "plant labels moves 'other')")
+    say()
+
+    # 4. sample rate and velocity channel
+    rate_t = {}
+    rate_recipes = ("constant_velocity_sweep", "ramp_presliding", "torque_steps")
+    rate_plants = ("direct_drive", "hydraulic") if not args.quick else ("direct_drive",)
+    for fs in (100.0, 10000.0):
+        for qd in (True, False):
+            t = Tally()
+            for rec in rate_recipes:
+                for pl in rate_plants:
+                    logs = rate_logs(rec, pl, fs, args.seed)
+                    if not qd:
+                        logs = [replace(lg, qd=None) for lg in logs]
+                    tally_logs(logs, t)
+            rate_t[(fs, qd)] = t
+    say(f"4. sample rate and velocity channel ({', '.join(rate_recipes)} on {', '.join(rate_plants)}):")
+    say(f"   {'':<22} " + " ".join(f"{k[:12]:>12}" for k in ("constant_velocity", "ramp_presliding", "step", "rest")))
+    for (fs, qd), t in rate_t.items():
+        cells = " ".join(f"{t.prf(k)[2]:>12.3f}" for k in ("constant_velocity", "ramp_presliding", "step", "rest"))
+        say(f"   {fs:>7g} Hz, qd {'logged' if qd else 'absent':<7}  {cells}")
+    say()
+
+    # 5. timing
+    if not args.no_timing:
+        say("5. timing of find_segments (one joint; a session log tiled to length):")
+        base = simulate_with_modes(recipe, plant_variant("direct_drive", 1.0), seed=args.seed)[0]
+        for n in ((1_000_000,) if args.quick else (1_000_000, 10_000_000)):
+            lg = tiled(base, n)
+            t0 = time.perf_counter()
+            segs = find_segments(lg)
+            dt = time.perf_counter() - t0
+            say(f"   {n / 1e6:>4g} M samples: {dt:6.2f} s ({dt / n * 1e6:.2f} us/sample), {len(segs)} segments")
+    return 0
+
+
+def rate_logs(recipe: str, plant: str, fs: float, seed: int):
+    """Logs at sample rate ``fs``: a 10 kHz drive simulated at 10 kHz; a 100 Hz logger as every tenth
+    sample of the drive running at 1 kHz (the plant's controller runs at the log's rate, and a 100 Hz
+    position loop would not hold a plateau)."""
+    if fs >= 1000.0:
+        return simulate_with_modes(recipe, plant_variant(plant, 1.0, sample_rate=fs), seed=seed)
+    k = int(round(1000.0 / fs))
+    return [decimated(lg, k) for lg in simulate_with_modes(recipe, plant_variant(plant, 1.0, sample_rate=1000.0),
+                                                          seed=seed)]
+
+
+def tiled(log, n: int):
+    """``log`` repeated (time and position continued) to ``n`` samples."""
+    reps = int(np.ceil(n / log.n))
+    dt = log.dt
+    span = log.t[-1] - log.t[0] + dt
+    t = (log.t[None, :] + span * np.arange(reps)[:, None]).ravel()[:n]
+    qoff = (log.q[-1] - log.q[0]) if log.q is not None else 0.0
+    q = (log.q[None, :] + qoff * np.arange(reps)[:, None]).ravel()[:n] if log.q is not None else None
+    qd = np.tile(log.qd, reps)[:n] if log.qd is not None else None
+    return replace(log, t=t, q=q, qd=qd, tau=np.tile(log.tau, reps)[:n], channels={}, truth={})
+
+
+def _indent(s: str) -> str:
+    return "\n".join("   " + line for line in s.splitlines())
+
+
+if __name__ == "__main__":
+    sys.exit(main())
