@@ -33,7 +33,8 @@ def test_recovers_mechanics_and_stribeck(synth_result):
     for k in ("Fc", "Fs", "sigma2"):
         assert st[k].value == pytest.approx(TRUE["stribeck"][k], rel=0.03), k
     assert st["vs"].value == pytest.approx(TRUE["stribeck"]["vs"], rel=0.10)
-    assert jf.selected in ("stribeck", "stribeck_asym")
+    # the diagnosis may extend the base map (the synthetic log carries a torque offset): "stribeck+offset"
+    assert jf.selected.split("+")[0] in ("stribeck", "stribeck_asym")
     assert jf.models["stribeck"].metrics["rms_heldout"] < jf.models["coulomb_viscous"].metrics["rms_heldout"]
     # no ramps: sigma0 is reported as not identifiable, with the reason
     assert not jf.models["lugre"].params["sigma0"].identifiable
@@ -78,7 +79,7 @@ def test_one_velocity_sign_is_reported():
     p = jf.models["stribeck_asym"].params
     assert p["Fc_pos"].identifiable and not p["Fc_neg"].identifiable
     assert p["Fc_neg"].value is None
-    assert jf.selected == "stribeck"
+    assert jf.selected.split("+")[0] == "stribeck"  # the diagnosis may add the log's torque offset
 
 
 def test_poor_data_gives_a_file_not_a_crash(tmp_path):
