@@ -16,6 +16,7 @@ bristles flip within a few samples). Error: RMS(F_kernel - F_ref) / RMS(F_ref) o
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
@@ -41,15 +42,16 @@ def speed(plant_name: str, repeats: int = 3, scale: float = 1.0):
     prog, args, _ = prepare_joint(plant, joint, rec, 0, scale)
     n = len(prog["mode"])
     simulate_joint(**args)  # warm (compile cache)
-    best = np.inf
+    best = best_cpu = np.inf
     for _ in range(repeats):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         simulate_joint(**args)
         best = min(best, time.perf_counter() - t0)
+        best_cpu = min(best_cpu, time.process_time() - c0)
     t0 = time.perf_counter()
     simulate_recipe(rec, plant=plant, joints=[joint.name], duration_scale=scale)
     total = time.perf_counter() - t0
-    return n, n / best, total
+    return n, n / best, n / best_cpu, total
 
 
 def noiseless(plant):
@@ -95,13 +97,19 @@ def accuracy(plant_name: str, recipe: str, n_window: int, start_frac: float, sub
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="shorter runs")
+    ap.add_argument("--speed-only", action="store_true", help="skip the accuracy part")
     a = ap.parse_args(argv)
     scale = 0.1 if a.quick else 1.0
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print("== speed: validation_ptp (20 x 3 min) at each plant's sample rate, duration_scale", scale)
-    print(f"{'plant':20s} {'steps':>10s} {'kernel steps/s':>15s} {'simulate_recipe [s]':>20s}")
+    print(f"   (machine: {os.cpu_count()} CPUs, load average {load:.1f}; wall-clock rates suffer from load,")
+    print("    CPU-time rates less so)")
+    print(f"{'plant':20s} {'steps':>10s} {'kernel steps/s':>15s} {'(CPU time)':>12s} {'simulate_recipe [s]':>20s}")
     for name in PLANTS:
-        n, rate, total = speed(name, repeats=1 if a.quick else 3, scale=scale)
-        print(f"{name:20s} {n:10d} {rate / 1e6:13.1f} M {total:20.2f}")
+        n, rate, rate_cpu, total = speed(name, repeats=1 if a.quick else 3, scale=scale)
+        print(f"{name:20s} {n:10d} {rate / 1e6:13.1f} M {rate_cpu / 1e6:10.1f} M {total:20.2f}")
+    if a.speed_only:
+        return
     nwin = 600 if a.quick else 2000
     print(f"\n== accuracy: friction RMS error vs Radau rtol 1e-10, windows of {nwin} samples (no noise)")
     print(f"{'plant':20s} {'recipe':24s} {'|w|max':>8s} {'reversals':>9s} "

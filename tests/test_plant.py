@@ -290,3 +290,14 @@ def test_unreadable_yaml_and_missing_files(tmp_path):
         load_plant(tmp_path / "nope.yaml")
     with pytest.raises(ConfigError, match="recipe file not found"):
         simulate_recipe(tmp_path / "nope_recipe.yaml")
+
+
+def test_velocity_pi_plateaus():
+    rec = Recipe.model_validate(dict(name="vpi", default_plant="geared_industrial", experiments=[dict(
+        kind="constant_velocity", velocities=[0.1, 0.4], plateau=1.5, control="velocity_pi")]))
+    lg = simulate_recipe(rec, plant=quiet(load_plant("geared_industrial")))[0]
+    plateaus = runs(lg.truth["segment"] == "constant_velocity")
+    assert len(plateaus) == 4
+    for a, b in plateaus:
+        w = lg.truth["velocity"][a:b]
+        assert np.std(w) < 0.02 * abs(w.mean())
