@@ -146,9 +146,12 @@ def test_geared_warm_up_lowers_friction_by_about_a_third():
     del P0
 
 
-def test_kernel_equals_python_twin_with_every_effect():
+@pytest.mark.parametrize("law", [dict(law="thermal6"), dict(law="thermal4", alpha=-0.008, beta=1.0),
+                                 dict(law="exponential", lam=0.012)])
+def test_kernel_equals_python_twin_with_every_effect(law):
     pl = load_plant("geared_industrial").model_copy(deep=True)
     data = pl.model_dump()
+    data["joints"][0]["thermal"].update(law, C=5.0)   # fast heating so the law matters in 400 samples
     data["joints"][0]["effects"] = [
         dict(kind="position", amplitude=0.1, period=0.3),
         dict(kind="load", coeff=1e-3, payload_coeff=0.01),

@@ -177,7 +177,10 @@ def _phi12_real(x):
         x2 = x * x
         return (1.0 + x / 2.0 + x2 / 6.0 + x2 * x / 24.0 + x2 * x2 / 120.0,
                 0.5 + x / 6.0 + x2 / 24.0 + x2 * x / 120.0 + x2 * x2 / 720.0)
-    p1 = math.expm1(x) / x
+    if x < -40.0:  # exp(x) below round-off: skip it (the fast bristle mode in sliding)
+        p1 = -1.0 / x
+    else:
+        p1 = math.expm1(x) / x
     return p1, (p1 - 1.0) / x
 
 

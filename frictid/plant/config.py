@@ -19,7 +19,8 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, ValidationError, create_model
 
 from ..errors import ConfigError
-from ..models.static import STATIC_MAPS, canonical_pair, map_names, param_table
+from ..models.static import (STATIC_MAPS, canonical_friction, canonical_level, canonical_pair, map_names,
+                             param_table)
 
 RECIPES_DIR = Path(__file__).resolve().parents[2] / "recipes"
 
@@ -435,8 +436,6 @@ def plant_problems(plant: Plant) -> list[str]:
     for i, j in enumerate(plant.joints):
         c_pos, c_neg = canonical_pair(j.friction.map, friction_params(j.friction))
         v = np.concatenate([[0.0], np.geomspace(1e-6, 1.0, 60)]) * j.limits.velocity
-        from ..models.static import canonical_friction, canonical_level
-
         for side, c, sgn in (("w > 0", c_pos, 1.0), ("w < 0", c_neg, -1.0)):
             g = canonical_level(v, c)
             if np.any(g <= 0):
@@ -520,11 +519,6 @@ def resolve_plant_path(src, base: Path | None = None) -> Path:
             return c
     raise ConfigError(f"{src}: plant file not found (shipped plants: "
                       + ", ".join(sorted(x.stem for x in (RECIPES_DIR / "plants").glob("*.yaml"))) + ")")
-
-
-def plant_summary(plant: Plant) -> dict:
-    """Plain-dict form of a plant (for truth['params'] and YAML)."""
-    return plant.model_dump(mode="json")
 
 
 __all__ = [

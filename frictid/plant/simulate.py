@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 
@@ -139,6 +138,7 @@ def simulate_joint_program(plant: Plant, joint: Joint, recipe, seed_seq, scale=1
     fs = pr.fs
     fn = simulate_joint_ref if reference else simulate_joint
     q, w, z, F, T, u, qm, qdm = fn(**args)
+    del args  # the kernel inputs (noise, multipliers, modes) are not needed any more: lower the peak
     q_log, qd_log, tau_log = logged_signals(qm, qdm, u, ntau, plant.sensors, ce.torque_offset)
     labels = refine_labels(prog["label"], w, pr)
     channels = {"q_ref": prog["q_ref"], "qd_ref": prog["qd_ref"], "tau_ref": prog["tau_ff"]}
@@ -173,7 +173,7 @@ def simulate_joint_program(plant: Plant, joint: Joint, recipe, seed_seq, scale=1
         "velocity": w,
         "position": q,
         "bristle": z,
-        "run": prog["run"],
+        "run": prog["run"].astype(np.int32),
     }
     return JointLog(joint=joint.name, t=t, tau=tau_log, q=q_log, qd=qd_log, channels=channels,
                     axis=plant.axis, meta=meta, source=f"simulate:{recipe.name}@{plant.name}", truth=truth)
