@@ -4,9 +4,10 @@
     python benchmarks/bench_report.py --quick       # 2 joints x 5 min, for a smoke run
     python benchmarks/bench_report.py --keep DIR    # keep the report (and its screenshot) in DIR
 
-The logs: a 10-minute plant run per joint (plateaus, presliding ramps, torque steps, duty cycles on the
-geared industrial joint, one seed per joint) repeated end to end to one hour. The parameter file: one
-real identification of a short run of the same recipe, copied to every joint, with a diagnosis entry.
+The logs: one plant run per joint and seed on the geared industrial joint, about an hour: a multi-sine,
+a constant-velocity sweep, presliding ramps, torque steps and 13 duty cycles of 4 minutes. The parameter
+file: one real identification of the tests' short run (tests/test_report.py), copied to every joint, with
+a diagnosis entry.
 The report is built as ``frictid report`` builds it (the real segmenter on every log), timed per part,
 then loaded in headless Chromium when one is installed (load time to the load event).
 
@@ -26,61 +27,56 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 
 RECIPE = {
-    "name": "bench_report",
-    "description": "every experiment kind, about ten minutes",
+    "name": "bench_report_hour",
+    "description": "every experiment kind in about an hour (13 duty cycles of 4 minutes)",
     "default_plant": "geared_industrial",
     "temp_env": 25.0,
     "start_rest": 1.0,
     "experiments": [
-        {"kind": "constant_velocity", "velocities": {"min": 0.01, "max": 0.95, "count": 10, "spacing": "log"},
+        {"kind": "multisine", "duration": 60.0, "f0": 0.1, "harmonics": 5, "velocity": 0.7, "rest": 1.0},
+        {"kind": "constant_velocity", "velocities": {"min": 0.01, "max": 0.95, "count": 12, "spacing": "log"},
          "relative": True, "signs": "both", "plateau": 3.0, "min_plateau": 0.5, "accel": 0.5, "gap": 0.3,
          "rest": 1.0},
         {"kind": "ramp_presliding", "peaks": [0.3, 0.6], "relative": True, "signs": "both", "ramp_up": 3.0,
          "hold": 1.0, "ramp_down": 3.0, "settle": 1.0, "rest": 1.0},
         {"kind": "torque_steps", "levels": [0.3, 0.6], "relative": True, "signs": "both", "hold": 0.5,
          "release": 0.3, "settle": 0.5, "rest": 1.0},
-        {"kind": "duty_cycle", "duty": 0.5, "cycles": 10, "cycle_time": 48.0, "slots": 4, "cold_start": True,
+        {"kind": "duty_cycle", "duty": 0.5, "cycles": 13, "cycle_time": 240.0, "slots": 4, "cold_start": True,
          "rest": 2.0},
     ],
 }
 
 
-def tile(log, joint: str, minutes: float):
-    """The log repeated end to end up to ``minutes`` (time continues, every channel repeats)."""
-    from frictid.data import JointLog
-
-    span = float(log.t[-1] - log.t[0]) + log.dt
-    reps = int(np.ceil(minutes * 60.0 / span))
-    n = int(round(minutes * 60.0 / log.dt))
-    t = (np.arange(reps)[:, None] * span + (log.t - log.t[0])[None, :]).ravel()[:n]
-
-    def rep(x):
-        return None if x is None else np.tile(np.asarray(x), reps)[:n]
-    return JointLog(joint=joint, t=t, tau=rep(log.tau), q=rep(log.q), qd=rep(log.qd),
-                    channels={k: rep(v) for k, v in log.channels.items()}, axis=log.axis, meta=dict(log.meta),
-                    source=f"bench:{joint}")
-
-
 def make_inputs(n_joints: int, minutes: float, workdir: Path):
+    """Logs (one plant run per joint, cut to ``minutes``) and a parameter file for every joint."""
     import frictid
+    from frictid.data import JointLog
     from frictid.plant import simulate_recipe
+
+    sys.path.insert(0, str(ROOT / "tests"))
+    from test_report import FINDING, MODELS, RECIPE as SHORT, truth_segments
 
     recipe = workdir / "bench_recipe.yaml"
     recipe.write_text(yaml.safe_dump(RECIPE))
     t0 = time.perf_counter()
-    base = [simulate_recipe(str(recipe), seed=s)[0] for s in range(n_joints)]
-    logs = [tile(b, f"j{i + 1}", minutes) for i, b in enumerate(base)]
+    logs = []
+    for i in range(n_joints):
+        lg = simulate_recipe(str(recipe), seed=i, duration_scale=min(1.0, minutes / 57.0))[0]
+        n = min(lg.n, int(round(minutes * 60.0 / lg.dt)))
+        logs.append(JointLog(joint=f"j{i + 1}", t=lg.t[:n], tau=lg.tau[:n], q=lg.q[:n],
+                             qd=None if lg.qd is None else lg.qd[:n],
+                             channels={k: v[:n] for k, v in lg.channels.items()}, axis=lg.axis,
+                             meta=dict(lg.meta), source=f"bench-j{i + 1}.parquet"))
     t_sim = time.perf_counter() - t0
-    # one identification of a short run (plateaus, ramps, steps), copied to every joint
-    short = simulate_recipe(str(recipe), seed=99, duration_scale=0.1)[0]
+    # one real identification of the tests' short run (segments from the plant's labels), for every joint
+    short = workdir / "short_recipe.yaml"
+    short.write_text(yaml.safe_dump(SHORT))
     t0 = time.perf_counter()
-    res = frictid.fit([short], models="coulomb_viscous,stribeck,polynomial,lugre")
+    res = frictid.fit(simulate_recipe(str(short), seed=3), models=MODELS, segmenter=truth_segments)
     t_fit = time.perf_counter() - t0
     d = res.to_dict()
     jd = next(iter(d["joints"].values()))
-    jd["diagnosis"] = [{"cause": "position dependence", "evidence": "benchmark finding", "statistic": {"F": 3.0},
-                        "extension": {"name": "position", "params": {"pos_amp": 0.02, "pos_period": 1.0}},
-                        "rms_before": 1.0, "rms_after": 0.9, "gain": 0.1, "heldout": True}]
+    jd["diagnosis"] = [dict(FINDING)]
     d["joints"] = {lg.joint: jd for lg in logs}
     return d, logs, t_sim, t_fit
 

@@ -83,7 +83,8 @@ def build_scenario(tmp_path_factory) -> dict:
     res = frictid.fit([str(log_path)], models=MODELS, segmenter=truth_segments)
     params = res.to_dict()
     joint = next(iter(params["joints"]))
-    params["joints"][joint]["diagnosis"] = [dict(FINDING)]
+    # the diagnosis' own findings (if any) and one more whose extension is given by its parameters
+    params["joints"][joint]["diagnosis"] = list(params["joints"][joint].get("diagnosis") or []) + [dict(FINDING)]
     params_path = d / "params.yaml"
     params_path.write_text(yaml.safe_dump(params, sort_keys=False))
     _SCENARIO.update(dir=d, log=str(log_path), params=str(params_path), joint=joint)
@@ -221,8 +222,10 @@ def test_every_section_is_present_for_a_log_that_supports_it(full_report, scenar
     # the diagnosis: the finding, its figure (before and after) and the replay
     diag = section_text(html, jid, "diagnosis")
     assert "position dependence" in diag and "25.0 %" in diag
+    for f in jd["diagnosis"]:
+        assert str(f["cause"]) in diag and f["evidence"][:40] in html.replace("&#39;", "'").replace("&#34;", '"')
     assert "Residual against position" in html
-    assert "after: with the extension" in html
+    assert re.search(r"after: [a-z_0-9+]+", html)
     assert "Replay of" in html
     # provenance: the hash of the log, the command, the YAML snippet of the chosen model that loads back
     from frictid.io.logs import file_sha256

@@ -133,7 +133,9 @@ def model_rows(jd: dict) -> list[dict]:
             extras.append(f"time constant = {fmt_pm(tc.get('value'), tc.get('stderr'))} {tc.get('unit', 's')}")
         params = md.get("params") or {}
         ident = all(p.get("identifiable", True) or p.get("fixed") for p in params.values() if isinstance(p, dict))
-        basis = ("duty cycles" if name.startswith("thermal") else
+        basis = ("sliding samples (diagnosis; held-out by segment groups)" if "+" in name or "base" in md
+                 or str(md.get("method", "")).startswith("diagnosis") else
+                 "duty cycles" if name.startswith("thermal") else
                  "all moving samples" if name == "polynomial_ls" else "plateau points")
         rows.append({"name": name, "selected": name == jd.get("selected"), "map": md.get("map", ""),
                      "method": md.get("method", ""), "rms": fmt_num(met.get("rms")),
@@ -417,31 +419,42 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
         if r is not None:
             runs[k] = r
     findings = []
+    cache: dict = {(sel, k, 0): r for k, r in runs.items()}
+    base = ((jd.get("selection") or {}).get("diagnosis") or {}).get("base") if isinstance(
+        (jd.get("selection") or {}).get("diagnosis"), dict) else None
+    prev = base or sel
     for i, f in enumerate(jd.get("diagnosis") or []):
         if not isinstance(f, dict):
             f = {"cause": str(f)}
         row = {"cause": f.get("cause", ""), "evidence": f.get("evidence", ""),
                "statistic": f.get("statistic", ""), "extension": f.get("extension", ""),
+               "model": f.get("model", ""), "before": prev,
                "rms_before": fmt_num(f.get("rms_before")), "rms_after": fmt_num(f.get("rms_after")),
-               "gain": _fmt_gain(f.get("gain")), "heldout": f.get("heldout"), "figure": None, "note": ""}
+               "gain": _fmt_gain(f.get("gain")), "heldout": _heldout_text(f.get("heldout")), "figure": None,
+               "note": ""}
         if isinstance(row["statistic"], dict):
-            row["statistic"] = ", ".join(f"{k} = {fmt_num(v) if isinstance(v, (int, float)) else v}"
+            row["statistic"] = "; ".join(f"{k} = {fmt_num(v) if isinstance(v, (int, float)) else v}"
                                          for k, v in row["statistic"].items())
         if isinstance(row["extension"], dict):
             ext = row["extension"]
             row["extension"] = " ".join(x for x in (str(ext.get("name") or ext.get("model") or ""),
                                                     _compact_params(ext.get("params") or {})) if x) or str(ext)
-        if datas:
-            res = ct.diagnosis_residuals(datas, jname, jd, f, runs)
+        if str(f.get("cause", "")) == "presliding" or f.get("extension") == "lugre":
+            row["note"] = ("Judged on the presliding ramps, not along the sliding samples: see the Presliding "
+                           "part (torque against displacement with LuGre's sigma0).")
+        elif datas:
+            res = ct.diagnosis_residuals(datas, jname, jd, f, before=prev, cache=cache)
             if res is not None:
                 row["figure"] = fg.diagnosis(f, res, units, salt("diagnosis", i))
                 if res.get("given") is None:
                     row["note"] = ("Only the residual before the extension is drawn: the parameter file holds "
                                    "neither the extended model nor the binned residual after it.")
             else:
-                row["note"] = "No residual drawn: the chosen model cannot be run along the log."
+                row["note"] = "No residual drawn: the model cannot be run along the log."
         else:
             row["note"] = "No residual drawn: no log given."
+        if isinstance(f.get("model"), str) and f["model"] in models:
+            prev = f["model"]
         findings.append(row)
     s.data["findings"] = findings
     replays = []
@@ -497,6 +510,15 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
 def s_summary_key(rows: list[dict], most: int = 4) -> list[str]:
     """Up to ``most`` parameters of the chosen model as short text for the index."""
     return [f"{r['name']} = {r['value']} {r['unit']}".strip() for r in rows[:most]]
+
+
+def _heldout_text(h) -> str:
+    """How a finding's gain was measured: held-out (with the split) or in-sample."""
+    if h is None:
+        return ""
+    if isinstance(h, dict):
+        return "held-out" + (f" ({h['split']})" if h.get("split") else "")
+    return "held-out" if h else "in-sample"
 
 
 def _fmt_gain(g) -> str:

@@ -199,7 +199,9 @@ def match_sources(datas: list[LogData], sources: list[dict]) -> None:
                     d.source_index = i
                     break
     if len(datas) == 1 and len(sources) == 1 and datas[0].source_index is None:
-        datas[0].source_index = 0
+        rows = sources[0].get("rows")
+        if rows is None or int(rows) == datas[0].log.n:  # e.g. the same data read from standard input
+            datas[0].source_index = 0
 
 
 def min_speed(datas: list[LogData]) -> float:
@@ -578,6 +580,7 @@ class Replay:
     model: str
     tau_model: np.ndarray
     q_model: np.ndarray | None = None
+    T: np.ndarray | None = None
     how: str = ""
     notes: list[str] = field(default_factory=list)
 
@@ -605,7 +608,8 @@ def replay_log(d: LogData, jname: str, jd: dict, model: str | None = None, close
             m = rp.joint_model(jf, name)
             with np.errstate(all="ignore"):
                 r = rp.replay(d.log, m, w=d.w, a=d.a)
-            out = Replay(name, np.asarray(r.tau_model, float), how="replay", notes=list(r.notes))
+            T = None if r.T is None or not np.any(np.isfinite(r.T)) else np.asarray(r.T, float)
+            out = Replay(name, np.asarray(r.tau_model, float), T=T, how="replay", notes=list(r.notes))
             gains = rp.controller_from_meta(d.log.meta or {}) if closed else None
             if gains is not None and "q_ref" in d.log.channels and m.J > 0 and d.log.q is not None:
                 with np.errstate(all="ignore"):
@@ -648,39 +652,46 @@ def extension_model(jd: dict, finding: dict) -> tuple[str, dict] | None:
     return None
 
 
-#: The variable a diagnosis cause is drawn against: keyword in the cause -> (variable key, label).
+#: The variable a diagnosis cause is drawn against: keyword in the cause or extension -> variable.
 CAUSE_VARIABLES = (
-    ("temp", "time"), ("warm", "time"), ("thermal", "time"), ("drift", "time"), ("wear", "time"),
-    ("time", "time"), ("position", "q"), ("load", "load"), ("payload", "load"), ("torque", "load"),
-    ("asym", "w"), ("sign", "w"), ("velocity", "w"), ("revers", "w"), ("presliding", "w"),
-    ("stick", "w"), ("hyster", "w"), ("lag", "w"), ("elastic", "a"), ("inertia", "a"),
-    ("accel", "a"),
+    ("load_gravity", "gravity"), ("load_payload", "payload"), ("load_tau", "load"),
+    ("temp", "temperature"), ("thermal", "temperature"), ("warm", "temperature"), ("drift", "time"),
+    ("wear", "time"), ("time", "time"), ("position", "q"), ("gravity", "q"), ("payload", "payload"),
+    ("load", "load"), ("torque", "load"), ("asym", "w"), ("sign", "w"), ("stribeck", "w"), ("velocity", "w"),
+    ("offset", "w"), ("revers", "w"), ("presliding", "w"), ("stick", "w"), ("hyster", "w"), ("lag", "w"),
+    ("elastic", "a"), ("inertia", "a"), ("accel", "a"),
 )
 
 
-def cause_variable(cause: str) -> str:
-    c = (cause or "").lower()
-    for key, var in CAUSE_VARIABLES:
-        if key in c:
-            return var
+def cause_variable(cause: str, extension: str = "") -> str:
+    """The variable to draw a finding's residual against (``time`` when nothing fits)."""
+    for text in (str(extension or "").lower(), str(cause or "").lower()):
+        for key, var in CAUSE_VARIABLES:
+            if key in text:
+                return var
     return "time"
 
 
-def variable_values(var: str, d: LogData) -> tuple[np.ndarray, str]:
-    """Samples of a cause variable and its label with unit."""
+def variable_values(var: str, d: LogData, T: np.ndarray | None = None) -> tuple[np.ndarray, str]:
+    """Samples of a cause variable and its label with unit (``T``: a model's joint temperature)."""
     u = d.log.units
     if var == "q" and d.log.q is not None:
         return np.asarray(d.log.q, float), f"position [{u['q']}]"
-    if var == "load":
-        if "payload" in d.log.channels:
-            return np.asarray(d.log.channels["payload"], float), "payload [kg]"
+    if var == "payload" and "payload" in d.log.channels:
+        return np.asarray(d.log.channels["payload"], float), "payload [kg]"
+    if var == "gravity":
+        return np.abs(d.G), f"|gravity torque| [{u['tau']}]"
+    if var in ("load", "payload"):
         return np.abs(np.asarray(d.log.tau, float)), f"|transmitted torque| [{u['tau']}]"
     if var == "w":
         return d.w, f"velocity [{u['qd']}]"
     if var == "a":
-        return d.a, f"acceleration [{u['qd']}/s]".replace("/s/s", "/s^2")
-    if "temp_joint" in d.log.channels and var == "temperature":
-        return np.asarray(d.log.channels["temp_joint"], float), "joint temperature [degC]"
+        return d.a, f"acceleration [{u['q']}/s^2]"
+    if var == "temperature":
+        if T is not None and np.any(np.isfinite(T)):
+            return T, "estimated joint temperature [degC]"
+        if "temp_joint" in d.log.channels:
+            return np.asarray(d.log.channels["temp_joint"], float), "joint temperature [degC]"
     return np.asarray(d.log.t, float), "time [s]"
 
 
@@ -707,31 +718,41 @@ def binned(x: np.ndarray, y: np.ndarray, nbins: int = 30) -> dict:
     return {"x": np.array(cx), "mean": np.array(m), "se": np.array(se), "n": np.array(n)}
 
 
-def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dict,
-                        replays: dict | None = None) -> dict | None:
-    """Residual ``tau - tau_model`` on the moving samples against the finding's cause variable, binned:
-    before (the chosen model) and after (the model with the finding's extension, when the parameter file
-    holds it; or the finding's own ``binned: {x, before, after}``). ``replays`` caches the chosen model's
-    replay per log index."""
-    var = cause_variable(str(finding.get("cause", "")))
+def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dict, before: str | None = None,
+                        cache: dict | None = None) -> dict | None:
+    """Residual ``tau - tau_model`` on the moving samples against the finding's cause variable, binned,
+    before (model ``before``, default the chosen one) and after the extension (the finding's ``model``, or
+    the chosen model with the extension's ``params``; else the finding's own ``binned: {x, after}``).
+    ``cache`` keeps replays per (model, log index)."""
+    cache = {} if cache is None else cache
+    var = cause_variable(str(finding.get("cause", "")), str(finding.get("extension", "")))
     vmin = min_speed(datas)
     ext = extension_model(jd, finding)
+    before = before if before in (jd.get("models") or {}) else jd.get("selected")
+
+    def run(name, entry, k, d):
+        key = (name, k, id(entry) if entry is not jd else 0)
+        if key not in cache:
+            cache[key] = replay_log(d, jname, entry, model=name, closed=False, vmin=vmin)
+        return cache[key]
+
     xs, rb, ra, label = [], [], [], ""
     for k, d in enumerate(datas):
-        before = (replays or {}).get(k) or replay_log(d, jname, jd, closed=False, vmin=vmin)
-        if before is None:
+        rb_k = run(before, jd, k, d)
+        if rb_k is None:
             return None
-        x, label = variable_values(var, d)
+        ra_k = run(ext[0], ext[1], k, d) if ext is not None else None
+        T = ra_k.T if ra_k is not None and ra_k.T is not None else rb_k.T
+        x, label = variable_values(var, d, T)
         mv = np.abs(d.w) > vmin
         xs.append(x[mv])
-        rb.append(before.residual(d)[mv])
+        rb.append(rb_k.residual(d)[mv])
         if ext is not None:
-            after = replay_log(d, jname, ext[1], model=ext[0], closed=False, vmin=vmin)
-            ra.append(after.residual(d)[mv] if after is not None else np.full(int(mv.sum()), np.nan))
+            ra.append(ra_k.residual(d)[mv] if ra_k is not None else np.full(int(mv.sum()), np.nan))
     if not xs:
         return None
     x = np.concatenate(xs)
-    out = {"variable": var, "label": label, "before": binned(x, np.concatenate(rb))}
+    out = {"variable": var, "label": label, "before": binned(x, np.concatenate(rb)), "before_model": before}
     if ra and np.any(np.isfinite(np.concatenate(ra))):
         aft = binned(x, np.concatenate(ra))
         out["given"] = {"x": aft["x"], "after": aft["mean"], "before": None, "model": ext[0]}

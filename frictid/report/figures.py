@@ -465,20 +465,20 @@ def diagnosis(finding: dict, res: dict, units: dict, salt: str) -> Rendered:
     and, when the diagnosis provides it, after the extension."""
     b = res["before"]
     xdiv, xl = 1.0, res["label"]
-    if res["variable"] == "time":
+    if xl.startswith("time ["):
         xdiv, xl = time_axis(float(np.ptp(b["x"])) if b["x"].size else 0.0)
     with rc_context(salt):
         fig = new_figure(3.4)
         ax = fig.subplots()
         ax.axhline(0, color=GREY, lw=0.8)
         ax.errorbar(b["x"] / xdiv, b["mean"], yerr=b["se"], fmt="o-", ms=4, mfc="white", mec=BLACK,
-                    color=BLACK, lw=1.0, ecolor=BLACK, label="before: chosen model")
+                    color=BLACK, lw=1.0, ecolor=BLACK, label=f"before: {res.get('before_model') or 'chosen model'}")
         g = res.get("given")
         if g is not None:
             ext = finding.get("extension")
             name = g.get("model") or (ext.get("name") or ext.get("model") if isinstance(ext, dict) else ext)
             ax.plot(g["x"] / xdiv, g["after"], color=VERMILLION, ls=(0, (5, 2)), marker="s", ms=4, lw=1.6,
-                    label=f"after: with the extension ({name or 'as the diagnosis gives it'})")
+                    label=f"after: {name or 'with the extension, as the diagnosis gives it'}")
         ax.set_xlabel(xl)
         ax.set_ylabel(f"torque residual [{units['tau']}]")
         ax.set_title(f"Residual against {xl.split(' [')[0]}: {finding.get('cause', 'finding')}", loc="left")
