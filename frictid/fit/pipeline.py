@@ -348,7 +348,7 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
             jf.not_identified.append({"what": name, "reason": "no constant-velocity plateaus"})
             continue
         mf = fit_static(name, plat.w, plat.F, plat.F_se, axis=axis)
-        mf.metrics["rms_heldout"] = sel.heldout_static(name, plat, n_folds, axis=axis)
+        mf.metrics["rms_heldout"] = sel.heldout_static(name, plat, n_folds, axis=axis, full=mf)
         jf.models[name] = mf
     if "polynomial_ls" in wanted:
         mf = _polynomial_ls(reg_fit, seg_ne, plat, keys, free_names,
@@ -456,11 +456,14 @@ def _set_mechanics(jf, reg_fit, known, names, has_q, axis, F0, w0, a0, why_reg, 
 
 
 def _diagnose(jf: JointFit, preps) -> None:
-    """Hand the prepared logs (friction torque with the offset left in) to the diagnosis."""
+    """Hand the prepared logs to the diagnosis, with an estimated offset left in the friction torque (it
+    enters the extended models only through the diagnosis' ``offset`` cause; one from metadata stays)."""
     from frictid.diagnose import DiagLog, diagnose_joint
     from frictid.replay import log_start_time
 
-    off = jf.offset.value if jf.offset is not None and jf.offset.value is not None else 0.0
+    off = 0.0
+    if jf.offset is not None and jf.offset.value is not None and jf.offset.source != "log metadata":
+        off = jf.offset.value
     logs = [DiagLog(t=p.log.t, q=p.log.q, w=p.w, a=p.a, tau=p.log.tau, F=p.F + off, G=p.G - off, offset=off,
                     segments=p.segments, channels=p.log.channels, start=log_start_time(p.log), source=p.index)
             for p in preps if p.F is not None]

@@ -31,8 +31,12 @@ def plateau_folds(w: np.ndarray, n_folds: int) -> np.ndarray:
     return folds
 
 
-def heldout_static(name: str, pl: Plateaus, n_folds: int = 5, axis: str = "rotary", **kw) -> float | None:
-    """Held-out RMS [F] of static map ``name`` over the plateaus (leave-fold-out by segment)."""
+def heldout_static(name: str, pl: Plateaus, n_folds: int = 5, axis: str = "rotary", full=None,
+                   **kw) -> float | None:
+    """Held-out RMS [F] of static map ``name`` over the plateaus (leave-fold-out by segment).
+
+    full : the model fitted on all plateaus; its values warm-start the refits (each fold is a small
+    perturbation of the full problem, so the multi-start search is not repeated)."""
     n = len(pl)
     if n < 2 * n_folds:
         n_folds = max(2, n // 2) if n >= 4 else 0
@@ -40,9 +44,15 @@ def heldout_static(name: str, pl: Plateaus, n_folds: int = 5, axis: str = "rotar
         return None
     folds = plateau_folds(pl.w, n_folds)
     pred = np.full(n, np.nan)
+    start = None
+    if full is not None:  # warm start at the full-data optimum, with delta held where it was held
+        start = full.values()
+        for k, p in full.params.items():
+            if k.startswith("delta") and p.fixed:
+                start["__delta_fixed" + k[len("delta"):]] = True
     for f in range(n_folds):
         tr = folds != f
-        m = fit_static(name, pl.w[tr], pl.F[tr], pl.F_se[tr], axis=axis, **kw)
+        m = fit_static(name, pl.w[tr], pl.F[tr], pl.F_se[tr], axis=axis, start=start, **kw)
         pred[~tr] = predict(name, m.values(), pl.w[~tr])
     r = pred - pl.F
     if not np.all(np.isfinite(r)):

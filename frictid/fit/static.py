@@ -33,6 +33,10 @@ NONLINEAR = {"coulomb_viscous": (), "polynomial": (), "stribeck": ("vs", "delta"
 #: Power of the velocity scale by which a parameter of this dimension multiplies into a torque.
 _IMPACT_POWER = {"F": 0, "D": 1, "D2": 2, "D3": 3}
 
+#: Function evaluations per parameter allowed to one refinement (degenerate valleys of the
+#: two-exponential map otherwise run for thousands of steps without changing the curve).
+MAX_NFEV_PER_PARAM = 40
+
 #: Relative size (of the torque scale) below which an uncertain parameter does not matter.
 NEGLIGIBLE = 0.01
 
@@ -216,11 +220,12 @@ def _weights(F_se, F0, n):
 
 
 def fit_branch(base: str, w, F, F_se=None, fixed: dict | None = None, n_refine: int = 3,
-               scales: tuple[float, float] | None = None) -> BranchFit:
+               scales: tuple[float, float] | None = None, start: dict | None = None) -> BranchFit:
     """Fit symmetric map ``base`` to points (w [q/s], F [F]) by bounded, weighted least squares.
 
     fixed : parameters held at given values. scales : (F0, w0) data scales for the bounds (default:
-    the largest |F| and |w| of the points).
+    the largest |F| and |w| of the points). start : a warm start (name -> value); then it is the only
+    start (used by the held-out refits, which begin at the full-data optimum).
     """
     smap = sm.STATIC_MAPS[base]
     table: tuple[Param, ...] = smap.table
@@ -248,17 +253,20 @@ def fit_branch(base: str, w, F, F_se=None, fixed: dict | None = None, n_refine: 
 
     lo_f, hi_f, xs_f = lo[free], hi[free], xs[free]
     margin = 1e-9 * (hi_f - lo_f)
-    starts = guess_starts(base, w, F, wts, lo_d, hi_d, fixed) if n > 0 else []
-    starts.append(dict(zip(names, x0_tab)))  # the table's own start, always tried
+    if start is not None and all(start.get(nm) is not None for nm in names):
+        tries = [start]
+    else:
+        starts = guess_starts(base, w, F, wts, lo_d, hi_d, fixed) if n > 0 else []
+        tries = starts[:n_refine] + [dict(zip(names, x0_tab))]  # and the table's own start
     best = None
-    for st in starts[:n_refine] + starts[-1:]:
+    for st in tries:
         x0 = np.array([st[names[k]] for k in free], dtype=float)
         x0 = np.clip(x0, lo_f + margin, hi_f - margin)
         if n == 0:
             break
         try:
             res = least_squares(resid, x0, bounds=(lo_f, hi_f), x_scale=xs_f, method="trf",
-                                max_nfev=200 * (p + 1))
+                                max_nfev=MAX_NFEV_PER_PARAM * (p + 1))
         except ValueError as exc:  # e.g. non-finite residuals from a degenerate start
             continue
         if not np.all(np.isfinite(res.fun)):
@@ -363,7 +371,7 @@ def predict(name: str, values: dict, w) -> np.ndarray:
 
 
 def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | float = "auto",
-               fixed: dict | None = None) -> ModelFit:
+               fixed: dict | None = None, start: dict | None = None) -> ModelFit:
     """Fit static map ``name`` (``stribeck``, ``polynomial_asym``, ...) to plateau points.
 
     w [q/s], F [F], F_se [F] : plateau means and standard errors. axis : "rotary" or "linear" (units).
@@ -411,11 +419,16 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
                     params[prm.name + suf] = ParamEstimate(prm.name + suf, None, None, unit, False, why)
             success = False
             continue
-        bf = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0))
+        bstart = None
+        if start is not None:
+            bstart = {n: start.get(n + suf) for n in smap.names}
+            if base == "stribeck" and start.get("__delta_fixed" + suf):
+                bfixed.setdefault("delta", 2.0)
+        bf = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0), start=bstart)
         if base == "stribeck" and delta == "auto" and "delta" in bf.reasons and "delta" not in bfixed:
             why = bf.reasons["delta"]
             bfixed["delta"] = 2.0
-            bf2 = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0))
+            bf2 = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0), start=bstart)
             notes.append(f"delta{suf} fixed at 2 (000/003): free, it was not identifiable ({why})")
             bf = bf2
         success = success and bf.success
