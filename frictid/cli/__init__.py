@@ -31,6 +31,10 @@ for _name in COMMANDS:  # each command module registers itself on `app`
 
 
 def _on_sigterm(signum, frame):  # turn SIGTERM into SystemExit so atomic writers clean up
+    from ..io.atomic import STOP_REQUESTED
+
+    STOP_REQUESTED.set()
+    print("frictid: terminated; no output was written", file=sys.stderr)
     raise SystemExit(128 + signum)
 
 

@@ -9,10 +9,16 @@ import contextlib
 import os
 import sys
 import tempfile
+import threading
 from pathlib import Path
 from typing import IO, Iterator
 
 from ..errors import FrictidInputError
+
+
+#: Set when the process was asked to stop (SIGTERM): no output is renamed into place after it, even if
+#: the SystemExit raised by the handler was swallowed by a library on its way up.
+STOP_REQUESTED = threading.Event()
 
 
 def _umask() -> int:
@@ -54,6 +60,8 @@ def atomic_path(path) -> Iterator[str]:
     os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
     try:
         yield tmp
+        if STOP_REQUESTED.is_set():
+            raise SystemExit(143)
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, p)
