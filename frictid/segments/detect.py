@@ -43,10 +43,13 @@ R_STILL = 0.005
 MIN_PLATEAUS = 3
 #: Relative velocity tolerance of a constant-velocity plateau.
 R_STEADY = 0.02
-#: A ramp changes the torque by at least this fraction of the log's torque range ...
+#: A still joint whose torque changes by more than this fraction of the log's torque range within
+#: T_MIN is being loaded, not resting.
 R_RAMP = 0.05
-#: ... and by at least this many torque noise levels (also the smallest step).
+#: A ramp changes the torque by at least this many (local) torque noise levels.
 K_RAMP = 10.0
+#: The torque of a hold under a constant (open-loop) torque has ended when it gets this much noisier.
+R_NOISIER = 1.5
 #: A ramp is a straight line: residual standard deviation at most this many torque noise levels ...
 R_LINE = 1.5
 #: ... and no significant bend larger than this fraction of its torque change.
@@ -153,12 +156,14 @@ def _step(f: Features, j: int, hj: int, events: np.ndarray, code: np.ndarray) ->
         return None
     nxt = events[events > j + hj]
     end = int(nxt[0]) - hj // 2 if nxt.size else n
-    settled = np.flatnonzero(f.still[j + hj: end])
-    if settled.size == 0:
+    # the transient is over where the joint is still (fine scale) for at least h samples; the step lasts
+    # while it stays still
+    rs, re = runs(fill_short(f.still_fine[j + hj: end], f.sc.window_w, False))
+    long = np.flatnonzero((re - rs) >= min(f.h, end - j - hj))
+    if long.size == 0:
         return None
-    k = j + hj + int(settled[0])
-    moving = np.flatnonzero(~f.still_fine[k:end])
-    i1 = k + int(moving[0]) if moving.size else end
+    k = j + hj + int(rs[long[0]])
+    i1 = j + hj + int(re[long[0]])
     # open-loop torque: flat before the jump, and the step lasts while it stays flat (a controller that
     # takes over a still joint makes it wander)
     i1 = _flat_end(f, j + hj, i1)
@@ -176,11 +181,20 @@ def _flat_end(f: Features, a: int, b: int) -> int:
     nchunk = (b - a) // m
     if nchunk < 3:
         return b
-    x = f.tau[a:a + nchunk * m].reshape(nchunk, m).mean(axis=1)
+    chunks = f.tau[a:a + nchunk * m].reshape(nchunk, m)
+    x = chunks.mean(axis=1)
     level = float(np.median(x[:3]))
     tol = K_NOISE * float(np.median(f.sigma_tau_loc[a:a + 3 * m])) / math.sqrt(m) + f.sc.tau_step
-    off = np.flatnonzero(np.abs(x - level) > tol)
-    return b if off.size == 0 else a + int(off[0]) * m
+    off = np.abs(x - level) > tol
+    # a controller taking over also shows as noisier torque: two chunks in a row whose mean absolute
+    # difference exceeds R_NOISIER times that of the first chunks
+    rough = np.mean(np.abs(np.diff(chunks, axis=1)), axis=1)
+    ref = float(np.median(rough[:3]))
+    if ref > 0:
+        hi = rough > R_NOISIER * ref
+        off |= hi & np.concatenate((hi[1:], [False]))
+    k = np.flatnonzero(off)
+    return b if k.size == 0 else a + int(k[0]) * m
 
 
 def _flat(f: Features, a: int, b: int) -> bool:
@@ -258,7 +272,16 @@ def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]
         if i1 - i0 < n_min or not _same_sign(f.w[i0:i1]) or _bent(f, i0, i1):
             continue
         plateaus.append((i0, i1, float(np.median(f.w[i0:i1]))))
-    # a static map needs plateaus at several speeds; one or two steady stretches are moves, not a sweep
+    # a static map needs plateaus at several speeds; one or two steady stretches are moves, not a sweep;
+    # in a sweep over both signs, a plateau next to neither of its mirror speeds is a repositioning move
+    def mirror(a, b):  # opposite speeds, no longer apart than the longer of the two lasts
+        apart = max(a[0], b[0]) - min(a[1], b[1])
+        return abs(a[2] + b[2]) <= R_STEADY * abs(a[2]) and apart <= max(a[1] - a[0], b[1] - b[0])
+
+    paired = [p for k, p in enumerate(plateaus)
+              if (k > 0 and mirror(p, plateaus[k - 1])) or (k + 1 < len(plateaus) and mirror(p, plateaus[k + 1]))]
+    if _distinct_speeds([p[2] for p in paired]) >= MIN_PLATEAUS:
+        plateaus = paired
     if _distinct_speeds([p[2] for p in plateaus]) >= MIN_PLATEAUS:
         for i0, i1, _ in plateaus:
             code[i0:i1] = KIND_CODE["constant_velocity"]
@@ -270,6 +293,7 @@ def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]
     sf = box_slope(f.tau, hf, sc.dt)
     sig_sf = f.sigma_tau_loc * math.sqrt(2.0 / hf) / (hf * sc.dt)
     calm = np.abs(sf) <= np.maximum(K_NOISE * sig_sf, R_RAMP * sc.tau_range / T_MIN)
+    calm = fill_short(calm, 2 * hf + 2, False)  # a torque jump alone does not end a rest
     rest = grow(f.still & calm & (code < 0), f.still_fine & calm & (code < 0))
     rest = drop_short(rest, n_min)
     code[rest] = KIND_CODE["rest"]
@@ -345,8 +369,7 @@ def _ramp_candidates(f: Features, code: np.ndarray, scale: int) -> np.ndarray:
     out = []
     dt = f.sc.dt
     s = f.s if scale == f.h else box_slope(f.tau, scale, dt)
-    sigma_s = f.sigma_s * (f.h / scale) ** 1.5
-    thr = 2.0 * sigma_s
+    thr = 2.0 * f.sigma_tau_loc * math.sqrt(2.0 / scale) / (scale * dt)
     for sign in (1, -1):
         m = (sign * s > thr) & (code < 0)
         m = fill_short(m, scale, False)
@@ -373,9 +396,10 @@ def _ramp_ok(f: Features, i0: int, i1: int, sign: int, tau_b: np.ndarray, code: 
     if i1 - i0 < f.n_min or np.any(code[i0:i1] >= 0):
         return False
     dtau = tau_b[i1 - 1] - tau_b[i0]
-    if sign * dtau < max(K_RAMP * sc.sigma_tau, R_RAMP * sc.tau_range):
+    sigma = float(np.median(f.sigma_tau_loc[i0:i1]))
+    if sign * dtau < K_RAMP * sigma:
         return False
-    if not _straight(f.t[i0:i1], f.tau[i0:i1], float(np.median(f.sigma_tau_loc[i0:i1])), abs(dtau)):
+    if not _straight(f.t[i0:i1], f.tau[i0:i1], sigma, abs(dtau)):
         return False
     return bool(np.mean(f.steady[i0:i1] | f.still[i0:i1]) >= 0.98)
 
