@@ -451,3 +451,38 @@ def test_cli_input_errors_exit_2_and_write_nothing(case, scenario, cli, tmp_path
     assert "error" in r.err and "Traceback" not in r.err
     assert not out.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.csv", "notp.yaml"]
+
+
+def test_fit_writes_the_report_too(scenario, cli, tmp_path):
+    params, rep = tmp_path / "p.yaml", tmp_path / "r.html"
+    r = cli("fit", scenario["log"], "-o", params, "--models", "coulomb_viscous,stribeck", "--no-diagnose",
+            "--report", rep)
+    assert r.code == 0, r
+    html = rep.read_text()
+    assert params.exists() and not parse(html).errors
+    assert f"--report {rep}" in html and "--no-diagnose" in html
+    assert sections_of(html)[f"j-{scenario['joint']}"]["friction-map"] == "yes"
+    # refused before any work: the report cannot be the parameter file, nor re-read standard input
+    for args in (["fit", scenario["log"], "-o", params, "--report", params],
+                 ["fit", "-", "-o", tmp_path / "q.yaml", "--report", tmp_path / "q.html"]):
+        r = cli(*args)
+        assert r.code == 2 and "--report" in r.err, r
+    assert not (tmp_path / "q.yaml").exists() and not (tmp_path / "q.html").exists()
+
+
+def test_docs_examples_run(scenario, cli, monkeypatch):
+    """docs/report.md: the command lines on the scenario's files, and the Python block as written."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "report.md").read_text()
+    monkeypatch.chdir(scenario["dir"])
+    bash = re.search(r"```bash\n(.*?)```", doc, re.S).group(1)
+    lines = [ln.split("#")[0].strip() for ln in bash.splitlines()]
+    for ln in lines[:2]:  # the two lines on params.yaml / run.parquet
+        args = ln.split()
+        assert args[:2] == ["frictid", "report"]
+        r = cli(*args[1:])
+        assert r.code == 0, (ln, r)
+    code = re.search(r"```python\n(.*?)```", doc, re.S).group(1)
+    exec(compile(code, "docs/report.md", "exec"), {})
+    assert Path("report.html").stat().st_size > 10_000

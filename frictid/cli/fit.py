@@ -24,6 +24,8 @@ def fit(
     units: UnitsOpt = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
+    report: Annotated[Optional[str], typer.Option(
+        "--report", help="Also write the HTML report (as frictid report PARAMS LOG... -o REPORT.html).")] = None,
 ) -> None:
     """Find the segments, identify every model the data support, choose one, write the parameter file."""
     from ..errors import FrictidInputError
@@ -41,9 +43,18 @@ def fit(
     if as_json and output == "-":
         raise FrictidInputError("fit: --json prints on standard output; write the parameters to a file (-o FILE)")
     check_output_path(output, logs)
+    if report:
+        from .report import check_fit_report
+        check_fit_report(report, output, logs)
     parse_models(models)  # refuse unknown names before reading anything
     res = run_fit(logs, joint=joint, models=models, mapping=mapping, units=units, diagnose=not no_diagnose)
     write_params(res, output)
+    if report:
+        from .report import command_line, report_after_fit
+        cmd = command_line("fit", logs, [("-o", output), ("--joint", joint), ("--models", models),
+                                         ("--map", mapping), ("--units", units), ("--no-diagnose", no_diagnose),
+                                         ("--report", report)])
+        report_after_fit(report, res, logs, mapping, units, output, cmd, con)
     summary = {}
     for j, jf in res.joints.items():
         m = jf.model

@@ -11,11 +11,13 @@ from .app import app
 from .common import Console, MapOpt, QuietOpt, UnitsOpt
 
 
-def command_line(name: str, positional: list[str], options: list[tuple[str, Optional[str]]]) -> str:
-    """The command as a user would type it again (for the report's provenance)."""
+def command_line(name: str, positional: list[str], options: list[tuple[str, Optional[str] | bool]]) -> str:
+    """The command as a user would type it again (for the report's provenance); ``True`` marks a flag."""
     parts = ["frictid", name, *positional]
     for flag, value in options:
-        if value is not None:
+        if value is True:
+            parts.append(flag)
+        elif value is not None and value is not False:
             parts += [flag, value]
     return " ".join(shlex.quote(str(p)) for p in parts)
 
@@ -69,3 +71,30 @@ def report(
         n = len(pd.get("joints") or {})
         con.info(f"frictid: wrote {output} ({nbytes / 1e6:.2f} MB, {n} joint{'s' if n != 1 else ''}, "
                  f"{len(logs)} log{'s' if len(logs) != 1 else ''}) in {time.perf_counter() - t0:.1f} s")
+
+
+def check_fit_report(report_path: str, output: str, logs: list[str]) -> None:
+    """Refuse a ``frictid fit --report`` path before any work (called by the fit command)."""
+    from ..errors import FrictidInputError
+    from ..io.atomic import check_output_path
+
+    if report_path == "-":
+        raise FrictidInputError("fit: --report needs a file name (standard output is for the parameters)")
+    if "-" in logs:
+        raise FrictidInputError("fit: --report re-reads the logs, which standard input cannot give twice; "
+                                "write the log to a file first (or run frictid report afterwards)")
+    if output != "-" and report_path == output:
+        raise FrictidInputError(f"fit: --report {report_path} is also the parameter file (-o); choose another name")
+    check_output_path(report_path, logs)
+
+
+def report_after_fit(report_path: str, result, logs: list[str], mapping, units, params_path: str,
+                     command: str, con: Console) -> None:
+    """``frictid fit --report``: the report of a fresh identification, from the same logs and options."""
+    from ..io.logs import read_many
+    from ..report import write_report
+
+    t0 = time.perf_counter()
+    nbytes = write_report(report_path, result.to_dict(), read_many(logs, mapping, units),
+                          params_path=params_path if params_path != "-" else "(standard output)", command=command)
+    con.info(f"frictid: wrote {report_path} ({nbytes / 1e6:.2f} MB) in {time.perf_counter() - t0:.1f} s")
