@@ -5,7 +5,7 @@
     python benchmarks/bench_report.py --keep DIR    # keep the report (and its screenshot) in DIR
 
 The logs: one plant run per joint and seed on the geared industrial joint, about an hour: a multi-sine,
-a constant-velocity sweep, presliding ramps, torque steps and 13 duty cycles of 4 minutes. The parameter
+a constant-velocity sweep, presliding ramps, torque steps and 14 duty cycles of 4 minutes. The parameter
 file: one real identification of the tests' short run (tests/test_report.py), copied to every joint, with
 a diagnosis entry.
 The report is built as ``frictid report`` builds it (the real segmenter on every log), timed per part,
@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 RECIPE = {
     "name": "bench_report_hour",
-    "description": "every experiment kind in about an hour (13 duty cycles of 4 minutes)",
+    "description": "every experiment kind in about an hour (14 duty cycles of 4 minutes)",
     "default_plant": "geared_industrial",
     "temp_env": 25.0,
     "start_rest": 1.0,
@@ -41,7 +41,7 @@ RECIPE = {
          "hold": 1.0, "ramp_down": 3.0, "settle": 1.0, "rest": 1.0},
         {"kind": "torque_steps", "levels": [0.3, 0.6], "relative": True, "signs": "both", "hold": 0.5,
          "release": 0.3, "settle": 0.5, "rest": 1.0},
-        {"kind": "duty_cycle", "duty": 0.5, "cycles": 13, "cycle_time": 240.0, "slots": 4, "cold_start": True,
+        {"kind": "duty_cycle", "duty": 0.5, "cycles": 14, "cycle_time": 240.0, "slots": 4, "cold_start": True,
          "rest": 2.0},
     ],
 }
@@ -61,7 +61,7 @@ def make_inputs(n_joints: int, minutes: float, workdir: Path):
     t0 = time.perf_counter()
     logs = []
     for i in range(n_joints):
-        lg = simulate_recipe(str(recipe), seed=i, duration_scale=min(1.0, minutes / 57.0))[0]
+        lg = simulate_recipe(str(recipe), seed=i, duration_scale=min(1.0, minutes / 61.0))[0]
         n = min(lg.n, int(round(minutes * 60.0 / lg.dt)))
         logs.append(JointLog(joint=f"j{i + 1}", t=lg.t[:n], tau=lg.tau[:n], q=lg.q[:n],
                              qd=None if lg.qd is None else lg.qd[:n],
