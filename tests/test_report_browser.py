@@ -1,7 +1,8 @@
 """The report in a real browser: headless Chromium (Debian's ``chromium``, which ``.ci/run`` installs)
 loads it from a file, and through the DevTools protocol the test checks that no console error or exception
 appears, every image has loaded, every figure has a size, nothing overflows a 1280 px wide window, and
-saves a full-page screenshot.
+saves a full-page screenshot (in the test's temporary folder; ``FRICTID_REPORT_ARTIFACTS=DIR`` also copies
+the report and the screenshot to DIR).
 
 The DevTools websocket is spoken by :class:`DevTools`, a small client on the standard library (text
 frames, masking, fragmented and long messages), so the test needs no extra package. It skips, saying why,
@@ -283,6 +284,11 @@ def test_report_loads_cleanly_in_chromium(browser, tmp_path_factory, tmp_path):
     assert c["scrollWidth"] <= WIDTH and not c["overflow"], c["overflow"]
     assert r["load_s"] < 10.0
     assert shot.stat().st_size > 50_000 and shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    keep = os.environ.get("FRICTID_REPORT_ARTIFACTS")  # e.g. a CI artifact folder
+    if keep:
+        Path(keep).mkdir(parents=True, exist_ok=True)
+        shutil.copy(out, Path(keep) / "report.html")
+        shutil.copy(shot, Path(keep) / "report.png")
 
 
 def test_a_png_figure_loads_as_an_image(browser, tmp_path):
