@@ -98,3 +98,29 @@ def test_bristle_path_compiled_matches_reference():
     from frictid.fit.presliding import bristle_path, bristle_path_ref
     q = np.cumsum(np.random.default_rng(4).normal(0, 1e-5, 500))
     assert np.allclose(bristle_path(q, 1e-5, 1e4, 2.0), bristle_path_ref(q, 1e-5, 1e4, 2.0))
+
+
+def test_2exp_asym_fits_004_table_curve():
+    # 004 Table 2, link 1 (MODELS.md section 6)
+    pos = dict(alpha0=1.4396, alpha1=2.4848, ws1=0.8962, alpha2=2.8494, ws2=4.1190, alpha3=-0.0483, alpha4=0.0190)
+    neg = dict(alpha0=2.6364, alpha1=1.2772, ws1=0.3535, alpha2=0.8615, ws2=18.6965, alpha3=0.1084, alpha4=-0.0156)
+    w = _speeds(20, 0.02, 2.0)
+    F = np.where(w > 0, sm.stribeck_2exp(w, **pos), sm.stribeck_2exp(w, **neg))
+    m = fit_static("stribeck_2exp_asym", w, F)
+    assert m.metrics["rms"] < 0.01 * (F.max() - F.min())
+
+
+from hypothesis import given, settings, strategies as st  # noqa: E402
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.floats(-5, 5), st.floats(-100, 100)), min_size=0, max_size=12),
+       st.sampled_from(["coulomb_viscous", "stribeck", "stribeck_asym", "polynomial_asym", "stribeck_2exp"]))
+def test_any_points_give_a_verdict_not_a_crash(pts, name):
+    w = np.array([p[0] for p in pts if p[0] != 0.0])
+    F = np.array([p[1] for p in pts if p[0] != 0.0])
+    m = fit_static(name, w, F)
+    for p in m.params.values():
+        assert p.identifiable or p.fixed or p.reason
+        if p.identifiable and not p.fixed:
+            assert p.value is not None and np.isfinite(p.value)

@@ -716,7 +716,7 @@ def _thermal(jf: JointFit, preps, th_wanted, used, axis, min_speed, n_folds) -> 
         for blk in blocks:
             run = th.prepare(p.log.t, p.w, p.F, blk, p.log.channels["temp_env"],
                              p.log.channels.get("temp_joint"), min_speed,
-                             bin_s=max(med * p.log.dt / th.BINS_PER_CYCLE, p.log.dt))
+                             bin_s=max(med * p.log.dt / th.BINS_PER_CYCLE, p.log.dt), a=p.a)
             if run is not None:
                 runs.append(run)
                 cyc_used += [[float(a), float(b), p.index] for a, b in run.cycle_t]

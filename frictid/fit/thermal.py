@@ -81,11 +81,15 @@ class ThermalRun:
 
 
 def prepare(t, w, F, cycles: list[tuple[int, int, int]], temp_env=None, temp_joint=None,
-            min_speed: float = 0.0, bin_s: float | None = None, max_bins: int = 4000) -> ThermalRun | None:
+            min_speed: float = 0.0, bin_s: float | None = None, max_bins: int = 4000, a=None) -> ThermalRun | None:
     """Bin one log for the heat balance and identify the friction of each duty cycle.
 
     t [s], w [q/s], F [F] (friction torque tau - J a - G - offset), temp_env, temp_joint [degC] or None.
-    cycles : (i0, i1, cycle id) per duty cycle, in time order. Returns None when no cycle has moving samples.
+    cycles : (i0, i1, cycle id) per duty cycle, in time order. a [q/s^2] : acceleration; when given, each
+    cycle's least squares also fits an inertia correction ``dJ a`` (002 identifies J with the friction on
+    every cycle), so that an error of the inertia used in F does not leak into the friction coefficients;
+    the comparison metric ``M`` is then the information on the four coefficients with ``dJ`` profiled out.
+    Returns None when no cycle has moving samples.
     """
     t = np.asarray(t, float)
     w = np.asarray(w, float)
@@ -126,11 +130,18 @@ def prepare(t, w, F, cycles: list[tuple[int, int, int]], temp_env=None, temp_joi
         if m.sum() < 20 or not (ww[m] > 0).any() or not (ww[m] < 0).any():
             continue
         X = _basis(ww[m])
+        if a is not None:
+            aa = np.nan_to_num(np.asarray(a[i0:i1], float)[m])
+            X = np.column_stack([X, aa])
         d = np.sqrt(np.mean(X * X, axis=0))
         d[d == 0] = 1
         c, *_ = np.linalg.lstsq(X / d, ff[m], rcond=None)
-        c = c / d
-        M = X.T @ X / m.sum()
+        c = (c / d)[:4]
+        G = X.T @ X / m.sum()
+        if a is not None and G[4, 4] > 0:  # Schur complement: information on c with dJ profiled out
+            M = G[:4, :4] - np.outer(G[:4, 4], G[4, :4]) / G[4, 4]
+        else:
+            M = G[:4, :4]
         try:
             L = np.linalg.cholesky(M + 1e-12 * np.trace(M) * np.eye(4))
         except np.linalg.LinAlgError:
@@ -193,7 +204,7 @@ def _unpack(lay: _Layout, x):
     K = math.exp(d["logK"]) if lay.fit_K else K_REF
     if lay.model == "thermal4":
         return lay.c_ref, d["alpha"], d["beta"], np.zeros(4), C, K
-    c0 = np.array([d[f"c{i}"] for i in range(4)])
+    c0 = np.array([d[f"c{i}"] if f"c{i}" in d else lay.c_ref[i] for i in range(4)])
     dc = np.array([d[f"dc{i}"] for i in range(4)])
     return c0, 0.0, 1.0, dc, C, K
 
