@@ -208,13 +208,14 @@ def lugre_step(q, w, z, u, h, J, sigma0, sigma1, g, dg, f, fp):
         da = 0.0
     zd0 = w - a * z
     F0 = sigma0 * z + sigma1 * zd0 + f
+    iJ = 1.0 / J
     r1 = zd0
-    r2 = (u - F0) / J
+    r2 = (u - F0) * iJ
     # Jacobian of (z', w')
     A11 = -a
     A12 = 1.0 - da * z
-    A21 = -(sigma0 - sigma1 * a) / J
-    A22 = -(sigma1 * A12 + fp) / J
+    A21 = -(sigma0 - sigma1 * a) * iJ
+    A22 = -(sigma1 * A12 + fp) * iJ
     # M = hA = s I + N with N^2 = D I; f(M) = al I + be N
     s = 0.5 * h * (A11 + A22)
     N11 = h * A11 - s
@@ -231,8 +232,9 @@ def lugre_step(q, w, z, u, h, J, sigma0, sigma1, g, dg, f, fp):
         r = math.sqrt(D)
         a1, a2 = _phi12_real(s + r)
         b1, b2 = _phi12_real(s - r)
-        al1, be1 = 0.5 * (a1 + b1), (a1 - b1) / (2.0 * r)
-        al2, be2 = 0.5 * (a2 + b2), (a2 - b2) / (2.0 * r)
+        i2r = 0.5 / r
+        al1, be1 = 0.5 * (a1 + b1), (a1 - b1) * i2r
+        al2, be2 = 0.5 * (a2 + b2), (a2 - b2) * i2r
     else:
         r = math.sqrt(-D)
         a1, a2, _ = _phi123(complex(s, r))

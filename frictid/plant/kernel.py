@@ -149,6 +149,7 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
     ph = p[P_PPH]
     load = p[P_LOAD]
     eK = math.exp(-p[P_K] * h / p[P_C])
+    iK = 1.0 / p[P_K]
     hs = h / nsub
     integ = 0.0
     prev_mode = -1
@@ -220,7 +221,7 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
                 q1, w1, z1 = _refined(q, w, z, u, hs, cp, cn, p, lmul, fm, amp, kper, ph, pay)
             q, w, z = q1, w1, z1
         F_o[k] = Fk
-        Tss = Tenv[k] + Fk * w_o[k] / p[P_K]
+        Tss = Tenv[k] + Fk * w_o[k] * iK
         T = Tss + (T - Tss) * eK
     return q_o, w_o, z_o, F_o, T_o, u_o, qm_o, qdm_o
 
