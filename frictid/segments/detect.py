@@ -174,9 +174,42 @@ def _step(f: Features, j: int, hj: int, events: np.ndarray, code: np.ndarray) ->
     return i0, i1
 
 
+def _step_groups(f: Features, cands: list[tuple[int, int]], hj: int) -> list[tuple[int, int]]:
+    """Steps that belong to groups of contiguous steps bringing the torque back to its level before the
+    first one (a step and its release). A lone jump between two holds (a controller switched on or off
+    at a still joint) is not an experiment."""
+    if not cands:
+        return []
+    h = max(1, f.h // 2)
+    before = [float(np.mean(f.tau[max(0, a - h): a])) if a > 0 else float(f.tau[0]) for a, _ in cands]
+    after = [float(np.mean(f.tau[max(a, b - h): b])) for a, b in cands]
+    out: list[tuple[int, int]] = []
+    k = 0
+    while k < len(cands):
+        level0 = before[k]
+        j = k
+        done = k + 1
+        while True:
+            sig = float(np.median(f.sigma_tau_loc[cands[j][0]:cands[j][1]]))
+            # the release returns to the level exactly (open loop): within the noise of the two means,
+            # or a small fraction of the first step
+            tol = max(K_NOISE * sig * math.sqrt(2.0 / h), 0.5 * R_RETURN * abs(after[k] - level0))
+            if j > k and abs(after[j] - level0) <= tol:
+                out.extend(cands[k: j + 1])
+                done = j + 1
+                break
+            if j + 1 >= len(cands) or cands[j + 1][0] - cands[j][1] > 2 * hj:
+                break
+            j += 1
+        k = done
+    return out
+
+
 def _flat_end(f: Features, a: int, b: int) -> int:
     """End of the flat torque that starts at ``a`` (at most ``b``): the first chunk of ``m`` samples whose
-    mean leaves the level of the first chunks by more than ``K_NOISE`` standard errors."""
+    mean leaves the level of the first chunks by more than ``K_NOISE`` standard errors, or where the
+    torque gets noisier (a controller taking over a still joint: two chunks in a row whose mean absolute
+    difference exceeds ``R_NOISIER`` times that of the first chunks, or one twice as much)."""
     m = max(f.sc.window_w, f.h // 4, 2)
     nchunk = (b - a) // m
     if nchunk < 3:
@@ -186,15 +219,17 @@ def _flat_end(f: Features, a: int, b: int) -> int:
     level = float(np.median(x[:3]))
     tol = K_NOISE * float(np.median(f.sigma_tau_loc[a:a + 3 * m])) / math.sqrt(m) + f.sc.tau_step
     off = np.abs(x - level) > tol
-    # a controller taking over also shows as noisier torque: two chunks in a row whose mean absolute
-    # difference exceeds R_NOISIER times that of the first chunks
-    rough = np.mean(np.abs(np.diff(chunks, axis=1)), axis=1)
-    ref = float(np.median(rough[:3]))
-    if ref > 0:
+    end = b if not off.any() else a + int(np.argmax(off)) * m
+    mn = max(m, 128)  # enough differences per chunk for a noise level known to about 7 %
+    nn = (end - a) // mn
+    if nn >= 5:
+        rough = np.mean(np.abs(np.diff(f.tau[a:a + nn * mn].reshape(nn, mn), axis=1)), axis=1)
+        ref = float(np.median(rough[:3]))
         hi = rough > R_NOISIER * ref
-        off |= hi & np.concatenate((hi[1:], [False]))
-    k = np.flatnonzero(off)
-    return b if k.size == 0 else a + int(k[0]) * m
+        k = np.flatnonzero((hi & np.concatenate((hi[1:], [False]))) | (rough > 2.0 * ref))
+        if ref > 0 and k.size:
+            end = min(end, a + int(k[0]) * mn)
+    return end
 
 
 def _flat(f: Features, a: int, b: int) -> bool:
@@ -249,13 +284,13 @@ def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]
     ramps = _ramp_list(f, code, jumps)
     events = np.sort(np.concatenate([jumps, np.array([r[0] for r in ramps], dtype=np.int64)]))
 
-    # 2. steps: still before, settled (still) again within the hold
+    # 2. steps: still before, settled (still) again within the hold, in groups that return the torque to
+    # where it started
     hj = max(1, int(round(T_JUMP / sc.dt)))
-    for j in jumps:
-        seg = _step(f, int(j), hj, events, code)
-        if seg is not None:
-            code[seg[0]:seg[1]] = KIND_CODE["step"]
-            segs.append(_segment(f, "step", *seg))
+    cands = [seg for seg in (_step(f, int(j), hj, events, code) for j in jumps) if seg is not None]
+    for i0, i1 in _step_groups(f, cands, hj):
+        code[i0:i1] = KIND_CODE["step"]
+        segs.append(_segment(f, "step", i0, i1))
 
     # 3. ramps
     for i0, i1 in _ramps(f, ramps):
@@ -274,9 +309,9 @@ def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]
         plateaus.append((i0, i1, float(np.median(f.w[i0:i1]))))
     # a static map needs plateaus at several speeds; one or two steady stretches are moves, not a sweep;
     # in a sweep over both signs, a plateau next to neither of its mirror speeds is a repositioning move
-    def mirror(a, b):  # opposite speeds, no longer apart than the longer of the two lasts
+    def mirror(a, b):  # opposite speeds, apart by at most four times the longer of the two
         apart = max(a[0], b[0]) - min(a[1], b[1])
-        return abs(a[2] + b[2]) <= R_STEADY * abs(a[2]) and apart <= max(a[1] - a[0], b[1] - b[0])
+        return abs(a[2] + b[2]) <= R_STEADY * abs(a[2]) and apart <= 4 * max(a[1] - a[0], b[1] - b[0])
 
     paired = [p for k, p in enumerate(plateaus)
               if (k > 0 and mirror(p, plateaus[k - 1])) or (k + 1 < len(plateaus) and mirror(p, plateaus[k + 1]))]
