@@ -34,7 +34,7 @@ from .models.thermal import thermal_code
 #: Parameter names of the diagnosis extensions (see docs/parameter-file.md, "Extended models").
 EXTENSION_PARAMS = {
     "position": ("pos_amp", "pos_period", "pos_phase", "pos_q0", "pos_lin", "pos_quad"),
-    "load": ("load_tau", "load_gravity", "load_payload"),
+    "load": ("load_torque", "load_gravity", "load_payload"),
     "offset": ("tau_offset",),
     "drift": ("drift_per_hour", "drift_t0"),
     "stribeck": ("str_amp", "str_vs", "str_delta"),
@@ -52,7 +52,7 @@ class ReplayModel:
     name, map : model name and static map. c_pos, c_neg : canonical vectors (w >= 0, w < 0).
     sigma0, sigma1 : LuGre (None: static map). J [kg m^2 | kg], Px, Py [F], Mx, My [F/kg], offset [F]:
     rigid-body terms. thermal : law ('thermal4', 'thermal6', 'exponential') and its numbers, or None.
-    ext : extension parameters by name (``pos_amp``, ``load_tau``, ``drift_per_hour``, ``tau_offset``, ...).
+    ext : extension parameters by name (``pos_amp``, ``load_torque``, ``drift_per_hour``, ``tau_offset``, ...).
     """
 
     name: str
@@ -110,13 +110,16 @@ def position_factor(q, ext: dict) -> np.ndarray:
     return out
 
 
-def load_factor(tau_abs, G_abs, payload, ext: dict) -> np.ndarray | float:
-    """Level multiplier [1] of the load extension: ``1 + load_tau |tau| + load_gravity |G| + load_payload m``.
+def load_factor(load_abs, G_abs, payload, ext: dict) -> np.ndarray | float:
+    """Level multiplier [1] of the load extension:
+    ``1 + load_torque |J a + G| + load_gravity |G| + load_payload m``.
 
-    tau_abs : transmitted torque |tau| [F]; G_abs : |gravity torque| [F]; payload [kg] (arrays or None).
+    load_abs : the torque the transmission carries besides friction, ``|J a + G(q)|`` [F] (inertial and
+    gravity torque; not the measured torque, which contains the friction itself); G_abs : |gravity
+    torque| [F]; payload [kg] (arrays or None).
     """
     out = 1.0
-    for key, x in (("load_tau", tau_abs), ("load_gravity", G_abs), ("load_payload", payload)):
+    for key, x in (("load_torque", load_abs), ("load_gravity", G_abs), ("load_payload", payload)):
         k = ext.get(key)
         if k and x is not None:
             out = out + k * np.asarray(x, dtype=float)
@@ -211,7 +214,8 @@ def joint_model(jf, name: str | None = None) -> ReplayModel:
     for k in ("J", "Px", "Py"):
         if k in ext:
             setattr(m, k, ext[k])
-    if (mf.extra or {}).get("extensions") is not None:
+    if (mf.extra or {}).get("extensions") is not None and (jf.offset is None or
+                                                           jf.offset.source != "log metadata"):
         # a diagnosis model: the torque offset is one of its terms (tau_offset), not the fit's estimate
         m.offset = 0.0
     if "sigma0" in ext:
@@ -267,21 +271,22 @@ class ReplayResult:
         return float(np.sqrt(np.mean(r * r))) if r.size else math.nan
 
 
-def multipliers(model: ReplayModel, t_abs, q, tau, payload, G=None) -> tuple[np.ndarray, np.ndarray]:
+def multipliers(model: ReplayModel, t_abs, q, a, payload, G=None) -> tuple[np.ndarray, np.ndarray]:
     """Level and viscous multipliers (gmul, fmul) [1] per sample for the model's extensions.
 
-    t_abs [s] time on the drift clock; q [q] or None; tau [F] measured (or commanded) torque; payload [kg]
-    or None; G [F] the gravity torque (default from the model).
+    t_abs [s] time on the drift clock; q [q] or None; a [q/s^2] acceleration; payload [kg] or None;
+    G [F] the gravity torque without the offset (default from the model).
     """
     ext = model.ext
-    n = np.shape(tau)[0]
+    a = np.nan_to_num(np.asarray(a, dtype=float))
+    n = a.shape[0]
     gmul = np.ones(n)
     if q is not None and (ext.get("pos_amp") or ext.get("pos_lin") or ext.get("pos_quad")):
         gmul = gmul * position_factor(q, ext)
-    if ext.get("load_tau") or ext.get("load_gravity") or ext.get("load_payload"):
-        if G is None and q is not None:
-            G = model.gravity(q, payload) - model.offset
-        gmul = gmul * load_factor(np.abs(tau), None if G is None else np.abs(G), payload, ext)
+    if ext.get("load_torque") or ext.get("load_gravity") or ext.get("load_payload"):
+        if G is None:
+            G = model.gravity(q, payload) - model.offset if q is not None else np.zeros(n)
+        gmul = gmul * load_factor(np.abs(model.J * a + G), np.abs(G), payload, ext)
     d = drift_factor(t_abs, ext)
     fmul = np.ones(n) * d
     gmul = gmul * d
@@ -332,7 +337,7 @@ def replay(log: JointLog, model: ReplayModel, w=None, a=None, t_offset: float | 
     if t_offset is None:
         start = log_start_time(log)
         t_offset = (start if (start is not None and model.ext.get("drift_t0")) else 0.0)
-    gmul, fmul = multipliers(model, log.t + t_offset, q, log.tau, payload, None if q is None else G - model.offset)
+    gmul, fmul = multipliers(model, log.t + t_offset, q, a, payload, None if q is None else G - model.offset)
     th = thermal_input(model, log, n)
     sig0 = model.sigma0
     off = model.ext.get("tau_offset", 0.0)
@@ -381,7 +386,7 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
     displacement 1e-6 of the position scale), which reproduces its steady state.
     """
     from .plant.kernel import (MODE_PID, MODE_VEL, N_P, P_C, P_GOFF, P_J, P_K, P_KD, P_KI, P_KP, P_KV, P_KVI,
-                               P_LOAD, P_PAMP, P_PAY, P_PPER, P_PPH, P_PX, P_PY, P_S0N, P_S0P, P_S1N, P_S1P, P_TMAX,
+                               P_PAMP, P_PAY, P_PPER, P_PPH, P_PX, P_PY, P_S0N, P_S0P, P_S1N, P_S1P, P_TMAX,
                                simulate_joint)
     notes = []
     if "q_ref" not in log.channels:
@@ -417,9 +422,8 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
     # position (periodic) and load (|u|) act inside the kernel; the rest through gmul/fmul
     if ext.get("pos_amp"):
         p[P_PAMP], p[P_PPER], p[P_PPH] = ext["pos_amp"], ext["pos_period"], ext.get("pos_phase", 0.0)
-    p[P_LOAD] = ext.get("load_tau", 0.0)
     sub = dict(ext)
-    for k in ("pos_amp", "load_tau", "tau_offset"):
+    for k in ("pos_amp", "tau_offset"):
         sub.pop(k, None)
     side = ReplayModel(**{**model.__dict__, "ext": sub})
     q_meas = np.asarray(log.q if log.q is not None else q_ref, dtype=float)
@@ -430,7 +434,9 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
         notes.append("closed loop: payload gravity other than Mx m cos q is not simulated")
     start = log_start_time(log)
     t_off = start if (start is not None and ext.get("drift_t0")) else 0.0
-    gmul, fmul = multipliers(side, log.t + t_off, q_meas, log.tau, payload, G_meas)
+    from .segments import derivatives
+    _, a_meas = derivatives(log)
+    gmul, fmul = multipliers(side, log.t + t_off, q_meas, a_meas, payload, G_meas)
     th = thermal_input(model, log, n)
     if th is not None:
         if "T" in th:

@@ -41,13 +41,22 @@ def base_model_name(jf) -> str | None:
     return name
 
 
-def _base_structure(jf, name: str) -> Structure:
+def _base_structure(jf, name: str, S: Samples) -> Structure:
+    """The base map with its shapes; for a rotary joint whose gravity the fit estimated, the gravity
+    correction is re-estimated with it (the fit's offset and gravity trade off over a short range of
+    angles; the offset is taken out and only enters through the ``offset`` cause)."""
     from ..models import static as sm
+    from .model import Term
 
     mf = jf.models[name]
     mapname = "polynomial" if name == "polynomial_ls" else mf.map
     cp, _ = sm.canonical_pair(mapname, {k: v for k, v in mf.values().items()})
-    return Structure(map=mapname, shapes=np.asarray(cp, float))
+    terms = ()
+    px = jf.gravity.get("Px")
+    if (S.axis_rotary and S.q is not None and px is not None and px.value is not None and np.ptp(S.q) > 0
+            and px.source != "log metadata"):
+        terms = (Term("gravity", "gravity", "additive", (), in_base=True),)
+    return Structure(map=mapname, shapes=np.asarray(cp, float), terms=terms)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -60,7 +69,7 @@ def _units(axis: str) -> dict:
     F, q = unit_of("F", axis), unit_of("Q", axis)
     return {
         "pos_amp": "1", "pos_period": q, "pos_phase": "rad", "pos_q0": q, "pos_lin": f"1/{q}",
-        "pos_quad": f"1/{q}^2", "load_tau": f"1/{F}", "load_gravity": f"1/{F}", "load_payload": "1/kg",
+        "pos_quad": f"1/{q}^2", "load_torque": f"1/{F}", "load_gravity": f"1/{F}", "load_payload": "1/kg",
         "drift_per_hour": "1/h", "drift_t0": "s", "alpha": "1/K", "beta": "1", "C": "J/K", "K": "W/K",
         "T0": "degC", "dc0": f"{F}/K", "dc1": f"{unit_of('D', axis)}/K", "dc2": f"{unit_of('D2', axis)}/K",
         "dc3": f"{unit_of('D3', axis)}/K", "tau_offset": F, "J": "kg m^2" if axis == "rotary" else "kg",
@@ -175,7 +184,7 @@ def evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> str
         return (f"friction level changes by {100 * (f[1] - f[0]):+.1f} % from one end of the "
                 f"{_fmt(2 * nl['qs'])} {q_u} of travel to the other (r = {r:.2f}); {tail}")
     if ext.startswith("load_"):
-        var = {"load_tau": f"transmitted torque |tau|", "load_gravity": "gravity torque |G(q)|",
+        var = {"load_torque": "load torque |J a + G(q)|", "load_gravity": "gravity torque |G(q)|",
                "load_payload": "payload"}[ext]
         unit = "kg" if ext == "load_payload" else F_u
         per = float(g[0]) / nl["scale"]
@@ -207,8 +216,9 @@ def evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> str
                 f"(r = {r:.2f}); a torque offset: {tail}")
     if ext == "drift":
         span_h = float(np.ptp(S.th))
-        return (f"friction changes {100 * float(g[0]):+.2g} % per hour over {_duration(span_h * 3600)} of "
-                f"recordings (r = {r:.2f}); a drift term: {tail}")
+        return (f"friction changes {100 * float(g[0]):+.3g} % per hour ({100 * float(g[0]) * span_h:+.3g} % over "
+                f"the {_duration(span_h * 3600)} between the first and last recording; r = {r:.2f}); a drift "
+                f"term: {tail}")
     return f"r = {r:.2f}; {tail}"
 
 
@@ -250,13 +260,14 @@ def diagnose_joint(jf, logs: list[DiagLog], n_folds: int = N_FOLDS) -> list[dict
         jf.diagnosis = []
         return []
     rec["base"] = base
-    S = build_samples(logs, n_folds, axis=jf.axis)
+    J = jf.inertia.value if jf.inertia is not None and jf.inertia.value is not None else 0.0
+    S = build_samples(logs, n_folds, axis=jf.axis, J=max(J, 0.0))
     if S is None:
         rec["skipped"] = f"fewer than {2 * n_folds} sliding segments: nothing can be held out"
         jf.diagnosis = []
         jf.selected = base
         return []
-    st0 = _base_structure(jf, base)
+    st0 = _base_structure(jf, base, S)
     rigid = {"J": jf.inertia.value if jf.inertia and jf.inertia.value is not None else 0.0,
              "Px": jf.gravity["Px"].value if "Px" in jf.gravity and jf.gravity["Px"].value is not None else 0.0,
              "Py": jf.gravity["Py"].value if "Py" in jf.gravity and jf.gravity["Py"].value is not None else 0.0}
@@ -284,7 +295,7 @@ def diagnose_joint(jf, logs: list[DiagLog], n_folds: int = N_FOLDS) -> list[dict
                      for t, c in zip(tr.fold_terms, tr.fold_coefs)]
         params = _param_entries(mapname, vals, fold_vals, jf.axis)
         name = st.name
-        extra = {"base": base, "extensions": [t.ext for t in st.terms]}
+        extra = {"base": base, "extensions": [t.ext for t in st.terms if not t.in_base]}
         th = next((t for t in st.terms if t.ext in ("thermal4", "thermal6")), None)
         if th is not None:
             extra["temperature"] = th.settings.get("source", "heat_balance")

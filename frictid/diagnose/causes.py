@@ -23,7 +23,7 @@ EXTENSIONS = {
     "thermal6": ("temperature", "thermal6", 4),
     "position_periodic": ("position", "level_factor", 2),
     "position_smooth": ("position", "level_factor", 2),
-    "load_tau": ("load", "level_factor", 1),
+    "load_torque": ("load", "level_factor", 1),
     "load_gravity": ("load", "level_factor", 1),
     "load_payload": ("load", "level_factor", 1),
     "asym": ("asymmetry", "asym", None),  # as many as the base map's amplitudes
@@ -57,7 +57,7 @@ def candidates(S: Samples, st: Structure) -> list[str]:
         if _period_range(S) is not None:
             out.append("position_periodic")
     if "load" not in have:
-        out.append("load_tau")
+        out.append("load_torque")
         if np.std(S.G) > 1e-9 * (np.std(S.F) + 1e-300) and np.std(S.G) > 0:
             out.append("load_gravity")
         if S.payload is not None and np.std(S.payload) > 0:
@@ -72,7 +72,7 @@ def candidates(S: Samples, st: Structure) -> list[str]:
         out.append("gravity")
     if "offset" not in have:
         out.append("offset")
-    if "drift" not in have and span_h > 0:
+    if "drift" not in have and len(S.logs) > 1 and span_h > 0:
         out.append("drift")
     return out
 
@@ -131,7 +131,7 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
         qs = float(0.5 * np.ptp(S.q)) or 1.0
         return Term(cause, ext, role, (("q0", q0), ("qs", qs)))
     if ext.startswith("load_"):
-        var = {"load_tau": np.abs(S.tau), "load_gravity": np.abs(S.G), "load_payload": S.payload}[ext]
+        var = {"load_torque": S.load, "load_gravity": np.abs(S.G), "load_payload": S.payload}[ext]
         sc = float(np.sqrt(np.mean(var * var))) or 1.0
         return Term(cause, ext, role, (("scale", sc),))
     if ext == "stribeck":

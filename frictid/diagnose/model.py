@@ -17,8 +17,8 @@ A model predicts the friction torque of a sliding sample as (the same structure 
 - additive terms: ``offset`` (1), ``inertia`` (acceleration), ``gravity`` (cos q, sin q).
 
 Given the factors the model is linear in the amplitudes and additive terms; given everything else it is
-linear in each factor's coefficients. :func:`fit` alternates these least-squares problems
-(:data:`N_SWEEPS` sweeps), which converges in a few sweeps because the factors stay near one.
+linear in each factor's coefficients. :meth:`Evaluator.fit` starts from the exact linear solution with
+the factors at one and solves the coupled (bilinear) problem by Gauss-Newton.
 """
 from __future__ import annotations
 
@@ -28,9 +28,6 @@ import numpy as np
 
 from ..models import static as sm
 from .samples import Samples
-
-#: Alternating least-squares sweeps.
-N_SWEEPS = 4
 
 #: Canonical slots: level (a0, a1, a2) and viscous (b1, b2, b3).
 LEVEL_SLOTS = (0, 1, 4)
@@ -54,6 +51,7 @@ class Term:
     ext: str
     role: str  # level_factor, whole_factor, thermal6, additive, stribeck, asym
     nl: tuple = ()
+    in_base: bool = False  # part of the base (re-estimated rigid-body terms), not a finding
 
     @property
     def settings(self) -> dict:
@@ -80,7 +78,7 @@ class Structure:
 
     @property
     def name(self) -> str:
-        return "+".join([self.map] + [t.ext for t in self.terms])
+        return "+".join([self.map] + [t.ext for t in self.terms if not t.in_base])
 
     def slots(self) -> tuple:
         s = list(MAP_SLOTS[self.map])
@@ -143,8 +141,7 @@ class Context:
             d = (S.q - nl["q0"]) / nl["qs"]
             c = np.column_stack([d, d * d])
         elif term.ext.startswith("load_"):
-            var = {"load_tau": np.abs(S.tau), "load_gravity": np.abs(S.G),
-                   "load_payload": S.payload}[term.ext]
+            var = {"load_torque": S.load, "load_gravity": np.abs(S.G), "load_payload": S.payload}[term.ext]
             c = (var / nl["scale"])[:, None]
         elif term.ext == "drift":
             c = S.th[:, None]
@@ -290,41 +287,85 @@ class Evaluator:
         c.base_pos, c.base_neg, c.dc = bp, bn, dc
         c.gamma.update(gam)
 
-    def _factor_step(self, c: Coef, idx, y, i, X, level: bool):
+    def _jacobian(self, c: Coef, idx):
+        """Prediction and the columns of its derivative in every coefficient, with their keys."""
         g, f = self._gf(c, idx)
-        add = self._additive(c, idx)
-        if level:
-            mA = self._factor(self.af, c, idx)
-            mLx = self._factor(self.lf, c, idx, skip=i)
-            base = mA * (mLx * g + f) + add
-            D = (mA * mLx * g)[:, None] * X[idx]
-        else:
-            mL = self._factor(self.lf, c, idx)
-            mAx = self._factor(self.af, c, idx, skip=i)
-            inner = mL * g + f
-            base = mAx * inner + add
-            D = (mAx * inner)[:, None] * X[idx]
-        c.gamma[i] = _lstsq(D, y - base)
+        mL = self._factor(self.lf, c, idx)
+        mA = self._factor(self.af, c, idx)
+        pos = self.pos[idx]
+        cols, keys = [], []
+        for sl, col in self.base_cols.items():
+            x = col[idx] * (mA * mL if sl in LEVEL_SLOTS else mA)
+            if self.st.asym:
+                cols += [x * pos, x * ~pos]
+                keys += [("p", sl, 0), ("n", sl, 0)]
+            else:
+                cols.append(x)
+                keys.append(("b", sl, 0))
+        if self.t6 is not None:
+            X = self.t6[2][idx]
+            cols.append(X[:, 0] * mA * mL)
+            keys.append(("dc", 0, 0))
+            for j in range(1, 4):
+                cols.append(X[:, j] * mA)
+                keys.append(("dc", j, 0))
+        for i, t, X in self.add:
+            for j in range(X.shape[1]):
+                cols.append(X[idx, j])
+                keys.append(("g", i, j))
+        for i, t, X in self.lf:
+            d = mA * self._factor(self.lf, c, idx, skip=i) * g
+            for j in range(X.shape[1]):
+                cols.append(d * X[idx, j])
+                keys.append(("g", i, j))
+        inner = mL * g + f
+        for i, t, X in self.af:
+            d = self._factor(self.af, c, idx, skip=i) * inner
+            for j in range(X.shape[1]):
+                cols.append(d * X[idx, j])
+                keys.append(("g", i, j))
+        pred = mA * inner + self._additive(c, idx)
+        return pred, np.column_stack(cols), keys
 
-    def fit(self, idx=None, start: Coef | None = None) -> Coef:
-        """Least-squares coefficients on samples idx (default all), alternating the linear blocks."""
+    def _apply(self, c: Coef, keys, delta):
+        for (kind, a, b), v in zip(keys, delta):
+            v = float(v)
+            if kind == "b":
+                c.base_pos[a] = c.base_pos.get(a, 0.0) + v
+                c.base_neg[a] = c.base_neg.get(a, 0.0) + v
+            elif kind == "p":
+                c.base_pos[a] = c.base_pos.get(a, 0.0) + v
+            elif kind == "n":
+                c.base_neg[a] = c.base_neg.get(a, 0.0) + v
+            elif kind == "dc":
+                c.dc[a] += v
+            else:
+                c.gamma[a][b] += v
+
+    def fit(self, idx=None, start: Coef | None = None, max_iter: int = 12, tol: float = 1e-9) -> Coef:
+        """Least-squares coefficients on samples idx (default all).
+
+        The model is linear in the amplitudes and additive terms and, given them, in each factor; the
+        coupled problem is solved by Gauss-Newton from the exact linear solution with all factors at one
+        (it is bilinear, so the iterations converge in a few steps).
+        """
         S = self.ctx.S
         idx = np.arange(S.n) if idx is None else np.asarray(idx)
         y = S.F[idx]
         c = Coef({}, {}, np.zeros(4), {})
-        if start is not None:
-            c.gamma = {i: np.array(v, float) for i, v in start.gamma.items()}
-        for i, t, X in self.lf + self.af:
-            c.gamma.setdefault(i, np.zeros(X.shape[1]))
-        sweeps = N_SWEEPS if (self.lf or self.af) else 1
-        for _ in range(sweeps):
-            self._linear_block(c, idx, y)
-            for i, t, X in self.lf:
-                self._factor_step(c, idx, y, i, X, level=True)
-            for i, t, X in self.af:
-                self._factor_step(c, idx, y, i, X, level=False)
+        for i, t, X in self.lf + self.af + self.add:
+            c.gamma[i] = np.zeros(X.shape[1])
+        self._linear_block(c, idx, y)
         if self.lf or self.af:
-            self._linear_block(c, idx, y)
+            prev = np.inf
+            for _ in range(max_iter):
+                pred, Jm, keys = self._jacobian(c, idx)
+                r = y - pred
+                cost = float(r @ r)
+                self._apply(c, keys, _lstsq(Jm, r))
+                if abs(prev - cost) <= tol * max(cost, 1e-300):
+                    break
+                prev = cost
         r = y - self.predict(c, idx)
         c.rms = float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
         c.n = int(idx.size)

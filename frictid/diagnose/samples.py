@@ -2,9 +2,10 @@
 
 From each log of a joint (as the fit prepared it: velocity, acceleration, friction torque
 ``F = tau - J a - G``, segments) the diagnosis keeps the *sliding* samples: moving faster than
-``v_min``, outside ramp, step and rest segments, and away from the start and end of every run of one
-velocity sign (the first and last ``edge`` samples: differentiation transients and the presliding lag of
-a reversal, which the static map does not describe and which the ``presliding`` cause handles on its own).
+``v_min`` (2 % of the top speed), outside ramp, step and rest segments, away from the start and end of
+every run of one velocity sign (the first and last ``edge`` samples, 50 ms: differentiation transients and
+the presliding lag of a reversal, which the static map does not describe and which the ``presliding``
+cause handles on its own), and with an inertial torque ``|J a|`` no larger than the median friction.
 
 Held-out groups are whole segments (a plateau, a duty cycle, a transition), long ones cut into chunks of
 at most :data:`MAX_GROUPS_TARGET`-th of the sliding time, never single samples: samples are strongly
@@ -30,6 +31,8 @@ from scipy.signal import lfilter
 EXCLUDED_KINDS = ("ramp_presliding", "step", "rest")
 #: Aim for at least this many held-out groups (long segments are cut into chunks).
 MAX_GROUPS_TARGET = 60
+#: Sliding samples have an inertial torque |J a| of at most this many times the median friction.
+INERTIA_RATIO = 1.0
 #: At most this many samples enter the fits (evenly decimated beyond).
 N_MAX = 20000
 
@@ -101,6 +104,11 @@ class Samples:
         return self.axis == "rotary"
 
     @property
+    def load(self) -> np.ndarray:
+        """The torque the transmission carries besides friction, ``|J a + G| = |tau - F|`` [F]."""
+        return np.abs(self.tau - self.F)
+
+    @property
     def n(self) -> int:
         return int(self.w.shape[0])
 
@@ -158,8 +166,13 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None,
-                  n_max: int = N_MAX, axis: str = "rotary") -> Samples | None:
-    """The :class:`Samples` of a joint's logs, or None when fewer than ``2 n_folds`` groups slide."""
+                  n_max: int = N_MAX, axis: str = "rotary", J: float = 0.0) -> Samples | None:
+    """The :class:`Samples` of a joint's logs, or None when fewer than ``2 n_folds`` groups slide.
+
+    J [kg m^2 | kg] : the inertia the friction torque was computed with; samples whose inertial torque
+    ``|J a|`` exceeds :data:`INERTIA_RATIO` times the typical friction are left out (there the friction
+    torque is a small difference of large numbers, dominated by the error of the acceleration estimate).
+    """
     allw = np.concatenate([np.abs(lg.w[np.isfinite(lg.w)]) for lg in logs])
     if not allw.size:
         return None
@@ -167,6 +180,8 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
     if w0 <= 0:
         return None
     v_min = 0.02 * w0
+    movF = np.concatenate([np.abs(lg.F[np.isfinite(lg.F) & (np.abs(np.nan_to_num(lg.w)) > v_min)]) for lg in logs])
+    F_level = float(np.median(movF)) if movF.size else np.inf
     # drift clock
     starts = [lg.start for lg in logs]
     real = all(s is not None for s in starts)
@@ -190,6 +205,8 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
                 kind_ok[s.i0:s.i1] = False
         w = np.nan_to_num(lg.w)
         ok = np.isfinite(lg.F) & np.isfinite(lg.w) & np.isfinite(lg.a) & kind_ok
+        if J > 0:
+            ok &= np.abs(J * np.nan_to_num(lg.a)) <= INERTIA_RATIO * F_level
         pos, neg = (w > v_min) & ok, (w < -v_min) & ok
         dt = float(np.median(np.diff(lg.t))) if n > 1 else 1.0
         e = edge if edge is not None else max(5, int(round(0.05 / dt)))
