@@ -79,8 +79,10 @@ def _kernel(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, z0, dynamic,
                 Fk = -g
         elif wk > 0.0:
             Fk = g + fv
-        else:
+        elif wk < 0.0:
             Fk = -g + fv
+        else:
+            Fk = fv
         F[k] = Fk
         z[k] = zk
         T[k] = Tk
