@@ -40,10 +40,19 @@ def adapted_truth_segments(log) -> list[tuple[str, int, int]]:
       the next input: a change of the control mode when ``truth["mode"]`` is known (see
       :func:`simulate_with_modes`).
 
-    Everything else is the plant's labels as written. Without a ``tau_ref`` channel this equals
-    :func:`truth_segments`.
+    - a velocity plateau of a constant-velocity experiment (``truth["plateaus"]``) is constant_velocity
+      from where the true velocity, averaged over ``T_AVERAGE`` (the time scale at which a plateau is
+      averaged), has settled within 2 % of the reference plus 0.1 % of the velocity limit for the rest
+      of the plateau. The plant applies the same band to a 10 ms average, which the controller's jitter
+      leaves on slow plateaus once the sensors are noisy: those plateaus it labels ``other`` although
+      their mean velocity is the reference.
+
+    Everything else is the plant's labels as written. Without a ``tau_ref`` channel and plateaus this
+    equals :func:`truth_segments`.
     """
     segs = truth_segments(log)
+    if log.truth.get("plateaus"):
+        segs = _plateau_truth(log)
     ref = log.channels.get("tau_ref")
     if ref is None:
         return segs
@@ -93,9 +102,39 @@ def adapted_truth_segments(log) -> list[tuple[str, int, int]]:
     return merged
 
 
+T_AVERAGE = 0.1
+
+
+def _plateau_truth(log) -> list[tuple[str, int, int]]:
+    """Truth runs with the plateaus relabelled as described in :func:`adapted_truth_segments`."""
+    lab = np.asarray(log.truth["segment"]).astype(object).copy()
+    w = np.asarray(log.truth["velocity"], dtype=float)
+    vmax = float(log.truth.get("vmax", np.max(np.abs(w))))
+    m = max(1, int(round(T_AVERAGE / log.dt)))
+    for i0, i1, v in log.truth["plateaus"]:
+        seg = w[i0:i1]
+        if seg.size < 2 * m:
+            continue
+        c = np.concatenate(([0.0], np.cumsum(seg - v)))
+        k = np.arange(seg.size)
+        lo, hi = np.maximum(k - m // 2, 0), np.minimum(k + m - m // 2, seg.size)
+        dev = np.abs((c[hi] - c[lo]) / (hi - lo))
+        bad = np.flatnonzero(dev > 0.02 * abs(v) + 1e-3 * vmax)
+        start = 0 if bad.size == 0 else int(bad[-1]) + 1
+        if seg.size - start >= 0.3 * seg.size:
+            lab[i0:i0 + start] = "other"
+            lab[i0 + start:i1] = "constant_velocity"
+    cyc = np.asarray(log.truth.get("cycle", np.full(lab.size, -1)))
+    change = np.flatnonzero((lab[1:] != lab[:-1]) | (cyc[1:] != cyc[:-1])) + 1
+    starts = np.concatenate(([0], change))
+    ends = np.concatenate((change, [lab.size]))
+    return [(str(lab[a]), int(a), int(b)) for a, b in zip(starts, ends)]
+
+
 def simulate_with_modes(recipe, plant=None, seed=0, duration_scale=1.0, **kw):
-    """``frictid.plant.simulate_recipe`` plus the control mode of every sample in ``truth["mode"]``
-    (open-loop torque, position PID, velocity PI), taken from the compiled recipe program."""
+    """``frictid.plant.simulate_recipe`` plus, from the compiled recipe program, the control mode of every
+    sample in ``truth["mode"]`` (open-loop torque, position PID, velocity PI) and the velocity plateaus of
+    the constant-velocity experiments in ``truth["plateaus"]`` ((i0, i1, reference velocity) rows)."""
     from frictid.plant import simulate_recipe
     from frictid.plant.config import load_plant, load_recipe, resolve_plant_path
     from frictid.plant.recipe import compile_recipe
@@ -104,9 +143,12 @@ def simulate_with_modes(recipe, plant=None, seed=0, duration_scale=1.0, **kw):
     rec, base = load_recipe(recipe)
     pl = load_plant(plant if plant is not None else resolve_plant_path(rec.default_plant, base))
     for lg in logs:
-        prog = compile_recipe(rec, pl, pl.joint(lg.joint), duration_scale).finish()
+        pr = compile_recipe(rec, pl, pl.joint(lg.joint), duration_scale)
+        prog = pr.finish()
         if prog["mode"].size == lg.n:
             lg.truth["mode"] = prog["mode"]
+            lg.truth["plateaus"] = list(pr.plateaus)
+            lg.truth["vmax"] = float(pl.joint(lg.joint).limits.velocity)
     return logs
 
 

@@ -46,7 +46,8 @@ R_STEADY = 0.02
 #: A still joint whose torque changes by more than this fraction of the log's torque range within
 #: T_MIN is being loaded, not resting.
 R_RAMP = 0.05
-#: A ramp changes the torque by at least this many (local) torque noise levels.
+#: A ramp changes the torque by at least this many standard errors of its fitted change (and by
+#: two noise levels).
 K_RAMP = 10.0
 #: The torque of a hold under a constant (open-loop) torque has ended when it gets this much noisier.
 R_NOISIER = 1.5
@@ -125,14 +126,15 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
 
 
 def find_jumps(f: Features) -> np.ndarray:
-    """Sample indices of torque jumps: a change of at least ``K_NOISE`` noise levels completed within
-    ``T_JUMP`` (the change over 4 ``T_JUMP`` is no larger), one index per jump (the steepest sample)."""
+    """Sample indices of torque jumps: a change completed within ``T_JUMP`` (the change over 4 ``T_JUMP``
+    is no larger) that exceeds the trend around it (a quarter of that longer change) by ``K_NOISE``
+    standard errors; one index per jump (the steepest sample)."""
     sc = f.sc
     hj = max(1, int(round(T_JUMP / sc.dt)))
     d1 = box_slope(f.tau, hj, sc.dt) * (hj * sc.dt)
     d4 = box_slope(f.tau, 4 * hj, sc.dt) * (4 * hj * sc.dt)
     thr = K_NOISE * f.sigma_tau_loc * math.sqrt(2.0 / hj)
-    big = np.abs(d1) > thr
+    big = np.abs(d1 - 0.25 * d4) > thr
     s, e = runs(big)
     if s.size == 0:
         return np.zeros(0, dtype=np.int64)
@@ -432,7 +434,8 @@ def _ramp_ok(f: Features, i0: int, i1: int, sign: int, tau_b: np.ndarray, code: 
         return False
     dtau = tau_b[i1 - 1] - tau_b[i0]
     sigma = float(np.median(f.sigma_tau_loc[i0:i1]))
-    if sign * dtau < K_RAMP * sigma:
+    # the torque change must stand out: K_RAMP standard errors of a line fitted through n samples
+    if sign * dtau < max(K_RAMP * sigma * math.sqrt(12.0 / (i1 - i0)), 2.0 * sigma):
         return False
     if not _straight(f.t[i0:i1], f.tau[i0:i1], sigma, abs(dtau)):
         return False
