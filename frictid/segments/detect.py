@@ -326,11 +326,15 @@ def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]
 
     # 5. rest: still runs (fine scale) that hold a still sample at the coarse scale, with a torque that
     # does not change by more than R_RAMP of its range within T_MIN (a controller loading a stuck joint)
+    # (hysteresis: the loading is found at the feature scale, its edges at a finer one)
     hf = max(f.sc.window_w, f.h // 4)
     sf = box_slope(f.tau, hf, sc.dt)
     sig_sf = f.sigma_tau_loc * math.sqrt(2.0 / hf) / (hf * sc.dt)
-    calm = np.abs(sf) <= np.maximum(K_NOISE * sig_sf, R_RAMP * sc.tau_range / T_MIN)
-    calm = fill_short(calm, 2 * hf + 2, False)  # a torque jump alone does not end a rest
+    sig_s = f.sigma_tau_loc * math.sqrt(2.0 / f.h) / (f.h * sc.dt)
+    rate = R_RAMP * sc.tau_range / T_MIN
+    loading = np.abs(f.s) > np.maximum(K_NOISE * sig_s, rate)
+    loading = grow(loading, np.abs(sf) > np.maximum(2.0 * sig_sf, 0.5 * rate))
+    calm = fill_short(~loading, 2 * hf + 2, False)  # a torque jump alone does not end a rest
     rest = grow(f.still & calm & (code < 0), f.still_fine & calm & (code < 0))
     rest = drop_short(rest, n_min)
     code[rest] = KIND_CODE["rest"]
