@@ -170,18 +170,19 @@ def _phi123(mu):
     return p1, p2, p3
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FM)
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
 def _phi12_real(x):
     """phi1, phi2 of a real argument."""
     if abs(x) < 1e-3:
         x2 = x * x
         return (1.0 + x / 2.0 + x2 / 6.0 + x2 * x / 24.0 + x2 * x2 / 120.0,
                 0.5 + x / 6.0 + x2 / 24.0 + x2 * x / 120.0 + x2 * x2 / 720.0)
+    ix = 1.0 / x
     if x < -40.0:  # exp(x) below round-off: skip it (the fast bristle mode in sliding)
-        p1 = -1.0 / x
+        p1 = -ix
     else:
-        p1 = math.expm1(x) / x
-    return p1, (p1 - 1.0) / x
+        p1 = math.expm1(x) * ix
+    return p1, (p1 - 1.0) * ix
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM)
@@ -198,17 +199,26 @@ def lugre_step(q, w, z, u, h, J, sigma0, sigma1, g, dg, f, fp):
     exactly: ``x1 = x0 + h phi1(hA) r0``, ``q1 = q0 + h w0 + h^2 [phi2(hA) r0]_w``. Second order, and
     stable for any stiffness (in fast sliding z lands on its quasi-steady value ``g sgn(w)/sigma0``).
     """
+    q1, w1, z1, _ = lugre_core(q, w, z, u, h, 1.0 / J, sigma0, sigma1, g, dg, f, fp)
+    return q1, w1, z1
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+def lugre_core(q, w, z, u, h, iJ, sigma0, sigma1, g, dg, f, fp):
+    """:func:`lugre_step` with the inverse inertia iJ [q/(F s^2)]; returns ``(q1, w1, z1, F0)`` with F0
+    [F] the friction at the step's start (one reciprocal of g, of 2r and of the phi arguments instead of
+    repeated divisions: divisions dominate the step's latency)."""
     aw = abs(w)
-    a = sigma0 * aw / g
+    ig = 1.0 / g
+    a = sigma0 * aw * ig
     if w != 0.0:
-        da = sigma0 * (g - aw * dg) / (g * g)
+        da = sigma0 * (g - aw * dg) * (ig * ig)
         if w < 0.0:
             da = -da
     else:
         da = 0.0
     zd0 = w - a * z
     F0 = sigma0 * z + sigma1 * zd0 + f
-    iJ = 1.0 / J
     r1 = zd0
     r2 = (u - F0) * iJ
     # Jacobian of (z', w')
@@ -238,13 +248,14 @@ def lugre_step(q, w, z, u, h, J, sigma0, sigma1, g, dg, f, fp):
     else:
         r = math.sqrt(-D)
         a1, a2, _ = _phi123(complex(s, r))
-        al1, be1 = a1.real, a1.imag / r
-        al2, be2 = a2.real, a2.imag / r
+        ir = 1.0 / r
+        al1, be1 = a1.real, a1.imag * ir
+        al2, be2 = a2.real, a2.imag * ir
     # phi1(M) r0 and phi2(M) r0
     v1 = al1 * r1 + be1 * (N11 * r1 + N12 * r2)
     v2 = al1 * r2 + be1 * (N21 * r1 + N22 * r2)
     u2 = al2 * r2 + be2 * (N21 * r1 + N22 * r2)
-    return q + h * w + h * h * u2, w + h * v2, z + h * v1
+    return q + h * w + h * h * u2, w + h * v2, z + h * v1, F0
 
 
 def lugre_step_ref(q, w, z, u, h, J, sigma0, sigma1, g, dg, f, fp):

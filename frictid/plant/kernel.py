@@ -23,8 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..models.lugre import (dviscous_nb, level_slope_nb, lugre_step, lugre_step_ref, thermal_canon_nb,
-                            viscous_nb)
+from ..models.lugre import lugre_core, lugre_step_ref
 from ..models.static import canonical_level, canonical_viscous
 from ..models.lugre import _FM
 
@@ -39,14 +38,61 @@ N_P = 22
 MODE_TORQUE, MODE_PID, MODE_VEL = 0, 1, 2
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FM)
-def _gravity(q, pay, p):
-    G = p[P_GOFF]
-    if p[P_PX] != 0.0 or p[P_PY] != 0.0:
-        G += p[P_PX] * math.cos(q) + p[P_PY] * math.sin(q)
-    if pay != 0.0 and p[P_PAY] != 0.0:
-        G += pay * p[P_PAY] * math.cos(q)
-    return G
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+def _map_at(w, cc, dcc, o, s_th, dT):
+    """The canonical map of branch ``o`` (0: w >= 0, 9: w < 0) at speed |w| and temperature.
+
+    cc, dcc : the two canonical vectors and thermal slopes, concatenated (18 each). The map at joint
+    temperature T is ``c0 s(T) + dc (T - T0)`` (:func:`frictid.models.lugre.thermal_canon_nb`); since the
+    level is linear in the amplitudes (a0, a1, a2) and the viscous part in (b1, b2, b3), it is evaluated
+    as ``s g0(v) + dT dc_a0`` and ``s f0(w) + dT f_dc(w)``: no per-sample copy of the vectors.
+    s_th = s(T); dT = T - T0 for thermal6 (0 otherwise). Returns (g, dg/d|w|, f, df/dw).
+    """
+    v = abs(w)
+    g = cc[o]
+    dg = 0.0
+    c1 = cc[o + 1]
+    if c1 != 0.0:
+        vs = cc[o + 2]
+        x = v / vs
+        d = cc[o + 3]
+        if d == 1.0:
+            e = math.exp(-x)
+            g += c1 * e
+            dg -= c1 / vs * e
+        elif d == 2.0:
+            e = math.exp(-x * x)
+            g += c1 * e
+            dg -= c1 * 2.0 * x / vs * e
+        elif x > 0.0:
+            xd1 = x ** (d - 1.0)
+            e = math.exp(-xd1 * x)
+            g += c1 * e
+            dg -= c1 * d / vs * xd1 * e
+        else:
+            g += c1
+    c4 = cc[o + 4]
+    if c4 != 0.0:
+        e = math.exp(-v / cc[o + 5])
+        g += c4 * (1.0 - e)
+        dg += c4 / cc[o + 5] * e
+    b1 = cc[o + 6]
+    b2 = cc[o + 7]
+    b3 = cc[o + 8]
+    f = w * (b1 + b2 * v + b3 * w * w)
+    fp = b1 + 2.0 * b2 * v + 3.0 * b3 * w * w
+    g *= s_th
+    dg *= s_th
+    f *= s_th
+    fp *= s_th
+    if dT != 0.0:
+        g += dcc[o] * dT
+        d1 = dcc[o + 6]
+        d2 = dcc[o + 7]
+        d3 = dcc[o + 8]
+        f += dT * w * (d1 + d2 * v + d3 * w * w)
+        fp += dT * (d1 + 2.0 * d2 * v + 3.0 * d3 * w * w)
+    return g, dg, f, fp
 
 
 #: Pieces a step is cut into when the velocity changes sign within it.
@@ -54,61 +100,72 @@ REFINE = 8
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
-def _substep_lev(q, w, z, u, hs, c, lev, dlev, p, lmul, fm, amp, kper, ph, pay):
-    """One plant step of length hs with the applied torque u held; c is the branch of sgn(w) and
-    (lev, dlev) its level and slope at |w|. Returns (q, w, z)."""
+def _step_map(q, w, z, u, hs, g0, dg0, f0, fp0, lmul, fm, amp, kper, ph, pay,
+              iJ, s0p, s0n, s1p, s1n, goff, px, py, parm):
+    """One plant step of length hs with the applied torque u held, given the map (g0, dg0, f0, fp0) at
+    (|w|, T) before the level and viscous multipliers. Returns (q, w, z, F) with F the friction at the
+    step's start."""
     gm = lmul
     if amp != 0.0:
         # the level along the step is taken at the predicted end position, so that z, which settles
         # within the step in sliding, lands on g(q1)/sigma0 rather than lagging a step behind
         gm *= 1.0 + amp * math.sin(kper * (q + hs * w) + ph)
     if z >= 0.0:
-        s0 = p[P_S0P]
-        s1 = p[P_S1P]
+        s0 = s0p
+        s1 = s1p
     else:
-        s0 = p[P_S0N]
-        s1 = p[P_S1N]
-    G = _gravity(q + 0.5 * hs * w, pay, p)
-    return lugre_step(q, w, z, u - G, hs, p[P_J], s0, s1, gm * lev, gm * dlev,
-                      fm * viscous_nb(w, c), fm * dviscous_nb(w, c))
+        s0 = s0n
+        s1 = s1n
+    # gravity at the step's midpoint position
+    qm = q + 0.5 * hs * w
+    G = goff
+    if px != 0.0 or py != 0.0 or (pay != 0.0 and parm != 0.0):
+        cq = math.cos(qm)
+        G += px * cq + py * math.sin(qm) + pay * parm * cq
+    return lugre_core(q, w, z, u - G, hs, iJ, s0, s1, gm * g0, gm * dg0, fm * f0, fm * fp0)
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
-def _substep(q, w, z, u, hs, cp, cn, p, lmul, fm, amp, kper, ph, pay):
-    """:func:`_substep_lev` with the branch and level looked up from w."""
-    c = cp if w >= 0.0 else cn
-    lev, dlev = level_slope_nb(abs(w), c)
-    return _substep_lev(q, w, z, u, hs, c, lev, dlev, p, lmul, fm, amp, kper, ph, pay)
+def _step(q, w, z, u, hs, cc, dcc, s_th, dT, lmul, fm, amp, kper, ph, pay,
+          iJ, s0p, s0n, s1p, s1n, goff, px, py, parm):
+    """:func:`_step_map` with the map looked up from w; returns (q, w, z)."""
+    g0, dg0, f0, fp0 = _map_at(w, cc, dcc, 0 if w >= 0.0 else 9, s_th, dT)
+    q1, w1, z1, _ = _step_map(q, w, z, u, hs, g0, dg0, f0, fp0, lmul, fm, amp, kper, ph, pay,
+                              iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
+    return q1, w1, z1
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FM)
-def _needs_refine(w, w1, z, z1, s0, hs, g, p):
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+def _needs_refine(w, w1, z, z1, s0, hs, ig, per_sign):
     """Whether a step from (w, z) to (w1, z1) must be redone in pieces.
 
     ``ah = s0 max|w| h / g`` is how far the bristles move in one step relative to their deflection
-    limit; ``s0 |z| / g`` how loaded they are. Refine on a velocity reversal with loaded bristles
-    (``ah s0|z|/g > 1e-3``), on a bristle sign change with per-sign stiffness, and on a velocity change
-    of more than 10 % with ``ah > 0.05`` (the steep part of a Stribeck curve).
+    limit; ``s0 |z| / g`` how loaded they are (ig = 1/g). Refine on a velocity reversal with loaded
+    bristles (``ah s0|z|/g > 1e-3``), on a bristle sign change with per-sign stiffness, and on a velocity
+    change of more than 10 % with ``ah > 0.05`` (the steep part of a Stribeck curve).
     """
     wm = max(abs(w), abs(w1))
-    ah = wm * s0 * hs / g
-    if w1 * w < 0.0 and ah * s0 * abs(z) / g > 1e-3:
+    ah = wm * s0 * hs * ig
+    if w1 * w < 0.0 and ah * s0 * abs(z) * ig > 1e-3:
         return True
-    if z1 * z < 0.0 and p[P_S0P] != p[P_S0N] and ah > 1e-2:
+    if z1 * z < 0.0 and per_sign and ah > 1e-2:
         return True
     return abs(w1 - w) > 0.1 * wm and ah > 0.05
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM)
-def _refined(q, w, z, u, hs, cp, cn, p, lmul, fm, amp, kper, ph, pay):
+def _refined(q, w, z, u, hs, cc, dcc, s_th, dT, lmul, fm, amp, kper, ph, pay,
+             iJ, s0p, s0n, s1p, s1n, goff, px, py, parm):
     """The step hs cut into REFINE pieces; a piece in which the velocity changes sign is cut again."""
     hr = hs / REFINE
     for _ in range(REFINE):
-        q1, w1, z1 = _substep(q, w, z, u, hr, cp, cn, p, lmul, fm, amp, kper, ph, pay)
+        q1, w1, z1 = _step(q, w, z, u, hr, cc, dcc, s_th, dT, lmul, fm, amp, kper, ph, pay,
+                           iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
         if w1 * w < 0.0:
             q1, w1, z1 = q, w, z
             for _ in range(REFINE):
-                q1, w1, z1 = _substep(q1, w1, z1, u, hr / REFINE, cp, cn, p, lmul, fm, amp, kper, ph, pay)
+                q1, w1, z1 = _step(q1, w1, z1, u, hr / REFINE, cc, dcc, s_th, dT, lmul, fm, amp, kper, ph,
+                                   pay, iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
         q, w, z = q1, w1, z1
     return q, w, z
 
@@ -122,6 +179,9 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
     Tenv [degC]; payload [kg]; reset_T (bool) resets T to Tenv; gmul, fmul [1] level/viscous multipliers;
     nq [q], nqd [q/s] sensor noise; p parameters (see P_* indices); c_pos, c_neg canonical static vectors;
     dc_pos, dc_neg thermal6 slopes; th_code, theta thermal law; state0 = (q, w, z, T).
+
+    The parameters are unpacked into scalars once (the loop then keeps them in registers), and the
+    thermal law enters as a scale and an offset of the map (see :func:`_map_at`).
     """
     n = mode.shape[0]
     q_o = np.empty(n)
@@ -132,40 +192,69 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
     u_o = np.empty(n)
     qm_o = np.empty(n)
     qdm_o = np.empty(n)
-    cp = np.empty(9)
-    cn = np.empty(9)
+    cc = np.empty(18)
+    dcc = np.empty(18)
     for i in range(9):
-        cp[i] = c_pos[i]
-        cn[i] = c_neg[i]
+        cc[i] = c_pos[i]
+        cc[9 + i] = c_neg[i]
+        dcc[i] = dc_pos[i]
+        dcc[9 + i] = dc_neg[i]
     q = state0[0]
     w = state0[1]
     z = state0[2]
     T = state0[3]
-    J = p[P_J]
+    iJ = 1.0 / p[P_J]
+    s0p = p[P_S0P]
+    s0n = p[P_S0N]
+    s1p = p[P_S1P]
+    s1n = p[P_S1N]
+    per_sign = s0p != s0n
+    goff = p[P_GOFF]
+    px = p[P_PX]
+    py = p[P_PY]
+    parm = p[P_PAY]
     tmax = p[P_TMAX]
+    kp = p[P_KP]
+    kd = p[P_KD]
+    ki = p[P_KI]
+    kv = p[P_KV]
+    kvi = p[P_KVI]
     qres = p[P_QRES]
+    iqres = 1.0 / qres if qres > 0.0 else 0.0
     amp = p[P_PAMP]
     kper = 2.0 * math.pi / p[P_PPER]
     ph = p[P_PPH]
     load = p[P_LOAD]
+    alpha = theta[0]
+    beta = theta[1]
+    lam = theta[2]
+    T0 = theta[3]
     eK = math.exp(-p[P_K] * h / p[P_C])
     iK = 1.0 / p[P_K]
     hs = h / nsub
     integ = 0.0
     prev_mode = -1
     T_used = -1e300
+    s_th = 1.0
+    dT = 0.0
     for k in range(n):
         if reset_T[k]:
             T = Tenv[k]
         # the map at temperature T; T moves slowly, so refresh only after a change of 1e-4 K
         if th_code != 0 and abs(T - T_used) > 1e-4:
-            thermal_canon_nb(c_pos, dc_pos, th_code, theta, T, cp)
-            thermal_canon_nb(c_neg, dc_neg, th_code, theta, T, cn)
+            dTT = T - T0
+            if th_code == 1:
+                s_th = alpha * dTT + beta
+            elif th_code == 3:
+                s_th = math.exp(-lam * dTT)
+            else:
+                s_th = 1.0
+            dT = dTT if th_code == 2 else 0.0
             T_used = T
         # sensors
         qm = q + nq[k]
         if qres > 0.0:
-            qm = math.floor(qm / qres + 0.5) * qres
+            qm = math.floor(qm * iqres + 0.5) * qres
         qdm = w + nqd[k]
         # controller
         md = mode[k]
@@ -177,12 +266,12 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
             integ_new = 0.0
         elif md == MODE_PID:
             e = q_ref[k] - qm
-            integ_new = integ + p[P_KI] * e * h
-            u = tau_ff[k] + p[P_KP] * e + p[P_KD] * (qd_ref[k] - qdm) + integ_new
+            integ_new = integ + ki * e * h
+            u = tau_ff[k] + kp * e + kd * (qd_ref[k] - qdm) + integ_new
         else:
             e = qd_ref[k] - qdm
-            integ_new = integ + p[P_KVI] * e * h
-            u = tau_ff[k] + p[P_KV] * e + integ_new
+            integ_new = integ + kvi * e * h
+            u = tau_ff[k] + kv * e + integ_new
         if u > tmax:
             u = tmax
         elif u < -tmax:
@@ -199,29 +288,35 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
         lmul = gmul[k] * (1.0 + load * abs(u))
         fm = fmul[k]
         pay = payload[k]
-        # friction at the sample, from the state and the level at the current position
-        c = cp if w >= 0.0 else cn
-        lev, dlev = level_slope_nb(abs(w), c)
-        g = lmul * lev
+        w_k = w
+        # the map at the sample (its level at the current position: the friction output and the
+        # refinement test use it; the step's level is at its predicted end position)
+        g0, dg0, f0, fp0 = _map_at(w, cc, dcc, 0 if w >= 0.0 else 9, s_th, dT)
+        g = lmul * g0
         if amp != 0.0:
             g *= 1.0 + amp * math.sin(kper * q + ph)
-        s0 = p[P_S0P] if z >= 0.0 else p[P_S0N]
-        s1 = p[P_S1P] if z >= 0.0 else p[P_S1N]
-        Fk = s0 * z + s1 * (w - s0 * abs(w) / g * z) + fm * viscous_nb(w, c)
+        ig = 1.0 / g
+        s0 = s0p if z >= 0.0 else s0n
+        if amp != 0.0:
+            s1 = s1p if z >= 0.0 else s1n
+            Fk = s0 * z + s1 * (w - s0 * abs(w) * ig * z) + fm * f0
         for s in range(nsub):
-            if s == 0:
-                q1, w1, z1 = _substep_lev(q, w, z, u, hs, c, lev, dlev, p, lmul, fm, amp, kper, ph, pay)
-            else:
-                q1, w1, z1 = _substep(q, w, z, u, hs, cp, cn, p, lmul, fm, amp, kper, ph, pay)
-            if _needs_refine(w, w1, z, z1, s0, hs, g, p):
+            if s > 0:
+                g0, dg0, f0, fp0 = _map_at(w, cc, dcc, 0 if w >= 0.0 else 9, s_th, dT)
+            q1, w1, z1, F0 = _step_map(q, w, z, u, hs, g0, dg0, f0, fp0, lmul, fm, amp, kper, ph, pay,
+                                       iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
+            if s == 0 and amp == 0.0:
+                Fk = F0   # the step's start friction is the sample's (same level without a position effect)
+            if _needs_refine(w, w1, z, z1, s0, hs, ig, per_sign):
                 # the linearisation at the step's start does not hold across the |w| kink of dz/dt
                 # (z' jumps from ~0 to ~2w when w reverses in sliding), across z = 0 with per-sign
                 # stiffness, or along a steep Stribeck curve: redo this step in REFINE pieces (rare:
                 # starts, stops and reversals; dithering at rest does not qualify)
-                q1, w1, z1 = _refined(q, w, z, u, hs, cp, cn, p, lmul, fm, amp, kper, ph, pay)
+                q1, w1, z1 = _refined(q, w, z, u, hs, cc, dcc, s_th, dT, lmul, fm, amp, kper, ph, pay,
+                                      iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
             q, w, z = q1, w1, z1
         F_o[k] = Fk
-        Tss = Tenv[k] + Fk * w_o[k] * iK
+        Tss = Tenv[k] + Fk * w_k * iK
         T = Tss + (T - Tss) * eK
     return q_o, w_o, z_o, F_o, T_o, u_o, qm_o, qdm_o
 
@@ -292,7 +387,7 @@ def simulate_joint_ref(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, rese
 
         for _s in range(nsub):
             q1, w1, z1 = step(q, w, z, hs)
-            if _needs_refine.py_func(w, w1, z, z1, s0, hs, g_now, p):
+            if _needs_refine.py_func(w, w1, z, z1, s0, hs, 1.0 / g_now, p[P_S0P] != p[P_S0N]):
                 q1, w1, z1 = q, w, z
                 for _ in range(REFINE):
                     q2, w2, z2 = step(q1, w1, z1, hs / REFINE)
