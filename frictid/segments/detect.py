@@ -28,7 +28,7 @@ import numpy as np
 from ..data import JointLog, Segment
 from . import stats as _stats
 from .duty import duty_cycles
-from .runs import box_mean, box_slope, drop_short, fill_short, label_runs, runs
+from .runs import box_mean, box_slope, drop_short, fill_short, label_runs, paint, runs
 from .scales import Scales, derivatives, estimate_scales, local_noise, log_position
 
 #: Noise multiple for "clearly nonzero".
@@ -334,6 +334,12 @@ def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]
     rate = R_RAMP * sc.tau_range / T_MIN
     loading = np.abs(f.s) > np.maximum(K_NOISE * sig_s, rate)
     loading = grow(loading, np.abs(sf) > np.maximum(2.0 * sig_sf, 0.5 * rate))
+    # ... and it breaks the joint away: the joint moves right after (a controller relaxing after a stop
+    # changes the torque too, but the joint stays)
+    ls, le = runs(loading)
+    moves_after = np.array([not f.still_fine[min(e, n - 1): min(e + hf, n)].all() for e in le], dtype=bool)
+    if ls.size and not moves_after.all():
+        paint(loading, ls[~moves_after], le[~moves_after], False)
     calm = fill_short(~loading, 2 * hf + 2, False)  # a torque jump alone does not end a rest
     rest = grow(f.still & calm & (code < 0), f.still_fine & calm & (code < 0))
     rest = drop_short(rest, n_min)
