@@ -42,7 +42,8 @@ MODE_TORQUE, MODE_PID, MODE_VEL = 0, 1, 2
 def _map_at(w, cc, dcc, o, s_th, dT):
     """The canonical map of branch ``o`` (0: w >= 0, 9: w < 0) at speed |w| and temperature.
 
-    cc, dcc : the two canonical vectors and thermal slopes, concatenated (18 each). The map at joint
+    cc, dcc : the two canonical vectors and thermal slopes, concatenated (18 each), with the velocity
+    scales vs1, vs2 (entries 2 and 5 of each vector) replaced by their reciprocals. The map at joint
     temperature T is ``c0 s(T) + dc (T - T0)`` (:func:`frictid.models.lugre.thermal_canon_nb`); since the
     level is linear in the amplitudes (a0, a1, a2) and the viscous part in (b1, b2, b3), it is evaluated
     as ``s g0(v) + dT dc_a0`` and ``s f0(w) + dT f_dc(w)``: no per-sample copy of the vectors.
@@ -53,29 +54,30 @@ def _map_at(w, cc, dcc, o, s_th, dT):
     dg = 0.0
     c1 = cc[o + 1]
     if c1 != 0.0:
-        vs = cc[o + 2]
-        x = v / vs
+        ivs = cc[o + 2]
+        x = v * ivs
         d = cc[o + 3]
         if d == 1.0:
             e = math.exp(-x)
             g += c1 * e
-            dg -= c1 / vs * e
+            dg -= c1 * ivs * e
         elif d == 2.0:
             e = math.exp(-x * x)
             g += c1 * e
-            dg -= c1 * 2.0 * x / vs * e
+            dg -= c1 * 2.0 * x * ivs * e
         elif x > 0.0:
-            xd1 = x ** (d - 1.0)
+            xd1 = math.sqrt(x) if d == 1.5 else x ** (d - 1.0)
             e = math.exp(-xd1 * x)
             g += c1 * e
-            dg -= c1 * d / vs * xd1 * e
+            dg -= c1 * d * ivs * xd1 * e
         else:
             g += c1
     c4 = cc[o + 4]
     if c4 != 0.0:
-        e = math.exp(-v / cc[o + 5])
+        ivs2 = cc[o + 5]
+        e = math.exp(-v * ivs2)
         g += c4 * (1.0 - e)
-        dg += c4 / cc[o + 5] * e
+        dg += c4 * ivs2 * e
     b1 = cc[o + 6]
     b2 = cc[o + 7]
     b3 = cc[o + 8]
@@ -100,38 +102,65 @@ REFINE = 8
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
-def _step_map(q, w, z, u, hs, g0, dg0, f0, fp0, lmul, fm, amp, kper, ph, pay,
-              iJ, s0p, s0n, s1p, s1n, goff, px, py, parm):
+def _step_map(q, w, z, u, hs, g0, dg0, f0, fp0, lmul, fm, amp, sin_end, G, iJ, s0p, s0n, s1p, s1n):
     """One plant step of length hs with the applied torque u held, given the map (g0, dg0, f0, fp0) at
-    (|w|, T) before the level and viscous multipliers. Returns (q, w, z, F) with F the friction at the
-    step's start."""
+    (|w|, T) before the level and viscous multipliers, the position effect's sine at the step's
+    predicted end position and the gravity torque G at its midpoint position. Returns (q, w, z, F) with
+    F the friction at the step's start."""
     gm = lmul
     if amp != 0.0:
         # the level along the step is taken at the predicted end position, so that z, which settles
         # within the step in sliding, lands on g(q1)/sigma0 rather than lagging a step behind
-        gm *= 1.0 + amp * math.sin(kper * (q + hs * w) + ph)
+        gm *= 1.0 + amp * sin_end
     if z >= 0.0:
         s0 = s0p
         s1 = s1p
     else:
         s0 = s0n
         s1 = s1n
-    # gravity at the step's midpoint position
-    qm = q + 0.5 * hs * w
+    return lugre_core(q, w, z, u - G, hs, iJ, s0, s1, gm * g0, gm * dg0, fm * f0, fm * fp0)
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+def _gravity(qm, pay, goff, px, py, parm):
+    """Gravity and offset torque [F] at position qm [q] with payload pay [kg]."""
     G = goff
     if px != 0.0 or py != 0.0 or (pay != 0.0 and parm != 0.0):
         cq = math.cos(qm)
         G += px * cq + py * math.sin(qm) + pay * parm * cq
-    return lugre_core(q, w, z, u - G, hs, iJ, s0, s1, gm * g0, gm * dg0, fm * f0, fm * fp0)
+    return G
+
+
+#: Largest angle change [rad] over which a cos/sin pair is rotated rather than recomputed.
+ROTATE_MAX = 0.04
+#: cos/sin are recomputed exactly every this many samples (bounds the round-off of the rotations).
+RESYNC = 1024
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+def _rotate(qm, qg, cg, sg, exact):
+    """(cos qm, sin qm) from (cos qg, sin qg) by the rotation through d = qm - qg (Taylor to d^7,
+    error below d^8/40320 < 1e-15 for |d| < ROTATE_MAX), or exactly when asked or when |d| is larger.
+    A 1 kHz step moves a joint by a few mrad (and the position effect's phase by a few hundredths), so
+    this replaces a sin/cos pair on the loop's critical path with a few multiply-adds."""
+    d = qm - qg
+    if exact or abs(d) > ROTATE_MAX:
+        return math.cos(qm), math.sin(qm)
+    d2 = d * d
+    cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0 - d2 * (1.0 / 720.0)))
+    sd = d * (1.0 - d2 * (1.0 / 6.0 - d2 * (1.0 / 120.0 - d2 * (1.0 / 5040.0))))
+    return cg * cd - sg * sd, sg * cd + cg * sd
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
 def _step(q, w, z, u, hs, cc, dcc, s_th, dT, lmul, fm, amp, kper, ph, pay,
           iJ, s0p, s0n, s1p, s1n, goff, px, py, parm):
-    """:func:`_step_map` with the map looked up from w; returns (q, w, z)."""
+    """:func:`_step_map` with the map looked up from w and gravity computed; returns (q, w, z)."""
     g0, dg0, f0, fp0 = _map_at(w, cc, dcc, 0 if w >= 0.0 else 9, s_th, dT)
-    q1, w1, z1, _ = _step_map(q, w, z, u, hs, g0, dg0, f0, fp0, lmul, fm, amp, kper, ph, pay,
-                              iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
+    G = _gravity(q + 0.5 * hs * w, pay, goff, px, py, parm)
+    sin_end = math.sin(kper * (q + hs * w) + ph) if amp != 0.0 else 0.0
+    q1, w1, z1, _ = _step_map(q, w, z, u, hs, g0, dg0, f0, fp0, lmul, fm, amp, sin_end, G,
+                              iJ, s0p, s0n, s1p, s1n)
     return q1, w1, z1
 
 
@@ -199,6 +228,8 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
         cc[9 + i] = c_neg[i]
         dcc[i] = dc_pos[i]
         dcc[9 + i] = dc_neg[i]
+    for i in (2, 5, 11, 14):  # velocity scales -> reciprocals (see _map_at)
+        cc[i] = 1.0 / cc[i]
     q = state0[0]
     w = state0[1]
     z = state0[2]
@@ -235,6 +266,13 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
     integ = 0.0
     prev_mode = -1
     T_used = -1e300
+    trig = px != 0.0 or py != 0.0 or parm != 0.0
+    qg = q
+    cg = math.cos(q)
+    sg = math.sin(q)
+    pe = kper * q + ph
+    ce = math.cos(pe)
+    se = math.sin(pe)
     s_th = 1.0
     dT = 0.0
     for k in range(n):
@@ -303,8 +341,22 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
         for s in range(nsub):
             if s > 0:
                 g0, dg0, f0, fp0 = _map_at(w, cc, dcc, 0 if w >= 0.0 else 9, s_th, dT)
-            q1, w1, z1, F0 = _step_map(q, w, z, u, hs, g0, dg0, f0, fp0, lmul, fm, amp, kper, ph, pay,
-                                       iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
+            # gravity at the step's midpoint position, its cos/sin rotated from the previous step's
+            qmid = q + 0.5 * hs * w
+            G = goff
+            if trig:
+                cg, sg = _rotate(qmid, qg, cg, sg, (k & (RESYNC - 1)) == 0 and s == 0)
+                qg = qmid
+                G += px * cg + py * sg + pay * parm * cg
+            sin_end = 0.0
+            if amp != 0.0:
+                # the position effect's phase at the step's predicted end, rotated likewise
+                phe = kper * (q + hs * w) + ph
+                ce, se = _rotate(phe, pe, ce, se, (k & (RESYNC - 1)) == 0 and s == 0)
+                pe = phe
+                sin_end = se
+            q1, w1, z1, F0 = _step_map(q, w, z, u, hs, g0, dg0, f0, fp0, lmul, fm, amp, sin_end, G,
+                                       iJ, s0p, s0n, s1p, s1n)
             if s == 0 and amp == 0.0:
                 Fk = F0   # the step's start friction is the sample's (same level without a position effect)
             if _needs_refine(w, w1, z, z1, s0, hs, ig, per_sign):
