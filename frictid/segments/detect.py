@@ -128,17 +128,30 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
 def find_jumps(f: Features) -> np.ndarray:
     """Sample indices of torque jumps: a change completed within ``T_JUMP`` (the change over 4 ``T_JUMP``
     is no larger) that exceeds the trend around it (a quarter of that longer change) by ``K_NOISE``
-    standard errors; one index per jump (the steepest sample)."""
-    sc = f.sc
-    hj = max(1, int(round(T_JUMP / sc.dt)))
-    d1 = box_slope(f.tau, hj, sc.dt) * (hj * sc.dt)
-    d4 = box_slope(f.tau, 4 * hj, sc.dt) * (4 * hj * sc.dt)
+    standard errors; one index per jump (the steepest sample). Small jumps in noisy torque are looked for
+    again at four times that scale."""
+    hj = max(1, int(round(T_JUMP / f.sc.dt)))
+    fine = _jumps_at(f, hj)
+    coarse = _jumps_at(f, 4 * hj)
+    if coarse.size and fine.size:
+        k = np.searchsorted(fine, coarse)
+        near = np.zeros(coarse.size, dtype=bool)
+        for off in (-1, 0):
+            idx = np.clip(k + off, 0, fine.size - 1)
+            near |= np.abs(fine[idx] - coarse) <= 4 * hj
+        coarse = coarse[~near]
+    return np.sort(np.concatenate((fine, coarse)))
+
+
+def _jumps_at(f: Features, hj: int) -> np.ndarray:
+    dt = f.sc.dt
+    d1 = box_slope(f.tau, hj, dt) * (hj * dt)
+    d4 = box_slope(f.tau, 4 * hj, dt) * (4 * hj * dt)
     thr = K_NOISE * f.sigma_tau_loc * math.sqrt(2.0 / hj)
     big = np.abs(d1 - 0.25 * d4) > thr
     s, e = runs(big)
     if s.size == 0:
         return np.zeros(0, dtype=np.int64)
-    # steepest sample of each run
     absd = np.abs(d1)
     peak = np.array([s0 + int(np.argmax(absd[s0:e0])) for s0, e0 in zip(s, e)], dtype=np.int64)
     inst = np.abs(d1[peak]) >= 0.75 * np.abs(d4[peak])
@@ -209,18 +222,20 @@ def _step_groups(f: Features, cands: list[tuple[int, int]], hj: int) -> list[tup
 
 def _flat_end(f: Features, a: int, b: int) -> int:
     """End of the flat torque that starts at ``a`` (at most ``b``): the first chunk of ``m`` samples whose
-    mean leaves the level of the first chunks by more than ``K_NOISE`` standard errors, or where the
+    mean leaves the mean of the chunks before it by more than ``K_NOISE`` standard errors, or where the
     torque gets noisier (a controller taking over a still joint: two chunks in a row whose mean absolute
     difference exceeds ``R_NOISIER`` times that of the first chunks, or one twice as much)."""
     m = max(f.sc.window_w, f.h // 4, 2)
     nchunk = (b - a) // m
     if nchunk < 3:
         return b
-    chunks = f.tau[a:a + nchunk * m].reshape(nchunk, m)
-    x = chunks.mean(axis=1)
-    level = float(np.median(x[:3]))
-    tol = K_NOISE * float(np.median(f.sigma_tau_loc[a:a + 3 * m])) / math.sqrt(m) + f.sc.tau_step
-    off = np.abs(x - level) > tol
+    x = f.tau[a:a + nchunk * m].reshape(nchunk, m).mean(axis=1)
+    # each chunk against the mean of the chunks before it (the level so far, known to se / sqrt(k))
+    k = np.arange(1, nchunk)
+    level = np.cumsum(x)[:-1] / k
+    se = float(np.median(f.sigma_tau_loc[a:a + 3 * m])) / math.sqrt(m)
+    off = np.concatenate(([False], np.abs(x[1:] - level) > K_NOISE * se * np.sqrt(1.0 + 1.0 / k)
+                          + f.sc.tau_step))
     end = b if not off.any() else a + int(np.argmax(off)) * m
     mn = max(m, 128)  # enough differences per chunk for a noise level known to about 7 %
     nn = (end - a) // mn
@@ -306,7 +321,7 @@ def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]
     plateaus = []
     for i0, i1 in zip(*runs(cv)):
         i0, i1 = _extend_plateau(f, int(i0), int(i1), code)
-        if i1 - i0 < n_min or not _same_sign(f.w[i0:i1]) or _bent(f, i0, i1):
+        if i1 - i0 < n_min or not _same_sign(f.w[i0:i1]):
             continue
         plateaus.append((i0, i1, float(np.median(f.w[i0:i1]))))
     # a static map needs plateaus at several speeds; one or two steady stretches are moves, not a sweep;
@@ -365,21 +380,6 @@ def _distinct_speeds(w: list[float]) -> int:
 def _same_sign(w: np.ndarray) -> bool:
     m = float(np.mean(w))
     return m != 0 and float(np.mean(np.sign(w) == np.sign(m))) > 0.95
-
-
-def _bent(f: Features, i0: int, i1: int) -> bool:
-    """True if the velocity over ``[i0, i1)`` follows a significant parabola (a velocity peak of a
-    smooth trajectory) that bends by more than ``R_STEADY / 2`` of its mean."""
-    w = f.w[i0:i1]
-    x = f.t[i0:i1] - f.t[i0:i1].mean()
-    x2 = x * x - float(np.mean(x * x))
-    A = np.column_stack([x2, x, np.ones_like(x)])
-    coef, *_ = np.linalg.lstsq(A, w, rcond=None)
-    # noise of w is correlated over the derivative window: count one sample per window
-    n_eff = max(3.0, w.size / max(1, f.sc.window_w))
-    se = f.sc.sigma_w * math.sqrt(w.size / n_eff) / math.sqrt(max(float(np.dot(x2, x2)), 1e-300))
-    bend = abs(coef[0]) * float(np.max(np.abs(x2)))
-    return bool(abs(coef[0]) > K_NOISE * se and bend > 0.5 * R_STEADY * abs(float(np.mean(w))))
 
 
 def _extend_plateau(f: Features, i0: int, i1: int, code: np.ndarray) -> tuple[int, int]:

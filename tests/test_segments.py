@@ -1,0 +1,289 @@
+"""Segmentation: scales and derivatives, the scorecard thresholds on a small set of plant logs, logs without
+experiments, sample rates and a missing velocity channel, invariance to units, the table writer and the
+``frictid segments`` command. The plant's truth labels are read here (and in the scorecard) only."""
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import hand_log
+from segscore import (Tally, adapted_truth_segments, decimated, plant_variant, random_ptp_logs,
+                      simulate_with_modes, truth_segments)
+from frictid.data import SEGMENT_KINDS, JointLog
+from frictid.errors import LogFormatError
+from frictid.io.logs import write_logs
+from frictid.io.segtable import read_segments, segments_frame, write_segments
+from frictid.segments import derivatives, estimate_scales, find_segments, noise_sigma, quantum
+
+TARGET = 0.95
+PLANTS = ("direct_drive", "geared_industrial", "hydraulic", "linear_slide")
+
+# A small duty-cycle recipe: a 50 % and a 100 % run of four 40 s cycles (slots of 10 s, so the hold at the
+# end of each moving slot, 3 % of it, is a real rest).
+DUTY = {
+    "name": "duty_small", "default_plant": "geared_industrial", "start_rest": 1.0, "temp_env": 25.0,
+    "experiments": [
+        {"kind": "duty_cycle", "duty": 0.5, "cycles": 4, "cycle_time": 40.0, "slots": 4, "cold_start": True,
+         "rest": 2.0},
+        {"kind": "duty_cycle", "duty": 1.0, "cycles": 4, "cycle_time": 40.0, "slots": 4, "rest": 2.0},
+    ],
+}
+
+
+def _tally(logs) -> Tally:
+    t = Tally()
+    for lg in logs:
+        t.add(adapted_truth_segments(lg), find_segments(lg))
+    return t
+
+
+def _assert_f1(t: Tally, kinds):
+    for k in kinds:
+        p, r, f1 = t.prf(k)
+        assert t.n_true[k] > 0, k
+        assert f1 >= TARGET, f"{k}: precision {p:.3f} recall {r:.3f} F1 {f1:.3f}\n{t.table()}"
+
+
+# ---------------------------------------------------------------------------------------------------
+# scales and derivatives
+
+
+def test_noise_and_encoder_step_are_measured():
+    rng = np.random.default_rng(1)
+    t = np.arange(20000) * 1e-3
+    x = 3.0 * np.sin(0.5 * t) + rng.normal(0, 0.02, t.size)
+    assert noise_sigma(x) == pytest.approx(0.02, rel=0.05)
+    step = 2 * np.pi / 76800
+    q = np.round((0.3 * t + 0.1 * np.sin(3 * t)) / step) * step
+    assert quantum(q) == pytest.approx(step, rel=1e-9)
+    assert quantum(x) == 0.0  # continuous, not quantised
+
+
+def test_window_grows_with_noise_and_derivatives_are_exact_on_a_parabola():
+    t = np.arange(5000) * 1e-3
+    q = 0.5 * t**2 + 0.2 * t
+    tau = np.zeros_like(t)
+    clean = JointLog("1", t, tau, q=q)
+    w, a = derivatives(clean)
+    np.testing.assert_allclose(w[10:-10], (t + 0.2)[10:-10], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(a[10:-10], 1.0, atol=1e-6)
+    rng = np.random.default_rng(0)
+    quiet = estimate_scales(JointLog("1", t, tau, q=q + rng.normal(0, 1e-6, t.size)))
+    loud = estimate_scales(JointLog("1", t, tau, q=q + rng.normal(0, 1e-4, t.size)))
+    assert quiet.window_w < loud.window_w and quiet.window_a < loud.window_a
+    # a logged velocity is returned as logged
+    qd = np.cos(t)
+    w2, _ = derivatives(JointLog("1", t, tau, q=q, qd=qd))
+    np.testing.assert_array_equal(w2, qd)
+
+
+def test_window_follows_the_sample_rate():
+    rng = np.random.default_rng(2)
+
+    def scales(fs):
+        t = np.arange(int(20 * fs)) / fs
+        return estimate_scales(JointLog("1", t, np.zeros(t.size), q=np.sin(t) + rng.normal(0, 1e-4, t.size)))
+
+    slow, fast = scales(100.0), scales(10000.0)
+    assert fast.window_w > slow.window_w  # more samples per window at 10 kHz ...
+    assert fast.window_w * fast.dt <= 0.05 + 1e-9  # ... but never longer than T_WINDOW_MAX
+
+
+def test_bad_arrays_are_refused():
+    lg = hand_log()
+    lg.tau[5] = np.nan
+    with pytest.raises(LogFormatError):
+        find_segments(lg)
+    lg = hand_log()
+    lg.t[7] = lg.t[6]
+    with pytest.raises(LogFormatError):
+        find_segments(lg)
+
+
+def test_too_short_a_log_has_no_segment():
+    assert find_segments(hand_log(n=50)) == []
+
+
+# ---------------------------------------------------------------------------------------------------
+# the scorecard thresholds on a smaller set
+
+
+@pytest.fixture(scope="module")
+def recipe_logs():
+    out = {}
+    for rec in ("constant_velocity_sweep", "ramp_presliding", "torque_steps"):
+        out[rec] = [lg for pl in PLANTS for lg in simulate_with_modes(rec, plant_variant(pl), seed=0)]
+    return out
+
+
+def test_constant_velocity_sweeps_on_every_plant(recipe_logs):
+    _assert_f1(_tally(recipe_logs["constant_velocity_sweep"]), ["constant_velocity", "rest"])
+
+
+def test_presliding_ramps_on_every_plant(recipe_logs):
+    t = _tally(recipe_logs["ramp_presliding"])
+    _assert_f1(t, ["ramp_presliding", "rest"])
+    # one row per monotonic ramp: up, hold, down is two ramps
+    lg = recipe_logs["ramp_presliding"][0]
+    ramps = [s for s in find_segments(lg) if s.kind == "ramp_presliding"]
+    assert len(ramps) == 2 * sum(1 for k, _, _ in truth_segments(lg) if k == "ramp_presliding")
+    assert all(np.sign(s.stats["tau_slope"]) == np.sign(s.stats["tau_end"] - s.stats["tau_start"]) for s in ramps)
+    assert all(s.stats["stiffness"] > 0 for s in ramps if abs(s.stats["displacement"]) > 3 * 8.2e-5)
+
+
+def test_torque_steps_on_every_plant(recipe_logs):
+    _assert_f1(_tally(recipe_logs["torque_steps"]), ["step"])
+    lg = recipe_logs["torque_steps"][-1]  # linear slide
+    steps = [s for s in find_segments(lg) if s.kind == "step"]
+    assert all(0 <= s.stats["settling"] < 0.2 for s in steps)
+
+
+def test_duty_cycles_one_row_per_cycle():
+    logs = simulate_with_modes(DUTY, plant_variant("geared_industrial"), seed=1)
+    t = _tally(logs)
+    _assert_f1(t, ["duty_cycle"])
+    cyc = [s for s in find_segments(logs[0]) if s.kind == "duty_cycle"]
+    assert [s.cycle for s in cyc] == list(range(8))
+    assert all(s.stats["period"] == pytest.approx(40.0, abs=0.05) for s in cyc)
+    fractions = [s.stats["moving_fraction"] for s in cyc]
+    assert max(fractions[:4]) < 0.6 < min(fractions[4:])
+
+
+@pytest.mark.parametrize("noise", [0.3, 3.0])
+def test_low_and_high_noise(noise):
+    logs = [lg for rec in ("ramp_presliding", "torque_steps") for pl in PLANTS
+            for lg in simulate_with_modes(rec, plant_variant(pl, noise), seed=2)]
+    _assert_f1(_tally(logs), ["ramp_presliding", "step"])
+
+
+# ---------------------------------------------------------------------------------------------------
+# no experiment: nothing may be a ramp or a step
+
+
+@pytest.mark.parametrize("plant", ["direct_drive", "linear_slide"])
+def test_random_point_to_point_motion_has_no_ramp_or_step(plant):
+    for lg in random_ptp_logs(plant_variant(plant), seed=3, moves=30):
+        kinds = {s.kind for s in find_segments(lg)}
+        assert not kinds & {"ramp_presliding", "step", "duty_cycle"}, kinds
+
+
+# ---------------------------------------------------------------------------------------------------
+# 100 Hz and 10 kHz, with qd logged or not
+
+
+# a shorter sweep than the shipped recipe (six speeds, 1.5 s plateaus), and the shipped presliding ramps
+CV_SHORT = {"name": "cv_short", "default_plant": "direct_drive", "start_rest": 1.0,
+            "experiments": [{"kind": "constant_velocity", "velocities": {"min": 0.01, "max": 0.9, "count": 6},
+                             "plateau": 1.5, "rest": 1.0}]}
+
+
+@pytest.fixture(scope="module")
+def rate_logs():
+    out = {}
+    for fs in (100.0, 10000.0):
+        logs = []
+        for rec in (CV_SHORT, "ramp_presliding"):
+            if fs < 1000:  # a 100 Hz logger on a drive controlled at 1 kHz
+                logs += [decimated(lg, 10) for lg in simulate_with_modes(rec, plant_variant("direct_drive", 1.0, 1000.0))]
+            else:
+                logs += simulate_with_modes(rec, plant_variant("direct_drive", 1.0, fs))
+        out[fs] = logs
+    return out
+
+
+@pytest.mark.parametrize("fs", [100.0, 10000.0])
+@pytest.mark.parametrize("qd_logged", [True, False])
+def test_sample_rates_with_and_without_velocity(rate_logs, fs, qd_logged):
+    logs = rate_logs[fs] if qd_logged else [replace(lg, qd=None) for lg in rate_logs[fs]]
+    assert all(lg.dt == pytest.approx(1.0 / fs) for lg in logs)
+    _assert_f1(_tally(logs), ["constant_velocity", "ramp_presliding"])
+
+
+# ---------------------------------------------------------------------------------------------------
+# units do not matter
+
+
+def test_segments_do_not_depend_on_units():
+    lg = simulate_with_modes("torque_steps", plant_variant("direct_drive"), seed=4)[1]
+    ref = [(s.kind, s.i0, s.i1) for s in find_segments(lg)]
+    scaled = replace(lg, tau=lg.tau * 3000.0, q=lg.q * 1e-3, qd=lg.qd * 1e-3, t=lg.t + 1e4)
+    assert [(s.kind, s.i0, s.i1) for s in find_segments(scaled)] == ref
+
+
+# ---------------------------------------------------------------------------------------------------
+# table and command
+
+
+@pytest.fixture(scope="module")
+def steps_log(tmp_path_factory):
+    path = tmp_path_factory.mktemp("seg") / "steps.parquet"
+    write_logs(simulate_with_modes("torque_steps", plant_variant("hydraulic"), seed=0), str(path))
+    return path
+
+
+def test_table_round_trips_in_every_format(tmp_path):
+    lg = simulate_with_modes("torque_steps", plant_variant("hydraulic"), seed=0)[0]
+    df = segments_frame([(lg, find_segments(lg))])
+    assert list(df.columns[:5]) == ["joint", "kind", "t_start", "t_end", "n"]
+    assert set(df["kind"]) <= set(SEGMENT_KINDS)
+    for suffix in ("csv", "parquet", "json"):
+        path = tmp_path / f"seg.{suffix}"
+        write_segments(df, str(path))
+        back = read_segments(str(path))
+        assert list(back["kind"]) == list(df["kind"])
+        np.testing.assert_allclose(back["t_start"].to_numpy(float), df["t_start"].to_numpy(float))
+        np.testing.assert_allclose(back["step_size"].to_numpy(float), df["step_size"].to_numpy(float),
+                                   equal_nan=True)
+
+
+def test_cli_writes_the_table(steps_log, tmp_path, cli):
+    out = tmp_path / "seg.csv"
+    res = cli("segments", steps_log, "-o", out)
+    assert res.code == 0, res
+    df = pd.read_csv(out)
+    assert (df["kind"] == "step").sum() == 8 and "segments (" in res.err
+    res = cli("segments", steps_log, "-o", "-", "--quiet")
+    assert res.code == 0 and res.out.startswith("joint,kind,t_start,t_end,n") and res.err == ""
+    res = cli("segments", steps_log, "-o", tmp_path / "seg.json")
+    assert res.code == 0
+    assert json.loads((tmp_path / "seg.json").read_text())["segments"][0]["joint"] == "j1"
+
+
+def test_cli_empty_table_is_not_an_error(tmp_path, cli):
+    path = tmp_path / "short.csv"
+    write_logs([hand_log(n=40)], str(path))
+    out = tmp_path / "seg.csv"
+    res = cli("segments", path, "-o", out)
+    assert res.code == 0 and "no segments found" in res.err
+    assert pd.read_csv(out).empty and list(pd.read_csv(out).columns[:5]) == ["joint", "kind", "t_start", "t_end", "n"]
+
+
+def test_cli_refuses_what_the_reader_refuses(tmp_path, cli):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,q,tau\n0,0,1\n0.001,abc,1\n")
+    out = tmp_path / "seg.csv"
+    res = cli("segments", bad, "-o", out)
+    assert res.code == 2 and "abc" in res.err and not out.exists()
+    res = cli("segments", tmp_path / "missing.csv", "-o", out)
+    assert res.code == 2 and not out.exists()
+    res = cli("segments", bad, "-o", bad)  # never overwrite an input
+    assert res.code == 2
+    res = cli("segments", bad, "-o", tmp_path / "seg.xlsx")
+    assert res.code == 2 and "--format" in res.err
+
+
+def test_cli_map_and_units(tmp_path, cli):
+    lg = simulate_with_modes("torque_steps", plant_variant("direct_drive"), seed=0)[0]
+    df = pd.DataFrame({"time": lg.t, "pos_deg": np.rad2deg(lg.q), "torque_mNm": lg.tau * 1e3})
+    path = tmp_path / "vendor.csv"
+    df.to_csv(path, index=False)
+    out = tmp_path / "seg.csv"
+    res = cli("segments", path, "-o", out, "--map", "time=t,pos_deg=q,torque_mNm=tau", "--units", "q=deg,tau=mNm")
+    assert res.code == 0, res
+    seg = pd.read_csv(out)
+    assert (seg["kind"] == "step").sum() == 8
+    assert seg.loc[seg["kind"] == "step", "step_size"].abs().max() < 10  # in N m, not mN m
