@@ -26,6 +26,7 @@ FIT_MODELS = os.environ.get("DIAG_FIT_MODELS", "coulomb_viscous,stribeck,polynom
 
 SIZES = {
     # plateau [s], speeds per sign, cycles, cycle time [s]
+    "tiny": (0.5, 6, 3, 12.0),
     "small": (0.8, 8, 4, 20.0),
     "large": (2.0, 12, 8, 45.0),
 }
@@ -34,7 +35,7 @@ SIZES = {
 def session_recipe(size: str = "small", payloads=None) -> dict:
     """The diagnosis session as a recipe dict: sweep, point-to-point cycles, sweep (per payload)."""
     plateau, count, cycles, cycle_time = SIZES[size]
-    sweep = {"kind": "constant_velocity", "velocities": {"min": 0.05, "max": 0.9, "count": count},
+    sweep = {"kind": "constant_velocity", "velocities": {"min": 0.01, "max": 0.9, "count": count},
              "plateau": plateau, "min_plateau": min(0.4, plateau), "gap": 0.2, "rest": 0.5}
     ptp = {"kind": "validation_ptp", "cycles": cycles, "cycle_time": cycle_time, "slots": 1,
            "speeds": [0.2, 0.45, 0.7, 0.95], "relative_positions": True, "positions_deg": [0.1, 0.9],
@@ -111,9 +112,10 @@ def inject(plant: dict, cause: str, s: float, size: str = "small") -> dict:
         # thermal4: friction falls by about 2 s as the joint warms within the session
         dur = session_duration(size)
         th = j["thermal"]
-        th.update(law="thermal4", K=1.0, C=dur / 3.0, T0=25.0, Tenv=25.0, beta=1.0)
         P = 0.5 * Fs * 0.4 * j["limits"]["velocity"]  # mean friction power of the session [W], rough
-        th["alpha"] = max(-0.9 / 100.0, -2.0 * s / max(P / th["K"], 1e-9))
+        K = P / 20.0                                   # a rise of about 20 K at that power
+        th.update(law="thermal4", K=K, C=K * dur / 3.0, T0=25.0, Tenv=25.0, beta=1.0,
+                  alpha=max(-0.9 / 100.0, -2.0 * s / 20.0))
     elif cause != "none":
         raise KeyError(cause)
     return pl

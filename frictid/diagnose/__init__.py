@@ -86,7 +86,7 @@ _FIXED = {"beta": "thermal4 scale at T0 held at 1 (the base map carries the leve
 
 
 #: Settings chosen on a grid: their standard error is at least half the grid's relative step.
-_GRID = {"C": 0.5 * (10 ** (1 / 5) - 1), "str_vs": 0.5 * (10 ** (1 / 3.5) - 1)}
+_GRID = {"C": 0.5 * (10 ** (1 / 9) - 1), "str_vs": 0.25}
 
 
 def _param_entries(mapname: str, vals: dict, fold_vals: list[dict], axis: str):

@@ -34,8 +34,8 @@ EXTENSIONS = {
     "drift": ("drift", "whole_factor", 1),
 }
 
-#: Time constants tried for the thermal state, per decade.
-TAU_PER_DECADE = 5
+#: Time constants tried for the thermal state, per decade (then refined between the best neighbours).
+TAU_PER_DECADE = 3
 #: Fewest periods the position range must hold for a periodic term.
 MIN_PERIODS = 2.0
 
@@ -115,13 +115,22 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
     if ext in ("thermal4", "thermal6"):
         best = None
         sources = ["heat_balance"] + (["temp_joint"] if S.temp_joint is not None else [])
+        def trial(src, tc):
+            term = Term(cause, ext, role, (("source", src), ("tau_c", float(tc))))
+            return _fit_rms(ctx, st.plus(term), idx), term
+
         for src in sources:
-            taus = tau_grid(S) if src == "heat_balance" else [1.0]
-            for tc in taus:
-                term = Term(cause, ext, role, (("source", src), ("tau_c", float(tc))))
-                r = _fit_rms(ctx, st.plus(term), idx)
-                if best is None or r < best[0]:
-                    best = (r, term)
+            if src == "temp_joint":
+                cand = [trial(src, 1.0)]
+            else:
+                grid = tau_grid(S)
+                cand = [trial(src, tc) for tc in grid]
+                k = int(np.argmin([c[0] for c in cand]))
+                step = grid[1] / grid[0] if grid.size > 1 else 2.0
+                cand += [trial(src, grid[k] * step ** f) for f in (-1 / 3, 1 / 3)]
+            for c in cand:
+                if best is None or c[0] < best[0]:
+                    best = c
         return best[1] if best else None
     if ext == "position_periodic":
         P = best_period(S.q[idx], resid, level, _period_range(S))
@@ -136,7 +145,7 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
         return Term(cause, ext, role, (("scale", sc),))
     if ext == "stribeck":
         best = None
-        for vs in np.geomspace(max(S.v_min, 1e-12), S.w0 / 3.0, 12):
+        for vs in np.geomspace(max(S.v_min, 1e-12), S.w0 / 3.0, 8):
             for d in (1.0, 2.0):
                 term = Term(cause, ext, role, (("vs", float(vs)), ("delta", d)))
                 r = _fit_rms(ctx, st.plus(term), idx)
@@ -186,7 +195,7 @@ def best_period(q, resid, level, prange, n_keep: int = 3) -> float | None:
     det = np.where(det > 0, det, np.inf)
     score = (cc * sr * sr - 2 * sc * sr * cr + ss * cr * cr) / det
 
-    m = min(q.size, 20000)
+    m = min(q.size, 6000)
     sel = np.linspace(0, q.size - 1, m).astype(int)
     qq, r1, g1 = q[sel], np.asarray(resid, float)[sel], np.asarray(level, float)[sel]
 

@@ -176,8 +176,9 @@ def _lstsq(X: np.ndarray, y: np.ndarray) -> np.ndarray:
     d = np.sqrt(np.einsum("ij,ij->j", X, X) / X.shape[0])
     d[~(d > 0)] = 1.0
     Xs = X / d
-    # normal equations of the scaled columns, solved by a rank-revealing pseudo-inverse
-    b = np.linalg.pinv(Xs.T @ Xs, rcond=1e-10, hermitian=True) @ (Xs.T @ y)
+    # normal equations of the scaled columns (einsum: no threaded BLAS for these thin products), solved by
+    # a rank-revealing pseudo-inverse
+    b = np.linalg.pinv(np.einsum("ij,ik->jk", Xs, Xs), rcond=1e-10, hermitian=True) @ np.einsum("ij,i->j", Xs, y)
     return b / d
 
 
@@ -216,7 +217,7 @@ class Evaluator:
         if self.t6 is not None:
             X = self.t6[2][idx]
             g += X[:, 0] * c.dc[0]
-            f += X[:, 1:] @ c.dc[1:]
+            f += np.einsum("ij,j->i", X[:, 1:], c.dc[1:])
         return g, f
 
     def _factor(self, group, c: Coef, idx, skip=None):
@@ -224,13 +225,13 @@ class Evaluator:
         for i, t, X in group:
             if i == skip:
                 continue
-            m *= 1.0 + X[idx] @ np.atleast_1d(c.gamma.get(i, np.zeros(X.shape[1])))
+            m *= 1.0 + np.einsum("ij,j->i", X[idx], np.atleast_1d(c.gamma.get(i, np.zeros(X.shape[1]))))
         return m
 
     def _additive(self, c: Coef, idx):
         out = np.zeros(idx.size)
         for i, t, X in self.add:
-            out += X[idx] @ np.atleast_1d(c.gamma.get(i, np.zeros(X.shape[1])))
+            out += np.einsum("ij,j->i", X[idx], np.atleast_1d(c.gamma.get(i, np.zeros(X.shape[1]))))
         return out
 
     def level(self, c: Coef, idx) -> np.ndarray:
@@ -361,7 +362,7 @@ class Evaluator:
             for _ in range(max_iter):
                 pred, Jm, keys = self._jacobian(c, idx)
                 r = y - pred
-                cost = float(r @ r)
+                cost = float(np.einsum("i,i->", r, r))
                 self._apply(c, keys, _lstsq(Jm, r))
                 if abs(prev - cost) <= tol * max(cost, 1e-300):
                     break

@@ -2,7 +2,7 @@
 
 From each log of a joint (as the fit prepared it: velocity, acceleration, friction torque
 ``F = tau - J a - G``, segments) the diagnosis keeps the *sliding* samples: moving faster than
-``v_min`` (2 % of the top speed), outside ramp, step and rest segments, away from the start and end of
+``v_min`` (0.2 % of the top speed and 5 velocity noise levels), outside ramp, step and rest segments, away from the start and end of
 every run of one velocity sign (the first and last ``edge`` samples, 50 ms: differentiation transients and
 the presliding lag of a reversal, which the static map does not describe and which the ``presliding``
 cause handles on its own), and with an inertial torque ``|J a|`` no larger than the median friction.
@@ -31,6 +31,10 @@ from scipy.signal import lfilter
 EXCLUDED_KINDS = ("ramp_presliding", "step", "rest")
 #: Aim for at least this many held-out groups (long segments are cut into chunks).
 MAX_GROUPS_TARGET = 60
+#: Sliding samples move faster than this fraction of the top speed ...
+V_MIN_FRACTION = 0.002
+#: ... and than this many velocity noise levels.
+K_NOISE = 5.0
 #: Sliding samples have an inertial torque |J a| of at most this many times the median friction.
 INERTIA_RATIO = 1.0
 #: At most this many samples enter the fits (evenly decimated beyond).
@@ -179,7 +183,9 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
     w0 = float(np.percentile(allw, 99.5))
     if w0 <= 0:
         return None
-    v_min = 0.02 * w0
+    from ..segments import noise_sigma
+    sig_w = max((noise_sigma(lg.w[np.isfinite(lg.w)]) for lg in logs if lg.n > 10), default=0.0)
+    v_min = max(V_MIN_FRACTION * w0, K_NOISE * sig_w)
     movF = np.concatenate([np.abs(lg.F[np.isfinite(lg.F) & (np.abs(np.nan_to_num(lg.w)) > v_min)]) for lg in logs])
     F_level = float(np.median(movF)) if movF.size else np.inf
     # drift clock

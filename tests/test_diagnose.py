@@ -1,0 +1,311 @@
+"""Diagnosis: hide an effect in the data and require finding it.
+
+Fast tests build the friction torque directly (a Stribeck map along prescribed plateaus and transitions,
+with one effect added) and call :func:`frictid.diagnose.diagnose_joint` with a stand-in for the fit's
+result; the plant tests (``@pytest.mark.slow`` for the matrix over causes, plants, sizes and noise)
+simulate logs with ``tests/diag_synth.py`` and run the whole ``frictid fit``.
+
+Stated thresholds: the right first cause with a held-out gain of at least :data:`GAIN_FOUND` for an effect
+of about 15 % of the friction RMS; with nothing hidden, no finding with a gain above 5 %.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from frictid.data import Segment
+from frictid.diagnose import DiagLog, diagnose_joint
+from frictid.diagnose.causes import best_period
+from frictid.diagnose.chain import paired_t
+from frictid.diagnose.model import Context, Evaluator, Structure, Term
+from frictid.diagnose.samples import build_samples, heat_balance_rise
+from frictid.fit.result import FitResult, JointFit, ModelFit, ParamEstimate
+from frictid.models import static as sm
+from frictid.replay import joint_model, replay
+
+import diag_synth as ds
+
+#: The right first cause must cut the held-out RMS by at least this much (effect ~15 % of friction RMS).
+GAIN_FOUND = 0.25
+#: With nothing hidden: no finding with a gain above this.
+GAIN_NULL = 0.05
+
+TRUE = dict(Fc=2.0, Fs=3.0, vs=0.08, delta=2.0, sigma2=1.2)
+
+
+def smooth(x):
+    x = np.clip(x, 0, 1)
+    return x * x * x * (10 - 15 * x + 6 * x * x)
+
+
+class Parts(np.ndarray):
+    """The Stribeck friction with its level part (``g sgn w``) and viscous part (``sigma2 w``) attached."""
+
+    def __new__(cls, total, viscous):
+        obj = np.asarray(total, dtype=float).view(cls)
+        obj.viscous = np.asarray(viscous, dtype=float)
+        obj.level = np.asarray(total, dtype=float) - obj.viscous
+        return obj
+
+
+def plateau_log(effect=None, seed=0, reps=3, dt=2e-3, hold=1.0, move=0.4, noise=0.01, t0=0.0):
+    """Plateaus at 12 speeds per sign, ``reps`` sweeps, smooth moves between them; friction F = map x effect.
+
+    effect(t, q, w, F) -> new F (or None), where F carries ``.level`` and ``.viscous`` (the parts of the map,
+    see :class:`Parts`). Returns a DiagLog with true segments.
+    """
+    rng = np.random.default_rng(seed)
+    v = np.geomspace(0.05, 2.0, 12)
+    speeds = np.concatenate([np.concatenate([v, -v]) if r % 2 == 0 else np.concatenate([-v[::-1], v[::-1]])
+                             for r in range(reps)])
+    ws, kinds = [], []
+    w_prev = 0.0
+    for s in speeds:
+        n_m = int(move / dt)
+        ws.append(w_prev + (s - w_prev) * smooth(np.arange(n_m) / n_m))
+        kinds.append(("other", n_m))
+        n_h = int(hold / dt)
+        ws.append(np.full(n_h, s))
+        kinds.append(("constant_velocity", n_h))
+        w_prev = s
+    w = np.concatenate(ws)
+    n = w.size
+    t = t0 + np.arange(n) * dt
+    q = np.cumsum(w) * dt
+    q = q - q.mean()
+    a = np.gradient(w, dt)
+    F = Parts(sm.stribeck(w, **TRUE), TRUE["sigma2"] * w)
+    if effect is not None:
+        F = effect(t, q, w, F)
+    F = np.asarray(F, dtype=float)
+    F = F + noise * rng.standard_normal(n)
+    segs, i = [], 0
+    for kind, m in kinds:
+        segs.append(Segment(kind, i, i + m, float(t[i]), float(t[i + m - 1])))
+        i += m
+    return DiagLog(t=t, q=q, w=w, a=a, tau=F.copy(), F=F, G=np.zeros(n), offset=0.0, segments=segs,
+                   channels={"temp_env": np.full(n, 25.0)}, start=None)
+
+
+def fake_fit(values=TRUE, name="stribeck") -> JointFit:
+    """The part of the fit's result the diagnosis starts from: one symmetric static map."""
+    params = {k: ParamEstimate(k, float(v), None, "", True) for k, v in values.items()}
+    mf = ModelFit(name, name, params, {"rms_heldout": 0.01, "aic": 0.0, "k": len(params), "n": 24})
+    return JointFit(joint="1", units={"q": "rad", "qd": "rad/s", "tau": "N m"},
+                    inertia=ParamEstimate("J", 0.0, None, "kg m^2", True),
+                    offset=ParamEstimate("offset", 0.0, None, "N m", True), models={name: mf}, selected=name)
+
+
+# ---------------------------------------------------------------------------------------------------
+# pieces
+
+
+def test_heat_balance_rise_is_exact_for_constant_power():
+    t = np.arange(0, 200.0, 0.5)
+    x = heat_balance_rise(t, np.full(t.size, 3.0), np.zeros(t.size), tau_c=40.0, K=1.0)
+    assert np.allclose(x, 3.0 * (1 - np.exp(-t / 40.0)), rtol=1e-12, atol=1e-12)
+
+
+def test_periodogram_finds_the_period():
+    rng = np.random.default_rng(2)
+    q = np.sort(rng.uniform(-1.0, 1.0, 30000))
+    lev = np.where(rng.random(q.size) > 0.5, 3.0, -3.0)
+    r = lev * 0.1 * np.sin(2 * np.pi * q / 0.137 + 1.0) + 0.05 * rng.standard_normal(q.size)
+    P = best_period(q, r, lev, (0.005, 1.0))
+    assert P == pytest.approx(0.137, rel=2e-3)
+
+
+def test_gauss_newton_recovers_a_bilinear_model_exactly():
+    def eff(t, q, w, F):
+        return (F.level * (1 + 0.08 * np.sin(2 * np.pi * q / 0.7)) + F.viscous) * (1 + 0.5 * t / 3600)
+
+    lg = plateau_log(eff, noise=0.0)
+    lg.start = 0.0
+    lg2 = plateau_log(eff, noise=0.0, t0=7200.0)
+    lg2.start = 0.0
+    S = build_samples([lg, lg2], 5)
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    st = Structure("stribeck", cp, (Term("position", "position_periodic", "level_factor", (("period", 0.7),)),
+                                    Term("drift", "drift", "whole_factor", ())))
+    ev = Evaluator(st, Context(S))
+    c = ev.fit()
+    assert c.rms < 1e-9
+    assert c.gamma[0] == pytest.approx([0.08, 0.0], abs=1e-9)
+    assert c.gamma[1][0] == pytest.approx(0.5, rel=1e-9)
+    assert c.base_pos[0] == pytest.approx(TRUE["Fc"], rel=1e-9)
+
+
+def test_significance_counts_segments_not_samples():
+    # a consistent but tiny improvement in every group is significant; one huge group alone is not
+    d = np.full(30, 1.0) + 0.1 * np.random.default_rng(0).standard_normal(30)
+    assert paired_t(d)[1] < 1e-10
+    d = np.zeros(30)
+    d[4] = 1e6
+    assert paired_t(d)[1] > 0.1
+
+
+# ---------------------------------------------------------------------------------------------------
+# synthetic friction with a hidden effect
+
+
+def _run(logs, jf=None):
+    jf = jf or fake_fit()
+    findings = diagnose_joint(jf, logs)
+    return jf, findings
+
+
+def test_nothing_hidden_ends_with_the_base_model():
+    jf, findings = _run([plateau_log(seed=1)])
+    assert not [f for f in findings if f["gain"] > GAIN_NULL]
+    assert jf.selected == "stribeck"
+    d = jf.selection["diagnosis"]
+    assert d["base"] == "stribeck" and d["steps"] and d["steps"][0]["chosen"] is None
+
+
+def test_position_dependence_is_found_with_its_period_and_replays():
+    P = 0.83
+    def eff(t, q, w, F):
+        return F.level * (1 + 0.12 * np.sin(2 * np.pi * q / P + 0.5)) + F.viscous
+
+    jf, findings = _run([plateau_log(eff)])
+    f = findings[0]
+    assert f["cause"] == "position" and f["extension"] == "position_periodic"
+    assert f["gain"] >= GAIN_FOUND
+    assert set(f) >= {"cause", "evidence", "statistic", "extension", "rms_before", "rms_after", "gain", "heldout"}
+    assert f["gain"] == pytest.approx(1 - f["rms_after"] / f["rms_before"])
+    assert "period" in f["evidence"] and "r = " in f["evidence"]
+    m = jf.models[f["model"]]
+    assert m.params["pos_period"].value == pytest.approx(P, rel=0.01)
+    assert m.params["pos_amp"].value == pytest.approx(0.12, rel=0.05)
+    assert jf.selected == f["model"] == "stribeck+position_periodic"
+    # the stored model replays to the diagnosis' own prediction on sliding samples
+    lg = plateau_log(eff)
+    from frictid.data import JointLog
+    jl = JointLog("1", lg.t, lg.tau, q=lg.q, qd=lg.w, channels=lg.channels)
+    r = replay(jl, joint_model(jf), w=lg.w, a=lg.a)
+    mv = np.abs(lg.w) > 0.1
+    truth = eff(lg.t, lg.q, lg.w, Parts(sm.stribeck(lg.w, **TRUE), TRUE["sigma2"] * lg.w))
+    assert np.sqrt(np.mean((r.F_model - truth)[mv] ** 2)) < 0.01 * np.sqrt(np.mean(truth[mv] ** 2))
+
+
+def test_asymmetry_and_offset_are_told_apart():
+    jf, fa = _run([plateau_log(lambda t, q, w, F: np.where(w < 0, 0.85 * F, F))])
+    assert fa[0]["cause"] == "asymmetry" and fa[0]["gain"] >= GAIN_FOUND
+    assert "_asym" in jf.models[fa[0]["model"]].map
+    jf, fo = _run([plateau_log(lambda t, q, w, F: F + 0.35)])
+    assert fo[0]["cause"] == "offset" and fo[0]["gain"] >= GAIN_FOUND
+    assert jf.models[fo[0]["model"]].params["tau_offset"].value == pytest.approx(0.35, rel=0.03)
+
+
+def test_warm_up_is_found_as_temperature_with_its_time_constant():
+    tau_c = 60.0
+
+    def warm(t, q, w, F):
+        x = heat_balance_rise(t, F * w, np.zeros(t.size), tau_c)
+        return F * (1 - 0.06 * x)
+
+    lg = plateau_log(warm, reps=4)
+    jf, findings = _run([lg])
+    f = findings[0]
+    assert f["cause"] == "temperature" and f["extension"] in ("thermal4", "thermal6")
+    assert f["gain"] >= GAIN_FOUND
+    m = jf.models[f["model"]]
+    assert m.params["C"].value / m.params["K"].value == pytest.approx(tau_c, rel=0.4)
+    assert "falls" in f["evidence"]
+
+
+def test_drift_needs_recordings_at_different_times():
+    logs = []
+    for k in range(3):
+        lg = plateau_log(lambda t, q, w, F, k=k: F * (1 + 0.1 * k), seed=k)
+        lg.start = 1.7e9 + 3600 * 100.0 * k
+        logs.append(lg)
+    jf, findings = _run(logs)
+    assert findings[0]["cause"] == "drift" and findings[0]["gain"] >= GAIN_FOUND
+    assert jf.models[findings[0]["model"]].params["drift_per_hour"].value == pytest.approx(0.1 / 100, rel=0.1)
+    # one recording: drift is not a candidate
+    jf1, _ = _run([plateau_log(seed=4)])
+    tested = {t["extension"] for s in jf1.selection["diagnosis"]["steps"] for t in s["tested"]}
+    assert "drift" not in tested and "thermal4" in tested
+
+
+def test_chain_order_and_the_parameter_file(tmp_path):
+    P = 0.83
+    lg = plateau_log(lambda t, q, w, F: np.where(w < 0, 0.8, 1.0) * (F.level * (1 + 0.05 * np.sin(2 * np.pi * q / P))
+                                                                     + F.viscous))
+    jf, findings = _run([lg])
+    assert [f["cause"] for f in findings[:2]] == ["asymmetry", "position"]
+    # found greedily: at the first step the asymmetry gained most (each gain is against the model before it)
+    step0 = {t["extension"]: t["gain"] for t in jf.selection["diagnosis"]["steps"][0]["tested"]}
+    assert step0["asym"] == max(step0.values()) > step0["position_periodic"]
+    assert (findings[0]["rms_before"] - findings[0]["rms_after"]) > (findings[1]["rms_before"] - findings[1]["rms_after"])
+    assert findings[1]["rms_before"] == pytest.approx(findings[0]["rms_after"], rel=0.05)
+    assert jf.selected == "stribeck+asym+position_periodic"
+    res = FitResult(joints={"1": jf})
+    from frictid.io.params import read_params, write_params
+    write_params(res, str(tmp_path / "p.yaml"))
+    back = read_params(str(tmp_path / "p.yaml"))
+    assert back["1"].diagnosis == res.to_dict()["joints"]["1"]["diagnosis"]
+    assert back["1"].selected == jf.selected
+    m = joint_model(back["1"])
+    assert m.map == "stribeck_asym" and m.ext["pos_period"] == pytest.approx(P, rel=0.01)
+
+
+# ---------------------------------------------------------------------------------------------------
+# the plant and the CLI
+
+
+def test_cli_fit_diagnoses_by_default_and_the_result_replays(tmp_path, cli):
+    from frictid.io.logs import write_logs
+    from frictid.io.params import read_params
+
+    base = ds.null_plant("hydraulic")
+    logs = ds.simulate(ds.inject(base, "position", 0.15, "tiny"), "tiny", seed=0)
+    ds.declare_horizontal(logs, base)
+    src = tmp_path / "run.parquet"
+    write_logs(logs, str(src))
+    out = tmp_path / "p.yaml"
+    r = cli("fit", src, "-o", out, "--models", ds.FIT_MODELS)
+    assert r.code == 0, r
+    jf = read_params(str(out))[logs[0].joint]
+    assert jf.diagnosis and jf.diagnosis[0]["cause"] == "position"
+    assert jf.diagnosis[0]["gain"] >= GAIN_FOUND
+    assert jf.selected == jf.diagnosis[-1]["model"]
+    rep = tmp_path / "rep.csv"
+    r = cli("simulate", "--params", out, "--replay", src, "-o", rep)
+    assert r.code == 0, r
+    r = cli("fit", src, "-o", tmp_path / "nd.yaml", "--models", ds.FIT_MODELS, "--no-diagnose")
+    assert r.code == 0, r
+    nd = read_params(str(tmp_path / "nd.yaml"))[logs[0].joint]
+    assert nd.diagnosis == [] and "+" not in nd.selected
+
+
+#: (cause, plant, size, noise) cases of the matrix; strength 0.15 (about 15 % of the friction RMS).
+MATRIX = [
+    ("temperature", "hydraulic", "small", 1.0), ("temperature", "geared_industrial", "large", 3.0),
+    ("position", "hydraulic", "small", 3.0), ("position", "linear_slide", "large", 1.0),
+    ("load", "geared_industrial", "small", 1.0), ("load", "geared_industrial", "large", 3.0),
+    ("asymmetry", "linear_slide", "small", 1.0), ("asymmetry", "hydraulic", "large", 3.0),
+    ("offset", "linear_slide", "small", 3.0), ("offset", "hydraulic", "large", 1.0),
+    ("drift", "geared_industrial", "small", 1.0), ("drift", "linear_slide", "large", 3.0),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("cause,plant,size,noise", MATRIX)
+def test_hidden_effect_is_found(cause, plant, size, noise):
+    jf, es, logs = ds.run_case(plant, cause, 0.15, size, seed=7, noise=noise, with_effect_size=True)
+    top, gain = ds.top_cause(jf)
+    assert es > 0.08, f"the injected effect is {100 * es:.0f} % of the friction RMS"
+    assert top == cause, (top, jf.diagnosis)
+    assert gain >= GAIN_FOUND
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("plant,size,noise", [("hydraulic", "small", 1.0), ("geared_industrial", "small", 3.0),
+                                              ("linear_slide", "large", 1.0), ("hydraulic", "large", 3.0)])
+def test_nothing_hidden_gives_no_finding(plant, size, noise):
+    jf, _, _ = ds.run_case(plant, "none", 0.0, size, seed=11, noise=noise)
+    assert not [f for f in jf.diagnosis if f["gain"] > GAIN_NULL], jf.diagnosis
