@@ -1,22 +1,33 @@
 """Find the identification experiments in one joint log (MODELS.md section 4).
 
-The log is described by a few per-sample features measured at two time scales (``T_MIN``, the shortest
-segment, and ``T_JUMP``, the longest rise of a torque step), each compared with its own noise level:
+Every threshold is a multiple of a scale measured on the log (:mod:`.scales`): the noise of each channel
+(globally, and locally for the torque, whose noise changes when a controller takes over), the encoder
+step, the torque range, the top speed and the sample period. The features are measured at the time scale
+``T_MIN`` (the shortest segment; ``h`` samples each side) and ``T_JUMP`` (the longest rise of a torque
+step), each compared with its own noise level:
 
-- ``wc`` : mean velocity over ``2h`` samples; *still* where ``|wc| < K_NOISE sigma(wc)``.
-- ``dv`` : velocity change across a sample (mean of ``w`` over the ``h`` samples after minus before);
-  *steady* where ``|dv| < max(K_NOISE sigma(dv), R_STEADY |wc|)``.
-- ``s`` : torque slope at scale ``h``; ramps are runs of one sign of ``s``, steps are jumps of ``tau`` that
+- ``wc`` : mean velocity over ``2h`` samples; *still* where ``|wc| < max(K_NOISE sigma(wc), R_STILL
+  w_scale)``; ``still_fine`` the same test on the Savitzky-Golay velocity (precise edges);
+- ``dv`` : velocity change across a sample (mean over the ``h`` samples after minus before); *steady*
+  where ``|dv| < max(K_NOISE sigma(dv), R_STEADY |wc|)``;
+- ``s`` : torque slope at scale ``h`` (and ``4h`` for slow ramps in noisy torque); jumps of ``tau`` that
   complete within ``T_JUMP``.
 
 Then, in order (each sample gets one kind; earlier kinds win):
 
-1. duty cycles: motion bursts that start at a constant period (:func:`find_duty_cycles`);
-2. steps: a torque jump from a still joint that is still again before the next torque event;
-3. ramps: monotonic torque runs of a still or steadily creeping joint, in chains that start and end
-   still, with a torque change of at least ``K_RAMP`` noise levels and ``R_RAMP`` of the torque level;
-4. constant velocity: steady, moving runs of at least ``T_MIN``;
-5. rest: still runs of at least ``T_MIN``; everything else is *other*.
+1. duty cycles: the same velocity profile, with motion and a rest, repeating at a constant period
+   (:mod:`.duty`), one segment per cycle;
+2. steps: a torque jump from a still joint under a flat torque, the joint settled again, lasting until
+   the next torque event, until the joint moves or until the torque stops being flat (a controller takes
+   over); kept in groups that return the torque to where it started (a step and its release);
+3. ramps: monotonic torque runs on a still (or steadily creeping) joint, a straight line within the
+   noise, changing the torque by ``K_RAMP`` standard errors; kept in groups that start at a hold and
+   return to its level at a hold (loading and unloading), one segment per monotonic ramp;
+4. constant velocity: steady, moving runs of at least ``T_MIN``, edged where the velocity leaves the
+   plateau's band; kept when the log holds plateaus at ``MIN_PLATEAUS`` speeds and, in a sweep over both
+   signs, next to their mirror speed (a lone steady stretch is a repositioning move);
+5. rest: still runs of at least ``T_MIN`` where no controller is loading the joint towards break-away;
+   everything else is *other*.
 """
 from __future__ import annotations
 
