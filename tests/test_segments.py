@@ -287,3 +287,17 @@ def test_cli_map_and_units(tmp_path, cli):
     seg = pd.read_csv(out)
     assert (seg["kind"] == "step").sum() == 8
     assert seg.loc[seg["kind"] == "step", "step_size"].abs().max() < 10  # in N m, not mN m
+
+
+def test_docs_example_runs(steps_log, tmp_path, monkeypatch):
+    """The Python example of docs/segments.md, on a simulated log named as in the example."""
+    from conftest import ROOT
+
+    text = (ROOT / "docs" / "segments.md").read_text()
+    code = text.split("```python\n", 1)[1].split("```", 1)[0]
+    (tmp_path / "run.parquet").write_bytes(steps_log.read_bytes())
+    monkeypatch.chdir(tmp_path)
+    scope: dict = {}
+    exec(compile(code, "docs/segments.md", "exec"), scope)
+    assert [s.kind for s in scope["segments"]].count("step") >= 7
+    assert scope["w"].shape == scope["a"].shape == scope["log"].t.shape
