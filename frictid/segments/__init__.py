@@ -12,10 +12,10 @@ import numpy as np
 
 from ..data import JointLog, Segment
 from .detect import CODE_KIND, KIND_CODE, classify, features
-from .scales import Scales, derivatives, estimate_scales, log_position, noise_sigma, quantum
+from .scales import Scales, derivatives, estimate_scales, log_position, noise_sigma, quantum, velocity
 from .stats import STAT_COLUMNS
 
-__all__ = ["find_segments", "segment_labels", "derivatives", "estimate_scales", "Scales", "STAT_COLUMNS",
+__all__ = ["find_segments", "segment_labels", "derivatives", "velocity", "estimate_scales", "Scales", "STAT_COLUMNS",
            "noise_sigma", "quantum", "log_position", "features", "KIND_CODE", "CODE_KIND"]
 
 

@@ -39,8 +39,8 @@ import numpy as np
 from ..data import JointLog, Segment
 from . import stats as _stats
 from .duty import duty_cycles
-from .runs import box_mean, box_slope, drop_short, fill_short, label_runs, paint, runs
-from .scales import Scales, derivatives, estimate_scales, local_noise, log_position
+from .runs import box_mean, box_slope, drop_short, fill_short, paint, runs
+from .scales import Scales, estimate_scales, local_noise, log_position, velocity
 
 #: Noise multiple for "clearly nonzero".
 K_NOISE = 5.0
@@ -82,7 +82,6 @@ class Features:
     q: np.ndarray
     tau: np.ndarray
     w: np.ndarray
-    a: np.ndarray
     h: int
     n_min: int
     wc: np.ndarray
@@ -94,26 +93,28 @@ class Features:
     sigma_tau_loc: np.ndarray
     sigma_wc: float
     sigma_dv: float
-    sigma_s: float
 
 
 def features(log: JointLog, sc: Scales | None = None) -> Features:
-    """Compute :class:`Features` (velocity, acceleration, still/steady masks, torque slope)."""
+    """Compute :class:`Features` (velocity, still/steady masks, torque slope, local torque noise)."""
     sc = sc or estimate_scales(log)
     n, dt = log.n, sc.dt
     n_min = max(10, int(round(T_MIN / dt)))
     h = max(2, n_min // 2)
-    w, a = derivatives(log, sc, smooth_logged=True)
+    w = velocity(log, sc, smooth_logged=True)
     q = log_position(log)
     tau = np.asarray(log.tau, dtype=float)
     if sc.qd_logged:
         wc = box_mean(log.qd, 2 * h + 1)
         sigma_wc = sc.sigma_qd / math.sqrt(2 * h + 1)
         sigma_dv = sc.sigma_qd * math.sqrt(2.0 / h)
-    else:
-        i = np.arange(n)
+    else:  # mean velocity over 2h samples: (q[i+h] - q[i-h]) / (2h dt), shorter near the ends
+        wc = np.empty(n)
+        if n > 2 * h:
+            wc[h:n - h] = (q[2 * h:] - q[:n - 2 * h]) / (2 * h * dt)
+        i = np.concatenate((np.arange(0, min(h, n)), np.arange(max(h, n - h), n)))
         lo, hi = np.clip(i - h, 0, n - 1), np.clip(i + h, 0, n - 1)
-        wc = (q[hi] - q[lo]) / (np.maximum(hi - lo, 1) * dt)
+        wc[i] = (q[hi] - q[lo]) / (np.maximum(hi - lo, 1) * dt)
         sigma_wc = sc.sigma_q * math.sqrt(2.0) / (2 * h * dt)
         sigma_dv = 2.0 * sc.sigma_q / (h * dt)
     sigma_wc = max(sigma_wc, sc.sigma_w / math.sqrt(max(1.0, 2 * h / sc.window_w)))
@@ -126,10 +127,9 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
     s = box_slope(tau, h, dt)
     floor = max(sc.tau_step / math.sqrt(12.0), 1e-9 * max(sc.tau_range, 1e-300))
     sigma_tau_loc = np.maximum(local_noise(tau, n_min), floor)
-    sigma_s = max(sc.sigma_tau, 1e-12 * max(sc.tau_range, 1e-300)) * math.sqrt(2.0 / h) / (h * dt)
-    return Features(sc=sc, t=np.asarray(log.t, dtype=float), q=q, tau=tau, w=w, a=a, h=h, n_min=n_min,
-                    wc=wc, dv=dv, still=still, still_fine=still_fine, steady=steady, s=s, sigma_tau_loc=sigma_tau_loc, sigma_wc=sigma_wc, sigma_dv=sigma_dv,
-                    sigma_s=sigma_s)
+    return Features(sc=sc, t=np.asarray(log.t, dtype=float), q=q, tau=tau, w=w, h=h, n_min=n_min, wc=wc,
+                    dv=dv, still=still, still_fine=still_fine, steady=steady, s=s,
+                    sigma_tau_loc=sigma_tau_loc, sigma_wc=sigma_wc, sigma_dv=sigma_dv)
 
 
 # ---------------------------------------------------------------------------------------------------

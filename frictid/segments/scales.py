@@ -236,26 +236,33 @@ def estimate_scales(log: JointLog) -> Scales:
                   qd_logged=log.qd is not None)
 
 
+def velocity(log: JointLog, scales: Scales | None = None, smooth_logged: bool = False) -> np.ndarray:
+    """Velocity [q/s] of ``log``: the logged ``qd`` as is (smoothed by the velocity window if
+    ``smooth_logged``), else the Savitzky-Golay first derivative of ``q`` (window ``scales.window_w``,
+    polyorder 2, ``mode="interp"``)."""
+    sc = scales or estimate_scales(log)
+    if log.n < MIN_WINDOW:
+        return np.asarray(log.qd, dtype=float).copy() if log.qd is not None else np.gradient(log.q, log.t)
+    if log.qd is not None:
+        qd = np.asarray(log.qd, dtype=float)
+        return savgol_filter(qd, sc.window_w, POLYORDER) if smooth_logged else qd.copy()
+    return savgol_filter(np.asarray(log.q, dtype=float), sc.window_w, POLYORDER, deriv=1, delta=sc.dt)
+
+
 def derivatives(log: JointLog, scales: Scales | None = None, smooth_logged: bool = False
                 ) -> tuple[np.ndarray, np.ndarray]:
     """Velocity [q/s] and acceleration [q/s^2] of ``log``, one value per sample.
 
-    Velocity: the logged ``qd`` as is (smoothed by the velocity window if ``smooth_logged``), else the
-    Savitzky-Golay first derivative of ``q``. Acceleration: the Savitzky-Golay first derivative of ``qd``
-    when logged, else the second derivative of ``q``. Windows and polynomial order as in
-    :func:`estimate_scales` (``scales.window_w``, ``scales.window_a``; polyorder 2, ``mode="interp"``).
+    Velocity: as :func:`velocity`. Acceleration: the Savitzky-Golay first derivative of ``qd`` when logged,
+    else the second derivative of ``q``. Windows and polynomial order as in :func:`estimate_scales`
+    (``scales.window_w``, ``scales.window_a``; polyorder 2, ``mode="interp"``).
     """
     sc = scales or estimate_scales(log)
-    dt = sc.dt
+    w = velocity(log, sc, smooth_logged)
     if log.n < MIN_WINDOW:
-        w = np.asarray(log.qd, dtype=float) if log.qd is not None else np.gradient(log.q, log.t)
         return w, np.gradient(w, log.t) if log.n > 1 else np.zeros_like(w)
     if log.qd is not None:
-        qd = np.asarray(log.qd, dtype=float)
-        w = savgol_filter(qd, sc.window_w, POLYORDER) if smooth_logged else qd.copy()
-        a = savgol_filter(qd, sc.window_a, POLYORDER, deriv=1, delta=dt)
+        a = savgol_filter(np.asarray(log.qd, dtype=float), sc.window_a, POLYORDER, deriv=1, delta=sc.dt)
     else:
-        q = np.asarray(log.q, dtype=float)
-        w = savgol_filter(q, sc.window_w, POLYORDER, deriv=1, delta=dt)
-        a = savgol_filter(q, sc.window_a, POLYORDER, deriv=2, delta=dt)
+        a = savgol_filter(np.asarray(log.q, dtype=float), sc.window_a, POLYORDER, deriv=2, delta=sc.dt)
     return w, a
