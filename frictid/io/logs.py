@@ -235,7 +235,11 @@ def _csv_header(src, label: str, spec: LogSpec) -> tuple[list[str], bool]:
     except UnicodeDecodeError:
         raise LogFormatError(label, ["line 1 is not UTF-8 text; is this a CSV file? "
                                      "(binary logs: use Parquet or a .mat mapping)"]) from None
-    names = next(csv.reader([text.strip("\r\n")], delimiter=spec.delimiter or ","), [])
+    try:
+        names = next(csv.reader([text.strip("\r\n")], delimiter=spec.delimiter or ","), [])
+    except csv.Error as exc:  # e.g. a stray carriage return or NUL inside the first line
+        raise LogFormatError(label, [f"line 1 is not a CSV header row ({exc}); a CSV log starts with a "
+                                     "header row (t,q,tau,...)"]) from None
     names = [n.strip() for n in names]
     if not any(names):
         raise LogFormatError(label, ["line 1 is empty; a CSV log starts with a header row (t,q,tau,...)"])
@@ -262,8 +266,14 @@ def _read_table(src, label: str, is_parquet: bool, spec: LogSpec) -> tuple[pa.Ta
         fspec = spec_from_dict({k: v for k, v in file_meta.items() if k in _SPEC_KEYS}, f"{label} metadata")
         eff = fspec.merged(spec)
         cols = [c for c in names if eff.rename.get(c, c) in wanted_targets]
+        labels = {c for c in cols if eff.rename.get(c, c) in ("joint", "segment")}
+        text_joint = [c for c in cols if eff.rename.get(c, c) == "joint"
+                      and (pa.types.is_string(pf.schema_arrow.field(c).type)
+                           or pa.types.is_large_string(pf.schema_arrow.field(c).type))]
         try:
-            return pf.read(columns=cols), file_meta
+            if text_joint:  # joint names as dictionary codes: no string per row
+                pf = pq.ParquetFile(src, read_dictionary=text_joint)
+            return _read_parquet_columns(pf, cols, labels), file_meta
         except (pa.ArrowInvalid, OSError) as exc:
             raise LogFormatError(label, [f"cannot be read as Parquet ({exc}); is the file complete?"]) from None
     spec = _skip_to(src, label, spec)
@@ -290,6 +300,62 @@ def _read_table(src, label: str, is_parquet: bool, spec: LogSpec) -> tuple[pa.Ta
         raise LogFormatError(label, [f"cannot be parsed as CSV: {msg}; check the delimiter (comma), "
                                      "the header and that every row has the same number of fields"]) from None
     return table, file_meta
+
+
+class _Columns:
+    """Columns read from a Parquet file: numeric ones already as float64 numpy arrays, the rest (labels,
+    text) as Arrow. Has the three members of :class:`pyarrow.Table` that validation uses."""
+
+    def __init__(self, names: list[str], data: dict, num_rows: int):
+        self.column_names = names
+        self._data = data
+        self.num_rows = num_rows
+
+    def column(self, name: str):
+        return self._data[name]
+
+
+def _numeric_type(t: pa.DataType) -> bool:
+    return pa.types.is_floating(t) or pa.types.is_integer(t) or pa.types.is_boolean(t)
+
+
+def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[str]) -> _Columns:
+    """Read ``cols`` row group by row group into preallocated float64 arrays (numeric columns; the
+    columns in ``keep_arrow`` and non-numeric ones stay Arrow). Nulls become NaN.
+
+    Reading the whole table and converting it would hold the Arrow table and its numpy copy at once
+    (twice the data); this holds the arrays and one row group.
+    """
+    schema = pf.schema_arrow
+    n = pf.metadata.num_rows
+    numeric = [c for c in cols if c not in keep_arrow and _numeric_type(schema.field(c).type)]
+    out: dict = {c: np.empty(n) for c in numeric}
+    arrow: dict[str, list] = {c: [] for c in cols if c not in out}
+    pool = pa.default_memory_pool()
+    off = 0
+    for i in range(pf.metadata.num_row_groups):
+        rg = pf.read_row_group(i, columns=cols)
+        m = rg.num_rows
+        for c in numeric:
+            col = rg.column(c)
+            dst = out[c][off:off + m]
+            k = 0
+            for chunk in col.chunks:
+                L = len(chunk)
+                if not pa.types.is_float64(chunk.type):
+                    chunk = chunk.cast(pa.float64())
+                dst[k:k + L] = chunk.to_numpy(zero_copy_only=False)
+                k += L
+        for c in arrow:
+            arrow[c].extend(rg.column(c).chunks)
+        off += m
+        del rg
+        pool.release_unused()  # the row group's buffers, which the allocator would otherwise keep
+    if off != n:
+        raise pa.ArrowInvalid(f"the row groups hold {off} rows, the footer says {n}")
+    for c in arrow:
+        out[c] = pa.chunked_array(arrow[c], type=schema.field(c).type)
+    return _Columns(list(cols), out, n)
 
 
 def _first_non_numeric(col: pa.ChunkedArray) -> tuple[int, str] | None:
@@ -323,6 +389,12 @@ def _to_float(col: pa.ChunkedArray) -> np.ndarray:
         return pd.to_numeric(col.to_pandas(), errors="coerce").to_numpy(dtype=float)
     arr = col.to_numpy()
     return arr if arr.dtype == np.float64 else arr.astype(np.float64)
+
+
+def _number(factor, label: str, c: str) -> bool:
+    if not isinstance(factor, (int, float)):
+        raise ConfigError(f"{label}: scale.{c}: a CSV or Parquet log takes a number here")
+    return True
 
 
 def _row_label(i: int, has_header: bool = True) -> str:
@@ -363,7 +435,7 @@ def read_logs(path: str, mapping: str | LogSpec | None = None, units: str | None
     return _validate_and_split(table, label, eff, meta_all, has_header=eff.columns is None or is_parquet)
 
 
-def _validate_and_split(table: pa.Table, label: str, spec: LogSpec, meta_all: dict,
+def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec, meta_all: dict,
                         has_header: bool) -> list[JointLog]:
     problems: list[str] = []
     warnings: list[str] = []
@@ -393,6 +465,9 @@ def _validate_and_split(table: pa.Table, label: str, spec: LogSpec, meta_all: di
     dropped = np.zeros(n_rows, dtype=bool)
     for c in numeric:
         col = cols[c]
+        if isinstance(col, np.ndarray):  # Parquet numeric column, already float64
+            arrays[c] = col * spec.scale[c] if c in spec.scale and _number(spec.scale[c], label, c) else col
+            continue
         if pa.types.is_string(col.type) or pa.types.is_large_string(col.type) or pa.types.is_binary(col.type):
             bad = _first_non_numeric(col)
             if bad is not None and spec.bad_rows == "number_prefix":
@@ -550,20 +625,38 @@ def _validate_and_split(table: pa.Table, label: str, spec: LogSpec, meta_all: di
     return logs
 
 
+def _dictionary_codes(jcol: pa.ChunkedArray) -> tuple[np.ndarray, list[str]]:
+    """Integer codes and names of a dictionary-encoded column (each chunk may carry its own dictionary)."""
+    index: dict[str, int] = {}
+    codes = np.empty(len(jcol), dtype=np.int32)
+    k = 0
+    for ch in jcol.chunks:
+        words = ch.dictionary.cast(pa.string()).to_pylist()
+        lut = np.array([index.setdefault(str(x), len(index)) for x in words], dtype=np.int32)
+        idx = ch.indices.to_numpy(zero_copy_only=False)
+        if len(idx):
+            np.take(lut, idx, out=codes[k:k + len(idx)])
+        k += len(idx)
+    return codes, list(index)
+
+
 def _joint_blocks(jcol: pa.ChunkedArray) -> list[tuple[str, slice | np.ndarray]]:
     """(joint id, selector) per joint, in order of first appearance: slices for contiguous blocks."""
-    col = jcol.combine_chunks()
-    if pa.types.is_floating(col.type):
-        v = col.to_numpy()
-        if np.all(np.mod(v, 1) == 0):
-            col = pa.array(v.astype(np.int64))
-    if pa.types.is_integer(col.type):
-        codes = col.to_numpy()
+    if pa.types.is_dictionary(jcol.type):  # as read from Parquet (no per-row strings)
+        codes, names = _dictionary_codes(jcol)
+    elif pa.types.is_floating(jcol.type) or pa.types.is_integer(jcol.type):
+        col = jcol.combine_chunks()
         names = None
-    else:
-        enc = col.cast(pa.string()).dictionary_encode()
-        codes = enc.indices.to_numpy()
-        names = enc.dictionary.to_pylist()
+        if pa.types.is_floating(col.type):
+            v = col.to_numpy()
+            if np.all(np.mod(v, 1) == 0):
+                col = pa.array(v.astype(np.int64))
+        if pa.types.is_integer(col.type):
+            codes = col.to_numpy()
+        else:
+            codes, names = _dictionary_codes(jcol.cast(pa.string()).dictionary_encode())
+    else:  # text: encoded chunk by chunk, never copied whole
+        codes, names = _dictionary_codes(jcol.cast(pa.string()).dictionary_encode())
     starts = np.concatenate(([0], np.flatnonzero(codes[1:] != codes[:-1]) + 1))
     run_codes = codes[starts]
     label = (lambda c: str(c)) if names is None else (lambda c: str(names[c]))
