@@ -2,7 +2,8 @@
 
 From each log of a joint (as the fit prepared it: velocity, acceleration, friction torque
 ``F = tau - J a - G``, segments) the diagnosis keeps the *sliding* samples: moving faster than
-``v_min`` (0.2 % of the top speed and 5 velocity noise levels), outside ramp, step and rest segments, away from the start and end of
+``v_min`` (on constant-velocity plateaus 0.2 % of the top speed and 5 velocity noise levels, elsewhere
+2 %), outside ramp, step and rest segments, away from the start and end of
 every run of one velocity sign (the first and last ``edge`` samples, 50 ms: differentiation transients and
 the presliding lag of a reversal, which the static map does not describe and which the ``presliding``
 cause handles on its own), and with an inertial torque ``|J a|`` no larger than the median friction.
@@ -31,10 +32,12 @@ from scipy.signal import lfilter
 EXCLUDED_KINDS = ("ramp_presliding", "step", "rest")
 #: Aim for at least this many held-out groups (long segments are cut into chunks).
 MAX_GROUPS_TARGET = 60
-#: Sliding samples move faster than this fraction of the top speed ...
+#: Sliding samples move faster than this fraction of the top speed on constant-velocity plateaus ...
 V_MIN_FRACTION = 0.002
-#: ... and than this many velocity noise levels.
+#: ... and than this many velocity noise levels; elsewhere (accelerating through low speed, where the
+#: bristle lag of a reversal dominates) faster than this fraction of the top speed.
 K_NOISE = 5.0
+V_MOVE_FRACTION = 0.02
 #: Sliding samples have an inertial torque |J a| of at most this many times the median friction.
 INERTIA_RATIO = 1.0
 #: At most this many samples enter the fits (evenly decimated beyond).
@@ -185,8 +188,9 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
         return None
     from ..segments import noise_sigma
     sig_w = max((noise_sigma(lg.w[np.isfinite(lg.w)]) for lg in logs if lg.n > 10), default=0.0)
-    v_min = max(V_MIN_FRACTION * w0, K_NOISE * sig_w)
-    movF = np.concatenate([np.abs(lg.F[np.isfinite(lg.F) & (np.abs(np.nan_to_num(lg.w)) > v_min)]) for lg in logs])
+    v_min = max(V_MIN_FRACTION * w0, K_NOISE * sig_w)          # on constant-velocity plateaus
+    v_move = max(V_MOVE_FRACTION * w0, v_min)                    # elsewhere (accelerating through low speed)
+    movF = np.concatenate([np.abs(lg.F[np.isfinite(lg.F) & (np.abs(np.nan_to_num(lg.w)) > v_move)]) for lg in logs])
     F_level = float(np.median(movF)) if movF.size else np.inf
     # drift clock
     starts = [lg.start for lg in logs]
@@ -205,15 +209,18 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
         n = lg.n
         seg_id = np.full(n, -1, dtype=np.int64)
         kind_ok = np.ones(n, dtype=bool)
+        vlim = np.full(n, v_move)
         for si, s in enumerate(lg.segments):
             seg_id[s.i0:s.i1] = si
             if s.kind in EXCLUDED_KINDS:
                 kind_ok[s.i0:s.i1] = False
+            elif s.kind == "constant_velocity":
+                vlim[s.i0:s.i1] = v_min
         w = np.nan_to_num(lg.w)
         ok = np.isfinite(lg.F) & np.isfinite(lg.w) & np.isfinite(lg.a) & kind_ok
         if J > 0:
             ok &= np.abs(J * np.nan_to_num(lg.a)) <= INERTIA_RATIO * F_level
-        pos, neg = (w > v_min) & ok, (w < -v_min) & ok
+        pos, neg = (w > vlim) & ok, (w < -vlim) & ok
         dt = float(np.median(np.diff(lg.t))) if n > 1 else 1.0
         e = edge if edge is not None else max(5, int(round(0.05 / dt)))
         keep = np.zeros(n, dtype=bool)
