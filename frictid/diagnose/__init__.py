@@ -263,9 +263,9 @@ def diagnose_joint(jf, logs: list[DiagLog], n_folds: int = N_FOLDS) -> list[dict
     J = jf.inertia.value if jf.inertia is not None and jf.inertia.value is not None else 0.0
     S = build_samples(logs, n_folds, axis=jf.axis, J=max(J, 0.0))
     if S is None:
-        rec["skipped"] = f"fewer than {2 * n_folds} sliding segments: nothing can be held out"
+        rec["skipped"] = (f"fewer than {2 * n_folds} sliding segments or too few sliding samples: nothing "
+                          "can be held out; the fit's own choice stands")
         jf.diagnosis = []
-        jf.selected = base
         return []
     st0 = _base_structure(jf, base, S)
     rigid = {"J": jf.inertia.value if jf.inertia and jf.inertia.value is not None else 0.0,

@@ -98,6 +98,7 @@ class Coef:
     gamma: dict = field(default_factory=dict)
     rms: float = float("nan")
     n: int = 0
+    excluded: list = field(default_factory=list)
 
 
 class Context:
@@ -182,11 +183,18 @@ def _lstsq(X: np.ndarray, y: np.ndarray) -> np.ndarray:
     return b / d
 
 
+#: A linear term may reach at most this many times the largest training friction on any sample ...
+BOUND = 10.0
+#: ... and a factor term at most this much (1 + phi gamma between -1 and 3).
+FACTOR_BOUND = 2.0
+
+
 class Evaluator:
     """Design pieces of one structure on one :class:`Context`, with :meth:`fit` and :meth:`predict`."""
 
     def __init__(self, st: Structure, ctx: Context):
         self.st, self.ctx = st, ctx
+        self._excl: set = set()
         S = ctx.S
         strib = next((t for t in st.terms if t.role == "stribeck"), None)
         self.slots = st.slots()
@@ -245,54 +253,9 @@ class Evaluator:
         return self._factor(self.af, c, idx) * (self._factor(self.lf, c, idx) * g + f) + self._additive(c, idx)
 
     # fit ----------------------------------------------------------------------------------------------
-    def _linear_block(self, c: Coef, idx, y):
-        mL = self._factor(self.lf, c, idx)
-        mA = self._factor(self.af, c, idx)
-        pos = self.pos[idx]
-        asym = self.st.asym
-        cols, keys = [], []
-        for sl, col in self.base_cols.items():
-            x = col[idx] * (mA * mL if sl in LEVEL_SLOTS else mA)
-            if asym:
-                cols += [x * pos, x * ~pos]
-                keys += [("p", sl), ("n", sl)]
-            else:
-                cols.append(x)
-                keys.append(("b", sl))
-        if self.t6 is not None:
-            X = self.t6[2][idx]
-            cols.append(X[:, 0] * mA * mL)
-            keys.append(("dc", 0))
-            for j in range(1, 4):
-                cols.append(X[:, j] * mA)
-                keys.append(("dc", j))
-        for i, t, X in self.add:
-            for j in range(X.shape[1]):
-                cols.append(X[idx, j])
-                keys.append(("add", i, j))
-        b = _lstsq(np.column_stack(cols), y)
-        bp, bn = {}, {}
-        dc = np.zeros(4)
-        gam = {i: np.zeros(X.shape[1]) for i, t, X in self.add}
-        for key, v in zip(keys, b):
-            if key[0] == "b":
-                bp[key[1]] = bn[key[1]] = float(v)
-            elif key[0] == "p":
-                bp[key[1]] = float(v)
-            elif key[0] == "n":
-                bn[key[1]] = float(v)
-            elif key[0] == "dc":
-                dc[key[1]] = float(v)
-            else:
-                gam[key[1]][key[2]] = float(v)
-        c.base_pos, c.base_neg, c.dc = bp, bn, dc
-        c.gamma.update(gam)
-
-    def _jacobian(self, c: Coef, idx):
-        """Prediction and the columns of its derivative in every coefficient, with their keys."""
-        g, f = self._gf(c, idx)
-        mL = self._factor(self.lf, c, idx)
-        mA = self._factor(self.af, c, idx)
+    def _linear_columns(self, c: Coef, idx, mL, mA):
+        """Columns of the coefficients that enter linearly (base amplitudes, thermal6 slopes, additive
+        terms) at samples idx, with their keys, the excluded ones left out."""
         pos = self.pos[idx]
         cols, keys = [], []
         for sl, col in self.base_cols.items():
@@ -314,19 +277,66 @@ class Evaluator:
             for j in range(X.shape[1]):
                 cols.append(X[idx, j])
                 keys.append(("g", i, j))
+        keep = [k not in self._excl for k in keys]
+        return [x for x, o in zip(cols, keep) if o], [k for k, o in zip(keys, keep) if o]
+
+    def _linear_block(self, c: Coef, idx, y):
+        mL = self._factor(self.lf, c, idx)
+        mA = self._factor(self.af, c, idx)
+        cols, keys = self._linear_columns(c, idx, mL, mA)
+        c.base_pos, c.base_neg, c.dc = {}, {}, np.zeros(4)
+        for i, t, X in self.add:
+            c.gamma[i] = np.zeros(X.shape[1])
+        if cols:
+            self._apply(c, keys, _lstsq(np.column_stack(cols), y))
+
+    def _jacobian(self, c: Coef, idx):
+        """Prediction and the columns of its derivative in every coefficient, with their keys."""
+        g, f = self._gf(c, idx)
+        mL = self._factor(self.lf, c, idx)
+        mA = self._factor(self.af, c, idx)
+        cols, keys = self._linear_columns(c, idx, mL, mA)
         for i, t, X in self.lf:
             d = mA * self._factor(self.lf, c, idx, skip=i) * g
             for j in range(X.shape[1]):
-                cols.append(d * X[idx, j])
-                keys.append(("g", i, j))
+                if ("g", i, j) not in self._excl:
+                    cols.append(d * X[idx, j])
+                    keys.append(("g", i, j))
         inner = mL * g + f
         for i, t, X in self.af:
             d = self._factor(self.af, c, idx, skip=i) * inner
             for j in range(X.shape[1]):
-                cols.append(d * X[idx, j])
-                keys.append(("g", i, j))
+                if ("g", i, j) not in self._excl:
+                    cols.append(d * X[idx, j])
+                    keys.append(("g", i, j))
         pred = mA * inner + self._additive(c, idx)
         return pred, np.column_stack(cols), keys
+
+    def _unsupported(self, c: Coef, y_scale: float) -> list:
+        """Coefficients whose term would exceed the data anywhere on the samples (inputs only, never the
+        held-out targets): a linear term above BOUND times the largest training friction, a factor term
+        beyond +-FACTOR_BOUND. Such a coefficient rests on a column the training samples hardly excite
+        (a Stribeck term without low speeds) and would blow up a held-out prediction."""
+        bad = []
+        for sl, col in self.base_cols.items():
+            m = float(np.max(np.abs(col))) if col.size else 0.0
+            for key, amp in ((("b", sl, 0), c.base_pos.get(sl, 0.0)),) if not self.st.asym else (
+                    (("p", sl, 0), c.base_pos.get(sl, 0.0)), (("n", sl, 0), c.base_neg.get(sl, 0.0))):
+                if key not in self._excl and abs(amp) * m > BOUND * y_scale:
+                    bad.append(key)
+        if self.t6 is not None:
+            X = self.t6[2]
+            for j in range(4):
+                if ("dc", j, 0) not in self._excl and abs(c.dc[j]) * float(np.max(np.abs(X[:, j]))) > BOUND * y_scale:
+                    bad.append(("dc", j, 0))
+        for i, t, X in self.add:
+            for j in range(X.shape[1]):
+                if ("g", i, j) not in self._excl and abs(c.gamma[i][j]) * float(np.max(np.abs(X[:, j]))) > BOUND * y_scale:
+                    bad.append(("g", i, j))
+        for i, t, X in self.lf + self.af:
+            if np.max(np.abs(X @ np.atleast_1d(c.gamma[i]))) > FACTOR_BOUND:
+                bad += [("g", i, j) for j in range(X.shape[1]) if ("g", i, j) not in self._excl]
+        return bad
 
     def _apply(self, c: Coef, keys, delta):
         for (kind, a, b), v in zip(keys, delta):
@@ -353,20 +363,39 @@ class Evaluator:
         S = self.ctx.S
         idx = np.arange(S.n) if idx is None else np.asarray(idx)
         y = S.F[idx]
-        c = Coef({}, {}, np.zeros(4), {})
-        for i, t, X in self.lf + self.af + self.add:
-            c.gamma[i] = np.zeros(X.shape[1])
-        self._linear_block(c, idx, y)
-        if self.lf or self.af:
-            prev = np.inf
-            for _ in range(max_iter):
-                pred, Jm, keys = self._jacobian(c, idx)
-                r = y - pred
-                cost = float(np.einsum("i,i->", r, r))
-                self._apply(c, keys, _lstsq(Jm, r))
-                if abs(prev - cost) <= tol * max(cost, 1e-300):
-                    break
-                prev = cost
+        y_scale = float(np.max(np.abs(y))) if y.size else 1.0
+        self._excl = set()
+        for _ in range(4):
+            c = Coef({}, {}, np.zeros(4), {})
+            for i, t, X in self.lf + self.af + self.add:
+                c.gamma[i] = np.zeros(X.shape[1])
+            self._linear_block(c, idx, y)
+            if self.lf or self.af:
+                prev = np.inf
+                for _ in range(max_iter):
+                    pred, Jm, keys = self._jacobian(c, idx)
+                    r = y - pred
+                    cost = float(np.einsum("i,i->", r, r))
+                    self._apply(c, keys, _lstsq(Jm, r))
+                    if abs(prev - cost) <= tol * max(cost, 1e-300):
+                        break
+                    prev = cost
+            bad = self._unsupported(c, y_scale)
+            if not bad:
+                break
+            self._excl.update(bad)
+        if bad:  # still unsupported after the refits: hold those at zero
+            self._apply(c, bad, [0.0] * len(bad))
+            for kind, a, b in bad:
+                if kind in ("b", "p"):
+                    c.base_pos[a] = 0.0
+                if kind in ("b", "n"):
+                    c.base_neg[a] = 0.0
+                if kind == "dc":
+                    c.dc[a] = 0.0
+                if kind == "g":
+                    c.gamma[a][b] = 0.0
+        c.excluded = sorted(self._excl)
         r = y - self.predict(c, idx)
         c.rms = float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
         c.n = int(idx.size)

@@ -40,6 +40,8 @@ K_NOISE = 5.0
 V_MOVE_FRACTION = 0.02
 #: Sliding samples have an inertial torque |J a| of at most this many times the median friction.
 INERTIA_RATIO = 1.0
+#: Fewest sliding samples, in all and per group on average, for a diagnosis.
+MIN_SAMPLES, MIN_PER_GROUP = 500, 20
 #: At most this many samples enter the fits (evenly decimated beyond).
 N_MAX = 20000
 
@@ -174,7 +176,8 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None,
                   n_max: int = N_MAX, axis: str = "rotary", J: float = 0.0) -> Samples | None:
-    """The :class:`Samples` of a joint's logs, or None when fewer than ``2 n_folds`` groups slide.
+    """The :class:`Samples` of a joint's logs, or None when fewer than ``2 n_folds`` groups slide (or fewer
+    than :data:`MIN_SAMPLES` samples, :data:`MIN_PER_GROUP` per group on average).
 
     J [kg m^2 | kg] : the inertia the friction torque was computed with; samples whose inertial torque
     ``|J a|`` exceeds :data:`INERTIA_RATIO` times the typical friction are left out (there the friction
@@ -273,7 +276,7 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
     group = remap[group]
     _, group = np.unique(group, return_inverse=True)
     ng = int(group.max()) + 1
-    if ng < 2 * n_folds:
+    if ng < 2 * n_folds or group.size < max(MIN_SAMPLES, MIN_PER_GROUP * ng):
         return None
     gt = np.full(ng, np.inf)
     np.minimum.at(gt, group, cat["th"])
