@@ -116,11 +116,14 @@ def main(argv=None):
                              duration_scale=args.hours * 3600 / (20 * 180.0))[0]
         sim = time.perf_counter() - t0
         pe = lambda k, v: ParamEstimate(k, float(v), None, "", True)  # noqa: E731
-        params = {k: pe(k, v) for k, v in dict(c0=45.0, c1=30.0, c2=-4.0, c3=1.5, dc0=-0.6, dc1=-0.4, dc2=0.053,
-                                                dc3=-0.02, C=1500.0, K=2.5, T0=25.0, sigma0=SIGMA0,
-                                                sigma1=SIGMA1).items()}
-        jf = JointFit(lg.joint, inertia=pe("J", 12.0), gravity={"Px": pe("Px", 350.0), "Py": pe("Py", 40.0)},
-                      offset=pe("offset", 0.0), models={"m": ModelFit("m", "polynomial", params)}, selected="m")
+        tp = lg.truth["params"]  # the plant's own model (a benchmark may read the truth)
+        th = tp["thermal"]
+        vals = dict(tp["static"], sigma0=tp["sigma0"], sigma1=tp["sigma1"], C=th["C"], K=th["K"], T0=th["T0"],
+                    **{f"dc{i}": th[f"dc{i}"] for i in range(4)})
+        params = {k: pe(k, v) for k, v in vals.items()}
+        g = tp["gravity"]
+        jf = JointFit(lg.joint, inertia=pe("J", tp["J"]), gravity={"Px": pe("Px", g["Px"]), "Py": pe("Py", g["Py"])},
+                      offset=pe("offset", g["offset"]), models={"m": ModelFit("m", tp["map"], params)}, selected="m")
         m_ = joint_model(jf)
         t0 = time.perf_counter()
         r = replay(lg, m_)
