@@ -109,6 +109,9 @@ class Context:
         self._cache: dict = {}
         self.sgn = np.sign(S.w)
         self.v = np.abs(S.w)
+        # the largest speed and acceleration of the logs (not only of the sliding samples)
+        self.w_top = max(float(np.max(np.abs(np.nan_to_num(lg.w)))) for lg in S.logs)
+        self.a_top = max(float(np.max(np.abs(np.nan_to_num(lg.a)))) for lg in S.logs)
 
     def base_column(self, slot: int, shapes, term_nl=None) -> np.ndarray:
         key = ("base", slot, tuple(np.round(shapes[[2, 3, 5]], 12)), term_nl)
@@ -183,8 +186,11 @@ def _lstsq(X: np.ndarray, y: np.ndarray) -> np.ndarray:
     return b / d
 
 
-#: A linear term may reach at most this many times the largest training friction on any sample ...
+#: A linear term may reach at most this many times the largest training friction at any speed the joint
+#: reaches ...
 BOUND = 10.0
+#: A Stribeck column whose largest value on the training samples is below this is not excited.
+EXCITE = 0.2
 #: ... and a factor term at most this much (1 + phi gamma between -1 and 3).
 FACTOR_BOUND = 2.0
 
@@ -195,6 +201,7 @@ class Evaluator:
     def __init__(self, st: Structure, ctx: Context):
         self.st, self.ctx = st, ctx
         self._excl: set = set()
+        self._held: set = set()
         S = ctx.S
         strib = next((t for t in st.terms if t.role == "stribeck"), None)
         self.slots = st.slots()
@@ -259,6 +266,8 @@ class Evaluator:
         pos = self.pos[idx]
         cols, keys = [], []
         for sl, col in self.base_cols.items():
+            if sl in self._held:
+                continue
             x = col[idx] * (mA * mL if sl in LEVEL_SLOTS else mA)
             if self.st.asym:
                 cols += [x * pos, x * ~pos]
@@ -287,6 +296,12 @@ class Evaluator:
         c.base_pos, c.base_neg, c.dc = {}, {}, np.zeros(4)
         for i, t, X in self.add:
             c.gamma[i] = np.zeros(X.shape[1])
+        # base amplitudes held at the base fit's values (slots the samples do not excite)
+        for sl in self._held:
+            c.base_pos[sl] = c.base_neg[sl] = float(self.st.shapes[sl])
+        if self._held:
+            g, f = self._gf(c, idx)
+            y = y - mA * (mL * g + f)
         if cols:
             self._apply(c, keys, _lstsq(np.column_stack(cols), y))
 
@@ -318,20 +333,26 @@ class Evaluator:
         beyond +-FACTOR_BOUND. Such a coefficient rests on a column the training samples hardly excite
         (a Stribeck term without low speeds) and would blow up a held-out prediction."""
         bad = []
+        wt = self.ctx.w_top
         for sl, col in self.base_cols.items():
-            m = float(np.max(np.abs(col))) if col.size else 0.0
+            if sl in self._held:
+                continue
+            # the largest the column can be over the joint's speeds: 1 for the level slots, w^k for f
+            m = 1.0 if sl in LEVEL_SLOTS else {6: wt, 7: wt * wt, 8: wt ** 3}[sl]
             for key, amp in ((("b", sl, 0), c.base_pos.get(sl, 0.0)),) if not self.st.asym else (
                     (("p", sl, 0), c.base_pos.get(sl, 0.0)), (("n", sl, 0), c.base_neg.get(sl, 0.0))):
                 if key not in self._excl and abs(amp) * m > BOUND * y_scale:
                     bad.append(key)
         if self.t6 is not None:
-            X = self.t6[2]
+            x_top = float(np.max(np.abs(self.t6[2][:, 0])))
             for j in range(4):
-                if ("dc", j, 0) not in self._excl and abs(c.dc[j]) * float(np.max(np.abs(X[:, j]))) > BOUND * y_scale:
+                m = x_top * (1.0 if j == 0 else wt ** j)
+                if ("dc", j, 0) not in self._excl and abs(c.dc[j]) * m > BOUND * y_scale:
                     bad.append(("dc", j, 0))
         for i, t, X in self.add:
             for j in range(X.shape[1]):
-                if ("g", i, j) not in self._excl and abs(c.gamma[i][j]) * float(np.max(np.abs(X[:, j]))) > BOUND * y_scale:
+                m = self.ctx.a_top if t.ext == "inertia" else float(np.max(np.abs(X[:, j])))
+                if ("g", i, j) not in self._excl and abs(c.gamma[i][j]) * m > BOUND * y_scale:
                     bad.append(("g", i, j))
         for i, t, X in self.lf + self.af:
             if np.max(np.abs(X @ np.atleast_1d(c.gamma[i]))) > FACTOR_BOUND:
@@ -365,6 +386,12 @@ class Evaluator:
         y = S.F[idx]
         y_scale = float(np.max(np.abs(y))) if y.size else 1.0
         self._excl = set()
+        # a Stribeck term the training samples do not reach (all far above its velocity) keeps the base
+        # fit's amplitude: refitted there it would rest on nothing and blow up at low speed
+        self._held = set()
+        if 1 in self.base_cols and 1 in MAP_SLOTS[self.st.map] and idx.size:
+            if float(np.max(np.abs(self.base_cols[1][idx]))) < EXCITE:
+                self._held.add(1)
         for _ in range(4):
             c = Coef({}, {}, np.zeros(4), {})
             for i, t, X in self.lf + self.af + self.add:
