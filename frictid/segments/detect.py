@@ -369,12 +369,6 @@ def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]
     calm = fill_short(~loading, 2 * hf + 2, False)  # a torque jump alone does not end a rest
     rest = grow(f.still & calm & (code < 0), f.still_fine & calm & (code < 0))
     rest = drop_short(rest, n_min)
-    # a rest that ends in loading or motion ends where the torque starts loading the joint
-    for i0, i1 in zip(*runs(rest)):
-        c = _loading_start(f, int(i0), int(i1))
-        if c is not None:
-            rest[c:i1] = False
-    rest = drop_short(rest, n_min)
     code[rest] = KIND_CODE["rest"]
     code[code < 0] = KIND_CODE["other"]
     for i0, i1 in zip(*runs(rest)):
@@ -383,51 +377,6 @@ def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]
         segs.append(_segment(f, "other", int(i0), int(i1)))
     segs.sort(key=lambda s: (s.i0, s.i1))
     return code, segs, f
-
-
-def _loading_start(f: Features, a: int, b: int) -> int | None:
-    """Where a rest ``[a, b)`` stops being one because a controller starts loading the joint: the corner of
-    the best "flat, then a straight ramp to the end" fit of its torque, when the ramp is significant
-    (``K_NOISE`` standard errors of the fitted change and a better fit than flat by ``K_NOISE**2`` noise
-    variances) and, if the joint moves right after, pushes the way it moves. None otherwise."""
-    n = f.t.size
-    if b >= n or b - a < 2 * f.n_min:
-        return None
-    after = f.w[b: min(n, b + f.h)]
-    moves = not np.all(f.still_fine[b: b + after.size])
-    direction = np.sign(np.mean(after)) if moves else 0.0
-    y = f.tau[a:b] - f.tau[a]
-    x = f.t[a:b] - f.t[a]
-    m = y.size
-    # suffix sums: for a corner at c, the ramp runs over samples c..m-1 with u = x - x[c]
-    N = np.arange(m, 0, -1, dtype=float)
-    S1 = np.cumsum(x[::-1])[::-1]
-    S2 = np.cumsum((x * x)[::-1])[::-1]
-    Sy = np.cumsum(y[::-1])[::-1]
-    Sxy = np.cumsum((x * y)[::-1])[::-1]
-    su = S1 - x * N
-    suu = S2 - 2.0 * x * S1 + x * x * N
-    suy = Sxy - x * Sy
-    sy, syy = float(np.sum(y)), float(np.dot(y, y))
-    det = m * suu - su * su
-    ok = det > 1e-12 * max(float(np.max(np.abs(det))), 1e-300)
-    ok[: f.n_min // 2] = False  # a rest keeps at least some flat start
-    if not ok.any():
-        return None
-    L = np.where(ok, (suu * sy - su * suy) / np.where(ok, det, 1.0), 0.0)
-    slope = np.where(ok, (m * suy - su * sy) / np.where(ok, det, 1.0), 0.0)
-    sse = syy - L * sy - slope * suy
-    sse = np.where(ok, sse, np.inf)
-    c = int(np.argmin(sse))
-    sse0 = syy - sy * sy / m
-    sigma = float(np.median(f.sigma_tau_loc[a:b]))
-    change = slope[c] * (x[-1] - x[c])
-    n_ramp = m - c
-    if n_ramp < 4 or (direction != 0 and np.sign(change) != direction):
-        return None
-    if abs(change) < K_NOISE * sigma * math.sqrt(12.0 / n_ramp) or sse0 - sse[c] < K_NOISE**2 * sigma**2:
-        return None
-    return a + c
 
 
 def _distinct_speeds(w: list[float]) -> int:
