@@ -216,6 +216,24 @@ def test_warm_up_is_found_as_temperature_with_its_time_constant():
     assert "falls" in f["evidence"]
 
 
+def test_a_measured_joint_temperature_is_used_when_logged():
+    def warm(t, q, w, F):
+        T = 25.0 + 30.0 * (1 - np.exp(-(t - t[0]) / 50.0))
+        return F * (1 - 0.006 * (T - 25.0))
+
+    lg = plateau_log(warm, reps=3)
+    lg.channels["temp_joint"] = 25.0 + 30.0 * (1 - np.exp(-(lg.t - lg.t[0]) / 50.0))
+    jf, findings = _run([lg])
+    f = findings[0]
+    assert f["cause"] == "temperature" and "measured joint temperature" in f["evidence"]
+    m = jf.models[f["model"]]
+    assert m.extra["temperature"] == "temp_joint" and "C" not in m.params
+    from frictid.data import JointLog
+    jl = JointLog("1", lg.t, lg.tau, q=lg.q, qd=lg.w, channels=lg.channels)
+    r = replay(jl, joint_model(jf), w=lg.w, a=lg.a)
+    assert np.allclose(r.T, lg.channels["temp_joint"])
+
+
 def test_drift_needs_recordings_at_different_times():
     logs = []
     for k in range(3):
