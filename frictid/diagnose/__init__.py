@@ -302,7 +302,7 @@ def diagnose_joint(jf, logs: list[DiagLog], n_folds: int = N_FOLDS) -> list[dict
         mf = ModelFit(name, mapname, params,
                       {"rms": step["coef"].rms, "rms_heldout": tr.rms_after, "n": int(S.n),
                        "k": int(sum(1 for p in params.values() if not p.fixed))},
-                      method="diagnosis: base amplitudes and extension terms by alternating least squares on "
+                      method="diagnosis: base amplitudes and extension terms by least squares (Gauss-Newton) on "
                              "the sliding samples (shapes of the base map held)",
                       extra=extra)
         jf.models[name] = mf
