@@ -236,7 +236,6 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
     total = sum(r[0].size for r in rows)
     if total == 0:
         return None
-    dec = max(1, int(math.ceil(total / n_max)))
     # groups: (log, segment, chunk) with chunks of at most L seconds
     sliding_time = sum(float(np.median(np.diff(lg.t))) * r[0].size for lg, r in zip(logs, rows) if lg.n > 1)
     L = max(sliding_time / MAX_GROUPS_TARGET, 1e-9)
@@ -252,13 +251,31 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
         run_t0 = t[brk][run_id]
         chunk = np.floor((t - run_t0) / L).astype(np.int64)
         gkey = run_id * 100000 + chunk
-        sel = np.arange(0, idx.size, dec)
-        parts["t"].append(t[sel])
-        parts["th"].append((t[sel] + offs[i] - clock_t0) / 3600.0)
-        parts["li"].append(np.full(sel.size, i))
-        parts["k"].append(idx[sel])
-        parts["gkey"].append(gkey[sel] + i * 10 ** 12)
+        parts["t"].append(t)
+        parts["th"].append((t + offs[i] - clock_t0) / 3600.0)
+        parts["li"].append(np.full(idx.size, i))
+        parts["k"].append(idx)
+        parts["gkey"].append(gkey + i * 10 ** 12)
     cat = {k: np.concatenate(v) for k, v in parts.items()}
+    # at most n_max samples: the same cap for every group (each segment weighs alike, a one-hour run does
+    # not drown a short sweep), groups below it kept whole, evenly spaced samples within a group
+    keys_u, ginv, gcount = np.unique(cat["gkey"], return_inverse=True, return_counts=True)
+    dec = 1
+    if total > n_max:
+        lo, hi = 1.0, float(gcount.max())
+        for _ in range(50):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if np.minimum(gcount, mid).sum() <= n_max else (lo, mid)
+        cap = max(int(lo), MIN_PER_GROUP)
+        rank = np.empty(ginv.size, dtype=np.int64)
+        order = np.argsort(ginv, kind="stable")
+        starts = np.concatenate([[0], np.cumsum(gcount)[:-1]])
+        rank[order] = np.arange(ginv.size) - np.repeat(starts, gcount)
+        step = np.maximum(gcount / cap, 1.0)[ginv]
+        keep = np.floor(rank / step) != np.floor((rank - 1) / step)
+        keep &= rank < np.ceil(gcount[ginv] / step) * step
+        cat = {k: v[keep] for k, v in cat.items()}
+        dec = int(math.ceil(total / max(int(keep.sum()), 1)))
     _, group = np.unique(cat["gkey"], return_inverse=True)
     ng = int(group.max()) + 1
     # merge groups too small to matter (fewer than 5 samples) into their predecessor in time
