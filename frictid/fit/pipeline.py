@@ -34,6 +34,7 @@ from frictid.models.params import unit_of
 
 from . import presliding as pre
 from . import regression as rg
+from . import samples as smp
 from . import select as sel
 from . import thermal as th
 from .result import FitResult, JointFit, ModelFit, ParamEstimate
@@ -63,6 +64,38 @@ class _Prep:
     F: np.ndarray | None = None
     G: np.ndarray | None = None
     warnings: list[str] = field(default_factory=list)
+
+
+#: A log that is one steady run: its first third is the start transient ...
+STEADY_START = 1 / 3
+#: ... and over the rest the velocity keeps one sign (at most this fraction of samples of the other sign),
+STEADY_OPPOSITE = 0.05
+#: its 10 batch means stay within this fraction of their mean and the mean is this many standard errors
+#: away from zero.
+STEADY_SPREAD = 0.25
+STEADY_Z = 5.0
+
+
+def steady_run(log: JointLog, w: np.ndarray) -> list[Segment] | None:
+    """Segments of a log that is a single steady run at one velocity (a test bench that logs one file per
+    commanded speed): ``other`` for the first third, ``constant_velocity`` for the rest; ``None`` when the
+    log is not one (its velocity changes sign or level, or is not clearly away from zero)."""
+    n = log.n
+    i0 = int(STEADY_START * n)
+    ww = np.asarray(w[i0:], dtype=float)
+    if ww.size < 20 or not np.all(np.isfinite(ww)):
+        return None
+    m = float(ww.mean())
+    if m == 0.0 or np.mean(np.sign(ww) == -np.sign(m)) > STEADY_OPPOSITE:
+        return None
+    bm = np.array([b.mean() for b in np.array_split(ww, 10)])
+    sd = float(np.std(bm, ddof=1))
+    if sd > STEADY_SPREAD * abs(m) or abs(m) < STEADY_Z * sd / math.sqrt(bm.size):
+        return None
+    t = log.t
+    return [Segment("other", 0, i0, float(t[0]), float(t[max(i0 - 1, 0)])),
+            Segment("constant_velocity", i0, n, float(t[i0]), float(t[-1]),
+                    stats={"w_mean": m})]
 
 
 def parse_models(models) -> list[str]:
@@ -272,11 +305,18 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
     if any(lg.axis != axis for lg in jlogs):
         raise FrictidInputError(f"joint {jf.joint}: logs disagree on the axis (rotary / linear)")
     preps: list[_Prep] = []
+    n_steady = 0
     for lg in jlogs:
         w, a = differentiate(lg)
-        segs = list(segmenter(lg))
-        preps.append(_Prep(lg, getattr(lg, "_fit_source", 0), np.asarray(w, float), np.asarray(a, float), segs))
+        w, a = np.asarray(w, float), np.asarray(a, float)
+        segs = steady_run(lg, w)
+        n_steady += segs is not None
+        segs = segs if segs is not None else list(segmenter(lg))
+        preps.append(_Prep(lg, getattr(lg, "_fit_source", 0), w, a, segs))
         jf.warnings.extend(lg.warnings)
+    if n_steady:
+        jf.warnings.append(f"{n_steady} of {len(jlogs)} logs are single steady runs at one velocity: the last "
+                           f"{1 - STEADY_START:.0%} of each is one constant-velocity plateau")
     jf.segments = {k: 0 for k in SEGMENT_KINDS}
     for p in preps:
         for s in p.segments:
@@ -315,10 +355,15 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
 
     # ---- 2. friction torque and plateaus
     plat, keys = _plateaus(jf, preps, axis)
+    # the basis of the static maps: plateau points, or every moving sample when the plateaus give too few
+    # distinct speeds (an excitation run; see samples.py)
+    excl = _regression_exclude(preps)
+    S = smp.build(preps, min_speed, n_folds, exclude=excl) if reg_fit is not None else None
+    basis, why_basis = smp.choose_basis(plat.w, S.n_moving if S is not None else 0)
     # stage 2: with a static map from the plateaus, J / gravity / offset again with that map as the
     # friction (the polynomial cannot follow a Stribeck drop, which then leaks into J; see docs/fit.md)
     mech = tuple(n for n in free_names if n not in ("c0", "c1", "c2", "c3"))
-    fmap = _stage2_map(plat) if mech and reg_fit is not None else None
+    fmap = _stage2_map(plat) if mech and reg_fit is not None and basis == "plateaus" else None
     if fmap is not None:
         name2, friction, v_low = fmap
         v_low = min(max(min_speed, v_low), 0.5 * w0)
@@ -334,7 +379,13 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
     used["constant_velocity"] = [[float(a), float(b), preps[int(k[0])].index] for a, b, k in
                                  zip(plat.t_start, plat.t_end, keys)]
     npos, nneg = int((plat.w > 0).sum()), int((plat.w < 0).sum())
-    if len(plat) == 0:
+    if basis == "samples":
+        jf.warnings.append(why_basis)
+        if S is not None and ((S.w > 0).sum() == 0 or (S.w < 0).sum() == 0):
+            side = "positive" if (S.w < 0).sum() == 0 else "negative"
+            jf.warnings.append(f"one velocity sign only ({side} velocities): symmetric maps assume the other "
+                               "sign mirrors it; per-sign parameters of the other sign are not identifiable")
+    elif len(plat) == 0:
         jf.warnings.append("no usable constant-velocity plateaus: the static maps cannot be fitted")
     elif nneg == 0 or npos == 0:
         side = "positive" if nneg == 0 else "negative"
@@ -343,7 +394,14 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
 
     # ---- 3. static maps
     static_names = [m for m in wanted if m in sm.map_names()]
-    for name in static_names:
+    if basis == "samples":
+        S = smp.build(preps, min_speed, n_folds, exclude=excl)  # the friction samples of the final mechanics
+        if reg_fit is not None and all(c in reg_fit.names for c in ("c0", "c1", "c2", "c3")):
+            S.inflation = smp.variance_factor(
+                S.F - sm.polynomial(S.w, **{c: reg_fit.value(c) for c in ("c0", "c1", "c2", "c3")}))
+        for name in static_names:
+            jf.models[name] = smp.fit_map(name, S, axis)
+    for name in static_names if basis == "plateaus" else ():
         if len(plat) == 0:
             jf.not_identified.append({"what": name, "reason": "no constant-velocity plateaus"})
             continue
@@ -351,8 +409,12 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
         mf.metrics["rms_heldout"] = sel.heldout_static(name, plat, n_folds, axis=axis, full=mf)
         jf.models[name] = mf
     if "polynomial_ls" in wanted:
-        mf = _polynomial_ls(reg_fit, seg_ne, plat, keys, free_names,
-                            axis, F0, w0, a0, n_folds, why_reg)
+        if basis == "samples":
+            mf = _polynomial_ls_samples(reg_fit, preps, free_names, known_coef, min_speed, axis, F0, w0, a0,
+                                        excl, S)
+        else:
+            mf = _polynomial_ls(reg_fit, seg_ne, plat, keys, free_names,
+                                axis, F0, w0, a0, n_folds, why_reg)
         if mf is not None:
             jf.models["polynomial_ls"] = mf
         else:
@@ -361,6 +423,10 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
     # ---- 4. choice among the velocity-only static models
     cands = [m for m in BASE_MODELS if m in jf.models]
     selected, rec = sel.choose(jf.models, cands)
+    rec["basis"] = {"plateaus": "plateau points (held out by plateau folds)",
+                    "samples": f"moving samples (held out by {smp.BLOCKS_PER_FOLD * n_folds} time blocks in "
+                               f"{n_folds} folds)"}[basis]
+    rec["basis_reason"] = why_basis
     jf.selected, jf.selection = selected, rec
 
     # ---- 5. LuGre on top of the chosen map
@@ -374,7 +440,9 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
 
     # ---- 7. diagnosis: every extension beyond the base model enters through a finding (frictid.diagnose)
     if diagnose and jf.selected is not None:
+        choice = jf.selected
         _diagnose(jf, preps)
+        _check_diagnosis(jf, preps, choice, basis, keys, min_speed, excl)
 
     jf.segments_used = used
     if jf.selected is None:
@@ -471,6 +539,63 @@ def _diagnose(jf: JointFit, preps) -> None:
         diagnose_joint(jf, logs)
 
 
+#: The diagnosis' end model replaces the fit's choice only when it predicts the fit's own basis (the
+#: plateau means, or the moving samples) with at most this factor of the choice's RMS error.
+DIAGNOSIS_TOLERANCE = 1.05
+
+
+def _check_diagnosis(jf: JointFit, preps, choice: str, basis: str, keys, min_speed: float, excl) -> None:
+    """Keep the fit's choice when the diagnosis' end model predicts the measured torque worse on the fit's
+    basis: the mean torque of each plateau (plateau basis) or every moving sample (sample basis), both
+    models replayed along each log (:func:`frictid.replay.replay`). The diagnosis fits its extensions on
+    sliding samples only (near-constant velocity, small inertial torque) and starts from a symmetric map;
+    an extension fitted there can be degenerate elsewhere (a polynomial refitted on two or three plateau
+    speeds), or a symmetric map plus an offset can miss a per-sign map's shape. The findings stay listed."""
+    if jf.selected in (None, choice):
+        return
+    from frictid.errors import ConfigError
+    from frictid.replay import joint_model, replay
+
+    def rms(name):
+        m = joint_model(jf, name)
+        res = [replay(p.log, m, w=p.w, a=p.a).residual for p in preps]
+        if basis == "plateaus":
+            means = []
+            for pi_, si in keys:
+                s = preps[int(pi_)].segments[int(si)]
+                cut = int(0.1 * s.n)
+                r = res[int(pi_)][s.i0 + cut:s.i1 - cut]
+                r = r[np.isfinite(r)]
+                if r.size:
+                    means.append(float(r.mean()))
+            return math.sqrt(float(np.mean(np.square(means)))) if means else math.nan
+        e2, n = 0.0, 0
+        for p, r in zip(preps, res):
+            mask = np.isfinite(r) & (np.abs(p.w) > min_speed)
+            for s in p.segments:
+                if s.kind in excl:
+                    mask[s.i0:s.i1] = False
+            e2 += float(np.sum(r[mask] ** 2))
+            n += int(mask.sum())
+        return math.sqrt(e2 / n) if n else math.nan
+
+    try:
+        e_diag, e_fit = rms(jf.selected), rms(choice)
+    except (ConfigError, FrictidInputError, KeyError, ValueError):
+        return
+    what = "the plateau means" if basis == "plateaus" else "the moving samples"
+    rec = {"model": jf.selected, "rms": e_diag, "fit_choice": choice, "rms_fit_choice": e_fit,
+           "rule": f"the diagnosis' model is selected when its torque RMS on {what} (replayed) is at most "
+                   f"{DIAGNOSIS_TOLERANCE:g} x that of the fit's choice"}
+    if math.isfinite(e_diag) and math.isfinite(e_fit) and e_diag > DIAGNOSIS_TOLERANCE * e_fit:
+        rec["kept"] = choice
+        jf.warnings.append(f"the diagnosis' model {jf.selected} predicts the torque on {what} worse (RMS "
+                           f"{e_diag:.4g}) than the fit's choice {choice} ({e_fit:.4g}): {choice} stays "
+                           "selected; the findings are kept as evidence")
+        jf.selected = choice
+    jf.selection["diagnosis_check"] = rec
+
+
 def _plateaus(jf, preps, axis):
     """Friction torque per sample (stored on each prep) and the plateau points of all logs."""
     coef = {n: (pe.value if pe.value is not None else 0.0) for n, pe in
@@ -542,8 +667,7 @@ def _sample_metrics(reg_fit, seg_ne, names, n_folds) -> dict:
     r_all = rss(reg_fit.coef, total)
     n = total.n
     met = {"rms": math.sqrt(r_all / n) if n else None, "n": int(n), "k": k,
-           "aic": (n * math.log(r_all / n) + 2 * k) if n and r_all > 0 else None, "rms_heldout": None,
-           "basis": "moving samples"}
+           "aic": (n * math.log(r_all / n) + 2 * k) if n and r_all > 0 else None, "rms_heldout": None}
     blocks = [ne for *_, ne in seg_ne if ne.n > 0]
     if len(blocks) >= 2:
         nf = min(n_folds, len(blocks))
@@ -566,7 +690,8 @@ def _polynomial_ls(reg_fit, seg_ne, plat, keys, free_names, axis, F0, w0, a0, n_
     if not len(plat):
         return ModelFit("polynomial_ls", "polynomial", params, _sample_metrics(reg_fit, seg_ne, free_names, n_folds),
                         method="linear least squares on all moving samples with J, gravity and offset "
-                               "(002 eq 4-11); no plateaus: metrics on the moving samples, held out by segment")
+                               "(002 eq 4-11); no plateaus: metrics on the moving samples, held out by segment",
+                        extra={"basis": "moving samples"})
     met = metrics("polynomial", values, plat.w, plat.F, 4)
     met["rms_heldout"] = None
     if len(plat) >= 4:
@@ -588,6 +713,46 @@ def _polynomial_ls(reg_fit, seg_ne, plat, keys, free_names, axis, F0, w0, a0, n_
             met["rms_heldout"] = float(np.sqrt(np.mean(r**2)))
     return ModelFit("polynomial_ls", "polynomial", params, met,
                     method="linear least squares on all moving samples with J, gravity and offset (002 eq 4-11)")
+
+
+def _polynomial_ls_samples(reg_fit, preps, free_names, known_coef, min_speed, axis, F0, w0, a0, excl,
+                           S) -> ModelFit | None:
+    """polynomial_ls on the sample basis: metrics on the moving samples, held out by the time blocks of
+    :mod:`.samples` (the regression refitted without each fold, from per-block normal equations)."""
+    if reg_fit is None or S is None or not all(c in free_names for c in ("c0", "c1", "c2", "c3")):
+        return None
+    params = {c: _reg_estimate(c, reg_fit, axis, F0, w0, a0) for c in ("c0", "c1", "c2", "c3")}
+    blocks = smp.block_ranges([np.asarray(p.log.t, float) for p in preps], S.n_folds)
+    per_fold = [rg.NormalEquations(len(free_names)) for _ in range(S.n_folds)]
+    for p, rr in zip(preps, blocks):
+        allowed = [(s.i0, s.i1) for s in p.segments if s.kind not in excl] or [(0, p.log.n)]
+        ranges, folds = [], []
+        for i0, i1, b in rr:
+            for a, c in allowed:
+                lo, hi = max(i0, a), min(i1, c)
+                if hi > lo:
+                    ranges.append((lo, hi))
+                    folds.append(b % S.n_folds)
+        nes = rg.accumulate(ranges, free_names, p.log.q, p.w, p.a, p.log.tau, p.log.channels.get("payload"),
+                            known_coef, min_speed, axis)
+        for f, ne in zip(folds, nes):
+            per_fold[f] = per_fold[f] + ne
+    total = rg.NormalEquations.total(per_fold)
+
+    def rss(b, ne):
+        return max(float(ne.yty - 2 * b @ ne.Xty + b @ ne.XtX @ b), 0.0)
+
+    held, nn = 0.0, 0
+    for ne in per_fold:
+        if ne.n == 0 or total.n - ne.n <= len(free_names):
+            continue
+        held += rss(rg.solve(total - ne, free_names).coef, ne)
+        nn += ne.n
+    met = smp.sample_metrics(rss(reg_fit.coef, total), total.n, 4, math.sqrt(held / nn) if nn else None, S)
+    return ModelFit("polynomial_ls", "polynomial", params, met,
+                    method="linear least squares on all moving samples with J, gravity and offset "
+                           "(002 eq 4-11); metrics on the moving samples, held out by time blocks",
+                    extra={"basis": "moving samples"})
 
 
 def _lugre(jf: JointFit, preps, selected, used, axis, F0, w0) -> None:

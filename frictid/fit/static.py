@@ -220,12 +220,15 @@ def _weights(F_se, F0, n):
 
 
 def fit_branch(base: str, w, F, F_se=None, fixed: dict | None = None, n_refine: int = 3,
-               scales: tuple[float, float] | None = None, start: dict | None = None) -> BranchFit:
+               scales: tuple[float, float] | None = None, start: dict | None = None,
+               var_inflation: float = 1.0) -> BranchFit:
     """Fit symmetric map ``base`` to points (w [q/s], F [F]) by bounded, weighted least squares.
 
     fixed : parameters held at given values. scales : (F0, w0) data scales for the bounds (default:
     the largest |F| and |w| of the points). start : a warm start (name -> value); then it is the only
-    start (used by the held-out refits, which begin at the full-data optimum).
+    start (used by the held-out refits, which begin at the full-data optimum). var_inflation : factor on
+    the covariance before the identifiability checks (1 for plateau points; :mod:`.samples` uses it to
+    turn the covariance of binned points into that of autocorrelated samples).
     """
     smap = sm.STATIC_MAPS[base]
     table: tuple[Param, ...] = smap.table
@@ -298,7 +301,7 @@ def fit_branch(base: str, w, F, F_se=None, fixed: dict | None = None, n_refine: 
         tol = sv.max() * 1e-9 if sv.size and sv.max() > 0 else 1.0
         ok = sv > tol
         inv = (Vt[ok].T / sv[ok] ** 2) @ Vt[ok]
-        cov = s2 * inv * np.outer(xs_f, xs_f)
+        cov = s2 * float(var_inflation) * inv * np.outer(xs_f, xs_f)
         null = Vt[~ok]
         for j, k in enumerate(free):
             nm = names[k]
@@ -371,12 +374,13 @@ def predict(name: str, values: dict, w) -> np.ndarray:
 
 
 def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | float = "auto",
-               fixed: dict | None = None, start: dict | None = None) -> ModelFit:
+               fixed: dict | None = None, start: dict | None = None, var_inflation: float = 1.0) -> ModelFit:
     """Fit static map ``name`` (``stribeck``, ``polynomial_asym``, ...) to plateau points.
 
     w [q/s], F [F], F_se [F] : plateau means and standard errors. axis : "rotary" or "linear" (units).
     delta : Stribeck exponent, "auto" (free when the data pin it, else fixed at 2 as in 000/003), "free",
     or a number to hold it at. fixed : other parameters to hold (name -> value, suffixed for _asym).
+    var_inflation : covariance factor for autocorrelated points (see :func:`fit_branch`).
     A per-sign model is fitted branch by branch (the branches share no parameter).
     """
     w = np.asarray(w, dtype=float)
@@ -424,11 +428,12 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
             bstart = {n: start.get(n + suf) for n in smap.names}
             if base == "stribeck" and start.get("__delta_fixed" + suf):
                 bfixed.setdefault("delta", 2.0)
-        bf = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0), start=bstart)
+        bf = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0), start=bstart, var_inflation=var_inflation)
         if base == "stribeck" and delta == "auto" and "delta" in bf.reasons and "delta" not in bfixed:
             why = bf.reasons["delta"]
             bfixed["delta"] = 2.0
-            bf2 = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0), start=bstart)
+            bf2 = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0), start=bstart,
+                             var_inflation=var_inflation)
             notes.append(f"delta{suf} fixed at 2 (000/003): free, it was not identifiable ({why})")
             bf = bf2
         success = success and bf.success

@@ -1,0 +1,269 @@
+"""Static maps identified on all moving samples, for logs whose plateaus cannot carry them.
+
+Excitation trajectories (multi-sine, back-and-forth moves, a robot's identification run) have no
+constant-velocity plateaus, and a trajectory with plateaus at only two or three speeds per sign (the EMPS
+benchmark) gives too few distinct points for a Stribeck or polynomial map. Such logs are identified as the
+inverse-dynamics identification model (IDIM-LS, 002 eq 4-11; the EMPS reference) does it, on every moving
+sample::
+
+    tau = J a + G(q) + offset + F(w)
+
+J, the gravity terms and the offset come from the linear stage (:mod:`.regression`, with the polynomial
+friction, linear in all its parameters). Each static map is then fitted to the friction samples
+``F = tau - J a - G(q) - offset`` by the same bounded, multi-start least squares as on plateau points
+(:func:`.static.fit_static`): linear maps (``coulomb_viscous``, ``polynomial`` and their ``_asym``
+variants) have a unique optimum; the Stribeck maps get the same variable-projection starts.
+
+Held out by time blocks, never by sample: the moving samples of all logs, laid end to end in time, are cut
+into ``BLOCKS_PER_FOLD * n_folds`` blocks of equal duration and block ``k`` goes to fold ``k mod n_folds``
+(every fold spans the whole recording). Consecutive samples are strongly correlated (filtered derivatives,
+the controller): the covariance is inflated by the variance factor of the linear stage's residuals
+(batch means, :func:`variance_factor`) and the information criterion counts the effective number of
+independent samples, ``n`` divided by that factor.
+
+Which basis a joint uses (:func:`choose_basis`): the plateaus when they give at least
+:data:`MIN_PLATEAU_LEVELS` distinct speeds on each velocity sign they cover, else the moving samples.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .result import ModelFit
+from .static import _aic, fit_static, predict
+
+#: Distinct plateau speeds per velocity sign needed to fit the static maps on plateau points.
+MIN_PLATEAU_LEVELS = 5
+#: Two plateau speeds are distinct when they differ by more than this fraction of the larger one.
+LEVEL_TOLERANCE = 0.1
+#: Time blocks per fold of the held-out split.
+BLOCKS_PER_FOLD = 4
+#: Most samples kept per joint (evenly strided beyond this).
+MAX_SAMPLES = 2_000_000
+#: Velocity bins per sign of the least squares, and the fewest samples in a bin.
+BINS_PER_SIGN = 200
+MIN_PER_BIN = 5
+#: Fewest moving samples for the sample basis.
+MIN_SAMPLES = 50
+
+
+def speed_levels(w: np.ndarray, tol: float = LEVEL_TOLERANCE) -> int:
+    """Number of distinct speeds among plateau speeds ``w`` [q/s] of one sign (relative tolerance ``tol``)."""
+    v = np.sort(np.abs(np.asarray(w, dtype=float)))
+    if v.size == 0:
+        return 0
+    n, ref = 1, v[0]
+    for x in v[1:]:
+        if x - ref > tol * x:
+            n += 1
+            ref = x
+    return n
+
+
+def choose_basis(plateau_w: np.ndarray, n_moving: int) -> tuple[str, str]:
+    """``("plateaus" | "samples", why)`` for a joint with plateau speeds ``plateau_w`` and ``n_moving``
+    moving samples."""
+    pos = speed_levels(plateau_w[plateau_w > 0])
+    neg = speed_levels(plateau_w[plateau_w < 0])
+    enough = [lv >= MIN_PLATEAU_LEVELS for lv in (pos, neg) if lv > 0]
+    if enough and all(enough):
+        return "plateaus", f"plateaus at {pos} distinct positive and {neg} negative speeds"
+    if n_moving < MIN_SAMPLES:
+        return "plateaus", f"only {n_moving} moving samples"
+    what = ("no constant-velocity plateaus" if pos + neg == 0 else
+            f"plateaus at only {pos} distinct positive and {neg} negative speeds (at least "
+            f"{MIN_PLATEAU_LEVELS} per sign needed)")
+    return "samples", f"{what}: the static maps are fitted on the {n_moving} moving samples"
+
+
+@dataclass
+class SampleSet:
+    """Friction samples of one joint for the sample basis.
+
+    w [q/s], F [F] (``tau - J a - G - offset``), block : time-block index, fold : ``block % n_folds``,
+    log : index of the prepared log each sample came from, stride : subsampling step (1 = every sample),
+    n_moving : moving samples before subsampling, inflation : variance inflation of autocorrelated
+    samples (:func:`variance_factor` of the linear stage's residuals).
+    """
+
+    w: np.ndarray
+    F: np.ndarray
+    block: np.ndarray
+    fold: np.ndarray
+    log: np.ndarray
+    stride: int
+    n_moving: int
+    n_folds: int
+    inflation: float = 1.0
+
+    @property
+    def n(self) -> int:
+        return int(self.w.shape[0])
+
+    @property
+    def n_eff(self) -> float:
+        """Effective number of independent samples."""
+        return self.n / self.inflation
+
+
+def block_ranges(t_list: list[np.ndarray], n_folds: int) -> list[list[tuple[int, int, int]]]:
+    """Per log, ``(i0, i1, block)`` index ranges of the time blocks (logs laid end to end in time)."""
+    spans = [float(t[-1] - t[0]) if t.size > 1 else 0.0 for t in t_list]
+    total = sum(spans)
+    n_blocks = BLOCKS_PER_FOLD * n_folds
+    L = total / n_blocks if total > 0 else 1.0
+    out, t_off = [], 0.0
+    for t, span in zip(t_list, spans):
+        if t.size == 0:
+            out.append([])
+            continue
+        b = np.minimum(((t - t[0] + t_off) // L).astype(np.int64), n_blocks - 1)
+        edges = np.flatnonzero(np.diff(b)) + 1
+        starts = np.concatenate([[0], edges])
+        ends = np.concatenate([edges, [t.size]])
+        out.append([(int(i0), int(i1), int(b[i0])) for i0, i1 in zip(starts, ends)])
+        t_off += span
+    return out
+
+
+def build(logs, min_speed: float, n_folds: int, exclude: tuple[str, ...] = (),
+          max_samples: int = MAX_SAMPLES) -> SampleSet | None:
+    """The moving friction samples of a joint's prepared logs (each with ``.log``, ``.w``, ``.F`` and
+    ``.segments``): |w| > min_speed, finite, outside segments of the kinds in ``exclude``."""
+    ranges = block_ranges([np.asarray(p.log.t, float) for p in logs], n_folds)
+    ws, Fs, bs, ls = [], [], [], []
+    for li, (p, rr) in enumerate(zip(logs, ranges)):
+        if p.F is None:
+            continue
+        m = np.isfinite(p.w) & np.isfinite(p.F) & (np.abs(p.w) > min_speed)
+        for s in p.segments:
+            if s.kind in exclude:
+                m[s.i0:s.i1] = False
+        blk = np.empty(p.log.n, dtype=np.int64)
+        for i0, i1, b in rr:
+            blk[i0:i1] = b
+        ws.append(p.w[m])
+        Fs.append(p.F[m])
+        bs.append(blk[m])
+        ls.append(np.full(int(m.sum()), li))
+    if not ws:
+        return None
+    w, F, blk, lg = (np.concatenate(x) for x in (ws, Fs, bs, ls))
+    n_moving = int(w.shape[0])
+    if n_moving < MIN_SAMPLES:
+        return None
+    stride = max(1, math.ceil(n_moving / max_samples))
+    if stride > 1:
+        sl = slice(0, None, stride)
+        w, F, blk, lg = w[sl], F[sl], blk[sl], lg[sl]
+    return SampleSet(w, F, blk, blk % n_folds, lg, stride, n_moving, n_folds)
+
+
+def variance_factor(r: np.ndarray) -> float:
+    """Variance inflation of the mean of autocorrelated residuals ``r`` (in time order), by batch means:
+    ``m var(batch means) / var(r)`` with batches of ``m = sqrt(n)`` consecutive samples (1 for white
+    noise; ``(1 + rho) / (1 - rho)`` for a first-order autoregression). At least 1."""
+    r = np.asarray(r, dtype=float)
+    n = r.size
+    v = float(np.var(r))
+    m = int(math.sqrt(n))
+    if m < 2 or v <= 0:
+        return 1.0
+    k = n // m
+    bm = r[:k * m].reshape(k, m).mean(axis=1)
+    return max(1.0, m * float(np.var(bm)) / v)
+
+
+def _warm_start(full: ModelFit) -> dict:
+    start = full.values()
+    for k, p in full.params.items():
+        if k.startswith("delta") and p.fixed:
+            start["__delta_fixed" + k[len("delta"):]] = True
+    return start
+
+
+def bin_points(w: np.ndarray, F: np.ndarray, per_sign: int = BINS_PER_SIGN
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Means of (w, F) in velocity bins of equal counts, per sign: (w_bin [q/s], F_bin [F], count)."""
+    out_w, out_F, out_n = [], [], []
+    for sgn in (1.0, -1.0):
+        m = np.sign(w) == sgn
+        if not m.any():
+            continue
+        order = np.argsort(np.abs(w[m]), kind="stable")
+        ww, ff = w[m][order], F[m][order]
+        nb = max(1, min(per_sign, ww.size // MIN_PER_BIN))
+        edges = np.linspace(0, ww.size, nb + 1).astype(np.int64)[:-1]
+        cnt = np.diff(np.append(edges, ww.size))
+        out_w.append(np.add.reduceat(ww, edges) / cnt)
+        out_F.append(np.add.reduceat(ff, edges) / cnt)
+        out_n.append(cnt)
+    if not out_w:
+        z = np.zeros(0)
+        return z, z, z
+    return np.concatenate(out_w), np.concatenate(out_F), np.concatenate(out_n).astype(float)
+
+
+def _fit_binned(name, w, F, axis, start=None, var_inflation=1.0) -> tuple[ModelFit, np.ndarray, np.ndarray,
+                                                                          np.ndarray]:
+    wb, Fb, nb = bin_points(w, F)
+    return fit_static(name, wb, Fb, 1.0 / np.sqrt(nb), axis=axis, start=start,
+                      var_inflation=var_inflation), wb, Fb, nb
+
+
+def fit_map(name: str, S: SampleSet, axis: str = "rotary") -> ModelFit:
+    """Static map ``name`` (symmetric or ``_asym``) on the friction samples, with held-out error by fold,
+    standard errors of autocorrelated samples and AIC on the effective sample count.
+
+    The least squares runs on velocity-bin means weighted by their counts (:func:`bin_points`; the same
+    objective as on the samples while the map is smooth across a bin, and hundreds of times faster);
+    its covariance is then rescaled to the residual variance of the samples times their variance factor.
+    """
+    mf, wb, Fb, nb = _fit_binned(name, S.w, S.F, axis)
+    vals = mf.values()
+    k = int(mf.metrics.get("k") or 0)
+    pred = predict(name, vals, S.w)
+    r = pred - S.F
+    ok = np.isfinite(r)
+    n = int(ok.sum())
+    rss = float(np.sum(r[ok] ** 2))
+    held = None
+    if all(v is not None for v in vals.values()):
+        # covariance of the samples: residual variance of the samples, inflated for their autocorrelation,
+        # instead of the scatter of the bin means (a second pass from the optimum, one start)
+        rb = predict(name, vals, wb) - Fb
+        s2_bins = float(np.sum(nb * rb**2)) / max(wb.size - k, 1)
+        s2_samples = rss / max(n - k, 1)
+        if s2_bins > 0:
+            mf, *_ = _fit_binned(name, S.w, S.F, axis, start=_warm_start(mf),
+                                 var_inflation=S.inflation * s2_samples / s2_bins)
+            vals = mf.values()
+        start = _warm_start(mf)
+        ph = np.full(S.n, np.nan)
+        for f in range(S.n_folds):
+            te = S.fold == f
+            if not te.any() or te.all():
+                continue
+            m, *_ = _fit_binned(name, S.w[~te], S.F[~te], axis, start=start)
+            ph[te] = predict(name, m.values(), S.w[te])
+        rh = ph - S.F
+        if np.isfinite(rh).all():
+            held = float(math.sqrt(np.mean(rh ** 2)))
+    mf.metrics = sample_metrics(rss, n, k, held, S)
+    mf.method = ("bounded least squares on the moving samples (velocity-bin means), F = tau - J a - G(q) - "
+                 "offset with J, gravity and offset from the linear stage"
+                 + ("" if mf.map.startswith(("coulomb", "polynomial")) else ", multi-start"))
+    mf.extra["basis"] = "moving samples"
+    return mf
+
+
+def sample_metrics(rss: float, n: int, k: int, rms_heldout: float | None, S: SampleSet) -> dict:
+    """rms, rms_heldout, aic (on the effective sample count), n, n_eff and k of a fit on samples."""
+    n_eff = n / S.inflation
+    aic = None
+    if n > 0 and rss > 0:
+        aic = _aic(rss / n * n_eff, max(int(round(n_eff)), 1), k)
+    return {"rms": math.sqrt(rss / n) if n else None, "rms_heldout": rms_heldout, "aic": aic, "n": int(n),
+            "n_eff": float(n_eff), "k": int(k)}
