@@ -375,8 +375,6 @@ _NUMBER = r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
 
 def _number_prefix(col: pa.ChunkedArray) -> pa.ChunkedArray:
     """Keep the leading number of each cell ('-10.6,,' -> '-10.6'); cells without one stay as they are."""
-    import pandas as pd
-
     s = col.to_pandas().astype("string")
     num = s.str.extract(_NUMBER, expand=False)
     return pa.chunked_array([pa.array(num.where(num.notna(), s).astype(object).tolist(), type=pa.string())])
@@ -769,14 +767,12 @@ def output_format(path: str, fmt: str | None) -> str:
                             "use .csv or .parquet, or pass --format")
 
 
-def write_logs(logs: list[JointLog], path: str, fmt: str | None = None) -> None:
-    """Write joint logs atomically as CSV (metadata in ``<path>.meta.yaml``) or Parquet (metadata in the
-    schema under the key ``frictid``). ``-`` writes CSV to standard output (metadata is not written)."""
-    fmt = output_format(path, fmt)
-    table = logs_table(logs)
-    meta = logs_metadata(logs)
+def write_table(table: pa.Table, path: str, fmt: str, meta: dict | None = None) -> None:
+    """Write an Arrow table atomically as Parquet (``meta`` in the schema under the key ``frictid``) or CSV
+    (``meta`` in ``<path>.meta.yaml``). ``-`` writes to standard output (CSV metadata is not written)."""
     if fmt == "parquet":
-        table = table.replace_schema_metadata({META_KEY: json.dumps(meta)})
+        if meta is not None:
+            table = table.replace_schema_metadata({META_KEY: json.dumps(meta)})
         if is_stdio(path):
             buf = pa.BufferOutputStream()
             pq.write_table(table, buf)
@@ -790,11 +786,20 @@ def write_logs(logs: list[JointLog], path: str, fmt: str | None = None) -> None:
         pacsv.write_csv(table, sys.stdout.buffer)
         sys.stdout.buffer.flush()
         return
-    side = str(path) + ".meta.yaml"
-    with atomic_path(path) as tmp, atomic_path(side) as tmp_side:
+    if meta is None:
+        with atomic_path(path) as tmp:
+            pacsv.write_csv(table, tmp)
+        return
+    with atomic_path(path) as tmp, atomic_path(str(path) + ".meta.yaml") as tmp_side:
         pacsv.write_csv(table, tmp)
         with open(tmp_side, "w", encoding="utf-8") as fh:
             yaml.safe_dump(meta, fh, sort_keys=False)
+
+
+def write_logs(logs: list[JointLog], path: str, fmt: str | None = None) -> None:
+    """Write joint logs atomically as CSV (metadata in ``<path>.meta.yaml``) or Parquet (metadata in the
+    schema under the key ``frictid``). ``-`` writes CSV to standard output (metadata is not written)."""
+    write_table(logs_table(logs), path, output_format(path, fmt), logs_metadata(logs))
 
 
 def file_sha256(path: str) -> str | None:

@@ -1,17 +1,10 @@
 """Write a replayed log: the input log's columns plus the model's prediction, one row per input row."""
 from __future__ import annotations
 
-import json
-import sys
-
 import numpy as np
 import pyarrow as pa
-import pyarrow.csv as pacsv
-import pyarrow.parquet as pq
-import yaml
 
-from .atomic import atomic_path, is_stdio
-from .logs import META_KEY, logs_metadata, logs_table, output_format
+from .logs import logs_metadata, logs_table, output_format, write_table
 
 #: Columns added by ``frictid simulate --replay`` (in this order, where present).
 REPLAY_COLUMNS = ("tau_model", "residual", "F_model", "z_model", "T_model", "q_model", "qd_model")
@@ -42,22 +35,4 @@ def write_replay(logs, results, path: str, fmt: str | None = None, info: dict | 
         table = table.append_column(c, pa.array(arr, from_pandas=True))
     meta = logs_metadata(logs)
     meta["replay"] = info or {}
-    if fmt == "parquet":
-        table = table.replace_schema_metadata({META_KEY: json.dumps(meta)})
-        if is_stdio(path):
-            buf = pa.BufferOutputStream()
-            pq.write_table(table, buf)
-            sys.stdout.buffer.write(buf.getvalue().to_pybytes())
-            sys.stdout.buffer.flush()
-            return
-        with atomic_path(path) as tmp:
-            pq.write_table(table, tmp)
-        return
-    if is_stdio(path):
-        pacsv.write_csv(table, sys.stdout.buffer)
-        sys.stdout.buffer.flush()
-        return
-    with atomic_path(path) as tmp, atomic_path(str(path) + ".meta.yaml") as tmp_side:
-        pacsv.write_csv(table, tmp)
-        with open(tmp_side, "w", encoding="utf-8") as fh:
-            yaml.safe_dump(meta, fh, sort_keys=False)
+    write_table(table, path, fmt, meta)

@@ -105,17 +105,10 @@ def write_segments(df: pd.DataFrame, path: str, fmt: str | None = None) -> None:
             fh.write(text + "\n")
         return
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
-    table = pa.Table.from_pandas(df, preserve_index=False)
-    if is_stdio(path):
-        buf = pa.BufferOutputStream()
-        pq.write_table(table, buf)
-        sys.stdout.buffer.write(buf.getvalue().to_pybytes())
-        sys.stdout.buffer.flush()
-        return
-    with atomic_path(path) as tmp:
-        pq.write_table(table, tmp)
+    from .logs import write_table
+
+    write_table(pa.Table.from_pandas(df, preserve_index=False), path, "parquet")
 
 
 def read_segments(path: str) -> pd.DataFrame:
