@@ -154,19 +154,25 @@ def level_slope_nb(v, c):
     return g, dg
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FM)
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
 def _phi123(mu):
-    """phi1, phi2, phi3 of a complex argument: phi_k(x) = (phi_{k-1}(x) - 1/(k-1)!) / x, phi0 = exp."""
+    """phi1, phi2, phi3 of a complex argument: phi_k(x) = (phi_{k-1}(x) - 1/(k-1)!) / x, phi0 = exp.
+
+    Multiplications by the reciprocal of mu (one real division) rather than three complex divisions
+    (three real divisions each): this branch runs whenever the joint rests, its bristles ringing."""
     if abs(mu) < 1e-3:
         m2 = mu * mu
-        p1 = 1.0 + mu / 2.0 + m2 / 6.0 + m2 * mu / 24.0 + m2 * m2 / 120.0
-        p2 = 0.5 + mu / 6.0 + m2 / 24.0 + m2 * mu / 120.0 + m2 * m2 / 720.0
-        p3 = 1.0 / 6.0 + mu / 24.0 + m2 / 120.0 + m2 * mu / 720.0 + m2 * m2 / 5040.0
+        p1 = 1.0 + mu * 0.5 + m2 * (1.0 / 6.0) + m2 * mu * (1.0 / 24.0) + m2 * m2 * (1.0 / 120.0)
+        p2 = 0.5 + mu * (1.0 / 6.0) + m2 * (1.0 / 24.0) + m2 * mu * (1.0 / 120.0) + m2 * m2 * (1.0 / 720.0)
+        p3 = (1.0 / 6.0 + mu * (1.0 / 24.0) + m2 * (1.0 / 120.0) + m2 * mu * (1.0 / 720.0)
+              + m2 * m2 * (1.0 / 5040.0))
         return p1, p2, p3
     e = cmath.exp(mu)
-    p1 = (e - 1.0) / mu
-    p2 = (p1 - 1.0) / mu
-    p3 = (p2 - 0.5) / mu
+    d = 1.0 / (mu.real * mu.real + mu.imag * mu.imag)
+    imu = complex(mu.real * d, -mu.imag * d)
+    p1 = (e - 1.0) * imu
+    p2 = (p1 - 1.0) * imu
+    p3 = (p2 - 0.5) * imu
     return p1, p2, p3
 
 
