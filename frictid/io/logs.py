@@ -61,6 +61,7 @@ class LogSpec:
     skip_to: str | None = None
     bad_rows: str = "error"
     files: dict[str, str] = field(default_factory=dict)
+    joint_meta: dict[str, dict] = field(default_factory=dict)
 
     def merged(self, other: "LogSpec") -> "LogSpec":
         return LogSpec(
@@ -77,6 +78,8 @@ class LogSpec:
             skip_to=other.skip_to or self.skip_to,
             bad_rows=other.bad_rows if other.bad_rows != "error" else self.bad_rows,
             files={**self.files, **other.files},
+            joint_meta={j: {**self.joint_meta.get(j, {}), **other.joint_meta.get(j, {})}
+                        for j in {**self.joint_meta, **other.joint_meta}},
         )
 
 
@@ -110,6 +113,17 @@ def spec_from_dict(d: dict, where: str) -> LogSpec:
         raise ConfigError(f"{where}: variables: expected a mapping COLUMN: VARIABLE (e.g. q: rec.pos)")
     joints = d.get("joints")
     joint_names = [str(j) for j in joints] if isinstance(joints, list) else None
+    joint_meta: dict[str, dict] = {}
+    if isinstance(joints, dict):  # {name: {meta: {...}}}: names in row order, each with its own metadata
+        joint_names = [str(j) for j in joints]
+        for j, v in joints.items():
+            if v is not None and not isinstance(v, dict):
+                raise ConfigError(f"{where}: joints.{j}: expected a mapping (e.g. meta: {{gravity: [0, 0]}})")
+            jm = (v or {}).get("meta") or {}
+            if not isinstance(jm, dict):
+                raise ConfigError(f"{where}: joints.{j}.meta: expected a mapping")
+            if jm:
+                joint_meta[str(j)] = dict(jm)
     delim = d.get("delimiter")
     if delim is not None and (not isinstance(delim, str) or len(delim) != 1):
         raise ConfigError(f"{where}: delimiter: must be one character, e.g. ';'")
@@ -133,7 +147,8 @@ def spec_from_dict(d: dict, where: str) -> LogSpec:
         raise ConfigError(f"{where}: columns: expected a list of column names")
     return LogSpec({str(k): str(v) for k, v in rename.items()}, {str(k): str(v) for k, v in units.items()},
                    dict(scale), cols, axis, dict(d.get("meta") or {}), {str(k): str(v) for k, v in variables.items()},
-                   joint_names, delim, skip, skip_to, bad_rows, {str(k): str(v) for k, v in files.items()})
+                   joint_names, delim, skip, skip_to, bad_rows, {str(k): str(v) for k, v in files.items()},
+                   joint_meta)
 
 
 def parse_mapping(text: str | None) -> LogSpec:
@@ -418,13 +433,15 @@ def read_logs(path: str, mapping: str | LogSpec | None = None, units: str | None
         from .matlab import read_signal_files
 
         table = read_signal_files(label, spec_for_read.files, spec_for_read.scale, spec_for_read.joints)
-        eff = LogSpec(units=spec_for_read.units, axis=spec_for_read.axis, meta=spec_for_read.meta)
+        eff = LogSpec(units=spec_for_read.units, axis=spec_for_read.axis, meta=spec_for_read.meta,
+                      joint_meta=spec_for_read.joint_meta)
         return _validate_and_split(table, label, eff, side_meta, has_header=False)
     if str(path).lower().endswith(".mat"):
         from .matlab import read_mat
 
         table = read_mat(label, spec_for_read.variables, spec_for_read.scale, spec_for_read.joints)
-        eff = LogSpec(units=spec_for_read.units, axis=spec_for_read.axis, meta=spec_for_read.meta)
+        eff = LogSpec(units=spec_for_read.units, axis=spec_for_read.axis, meta=spec_for_read.meta,
+                      joint_meta=spec_for_read.joint_meta)
         return _validate_and_split(table, label, eff, side_meta, has_header=False)
     table, file_meta = _read_table(src, label, is_parquet, spec_for_read)
     file_spec = spec_from_dict({k: v for k, v in file_meta.items() if k in _SPEC_KEYS}, f"{label} metadata")
@@ -607,6 +624,7 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
         jmeta = dict(spec.meta)
         jm = per_joint_meta.get(jid) or {}
         jmeta.update(jm.get("meta") or {})
+        jmeta.update(spec.joint_meta.get(jid) or {})
         jaxis = jm.get("axis", axis) if not spec.axis and not unit_axes else axis
         channels = {c: a[c] for c in OPTIONAL_CHANNELS if c in a}
         truth = {}
