@@ -391,6 +391,30 @@ def fig_replay(quick: bool, repeat: int) -> list[Row]:
                 "the one-hour validation_ptp run, repeated to length; baseline rtol 1e-6, "
                 "atol 1e-10 (z) / 1e-6 (T), t_eval at the samples, velocity and ambient by np.interp, on stretches "
                 "spread evenly over the log")]
+    # the replay owner's benchmark input (benchmarks/bench_replay.py): a noisy multi-sine, always moving
+    try:
+        import bench_replay as br
+    except ImportError:
+        br = None
+    if br is not None:
+        t2, w2 = br.velocity(n, 1e-3)
+
+        def kernel2():
+            return replay_friction(t2, w2, br.C_POS, br.C_NEG, sigma0=br.SIGMA0, sigma1=br.SIGMA1,
+                                   thermal=br.thermal())
+
+        kernel2()
+        tk2 = timed(kernel2, repeat)
+        secs = 2.0 if quick else 10.0
+        tb2 = timed(lambda: br.ivp_friction(t2, w2, secs), 1)
+        m2 = tb2.result[2]
+        rk2, rb2 = n / tk2.cpu, m2 / tb2.cpu
+        rows.append(Row("replay, bench_replay.py input (noisy multi-sine, always moving) [samples/s]",
+                        f"{fmt_rate(n / tk2.wall)} (CPU {fmt_rate(rk2)}), {n / 1e6:.0f} M samples",
+                        f"solve_ivp LSODA {fmt_rate(m2 / tb2.wall)} (CPU {fmt_rate(rb2)}), first {secs:g} s",
+                        f"{rk2 / rb2:,.0f}x (wall {(n / tk2.wall) / (m2 / tb2.wall):,.0f}x)",
+                        ">= 1000x and >= 20 M/s", rk2 / rb2 >= 1000 and rk2 >= 20e6, tk2.load,
+                        "bench_replay's velocity, model and baseline (rtol 1e-6, max_step one sample)"))
     # accuracy against the tight reference on a window centred on a velocity reversal at speed
     nr = 400 if quick else 3000
     fast = np.convolve(np.abs(w_meas) > 0.1 * np.abs(w_meas).max(), np.ones(201), mode="same") > 0
