@@ -435,17 +435,20 @@ def kuka(data: Path, tmp: str) -> list[str]:
             "along B and C (relative torque error). Nominal: the controller's feed-forward friction `f_asym + f_vis dq "
             "+ f_coul tanh(s dq) + f_a tanh(f_b dq)`; its Coulomb-like level at speed is f_coul + f_a.", "",
             "| axis | chosen (A+B+C) | Fc frictid / nominal f_coul + f_a | diff | Fv frictid / nominal f_vis | diff | "
-            "chosen on A; torque error on B / C | diagnosis (A+B+C) |",
-            "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+            "friction at 0.1 / 0.3 rad/s: diff | chosen on A; torque error on B / C | diagnosis (A+B+C) |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for jid, j in P["joints"].items():
         cv = params_of(j, "coulomb_viscous")
         fcoul, fvis, fa = KUKA_NOMINAL[jid]
         Fc, Fv = value(cv, "Fc"), value(cv, "sigma2")
         rows.append(f"| {jid} | {chosen(j)} | {pm(Fc, stderr(cv, 'Fc'))} / {fcoul + fa:.4g} | {pct(Fc, fcoul + fa)} | "
-                    f"{pm(Fv, stderr(cv, 'sigma2'))} / {fvis} | {pct(Fv, fvis)} | {chosen(PA['joints'][jid])}; "
+                    f"{pm(Fv, stderr(cv, 'sigma2'))} / {fvis} | {pct(Fv, fvis)} | "
+                    f"{pct(Fc + 0.1 * Fv, fcoul + fa + 0.1 * fvis)} / {pct(Fc + 0.3 * Fv, fcoul + fa + 0.3 * fvis)} | "
+                    f"{chosen(PA['joints'][jid])}; "
                     f"{100 * val.get((jid, 'B'), math.nan):.0f} % / {100 * val.get((jid, 'C'), math.nan):.0f} % | "
                     f"{findings(j)} |")
-    return rows + [""]
+    return rows + ["", "Friction at a speed: the Coulomb + viscous line of each, the nominal tanh terms taken "
+                   "as saturated (f_b >= 530 s/rad).", ""]
 
 
 def franka(data: Path, tmp: str) -> list[str]:
@@ -455,14 +458,16 @@ def franka(data: Path, tmp: str) -> list[str]:
             f"`frictid fit franka_panda_gaz2019 --map recipes/realdata/franka_panda.yaml` ({P['_seconds']:.0f} s); "
             "each joint alone (inertia, gravity of its own angle, offset, friction).", "",
             "| joint | chosen | Fc frictid / published | diff | Fv frictid / published | diff | J [kg m^2] | "
-            "held-out RMS [N m] | diagnosis |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+            "held-out RMS [N m] | held-out RMS / published friction at 1 rad/s | diagnosis |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for jid, j in P["joints"].items():
         cv = params_of(j, "coulomb_viscous")
         fv, fc = FRANKA_PUB[jid]
         Fc, Fv = value(cv, "Fc"), value(cv, "sigma2")
         rows.append(f"| {jid} | {chosen(j)} | {pm(Fc, stderr(cv, 'Fc'))} / {fc} | {pct(Fc, fc)} | "
                     f"{pm(Fv, stderr(cv, 'sigma2'))} / {fv} | {pct(Fv, fv)} | {pm(value(j.get('inertia')), stderr(j, 'inertia'), 3)} | "
-                    f"{fmt(heldout(j), 3)} | {findings(j)} |")
+                    f"{fmt(heldout(j), 3)} | {fmt(None if heldout(j) is None else heldout(j) / (fc + fv), 2)} | "
+                    f"{findings(j)} |")
     return rows + [""]
 
 
