@@ -250,8 +250,9 @@ def diagnose_joint(jf, logs: list[DiagLog], n_folds: int = N_FOLDS) -> list[dict
     from ..fit.result import ModelFit
 
     rec: dict = {"rule": (f"a cause enters when its held-out gain is significant (one-sided t over held-out "
-                          f"segments, alpha {ALPHA} split over the candidates), at least {100 * GAIN_MIN:.0f} % "
-                          f"and explains at least {100 * EXPLAINED_MIN:.0f} % of the friction RMS"),
+                          f"segments, alpha {ALPHA} split over the candidates) and it explains at least "
+                          f"{100 * EXPLAINED_MIN:.0f} % of the friction RMS; the lowest held-out RMS wins unless "
+                          f"a candidate with fewer coefficients is not significantly worse"),
                  "folds": n_folds}
     jf.selection["diagnosis"] = rec
     base = base_model_name(jf)

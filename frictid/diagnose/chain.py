@@ -10,10 +10,11 @@ positive with a one-sided Student t statistic over the groups above the ``1 - AL
 (``m`` candidates tested at this step: Bonferroni). Samples within a group are never treated as
 independent. The gain is ``1 - rms_after / rms_before`` over all held-out samples.
 
-Worth it (:func:`worth_it`). A significant extension enters the model when its gain is at least
-:data:`GAIN_MIN` and the RMS it explains, ``sqrt(rms_before^2 - rms_after^2)``, is at least
-:data:`EXPLAINED_MIN` of the friction RMS: very large logs make tiny, real but useless corrections
-significant (a 1 % inertia error), and a model term must pay for itself.
+Worth it (:func:`worth_it`). A significant extension enters the model when the RMS it explains,
+``sqrt(rms_before^2 - rms_after^2)``, is at least :data:`EXPLAINED_MIN` of the friction RMS: very large
+logs make tiny, real but useless corrections significant (a 1 % inertia error), and a model term must pay
+for itself. The relative gain is not a criterion: measurement noise stays in both RMS, so a real effect
+in noisy data has a small gain.
 
 Choice among the worthy candidates (:func:`choose`): the lowest held-out RMS, except that a candidate
 with fewer coefficients wins when the best is not significantly better than it (the same paired test
@@ -34,7 +35,7 @@ from .samples import Samples
 
 #: Family-wise false-finding level of one step of the chain (split over its candidates).
 ALPHA = 0.01
-#: Smallest held-out gain worth a model term.
+#: Smallest held-out gain of a presliding finding (judged by the fit's ramps, without an explained RMS).
 GAIN_MIN = 0.05
 #: Smallest RMS a term must explain, as a fraction of the friction RMS.
 EXPLAINED_MIN = 0.02
@@ -149,7 +150,7 @@ class Chain:
         return tr.p < ALPHA / max(m, 1)
 
     def worth_it(self, tr: Trial) -> bool:
-        return tr.gain >= GAIN_MIN and tr.explained >= EXPLAINED_MIN * self.F_rms
+        return tr.gain > 0 and tr.explained >= EXPLAINED_MIN * self.F_rms
 
     def choose(self, trials: list[Trial], m: int) -> Trial | None:
         ok = [t for t in trials if self.significant(t, m) and self.worth_it(t)]
