@@ -146,7 +146,15 @@ def _corr(a, b) -> float:
 
 
 def evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> str:
-    """One plain sentence with the numbers behind a finding."""
+    """One plain sentence with the numbers behind a finding (and the causes the data cannot tell from it)."""
+    text = _evidence(tr, S, step, units, rigid)
+    if tr.rivals:
+        alt = ", ".join(f"{c} ({e}, held-out RMS {_fmt(r)})" for c, e, r in tr.rivals)
+        text += f"; the data cannot tell it from {alt}"
+    return text
+
+
+def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> str:
     F_u, q_u = units["F"], units["q"]
     rb = S.F - tr.pred_before
     corr = tr.pred_after - tr.pred_before

@@ -62,6 +62,7 @@ class Trial:
     explained: float
     k: int
     d: np.ndarray = field(repr=False, default=None)
+    rivals: list = field(default_factory=list)
 
     def record(self) -> dict:
         return {"extension": self.ext, "rms_before": self.rms_before, "rms_after": self.rms_after,
@@ -165,6 +166,14 @@ class Chain:
             _, p = paired_t(group_d(self.S, self.S.F - t.pred_after, self.S.F - best.pred_after))
             if p >= ALPHA / max(m, 1):
                 best = t
+        # other causes the data cannot tell from the chosen one (not significantly worse)
+        best.rivals = []
+        for t in ok:
+            if t.cause == best.cause:
+                continue
+            _, p = paired_t(group_d(self.S, self.S.F - t.pred_after, self.S.F - best.pred_after))
+            if p >= ALPHA / max(m, 1):
+                best.rivals.append((t.cause, t.ext, t.rms_after))
         return best
 
     # -- the loop --------------------------------------------------------------------------------------
