@@ -27,7 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .lugre import level_nb, thermal_canon_nb, viscous_nb
+from .lugre import _pair, level_nb, thermal_canon_nb, viscous_nb
 from .static import canonical_level, canonical_viscous
 
 
@@ -152,13 +152,6 @@ def replay_friction_ref(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, z0, 
             if code and not T_given:
                 Tk = float(heat_step(Tk, F[k] * wk, Tenv[k], C, K, h))
     return F, z, T
-
-
-def _pair(x):
-    if np.ndim(x) == 0:
-        return float(x), float(x)
-    a, b = x
-    return float(a), float(b)
 
 
 def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=None, sigma1=0.0, z0=0.0,
