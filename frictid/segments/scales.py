@@ -22,7 +22,6 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.signal import savgol_coeffs, savgol_filter
 
 from ..data import JointLog
 from ..errors import LogFormatError
@@ -142,6 +141,8 @@ def _odd(n: float) -> int:
 
 def _sg_noise_gain(window: int, deriv: int, dt: float) -> float:
     """Output standard deviation per unit input white noise of a Savitzky-Golay filter."""
+    from scipy.signal import savgol_coeffs  # scipy.signal costs ~0.5 s to import: only when used
+
     c = savgol_coeffs(window, POLYORDER, deriv=deriv, delta=dt)
     return float(np.sqrt(np.sum(c * c)))
 
@@ -240,6 +241,8 @@ def velocity(log: JointLog, scales: Scales | None = None, smooth_logged: bool = 
     """Velocity [q/s] of ``log``: the logged ``qd`` as is (smoothed by the velocity window if
     ``smooth_logged``), else the Savitzky-Golay first derivative of ``q`` (window ``scales.window_w``,
     polyorder 2, ``mode="interp"``)."""
+    from scipy.signal import savgol_filter  # lazily: see _sg_noise_gain
+
     sc = scales or estimate_scales(log)
     if log.n < MIN_WINDOW:
         return np.asarray(log.qd, dtype=float).copy() if log.qd is not None else np.gradient(log.q, log.t)
@@ -257,6 +260,8 @@ def derivatives(log: JointLog, scales: Scales | None = None, smooth_logged: bool
     else the second derivative of ``q``. Windows and polynomial order as in :func:`estimate_scales`
     (``scales.window_w``, ``scales.window_a``; polyorder 2, ``mode="interp"``).
     """
+    from scipy.signal import savgol_filter  # lazily: see _sg_noise_gain
+
     sc = scales or estimate_scales(log)
     w = velocity(log, sc, smooth_logged)
     if log.n < MIN_WINDOW:
