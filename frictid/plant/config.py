@@ -329,6 +329,18 @@ class Multisine(ExperimentBase):
     amplitude: Pos | None = Field(None, description="peak position excursion [q] (default: from range)")
 
 
+class RandomPtp(ExperimentBase):
+    """Random point-to-point moves (no identification experiment): closed-loop trapezoidal moves to
+    targets drawn uniformly over the travel, at random peak speeds and accelerations, with random dwells."""
+
+    kind: Literal["random_ptp"]
+    moves: int = Field(40, ge=1, le=100000)
+    speed: tuple[Pos, Pos] = Field((0.05, 1.0), description="peak speed range, fractions of limits.velocity")
+    accel: tuple[Pos, Pos] = Field((0.2, 1.0), description="acceleration range, fractions of limits.acceleration")
+    dwell: tuple[NonNeg, NonNeg] = Field((0.05, 3.0), description="dwell range after each move [s]")
+    seed: int = Field(0, ge=0, description="seed of the moves (the sensor noise follows the simulation seed)")
+
+
 class Hold(ExperimentBase):
     """Closed-loop rest at the current position."""
 
@@ -337,7 +349,8 @@ class Hold(ExperimentBase):
 
 
 ExperimentConfig = Annotated[
-    Union[ConstantVelocity, RampPresliding, TorqueSteps, DutyCycle, ValidationPtp, Multisine, Hold],
+    Union[ConstantVelocity, RampPresliding, TorqueSteps, DutyCycle, ValidationPtp, Multisine, RandomPtp,
+          Hold],
     Field(discriminator="kind"),
 ]
 
