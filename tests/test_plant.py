@@ -55,13 +55,16 @@ def test_every_recipe_runs_on_every_plant(recipe, plant):
     assert [lg.joint for lg in logs] == [j.name for j in pl.joints]
     want = {"constant_velocity_sweep": "constant_velocity", "ramp_presliding": "ramp_presliding",
             "torque_steps": "step", "duty_cycle": "duty_cycle", "validation_ptp": "duty_cycle",
-            "multisine": "other"}[recipe]
+            "multisine": "other", "random_ptp": "other"}[recipe]
     for lg in logs:
         seg, cyc = lg.truth["segment"], lg.truth["cycle"]
         assert seg.shape == (lg.n,) and cyc.shape == (lg.n,)
         assert set(np.unique(seg)) <= set(SEGMENT_KINDS)
         assert want in set(seg)
-        assert np.all((cyc >= 0) == (seg == "duty_cycle"))
+        # the index of a repeated piece: duty cycle, presliding ramp, torque step
+        assert np.all((cyc >= 0) == np.isin(seg, ["duty_cycle", "ramp_presliding", "step"]))
+        if recipe == "random_ptp":
+            assert not np.isin(seg, ["ramp_presliding", "step", "constant_velocity", "duty_cycle"]).any()
         assert np.all(np.isfinite(lg.tau)) and np.all(np.isfinite(lg.q)) and np.all(np.isfinite(lg.qd))
         assert np.all(np.diff(lg.t) > 0)
         assert lg.axis == pl.axis and lg.meta["sample_rate"] == pl.sensors.sample_rate
@@ -101,8 +104,10 @@ def test_presliding_slope_is_sigma0():
     g = 225.0  # Coulomb level: the lowest level of this map
     n_checked = 0
     for a, b in runs(lg.truth["segment"] == "ramp_presliding"):
-        up = a + int(np.argmax(np.abs(lg.tau[a:b] - lg.tau[a])))   # the ramp-up part only
-        tau, q = lg.tau[a:up], lg.q[a:up]
+        ref = lg.channels["tau_ref"][a:b]
+        if abs(ref[-1]) < abs(ref[0]):
+            continue                                                 # the ramp-up parts only
+        tau, q = lg.tau[a:b], lg.q[a:b]
         tau = tau - tau[0]
         q = q - q[0]
         sel = np.abs(tau) < 0.08 * g
@@ -304,3 +309,45 @@ def test_velocity_pi_plateaus():
     for a, b in plateaus:
         w = lg.truth["velocity"][a:b]
         assert np.std(w) < 0.02 * abs(w.mean())
+
+
+def _truth_runs(lg):
+    """(kind, i0, i1) runs of equal (segment, cycle) truth labels."""
+    key = np.char.add(np.asarray(lg.truth["segment"]).astype(str), lg.truth["cycle"].astype(str))
+    cut = np.flatnonzero(key[1:] != key[:-1]) + 1
+    return [(str(lg.truth["segment"][a]), int(a), int(b)) for a, b in zip(np.r_[0, cut], np.r_[cut, lg.n])]
+
+
+def test_labels_follow_the_segment_conventions():
+    """docs/segments.md: one ramp_presliding per monotonic torque ramp, its hold a rest; one step per
+    torque jump lasting until the next input (next jump or the controller taking the joint back)."""
+    pl = load_plant("hydraulic")
+    lg = simulate_recipe("ramp_presliding", plant=pl, duration_scale=0.25)[0]
+    ref = lg.channels["tau_ref"]
+    ramps = [(a, b) for k, a, b in _truth_runs(lg) if k == "ramp_presliding"]
+    assert len(ramps) == 8                                  # 2 peaks x 2 signs x (up, down)
+    for a, b in ramps:
+        d = np.diff(ref[a - 1:b])
+        assert np.all(d > 0) or np.all(d < 0)              # monotonic, and the whole of it
+        assert ref[a - 2] == ref[a - 1] and ref[b] == ref[b - 1]
+    lg = simulate_recipe("torque_steps", plant=pl)[0]
+    ref = lg.channels["tau_ref"]
+    steps = [(a, b) for k, a, b in _truth_runs(lg) if k == "step"]
+    jumps = np.flatnonzero(np.abs(np.diff(ref)) > 1e-9 * np.ptp(ref)) + 1
+    assert len(steps) == 8 and [a for a, _ in steps] == list(jumps[:8])
+    assert [b for _, b in steps[:-1]] == list(jumps[1:8])   # each lasts until the next jump
+    last = steps[-1][1]                                     # ... the last until the controller
+    assert lg.truth["segment"][last] == "rest" and np.all(lg.truth["segment"][last:] == "rest")
+
+
+def test_rest_lasts_while_the_joint_is_still():
+    """A closed-loop rest before a slow fade-in lasts until the joint starts to move, not only until its
+    reference does; and a rest starts once the joint has stopped."""
+    lg = simulate_recipe("multisine", plant="hydraulic", duration_scale=0.3)[0]
+    seg, w = lg.truth["segment"], lg.truth["velocity"]
+    qd_ref = lg.channels["qd_ref"]
+    vmax = load_plant("hydraulic").joints[0].limits.velocity
+    first_other = int(np.flatnonzero(seg == "other")[0])
+    assert np.abs(qd_ref[first_other - 1]) > 0             # the reference moved before the joint did
+    assert np.all(np.abs(w[:first_other]) < 5e-3 * vmax + 1e-12)
+    assert np.abs(w[first_other:first_other + 10]).max() > 5e-3 * vmax

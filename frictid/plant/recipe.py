@@ -42,6 +42,7 @@ class Program:
     pieces: list = field(default_factory=list)
     plateaus: list = field(default_factory=list)   # (i0, i1, v_ref)
     rests: list = field(default_factory=list)      # (i0, i1) closed-loop rests to refine
+    index: dict = field(default_factory=lambda: {"ramp": 0, "step": 0})  # next ramp / step index
     n: int = 0
     _reset_next: bool = False
 
@@ -89,10 +90,17 @@ class Program:
             self.rests.append((i0, i1))
         return i0, i1
 
-    def open_loop(self, tau, label):
+    def next_index(self, kind: str) -> int:
+        """The next index of a repeated labelled piece (``ramp``, ``step``), written to ``cycle``."""
+        k = self.index[kind]
+        self.index[kind] = k + 1
+        return k
+
+    def open_loop(self, tau, label, cycle=None):
         """Open-loop torque ``G(q_hold) + tau`` (array) at the current reference position."""
         n = len(tau)
-        return self.add(MODE_TORQUE, np.full(n, self.q), np.zeros(n), self.G(self.q) + np.asarray(tau), label)
+        return self.add(MODE_TORQUE, np.full(n, self.q), np.zeros(n), self.G(self.q) + np.asarray(tau), label,
+                        cycle)
 
     def velocity_piece(self, v0, v1, n, label, mode=MODE_PID):
         """Velocity ramp v0 -> v1 [q/s] over n samples (constant if equal); position integrates exactly."""
@@ -228,6 +236,9 @@ def _constant_velocity(pr: Program, ex, axis: str):
 
 
 def _ramp_presliding(pr: Program, ex):
+    """Settle, ramp up, hold, ramp down per peak and sign. Each monotonic ramp is one labelled
+    ``ramp_presliding`` piece with its own index in ``cycle`` (up and down are two ramps: with
+    ``hold: 0`` they touch); the hold at the peak and the settles are ``rest`` (still joint, flat torque)."""
     fb = breakaway(pr.joint)
     for s in _signs(ex.signs):
         ref = fb[0] if s > 0 else fb[1]
@@ -235,22 +246,32 @@ def _ramp_presliding(pr: Program, ex):
             P = s * peak * (ref if ex.relative else 1.0)
             pr.open_loop(np.zeros(pr.ns(ex.settle)), "rest")
             nu, nh, nd = pr.ns(ex.ramp_up), pr.ns(ex.hold), pr.ns(ex.ramp_down)
-            prof = np.concatenate([P * np.arange(1, nu + 1) / nu, np.full(nh, P),
-                                   P * (1.0 - np.arange(1, nd + 1) / nd)])
-            pr.open_loop(prof, "ramp_presliding")
+            pr.open_loop(P * np.arange(1, nu + 1) / nu, "ramp_presliding", cycle=pr.next_index("ramp"))
+            if ex.hold > 0:
+                pr.open_loop(np.full(nh, P), "rest")
+            pr.open_loop(P * (1.0 - np.arange(1, nd + 1) / nd), "ramp_presliding", cycle=pr.next_index("ramp"))
         pr.open_loop(np.zeros(pr.ns(ex.settle)), "rest")
 
 
 def _torque_steps(pr: Program, ex):
+    """Open-loop steps to each level and back to zero. Every jump of the torque is one ``step``, with
+    its own index in ``cycle``, lasting until the next input: the next jump, or the end of the open-loop
+    experiment (the controller taking the joint back). Only the settle before the first step is ``rest``;
+    the release and the settles after it are the step back's transient and its still tail."""
     fb = breakaway(pr.joint)
+    first = True
     for s in _signs(ex.signs):
         ref = fb[0] if s > 0 else fb[1]
         for lvl in ex.levels:
             P = s * lvl * (ref if ex.relative else 1.0)
-            pr.open_loop(np.zeros(pr.ns(ex.settle)), "rest")
-            pr.open_loop(np.full(pr.ns(ex.hold), P), "step")
-            pr.open_loop(np.zeros(pr.ns(ex.release)), "step")
-        pr.open_loop(np.zeros(pr.ns(ex.settle)), "rest")
+            if first:
+                pr.open_loop(np.zeros(pr.ns(ex.settle)), "rest")
+                first = False
+            else:  # still the previous step back, until this step's jump
+                pr.open_loop(np.zeros(pr.ns(ex.settle)), "step", cycle=pr.index["step"] - 1)
+            pr.open_loop(np.full(pr.ns(ex.hold), P), "step", cycle=pr.next_index("step"))
+            pr.open_loop(np.zeros(pr.ns(ex.release)), "step", cycle=pr.next_index("step"))
+        pr.open_loop(np.zeros(pr.ns(ex.settle)), "step", cycle=pr.index["step"] - 1)
 
 
 def _ptp_endpoints(pr: Program, ex, axis: str) -> tuple[float, float]:
@@ -356,6 +377,22 @@ def _multisine(pr: Program, ex, axis: str):
     pr.q = float(q[-1])
 
 
+def _random_ptp(pr: Program, ex, axis: str):
+    """Closed-loop moves to random targets over the travel (two seconds at full speed each side of the
+    start on an unbounded axis), each followed by a dwell; moves ``other``, dwells ``rest``."""
+    j = pr.joint
+    rng = np.random.default_rng(ex.seed)
+    lo, hi = travel(j, axis)
+    if not np.isfinite(lo):
+        lo, hi = pr.q - 2.0 * j.limits.velocity, pr.q + 2.0 * j.limits.velocity
+    for _ in range(ex.moves):
+        target = float(rng.uniform(lo, hi))
+        v = float(rng.uniform(*ex.speed)) * j.limits.velocity
+        a = float(rng.uniform(*ex.accel)) * j.limits.acceleration
+        pr.ptp(target, v, a)
+        pr.hold(pr.ns(float(rng.uniform(*ex.dwell))))
+
+
 def compile_recipe(recipe, plant: Plant, joint: Joint, scale: float = 1.0) -> Program:
     """The full per-sample program of one joint for a recipe."""
     th = joint.thermal
@@ -387,6 +424,8 @@ def compile_recipe(recipe, plant: Plant, joint: Joint, scale: float = 1.0) -> Pr
             _duty_cycle(pr, ex, plant.axis, cycles)
         elif k == "multisine":
             _multisine(pr, ex, plant.axis)
+        elif k == "random_ptp":
+            _random_ptp(pr, ex, plant.axis)
         elif k == "rest":
             pr.hold(pr.ns(ex.duration))
         if ex.rest > 0:
@@ -406,13 +445,28 @@ def _smooth(x, m):
     return (c[m:] - c[:-m]) / m
 
 
+#: Time scale [s] over which the true velocity is averaged to judge a plateau (half ``T_MIN``, the time
+#: over which frictid averages anything): the controller's jitter on a noisy sensor is not a change of speed.
+T_PLATEAU = 0.1
+#: Time scale [s] over which the true velocity is averaged to judge a stop.
+T_STILL = 0.01
+#: A joint is still when that average is below this fraction of ``limits.velocity``.
+R_STILL = 5e-3
+
+
 def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program) -> np.ndarray:
-    """Honest labels: plateau samples become constant_velocity only once the true velocity has settled
-    within 2 % (plus 0.1 % of the velocity limit) of the reference for the rest of the plateau; leading
-    samples of a closed-loop rest stay ``other`` until the joint has stopped."""
+    """Honest labels from the true velocity ``w``:
+
+    - plateau samples become constant_velocity once the true velocity (``T_PLATEAU`` mean) has settled
+      within 2 % (plus 0.1 % of the velocity limit) of the reference for the rest of the plateau;
+    - leading samples of a closed-loop rest stay ``other`` until the joint has stopped (``T_STILL`` mean
+      below ``R_STILL`` of the limit);
+    - a rest lasts while the joint is still: the still samples at the start of the move that follows it
+      (the joint stuck while the controller loads it up to break-away, e.g. a slow fade-in) and at the end
+      of the move before it (the joint stopped before its reference) are ``rest``, not ``other``."""
     label = label.copy()
     vmax = pr.joint.limits.velocity
-    m = max(1, int(round(0.01 * pr.fs)))
+    m = max(1, int(round(T_PLATEAU * pr.fs)))
     for i0, i1, v in pr.plateaus:
         seg = _smooth(w[i0:i1], m)
         tol = 0.02 * abs(v) + 1e-3 * vmax
@@ -420,7 +474,8 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program) -> np.ndarray:
         start = i0 if bad.size == 0 else i0 + int(bad[-1]) + 1
         if (i1 - start) >= 0.3 * (i1 - i0) and (i1 - start) > 2 * m:
             label[start:i1] = L["constant_velocity"]
-    tol_rest = 5e-3 * vmax
+    m = max(1, int(round(T_STILL * pr.fs)))
+    tol_rest = R_STILL * vmax
     for i0, i1 in pr.rests:
         seg = _smooth(w[i0:i1], m)
         bad = np.flatnonzero(np.abs(seg) > tol_rest)
@@ -430,4 +485,25 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program) -> np.ndarray:
                 label[i0:i0 + last] = L["other"]
             else:
                 label[i0:i1] = L["other"]
+    return _still_moves_rest(label, _smooth(w, m), tol_rest)
+
+
+def _still_moves_rest(label: np.ndarray, ws: np.ndarray, tol: float) -> np.ndarray:
+    """Extend every ``rest`` run over the still samples (``|ws| <= tol``) of adjacent ``other`` runs."""
+    change = np.flatnonzero(label[1:] != label[:-1]) + 1
+    starts = np.concatenate(([0], change))
+    ends = np.concatenate((change, [label.size]))
+    kinds = label[starts]
+    moving = np.abs(ws) > tol
+    for k in range(len(kinds)):
+        if kinds[k] != L["rest"]:
+            continue
+        if k + 1 < len(kinds) and kinds[k + 1] == L["other"]:
+            a, b = int(ends[k]), int(ends[k + 1])
+            mv = np.flatnonzero(moving[a:b])
+            label[a:a + (int(mv[0]) if mv.size else b - a)] = L["rest"]
+        if k > 0 and kinds[k - 1] == L["other"]:
+            a, b = int(starts[k - 1]), int(starts[k])
+            mv = np.flatnonzero(moving[a:b])
+            label[a + (int(mv[-1]) + 1 if mv.size else 0):b] = L["rest"]
     return label
