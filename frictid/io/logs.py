@@ -261,10 +261,11 @@ def _csv_header(src, label: str, spec: LogSpec) -> tuple[list[str], bool]:
     return names, True
 
 
-def _read_table(src, label: str, is_parquet: bool, spec: LogSpec) -> tuple[pa.Table, dict]:
-    """Read only the columns frictid uses; returns the table (columns under their source names) and
-    the file's own metadata."""
-    wanted_targets = set(KNOWN)
+def _read_table(src, label: str, is_parquet: bool, spec: LogSpec,
+                skip: tuple[str, ...] = ()) -> tuple[pa.Table, dict]:
+    """Read only the columns frictid uses (less the optional channels in ``skip``); returns the table
+    (columns under their source names) and the file's own metadata."""
+    wanted_targets = set(KNOWN) - (set(skip) & set(OPTIONAL_CHANNELS))
     file_meta: dict = {}
     if is_parquet:
         try:
@@ -414,10 +415,12 @@ def _row_label(i: int, has_header: bool = True) -> str:
     return f"row {i + 1} (line {i + 2})" if has_header else f"row {i + 1}"
 
 
-def read_logs(path: str, mapping: str | LogSpec | None = None, units: str | None = None) -> list[JointLog]:
+def read_logs(path: str, mapping: str | LogSpec | None = None, units: str | None = None, *,
+              skip: tuple[str, ...] = ()) -> list[JointLog]:
     """Read, validate and split one log file (or ``-`` for standard input).
 
     mapping : ``--map`` text, a mapping file path, or a :class:`LogSpec`. units : ``--units`` text.
+    skip : optional channels the caller never uses (e.g. ``q_ref``): not read from CSV / Parquet.
     Raises :class:`LogFormatError` listing every problem found.
     """
     spec = mapping if isinstance(mapping, LogSpec) else make_spec(mapping, units)
@@ -443,7 +446,7 @@ def read_logs(path: str, mapping: str | LogSpec | None = None, units: str | None
         eff = LogSpec(units=spec_for_read.units, axis=spec_for_read.axis, meta=spec_for_read.meta,
                       joint_meta=spec_for_read.joint_meta)
         return _validate_and_split(table, label, eff, side_meta, has_header=False)
-    table, file_meta = _read_table(src, label, is_parquet, spec_for_read)
+    table, file_meta = _read_table(src, label, is_parquet, spec_for_read, skip)
     file_spec = spec_from_dict({k: v for k, v in file_meta.items() if k in _SPEC_KEYS}, f"{label} metadata")
     eff = file_spec.merged(side_spec).merged(spec)
     meta_all = {**file_meta, **side_meta}

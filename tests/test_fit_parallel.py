@@ -1,0 +1,107 @@
+"""Joints fitted in parallel (``frictid fit --jobs``): the same result as one after another, the work really
+done in other processes, errors surfacing exactly as in the serial path."""
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+import pytest
+
+import frictid
+from frictid.data import JointLog
+from frictid.errors import FrictidInputError, LogFormatError
+from frictid.fit import pipeline
+from frictid.io.logs import write_logs
+
+from fit_synth import synth_log, truth_derivatives, truth_segments
+
+MODELS = "stribeck,coulomb_viscous,polynomial,polynomial_ls"
+
+
+def three_joints() -> list[JointLog]:
+    v = np.geomspace(0.02, 2.0, 6)
+    return [synth_log(np.concatenate([v, -v]), seed=k, joint=str(k + 1), noise=0.02 * (k + 1), excitation=False)
+            for k in range(3)]
+
+
+@pytest.fixture(scope="module")
+def serial():
+    return frictid.fit(three_joints(), models=MODELS, segmenter=truth_segments, differentiate=truth_derivatives,
+                       jobs=1)
+
+
+def test_parallel_result_equals_serial_and_runs_in_workers(serial, tmp_path):
+    pids = tmp_path / "pids"
+
+    def segmenter(log):  # records which process segmented which joint
+        with open(pids, "a") as fh:
+            fh.write(f"{log.joint} {os.getpid()}\n")
+        return truth_segments(log)
+
+    par = frictid.fit(three_joints(), models=MODELS, segmenter=segmenter, differentiate=truth_derivatives,
+                      jobs=2)
+    assert par.to_yaml() == serial.to_yaml()  # every number, warning and selection identical
+    assert list(par.joints) == ["1", "2", "3"]
+    seen = dict(line.split() for line in pids.read_text().splitlines())
+    assert set(seen) == {"1", "2", "3"}
+    assert str(os.getpid()) not in seen.values(), "the joints were fitted in worker processes"
+    assert 1 <= len(set(seen.values())) <= 2, "at most --jobs workers"
+
+
+def test_number_of_workers():
+    cores = len(os.sched_getaffinity(0))
+    assert pipeline.n_workers(0, 6) == min(6, cores)
+    assert pipeline.n_workers(0, 1) == 1
+    assert pipeline.n_workers(4, 3) == 3
+    assert pipeline.n_workers(1, 6) == 1
+    with pytest.raises(FrictidInputError):
+        pipeline.n_workers(-1, 6)
+
+
+def _failing(monkeypatch, exc_for):
+    real = pipeline.fit_joint
+
+    def fit_joint(jlogs, *a, **kw):
+        exc = exc_for(jlogs[0].joint)
+        if exc is not None:
+            raise exc
+        return real(jlogs, *a, **kw)
+    monkeypatch.setattr(pipeline, "fit_joint", fit_joint)  # forked workers inherit the patched module
+
+
+@pytest.mark.parametrize("jobs", [1, 3])
+def test_first_failing_joint_raises_its_own_exception(monkeypatch, jobs):
+    # every joint fails, joint 3 first in time: the first joint in order is the one reported
+    delay = {"1": 0.5, "2": 0.3, "3": 0.0}
+
+    def exc_for(j):
+        time.sleep(delay[j])
+        return LogFormatError("run.csv", [f"joint {j}: problem one", "problem two"])
+    _failing(monkeypatch, exc_for)
+    with pytest.raises(LogFormatError) as info:
+        frictid.fit(three_joints(), models=MODELS, segmenter=truth_segments, differentiate=truth_derivatives,
+                    jobs=jobs)
+    assert str(info.value) == "run.csv: 2 problems:\n  - joint 1: problem one\n  - problem two"
+    assert info.value.problems == ["joint 1: problem one", "problem two"]
+
+
+def test_cli_error_in_a_worker_is_exit_2_without_traceback(monkeypatch, tmp_path, cli):
+    n = 400
+    t = np.arange(n) * 1e-3
+    logs = [JointLog(joint=j, t=t, q=0.5 * np.sin(2 * np.pi * t), qd=np.pi * np.cos(2 * np.pi * t),
+                     tau=np.sign(np.cos(2 * np.pi * t)) + 0.01 * k) for k, j in enumerate(("a", "b"))]
+    path = tmp_path / "two.csv"
+    write_logs(logs, str(path), "csv")
+    _failing(monkeypatch, lambda j: FrictidInputError(f"joint {j}: the logs disagree on the axis"))
+    outs = {}
+    for jobs in ("1", "2"):
+        out = tmp_path / f"p{jobs}.yaml"
+        r = cli("fit", str(path), "-o", str(out), "--jobs", jobs)
+        assert r.code == 2, r
+        assert not out.exists(), "no partial output"
+        assert "Traceback" not in r.err
+        outs[jobs] = r.err
+    assert outs["1"] == outs["2"] == "frictid: error: joint a: the logs disagree on the axis\n"
+    r = cli("fit", str(path), "-o", str(tmp_path / "x.yaml"), "--jobs", "-1")
+    assert r.code == 2 and "Traceback" not in r.err
