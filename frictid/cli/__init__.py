@@ -14,6 +14,7 @@ import typer
 
 from ..errors import FrictidInputError, QualityGateError
 from .app import app
+from .common import JsonState, emit_json_error
 
 try:  # typer >= 0.24 carries its own click
     from typer._click.exceptions import ClickException
@@ -43,7 +44,9 @@ def main(argv: list[str] | None = None) -> None:
     debug = "--debug" in argv or bool(os.environ.get("FRICTID_DEBUG"))
     argv = [a for a in argv if a != "--debug"]
     signal.signal(signal.SIGTERM, _on_sigterm)
-    code = 0
+    JsonState.wanted, JsonState.emitted = "--json" in argv, False
+    command = next((a for a in argv if a in COMMANDS), None)
+    code, message = 0, ""
     try:
         rv = app(args=argv, prog_name="frictid", standalone_mode=False)
         code = rv if isinstance(rv, int) else 0
@@ -53,7 +56,7 @@ def main(argv: list[str] | None = None) -> None:
         code = exc.exit_code
     except ClickException as exc:
         exc.show()
-        code = 2
+        code, message = 2, exc.format_message()
     except (typer.Abort, KeyboardInterrupt):
         print("frictid: interrupted; no output was written", file=sys.stderr)
         code = 130
@@ -61,12 +64,12 @@ def main(argv: list[str] | None = None) -> None:
         if debug:
             traceback.print_exc()
         print(f"frictid: error: {exc}", file=sys.stderr)
-        code = 2
+        code, message = 2, str(exc)
     except QualityGateError as exc:
         if debug:
             traceback.print_exc()
         print(f"frictid: gate failed: {exc}", file=sys.stderr)
-        code = 3
+        code, message = 3, str(exc)
     except BrokenPipeError:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
@@ -74,7 +77,13 @@ def main(argv: list[str] | None = None) -> None:
     except Exception as exc:  # noqa: BLE001 - the one place that turns bugs into exit code 1
         if debug:
             traceback.print_exc()
-        print(f"frictid: internal error: {exc.__class__.__name__}: {exc} "
-              "(run again with --debug for the traceback, and please report it)", file=sys.stderr)
+        message = f"internal error: {exc.__class__.__name__}: {exc}"
+        print(f"frictid: {message} (run again with --debug for the traceback, and please report it)",
+              file=sys.stderr)
         code = 1
+    if code not in (0, 130) and not isinstance(code, bool):
+        try:
+            emit_json_error(command, code, message or f"exit code {code}")
+        except (BrokenPipeError, ValueError):
+            pass
     sys.exit(code)

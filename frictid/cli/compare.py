@@ -1,14 +1,12 @@
 """``frictid compare``: the change of every parameter between two identifications, and a gate on it."""
 from __future__ import annotations
 
-import json
-import sys
 from typing import Annotated, Optional
 
 import typer
 
 from .app import app
-from .common import Console, JsonOpt, QuietOpt
+from .common import Console, JsonOpt, QuietOpt, emit_json
 
 
 def _fmt(x, digits=4) -> str:
@@ -33,9 +31,12 @@ def compare(
     tolerances = parse_tolerances(tol)
     result = run_compare(load_params_dict(base), load_params_dict(new), tolerances)
     if as_json:
-        json.dump({"changes": [c.to_dict() for c in result.changes], "notes": result.notes,
-                   "failed": len(result.failed)}, sys.stdout, indent=1)
-        sys.stdout.write("\n")
+        emit_json("compare", {"base": base, "new": new, "tolerances": [str(t.pattern) + "=" + str(t)
+                                                                      for t in tolerances],
+                              "changes": [c.to_dict() for c in result.changes], "failed": len(result.failed),
+                              "exceeded": [f"{c.joint}:{c.name}" for c in result.failed],
+                              "notes": result.notes, "warnings": result.notes},
+                  ok=not result.failed)
     else:
         head = f"{'joint':<8} {'param':<14} {'base':>11} {'new':>11} {'change':>9} {'+-':>9} {'z':>6}  tol"
         print(head)

@@ -1,13 +1,13 @@
 """``frictid fit``: identify friction models from logs and write the parameter YAML."""
 from __future__ import annotations
 
-import json
 from typing import Annotated, List, Optional
 
 import typer
 
 from .app import app
-from .common import Console, JsonOpt, MapOpt, QuietOpt, UnitsOpt
+from .common import (Console, JsonOpt, MapOpt, QuietOpt, UnitsOpt, emit_json, joint_summary,
+                     refuse_json_with_stdout)
 
 
 @app.command()
@@ -26,9 +26,6 @@ def fit(
     as_json: JsonOpt = False,
     report: Annotated[Optional[str], typer.Option(
         "--report", help="Also write the HTML report (as frictid report PARAMS LOG... -o REPORT.html).")] = None,
-    jobs: Annotated[int, typer.Option(
-        "--jobs", min=0, help="Joints fitted at once, each in its own process (0: one per available core; "
-                              "1: one after another). The result does not depend on it.")] = 0,
 ) -> None:
     """Find the segments, identify every model the data support, choose one, write the parameter file."""
     from ..errors import FrictidInputError
@@ -43,15 +40,13 @@ def fit(
         raise FrictidInputError("fit: give the parameter file to write with -o PARAMS.yaml")
     if logs.count("-") > 1:
         raise FrictidInputError("fit: standard input (-) can be given only once")
-    if as_json and output == "-":
-        raise FrictidInputError("fit: --json prints on standard output; write the parameters to a file (-o FILE)")
-    check_output_path(output, logs)
+    refuse_json_with_stdout("fit", as_json, output)
+    check_output_path(output, logs, mapping)
     if report:
         from .report import check_fit_report
-        check_fit_report(report, output, logs)
+        check_fit_report(report, output, logs, mapping)
     parse_models(models)  # refuse unknown names before reading anything
-    res = run_fit(logs, joint=joint, models=models, mapping=mapping, units=units, diagnose=not no_diagnose,
-                  jobs=jobs)
+    res = run_fit(logs, joint=joint, models=models, mapping=mapping, units=units, diagnose=not no_diagnose)
     write_params(res, output)
     if report:
         from .report import command_line, report_after_fit
@@ -60,17 +55,15 @@ def fit(
                                          ("--report", report)])
         report_after_fit(report, res, logs, mapping, units, output, cmd, con)
     summary = {}
-    for j, jf in res.joints.items():
-        m = jf.model
-        summary[j] = {"selected": jf.selected, "rms_heldout": m.metrics.get("rms_heldout") if m else None,
-                      "warnings": jf.warnings, "not_identified": len(jf.not_identified)}
-        sel = f"{jf.selected}" if jf.selected else "no model"
-        con.info(f"frictid: joint {j}: {sel}" + (f" (held-out RMS {summary[j]['rms_heldout']:.4g} "
-                                                  f"{jf.units.get('tau', '')})" if summary[j]["rms_heldout"] else "")
-                 + (f", {len(jf.not_identified)} item(s) not identifiable" if jf.not_identified else ""))
-        for w in jf.warnings:
+    for j, jd in res.to_dict()["joints"].items():
+        js = summary[j] = joint_summary(jd)
+        rms = js["rms_heldout"]
+        con.info(f"frictid: joint {j}: {js['selected'] or 'no model'}"
+                 + (f" (held-out RMS {rms:.4g} {js['units'].get('tau', '')})" if rms else "")
+                 + (f", {len(js['not_identified'])} item(s) not identifiable" if js["not_identified"] else ""))
+        for w in js["warnings"]:
             con.warn(f"joint {j}: {w}")
     if output != "-":
         con.info(f"frictid: wrote {output}")
     if as_json:
-        typer.echo(json.dumps({"output": output, "joints": summary}, default=str))
+        emit_json("fit", {"output": output, "report": report, "joints": summary, "warnings": con.warnings})

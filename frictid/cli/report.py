@@ -8,7 +8,8 @@ from typing import Annotated, List, Optional
 import typer
 
 from .app import app
-from .common import Console, MapOpt, QuietOpt, UnitsOpt
+from .common import (Console, JsonOpt, MapOpt, QuietOpt, UnitsOpt, emit_json, joint_summary, log_warnings,
+                     refuse_json_with_stdout)
 
 
 def command_line(name: str, positional: list[str], options: list[tuple[str, Optional[str] | bool]]) -> str:
@@ -33,6 +34,7 @@ def report(
     mapping: MapOpt = None,
     units: UnitsOpt = None,
     quiet: QuietOpt = False,
+    as_json: JsonOpt = False,
 ) -> None:
     """Write a self-contained HTML report: summary, segment timeline, friction map, presliding, thermal,
     model comparison, diagnosis and provenance for every joint of a parameter file.
@@ -58,22 +60,40 @@ def report(
         raise FrictidInputError("report: the parameter file cannot be standard input; give its path")
     if sum(1 for p in logs if p == "-") > 1:
         raise FrictidInputError("report: standard input (-) can be given only once")
-    check_output_path(output, [params, *logs])
+    refuse_json_with_stdout("report", as_json, output)
+    check_output_path(output, [params, *logs], mapping)
     t0 = time.perf_counter()
     pd = load_params_dict(params)
     joint_logs = read_many(logs, mapping, units) if logs else []
-    for lg in joint_logs:
-        for w in lg.warnings:
-            con.warn(w)
+    for w in log_warnings(joint_logs):
+        con.warn(w)
     cmd = command_line("report", [params, *logs], [("-o", output), ("--map", mapping), ("--units", units)])
-    nbytes = write_report(output, pd, joint_logs, params_path=params, command=cmd)
+    nbytes = write_report(output, with_log_warnings(pd, joint_logs), joint_logs, params_path=params, command=cmd)
+    n = len(pd.get("joints") or {})
     if output != "-":
-        n = len(pd.get("joints") or {})
         con.info(f"frictid: wrote {output} ({nbytes / 1e6:.2f} MB, {n} joint{'s' if n != 1 else ''}, "
                  f"{len(logs)} log{'s' if len(logs) != 1 else ''}) in {time.perf_counter() - t0:.1f} s")
+    if as_json:
+        emit_json("report", {"output": output, "bytes": nbytes, "params": params, "logs": logs,
+                             "joints": {str(j): joint_summary(jd) for j, jd in (pd.get("joints") or {}).items()
+                                        if isinstance(jd, dict)},
+                             "warnings": con.warnings})
 
 
-def check_fit_report(report_path: str, output: str, logs: list[str]) -> None:
+def with_log_warnings(params: dict, logs) -> dict:
+    """A copy of the parameter file whose joints also list the warnings of the logs drawn for them (rows
+    dropped, a jittery sample period), so that the report shows them beside the fit's own warnings."""
+    joints = dict(params.get("joints") or {})
+    for lg in logs:
+        jd = joints.get(str(lg.joint))
+        if not isinstance(jd, dict) or not lg.warnings:
+            continue
+        jd = joints[str(lg.joint)] = dict(jd)
+        jd["warnings"] = [*(jd.get("warnings") or []), *(f"log {w}" for w in log_warnings([lg]))]
+    return {**params, "joints": joints}
+
+
+def check_fit_report(report_path: str, output: str, logs: list[str], mapping: str | None = None) -> None:
     """Refuse a ``frictid fit --report`` path before any work (called by the fit command)."""
     from ..errors import FrictidInputError
     from ..io.atomic import check_output_path
@@ -85,7 +105,7 @@ def check_fit_report(report_path: str, output: str, logs: list[str]) -> None:
                                 "write the log to a file first (or run frictid report afterwards)")
     if output != "-" and report_path == output:
         raise FrictidInputError(f"fit: --report {report_path} is also the parameter file (-o); choose another name")
-    check_output_path(report_path, logs)
+    check_output_path(report_path, logs, mapping)
 
 
 def report_after_fit(report_path: str, result, logs: list[str], mapping, units, params_path: str,

@@ -7,7 +7,7 @@ from typing import Annotated, Optional
 import typer
 
 from .app import app
-from .common import Console, MapOpt, QuietOpt, UnitsOpt
+from .common import Console, JsonOpt, MapOpt, QuietOpt, UnitsOpt, emit_json, log_warnings, refuse_json_with_stdout
 
 
 def resolve_recipe(name: str, folder: str = "recipes") -> str:
@@ -40,6 +40,7 @@ def simulate(
     mapping: MapOpt = None,
     units: UnitsOpt = None,
     quiet: QuietOpt = False,
+    as_json: JsonOpt = False,
 ) -> None:
     """Simulate a recipe on a plant and write a joint log with truth labels; or, with --params and
     --replay, run an identified model along a measured log and write its prediction and residual."""
@@ -49,44 +50,60 @@ def simulate(
     from ..plant import simulate_recipe
 
     con = Console(quiet)
+    refuse_json_with_stdout("simulate", as_json, output)
     if params is not None or replay_log is not None:
         if params is None or replay_log is None:
             raise FrictidInputError("simulate: --params and --replay go together "
                                     "(frictid simulate --params PARAMS.yaml --replay LOG -o OUT)")
         if recipe is not None:
             raise FrictidInputError("simulate: give either a recipe or --params/--replay, not both")
-        _replay(params, replay_log, output, plant, model, fmt, mapping, units, con)
+        _replay(params, replay_log, output, plant, model, fmt, mapping, units, con, as_json)
         return
     if model is not None or mapping is not None or units is not None:
         raise FrictidInputError("simulate: --model, --map and --units apply to --replay only")
     if recipe is None:
         raise FrictidInputError("simulate: give a recipe (e.g. recipes/constant_velocity_sweep.yaml)")
-    check_output_path(output, [recipe] + ([plant] if plant else []))
     fmt = output_format(output, fmt)
+    recipe_path = resolve_recipe(recipe)
     plant_path = resolve_recipe(plant, "recipes/plants") if plant else None
-    logs = simulate_recipe(resolve_recipe(recipe), plant_path, seed=seed, progress=con.progress)
+    check_output_path(output, [recipe_path, plant_path], sidecar=fmt == "csv")
+    logs = simulate_recipe(recipe_path, plant_path, seed=seed, progress=con.progress)
     write_logs(logs, output, fmt)
     rows = sum(lg.n for lg in logs)
     con.info(f"frictid: wrote {rows} rows ({len(logs)} joint{'s' if len(logs) != 1 else ''}) to {output}")
+    if as_json:
+        emit_json("simulate", {"mode": "recipe", "output": output, "format": fmt, "recipe": recipe_path,
+                               "plant": plant_path or (logs[0].meta.get("plant") if logs else None),
+                               "seed": seed, "rows": rows,
+                               "joints": {str(lg.joint): {"rows": lg.n, "duration": float(lg.t[-1] - lg.t[0])}
+                                          for lg in logs},
+                               "warnings": con.warnings})
 
 
-def _replay(params, log_path, output, plant, model, fmt, mapping, units, con) -> None:
+def _replay(params, log_path, output, plant, model, fmt, mapping, units, con, as_json=False) -> None:
     from ..io.atomic import check_output_path
     from ..io.logs import output_format, read_logs
     from ..io.params import read_params
     from ..io.replay_out import write_replay
     from ..replay import replay_logs
 
-    check_output_path(output, [params, log_path] + ([plant] if plant else []))
     fmt = output_format(output, fmt)
+    plant_path = resolve_recipe(plant, "recipes/plants") if plant else None
+    check_output_path(output, [params, log_path, plant_path], mapping, sidecar=fmt == "csv")
     res = read_params(params)
     logs = read_logs(log_path, mapping, units)
-    plant_path = resolve_recipe(plant, "recipes/plants") if plant else None
+    for w in log_warnings(logs):
+        con.warn(w)
     results, info = replay_logs(logs, res, model=model, plant=plant_path)
-    write_replay(logs, results, output, fmt, {"params": str(params), "log": str(log_path), "joints": info})
+    write_replay(logs, results, output, fmt, {"params": str(params), "log": str(log_path), "joints": info,
+                                              "warnings": con.warnings})
     for j, rec in info.items():
         msg = f"frictid: joint {j}: {rec['model']}, residual RMS {rec['rms_residual']:.4g}"
         if rec.get("rms_q_error") is not None:
             msg += f", closed-loop position error RMS {rec['rms_q_error']:.4g}"
         con.info(msg)
-    con.info(f"frictid: wrote {sum(lg.n for lg in logs)} rows to {output}")
+    rows = sum(lg.n for lg in logs)
+    con.info(f"frictid: wrote {rows} rows to {output}")
+    if as_json:
+        emit_json("simulate", {"mode": "replay", "output": output, "format": fmt, "params": str(params),
+                               "log": str(log_path), "rows": rows, "joints": info, "warnings": con.warnings})

@@ -31,8 +31,24 @@ def is_stdio(path) -> bool:
     return str(path) == "-"
 
 
-def check_output_path(path, inputs=()) -> None:
-    """Refuse an output path that is an input or whose folder does not exist (before any work is done)."""
+def _input_files(inputs, mapping=None) -> list[Path]:
+    """Every file a run reads: the inputs, their metadata sidecars (``<log>.meta.yaml``) and a mapping
+    file given as ``--map FILE``."""
+    out = []
+    for src in [*inputs, *([mapping] if mapping else [])]:
+        if src is None or is_stdio(src):
+            continue
+        p = Path(src)
+        for cand in (p, Path(f"{p}.meta.yaml")):
+            if cand.is_file():
+                out.append(cand)
+    return out
+
+
+def check_output_path(path, inputs=(), mapping=None, sidecar: bool = False) -> None:
+    """Refuse an output path that is an input (or an input's sidecar, or the ``--map`` file), or whose
+    folder does not exist, before any work is done. ``sidecar``: the output also writes
+    ``<path>.meta.yaml`` (CSV logs and tables), which must not be an input either."""
     if is_stdio(path):
         return
     p = Path(path)
@@ -40,15 +56,17 @@ def check_output_path(path, inputs=()) -> None:
         raise FrictidInputError(f"{p}: is a folder; give a file name for the output")
     if not p.parent.exists():
         raise FrictidInputError(f"{p}: folder {p.parent} does not exist; create it first")
-    for src in inputs:
-        if is_stdio(src):
-            continue
-        try:
-            if p.exists() and Path(src).exists() and os.path.samefile(p, src):
+    targets = [p] + ([Path(f"{p}.meta.yaml")] if sidecar else [])
+    for src in _input_files(inputs, mapping):
+        for target in targets:
+            try:
+                same = target.exists() and os.path.samefile(target, src)
+            except OSError:
+                same = False
+            if same:
                 raise FrictidInputError(
-                    f"{p}: is also an input; frictid never overwrites an input, choose another output name")
-        except OSError:
-            continue
+                    f"{target}: is also an input ({src}); frictid never overwrites an input, "
+                    "choose another output name")
 
 
 @contextlib.contextmanager

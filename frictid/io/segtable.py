@@ -4,6 +4,11 @@ Columns: ``joint, kind, t_start, t_end, n`` first, then ``i0, i1`` (sample indic
 ``cycle`` (duty-cycle index, empty otherwise), ``source`` (the log), then every per-kind statistic
 (see ``docs/segments.md``), empty where a statistic does not apply to a row's kind. Units follow the log:
 rad or m, rad/s or m/s, N m or N, s.
+
+Metadata (``{"schema": 1, "sources": [...], "warnings": [...]}``: the logs read and the warnings raised
+while reading them) goes where the format allows: the Parquet schema metadata under the key ``frictid``,
+the JSON document's top level, or a sidecar ``<table>.meta.yaml`` beside a CSV file (as for logs).
+A table on standard output carries none; :func:`read_segments_meta` reads it back.
 """
 from __future__ import annotations
 
@@ -14,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import yaml
 
 from ..data import JointLog, Segment
 from ..errors import FrictidInputError
@@ -83,20 +89,28 @@ def _json_records(df: pd.DataFrame) -> list[dict]:
     return recs
 
 
-def write_segments(df: pd.DataFrame, path: str, fmt: str | None = None) -> None:
-    """Write a segment table atomically (temporary file beside ``path``, then rename); ``-`` is stdout."""
+def write_segments(df: pd.DataFrame, path: str, fmt: str | None = None, meta: dict | None = None) -> None:
+    """Write a segment table atomically (temporary file beside ``path``, then rename); ``-`` is stdout.
+
+    meta : ``{"sources": [...], "warnings": [...]}`` written with the table (see the module docstring).
+    """
     fmt = table_format(path, fmt)
+    meta = {"schema": 1, **(meta or {})}
     if fmt == "csv":
         text = df.to_csv(index=False, float_format="%.9g", na_rep="")
         if is_stdio(path):
             sys.stdout.write(text)
             sys.stdout.flush()
             return
-        with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
+        with atomic_path(path) as tmp, atomic_path(f"{path}.meta.yaml") as tmp_side:
+            with open(tmp, "w", encoding="utf-8", newline="") as fh:
+                fh.write(text)
+            with open(tmp_side, "w", encoding="utf-8") as fh:
+                yaml.safe_dump(meta, fh, sort_keys=False)
         return
     if fmt == "json":
-        text = json.dumps({"schema": 1, "columns": list(df.columns), "segments": _json_records(df)}, indent=1)
+        doc = {**meta, "columns": list(df.columns), "segments": _json_records(df)}
+        text = json.dumps(doc, indent=1)
         if is_stdio(path):
             sys.stdout.write(text + "\n")
             sys.stdout.flush()
@@ -106,9 +120,32 @@ def write_segments(df: pd.DataFrame, path: str, fmt: str | None = None) -> None:
         return
     import pyarrow as pa
 
-    from .logs import write_table
+    from .logs import META_KEY, write_table
 
-    write_table(pa.Table.from_pandas(df, preserve_index=False), path, "parquet")
+    table = pa.Table.from_pandas(df, preserve_index=False)  # keeps pandas' own metadata (dtypes) beside ours
+    table = table.replace_schema_metadata({**(table.schema.metadata or {}), META_KEY.encode(): json.dumps(meta)})
+    write_table(table, path, "parquet")
+
+
+def read_segments_meta(path: str) -> dict:
+    """The metadata written with a segment table (``{}`` when there is none)."""
+    fmt = table_format(path)
+    if fmt == "parquet":
+        import pyarrow.parquet as pq
+
+        from .logs import META_KEY
+
+        raw = (pq.read_schema(path).metadata or {}).get(META_KEY.encode())
+        return json.loads(raw) if raw else {}
+    if fmt == "json":
+        with open(path, encoding="utf-8") as fh:
+            d = json.load(fh)
+        return {k: v for k, v in d.items() if k not in ("columns", "segments")}
+    side = Path(f"{path}.meta.yaml")
+    if not side.is_file():
+        return {}
+    with open(side, encoding="utf-8") as fh:
+        return yaml.safe_load(fh) or {}
 
 
 def read_segments(path: str) -> pd.DataFrame:
