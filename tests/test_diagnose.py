@@ -53,7 +53,7 @@ class Parts(np.ndarray):
         return obj
 
 
-def plateau_log(effect=None, seed=0, reps=3, dt=2e-3, hold=1.0, move=0.4, noise=0.01, t0=0.0):
+def plateau_log(effect=None, seed=0, reps=3, dt=2e-3, hold=1.0, move=0.4, noise=0.01, t0=0.0, values=TRUE):
     """Plateaus at 12 speeds per sign, ``reps`` sweeps, smooth moves between them; friction F = map x effect.
 
     effect(t, q, w, F) -> new F (or None), where F carries ``.level`` and ``.viscous`` (the parts of the map,
@@ -79,7 +79,7 @@ def plateau_log(effect=None, seed=0, reps=3, dt=2e-3, hold=1.0, move=0.4, noise=
     q = np.cumsum(w) * dt
     q = q - q.mean()
     a = np.gradient(w, dt)
-    F = Parts(sm.stribeck(w, **TRUE), TRUE["sigma2"] * w)
+    F = Parts(sm.stribeck(w, **values), values["sigma2"] * w)
     if effect is not None:
         F = effect(t, q, w, F)
     F = np.asarray(F, dtype=float)
@@ -202,6 +202,26 @@ def test_asymmetry_and_offset_are_told_apart():
     assert jf.models[fo[0]["model"]].params["tau_offset"].value == pytest.approx(0.35, rel=0.03)
 
 
+#: A Coulomb-dominated map (no viscous friction): above the Stribeck velocity it is flat.
+FLAT = dict(Fc=2.0, Fs=2.6, vs=0.08, delta=2.0, sigma2=0.0)
+
+
+@pytest.mark.parametrize("noise", [0.01, 0.05])
+def test_asymmetry_and_offset_of_a_flat_map_are_told_apart_at_low_speed(noise):
+    """Scaling the w < 0 branch of a flat map and adding a constant are the same data above the Stribeck
+    velocity; only the low-speed hump (scaled by the one, not by the other) tells them apart."""
+    for seed in range(2):
+        jf, fa = _run([plateau_log(lambda t, q, w, F: np.where(w < 0, 0.8 * F, F), values=FLAT, noise=noise,
+                                   seed=seed)], fake_fit(FLAT))
+        assert fa[0]["cause"] == "asymmetry", fa
+        cp, cn = sm.canonical_pair(jf.models[fa[0]["model"]].map,
+                                   jf.models[fa[0]["model"]].values())
+        assert cn[0] / cp[0] == pytest.approx(0.8, rel=0.02)
+        jf, fo = _run([plateau_log(lambda t, q, w, F: F + 0.2, values=FLAT, noise=noise, seed=seed)],
+                      fake_fit(FLAT))
+        assert fo[0]["cause"] == "offset", fo
+
+
 def test_warm_up_is_found_as_temperature_with_its_time_constant():
     tau_c = 60.0
 
@@ -258,12 +278,14 @@ def test_chain_order_and_the_parameter_file(tmp_path):
                                                                      + F.viscous))
     jf, findings = _run([lg])
     assert [f["cause"] for f in findings[:2]] == ["asymmetry", "position"]
+    # the whole w < 0 branch is scaled: the one-coefficient asymmetry term
+    assert findings[0]["extension"] == "asym_scale"
     # found greedily: at the first step the asymmetry gained most (each gain is against the model before it)
     step0 = {t["extension"]: t["gain"] for t in jf.selection["diagnosis"]["steps"][0]["tested"]}
-    assert step0["asym"] == max(step0.values()) > step0["position_periodic"]
+    assert max(step0["asym"], step0["asym_scale"]) == max(step0.values()) > step0["position_periodic"]
     assert (findings[0]["rms_before"] - findings[0]["rms_after"]) > (findings[1]["rms_before"] - findings[1]["rms_after"])
     assert findings[1]["rms_before"] == pytest.approx(findings[0]["rms_after"], rel=0.05)
-    assert jf.selected == "stribeck+asym+position_periodic"
+    assert jf.selected == "stribeck+asym_scale+position_periodic"
     res = FitResult(joints={"1": jf})
     from frictid.io.params import read_params, write_params
     write_params(res, str(tmp_path / "p.yaml"))

@@ -198,7 +198,7 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
         per = float(g[0]) / nl["scale"]
         return (f"friction level grows {100 * per * nl['scale']:+.1f} % per {_fmt(nl['scale'])} {unit} of "
                 f"{var} (r = {r:.2f}); a load-dependent level: {tail}")
-    if ext == "asym":
+    if ext in ("asym", "asym_scale"):
         v = np.abs(S.w)
         from .model import canonical_vectors
         from ..models.static import canonical_friction
@@ -207,7 +207,8 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
         Fn = np.abs(canonical_friction(-v, cn, cn))
         ratio = float(np.mean(Fn) / np.mean(Fp)) if np.mean(Fp) > 0 else float("nan")
         return (f"friction for w < 0 is {100 * abs(ratio - 1):.1f} % {'above' if ratio > 1 else 'below'} "
-                f"that for w > 0 at the same speeds (r = {r:.2f}); per-sign parameters: {tail}")
+                f"that for w > 0 at the same speeds (r = {r:.2f}); "
+                f"{'per-sign parameters' if ext == 'asym' else 'the w < 0 branch scaled'}: {tail}")
     if ext == "stribeck":
         return (f"the residual concentrates at low speed, below about {_fmt(3 * nl['vs'])} {q_u}/s "
                 f"(r = {r:.2f}); a Stribeck term with vs = {_fmt(nl['vs'])} {q_u}/s: {tail}")

@@ -68,7 +68,13 @@ class Structure:
 
     @property
     def asym(self) -> bool:
+        """Per-sign amplitudes (the ``asym`` extension)."""
         return any(t.role == "asym" for t in self.terms)
+
+    @property
+    def per_sign(self) -> bool:
+        """The model has a per-sign map: per-sign amplitudes or the w < 0 branch scaled (``asym_scale``)."""
+        return any(t.ext in ("asym", "asym_scale") for t in self.terms)
 
     def has(self, ext_or_cause: str) -> bool:
         return any(t.ext == ext_or_cause or t.cause == ext_or_cause for t in self.terms)
@@ -149,6 +155,8 @@ class Context:
             c = (var / nl["scale"])[:, None]
         elif term.ext == "drift":
             c = S.th[:, None]
+        elif term.ext == "asym_scale":
+            c = (S.w < 0).astype(float)[:, None]
         elif term.ext in ("thermal4", "thermal6"):
             x = self.thermal(nl["tau_c"], nl.get("source", "heat_balance"))
             if term.ext == "thermal4":
@@ -437,10 +445,15 @@ def canonical_vectors(st: Structure, c: Coef) -> tuple[np.ndarray, np.ndarray]:
     """Canonical 9-vectors (w >= 0, w < 0) of a fitted structure (thermal and factors excluded)."""
     out = []
     strib = next((t for t in st.terms if t.role == "stribeck"), None)
-    for amps in (c.base_pos, c.base_neg):
+    # the asym_scale factor (1 + gamma on w < 0) folds into the w < 0 amplitudes
+    neg = 1.0
+    for i, t in enumerate(st.terms):
+        if t.ext == "asym_scale":
+            neg = 1.0 + float(np.atleast_1d(c.gamma.get(i, [0.0]))[0])
+    for amps, fac in ((c.base_pos, 1.0), (c.base_neg, neg)):
         v = np.array(st.shapes, dtype=float).copy()
         for sl in (0, 1, 4, 6, 7, 8):
-            v[sl] = amps.get(sl, 0.0)
+            v[sl] = amps.get(sl, 0.0) * fac
         if strib is not None and 1 not in MAP_SLOTS[st.map]:
             v[2], v[3] = strib.settings["vs"], strib.settings["delta"]
         out.append(v)
@@ -466,8 +479,8 @@ def model_values(st: Structure, c: Coef, S: Samples, rigid: dict) -> tuple[str, 
     :func:`frictid.replay.joint_model` reads. rigid : the fit's J, Px, Py (corrected by inertia/gravity)."""
     cp, cn = canonical_vectors(st, c)
     vals: dict = {}
-    mapname = st.map + ("_asym" if st.asym else "")
-    if st.asym:
+    mapname = st.map + ("_asym" if st.per_sign else "")
+    if st.per_sign:
         for suf, cv in (("_pos", cp), ("_neg", cn)):
             vals.update({k + suf: v for k, v in named_static(st.map, cv).items()})
     else:
@@ -499,7 +512,7 @@ def model_values(st: Structure, c: Coef, S: Samples, rigid: dict) -> tuple[str, 
             vals["Py"] = rigid.get("Py", 0.0) + float(g[1])
         elif t.ext == "stribeck":
             vals.update(str_amp=float(cp[1]), str_vs=float(nl["vs"]), str_delta=float(nl["delta"]))
-            if st.asym:
+            if st.per_sign:
                 vals["str_amp"] = float(0.5 * (cp[1] + cn[1]))
     if any(t.ext in ("thermal4", "thermal6") for t in st.terms):
         th = next(t for t in st.terms if t.ext in ("thermal4", "thermal6"))
