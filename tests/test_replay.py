@@ -25,12 +25,19 @@ def _motion(n=1500, seed=0):
     return t, w, rng
 
 
+#: A map whose level is a constant (the kernel compiled without the level's exponentials).
+P_POS, P_NEG = canonical_pair("polynomial_asym", dict(c0_pos=4.0, c1_pos=2.0, c2_pos=-0.5, c3_pos=0.3,
+                                                      c0_neg=3.5, c1_neg=2.5, c2_neg=0.4, c3_neg=0.2))
+
+
 @pytest.mark.parametrize("case", ["static", "karnopp", "lugre", "lugre_asym", "thermal4", "thermal6",
-                                  "thermal_measured", "multipliers"])
+                                  "exponential", "thermal_measured", "multipliers", "flat_static",
+                                  "flat_thermal6", "flat_exponential_multipliers"])
 def test_kernel_equals_python_twin(case):
     t, w, rng = _motion()
     n = t.size
     kw = {}
+    c_pos, c_neg = (P_POS, P_NEG) if case.startswith("flat") else (C_POS, C_NEG)
     if case == "karnopp":
         kw = dict(u_stick=3 * rng.standard_normal(n), w_stick=0.02)
     elif case == "lugre":
@@ -49,8 +56,24 @@ def test_kernel_equals_python_twin(case):
                   u_stick=rng.standard_normal(n), w_stick=0.01)
     elif case == "multipliers":
         kw = dict(gmul=1 + 0.1 * np.sin(7 * t), fmul=1 + 0.05 * t, sigma0=3e3, sigma1=10.0)
-    a = replay_friction(t, w, C_POS, C_NEG, **kw)
-    b = replay_friction(t, w, C_POS, C_NEG, reference=True, **kw)
+    elif case == "exponential":
+        code, theta, dc = th.thermal_code("exponential", lam=0.02, T0=25.0)
+        kw = dict(sigma0=(5e3, 1e3), sigma1=(30.0, 5.0),
+                  thermal=dict(code=code, theta=theta, dc_pos=dc, C=5.0, K=0.5, Tenv=25.0, T_init=40.0))
+    elif case == "flat_static":
+        kw = dict(u_stick=3 * rng.standard_normal(n), w_stick=0.02, gmul=1 + 0.1 * np.sin(7 * t))
+    elif case == "flat_thermal6":
+        code, theta, dc = th.thermal_code("thermal6", T0=25.0, dc=(-0.02, -0.01, 0.002, 0.001))
+        kw = dict(sigma0=(5e3, 2e3), sigma1=(30.0, 10.0), z0=-1e-4,
+                  thermal=dict(code=code, theta=theta, dc_pos=dc, C=2.0, K=0.5, Tenv=np.linspace(25, 27, n)))
+    elif case == "flat_exponential_multipliers":
+        code, theta, dc = th.thermal_code("exponential", lam=0.01, T0=25.0)
+        kw = dict(sigma0=4e3, sigma1=20.0, gmul=1 + 0.1 * np.sin(7 * t), fmul=1 + 0.05 * t,
+                  thermal=dict(code=code, theta=theta, dc_pos=dc, T=25 + np.linspace(0, 15, n)))
+    t = t.copy()
+    t[n // 2:] = t[n // 2] + (t[n // 2:] - t[n // 2]) * 0.5   # a change of sample period
+    a = replay_friction(t, w, c_pos, c_neg, **kw)
+    b = replay_friction(t, w, c_pos, c_neg, reference=True, **kw)
     for x, y in zip(a, b):
         assert np.allclose(x, y, rtol=1e-10, atol=1e-12, equal_nan=True)
 

@@ -17,8 +17,14 @@ compiled loop:
   stepped exactly with the power held over each sample period.
 
 The temperature is the only state besides ``z`` that the prediction feeds back on, which is why this
-runs as a sequential loop (numba, ``cache=True``). :func:`replay_friction_ref` is an independent plain
-python/numpy twin (static.py's vectorised maps, thermal.py's heat step); the tests check that they agree.
+runs as a sequential loop (numba, ``cache=True``, the plant kernel's fastmath flags). The map at ``T`` is
+evaluated as ``s(T) g0 + dT dc`` instead of rebuilding both canonical vectors every sample, the heat
+step's ``exp(-K h / C)`` is reused while the sample period is unchanged, the outputs are allocated by
+numpy (huge pages) and maps with a constant level (polynomial, Coulomb-viscous) run a copy of the loop
+compiled without the level's exponentials: about 45 M samples/s with LuGre and thermal6 (20 M/s with a
+Stribeck level), 8x the per-sample rebuild it replaces, equal to it within 1e-14 relative
+(``benchmarks/bench_replay.py``). :func:`replay_friction_ref` is an independent plain python/numpy twin
+(static.py's vectorised maps, thermal.py's heat step); the tests check that they agree.
 """
 from __future__ import annotations
 
@@ -27,40 +33,83 @@ import math
 import numpy as np
 from numba import njit
 
-from .lugre import _pair, level_nb, thermal_canon_nb, viscous_nb
+from .lugre import _FM, _pair
 from .static import canonical_level, canonical_viscous
 
 
-@njit(cache=True, error_model="numpy")
-def _kernel(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, z0, dynamic,
-            code, theta, dc_pos, dc_neg, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick):
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+def _level(v, cc, o):
+    """g0(v) [F] of branch o (0: w >= 0, 9: w < 0) of the packed vectors cc at speed v = |w|.
+
+    cc holds the two canonical vectors concatenated, the velocity scales vs1, vs2 (entries 2 and 5)
+    replaced by their reciprocals (see :func:`_pack`)."""
+    g = cc[o]
+    c1 = cc[o + 1]
+    if c1 != 0.0:
+        x = v * cc[o + 2]
+        d = cc[o + 3]
+        if d == 1.0:
+            g += c1 * math.exp(-x)
+        elif d == 2.0:
+            g += c1 * math.exp(-x * x)
+        else:
+            g += c1 * math.exp(-(x ** d))
+    c4 = cc[o + 4]
+    if c4 != 0.0:
+        g += c4 * (1.0 - math.exp(-v * cc[o + 5]))
+    return g
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
+          code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, F, z, T, flat):
+    """The replay loop. The map at joint temperature T is ``c0 s(T) + dc (T - T0)``
+    (:func:`frictid.models.lugre.thermal_canon_nb`); the level is linear in the amplitudes (a0, a1, a2)
+    and the viscous part in (b1, b2, b3), so it is evaluated as ``s g0(|w|) + dT dc_a0`` and
+    ``s f0(w) + dT f_dc(w)`` (the plant kernel's algebra): no per-sample rebuild of the two canonical
+    vectors. ``exp(-K h / C)`` is recomputed only when the sample period changes. The outputs F, z, T
+    are allocated by the caller (numpy maps large arrays on huge pages: a third of the time went into
+    page faults when the kernel allocated them). ``flat`` (a compile-time constant, see
+    :func:`_kernel_flat`): the level is the constant a0 (no Stribeck or saturation term)."""
     n = w.shape[0]
-    F = np.empty(n)
-    z = np.empty(n)
-    T = np.empty(n)
-    cp = np.empty(9)
-    cn = np.empty(9)
-    for i in range(9):
-        cp[i] = c_pos[i]
-        cn[i] = c_neg[i]
     zk = z0
     Tk = T_init
     T_used = math.nan
+    alpha = theta[0]
+    beta = theta[1]
+    lam = theta[2]
+    T0 = theta[3]
+    s = 1.0
+    dT = 0.0
     thermal = code != 0
+    heat = thermal and not T_given
+    iK = 1.0 / K
+    is0p = 1.0 / s0p
+    is0n = 1.0 / s0n
+    KC = K / C
+    h_last = math.nan
     eK = 0.0
     for k in range(n):
         if T_given:
             Tk = T_in[k]
         if thermal and Tk != T_used:
-            thermal_canon_nb(c_pos, dc_pos, code, theta, Tk, cp)
-            thermal_canon_nb(c_neg, dc_neg, code, theta, Tk, cn)
+            dTT = Tk - T0
+            if code == 1:
+                s = alpha * dTT + beta
+            elif code == 3:
+                s = math.exp(-lam * dTT)
+            else:
+                s = 1.0
+            dT = dTT if code == 2 else 0.0
             T_used = Tk
         wk = w[k]
-        c = cp if wk >= 0.0 else cn
-        g = gmul[k] * level_nb(abs(wk), c)
+        v = abs(wk)
+        o = 0 if wk >= 0.0 else 9
+        g = gmul[k] * (s * (cc[o] if flat else _level(v, cc, o)) + dT * dd[o])
         if g < 1e-300:
             g = 1e-300
-        fv = fmul[k] * viscous_nb(wk, c)
+        fv = fmul[k] * wk * (s * (cc[o + 6] + cc[o + 7] * v + cc[o + 8] * wk * wk)
+                             + dT * (dd[o + 6] + dd[o + 7] * v + dd[o + 8] * wk * wk))
         if dynamic:
             if zk >= 0.0:
                 s0 = s0p
@@ -68,9 +117,9 @@ def _kernel(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, z0, dynamic,
             else:
                 s0 = s0n
                 s1 = s1n
-            zd = wk - s0 * abs(wk) / g * zk
+            zd = wk - s0 * v / g * zk
             Fk = s0 * zk + s1 * zd + fv
-        elif abs(wk) <= w_stick:
+        elif v <= w_stick:
             # Karnopp: sticking, the friction balances the applied torque up to the level
             Fk = u_stick[k]
             if Fk > g:
@@ -91,19 +140,59 @@ def _kernel(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, z0, dynamic,
             if dynamic:
                 wm = 0.5 * (wk + w[k + 1])
                 if wm != 0.0:
-                    cm = cp if wm >= 0.0 else cn
-                    gm = 0.5 * (gmul[k] + gmul[k + 1]) * level_nb(abs(wm), cm)
+                    vm = abs(wm)
+                    om = 0 if wm >= 0.0 else 9
+                    gm = 0.5 * (gmul[k] + gmul[k + 1]) * (s * (cc[om] if flat else _level(vm, cc, om))
+                                                          + dT * dd[om])
                     if gm < 1e-300:
                         gm = 1e-300
-                    s0m = s0p if zk >= 0.0 else s0n
-                    a = s0m * abs(wm) / gm
-                    zss = wm / a
-                    zk = zss + (zk - zss) * math.exp(-a * h)
-            if thermal and not T_given:
-                Tss = Tenv[k] + Fk * wk / K
-                eK = math.exp(-K * h / C)
+                    # a = sigma0 |wm| / g, z_ss = wm / a = g sgn(wm) / sigma0: one division
+                    if zk >= 0.0:
+                        s0m = s0p
+                        is0m = is0p
+                    else:
+                        s0m = s0n
+                        is0m = is0n
+                    zss = gm * is0m
+                    if wm < 0.0:
+                        zss = -zss
+                    zk = zss + (zk - zss) * math.exp(-s0m * vm * h / gm)
+            if heat:
+                if h != h_last:
+                    eK = math.exp(-KC * h)
+                    h_last = h
+                Tss = Tenv[k] + Fk * wk * iK
                 Tk = Tss + (Tk - Tss) * eK
     return F, z, T
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FM)
+def _kernel(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
+            code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, F, z, T):
+    """The replay loop for any canonical map."""
+    return _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
+                 code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, F, z, T, False)
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FM)
+def _kernel_flat(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
+                 code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, F, z, T):
+    """The replay loop for maps whose level is a constant (Coulomb-viscous, polynomial): the same loop
+    compiled without the level's exponential branches, which, although never taken, cost a third of
+    the time (measured: 33 against 21 ns per sample with LuGre and thermal6)."""
+    return _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
+                 code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, F, z, T, True)
+
+
+def _pack(c_pos, c_neg):
+    """The two canonical vectors concatenated (18), vs1 and vs2 replaced by their reciprocals where used."""
+    cc = np.concatenate([c_pos, c_neg]).astype(float)
+    for o in (0, 9):
+        if cc[o + 1] != 0.0:
+            cc[o + 2] = 1.0 / cc[o + 2]
+        if cc[o + 4] != 0.0:
+            cc[o + 5] = 1.0 / cc[o + 5]
+    return cc
 
 
 def replay_friction_ref(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, z0, dynamic,
@@ -216,6 +305,12 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
     else:
         u_stick = np.ascontiguousarray(np.broadcast_to(u_stick, (n,)), dtype=float)
         w_stick = float(w_stick)
-    fn = replay_friction_ref if reference else _kernel
-    return fn(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, float(z0), bool(dynamic),
-              code, theta, dc_pos, dc_neg, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick)
+    if reference:
+        return replay_friction_ref(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, float(z0), bool(dynamic),
+                                   code, theta, dc_pos, dc_neg, C, K, Tenv, T_init, T_in, T_given, u_stick,
+                                   w_stick)
+    cc = _pack(c_pos, c_neg)
+    flat = cc[1] == 0.0 and cc[4] == 0.0 and cc[10] == 0.0 and cc[13] == 0.0
+    return (_kernel_flat if flat else _kernel)(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, float(z0), bool(dynamic),
+                   code, theta, np.concatenate([dc_pos, dc_neg]), C, K, Tenv,
+                   T_init, T_in, T_given, u_stick, w_stick, np.empty(n), np.empty(n), np.empty(n))
