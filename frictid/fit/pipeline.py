@@ -405,6 +405,20 @@ def _scalar_map(c_pos, c_neg):
     return level, viscous
 
 
+def segment_list(source: int, rows: int, segments: list[Segment]) -> dict:
+    """The parameter file's record of one log's segments (``segment_list``; cycle -1 when none)."""
+    return {"source": int(source), "rows": int(rows), "kind": [s.kind for s in segments],
+            "i0": [int(s.i0) for s in segments], "i1": [int(s.i1) for s in segments],
+            "cycle": [-1 if s.cycle is None else int(s.cycle) for s in segments]}
+
+
+def segments_from_list(entry: dict, t: np.ndarray) -> list[Segment]:
+    """The segments of a ``segment_list`` entry on a log with times ``t`` [s] (the same rows)."""
+    return [Segment(str(k), int(a), int(b), float(t[int(a)]), float(t[int(b) - 1]),
+                    cycle=None if int(c) < 0 else int(c))
+            for k, a, b, c in zip(entry["kind"], entry["i0"], entry["i1"], entry["cycle"])]
+
+
 def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter, differentiate,
               diagnose: bool = False) -> JointFit:
     """Identify everything for one joint from its logs (see the module docstring)."""
@@ -429,6 +443,7 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
     for p in preps:
         for s in p.segments:
             jf.segments[s.kind] = jf.segments.get(s.kind, 0) + 1
+    jf.segment_list = [segment_list(p.index, p.log.n, p.segments) for p in preps]
     used: dict[str, list] = {}
 
     # scales of the data

@@ -155,8 +155,17 @@ class JointFit:
     not_identified: list[dict[str, str]] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     diagnosis: list[Any] = field(default_factory=list)
+    #: the segments the fit worked on, per log: {source, rows, kind, i0, i1, cycle} (lists, one item per
+    #: segment; cycle -1 when none). Lets ``frictid report`` skip re-segmenting the same file.
+    segment_list: list[dict[str, Any]] = field(default_factory=list)
 
     def to_dict(self) -> dict:
+        d = self._to_dict()
+        if self.segment_list:  # optional key: files without it stay as before
+            d["segment_list"] = _plain(self.segment_list)
+        return d
+
+    def _to_dict(self) -> dict:
         return {
             "axis": self.axis,
             "units": dict(self.units),
@@ -186,7 +195,7 @@ class JointFit:
             models={n: ModelFit.from_dict(n, m) for n, m in (d.get("models") or {}).items()},
             selected=d.get("selected"), selection=dict(d.get("selection") or {}),
             not_identified=list(d.get("not_identified") or []), warnings=list(d.get("warnings") or []),
-            diagnosis=list(d.get("diagnosis") or []))
+            diagnosis=list(d.get("diagnosis") or []), segment_list=list(d.get("segment_list") or []))
 
     @property
     def model(self) -> ModelFit | None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any, Literal, Optional, Union
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from ..errors import ConfigError
 from ..fit.result import FitResult, dump_yaml
@@ -48,6 +48,31 @@ class ModelEntry(_Open):
     notes: list[str] = Field(default_factory=list)
 
 
+class SegmentList(_Closed):
+    """The segments the fit worked on in one log (one joint of one source): one item per segment in each
+    list; sample indices count from the joint's first row in that source, i1 exclusive; cycle -1 when the
+    segment belongs to no duty cycle."""
+
+    source: int = Field(ge=0)
+    rows: int = Field(ge=0)
+    kind: list[str]
+    i0: list[int]
+    i1: list[int]
+    cycle: list[int]
+
+    @model_validator(mode="after")
+    def _same_length(self):
+        n = len(self.kind)
+        if not (len(self.i0) == len(self.i1) == len(self.cycle) == n):
+            raise ValueError(f"kind, i0, i1 and cycle must have one item per segment (lengths {n}, "
+                             f"{len(self.i0)}, {len(self.i1)}, {len(self.cycle)})")
+        bad = [k for k in range(n) if not 0 <= self.i0[k] < self.i1[k] <= self.rows]
+        if bad:
+            raise ValueError(f"segment {bad[0]}: needs 0 <= i0 < i1 <= rows ({self.i0[bad[0]]}, "
+                             f"{self.i1[bad[0]]}, {self.rows})")
+        return self
+
+
 class JointEntry(_Closed):
     axis: Literal["rotary", "linear"] = "rotary"
     units: dict[str, str] = Field(default_factory=dict)
@@ -62,6 +87,7 @@ class JointEntry(_Closed):
     not_identified: list[dict[str, str]] = Field(default_factory=list)
     warnings: list[str] = Field(default_factory=list)
     diagnosis: list[Any] = Field(default_factory=list)
+    segment_list: list[SegmentList] = Field(default_factory=list)
 
 
 class Source(_Open):

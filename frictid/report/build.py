@@ -564,8 +564,11 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     params : the parameter file as a dictionary (schema 1). logs : the joint logs to draw (any joints; logs
     of joints not in the file are listed and skipped). params_path, command : shown under provenance.
     segmenter(log) -> segments and differentiate(log) -> (w, a) default to :func:`frictid.segments.find_segments`
-    and :func:`frictid.segments.derivatives` (the fit's). generated : a timestamp text (default: now, UTC).
-    timings : a dict that receives the seconds spent per part.
+    and :func:`frictid.segments.derivatives` (the fit's). The segments the fit recorded in the parameter
+    file (``segment_list``) are used instead of ``segmenter`` for a log whose file has the SHA-256 of that
+    source and the same number of rows. generated : a timestamp text (default: now, UTC). timings : a dict
+    that receives the seconds spent per part. Joints are built one after another; each joint's arrays are
+    freed before the next.
     """
     from frictid import __version__
     from frictid.io.logs import file_sha256
@@ -580,40 +583,49 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     sources = [s for s in (params.get("sources") or []) if isinstance(s, dict)]
     hashes: dict[str, str | None] = {}
     notes = []
-    by_joint: dict[str, list[ct.LogData]] = {}
+    by_joint: dict[str, list[JointLog]] = {}
     t0 = time.perf_counter()
     for lg in logs:
-        jn = str(lg.joint)
-        if jn not in joints:
-            continue
-        d = ct.prepare_log(lg, joints[jn], segmenter, differentiate)
-        if d.label and d.label not in hashes:
-            hashes[d.label] = file_sha256(d.label)
-        d.sha256 = hashes.get(d.label)
-        by_joint.setdefault(jn, []).append(d)
-    timings["segments"] = time.perf_counter() - t0
+        if lg.source and lg.source not in hashes:
+            hashes[lg.source] = file_sha256(lg.source)
+        if str(lg.joint) in joints:
+            by_joint.setdefault(str(lg.joint), []).append(lg)
+    timings["hash"] = time.perf_counter() - t0
     skipped = sorted({str(lg.joint) for lg in logs} - set(map(str, joints)))
     if skipped:
         notes.append(f"Logs of joint(s) {', '.join(skipped)} are not drawn: the parameter file has no entry for them.")
-    for jn, ds in by_joint.items():
-        ct.match_sources(ds, sources)
+    # one joint at a time: its derivatives, friction torque, replays and figures are freed before the next
+    jctx = []
+    matched: dict[int, int | None] = {}  # id(log) -> source index
+    recorded: dict[int, bool] = {}  # id(log) -> its segments came from the parameter file
+    for jn, jd in joints.items():
+        if not isinstance(jd, dict):
+            continue
+        t0 = time.perf_counter()
+        datas = []
+        for lg in by_joint.get(str(jn), []):
+            segs = ct.recorded_segments(lg, jd, sources, hashes.get(lg.source or ""))
+            recorded[id(lg)] = segs is not None
+            d = ct.prepare_log(lg, jd, segmenter, differentiate, segments=segs)
+            d.sha256 = hashes.get(d.label)
+            datas.append(d)
+        ct.match_sources(datas, sources)
+        matched.update({id(d.log): d.source_index for d in datas})
+        timings["segments"] = timings.get("segments", 0.0) + time.perf_counter() - t0
+        jctx.append(joint_report(str(jn), jd, datas, timings))
+        del datas
     inputs = []
     for lg in logs:
         label = lg.source or "<memory>"
         if any(i["path"] == label and i["joint"] == str(lg.joint) for i in inputs):
             continue
-        d = next((x for x in by_joint.get(str(lg.joint), []) if x.log is lg), None)
         inputs.append({"path": label, "joint": str(lg.joint), "rows": lg.n, "sha256": hashes.get(label),
-                       "source": None if d is None else d.source_index})
+                       "source": matched.get(id(lg)),
+                       "segments": "the fit's" if recorded.get(id(lg)) else "found again"})
     for i in inputs:
         if i["source"] is None and str(i["joint"]) in joints and sources:
             notes.append(f"{i['path']}: not among the files the fit read (different hash and name); its curves are "
                          "compared with parameters identified from other data.")
-    jctx = []
-    for jn, jd in joints.items():
-        if not isinstance(jd, dict):
-            continue
-        jctx.append(joint_report(str(jn), jd, by_joint.get(str(jn), []), timings))
     t0 = time.perf_counter()
     env = _environment()
     html = env.get_template("report.html").render(

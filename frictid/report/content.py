@@ -173,12 +173,39 @@ def gravity_torque(log: JointLog, terms: dict[str, float]) -> np.ndarray:
     return G + terms.get("offset", 0.0)
 
 
-def prepare_log(log: JointLog, jd: dict, segmenter: Callable, differentiate: Callable) -> LogData:
-    """Derivatives, segments and the friction torque of one log for the joint entry ``jd``."""
+def recorded_segments(log: JointLog, jd: dict, sources: list[dict], sha256: str | None) -> list[Segment] | None:
+    """The segments the fit recorded for this log (the joint's ``segment_list``), when the log's file has
+    the SHA-256 of that source and the entry's number of rows; else None (segment the log again)."""
+    if not sha256:
+        return None
+    for entry in jd.get("segment_list") or []:
+        if not isinstance(entry, dict):
+            continue
+        try:
+            src = sources[int(entry["source"])]
+            rows = int(entry["rows"])
+        except (KeyError, IndexError, TypeError, ValueError):
+            continue
+        if src.get("sha256") == sha256 and rows == log.n:
+            from frictid.fit.pipeline import segments_from_list
+            try:
+                i0, i1 = np.asarray(entry["i0"], int), np.asarray(entry["i1"], int)
+                ok = i0.shape == i1.shape == (len(entry["kind"]),) == (len(entry["cycle"]),)
+            except (KeyError, TypeError, ValueError):
+                continue
+            if ok and np.all((0 <= i0) & (i0 < i1) & (i1 <= log.n)):
+                return segments_from_list(entry, log.t)
+    return None
+
+
+def prepare_log(log: JointLog, jd: dict, segmenter: Callable, differentiate: Callable,
+                segments: list[Segment] | None = None) -> LogData:
+    """Derivatives, segments (``segments`` when given, else ``segmenter(log)``) and the friction torque of
+    one log for the joint entry ``jd``."""
     w, a = differentiate(log)
     w = np.asarray(w, float)
     a = np.asarray(a, float)
-    segs = list(segmenter(log))
+    segs = list(segments) if segments is not None else list(segmenter(log))
     terms = rigid_terms(jd)
     G = gravity_torque(log, terms)
     F = np.asarray(log.tau, float) - terms["J"] * np.nan_to_num(a) - G
