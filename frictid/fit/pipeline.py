@@ -472,6 +472,16 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
     names += ["offset"]
     free_names = tuple(n for n in names if n not in known)
     known_coef = {n: known[n][0] for n in names if n in known}
+    poor = _unidentifiable(preps)
+    if poor is not None:  # nothing in these logs can pin a friction number down: say so, fit nothing
+        _set_mechanics(jf, None, known, names, has_q, axis, F0, w0, a0, poor, "")
+        for n, pe in [("J", jf.inertia), ("offset", jf.offset), *jf.gravity.items()]:
+            if not pe.identifiable:
+                jf.not_identified.append({"what": n, "reason": pe.reason})
+        jf.not_identified += [{"what": m, "reason": poor} for m in wanted]
+        jf.warnings.append(poor)
+        jf.selection = {"rule": "none: the data cannot identify any model", "reason": poor}
+        return jf
     reg_fit, seg_ne = _regress(preps, free_names, known_coef, min_speed, axis)
     why_reg = "no moving samples" if reg_fit is None else ""
     _set_mechanics(jf, reg_fit, known, names, has_q, axis, F0, w0, a0, why_reg, "")
@@ -567,10 +577,59 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
         _diagnose(jf, preps)
         _check_diagnosis(jf, preps, choice, basis, keys, min_speed, excl)
 
+    _level_with_offset(jf, preps, min_speed)
     jf.segments_used = used
     if jf.selected is None:
         jf.warnings.append("no model could be chosen: " + str(rec.get("reason", "")))
     return jf
+
+
+def _unidentifiable(preps) -> str | None:
+    """Why no friction parameter can be identified from a joint's logs, or None. Judged against each log's
+    own scales (:func:`frictid.segments.estimate_scales`): no motion (fewer than a shortest segment's worth
+    of samples, ``T_MIN``, faster than ``K_NOISE`` velocity noise levels) or a flat torque signal (its
+    0.1-99.9 percentile range within one quantisation step: a dead, disconnected or saturated sensor)."""
+    from frictid.segments import estimate_scales
+    from frictid.segments.detect import K_NOISE, T_MIN
+
+    moving = need = 0
+    flat = True
+    for p in preps:
+        sc = estimate_scales(p.log)
+        moving += int(np.sum(np.abs(p.w) > K_NOISE * sc.sigma_w))
+        need = max(need, int(round(T_MIN / sc.dt)))
+        flat &= sc.tau_range <= sc.tau_step
+    if moving < need:
+        return (f"no motion: only {moving} samples move faster than {K_NOISE:g} velocity noise levels "
+                f"(a shortest segment is {need}); nothing that depends on velocity can be identified")
+    if flat:
+        return ("flat torque signal: the torque does not change by more than one quantisation step while "
+                "the joint moves (a dead, disconnected or saturated sensor?); no friction can be identified")
+    return None
+
+
+#: Parameters that set a static map's level at low speed: with one velocity sign only they carry the
+#: torque offset, which the data cannot separate from them.
+LEVEL_PARAMS = ("Fc", "Fs", "c0", "alpha0", "alpha1", "alpha2")
+
+
+def _level_with_offset(jf: JointFit, preps, min_speed: float) -> None:
+    """With motion in one direction only and the offset neither identified nor given in the metadata, the
+    Coulomb level of every map is the level plus an unknown offset: mark those parameters not identifiable."""
+    if jf.offset is None or jf.offset.identifiable or jf.offset.source == "log metadata":
+        return
+    w = np.concatenate([p.w[np.isfinite(p.w)] for p in preps])
+    w = w[np.abs(w) > min_speed]
+    if w.size == 0 or ((w > 0).any() and (w < 0).any()):
+        return
+    why = ("not separable from the torque offset (motion in one direction only): the value is the level plus "
+           "an unknown offset")
+    for mname, mf in jf.models.items():
+        for n, pe in mf.params.items():
+            base = n[:-4] if n.endswith(("_pos", "_neg")) else n
+            if base in LEVEL_PARAMS and pe.identifiable and not pe.fixed:
+                pe.identifiable, pe.reason = False, why
+                jf.not_identified.append({"what": f"{mname}.{n}", "reason": why})
 
 
 def _regression_exclude(preps) -> tuple[str, ...]:
