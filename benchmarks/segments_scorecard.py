@@ -6,13 +6,12 @@
 Prints, per segment kind, precision / recall / F1 where a detected segment is a true positive when a truth
 segment of the same kind overlaps it with intersection-over-union >= 0.8:
 
-1. every shipped recipe x every shipped plant x three sensor-noise levels (0.3x, 1x, 3x the plant's
-   tau/q/qd noise), against the truth adapted to the segment definitions (``tests/segscore.py``:
-   ``adapted_truth_segments``: presliding ramps one per monotonic piece, a step lasting until the next
-   input) and, for reference, against the labels as written;
+1. every shipped recipe with an experiment x every shipped plant x three sensor-noise levels (0.3x, 1x,
+   3x the plant's tau/q/qd noise), against the plant's truth labels as written (the plant labels in the
+   segment conventions of docs/segments.md: one ramp per monotonic piece, a step until the next input);
 2. sessions that concatenate every experiment with rests and repositioning moves (every plant x noise);
-3. logs without any experiment (random point-to-point motion): the number of ramp_presliding and step
-   segments found, which must be zero;
+3. logs without any experiment (the ``random_ptp`` recipe: random point-to-point moves and dwells): the
+   number of ramp_presliding and step segments found, which must be zero, and the rest F1;
 4. sample rate and velocity channel: 100 Hz and 10 kHz, qd logged or not (a subset of recipes);
 5. timing of ``find_segments`` on logs of 1 million and 10 million samples.
 
@@ -32,10 +31,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))
 
-from segscore import (PLANTS, Tally, adapted_truth_segments, decimated, plant_variant,  # noqa: E402
-                      random_ptp_logs, simulate_with_modes, truth_segments)
+from segscore import PLANTS, Tally, decimated, plant_variant, random_ptp_logs, truth_segments  # noqa: E402
 
 from frictid.data import SEGMENT_KINDS  # noqa: E402
+from frictid.plant import simulate_recipe  # noqa: E402
 from frictid.segments import find_segments  # noqa: E402
 
 RECIPES = ("constant_velocity_sweep", "ramp_presliding", "torque_steps", "multisine", "duty_cycle",
@@ -67,15 +66,14 @@ def session_recipe(duty_cycle_time: float = 40.0) -> dict:
     }
 
 
-def tally_logs(logs, tally_adapted: Tally, tally_raw: Tally | None = None) -> float:
+def tally_logs(logs, tally: Tally) -> float:
+    """Segment each log, score it against the plant's truth labels; returns the seconds spent segmenting."""
     seconds = 0.0
     for lg in logs:
         t0 = time.perf_counter()
         segs = find_segments(lg)
         seconds += time.perf_counter() - t0
-        tally_adapted.add(adapted_truth_segments(lg), segs)
-        if tally_raw is not None:
-            tally_raw.add(truth_segments(lg), segs)
+        tally.add(truth_segments(lg), segs)
     return seconds
 
 
@@ -116,26 +114,23 @@ def main(argv=None) -> int:
     say()
 
     # 1. recipes x plants x noise
-    main_t, raw_t = Tally(), Tally()
+    main_t = Tally()
     per_recipe = {r: Tally() for r in recipes}
     n_samples, seconds = 0, 0.0
     for rec in recipes:
         scale = duty_scale if rec in ("duty_cycle", "validation_ptp") else 1.0
         for pl in plants:
             for nz in noises:
-                logs = simulate_with_modes(rec, plant_variant(pl, nz), seed=args.seed, duration_scale=scale)
+                logs = simulate_recipe(rec, plant_variant(pl, nz), seed=args.seed, duration_scale=scale)
                 t = Tally()
-                seconds += tally_logs(logs, t, raw_t)
+                seconds += tally_logs(logs, t)
                 n_samples += sum(lg.n for lg in logs)
                 main_t.merge(t)
                 per_recipe[rec].merge(t)
     say(f"1. every recipe ({len(recipes)}) x every plant ({len(plants)}) x {len(noises)} noise level(s): "
         f"{n_samples / 1e6:.1f} M samples, segmented in {seconds:.1f} s")
-    say("   against the truth adapted to the segment definitions:")
     say(_indent(main_t.table()))
     say("   " + verdict(main_t))
-    say("   against the plant's labels as written (ramp up+hold+down = one segment, step hold+release = one):")
-    say(_indent(raw_t.table()))
     say("   per recipe (F1 of the kinds present in its truth):")
     for rec, t in per_recipe.items():
         f1s = ", ".join(f"{k} {t.prf(k)[2]:.3f}" for k in SEGMENT_KINDS if t.n_true[k] and k != "other")
@@ -147,7 +142,7 @@ def main(argv=None) -> int:
     recipe = session_recipe(40.0 if not args.quick else 40.0)
     for pl in plants:
         for nz in noises:
-            logs = simulate_with_modes(recipe, plant_variant(pl, nz), seed=args.seed)
+            logs = simulate_recipe(recipe, plant_variant(pl, nz), seed=args.seed)
             tally_logs(logs, sess_t)
     say(f"2. sessions: every experiment in one log with rests and repositioning moves "
         f"({len(plants)} plants x {len(noises)} noise level(s)):")
@@ -157,23 +152,25 @@ def main(argv=None) -> int:
 
     # 3. no experiment
     seeds = [args.seed] if args.quick else [args.seed, args.seed + 1, args.seed + 2]
-    found = {"ramp_presliding": 0, "step": 0, "duty_cycle": 0, "constant_velocity": 0}
+    ptp_t = Tally()
     n_logs = 0
     for pl in plants:
         for nz in noises:
             for sd in seeds:
-                for lg in random_ptp_logs(plant_variant(pl, nz), seed=sd):
-                    n_logs += 1
-                    for s in find_segments(lg):
-                        if s.kind in found:
-                            found[s.kind] += 1
-    say(f"3. no experiment: random point-to-point motion, {n_logs} joint logs "
+                logs = random_ptp_logs(plant_variant(pl, nz), seed=sd)
+                n_logs += len(logs)
+                tally_logs(logs, ptp_t)
+    found = ptp_t.n_det
+    say(f"3. no experiment: recipe random_ptp, {n_logs} joint logs "
         f"({len(plants)} plants x {len(noises)} noise x {len(seeds)} seeds, 40 moves each):")
     say(f"   ramp_presliding found: {found['ramp_presliding']}, step found: {found['step']}, "
         f"duty_cycle found: {found['duty_cycle']}  -> "
         + ("PASS" if found["ramp_presliding"] == 0 and found["step"] == 0 else "FAIL"))
     say(f"   (constant_velocity found on cruise phases of the moves: {found['constant_velocity']}; the "
         "plant labels moves 'other')")
+    p, r, f1 = ptp_t.prf("rest")
+    say(f"   rest: truth {ptp_t.n_true['rest']}, found {found['rest']}, precision {p:.3f}, recall {r:.3f}, "
+        f"F1 {f1:.3f}")
     say()
 
     # 4. sample rate and velocity channel
@@ -200,7 +197,7 @@ def main(argv=None) -> int:
     # 5. timing
     if not args.no_timing:
         say("5. timing of find_segments (one joint; a session log tiled to length):")
-        base = simulate_with_modes(recipe, plant_variant("direct_drive", 1.0), seed=args.seed)[0]
+        base = simulate_recipe(recipe, plant_variant("direct_drive", 1.0), seed=args.seed)[0]
         for n in ((1_000_000,) if args.quick else (1_000_000, 10_000_000)):
             lg = tiled(base, n)
             t0 = time.perf_counter()
@@ -215,9 +212,9 @@ def rate_logs(recipe: str, plant: str, fs: float, seed: int):
     sample of the drive running at 1 kHz (the plant's controller runs at the log's rate, and a 100 Hz
     position loop would not hold a plateau)."""
     if fs >= 1000.0:
-        return simulate_with_modes(recipe, plant_variant(plant, 1.0, sample_rate=fs), seed=seed)
+        return simulate_recipe(recipe, plant_variant(plant, 1.0, sample_rate=fs), seed=seed)
     k = int(round(1000.0 / fs))
-    return [decimated(lg, k) for lg in simulate_with_modes(recipe, plant_variant(plant, 1.0, sample_rate=1000.0),
+    return [decimated(lg, k) for lg in simulate_recipe(recipe, plant_variant(plant, 1.0, sample_rate=1000.0),
                                                           seed=seed)]
 
 

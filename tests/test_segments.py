@@ -11,11 +11,11 @@ import pandas as pd
 import pytest
 
 from conftest import hand_log
-from segscore import (Tally, adapted_truth_segments, decimated, plant_variant, random_ptp_logs,
-                      simulate_with_modes, truth_segments)
+from segscore import Tally, decimated, plant_variant, random_ptp_logs, truth_segments
 from frictid.data import SEGMENT_KINDS, JointLog
 from frictid.errors import LogFormatError
 from frictid.io.logs import write_logs
+from frictid.plant import simulate_recipe
 from frictid.io.segtable import read_segments, segments_frame, write_segments
 from frictid.segments import derivatives, estimate_scales, find_segments, noise_sigma, quantum
 
@@ -37,7 +37,7 @@ DUTY = {
 def _tally(logs) -> Tally:
     t = Tally()
     for lg in logs:
-        t.add(adapted_truth_segments(lg), find_segments(lg))
+        t.add(truth_segments(lg), find_segments(lg))
     return t
 
 
@@ -116,7 +116,7 @@ def test_too_short_a_log_has_no_segment():
 def recipe_logs():
     out = {}
     for rec in ("constant_velocity_sweep", "ramp_presliding", "torque_steps"):
-        out[rec] = [lg for pl in PLANTS for lg in simulate_with_modes(rec, plant_variant(pl), seed=0)]
+        out[rec] = [lg for pl in PLANTS for lg in simulate_recipe(rec, plant_variant(pl), seed=0)]
     return out
 
 
@@ -130,7 +130,7 @@ def test_presliding_ramps_on_every_plant(recipe_logs):
     # one row per monotonic ramp: up, hold, down is two ramps
     lg = recipe_logs["ramp_presliding"][0]
     ramps = [s for s in find_segments(lg) if s.kind == "ramp_presliding"]
-    assert len(ramps) == 2 * sum(1 for k, _, _ in truth_segments(lg) if k == "ramp_presliding")
+    assert len(ramps) == sum(1 for k, _, _ in truth_segments(lg) if k == "ramp_presliding") == 8
     assert all(np.sign(s.stats["tau_slope"]) == np.sign(s.stats["tau_end"] - s.stats["tau_start"]) for s in ramps)
     assert all(s.stats["stiffness"] > 0 for s in ramps if abs(s.stats["displacement"]) > 3 * 8.2e-5)
 
@@ -143,7 +143,7 @@ def test_torque_steps_on_every_plant(recipe_logs):
 
 
 def test_duty_cycles_one_row_per_cycle():
-    logs = simulate_with_modes(DUTY, plant_variant("geared_industrial"), seed=1)
+    logs = simulate_recipe(DUTY, plant_variant("geared_industrial"), seed=1)
     t = _tally(logs)
     _assert_f1(t, ["duty_cycle"])
     cyc = [s for s in find_segments(logs[0]) if s.kind == "duty_cycle"]
@@ -156,7 +156,7 @@ def test_duty_cycles_one_row_per_cycle():
 @pytest.mark.parametrize("noise", [0.3, 3.0])
 def test_low_and_high_noise(noise):
     logs = [lg for rec in ("ramp_presliding", "torque_steps") for pl in PLANTS
-            for lg in simulate_with_modes(rec, plant_variant(pl, noise), seed=2)]
+            for lg in simulate_recipe(rec, plant_variant(pl, noise), seed=2)]
     _assert_f1(_tally(logs), ["ramp_presliding", "step"])
 
 
@@ -188,9 +188,9 @@ def rate_logs():
         logs = []
         for rec in (CV_SHORT, "ramp_presliding"):
             if fs < 1000:  # a 100 Hz logger on a drive controlled at 1 kHz
-                logs += [decimated(lg, 10) for lg in simulate_with_modes(rec, plant_variant("direct_drive", 1.0, 1000.0))]
+                logs += [decimated(lg, 10) for lg in simulate_recipe(rec, plant_variant("direct_drive", 1.0, 1000.0))]
             else:
-                logs += simulate_with_modes(rec, plant_variant("direct_drive", 1.0, fs))
+                logs += simulate_recipe(rec, plant_variant("direct_drive", 1.0, fs))
         out[fs] = logs
     return out
 
@@ -208,7 +208,7 @@ def test_sample_rates_with_and_without_velocity(rate_logs, fs, qd_logged):
 
 
 def test_segments_do_not_depend_on_units():
-    lg = simulate_with_modes("torque_steps", plant_variant("direct_drive"), seed=4)[1]
+    lg = simulate_recipe("torque_steps", plant_variant("direct_drive"), seed=4)[1]
     ref = [(s.kind, s.i0, s.i1) for s in find_segments(lg)]
     scaled = replace(lg, tau=lg.tau * 3000.0, q=lg.q * 1e-3, qd=lg.qd * 1e-3, t=lg.t + 1e4)
     assert [(s.kind, s.i0, s.i1) for s in find_segments(scaled)] == ref
@@ -221,12 +221,12 @@ def test_segments_do_not_depend_on_units():
 @pytest.fixture(scope="module")
 def steps_log(tmp_path_factory):
     path = tmp_path_factory.mktemp("seg") / "steps.parquet"
-    write_logs(simulate_with_modes("torque_steps", plant_variant("hydraulic"), seed=0), str(path))
+    write_logs(simulate_recipe("torque_steps", plant_variant("hydraulic"), seed=0), str(path))
     return path
 
 
 def test_table_round_trips_in_every_format(tmp_path):
-    lg = simulate_with_modes("torque_steps", plant_variant("hydraulic"), seed=0)[0]
+    lg = simulate_recipe("torque_steps", plant_variant("hydraulic"), seed=0)[0]
     df = segments_frame([(lg, find_segments(lg))])
     assert list(df.columns[:5]) == ["joint", "kind", "t_start", "t_end", "n"]
     assert set(df["kind"]) <= set(SEGMENT_KINDS)
@@ -277,7 +277,7 @@ def test_cli_refuses_what_the_reader_refuses(tmp_path, cli):
 
 
 def test_cli_map_and_units(tmp_path, cli):
-    lg = simulate_with_modes("torque_steps", plant_variant("direct_drive"), seed=0)[0]
+    lg = simulate_recipe("torque_steps", plant_variant("direct_drive"), seed=0)[0]
     df = pd.DataFrame({"time": lg.t, "pos_deg": np.rad2deg(lg.q), "torque_mNm": lg.tau * 1e3})
     path = tmp_path / "vendor.csv"
     df.to_csv(path, index=False)

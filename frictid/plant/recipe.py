@@ -452,18 +452,23 @@ T_PLATEAU = 0.1
 T_STILL = 0.01
 #: A joint is still when that average is below this fraction of ``limits.velocity``.
 R_STILL = 5e-3
+#: A still joint is loaded while its drive torque changes by more than ``R_LOAD`` of the drive torque's
+#: range (0.1 to 99.9 percentile) within ``T_LOAD`` (docs/segments.md: R_RAMP and T_MIN).
+R_LOAD = 0.05
+T_LOAD = 0.2
 
 
-def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program) -> np.ndarray:
+def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray | None = None) -> np.ndarray:
     """Honest labels from the true velocity ``w``:
 
     - plateau samples become constant_velocity once the true velocity (``T_PLATEAU`` mean) has settled
       within 2 % (plus 0.1 % of the velocity limit) of the reference for the rest of the plateau;
     - leading samples of a closed-loop rest stay ``other`` until the joint has stopped (``T_STILL`` mean
       below ``R_STILL`` of the limit);
-    - a rest lasts while the joint is still: the still samples at the start of the move that follows it
-      (the joint stuck while the controller loads it up to break-away, e.g. a slow fade-in) and at the end
-      of the move before it (the joint stopped before its reference) are ``rest``, not ``other``."""
+    - with the drive torque ``u`` [F]: a rest lasts while the joint is still and not loaded (its torque
+      changing by less than ``R_LOAD`` of the torque range within ``T_LOAD``): such samples at the start
+      of the move that follows a rest (a slow fade-in: the reference moves, the joint and its torque not
+      yet) and at the end of the move before it (the joint stopped before its reference) are ``rest``."""
     label = label.copy()
     vmax = pr.joint.limits.velocity
     m = max(1, int(round(T_PLATEAU * pr.fs)))
@@ -485,25 +490,32 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program) -> np.ndarray:
                 label[i0:i0 + last] = L["other"]
             else:
                 label[i0:i1] = L["other"]
-    return _still_moves_rest(label, _smooth(w, m), tol_rest)
+    if u is None:
+        return label
+    u = np.asarray(u, dtype=float)
+    k = max(1, int(round(T_LOAD * pr.fs)))
+    up = np.pad(u, (k // 2, k - k // 2), mode="edge")
+    loading = np.abs(up[k:] - up[:-k]) > R_LOAD * float(np.subtract(*np.percentile(u, [99.9, 0.1])))
+    return _still_moves_rest(label, np.abs(_smooth(w, m)) > tol_rest, loading)
 
 
-def _still_moves_rest(label: np.ndarray, ws: np.ndarray, tol: float) -> np.ndarray:
-    """Extend every ``rest`` run over the still samples (``|ws| <= tol``) of adjacent ``other`` runs."""
+def _still_moves_rest(label: np.ndarray, moving: np.ndarray, loading: np.ndarray) -> np.ndarray:
+    """Extend every ``rest`` run over the samples of adjacent ``other`` runs until the joint moves or is
+    loaded."""
     change = np.flatnonzero(label[1:] != label[:-1]) + 1
     starts = np.concatenate(([0], change))
     ends = np.concatenate((change, [label.size]))
     kinds = label[starts]
-    moving = np.abs(ws) > tol
+    busy = moving | loading
     for k in range(len(kinds)):
         if kinds[k] != L["rest"]:
             continue
         if k + 1 < len(kinds) and kinds[k + 1] == L["other"]:
             a, b = int(ends[k]), int(ends[k + 1])
-            mv = np.flatnonzero(moving[a:b])
+            mv = np.flatnonzero(busy[a:b])
             label[a:a + (int(mv[0]) if mv.size else b - a)] = L["rest"]
         if k > 0 and kinds[k - 1] == L["other"]:
             a, b = int(starts[k - 1]), int(starts[k])
-            mv = np.flatnonzero(moving[a:b])
+            mv = np.flatnonzero(busy[a:b])
             label[a + (int(mv[-1]) + 1 if mv.size else 0):b] = L["rest"]
     return label

@@ -60,8 +60,13 @@ R_RAMP = 0.05
 #: A ramp changes the torque by at least this many standard errors of its fitted change (and by
 #: two noise levels).
 K_RAMP = 10.0
-#: The torque of a hold under a constant (open-loop) torque has ended when it gets this much noisier.
-R_NOISIER = 1.5
+#: The torque of a hold under a constant (open-loop) torque has ended when it gets noisier: by
+#: K_NOISE standard errors and at least this factor ...
+R_NOISIER = 1.2
+#: ... where the relative standard error of the mean |first difference| of n white-noise samples is
+#: R_ABSDIFF / sqrt(n) (sqrt(pi/2 - 1) = 0.755 for independent values, times 1.2 for the correlation of
+#: neighbouring differences).
+R_ABSDIFF = 0.91
 #: A ramp is a straight line: residual standard deviation at most this many torque noise levels ...
 R_LINE = 1.5
 #: ... and no significant bend larger than this fraction of its torque change.
@@ -235,7 +240,7 @@ def _flat_end(f: Features, a: int, b: int) -> int:
     """End of the flat torque that starts at ``a`` (at most ``b``): the first chunk of ``m`` samples whose
     mean leaves the mean of the chunks before it by more than ``K_NOISE`` standard errors, or where the
     torque gets noisier (a controller taking over a still joint: two chunks in a row whose mean absolute
-    difference exceeds ``R_NOISIER`` times that of the first chunks, or one twice as much)."""
+    difference exceeds that of all chunks before them by ``K_NOISE`` standard errors and ``R_NOISIER``)."""
     m = max(f.sc.window_w, f.h // 4, 2)
     nchunk = (b - a) // m
     if nchunk < 3:
@@ -248,15 +253,24 @@ def _flat_end(f: Features, a: int, b: int) -> int:
     off = np.concatenate(([False], np.abs(x[1:] - level) > K_NOISE * se * np.sqrt(1.0 + 1.0 / k)
                           + f.sc.tau_step))
     end = b if not off.any() else a + int(np.argmax(off)) * m
-    mn = max(m, 128)  # enough differences per chunk for a noise level known to about 7 %
+    mn = max(m, 128)  # enough differences per chunk for a noise level known to about 8 %
     nn = (end - a) // mn
     if nn >= 5:
         rough = np.mean(np.abs(np.diff(f.tau[a:a + nn * mn].reshape(nn, mn), axis=1)), axis=1)
-        ref = float(np.median(rough[:3]))
-        hi = rough > R_NOISIER * ref
-        k = np.flatnonzero((hi & np.concatenate((hi[1:], [False]))) | (rough > 2.0 * ref))
-        if ref > 0 and k.size:
-            end = min(end, a + int(k[0]) * mn)
+        # from chunk c on (c >= 3) the torque is noisier when the mean roughness of the next (up to 4)
+        # chunks exceeds that of all chunks before c by K_NOISE standard errors and by R_NOISIER
+        c = np.arange(3, nn)
+        cs = np.concatenate(([0.0], np.cumsum(rough)))
+        before = cs[c] / c
+        na = np.minimum(4, nn - c)
+        after = (cs[c + na] - cs[c]) / na
+        se = R_ABSDIFF / math.sqrt(mn) * np.sqrt(1.0 / c + 1.0 / na)
+        k = np.flatnonzero((after > before * (1.0 + K_NOISE * se)) & (after > R_NOISIER * before))
+        if k.size and before[k[0]] > 0:
+            # the change is in the window: at its first chunk rougher than halfway between the levels
+            c0, c1 = int(c[k[0]]), int(c[k[0]] + na[k[0]])
+            mid = 0.5 * (before[k[0]] + after[k[0]])
+            end = min(end, a + (c0 + int(np.argmax(rough[c0:c1] > mid))) * mn)
     return end
 
 

@@ -20,6 +20,7 @@ and repeat the same velocity profile. The search works on onsets of motion, not 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from .runs import fill_short, runs
 
@@ -82,11 +83,24 @@ def _difference(sig: _Signal, a: int, b: int, P: int) -> float:
         return np.inf
     if not (sig.rest_and_motion(a, a + P) and sig.rest_and_motion(b, b + P)):
         return np.inf
-    x, y = w[a:a + P:stride], w[b:b + P:stride]
-    scale = max(float(np.sqrt(np.mean(x * x))), float(np.sqrt(np.mean(y * y))))
-    if scale <= 0:
+    return _rel_rms(w, a, b, P, stride)
+
+
+@njit(cache=True)
+def _rel_rms(w, a, b, P, stride):  # pragma: no cover - compiled; twin: _rel_rms.py_func
+    """RMS of ``w[a:a+P:stride] - w[b:b+P:stride]`` over the larger RMS of the two; inf when both are 0.
+    One pass, no temporaries: this is the inner loop of the chain search."""
+    sxx = syy = sdd = 0.0
+    for k in range(0, P, stride):
+        x = w[a + k]
+        y = w[b + k]
+        sxx += x * x
+        syy += y * y
+        sdd += (x - y) * (x - y)
+    scale = max(sxx, syy)
+    if scale <= 0.0:
         return np.inf
-    return float(np.sqrt(np.mean((x - y) ** 2))) / scale
+    return np.sqrt(sdd / scale)
 
 
 def _similar(w: _Signal, a: int, b: int, P: int) -> bool:
