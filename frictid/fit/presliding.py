@@ -30,6 +30,8 @@ import numpy as np
 from numba import njit
 from scipy.optimize import least_squares
 
+from frictid.models.lugre import _FM, dviscous_nb, level_slope_nb, lugre_core, viscous_nb
+
 #: Minimum presliding displacement, in encoder counts, for sigma0 to be identifiable.
 MIN_COUNTS = 20
 
@@ -178,46 +180,99 @@ def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float
                            "(LuGre in the displacement domain)", len(ramps), rms, det)
 
 
+@njit(cache=True, error_model="numpy", fastmath=_FM)
+def _simulate_step_nb(t, u, q0, w0, J, sigma0, sigma1, c_pos, c_neg, z0, substeps):
+    n = t.shape[0]
+    q = np.empty(n)
+    q[0] = q0
+    qi = q0
+    wi = w0
+    zi = z0
+    iJ = 1.0 / J
+    for i in range(n - 1):
+        h = (t[i + 1] - t[i]) / substeps
+        ui = u[i]
+        for _ in range(substeps):
+            c = c_pos if wi >= 0.0 else c_neg
+            g, dg = level_slope_nb(abs(wi), c)
+            qi, wi, zi, _ = lugre_core(qi, wi, zi, ui, h, iJ, sigma0, sigma1, max(g, 1e-12), dg,
+                                       viscous_nb(wi, c), dviscous_nb(wi, c))
+        q[i + 1] = qi
+    return q
+
+
 def simulate_step(t: np.ndarray, u: np.ndarray, q0: float, w0: float, J: float, sigma0: float,
-                  sigma1: float, level, viscous, z0: float, substeps: int = 2) -> np.ndarray:
+                  sigma1: float, c_pos, c_neg, z0: float, substeps: int = 2) -> np.ndarray:
     """Position [q] of ``J w' = u - sigma0 z - sigma1 z' - f(w)``, ``z' = w - sigma0 |w| z / g(w)``.
 
-    u [F] : net driving torque (tau - gravity - offset) per sample, held between samples; level(w) -> g
-    [F] and viscous(w) -> f [F] are scalar callables. Each substep is the exact step of the system
-    linearised at its start (:func:`frictid.models.lugre.lugre_step`), stable for the stiff bristles.
+    t [s] sample times; u [F] : net driving torque (tau - gravity - offset) per sample, held between
+    samples; q0 [q], w0 [q/s], z0 [q] the start state; J [F s^2/q]; sigma0 [F/q], sigma1 [F s/q].
+    c_pos, c_neg : canonical static vectors (:data:`frictid.models.static.CANON`) for ``w >= 0`` and
+    ``w < 0``, giving the level g [F] and the viscous part f [F] (scalar callables ``level(w)``,
+    ``viscous(w)`` are accepted too and run :func:`simulate_step_ref`, the python twin). Each of the
+    ``substeps`` per sample is the exact step of the system linearised at its start
+    (:func:`frictid.models.lugre.lugre_core`, analytic slopes of g and f), stable for the stiff bristles.
+    Compiled (numba).
     """
-    import inspect
+    if callable(c_pos):
+        return _simulate_step_py(t, u, q0, w0, J, sigma0, sigma1, c_pos, c_neg, z0, substeps)
+    return _simulate_step_nb(np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(u, dtype=float),
+                             float(q0), float(w0), float(J), float(sigma0), float(sigma1),
+                             np.ascontiguousarray(c_pos, dtype=float), np.ascontiguousarray(c_neg, dtype=float),
+                             float(z0), int(substeps))
 
-    from frictid.models.lugre import lugre_step
 
-    with_dg = "dg" in inspect.signature(getattr(lugre_step, "py_func", lugre_step)).parameters
+def simulate_step_ref(t, u, q0, w0, J, sigma0, sigma1, c_pos, c_neg, z0, substeps=2):
+    """Plain-python twin of :func:`simulate_step` (for the tests): the map from
+    :mod:`frictid.models.static`'s vectorised functions, the slopes of g and f by central differences,
+    the step by :func:`frictid.models.lugre.lugre_step_ref` (scipy's matrix exponential)."""
+    from frictid.models.lugre import lugre_step_ref
+    from frictid.models.static import canonical_level, canonical_viscous
+
+    def level(w):
+        return float(canonical_level(w, c_pos if w >= 0 else c_neg))
+
+    def viscous(w):
+        return float(canonical_viscous(w, c_pos if w >= 0 else c_neg))
+
+    return _simulate_step_py(t, u, q0, w0, J, sigma0, sigma1, level, viscous, z0, substeps, lugre_step_ref)
+
+
+def _simulate_step_py(t, u, q0, w0, J, sigma0, sigma1, level, viscous, z0, substeps, step=None):
+    """The step simulation as a python loop over scalar callables level(w) [F] and viscous(w) [F]."""
+    if step is None:
+        from frictid.models.lugre import lugre_step as step
     n = t.shape[0]
     q = np.empty(n)
     q[0] = q0
     qi, wi, zi = float(q0), float(w0), float(z0)
-    eps = 1e-9
+    eps = 1e-7
     for i in range(n - 1):
         h = (t[i + 1] - t[i]) / substeps
         ui = float(u[i])
         for _ in range(substeps):
+            sg = 1.0 if wi >= 0 else -1.0
+            v = abs(wi)
             g = max(level(wi), 1e-12)
             f = viscous(wi)
             fp = (viscous(wi + eps) - viscous(wi - eps)) / (2 * eps)
-            if with_dg:  # the kernel linearises with the slope of g too
-                dg = (level(abs(wi) + eps) - level(max(abs(wi) - eps, 0.0))) / (2 * eps)
-                qi, wi, zi = lugre_step(qi, wi, zi, ui, h, J, sigma0, sigma1, g, dg, f, fp)
-            else:
-                qi, wi, zi = lugre_step(qi, wi, zi, ui, h, J, sigma0, sigma1, g, f, fp)
+            lo = max(v - eps, 0.0)
+            dg = (level(sg * (v + eps)) - level(sg * lo)) / (v + eps - lo)
+            qi, wi, zi = step(qi, wi, zi, ui, h, J, sigma0, sigma1, g, dg, f, fp)
         q[i + 1] = qi
     return q
 
 
 def fit_sigma1_steps(steps: list[tuple[np.ndarray, np.ndarray, np.ndarray]], J: float, sigma0: float,
-                     level, viscous, sigma2: float, resolution: float = 0.0, min_steps: int = 3
-                     ) -> DynamicEstimate:
+                     c_pos, c_neg, sigma2: float, resolution: float = 0.0, min_steps: int = 3,
+                     starts: tuple[float, ...] | None = None) -> DynamicEstimate:
     """sigma1 [F s/q] by simulation-error fit on step segments.
 
     steps : list of (t [s], q [q], u [F]) per step segment, u = tau - gravity - offset.
+    c_pos, c_neg : canonical vectors of the static map (or scalar callables level(w), viscous(w), which
+    run the python twin of the step simulation). starts : initial sigma1 values [F s/q] (default 0.9,
+    0.2 and 3 times critical damping). The step-to-step spread refits each step alone from the joint
+    optimum (one start).
     """
     usable = []
     for t, q, u in steps:
@@ -232,17 +287,30 @@ def fit_sigma1_steps(steps: list[tuple[np.ndarray, np.ndarray, np.ndarray]], J: 
     crit = 2 * math.sqrt(sigma0 * J)
     hi = 20 * crit
 
+    if callable(c_pos):
+        g0 = float(c_pos(0.0))
+    else:
+        c_pos = np.ascontiguousarray(c_pos, dtype=float)
+        c_neg = np.ascontiguousarray(c_neg, dtype=float)
+        g0 = float(level_slope_nb(0.0, c_pos)[0])
+    prep = []
+    for t, q, u in usable:
+        t = np.ascontiguousarray(t, dtype=float)
+        u = np.ascontiguousarray(u, dtype=float)
+        q = np.asarray(q, dtype=float)
+        z0 = float(np.clip(u[0] / sigma0, -g0 / sigma0, g0 / sigma0))
+        prep.append((t, q, u, z0, 1.0 / max(np.ptp(q), 1e-15)))
+
     def resid(p):
         s1 = p[0]
         out = []
-        for t, q, u in usable:
-            z0 = float(np.clip(u[0] / sigma0, -level(0.0) / sigma0, level(0.0) / sigma0))
-            qs = simulate_step(t, u, q[0], 0.0, J, sigma0, s1, level, viscous, z0)
-            out.append((qs - q) / max(np.ptp(q), 1e-15))
+        for t, q, u, z0, iscale in prep:
+            qs = simulate_step(t, u, q[0], 0.0, J, sigma0, s1, c_pos, c_neg, z0)
+            out.append((qs - q) * iscale)
         return np.concatenate(out)
 
     best = None
-    for s in (0.9 * crit, 0.2 * crit, 3 * crit):
+    for s in (starts if starts is not None else (0.9 * crit, 0.2 * crit, 3 * crit)):
         try:
             r = least_squares(resid, [min(max(s, 1e-9), hi * 0.99)], bounds=([0.0], [hi]), x_scale=[crit])
         except ValueError:
@@ -261,7 +329,7 @@ def fit_sigma1_steps(steps: list[tuple[np.ndarray, np.ndarray, np.ndarray]], J: 
     if len(usable) >= 3:  # step-to-step spread: honest when quantisation or noise bias single steps
         singles = []
         for st in usable:
-            e = fit_sigma1_steps([st], J, sigma0, level, viscous, sigma2, 0.0, min_steps=1)
+            e = fit_sigma1_steps([st], J, sigma0, c_pos, c_neg, sigma2, 0.0, min_steps=1, starts=(s1,))
             if e.value is not None:
                 singles.append(e.value)
         if len(singles) >= 3:
