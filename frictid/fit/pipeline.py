@@ -973,7 +973,7 @@ def _lugre(jf: JointFit, preps, selected, used, axis, F0, w0) -> None:
     J = jf.inertia.value if jf.inertia and jf.inertia.value else None
     sig2 = c_pos[6] if abs(c_pos[6]) > 0 else 0.0
     if s0.identifiable and J:
-        s1 = pre.fit_sigma1_steps([(t, q, u) for t, q, u, *_ in steps], J, s0.value, level, viscous, sig2,
+        s1 = pre.fit_sigma1_steps([(t, q, u) for t, q, u, *_ in steps], J, s0.value, c_pos, c_neg, sig2,
                                   resolution)
         if not s1.identifiable:
             why_steps = s1.reason
