@@ -73,13 +73,17 @@ class ReplayModel:
 
     def gravity(self, q, payload=None):
         """Gravity and offset torque G(q) [F] (payload [kg] per sample or None)."""
-        n = 0 if q is None else np.shape(q)[0]
-        G = np.full(n, self.offset, dtype=float) if q is not None else np.asarray(self.offset, dtype=float)
         if q is None:
-            return G
+            return np.asarray(self.offset, dtype=float)
         q = np.asarray(q, dtype=float)
-        if self.axis == "rotary":
-            G = G + self.Px * np.cos(q) + self.Py * np.sin(q)
+        if self.axis == "rotary" and (self.Px or self.Py):
+            # Px cos q + Py sin q = R cos(q - phi): one trigonometric function per sample instead of two
+            G = np.subtract(q, math.atan2(self.Py, self.Px))
+            np.cos(G, out=G)
+            G *= math.hypot(self.Px, self.Py)
+            G += self.offset
+        else:
+            G = np.full(q.shape[0], self.offset, dtype=float)
         if payload is not None:
             pay = np.asarray(payload, dtype=float)
             G = G + (self.Mx * pay * (np.cos(q) if self.axis == "rotary" else 1.0))
@@ -278,19 +282,27 @@ def multipliers(model: ReplayModel, t_abs, q, a, payload, G=None) -> tuple[np.nd
     G [F] the gravity torque without the offset (default from the model).
     """
     ext = model.ext
-    a = np.nan_to_num(np.asarray(a, dtype=float))
-    n = a.shape[0]
+    n = np.shape(a)[0]
     gmul = np.ones(n)
     if q is not None and (ext.get("pos_amp") or ext.get("pos_lin") or ext.get("pos_quad")):
-        gmul = gmul * position_factor(q, ext)
+        gmul *= position_factor(q, ext)
     if ext.get("load_torque") or ext.get("load_gravity") or ext.get("load_payload"):
+        a = np.nan_to_num(np.asarray(a, dtype=float))
         if G is None:
             G = model.gravity(q, payload) - model.offset if q is not None else np.zeros(n)
-        gmul = gmul * load_factor(np.abs(model.J * a + G), np.abs(G), payload, ext)
+        gmul *= load_factor(np.abs(model.J * a + G), np.abs(G), payload, ext)
     d = drift_factor(t_abs, ext)
-    fmul = np.ones(n) * d
-    gmul = gmul * d
-    return np.ascontiguousarray(gmul), np.ascontiguousarray(fmul)
+    fmul = np.ones(n)
+    if np.ndim(d) or d != 1.0:
+        fmul *= d
+        gmul *= d
+    return gmul, fmul
+
+
+def _finite(x) -> np.ndarray:
+    """x as float64 (no copy when it already is), NaN and infinities replaced by numbers only if present."""
+    x = np.asarray(x, dtype=float)
+    return x if np.isfinite(x).all() else np.nan_to_num(x)
 
 
 def thermal_input(model: ReplayModel, log: JointLog, n: int) -> dict | None:
@@ -312,21 +324,26 @@ def thermal_input(model: ReplayModel, log: JointLog, n: int) -> dict | None:
     return out
 
 
-def replay(log: JointLog, model: ReplayModel, w=None, a=None, t_offset: float | None = None) -> ReplayResult:
+def replay(log: JointLog, model: ReplayModel, w=None, a=None, t_offset: float | None = None,
+           scales=None) -> ReplayResult:
     """Predicted friction and torque of ``model`` along ``log`` (one value per sample).
 
     w, a : velocity [q/s] and acceleration [q/s^2] to use (default: :func:`frictid.segments.derivatives`,
     as the fit uses them). t_offset [s] : where the log starts on the drift clock (default: its metadata
-    ``start_time`` when the model was identified with one, else 0).
+    ``start_time`` when the model was identified with one, else 0). scales : the log's
+    :class:`frictid.segments.Scales` when the caller has them; measured only when needed (for the
+    derivatives, and for a static model's stick zone).
     """
-    from .segments import derivatives, estimate_scales
-    sc = estimate_scales(log)
+    sc = scales
     if w is None or a is None:
+        from .segments import derivatives, estimate_scales
+        sc = sc or estimate_scales(log)
         w0, a0 = derivatives(log, sc)
         w = w0 if w is None else w
         a = a0 if a is None else a
     w = np.asarray(w, dtype=float)
     a = np.asarray(a, dtype=float)
+    wf, af = _finite(w), _finite(a)
     n = log.n
     notes = []
     payload = log.channels.get("payload")
@@ -337,19 +354,34 @@ def replay(log: JointLog, model: ReplayModel, w=None, a=None, t_offset: float | 
     if t_offset is None:
         start = log_start_time(log)
         t_offset = (start if (start is not None and model.ext.get("drift_t0")) else 0.0)
-    gmul, fmul = multipliers(model, log.t + t_offset, q, a, payload, None if q is None else G - model.offset)
+    t_abs = log.t + t_offset if model.ext.get("drift_per_hour") else None
+    G_ext = None
+    if q is not None and (model.ext.get("load_torque") or model.ext.get("load_gravity")):
+        G_ext = G - model.offset
+    gmul, fmul = multipliers(model, t_abs, q, af, payload, G_ext)
     th = thermal_input(model, log, n)
     sig0 = model.sigma0
     off = model.ext.get("tau_offset", 0.0)
-    u_net = np.asarray(log.tau, dtype=float) - model.J * np.nan_to_num(a) - G - off
-    w_stick = STICK_NOISE * sc.sigma_w if sig0 is None else 0.0
-    F, z, T = replay_friction(log.t, np.nan_to_num(w), model.c_pos, model.c_neg, gmul=gmul, fmul=fmul,
-                              sigma0=sig0, sigma1=model.sigma1 if sig0 is not None else 0.0, thermal=th,
-                              u_stick=u_net if sig0 is None else None, w_stick=w_stick)
-    F = F + off
-    tau_model = model.J * np.nan_to_num(a) + G + F
-    return ReplayResult(F_model=F, tau_model=tau_model, residual=np.asarray(log.tau) - tau_model, z=z, T=T,
-                        w=w, a=a, notes=notes)
+    tau = np.asarray(log.tau, dtype=float)
+    Ja = model.J * af
+    if sig0 is None:
+        # Karnopp's stick zone: the net applied torque, within STICK_NOISE velocity noise levels of rest
+        if sc is None:
+            from .segments import estimate_scales
+            sc = estimate_scales(log)
+        u_net = tau - Ja - G - off
+        F, z, T = replay_friction(log.t, wf, model.c_pos, model.c_neg, gmul=gmul, fmul=fmul, thermal=th,
+                                  u_stick=u_net, w_stick=STICK_NOISE * sc.sigma_w)
+    else:
+        F, z, T = replay_friction(log.t, wf, model.c_pos, model.c_neg, gmul=gmul, fmul=fmul, sigma0=sig0,
+                                  sigma1=model.sigma1, thermal=th)
+    if off:
+        F += off
+    tau_model = Ja
+    tau_model += G
+    tau_model += F
+    return ReplayResult(F_model=F, tau_model=tau_model, residual=tau - tau_model, z=z, T=T, w=w, a=a,
+                        notes=notes)
 
 
 # ---------------------------------------------------------------------------------------------------
