@@ -721,61 +721,134 @@ def _diagnose(jf: JointFit, preps) -> None:
         diagnose_joint(jf, logs)
 
 
-#: The diagnosis' end model replaces the fit's choice only when it predicts the fit's own basis (the
-#: plateau means, or the moving samples) with at most this factor of the choice's RMS error.
+#: The diagnosis' end model replaces the fit's choice only when its held-out error on the fit's own basis
+#: (plateau means or moving samples, with each model's static map refitted without the held-out fold) is
+#: at most this factor of the choice's.
 DIAGNOSIS_TOLERANCE = 1.05
+#: Diagnosis extensions that average out over the joint's travel (a periodic level factor of position):
+#: when one is kept, the static maps are refitted on plateau means with its effect taken out.
+MEAN_FREE_EXTENSIONS = ("position_periodic",)
 
 
-def _check_diagnosis(jf: JointFit, preps, choice: str, basis: str, keys, min_speed: float, excl) -> None:
-    """Keep the fit's choice when the diagnosis' end model predicts the measured torque worse on the fit's
-    basis: the mean torque of each plateau (plateau basis) or every moving sample (sample basis), both
-    models replayed along each log (:func:`frictid.replay.replay`). The diagnosis fits its extensions on
-    sliding samples only (near-constant velocity, small inertial torque) and starts from a symmetric map;
-    an extension fitted there can be degenerate elsewhere (a polynomial refitted on two or three plateau
-    speeds), or a symmetric map plus an offset can miss a per-sign map's shape. The findings stay listed."""
+def _static_targets(jf: JointFit, preps, name: str):
+    """Per log, the torque that model ``name``'s static map has to explain once the model's other terms
+    (rigid body, offset, extension factors, thermal state) are replayed: ``tau - tau_model + s(w)`` [F], s
+    the model's static map at the samples' velocity. For a plain static map it is the friction torque
+    ``tau - J a - G - offset``. Returns (map name, static values, [array per log])."""
+    from frictid.replay import joint_model, replay
+
+    mf = jf.models[name]
+    m = joint_model(jf, name)
+    vals = mf.values()
+    out = []
+    for p in preps:
+        r = replay(p.log, m, w=p.w, a=p.a).residual
+        out.append(r + predict(mf.map, vals, p.w))
+    return mf.map, vals, out
+
+
+def _target_plateaus(preps, Y) -> Plateaus:
+    """Plateau points of per-log target series Y (same segments, trim and batch means as the fit's)."""
+    pls = [plateau_points(p.log.t, p.w, y, p.segments) for p, y in zip(preps, Y)]
+    pls = [pl for pl in pls if len(pl)]
+    if not pls:
+        z = np.zeros(0)
+        return Plateaus(z, z, z, z, z.astype(int), z, z, z.astype(int))
+    return Plateaus(*(np.concatenate([getattr(c, f) for c in pls]) for f in
+                      ("w", "F", "F_se", "w_se", "n", "t_start", "t_end", "seg")))
+
+
+def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds):
+    """Held-out RMS [F] of model ``name`` on the fit's basis: its static map refitted without each fold
+    (plateau folds, or the time blocks of the sample basis) on the targets of :func:`_static_targets`, the
+    rest of the model held. Returns (rms_heldout, refit ModelFit, target Plateaus or None)."""
+    mapname, _, Y = _static_targets(jf, preps, name)
+    if basis == "plateaus":
+        pl = _target_plateaus(preps, Y)
+        if len(pl) < 4:
+            return math.nan, None, pl
+        mf = fit_static(mapname, pl.w, pl.F, pl.F_se, axis=jf.axis)
+        rh = sel.heldout_static(mapname, pl, n_folds, axis=jf.axis, full=mf)
+        return (rh if rh is not None else math.nan), mf, pl
+    from types import SimpleNamespace
+    pseudo = [SimpleNamespace(log=p.log, w=p.w, F=y, segments=p.segments) for p, y in zip(preps, Y)]
+    S = smp.build(pseudo, min_speed, n_folds, exclude=excl)
+    if S is None:
+        return math.nan, None, None
+    mf = smp.fit_map(mapname, S, jf.axis)
+    rh = mf.metrics.get("rms_heldout")
+    return (rh if rh is not None else math.nan), mf, None
+
+
+def _check_diagnosis(jf: JointFit, preps, choice: str, basis: str, keys, min_speed: float, excl,
+                     n_folds: int = 5) -> None:
+    """Keep the fit's choice when the diagnosis' end model predicts the fit's basis worse on held-out data.
+
+    Both models are judged the same way: the static map of each is refitted without each fold (plateau
+    folds by segment, or the time blocks of the sample basis) to the torque it has to explain once the
+    model's other terms are replayed along the logs (:func:`_static_targets`; the extension terms stay at
+    the diagnosis' values, which its own held-out test chose), and predicts the held-out fold. The
+    diagnosis fits its extensions on sliding samples and starts from a symmetric map; an extension fitted
+    there can be degenerate elsewhere (a polynomial refitted on two or three plateau speeds), or a
+    symmetric map plus an offset can miss a per-sign map's shape. A genuine finding (a temperature or
+    position effect) takes its effect out of the held-out plateaus and so predicts them better. The
+    findings stay listed. When the kept model has a periodic position factor, the plateau-basis static
+    maps are refitted with its effect taken out (:func:`_refit_static_maps`)."""
     if jf.selected in (None, choice):
         return
     from frictid.errors import ConfigError
-    from frictid.replay import joint_model, replay
-
-    def rms(name):
-        m = joint_model(jf, name)
-        res = [replay(p.log, m, w=p.w, a=p.a).residual for p in preps]
-        if basis == "plateaus":
-            means = []
-            for pi_, si in keys:
-                s = preps[int(pi_)].segments[int(si)]
-                cut = int(0.1 * s.n)
-                r = res[int(pi_)][s.i0 + cut:s.i1 - cut]
-                r = r[np.isfinite(r)]
-                if r.size:
-                    means.append(float(r.mean()))
-            return math.sqrt(float(np.mean(np.square(means)))) if means else math.nan
-        e2, n = 0.0, 0
-        for p, r in zip(preps, res):
-            mask = np.isfinite(r) & (np.abs(p.w) > min_speed)
-            for s in p.segments:
-                if s.kind in excl:
-                    mask[s.i0:s.i1] = False
-            e2 += float(np.sum(r[mask] ** 2))
-            n += int(mask.sum())
-        return math.sqrt(e2 / n) if n else math.nan
 
     try:
-        e_diag, e_fit = rms(jf.selected), rms(choice)
+        e_diag, mf_diag, pl_diag = _heldout_on_basis(jf, preps, jf.selected, basis, min_speed, excl, n_folds)
+        e_fit, _, _ = _heldout_on_basis(jf, preps, choice, basis, min_speed, excl, n_folds)
     except (ConfigError, FrictidInputError, KeyError, ValueError):
         return
     what = "the plateau means" if basis == "plateaus" else "the moving samples"
-    rec = {"model": jf.selected, "rms": e_diag, "fit_choice": choice, "rms_fit_choice": e_fit,
-           "rule": f"the diagnosis' model is selected when its torque RMS on {what} (replayed) is at most "
+    rec = {"model": jf.selected, "rms_heldout": e_diag, "fit_choice": choice, "rms_heldout_fit_choice": e_fit,
+           "rule": f"the diagnosis' model is selected when its held-out torque RMS on {what} (each model's "
+                   f"static map refitted without the held-out fold, its other terms replayed) is at most "
                    f"{DIAGNOSIS_TOLERANCE:g} x that of the fit's choice"}
     if math.isfinite(e_diag) and math.isfinite(e_fit) and e_diag > DIAGNOSIS_TOLERANCE * e_fit:
         rec["kept"] = choice
-        jf.warnings.append(f"the diagnosis' model {jf.selected} predicts the torque on {what} worse (RMS "
-                           f"{e_diag:.4g}) than the fit's choice {choice} ({e_fit:.4g}): {choice} stays "
+        jf.warnings.append(f"the diagnosis' model {jf.selected} predicts the torque on held-out {what} worse "
+                           f"(RMS {e_diag:.4g}) than the fit's choice {choice} ({e_fit:.4g}): {choice} stays "
                            "selected; the findings are kept as evidence")
         jf.selected = choice
+    elif basis == "plateaus" and pl_diag is not None and len(pl_diag):
+        ext = set((jf.models[jf.selected].extra or {}).get("extensions") or ())
+        mean_free = sorted(ext & set(MEAN_FREE_EXTENSIONS))
+        if mean_free and ext <= set(MEAN_FREE_EXTENSIONS):
+            rec["static_maps_refitted"] = _refit_static_maps(jf, pl_diag, n_folds, jf.selected, mean_free)
     jf.selection["diagnosis_check"] = rec
+
+
+def _refit_static_maps(jf: JointFit, pl: Plateaus, n_folds: int, source: str, exts) -> list[str]:
+    """Refit the plateau-basis static maps on plateau means with a mean-free extension's effect taken out.
+
+    A periodic position factor averages to one over its period, so the velocity-only map is the friction
+    averaged over position; a plateau that travels less than a period (a slow one) measures it biased by
+    the factor at the positions it happens to cover (the linear slide: 0.14 periods at its lowest speed,
+    7 % of the friction). The plateau means with the kept model's factor replayed out are that average.
+    Models the choice did not fit on plateaus (polynomial_ls, the diagnosis' own) are left alone; LuGre
+    takes the refitted values of its static map."""
+    done = []
+    for name, mf in list(jf.models.items()):
+        if name not in sm.map_names() or (mf.extra or {}).get("basis") == "moving samples":
+            continue
+        new = fit_static(name, pl.w, pl.F, pl.F_se, axis=jf.axis)
+        new.metrics["rms_heldout"] = sel.heldout_static(name, pl, n_folds, axis=jf.axis, full=new)
+        new.notes = list(mf.notes) + [f"refitted on plateau means with {source}'s {', '.join(exts)} effect "
+                                      "replayed out (the friction averaged over position)"]
+        new.extra = dict(mf.extra or {}, refitted_without=list(exts))
+        jf.models[name] = new
+        done.append(name)
+    lug = jf.models.get("lugre")
+    if lug is not None and (lug.extra or {}).get("static_model") in done:
+        base = jf.models[lug.extra["static_model"]]
+        for k, pe in base.params.items():
+            lug.params[k] = ParamEstimate(**vars(pe))
+        lug.notes = list(lug.notes) + [f"static part refitted with {', '.join(exts)} replayed out"]
+    return done
 
 
 def _plateaus(jf, preps, axis):
@@ -1077,12 +1150,18 @@ def _thermal(jf: JointFit, preps, th_wanted, used, axis, min_speed, n_folds) -> 
         jf.warnings.append(f"duty cycles form {len(runs)} runs separated by rests; each run is taken to "
                            "start cold (joint temperature = temp_env), as in 002's protocol")
     F_unit = unit_of("F", axis)
-    for m in th_wanted:
-        tf = th.fit_thermal(runs, m)
+    tf4 = None
+    for m in sorted(th_wanted, key=th.THERMAL_MODELS.index):
+        if m == "thermal6":
+            # thermal4 is nested in thermal6: starting at its optimum, thermal6 fits the cycles at least as well
+            tf4 = tf4 or th.fit_thermal(runs, "thermal4")
+            tf = th.fit_thermal(runs, m, start=th.nested_start(tf4) if tf4 is not None else None)
+        else:
+            tf = tf4 = th.fit_thermal(runs, m)
         if tf is None:
             jf.not_identified.append({"what": m, "reason": "too few duty cycles with motion in both directions"})
             continue
-        r_h, r_c = th.heldout(runs, m, n_folds=3)
+        r_h, r_c = th.heldout(runs, m, n_folds=3, full=tf)
         params: dict[str, ParamEstimate] = {}
         cdims = ("F", "D", "D2", "D3")
         for i, dim in enumerate(cdims):

@@ -29,11 +29,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import least_squares
 
+from frictid.models.thermal import heat_balance_bins
+
 #: Heat transfer held fixed when T is unmeasured [W/K]; sets the temperature scale only.
 K_REF = 1.0
 
 #: Heat-balance bins per duty cycle (power held per bin).
 BINS_PER_CYCLE = 8
+
+#: Relative size (of the friction scale) below which an uncertain parameter does not matter.
+NEGLIGIBLE = 0.01
 
 #: Thermal models this module fits.
 THERMAL_MODELS = ("thermal4", "thermal6")
@@ -74,6 +79,8 @@ class ThermalRun:
     T_init: float
     has_T: bool = False
     notes: list[str] = field(default_factory=list)
+    bin_e: np.ndarray | None = None  # bin_Tenv - bin_e_T0, cached for the heat balance
+    bin_e_T0: float = math.nan
 
     @property
     def n_cycles(self) -> int:
@@ -164,28 +171,15 @@ def prepare(t, w, F, cycles: list[tuple[int, int, int]], temp_env=None, temp_joi
 def simulate_temperature(run: ThermalRun, c0, s_alpha, s_beta, dc, C, K, T0):
     """Mean temperature per bin [degC] of the heat balance with power ``sum_i c_i(T) P_i`` affine in T.
 
-    c_i(T) = c0_i (s_alpha (T - T0) + s_beta) + dc_i (T - T0). Returns (T_mean per bin, T at bin ends).
+    c_i(T) = c0_i (s_alpha (T - T0) + s_beta) + dc_i (T - T0). The bins are integrated exactly by the
+    compiled :func:`frictid.models.thermal.heat_balance_bins` (this runs at every residual evaluation).
     """
-    nb = run.bin_h.shape[0]
-    Tm = np.empty(nb)
-    x = run.T_init - T0
-    W0 = run.bin_P @ (np.asarray(c0) * s_beta)
-    W1 = run.bin_P @ (np.asarray(c0) * s_alpha + np.asarray(dc))
-    for k in range(nb):
-        h = run.bin_h[k]
-        e = run.bin_Tenv[k] - T0
-        a = K - W1[k]
-        r = a / C
-        if abs(r * h) < 1e-9:
-            drift = (W0[k] + K * e - a * x) / C
-            Tm[k] = x + 0.5 * drift * h
-            x = x + drift * h
-        else:
-            x_inf = (W0[k] + K * e) / a
-            ex = math.exp(-r * h) if r * h > -700 else math.inf
-            Tm[k] = x_inf + (x - x_inf) * (-math.expm1(-r * h)) / (r * h)
-            x = x_inf + (x - x_inf) * ex
-    return Tm + T0
+    W0 = run.bin_P @ (np.asarray(c0, float) * s_beta)
+    W1 = run.bin_P @ (np.asarray(c0, float) * s_alpha + np.asarray(dc, float))
+    if run.bin_e is None or run.bin_e_T0 != T0:
+        run.bin_e = np.ascontiguousarray(run.bin_Tenv - T0)
+        run.bin_e_T0 = T0
+    return heat_balance_bins(run.bin_h, run.bin_e, W0, W1, float(C), float(K), float(run.T_init - T0)) + T0
 
 
 @dataclass
@@ -265,8 +259,28 @@ def _pred_rms(lay, x, runs, T0, mask_list):
     return math.sqrt(float(r @ r) / n_c) if n_c else None
 
 
-def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 4) -> ThermalFit | None:
-    """Fit ``thermal4`` or ``thermal6`` to duty-cycle runs. masks : per run, the cycles used (training)."""
+def nested_start(tf4: "ThermalFit") -> dict:
+    """thermal6's parameters at a thermal4 optimum: ``c_i0 = c_ref,i beta``, ``dc_i = c_ref,i alpha`` (the
+    same friction at every temperature: thermal4 is nested in thermal6), same C (and K)."""
+    v = tf4.values
+    out = {"C": v["C"]}
+    if "K" in v:
+        out["K"] = v["K"]
+    for i in range(4):
+        c = tf4.fixed[f"c{i}"]
+        out[f"c{i}"] = c * v["beta"]
+        out[f"dc{i}"] = c * v["alpha"]
+    return out
+
+
+def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 4,
+                start: dict | None = None) -> ThermalFit | None:
+    """Fit ``thermal4`` or ``thermal6`` to duty-cycle runs. masks : per run, the cycles used (training).
+
+    start : named values (``alpha``, ``beta``, ``C``, ``c0``.., ``dc0``.., ``K``) of a single start instead
+    of the grid of time constants: the full-data optimum for the held-out refits, or thermal4's optimum
+    for thermal6 (:func:`nested_start`), from which thermal6 can only fit the cycles as well or better.
+    """
     runs = [r for r in runs if r is not None and r.n_cycles > 0]
     if not runs:
         return None
@@ -291,12 +305,21 @@ def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 
         return None
     best = None
     K0 = 1.0 if not fit_K else K_REF
-    for tau in np.geomspace(span / 30, span, n_starts):
-        start = {"alpha": 0.0, "beta": 1.0, "logC": math.log(K0 * tau), "logK": math.log(K0)}
-        for i in range(4):
-            start[f"c{i}"] = c_ref[i]
-            start[f"dc{i}"] = 0.0
-        x0 = np.array([start[n] for n in names])
+    if start is not None:
+        st = {k: v for k, v in start.items() if k not in ("C", "K")}
+        st["logC"] = math.log(start["C"])
+        st["logK"] = math.log(start.get("K", K0))
+        starts = [st]
+    else:
+        starts = []
+        for tau in np.geomspace(span / 30, span, n_starts):
+            st = {"alpha": 0.0, "beta": 1.0, "logC": math.log(K0 * tau), "logK": math.log(K0)}
+            for i in range(4):
+                st[f"c{i}"] = c_ref[i]
+                st[f"dc{i}"] = 0.0
+            starts.append(st)
+    for st in starts:
+        x0 = np.array([st[n] for n in names])
         try:
             res = least_squares(_residuals, x0, args=(lay, runs, T0, masks, 1.0, F_scale), method="trf",
                                 max_nfev=400)
@@ -364,6 +387,22 @@ def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 
     for r in runs:
         Tb = simulate_temperature(r, c0, sa, sb, dc, C, K, T0)
         cycle_T.append((r.cycle_W @ Tb).tolist())
+    # relative error above 100 % where it matters: its friction over the cycles' temperature span exceeds
+    # NEGLIGIBLE of the friction scale (a slope that changes the friction by less is harmless)
+    dT_span = max((abs(T - T0) for ct in cycle_T for T in ct), default=0.0)
+    rms_basis = np.sqrt(np.mean([np.diag(r.cycle_L[k] @ r.cycle_L[k].T) for r in runs
+                                 for k in range(r.n_cycles)], axis=0))
+    for n in values:
+        e, v = stderr.get(n), values[n]
+        if n in reasons or e is None or e <= abs(v) or n in ("C", "K"):
+            continue
+        if n in ("alpha", "beta"):
+            impact = e * F_scale * (dT_span if n == "alpha" else 1.0)
+        else:
+            impact = e * rms_basis[int(n[-1])] * (dT_span if n.startswith("dc") else 1.0)
+        if impact > NEGLIGIBLE * F_scale:
+            reasons[n] = (f"relative error {100 * e / abs(v):.3g} % (above 100 %)" if v else
+                          "relative error above 100 %")
     notes = []
     if not fit_K:
         notes.append(f"joint temperature not measured: K held at {K_REF} W/K (it only sets the temperature "
@@ -375,12 +414,14 @@ def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 
     return tf
 
 
-def heldout(runs: list[ThermalRun], model: str, n_folds: int = 3) -> tuple[float | None, float | None]:
+def heldout(runs: list[ThermalRun], model: str, n_folds: int = 3, full: ThermalFit | None = None
+            ) -> tuple[float | None, float | None]:
     """Held-out RMS [F] of a thermal law and of a temperature-blind constant polynomial, by cycles.
 
     Cycles are assigned to folds by their order (every ``n_folds``-th cycle), so each fold spans the
     warm-up; the heat balance still runs through held-out cycles (their power comes from the measured
-    velocity), but their friction never enters the fit. Returns (rms_thermal, rms_constant).
+    velocity), but their friction never enters the fit. full : the law fitted on all cycles; each fold
+    starts from its optimum (one start instead of the grid). Returns (rms_thermal, rms_constant).
     """
     runs = [r for r in runs if r is not None and r.n_cycles > 0]
     if not runs or sum(r.n_cycles for r in runs) < 2 * n_folds:
@@ -390,7 +431,9 @@ def heldout(runs: list[ThermalRun], model: str, n_folds: int = 3) -> tuple[float
     for f in range(n_folds):
         train = [np.arange(r.n_cycles) % n_folds != f for r in runs]
         test = [~m for m in train]
-        tf = fit_thermal(runs, model, masks=train, n_starts=3)
+        tf = fit_thermal(runs, model, masks=train, n_starts=3,
+                         start=None if full is None else dict(full.values, **{k: v for k, v in full.fixed.items()
+                                                                                if k == "K"}))
         if tf is None:
             return None, None
         r_t = _pred_rms(tf._lay, tf._x, runs, tf.T0, test)

@@ -24,7 +24,10 @@ The heat balance (002 eq 12-15) is ``C dT/dt = P - K (T - Tenv)`` with ``P = F w
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 from .static import CANON, N_CANON
 
@@ -100,11 +103,19 @@ def thermal_code(law: str | None, alpha=0.0, beta=1.0, lam=0.0, T0=25.0, dc=None
     return THERMAL_CODES[law], theta, dc9
 
 
+#: Canonical entries a thermal law scales: the amplitudes (a0, a1, a2, b1, b2, b3), not the shapes
+#: (vs1, d1, vs2), as in the compiled kernels (:func:`frictid.models.lugre.thermal_canon_nb`).
+AMPLITUDE_SLOTS = tuple(CANON.index(k) for k in ("a0", "a1", "a2", "b1", "b2", "b3"))
+_AMPLITUDE = np.isin(np.arange(N_CANON), AMPLITUDE_SLOTS)
+
+
 def canonical_at(c0, T, code, theta, dc9):
-    """The canonical 9-vector at temperature T [degC]: ``c0 s(T) + dc9 (T - T0)``."""
+    """The canonical 9-vector at temperature T [degC]: amplitudes ``c0 s(T) + dc9 (T - T0)``; the shape
+    entries (Stribeck velocities and exponent) are those of c0 at every temperature."""
     alpha, beta, lam, T0 = theta
     s = float(thermal_scale(T, code, alpha, beta, lam, T0))
-    return np.asarray(c0, dtype=float) * s + np.asarray(dc9, dtype=float) * (float(T) - T0)
+    c0 = np.asarray(c0, dtype=float)
+    return np.where(_AMPLITUDE, c0 * s, c0) + np.asarray(dc9, dtype=float) * (float(T) - T0)
 
 
 def heat_step(T, P, Tenv, C, K, h):
@@ -135,3 +146,47 @@ def heat_balance(P, t, Tenv, C, K, T_init=None):
 def steady_temperature_rise(P, K):
     """Steady-state rise T - Tenv [K] for a constant friction power P [W] and heat transfer K [W/K]."""
     return P / K
+
+
+@njit(cache=True)
+def heat_balance_bins(h, e, W0, W1, C, K, x0):  # pragma: no cover - compiled; twin: heat_balance_bins_ref
+    """Mean temperature rise per bin [K] of ``C dx/dt = W0 + W1 x - K (x - e)`` with x = T - T0, the
+    power affine in x and W0, W1, e (ambient rise over T0) held over each bin of length h [s].
+
+    Exact per bin: relaxation towards ``x_inf = (W0 + K e) / (K - W1)`` at rate ``(K - W1) / C``; the
+    bin mean is the integral of that exponential. x0 : rise at the start of the first bin.
+    """
+    nb = h.shape[0]
+    Tm = np.empty(nb)
+    x = x0
+    for k in range(nb):
+        a = K - W1[k]
+        rh = a / C * h[k]
+        if abs(rh) < 1e-9:
+            drift = (W0[k] + K * e[k] - a * x) / C
+            Tm[k] = x + 0.5 * drift * h[k]
+            x = x + drift * h[k]
+        else:
+            x_inf = (W0[k] + K * e[k]) / a
+            ex = math.exp(-rh) if rh > -700.0 else math.inf
+            Tm[k] = x_inf + (x - x_inf) * (-math.expm1(-rh)) / rh
+            x = x_inf + (x - x_inf) * ex
+    return Tm
+
+
+def heat_balance_bins_ref(h, e, W0, W1, C, K, x0):
+    """Plain python twin of :func:`heat_balance_bins` (for the agreement test)."""
+    Tm = np.empty(len(h))
+    x = float(x0)
+    for k in range(len(h)):
+        a = K - W1[k]
+        rh = a / C * h[k]
+        if abs(rh) < 1e-9:
+            drift = (W0[k] + K * e[k] - a * x) / C
+            Tm[k] = x + 0.5 * drift * h[k]
+            x = x + drift * h[k]
+        else:
+            x_inf = (W0[k] + K * e[k]) / a
+            Tm[k] = x_inf + (x - x_inf) * (-math.expm1(-rh)) / rh
+            x = x_inf + (x - x_inf) * (math.exp(-rh) if rh > -700 else math.inf)
+    return Tm
