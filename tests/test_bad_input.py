@@ -15,7 +15,35 @@ from hypothesis import strategies as st
 
 from conftest import hand_log
 
-COMMANDS = ("segments", "fit")
+#: Every command line that reads a log: (name, arguments before the log, output suffix).
+COMMANDS = {
+    "segments": (["segments"], "csv"),
+    "fit": (["fit"], "yaml"),
+    "report": (["report", "{params}"], "html"),
+    "replay": (["simulate", "--params", "{params}", "--replay"], "csv"),
+}
+
+
+@pytest.fixture(scope="session")
+def params_file(tmp_path_factory):
+    """A parameter file of the valid log (report and replay need one beside the log)."""
+    from frictid.fit import fit
+
+    tmp = tmp_path_factory.mktemp("params")
+    src = tmp / "valid.csv"
+    src.write_bytes(_csv(valid_frame()))
+    out = tmp / "params.yaml"
+    fit([str(src)], models="coulomb_viscous,polynomial", diagnose=False).write(out)
+    return out
+
+
+def run_on(cli, command, log, out, params):
+    pre, _ = COMMANDS[command]
+    return cli(*[a.format(params=params) for a in pre], log, "-o", out)
+
+
+def out_path(tmp, command):
+    return tmp / f"out.{COMMANDS[command][1]}"
 
 
 def valid_frame(n=300) -> pd.DataFrame:
@@ -63,55 +91,74 @@ def assert_clean_refusal(res, out_path, words):
     assert not out_path.exists(), "no output file on bad input"
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(kind=st.sampled_from(sorted(CORRUPTIONS)), row=st.integers(5, 250),
-       fmt=st.sampled_from(["csv", "parquet"]), command=st.sampled_from(COMMANDS))
-def test_corrupted_logs_are_refused_cleanly(tmp_path_factory, cli, kind, row, fmt, command):
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+@pytest.mark.parametrize("kind", sorted(CORRUPTIONS))
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(row=st.integers(5, 250))
+def test_corrupted_logs_are_refused_cleanly(tmp_path_factory, cli, params_file, kind, fmt, command, row):
+    """Every listed corruption, in both formats, for every command that reads logs."""
     tmp = tmp_path_factory.mktemp("bad")
     func, words = CORRUPTIONS[kind]
     df = func(valid_frame(), row)
     path = tmp / f"log.{fmt}"
     path.write_bytes(_csv(df) if fmt == "csv" else _parquet(df))
-    out = tmp / ("out.yaml" if command == "fit" else "out.csv")
-    res = cli(command, path, "-o", out)
+    out = out_path(tmp, command)
+    res = run_on(cli, command, path, out, params_file)
     assert_clean_refusal(res, out, words + [str(path)])
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(frac=st.floats(0.0, 0.95), fmt=st.sampled_from(["csv", "parquet"]),
-       junk=st.binary(min_size=0, max_size=64), command=st.sampled_from(COMMANDS))
-def test_truncated_or_garbage_files_are_refused_cleanly(tmp_path_factory, cli, frac, fmt, junk, command):
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(frac=st.floats(0.0, 0.95), fmt=st.sampled_from(["csv", "parquet"]), junk=st.binary(min_size=0, max_size=64))
+def test_truncated_or_garbage_files_are_refused_cleanly(tmp_path_factory, cli, params_file, command, frac, fmt,
+                                                        junk):
     tmp = tmp_path_factory.mktemp("trunc")
     data = _csv(valid_frame()) if fmt == "csv" else _parquet(valid_frame())
     path = tmp / f"log.{fmt}"
     path.write_bytes(corrupt_truncate(data, frac) + junk if fmt == "parquet" else junk + corrupt_truncate(data, frac))
-    out = tmp / ("out.yaml" if command == "fit" else "out.csv")
-    res = cli(command, path, "-o", out)
+    out = out_path(tmp, command)
+    res = run_on(cli, command, path, out, params_file)
     if res.code == 0:  # a CSV cut after a complete line, with harmless junk, can still be a valid log
         assert fmt == "csv" and out.exists()
         return
-    assert_clean_refusal(res, out, [])
+    assert_clean_refusal(res, out, [str(path)])
 
 
-@pytest.mark.parametrize("command", COMMANDS)
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+@pytest.mark.parametrize("suffix", ["csv", "parquet"])
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.binary(min_size=1, max_size=2048))
+def test_binary_garbage_is_refused_cleanly(tmp_path_factory, cli, params_file, command, suffix, data):
+    tmp = tmp_path_factory.mktemp("garbage")
+    path = tmp / f"log.{suffix}"
+    path.write_bytes(b"\x00\xff" + data)  # never a valid log: a NUL byte in the first line
+    out = out_path(tmp, command)
+    assert_clean_refusal(run_on(cli, command, path, out, params_file), out, [str(path)])
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
 @pytest.mark.parametrize("content, words", [
     (b"", ["empty"]),
     (b"t;q;tau\n0;1;2\n0.1;1;2\n", ["';'-separated"]),
     (b"t\tq\ttau\n0\t1\t2\n", ["'\\t'-separated"]),
 ])
-def test_empty_and_wrong_delimiter(tmp_path, cli, command, content, words):
+def test_empty_and_wrong_delimiter(tmp_path, cli, params_file, command, content, words):
     path = tmp_path / "log.csv"
     path.write_bytes(content)
-    out = tmp_path / ("out.yaml" if command == "fit" else "out.csv")
-    assert_clean_refusal(cli(command, path, "-o", out), out, words)
+    out = out_path(tmp_path, command)
+    assert_clean_refusal(run_on(cli, command, path, out, params_file), out, words)
 
 
-def test_unknown_extra_columns_are_fine(tmp_path, cli):
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_unknown_extra_columns_are_fine(tmp_path, cli, params_file, command):
     df = valid_frame().assign(motor_current=1.0, comment="ok")
     path = tmp_path / "log.csv"
     path.write_bytes(_csv(df))
-    res = cli("segments", path, "-o", tmp_path / "seg.csv")
+    out = out_path(tmp_path, command)
+    res = run_on(cli, command, path, out, params_file)
     assert res.code == 0, res
+    assert out.exists() and "Traceback" not in res.err
 
 
 def test_missing_file_and_output_over_input(tmp_path, cli):
@@ -124,3 +171,51 @@ def test_missing_file_and_output_over_input(tmp_path, cli):
     res = cli("segments", path, "-o", path)
     assert res.code == 2 and "never overwrites an input" in res.err
     assert path.read_bytes() == before
+
+
+def test_output_equal_to_an_input_is_refused(tmp_path, cli, params_file, monkeypatch):
+    """`-o` naming any input (log, parameter file, recipe, plant, --map file, a log's sidecar) is exit 2,
+    for every command, and the input is unchanged."""
+    import shutil
+
+    from conftest import ROOT
+
+    log = tmp_path / "log.csv"
+    log.write_bytes(_csv(valid_frame()))
+    side = tmp_path / "log.csv.meta.yaml"
+    side.write_text("axis: rotary\n")
+    params = tmp_path / "params.yaml"
+    shutil.copy(params_file, params)
+    mapping = tmp_path / "map.yaml"
+    mapping.write_text("map: {}\n")
+    recipe, plant = tmp_path / "recipe.yaml", tmp_path / "plant.yaml"
+    shutil.copy(ROOT / "recipes/torque_steps.yaml", recipe)
+    shutil.copy(ROOT / "recipes/plants/hydraulic.yaml", plant)
+    cases = [
+        ["segments", log, "-o", log],
+        ["segments", log, "-o", side, "--format", "csv"],
+        ["segments", log, "-o", mapping, "--format", "csv", "--map", mapping],
+        ["fit", log, "-o", log],
+        ["fit", log, "-o", side],
+        ["fit", log, "-o", mapping, "--map", mapping],
+        ["fit", log, "-o", tmp_path / "p.yaml", "--report", log],
+        ["report", params, log, "-o", params],
+        ["report", params, log, "-o", log],
+        ["simulate", recipe, "-o", recipe, "--format", "csv"],
+        ["simulate", recipe, "--plant", plant, "-o", plant, "--format", "csv"],
+        ["simulate", "--params", params, "--replay", log, "-o", log],
+        ["simulate", "--params", params, "--replay", log, "-o", params, "--format", "csv"],
+    ]
+    before = {p: p.read_bytes() for p in (log, side, params, mapping, recipe, plant)}
+    for args in cases:
+        res = cli(*args)
+        assert res.code == 2 and "never overwrites an input" in res.err and "Traceback" not in res.err, (args, res)
+    assert {p: p.read_bytes() for p in before} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in before)
+    # by name: a recipe given as "mine" is the file recipes/mine.yaml of the working folder
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "recipes").mkdir()
+    shutil.copy(recipe, tmp_path / "recipes" / "mine.yaml")
+    res = cli("simulate", "mine", "-o", "recipes/mine.yaml", "--format", "csv")
+    assert res.code == 2 and "never overwrites an input" in res.err
+    assert (tmp_path / "recipes" / "mine.yaml").read_bytes() == before[recipe]
