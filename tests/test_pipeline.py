@@ -5,7 +5,6 @@ import shlex
 import signal
 import subprocess
 import sys
-import time
 
 import yaml
 
@@ -38,17 +37,23 @@ def test_simulate_to_stdout_is_only_csv(tmp_path):
 
 
 def _interrupt_during_fit(tmp_path, sig):
-    log = tmp_path / "log.parquet"
-    res = run_process(["simulate", "recipes/constant_velocity_sweep.yaml", "-o", log, "--quiet"])
-    assert res.returncode == 0, res.stderr.decode()[-2000:]
+    """Start ``frictid fit``, send ``sig`` as soon as it says the fit has started, return what it did."""
+    from test_poor_data import poor_log
+
+    log = tmp_path / "log.csv"
+    poor_log("one_sign").to_csv(log, index=False)
     out = tmp_path / "params.yaml"
     out.write_text("previous: result\n")
     proc = subprocess.Popen([sys.executable, "-m", "frictid", "fit", str(log), "-o", str(out)], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    time.sleep(4.0)  # well inside the fit (reading, segmenting, fitting take longer)
+    first = b""
+    while b"fitting" not in first:  # the fit has started: reading, segmenting and fitting take seconds
+        line = proc.stderr.readline()
+        assert line, "frictid fit ended before saying it started"
+        first += line
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=120)
-    return proc.returncode, err.decode(), out, tmp_path
+    return proc.returncode, (first + err).decode(), out, tmp_path
 
 
 def test_sigterm_during_fit_keeps_the_previous_output(tmp_path):

@@ -26,6 +26,9 @@ def fit(
     as_json: JsonOpt = False,
     report: Annotated[Optional[str], typer.Option(
         "--report", help="Also write the HTML report (as frictid report PARAMS LOG... -o REPORT.html).")] = None,
+    jobs: Annotated[int, typer.Option(
+        "--jobs", min=0, help="Joints fitted at once, each in its own process (0: one per available core; "
+                              "1: one after another). The result does not depend on it.")] = 0,
 ) -> None:
     """Find the segments, identify every model the data support, choose one, write the parameter file."""
     from ..errors import FrictidInputError
@@ -46,7 +49,9 @@ def fit(
         from .report import check_fit_report
         check_fit_report(report, output, logs, mapping)
     parse_models(models)  # refuse unknown names before reading anything
-    res = run_fit(logs, joint=joint, models=models, mapping=mapping, units=units, diagnose=not no_diagnose)
+    con.info(f"frictid: fitting {len(logs)} log{'s' if len(logs) != 1 else ''} ...")
+    res = run_fit(logs, joint=joint, models=models, mapping=mapping, units=units, diagnose=not no_diagnose,
+                  jobs=jobs)
     write_params(res, output)
     if report:
         from .report import command_line, report_after_fit
