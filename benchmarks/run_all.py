@@ -120,6 +120,20 @@ def _children(pid: int) -> list[int]:
     return out
 
 
+def _pss(pid: int) -> int:
+    """Proportional set size [B] of a process: its resident pages, each shared page divided among the
+    processes that map it (a forked worker's copy-on-write view of its parent counts once over the tree);
+    0 when it is gone."""
+    try:
+        with open(f"/proc/{pid}/smaps_rollup") as fh:
+            for line in fh:
+                if line.startswith("Pss:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0
+
+
 def _status(pid: int) -> tuple[int, int]:
     """(VmRSS, VmHWM) [B] of a process; (0, 0) when it is gone."""
     rss = hwm = 0
@@ -155,8 +169,9 @@ class ChildRun:
     wall: float
     cpu: float            # user + system time of the child and its waited-for descendants [s]
     peak: int             # peak memory [B]: the largest of the root's high-water resident set, the
-                          # sampled sum of resident sets over the process tree, and each process's
-                          # sampled high-water mark
+                          # sampled sum of proportional set sizes over the process tree (forked workers
+                          # share their parent's pages: resident sets would count them once per process),
+                          # and each process's sampled high-water mark
     load: float
     stderr: str = ""
 
@@ -179,9 +194,13 @@ def run_child(args: list[str], interval: float = 0.1) -> ChildRun:
 
             def sample():
                 while not stop.is_set():
-                    tree = [_status(c) for c in _children(p.pid)[1:]]  # descendants; the root: below
-                    root_rss, _ = _status(p.pid)
-                    peak[0] = max(peak[0], root_rss + sum(r for r, _ in tree), *(h for _, h in tree))
+                    kids = _children(p.pid)[1:]  # descendants; the root's own peak: its VmHWM, below
+                    tree = [_status(c) for c in kids]
+                    if kids:  # several processes: physical memory of the tree, shared pages once
+                        total = _pss(p.pid) + sum(_pss(c) for c in kids)
+                    else:
+                        total = _status(p.pid)[0]
+                    peak[0] = max(peak[0], total, *(h for _, h in tree))
                     stop.wait(interval)
 
             th = threading.Thread(target=sample, daemon=True)
@@ -710,8 +729,9 @@ def fig_fit_report(quick: bool, repeat: int, keep: str | None = None) -> list[Ro
             "seeds per joint); `frictid fit LOG -o PARAMS` in a fresh process (segments, all models, "
             "diagnosis)"),
         Row("fit peak memory", gb(fb.peak), "-", "-", "<= 3 GB", fb.peak <= 3e9, fb.load,
-            "the process's high-water resident set (VmHWM), or the sum of resident sets over its process "
-            "tree sampled every 0.1 s when larger"),
+            "the process's high-water resident set (VmHWM), or, with worker processes, the sum of their "
+            "proportional set sizes (Pss: pages shared copy-on-write with the parent counted once) sampled "
+            "every 0.1 s, when larger"),
         Row("fit scaling: 8x the data", f"{fb.wall:.0f} s vs {fs.wall:.0f} s (CPU {fb.cpu:.0f} vs {fs.cpu:.0f} s)",
             f"1 pass, {nsmall / 1e6:.2f} M rows", f"{fb.cpu / fs.cpu:.1f}x CPU (wall {fb.wall / fs.wall:.1f}x) "
             f"for {nbig / nsmall:.1f}x rows", "<= 9x", fb.cpu / fs.cpu <= 9 * (nbig / nsmall) / 8, fs.load,

@@ -290,6 +290,53 @@ def test_several_joints_get_an_index(scenario):
     assert '<nav id="index"' not in build_report(single, [])
 
 
+def _two_joints(scenario):
+    """The scenario's parameter file and log with a second joint (a copy of the first, same file)."""
+    import dataclasses
+
+    from frictid.io.logs import read_many
+    from frictid.io.params_load import load_params_dict
+
+    params = load_params_dict(scenario["params"])
+    j = scenario["joint"]
+    params["joints"]["second joint"] = params["joints"][j]
+    lg = read_many([scenario["log"]])[0]
+    return params, [lg, dataclasses.replace(lg, joint="second joint")]
+
+
+def test_recorded_segments_are_reused_and_joints_built_in_parallel(scenario):
+    """The report takes the segments the fit recorded (segment_list) when the file's hash and rows match:
+    the same HTML as segmenting again, without calling the segmenter; joints built in two worker
+    processes give the same HTML as one after another."""
+    from frictid.report import build_report
+
+    params, logs = _two_joints(scenario)
+    assert all(e["rows"] == logs[0].n for e in params["joints"][scenario["joint"]]["segment_list"])
+    calls = []
+
+    def counting(log):
+        calls.append(log.joint)
+        return truth_segments(log)
+
+    kw = dict(params_path="p.yaml", command="c", generated="2026-01-01 00:00 UTC")
+    serial = build_report(params, logs, segmenter=counting, jobs=1, **kw)
+    assert calls == [], "recorded segments were used"
+    assert build_report(params, logs, segmenter=counting, jobs=2, **kw) == serial
+    bare = {**params, "joints": {k: {n: v for n, v in jd.items() if n != "segment_list"}
+                                 for k, jd in params["joints"].items()}}
+    assert build_report(bare, logs, segmenter=counting, jobs=1, **kw) == serial
+    assert sorted(calls) == sorted([scenario["joint"], "second joint"])
+    # another file (hash) or another number of rows: segmented again
+    other = {**params, "sources": [dict(params["sources"][0], sha256="0" * 64)]}
+    jd = params["joints"][scenario["joint"]]
+    from frictid.report import content as ct
+    assert ct.recorded_segments(logs[0], jd, other["sources"], "0" * 64) is not None
+    from frictid.io.logs import file_sha256
+    assert ct.recorded_segments(logs[0], jd, other["sources"], file_sha256(scenario["log"])) is None
+    short = dict(jd, segment_list=[dict(e, rows=e["rows"] - 1) for e in jd["segment_list"]])
+    assert ct.recorded_segments(logs[0], short, params["sources"], file_sha256(scenario["log"])) is None
+
+
 @pytest.mark.parametrize("joint", [
     {},
     {"selected": None, "models": {}, "diagnosis": ["a finding given as text"]},

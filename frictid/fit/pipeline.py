@@ -31,6 +31,7 @@ from frictid.data import SEGMENT_KINDS, JointLog, Segment
 from frictid.errors import FrictidInputError
 from frictid.models import static as sm
 from frictid.models.params import unit_of
+from frictid.workers import map_forked, n_workers
 
 from . import presliding as pre
 from . import regression as rg
@@ -183,112 +184,18 @@ def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, unit
                                                 "heldout": "segment folds (plateaus sorted by velocity, "
                                                            "rank mod n_folds); duty cycles by cycle"})
     del logs  # by_joint holds them; a joint's logs are freed once it is fitted (serial path)
-    args = (wanted, n_folds, segmenter, differentiate, diagnose)
-    workers = n_workers(jobs, len(by_joint))
+    names = list(by_joint)
+    workers = n_workers(jobs, len(names))
     if workers > 1:
-        res.joints.update(_fit_parallel(by_joint, args, workers))
+        def one(j):
+            return fit_joint(by_joint[j], wanted, n_folds, segmenter, differentiate, diagnose=diagnose)
+        res.joints.update(zip(names, map_forked(one, names, workers)))
     else:
-        for j in list(by_joint):
-            res.joints[j] = fit_joint(by_joint.pop(j), *args[:4], diagnose=diagnose)
+        for j in names:
+            res.joints[j] = fit_joint(by_joint.pop(j), wanted, n_folds, segmenter, differentiate,
+                                      diagnose=diagnose)
     res.settings["diagnose"] = bool(diagnose)
     return res
-
-
-def n_workers(jobs: int, n_joints: int) -> int:
-    """Worker processes for ``n_joints`` joints: ``jobs`` (0: the cores this process may run on), at most
-    one per joint; 1 (serial) where processes cannot be forked."""
-    if jobs is None or int(jobs) < 0:
-        raise FrictidInputError(f"--jobs {jobs}: give 0 (one per core) or a positive number of processes")
-    jobs = int(jobs)
-    if jobs == 0:
-        try:
-            jobs = len(os.sched_getaffinity(0))
-        except AttributeError:  # pragma: no cover - not Linux
-            jobs = os.cpu_count() or 1
-    import multiprocessing as mp
-    if "fork" not in mp.get_all_start_methods():  # pragma: no cover - Windows
-        return 1
-    return max(1, min(jobs, n_joints))
-
-
-#: What the forked workers inherit: the joints' logs and the fit's arguments (set only while a pool runs).
-_SHARED: dict = {}
-
-
-def _worker_init() -> None:
-    """A worker: one BLAS thread (the joints already use the cores), no Ctrl-C or SIGTERM handling of its
-    own (the parent stops the workers and reports the interruption once)."""
-    import signal
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # optional: without it BLAS keeps its own thread count
-        return
-    _SHARED["blas_limit"] = threadpool_limits(limits=1, user_api="blas")
-
-
-def _fit_in_worker(j: str):
-    """Fit joint ``j`` of the inherited logs; ("ok", JointFit) or ("error", exception as data)."""
-    wanted, n_folds, segmenter, differentiate, diagnose = _SHARED["args"]
-    try:
-        return "ok", fit_joint(_SHARED["by_joint"][j], wanted, n_folds, segmenter, differentiate,
-                               diagnose=diagnose)
-    except Exception as exc:  # noqa: BLE001 - re-raised as the same class in the parent
-        return "error", _exception_data(exc)
-
-
-def _exception_data(exc: BaseException) -> tuple:
-    """An exception as (class, message, attributes): it pickles even when the class's ``__init__`` takes
-    other arguments than the message (:class:`~frictid.errors.LogFormatError`)."""
-    import pickle
-
-    cls, attrs = type(exc), dict(getattr(exc, "__dict__", {}))
-    try:
-        pickle.dumps(cls)
-    except Exception:  # noqa: BLE001 - a class defined where the parent cannot find it
-        return RuntimeError, f"{cls.__name__}: {exc}", {}
-    try:
-        pickle.dumps(attrs)
-    except Exception:  # noqa: BLE001 - keep the message
-        attrs = {}
-    return cls, str(exc), attrs
-
-
-def _rebuild_exception(data: tuple) -> BaseException:
-    cls, msg, attrs = data
-    exc = cls.__new__(cls)
-    exc.args = (msg,)
-    exc.__dict__.update(attrs)
-    return exc
-
-
-def _fit_parallel(by_joint: dict[str, list[JointLog]], args: tuple, workers: int) -> dict[str, JointFit]:
-    """Fit the joints in ``workers`` forked processes; the results in the joints' order, the first failing
-    joint's exception (in that order) raised as the serial loop would raise it."""
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
-
-    _SHARED.update(by_joint=by_joint, args=args)
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork"), initializer=_worker_init)
-    try:
-        futures = {j: pool.submit(_fit_in_worker, j) for j in by_joint}
-        out: dict[str, JointFit] = {}
-        for j, fut in futures.items():
-            status, value = fut.result()
-            if status == "error":
-                raise _rebuild_exception(value)
-            out[j] = value
-        pool.shutdown(wait=True)
-        return out
-    except BaseException:
-        # an error, Ctrl-C or SIGTERM: stop the other joints now instead of waiting for them
-        for proc in list((getattr(pool, "_processes", None) or {}).values()):
-            proc.terminate()
-        pool.shutdown(wait=False, cancel_futures=True)
-        raise
-    finally:
-        _SHARED.clear()
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -556,9 +556,28 @@ def _environment():
     return env
 
 
+def _joint_part(jn: str, jd: dict, jlogs: list[JointLog], sources: list[dict], hashes: dict, segmenter,
+                differentiate) -> tuple[dict, list, list, dict]:
+    """One joint of the report: (template context, source index per log, whether each log's segments
+    came from the parameter file, seconds per part)."""
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    datas, recorded = [], []
+    for lg in jlogs:
+        segs = ct.recorded_segments(lg, jd, sources, hashes.get(lg.source or ""))
+        recorded.append(segs is not None)
+        d = ct.prepare_log(lg, jd, segmenter, differentiate, segments=segs)
+        d.sha256 = hashes.get(d.label)
+        datas.append(d)
+    ct.match_sources(datas, sources)
+    timings["segments"] = time.perf_counter() - t0
+    ctx = joint_report(jn, jd, datas, timings)
+    return ctx, [d.source_index for d in datas], recorded, timings
+
+
 def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params_path: str = "",
                  command: str = "", segmenter: Callable | None = None, differentiate: Callable | None = None,
-                 generated: str | None = None, timings: dict | None = None) -> str:
+                 generated: str | None = None, timings: dict | None = None, jobs: int = 0) -> str:
     """The report as one HTML string.
 
     params : the parameter file as a dictionary (schema 1). logs : the joint logs to draw (any joints; logs
@@ -567,8 +586,9 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     and :func:`frictid.segments.derivatives` (the fit's). The segments the fit recorded in the parameter
     file (``segment_list``) are used instead of ``segmenter`` for a log whose file has the SHA-256 of that
     source and the same number of rows. generated : a timestamp text (default: now, UTC). timings : a dict
-    that receives the seconds spent per part. Joints are built one after another; each joint's arrays are
-    freed before the next.
+    that receives the seconds spent per part (summed over the workers). jobs : joints built at once in
+    forked worker processes (0: one per available core; 1: one after another in this process); each
+    joint's arrays are freed before the worker takes the next. The HTML does not depend on it.
     """
     from frictid import __version__
     from frictid.io.logs import file_sha256
@@ -594,34 +614,39 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     skipped = sorted({str(lg.joint) for lg in logs} - set(map(str, joints)))
     if skipped:
         notes.append(f"Logs of joint(s) {', '.join(skipped)} are not drawn: the parameter file has no entry for them.")
-    # one joint at a time: its derivatives, friction torque, replays and figures are freed before the next
+    # joints in forked workers (one per core); in each, one joint at a time: its derivatives, friction
+    # torque, replays and figures are freed before the next
+    parts = [(str(jn), jd) for jn, jd in joints.items() if isinstance(jd, dict)]
+    names = [jn for jn, _ in parts]
+
+    def one(part):
+        jn, jd = part
+        return _joint_part(jn, jd, by_joint.get(jn, []), sources, hashes, segmenter, differentiate)
+
+    from frictid.workers import map_forked, n_workers
+
+    workers = n_workers(jobs, sum(1 for jn in names if by_joint.get(jn)))
+    if workers > 1:
+        from . import figures as fg
+        fg.preload()  # imported once here, inherited by every worker
     jctx = []
-    matched: dict[int, int | None] = {}  # id(log) -> source index
-    recorded: dict[int, bool] = {}  # id(log) -> its segments came from the parameter file
-    for jn, jd in joints.items():
-        if not isinstance(jd, dict):
-            continue
-        t0 = time.perf_counter()
-        datas = []
-        for lg in by_joint.get(str(jn), []):
-            segs = ct.recorded_segments(lg, jd, sources, hashes.get(lg.source or ""))
-            recorded[id(lg)] = segs is not None
-            d = ct.prepare_log(lg, jd, segmenter, differentiate, segments=segs)
-            d.sha256 = hashes.get(d.label)
-            datas.append(d)
-        ct.match_sources(datas, sources)
-        matched.update({id(d.log): d.source_index for d in datas})
-        timings["segments"] = timings.get("segments", 0.0) + time.perf_counter() - t0
-        jctx.append(joint_report(str(jn), jd, datas, timings))
-        del datas
+    matched: dict[tuple[str, int], int | None] = {}  # (joint, position of the log) -> source index
+    recorded: dict[tuple[str, int], bool] = {}  # ... -> its segments came from the parameter file
+    for jn, (ctx, src, rec, tim) in zip(names, map_forked(one, parts, workers)):
+        jctx.append(ctx)
+        for k, (si, r) in enumerate(zip(src, rec)):
+            matched[jn, k], recorded[jn, k] = si, r
+        for key, v in tim.items():
+            timings[key] = timings.get(key, 0.0) + v
+    pos = {id(lg): (str(lg.joint), k) for jl in by_joint.values() for k, lg in enumerate(jl)}
     inputs = []
     for lg in logs:
         label = lg.source or "<memory>"
         if any(i["path"] == label and i["joint"] == str(lg.joint) for i in inputs):
             continue
         inputs.append({"path": label, "joint": str(lg.joint), "rows": lg.n, "sha256": hashes.get(label),
-                       "source": matched.get(id(lg)),
-                       "segments": "the fit's" if recorded.get(id(lg)) else "found again"})
+                       "source": matched.get(pos.get(id(lg))),
+                       "segments": "the fit's" if recorded.get(pos.get(id(lg))) else "found again"})
     for i in inputs:
         if i["source"] is None and str(i["joint"]) in joints and sources:
             notes.append(f"{i['path']}: not among the files the fit read (different hash and name); its curves are "

@@ -96,6 +96,14 @@ class Rendered:
         return len(self.data)
 
 
+def preload() -> None:
+    """Import what rendering needs (matplotlib's figure, Agg and SVG backends, its font list) ahead of
+    forking workers, so that they inherit it instead of importing it each."""
+    from matplotlib.backends import backend_agg, backend_svg  # noqa: F401
+    from matplotlib.figure import Figure  # noqa: F401
+    from matplotlib.font_manager import fontManager  # noqa: F401
+
+
 def new_figure(height_in: float):
     """A matplotlib Figure on the Agg canvas (no pyplot, no global figure manager)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg

@@ -1,0 +1,114 @@
+"""Independent per-joint work in forked worker processes (``frictid fit`` and ``frictid report``).
+
+The workers are forked (``concurrent.futures.ProcessPoolExecutor`` with the ``fork`` start method): they
+inherit the logs already read and the function to run copy-on-write, so nothing large is pickled on the
+way in; only each result comes back pickled. Results come in the items' order and do not depend on the
+number of workers; an exception raised for an item is raised again in the parent as the same class with
+the same message (the first failing item in order wins, as a loop would), and Ctrl-C or SIGTERM in the
+parent stops the workers at once.
+"""
+from __future__ import annotations
+
+import os
+import pickle
+from typing import Any, Callable, Sequence
+
+from .errors import FrictidInputError
+
+#: What the forked workers inherit: the function and the items (set only while a pool runs).
+_TASK: dict[str, Any] = {}
+
+
+def n_workers(jobs: int | None, n_items: int) -> int:
+    """Worker processes for ``n_items`` items: ``jobs`` (0: the cores this process may run on), at most one
+    per item; 1 (run in this process) where processes cannot be forked."""
+    if jobs is None or int(jobs) < 0:
+        raise FrictidInputError(f"--jobs {jobs}: give 0 (one per core) or a positive number of processes")
+    jobs = int(jobs)
+    if jobs == 0:
+        try:
+            jobs = len(os.sched_getaffinity(0))
+        except AttributeError:  # pragma: no cover - not Linux
+            jobs = os.cpu_count() or 1
+    import multiprocessing as mp
+
+    if "fork" not in mp.get_all_start_methods():  # pragma: no cover - Windows
+        return 1
+    return max(1, min(jobs, n_items))
+
+
+def map_forked(fn: Callable, items: Sequence, workers: int) -> list:
+    """``[fn(x) for x in items]``, run in ``workers`` forked processes (in this one when ``workers`` <= 1
+    or there is one item). ``fn`` may be a closure: it is inherited, never pickled."""
+    items = list(items)
+    if workers <= 1 or len(items) <= 1:
+        return [fn(x) for x in items]
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    _TASK.update(fn=fn, items=items)
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(items)), mp_context=mp.get_context("fork"),
+                               initializer=_worker_init)
+    try:
+        futures = [pool.submit(_call, k) for k in range(len(items))]
+        out = []
+        for fut in futures:
+            status, value = fut.result()
+            if status == "error":
+                raise _rebuild_exception(value)
+            out.append(value)
+        pool.shutdown(wait=True)
+        return out
+    except BaseException:
+        # an error, Ctrl-C or SIGTERM: stop the other items now instead of waiting for them
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+            proc.terminate()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    finally:
+        _TASK.clear()
+
+
+def _worker_init() -> None:
+    """A worker: one BLAS thread (the items already share the cores), no Ctrl-C or SIGTERM handling of its
+    own (the parent stops the workers and reports an interruption once)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # optional: without it BLAS keeps its own thread count
+        return
+    _TASK["blas_limit"] = threadpool_limits(limits=1, user_api="blas")
+
+
+def _call(k: int):
+    """Item ``k`` of the inherited task: ("ok", result) or ("error", the exception as data)."""
+    try:
+        return "ok", _TASK["fn"](_TASK["items"][k])
+    except Exception as exc:  # noqa: BLE001 - raised again, as the same class, in the parent
+        return "error", _exception_data(exc)
+
+
+def _exception_data(exc: BaseException) -> tuple:
+    """An exception as (class, message, attributes): it pickles even when the class's ``__init__`` takes
+    other arguments than the message (:class:`~frictid.errors.LogFormatError`)."""
+    cls, attrs = type(exc), dict(getattr(exc, "__dict__", {}))
+    try:
+        pickle.dumps(cls)
+    except Exception:  # noqa: BLE001 - a class the parent could not find
+        return RuntimeError, f"{cls.__name__}: {exc}", {}
+    try:
+        pickle.dumps(attrs)
+    except Exception:  # noqa: BLE001 - keep the message
+        attrs = {}
+    return cls, str(exc), attrs
+
+
+def _rebuild_exception(data: tuple) -> BaseException:
+    cls, msg, attrs = data
+    exc = cls.__new__(cls)
+    exc.args = (msg,)
+    exc.__dict__.update(attrs)
+    return exc
