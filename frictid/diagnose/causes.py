@@ -39,6 +39,20 @@ EXTENSIONS = {
 TAU_PER_DECADE = 3
 #: Fewest periods the position range must hold for a periodic term.
 MIN_PERIODS = 2.0
+#: A thermal state (heat balance, no measured temperature) is a slow variable only if the current velocity
+#: explains at most this fraction of its variance; otherwise it is a proxy for the speed (a time constant
+#: of a fraction of a second makes it the instantaneous friction power) and the data cannot resolve it.
+THERMAL_R2_MAX = 0.5
+#: A thermal time constant (heat balance, no measured temperature) is resolvable only when it is at least
+#: this many times the mean duration of a one-sign run of the motion (slow against the excitation) ...
+TAU_MIN_RUNS = 5.0
+#: ... and the recording spans at least this many of the shortest resolvable time constant (a warm-up
+#: must show its curvature, not only a trend): 15 half-cycles of motion at least.
+SPAN_MIN_TAUS = 3.0
+#: The inertia cause is tested only when the sliding samples carry at least this share of the acceleration
+#: excitation (sum of a^2) of the moving samples: the fit's inertia rests on all of them, and a subset with
+#: little acceleration cannot overrule it (on a pulses run it turns transients into a 56 % inertia change).
+INERTIA_EXCITATION_MIN = 0.25
 
 
 def n_coef(ext: str, st: Structure) -> int:
@@ -46,12 +60,18 @@ def n_coef(ext: str, st: Structure) -> int:
     return len(st.slots()) if k is None else k
 
 
-def candidates(S: Samples, st: Structure) -> list[str]:
-    """Extensions worth testing on these samples on top of structure st (one cause enters once)."""
+def candidates(S: Samples, st: Structure, ctx: Context | None = None) -> list[str]:
+    """Extensions worth testing on these samples on top of structure st (one cause enters once).
+
+    Plausibility guards (docs/diagnosis.md): temperature without a measured joint temperature needs a
+    thermal time constant the data resolve (:func:`tau_grid`); inertia needs the sliding samples to carry
+    a fair share of the acceleration excitation (:func:`acceleration_share`); drift needs recordings with
+    known start times (logs laid end to end are one warm-up)."""
     have = {t.cause for t in st.terms}
     out = []
     span_h = float(S.th.max() - S.th.min())
-    if "temperature" not in have and span_h * 3600 > 20 * _dt(S):
+    if "temperature" not in have and span_h * 3600 > 20 * _dt(S) and (
+            S.temp_joint is not None or tau_grid(S, ctx).size):
         out += ["thermal4", "thermal6"]
     if "position" not in have and S.q is not None and np.ptp(S.q) > 0:
         out.append("position_smooth")
@@ -67,13 +87,13 @@ def candidates(S: Samples, st: Structure) -> list[str]:
         out += ["asym_scale", "asym"]
     if "stribeck" not in have and 1 not in st.slots():
         out.append("stribeck")
-    if "inertia" not in have and np.std(S.a) > 0:
+    if "inertia" not in have and np.std(S.a) > 0 and acceleration_share(S) >= INERTIA_EXCITATION_MIN:
         out.append("inertia")
     if "gravity" not in have and S.q is not None and S.axis_rotary and np.ptp(S.q) > 0:
         out.append("gravity")
     if "offset" not in have:
         out.append("offset")
-    if "drift" not in have and len(S.logs) > 1 and span_h > 0:
+    if "drift" not in have and len(S.logs) > 1 and span_h > 0 and S.clock_real:
         out.append("drift")
     return out
 
@@ -92,12 +112,73 @@ def _period_range(S: Samples):
     return (p_min, p_max) if p_max > 2 * p_min else None
 
 
-def tau_grid(S: Samples) -> np.ndarray:
-    """Thermal time constants [s] tried: from 1/100 of the recording span to 3 spans."""
+def acceleration_share(S: Samples) -> float:
+    """Share of the acceleration excitation (sum of a^2 over the moving samples, faster than 2 % of the top
+    speed) that the sliding samples carry (their decimation undone)."""
+    tot = 0.0
+    for lg in S.logs:
+        w, a = np.nan_to_num(lg.w), np.nan_to_num(lg.a)
+        m = np.abs(w) > 0.02 * S.w0
+        tot += float(np.sum(a[m] ** 2))
+    if tot <= 0:
+        return 0.0
+    return min(1.0, float(np.sum(S.a ** 2)) * max(S.decimation, 1) / tot)
+
+
+def velocity_r2(S: Samples, x: np.ndarray, Q: np.ndarray | None = None) -> float:
+    """Fraction of the variance of x that the current velocity explains (least squares on 1, sgn w, w,
+    |w|, w|w|, w^3 and |w|^(1/2)); Q : an orthonormal basis of those columns (computed when None)."""
+    if Q is None:
+        w = S.w
+        v = np.abs(w)
+        X = np.column_stack([np.ones_like(w), np.sign(w), w, v, w * v, w ** 3, np.sqrt(v)])
+        Q, _ = np.linalg.qr(X / np.maximum(np.sqrt(np.einsum("ij,ij->j", X, X)), 1e-300))
+    r = x - Q @ (Q.T @ x)
+    var = float(np.sum((x - x.mean()) ** 2))
+    return 1.0 - float(np.sum(r * r)) / var if var > 0 else 1.0
+
+
+def run_time(S: Samples) -> float:
+    """Mean duration [s] of a run of one velocity sign (moving faster than 2 % of the top speed) over the
+    logs: the time scale of the excitation (half a cycle of a back-and-forth motion)."""
+    total, runs = 0.0, 0
+    for lg in S.logs:
+        w = np.nan_to_num(lg.w)
+        m = np.abs(w) > 0.02 * S.w0
+        if m.sum() < 2:
+            continue
+        sg = np.sign(w[m])
+        runs += 1 + int(np.count_nonzero(np.diff(sg)))
+        dt = np.diff(lg.t)
+        total += float(np.sum(dt[m[:-1]]))
+    return total / runs if runs else math.inf
+
+
+def tau_grid(S: Samples, ctx: Context | None = None) -> np.ndarray:
+    """Thermal time constants [s] tried for the heat balance, only those the data resolve: from
+    :data:`TAU_MIN_RUNS` one-sign runs of the motion (and 1/100 of the recording) to the recording span
+    (a longer one is a trend the recording cannot tell from anything else slow), none when the recording
+    is shorter than :data:`SPAN_MIN_TAUS` of the shortest, and only those whose thermal state is a slow
+    variable, not a proxy for the speed (:data:`THERMAL_R2_MAX`)."""
+    if ctx is None:
+        ctx = Context(S)
+    key = ("tau_grid",)
+    if key in ctx._cache:
+        return ctx._cache[key]
     span = max(float(S.th.max() - S.th.min()) * 3600.0, 10 * _dt(S))
-    lo, hi = span / 100.0, 3.0 * span
-    n = max(3, int(round(TAU_PER_DECADE * math.log10(hi / lo))) + 1)
-    return np.geomspace(lo, hi, n)
+    lo, hi = max(span / 100.0, TAU_MIN_RUNS * run_time(S)), span
+    if not (SPAN_MIN_TAUS * lo <= hi):
+        grid = np.zeros(0)
+    else:
+        n = max(3, int(round(TAU_PER_DECADE * math.log10(hi / lo))) + 1)
+        grid = np.geomspace(lo, hi, n)
+        w = S.w
+        v = np.abs(w)
+        X = np.column_stack([np.ones_like(w), np.sign(w), w, v, w * v, w ** 3, np.sqrt(v)])
+        Q, _ = np.linalg.qr(X / np.maximum(np.sqrt(np.einsum("ij,ij->j", X, X)), 1e-300))
+        grid = np.array([tc for tc in grid if velocity_r2(S, ctx.thermal(tc), Q) <= THERMAL_R2_MAX])
+    ctx._cache[key] = grid
+    return grid
 
 
 def _fit_rms(ctx: Context, st: Structure, idx) -> float:
@@ -124,11 +205,14 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
             if src == "temp_joint":
                 cand = [trial(src, 1.0)]
             else:
-                grid = tau_grid(S)
+                grid = tau_grid(S, ctx)
+                if not grid.size:
+                    continue
                 cand = [trial(src, tc) for tc in grid]
                 k = int(np.argmin([c[0] for c in cand]))
-                step = grid[1] / grid[0] if grid.size > 1 else 2.0
-                cand += [trial(src, grid[k] * step ** f) for f in (-1 / 3, 1 / 3)]
+                step = 10.0 ** (1.0 / TAU_PER_DECADE)
+                cand += [trial(src, grid[k] * step ** f) for f in (-1 / 3, 1 / 3)
+                         if grid[0] <= grid[k] * step ** f <= grid[-1]]
             for c in cand:
                 if best is None or c[0] < best[0]:
                     best = c

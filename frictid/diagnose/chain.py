@@ -179,7 +179,7 @@ class Chain:
     # -- the loop --------------------------------------------------------------------------------------
     def run(self, max_steps: int = MAX_STEPS) -> list[dict]:
         for _ in range(max_steps):
-            exts = candidates(self.S, self.st)
+            exts = candidates(self.S, self.st, self.ctx)
             if not exts:
                 break
             m = len(exts)

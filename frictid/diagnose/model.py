@@ -119,8 +119,72 @@ class Context:
         self.w_top = max(float(np.max(np.abs(np.nan_to_num(lg.w)))) for lg in S.logs)
         self.a_top = max(float(np.max(np.abs(np.nan_to_num(lg.a)))) for lg in S.logs)
 
+    @staticmethod
+    def base_key(slot: int, shapes, term_nl=None) -> tuple:
+        return ("base", slot, tuple(np.round(np.asarray(shapes, float)[[2, 3, 5]], 12)), term_nl)
+
+    # normal equations ---------------------------------------------------------------------------------
+    def fold_of(self, idx) -> int | None | bool:
+        """None when idx holds every sample, f when it holds exactly the samples outside fold f (a training
+        set), False otherwise."""
+        S = self.S
+        if "fold_counts" not in self._cache:
+            self._cache["fold_counts"] = np.bincount(S.fold, minlength=S.n_folds)
+        full = self._cache["fold_counts"]
+        if idx.size == S.n:
+            return None
+        cnt = np.bincount(S.fold[idx], minlength=S.n_folds)
+        miss = np.flatnonzero(cnt == 0)
+        if miss.size == 1 and np.array_equal(np.delete(cnt, miss), np.delete(full, miss)):
+            return int(miss[0])
+        return False
+
+    def _pair(self, ka, a, kb, b) -> np.ndarray:
+        """Per-fold sums of a * b (the normal equations of every fold are sums of these)."""
+        key = ("pair", ka, kb)
+        out = self._cache.get(key)
+        if out is None:
+            out = self._cache.get(("pair", kb, ka))
+        if out is None:
+            out = np.bincount(self.S.fold, weights=a * b, minlength=self.S.n_folds)
+            self._cache[key] = out
+        return out
+
+    def normal_equations(self, items, fold: int | None):
+        """:class:`frictid.fit.regression.NormalEquations` of the columns ``items`` (list of (key, vector))
+        against the friction torque, over all samples (fold None) or outside fold ``fold``.
+
+        Accumulated once per fold and column pair and cached: a candidate's system is the current one
+        bordered by its own columns, and only the border is new."""
+        from ..fit.regression import NormalEquations
+
+        S = self.S
+        sel = (lambda v: v.sum()) if fold is None else (lambda v: v.sum() - v[fold])
+        p = len(items)
+        XtX = np.empty((p, p))
+        Xty = np.empty(p)
+        for i, (ka, a) in enumerate(items):
+            Xty[i] = sel(self._pair(ka, a, ("y",), S.F))
+            for j in range(i, p):
+                kb, b = items[j]
+                XtX[i, j] = XtX[j, i] = sel(self._pair(ka, a, kb, b))
+        yty = float(sel(self._pair(("y",), S.F, ("y",), S.F)))
+        full = self._cache.get("fold_counts")
+        if full is None:
+            full = self._cache["fold_counts"] = np.bincount(S.fold, minlength=S.n_folds)
+        n = int(full.sum() - (0 if fold is None else full[fold]))
+        return NormalEquations(p, XtX, Xty, yty, n)
+
+    def signed(self, key, col, positive: bool) -> np.ndarray:
+        """col on the samples of one velocity sign (w >= 0 or w < 0), zero elsewhere (cached)."""
+        k = ("signed", key, positive)
+        if k not in self._cache:
+            m = self.S.w >= 0
+            self._cache[k] = col * (m if positive else ~m)
+        return self._cache[k]
+
     def base_column(self, slot: int, shapes, term_nl=None) -> np.ndarray:
-        key = ("base", slot, tuple(np.round(shapes[[2, 3, 5]], 12)), term_nl)
+        key = self.base_key(slot, shapes, term_nl)
         if key not in self._cache:
             w, v, s = self.S.w, self.v, self.sgn
             if slot == 0:
@@ -213,12 +277,14 @@ class Evaluator:
         S = ctx.S
         strib = next((t for t in st.terms if t.role == "stribeck"), None)
         self.slots = st.slots()
-        cols = {}
+        cols, bkeys = {}, {}
         for sl in self.slots:
             nl = (strib.settings["vs"], strib.settings["delta"]) if (strib and sl == 1 and
                                                                      1 not in MAP_SLOTS[st.map]) else None
             cols[sl] = ctx.base_column(sl, st.shapes, nl)
+            bkeys[sl] = ctx.base_key(sl, st.shapes, nl)
         self.base_cols = cols
+        self.base_keys = bkeys
         self.pos = S.w >= 0
         self.lf = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "level_factor"]
         self.af = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "whole_factor"]
@@ -313,6 +379,53 @@ class Evaluator:
         if cols:
             self._apply(c, keys, _lstsq(np.column_stack(cols), y))
 
+    def _linear_items(self):
+        """The linear columns with every factor at one, on all samples: [(key, vector, coefficient key)],
+        the excluded ones left out, and the held base columns [(key, vector, value)]."""
+        items, held = [], []
+        pos = self.pos
+        for sl, col in self.base_cols.items():
+            k = self.base_keys[sl]
+            if sl in self._held:
+                held.append((k, col, float(self.st.shapes[sl])))
+                continue
+            if self.st.asym:
+                items += [(k + ("p",), self.ctx.signed(k, col, True), ("p", sl, 0)),
+                          (k + ("n",), self.ctx.signed(k, col, False), ("n", sl, 0))]
+            else:
+                items.append((k, col, ("b", sl, 0)))
+        for i, t, X in ([self.t6] if self.t6 is not None else []) + self.add:
+            for j in range(X.shape[1]):
+                items.append((("term", t.ext, t.nl, j), X[:, j], ("dc", j, 0) if t.role == "thermal6" else ("g", i, j)))
+        return [x for x in items if x[2] not in self._excl], held
+
+    def _linear_block_ne(self, c: Coef, fold):
+        """:meth:`_linear_block` with the factors at one, from the cached per-fold normal equations; returns
+        the residual sum of squares and the sample count."""
+        from ..fit.regression import solve
+
+        items, held = self._linear_items()
+        c.base_pos, c.base_neg, c.dc = {}, {}, np.zeros(4)
+        for i, t, X in self.add:
+            c.gamma[i] = np.zeros(X.shape[1])
+        ne = self.ctx.normal_equations([(k, v) for k, v, _ in items] + [(k, v) for k, v, _ in held], fold)
+        p = len(items)
+        h = np.array([v for _, _, v in held])
+        for k, _, v in held:
+            sl = k[1]
+            c.base_pos[sl] = c.base_neg[sl] = v
+        XtX, Xty, yty = ne.XtX[:p, :p], ne.Xty[:p].copy(), ne.yty
+        if held:
+            Xty -= ne.XtX[:p, p:] @ h
+            yty = yty - 2 * h @ ne.Xty[p:] + h @ ne.XtX[p:, p:] @ h
+        b = np.zeros(0)
+        if p:
+            from ..fit.regression import NormalEquations
+            b = solve(NormalEquations(p, XtX, Xty, yty, ne.n), tuple(str(x[2]) for x in items)).coef
+            self._apply(c, [x[2] for x in items], b)
+        rss = float(yty - 2 * b @ Xty + b @ XtX @ b) if p else float(yty)
+        return max(rss, 0.0), ne.n
+
     def _jacobian(self, c: Coef, idx):
         """Prediction and the columns of its derivative in every coefficient, with their keys."""
         g, f = self._gf(c, idx)
@@ -400,11 +513,17 @@ class Evaluator:
         if 1 in self.base_cols and 1 in MAP_SLOTS[self.st.map] and idx.size:
             if float(np.max(np.abs(self.base_cols[1][idx]))) < EXCITE:
                 self._held.add(1)
+        fold = self.ctx.fold_of(idx)
+        linear = not (self.lf or self.af)
+        rss = None
         for _ in range(4):
             c = Coef({}, {}, np.zeros(4), {})
             for i, t, X in self.lf + self.af + self.add:
                 c.gamma[i] = np.zeros(X.shape[1])
-            self._linear_block(c, idx, y)
+            if fold is not False:
+                rss, n_ne = self._linear_block_ne(c, fold)
+            else:
+                self._linear_block(c, idx, y)
             if self.lf or self.af:
                 prev = np.inf
                 for _ in range(max_iter):
@@ -431,8 +550,11 @@ class Evaluator:
                 if kind == "g":
                     c.gamma[a][b] = 0.0
         c.excluded = sorted(self._excl)
-        r = y - self.predict(c, idx)
-        c.rms = float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
+        if linear and fold is not False and not bad and rss is not None:
+            c.rms = float(np.sqrt(rss / n_ne)) if n_ne else float("nan")
+        else:
+            r = y - self.predict(c, idx)
+            c.rms = float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
         c.n = int(idx.size)
         return c
 
