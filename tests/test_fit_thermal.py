@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from frictid.fit.thermal import fit_thermal, heldout, predict_coefficients, prepare, simulate_temperature
+from frictid.fit.thermal import (fit_thermal, heldout, nested_start, predict_coefficients, prepare,
+                                 simulate_temperature)
 from frictid.models import thermal as mt
 
 C_TRUE = (10.0, 5.0, 1.0, 0.2)
@@ -77,6 +78,52 @@ def test_thermal6_predicts_friction_and_beats_thermal4(run_and_truth):
         assert np.max(np.abs(Fp - Ft) / np.abs(Ft)) < 0.05
     # K is held: only C/K is identifiable without a joint temperature
     assert f6.fixed["K"] == 1.0 and f6.notes
+
+
+def test_thermal6_from_thermal4_optimum_fits_at_least_as_well(run_and_truth):
+    """thermal4 is nested in thermal6: started at thermal4's optimum (same friction at every temperature),
+    thermal6 can only lower the cost, whatever the truth."""
+    run, _ = run_and_truth
+    f4 = fit_thermal([run], "thermal4")
+    st = nested_start(f4)
+    assert st["c0"] == pytest.approx(f4.fixed["c0"] * f4.values["beta"])
+    assert st["dc1"] == pytest.approx(f4.fixed["c1"] * f4.values["alpha"])
+    f6 = fit_thermal([run], "thermal6", start=st)
+    assert f6.cost <= f4.cost * (1 + 1e-9)
+    # the nested start itself reproduces thermal4's friction at any temperature
+    for T in (20.0, 30.0, 45.0):
+        c4 = predict_coefficients(f4, T)[0]
+        c6 = np.array([st[f"c{i}"] + st[f"dc{i}"] * (T - f4.T0) for i in range(4)])
+        assert c6 == pytest.approx(c4, rel=1e-12, abs=1e-12)
+
+
+def test_compiled_heat_balance_matches_python_twin():
+    rng = np.random.default_rng(3)
+    n = 300
+    h = rng.uniform(0.5, 5.0, n)
+    e = rng.normal(0.0, 1.0, n)
+    W0 = rng.uniform(0.0, 20.0, n)
+    W1 = rng.uniform(-0.5, 0.5, n)
+    W1[::7] = 1.0  # K - W1 = 0: the linear branch
+    got = mt.heat_balance_bins(h, e, W0, W1, 300.0, 1.0, 0.3)
+    want = mt.heat_balance_bins_ref(h, e, W0, W1, 300.0, 1.0, 0.3)
+    assert got == pytest.approx(want, rel=1e-10, abs=1e-10)
+
+
+def test_canonical_at_scales_amplitudes_not_shapes():
+    """thermal4 scales the level and viscous amplitudes, never the Stribeck velocities or exponent, as the
+    compiled kernels do (frictid.models.lugre.thermal_canon_nb)."""
+    from frictid.models.lugre import thermal_canon_nb
+
+    c0 = np.array([10.0, 3.0, 0.05, 1.5, 2.0, 0.4, 0.7, 0.1, 0.01])
+    dc9 = np.array([-0.1, 0, 0, 0, 0, 0, -0.02, 0.003, 0.0])
+    for law in ("thermal4", "thermal6", "exponential"):
+        code, theta, dc = mt.thermal_code(law, alpha=-0.01, beta=1.02, lam=0.005, T0=25.0, dc=dc9[[0, 6, 7, 8]])
+        got = mt.canonical_at(c0, 40.0, code, theta, dc)
+        out = np.empty(9)
+        thermal_canon_nb(c0, dc, code, theta, 40.0, out)
+        assert got == pytest.approx(out, rel=1e-12)
+        assert got[[2, 3, 5]] == pytest.approx(c0[[2, 3, 5]])
 
 
 def test_heldout_gain_over_constant_polynomial(run_and_truth):

@@ -88,3 +88,24 @@ def test_coulomb_viscous_dissipative_and_odd(Fc, sigma2, w):
     F = sm.coulomb_viscous(np.array([w, -w]), Fc, sigma2)
     assert F[0] * w >= 0
     assert F[1] == pytest.approx(-F[0], abs=1e-12)
+
+
+@pytest.mark.parametrize("name, params", [
+    ("coulomb_viscous", dict(Fc=0.5, sigma2=0.2)),
+    ("stribeck", dict(Fc=0.5, Fs=0.8, vs=0.1, delta=1.5, sigma2=0.2)),
+    ("stribeck_2exp", dict(alpha0=0.5, alpha1=0.3, alpha2=-0.2, alpha3=0.1, alpha4=0.02, ws1=0.1, ws2=0.6)),
+    ("polynomial", dict(c0=0.5, c1=0.2, c2=-0.05, c3=0.01)),
+])
+def test_jacobian_matches_central_differences(name, params):
+    """The closed-form Jacobian the optimiser uses agrees with central differences (w = 0 included)."""
+    m = sm.STATIC_MAPS[name]
+    w = np.concatenate([np.linspace(-2.0, 2.0, 41), [1e-6]])
+    J = m.jac(w, **params)
+    assert J.shape == (w.size, len(m.names)) and np.all(np.isfinite(J))
+    for j, k in enumerate(m.names):
+        h = 1e-6 * max(1.0, abs(params[k]))
+        up, dn = dict(params), dict(params)
+        up[k] += h
+        dn[k] -= h
+        num = (m.func(w, **up) - m.func(w, **dn)) / (2 * h)
+        assert J[:, j] == pytest.approx(num, rel=1e-5, abs=1e-7), k

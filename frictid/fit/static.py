@@ -36,6 +36,8 @@ _IMPACT_POWER = {"F": 0, "D": 1, "D2": 2, "D3": 3}
 #: Function evaluations per parameter allowed to one refinement (degenerate valleys of the
 #: two-exponential map otherwise run for thousands of steps without changing the curve).
 MAX_NFEV_PER_PARAM = 40
+#: ... of which each start of a multi-start gets this many before the best one is run to the end.
+SCREEN_NFEV_PER_PARAM = 8
 
 #: Relative size (of the torque scale) below which an uncertain parameter does not matter.
 NEGLIGIBLE = 0.01
@@ -254,6 +256,10 @@ def fit_branch(base: str, w, F, F_se=None, fixed: dict | None = None, n_refine: 
         x = full(xf)
         return (smap.func(w, **dict(zip(names, x))) - F) * wts
 
+    def jac(xf):
+        x = full(xf)
+        return smap.jac(w, **dict(zip(names, x)))[:, free] * wts[:, None]
+
     lo_f, hi_f, xs_f = lo[free], hi[free], xs[free]
     margin = 1e-9 * (hi_f - lo_f)
     if start is not None and all(start.get(nm) is not None for nm in names):
@@ -261,20 +267,28 @@ def fit_branch(base: str, w, F, F_se=None, fixed: dict | None = None, n_refine: 
     else:
         starts = guess_starts(base, w, F, wts, lo_d, hi_d, fixed) if n > 0 else []
         tries = starts[:n_refine] + [dict(zip(names, x0_tab))]  # and the table's own start
+    def solve(x0, budget):
+        try:
+            res = least_squares(resid, x0, jac=jac if smap.jac is not None else "2-point",
+                                bounds=(lo_f, hi_f), x_scale=xs_f, method="trf", max_nfev=budget)
+        except ValueError:  # e.g. non-finite residuals from a degenerate start
+            return None
+        return res if np.all(np.isfinite(res.fun)) else None
+
+    # every start gets a short run (SCREEN_NFEV_PER_PARAM); the best one is then run to convergence
+    budget = MAX_NFEV_PER_PARAM * (p + 1)
+    screen = SCREEN_NFEV_PER_PARAM * (p + 1) if len(tries) > 1 else budget
     best = None
     for st in tries:
-        x0 = np.array([st[names[k]] for k in free], dtype=float)
-        x0 = np.clip(x0, lo_f + margin, hi_f - margin)
         if n == 0:
             break
-        try:
-            res = least_squares(resid, x0, bounds=(lo_f, hi_f), x_scale=xs_f, method="trf",
-                                max_nfev=MAX_NFEV_PER_PARAM * (p + 1))
-        except ValueError as exc:  # e.g. non-finite residuals from a degenerate start
-            continue
-        if not np.all(np.isfinite(res.fun)):
-            continue
-        if best is None or res.cost < best.cost:
+        x0 = np.clip(np.array([st[names[k]] for k in free], dtype=float), lo_f + margin, hi_f - margin)
+        res = solve(x0, screen)
+        if res is not None and (best is None or res.cost < best.cost):
+            best = res
+    if best is not None and best.status == 0 and screen < budget:  # stopped by the screening budget
+        res = solve(best.x, budget - screen)
+        if res is not None and res.cost <= best.cost:
             best = res
     if best is None:
         vals = {nm: None for nm in names}

@@ -98,6 +98,46 @@ def polynomial(w, c0, c1, c2, c3):
     return c0 * np.sign(w) + c1 * w + c2 * w * np.abs(w) + c3 * w**3
 
 
+# Jacobians: d F / d parameters, one column per parameter in the order of the map's table (closed form;
+# the optimiser's finite differences cost one map evaluation per parameter and step).
+
+
+def coulomb_viscous_jac(w, Fc, sigma2):
+    """d coulomb_viscous / d (Fc, sigma2), shape (n, 2)."""
+    w = np.asarray(w, dtype=float)
+    return np.column_stack([np.sign(w), w])
+
+
+def stribeck_jac(w, Fc, Fs, vs, delta, sigma2):
+    """d stribeck / d (Fc, Fs, vs, delta, sigma2), shape (n, 5)."""
+    w = np.asarray(w, dtype=float)
+    s = np.sign(w)
+    x = np.abs(w) / vs
+    u = np.power(x, delta)
+    e = np.exp(-u)
+    se = s * (Fs - Fc) * e
+    with np.errstate(divide="ignore", invalid="ignore"):
+        logx = np.where(x > 0, np.log(np.where(x > 0, x, 1.0)), 0.0)
+    return np.column_stack([s * (1.0 - e), s * e, se * u * delta / vs, -se * u * logx, w])
+
+
+def stribeck_2exp_jac(w, alpha0, alpha1, alpha2, alpha3, alpha4, ws1, ws2):
+    """d stribeck_2exp / d (alpha0, alpha1, alpha2, alpha3, alpha4, ws1, ws2), shape (n, 7)."""
+    w = np.asarray(w, dtype=float)
+    s = np.sign(w)
+    v = np.abs(w)
+    e1 = np.exp(-v / ws1)
+    e2 = np.exp(-v / ws2)
+    return np.column_stack([s, s * e1, s * (1.0 - e2), w, w * v, s * alpha1 * e1 * v / ws1**2,
+                            -s * alpha2 * e2 * v / ws2**2])
+
+
+def polynomial_jac(w, c0, c1, c2, c3):
+    """d polynomial / d (c0, c1, c2, c3), shape (n, 4)."""
+    w = np.asarray(w, dtype=float)
+    return np.column_stack([np.sign(w), w, w * np.abs(w), w**3])
+
+
 # Canonical conversions: named parameters -> 9-vector.
 
 def _canon_cv(Fc, sigma2):
@@ -125,6 +165,7 @@ class StaticMap:
     table: tuple[Param, ...]
     to_canonical: Callable
     linear: bool = False  # linear in its parameters (polynomial, coulomb_viscous)
+    jac: Callable | None = None  # d func / d parameters (n, p), in the table's order
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -143,7 +184,7 @@ STATIC_MAPS: dict[str, StaticMap] = {
         "coulomb_viscous", coulomb_viscous,
         (Param("Fc", "F", 0.0, 10.0, 0.5, 0.1, "Coulomb level"),
          Param("sigma2", "D", -10.0, 10.0, 0.2, 0.1, "viscous coefficient")),
-        _canon_cv, linear=True),
+        _canon_cv, linear=True, jac=coulomb_viscous_jac),
     "stribeck": StaticMap(
         "stribeck", stribeck,
         (Param("Fc", "F", 0.0, 10.0, 0.5, 0.1, "Coulomb level"),
@@ -151,7 +192,7 @@ STATIC_MAPS: dict[str, StaticMap] = {
          Param("vs", "W", 1e-5, 2.0, 0.05, 0.05, "Stribeck velocity"),
          Param("delta", "1", 0.3, 5.0, 2.0, 1.0, "Stribeck exponent"),
          Param("sigma2", "D", -10.0, 10.0, 0.2, 0.1, "viscous coefficient")),
-        _canon_stribeck),
+        _canon_stribeck, jac=stribeck_jac),
     "stribeck_2exp": StaticMap(
         "stribeck_2exp", stribeck_2exp,
         (Param("alpha0", "F", -20.0, 20.0, 0.5, 0.1, "base level"),
@@ -161,14 +202,14 @@ STATIC_MAPS: dict[str, StaticMap] = {
          Param("alpha4", "D2", -10.0, 10.0, 0.0, 0.1, "quadratic coefficient"),
          Param("ws1", "W", 1e-5, 2.0, 0.05, 0.05, "Stribeck velocity"),
          Param("ws2", "W", 1e-5, 2.0, 0.2, 0.05, "second velocity")),
-        _canon_2exp),
+        _canon_2exp, jac=stribeck_2exp_jac),
     "polynomial": StaticMap(
         "polynomial", polynomial,
         (Param("c0", "F", -10.0, 10.0, 0.5, 0.1, "Coulomb term"),
          Param("c1", "D", -20.0, 20.0, 0.2, 0.1, "linear term"),
          Param("c2", "D2", -20.0, 20.0, 0.0, 0.1, "quadratic term"),
          Param("c3", "D3", -20.0, 20.0, 0.0, 0.1, "cubic term")),
-        _canon_poly, linear=True),
+        _canon_poly, linear=True, jac=polynomial_jac),
 }
 
 
