@@ -70,7 +70,7 @@ def main(argv: list[str] | None = None) -> None:
             traceback.print_exc()
         print(f"frictid: gate failed: {exc}", file=sys.stderr)
         code, message = 3, str(exc)
-    except BrokenPipeError:
+    except BrokenPipeError:  # the reader of standard output went away (`| head`): 1, as click does
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         code = 1
