@@ -219,3 +219,27 @@ def test_output_equal_to_an_input_is_refused(tmp_path, cli, params_file, monkeyp
     res = cli("simulate", "mine", "-o", "recipes/mine.yaml", "--format", "csv")
     assert res.code == 2 and "never overwrites an input" in res.err
     assert (tmp_path / "recipes" / "mine.yaml").read_bytes() == before[recipe]
+
+
+def test_unexpected_errors_are_exit_1_and_debug_shows_the_traceback(tmp_path, cli, monkeypatch):
+    """A bug is exit code 1 with one message saying so; --debug (anywhere) adds the traceback; --json gets
+    the error document."""
+    import json
+
+    import frictid.segments as seg
+
+    def broken(log):
+        raise RuntimeError("segmenter exploded")
+
+    monkeypatch.setattr(seg, "find_segments", broken)
+    path = tmp_path / "log.csv"
+    path.write_bytes(_csv(valid_frame()))
+    out = tmp_path / "seg.csv"
+    res = cli("segments", path, "-o", out)
+    assert res.code == 1 and "internal error" in res.err and "segmenter exploded" in res.err
+    assert "Traceback" not in res.err and "--debug" in res.err and not out.exists()
+    res = cli("--debug", "segments", path, "-o", out)
+    assert res.code == 1 and "Traceback" in res.err and not out.exists()
+    res = cli("segments", path, "-o", out, "--json")
+    doc = json.loads(res.out)
+    assert res.code == 1 and doc["ok"] is False and doc["exit_code"] == 1 and "segmenter exploded" in doc["error"]
