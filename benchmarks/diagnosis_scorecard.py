@@ -4,6 +4,8 @@
     python benchmarks/diagnosis_scorecard.py --quick               # one seed, fewer strengths
     python benchmarks/diagnosis_scorecard.py --out runs.jsonl      # keep every run (resumes if present)
     python benchmarks/diagnosis_scorecard.py --report runs.jsonl   # print the card from saved runs
+    python benchmarks/diagnosis_scorecard.py --seeds 2 --first-seed 2 --out b.jsonl   # seeds 2, 3 (a second
+                                                                   # process); --report a.jsonl,b.jsonl joins
 
 Every run: a diagnosis session (``tests/diag_synth.py``: constant-velocity sweep, point-to-point cycles,
 the sweep again; three sessions 100 h apart for drift, three payloads for load) on a shipped plant with
@@ -139,18 +141,19 @@ def card(rows):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=2)
+    ap.add_argument("--first-seed", type=int, default=0, help="seeds first-seed .. first-seed + seeds - 1")
     ap.add_argument("--sizes", default="small")
     ap.add_argument("--strengths", default=",".join(str(s) for s in STRENGTHS))
     ap.add_argument("--quick", action="store_true", help="one seed, strengths 0.05 and 0.15")
     ap.add_argument("--out", default=None, help="JSON-lines file of runs (appended; present runs are skipped)")
-    ap.add_argument("--report", default=None, help="print the card from a JSON-lines file and exit")
+    ap.add_argument("--report", default=None, help="print the card from JSON-lines files (comma-separated) and exit")
     args = ap.parse_args(argv)
     if args.report:
-        rows = [json.loads(x) for x in Path(args.report).read_text().splitlines() if x.strip()]
+        rows = [json.loads(x) for f in args.report.split(",") for x in Path(f).read_text().splitlines() if x.strip()]
         print(card(rows))
         return 0
     strengths = (0.05, 0.15) if args.quick else tuple(float(x) for x in args.strengths.split(","))
-    seeds = range(1 if args.quick else args.seeds)
+    seeds = range(args.first_seed, args.first_seed + (1 if args.quick else args.seeds))
     done = {}
     if args.out and Path(args.out).exists():
         for x in Path(args.out).read_text().splitlines():
