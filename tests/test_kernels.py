@@ -66,3 +66,29 @@ def test_sigma1_round_trip_from_simulated_steps():
     assert est.identifiable and 0 < est.stderr < 0.05 * s1_true
     assert est.value == pytest.approx(s1_true, rel=0.02)
     assert abs(est.value - s1_true) < 5 * est.stderr
+
+
+def test_ramp_forces_are_the_bristle_path_and_their_derivative():
+    """fit_sigma0's compiled pass: sigma0 z along each ramp equals the python bristle path, and its
+    analytic derivative in log(sigma0) the central difference of it."""
+    rng = np.random.default_rng(5)
+    g = np.array([3.0, 2.5])
+    ramps = [np.cumsum(rng.uniform(-0.2, 1.0, 300)) * 2e-6, -np.cumsum(rng.uniform(-0.2, 1.0, 200)) * 3e-6]
+    F0 = np.array([0.5, -4.0])  # the second start is clipped to 0.999 of its level
+    q = np.concatenate(ramps)
+    bounds = np.array([0, 300, 500], dtype=np.int64)
+
+    def forces(s0):
+        y, dy = np.empty(q.size), np.empty(q.size)
+        pre._ramp_forces_nb(q, bounds, F0, g, s0, y, dy)
+        return y, dy
+
+    s0 = 8e5
+    y, dy = forces(s0)
+    for r, (i0, i1) in enumerate(zip(bounds[:-1], bounds[1:])):
+        z0 = float(np.clip(F0[r] / s0, -0.999 * g[r] / s0, 0.999 * g[r] / s0))
+        assert np.allclose(y[i0:i1], s0 * pre.bristle_path_ref(q[i0:i1], z0, s0, g[r]), rtol=1e-12, atol=1e-12)
+    assert np.ptp(y[:300]) > 0.5 * g[0]  # the bristles saturate: the derivative is not a constant factor
+    eps = 1e-6
+    fd = (forces(s0 * math.exp(eps))[0] - forces(s0 * math.exp(-eps))[0]) / (2 * eps)
+    assert np.allclose(dy, fd, rtol=1e-6, atol=1e-8 * np.max(np.abs(fd)))

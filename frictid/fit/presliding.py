@@ -95,6 +95,34 @@ def _bristle_path_nb(q, z0, sigma0, g):
     return z
 
 
+@njit(cache=True, error_model="numpy")
+def _ramp_forces_nb(q, bounds, F0, g, sigma0, y, dy):
+    """Bristle force ``y = sigma0 z`` [F] along each ramp's position path (ramp r is
+    ``q[bounds[r]:bounds[r + 1]]``, its bristle limit g[r] [F], its start force F0[r] clipped to 0.999 of
+    it) and ``dy / d log(sigma0)`` [F], into y and dy. In force units the step of :func:`bristle_path` is
+    ``y -> s g + (y - s g) e``, ``e = exp(-|dq| sigma0 / g)``, and its start does not depend on sigma0,
+    so the derivative follows ``dy -> dy e - (y - s g) e |dq| sigma0 / g`` from 0."""
+    for r in range(bounds.shape[0] - 1):
+        i0 = bounds[r]
+        i1 = bounds[r + 1]
+        gr = g[r]
+        k = sigma0 / gr
+        yi = min(max(F0[r], -0.999 * gr), 0.999 * gr)
+        di = 0.0
+        y[i0] = yi
+        dy[i0] = 0.0
+        for i in range(i0, i1 - 1):
+            d = q[i + 1] - q[i]
+            if d != 0.0:
+                ys = gr if d > 0.0 else -gr
+                ad = abs(d)
+                e = math.exp(-ad * k)
+                di = di * e - (yi - ys) * e * ad * k
+                yi = ys + (yi - ys) * e
+            y[i + 1] = yi
+            dy[i + 1] = di
+
+
 @dataclass
 class DynamicEstimate:
     """sigma0 / sigma1 estimate: value, stderr, identifiable, reason, source and fit details."""
@@ -143,18 +171,32 @@ def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float
             slopes.append(abs(np.polyfit(x[m], F[m], 1)[0]))
     s_start = float(np.median(slopes)) if slopes else max(g0s) / span
 
+    # all ramps in one compiled pass; the residual and its analytic derivative in log(sigma0) together
+    qs = np.concatenate([np.asarray(q, dtype=float) for q, _ in ramps])
+    Fs = np.concatenate([np.asarray(F, dtype=float) for _, F in ramps])
+    bounds = np.cumsum([0] + [len(q) for q, _ in ramps]).astype(np.int64)
+    F0 = np.array([float(F[0]) for _, F in ramps])
+    gs = np.array(g0s, dtype=float)
+    y, dy = np.empty(qs.size), np.empty(qs.size)
+    at = [None]
+
+    def _eval(p):
+        if at[0] != p[0]:
+            _ramp_forces_nb(qs, bounds, F0, gs, math.exp(p[0]), y, dy)
+            at[0] = p[0]
+
     def resid(p):
-        s0 = math.exp(p[0])
-        out = []
-        for (q, F), g0 in zip(ramps, g0s):
-            z0 = float(np.clip(F[0] / s0, -0.999 * g0 / s0, 0.999 * g0 / s0))
-            out.append(s0 * bristle_path(q, z0, s0, g0) - F)
-        return np.concatenate(out)
+        _eval(p)
+        return y - Fs
+
+    def jac(p):
+        _eval(p)
+        return dy.reshape(-1, 1).copy()
 
     best = None
     for f in (1.0, 0.3, 3.0):
         try:
-            r = least_squares(resid, [math.log(s_start * f)], method="lm", x_scale=1.0)
+            r = least_squares(resid, [math.log(s_start * f)], jac=jac, method="trf", x_scale=1.0)
         except ValueError:
             continue
         if best is None or r.cost < best.cost:
