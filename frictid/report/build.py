@@ -258,10 +258,10 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
         return f"{jid}-{part}-{i}"
 
     # plateau points and coverage
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     pl = ct.plateaus(datas) if datas else ct.plateaus([])
     cov = ct.coverage(datas, pl, jd)
-    timings["plateaus"] = timings.get("plateaus", 0.0) + time.perf_counter() - t0
+    timings["plateaus"] = timings.get("plateaus", 0.0) + time.process_time() - t0
 
     # ---- summary
     s = secs["summary"]
@@ -277,7 +277,7 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
 
     # ---- timeline
     s = secs["timeline"]
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     if not datas:
         s.present, s.why = False, no_logs
     else:
@@ -293,11 +293,11 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
             s.notes.append("No segment was found in the logs: nothing is shaded.")
         if any(d.log.q is None for d in datas):
             s.notes.append("A log without position: its position panel is left out.")
-    timings["timeline"] = timings.get("timeline", 0.0) + time.perf_counter() - t0
+    timings["timeline"] = timings.get("timeline", 0.0) + time.process_time() - t0
 
     # ---- friction map
     s = secs["friction-map"]
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     grids = ct.velocity_grids(pl, datas)
     if not datas and not ct.static_models(jd):
         s.present, s.why = False, ("No static friction model in the parameter file and no log given: the map "
@@ -324,11 +324,11 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
                                    "extrapolation.")
             s.data["n_points"] = len(pl)
             s.data["n_models"] = len(curves)
-    timings["map"] = timings.get("map", 0.0) + time.perf_counter() - t0
+    timings["map"] = timings.get("map", 0.0) + time.process_time() - t0
 
     # ---- presliding
     s = secs["presliding"]
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     lp = ct.lugre_params(jd)
     s.data["sigma"] = []
     if lp:
@@ -367,11 +367,11 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
                 s.notes.append("No presliding ramp in the logs (sigma0 needs recipes/ramp_presliding.yaml).")
             if not steps:
                 s.notes.append("No torque step in the logs (sigma1 needs recipes/torque_steps.yaml).")
-    timings["presliding"] = timings.get("presliding", 0.0) + time.perf_counter() - t0
+    timings["presliding"] = timings.get("presliding", 0.0) + time.process_time() - t0
 
     # ---- thermal
     s = secs["thermal"]
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     th_reasons = [x["reason"] for x in _not_identified(jd) if x["what"] in ct.THERMAL_LAWS]
     th_models = [n for n in models if n in ct.THERMAL_LAWS]
     s.data["models"] = [{"name": n, "params": param_rows(models[n].get("params") or {}),
@@ -399,7 +399,7 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
                 if not np.any(np.isfinite(m["T"])):
                     s.notes.append(f"{m['name']}: the parameter file gives no per-cycle temperature "
                                    "(cycle_temperature), so its curve is not drawn.")
-    timings["thermal"] = timings.get("thermal", 0.0) + time.perf_counter() - t0
+    timings["thermal"] = timings.get("thermal", 0.0) + time.process_time() - t0
 
     # ---- models
     s = secs["models"]
@@ -411,7 +411,7 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
 
     # ---- diagnosis and replay
     s = secs["diagnosis"]
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     vmin = ct.min_speed(datas)
     runs: dict[int, ct.Replay] = {}
     for k, d in enumerate(datas):
@@ -488,7 +488,7 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
         s.present = False
         s.why = " ".join(s.notes) + ("" if datas else " " + no_logs)
         s.notes = []
-    timings["diagnosis"] = timings.get("diagnosis", 0.0) + time.perf_counter() - t0
+    timings["diagnosis"] = timings.get("diagnosis", 0.0) + time.process_time() - t0
 
     # ---- provenance (per joint: the snippet)
     s = secs["provenance"]
@@ -561,7 +561,7 @@ def _joint_part(jn: str, jd: dict, jlogs: list[JointLog], sources: list[dict], h
     """One joint of the report: (template context, source index per log, whether each log's segments
     came from the parameter file, seconds per part)."""
     timings: dict[str, float] = {}
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     datas, recorded = [], []
     for lg in jlogs:
         segs = ct.recorded_segments(lg, jd, sources, hashes.get(lg.source or ""))
@@ -570,7 +570,7 @@ def _joint_part(jn: str, jd: dict, jlogs: list[JointLog], sources: list[dict], h
         d.sha256 = hashes.get(d.label)
         datas.append(d)
     ct.match_sources(datas, sources)
-    timings["segments"] = time.perf_counter() - t0
+    timings["segments"] = time.process_time() - t0
     ctx = joint_report(jn, jd, datas, timings)
     return ctx, [d.source_index for d in datas], recorded, timings
 
@@ -586,7 +586,7 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     and :func:`frictid.segments.derivatives` (the fit's). The segments the fit recorded in the parameter
     file (``segment_list``) are used instead of ``segmenter`` for a log whose file has the SHA-256 of that
     source and the same number of rows. generated : a timestamp text (default: now, UTC). timings : a dict
-    that receives the seconds spent per part (summed over the workers). jobs : joints built at once in
+    that receives the CPU seconds spent per part (summed over the workers). jobs : joints built at once in
     forked worker processes (0: one per available core; 1: one after another in this process); each
     joint's arrays are freed before the worker takes the next. The HTML does not depend on it.
     """
@@ -604,13 +604,13 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     hashes: dict[str, str | None] = {}
     notes = []
     by_joint: dict[str, list[JointLog]] = {}
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     for lg in logs:
         if lg.source and lg.source not in hashes:
             hashes[lg.source] = file_sha256(lg.source)
         if str(lg.joint) in joints:
             by_joint.setdefault(str(lg.joint), []).append(lg)
-    timings["hash"] = time.perf_counter() - t0
+    timings["hash"] = time.process_time() - t0
     skipped = sorted({str(lg.joint) for lg in logs} - set(map(str, joints)))
     if skipped:
         notes.append(f"Logs of joint(s) {', '.join(skipped)} are not drawn: the parameter file has no entry for them.")
@@ -651,7 +651,7 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
         if i["source"] is None and str(i["joint"]) in joints and sources:
             notes.append(f"{i['path']}: not among the files the fit read (different hash and name); its curves are "
                          "compared with parameters identified from other data.")
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     env = _environment()
     html = env.get_template("report.html").render(
         title=params_path or "parameter file", params_path=params_path, joints=jctx, sources=sources,
@@ -659,7 +659,7 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
         schema=params.get("schema"), settings=params.get("settings") or {}, command=command,
         generated=generated or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         has_logs=bool(logs))
-    timings["html"] = time.perf_counter() - t0
+    timings["html"] = time.process_time() - t0
     return html
 
 
