@@ -106,7 +106,11 @@ def findings(joint: dict) -> str:
     chk = (joint.get("selection") or {}).get("diagnosis_check") or {}
     tail = ""
     if chk.get("kept"):
-        tail = f" (its model {chk['model']} not adopted: RMS {chk['rms']:.3g} vs {chk['rms_fit_choice']:.3g})"
+        r = chk.get("rms_heldout", chk.get("rms"))
+        r0 = chk.get("rms_heldout_fit_choice", chk.get("rms_fit_choice"))
+        what = "held-out RMS" if "rms_heldout" in chk else "RMS"
+        tail = (f" (its model {chk['model']} not adopted: {what} {r:.3g} vs {r0:.3g})" if r is not None and r0 is not None
+                else f" (its model {chk['model']} not adopted)")
     return ", ".join(items) + tail
 
 
