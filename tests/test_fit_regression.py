@@ -63,3 +63,30 @@ def test_autocorrelation_inflates_errors():
     assert 0.65 < rho < 0.85  # AR(1) 0.9 diluted by the white noise: 0.9 * 0.0132 / 0.0157
     f1 = solve(ne, NAMES, rho=rho)
     assert f1.stderr("J") > 2.3 * f0.stderr("J")  # sqrt((1 + rho) / (1 - rho))
+
+
+def test_cluster_covariance_covers_segment_to_segment_bias():
+    """Residuals biased per segment (a misfit that differs from one segment to the next) make the classical
+    standard error far too small; the cluster-robust one by segment matches the Monte Carlo spread."""
+    from frictid.fit.regression import cluster_covariance, robust_stderr
+
+    G, m, reps = 20, 40, 300
+    slopes, se_cl, se_classic = [], [], []
+    for seed in range(reps):
+        rng = np.random.default_rng(seed)
+        parts = []
+        for g in range(G):
+            x = rng.normal(rng.normal(0, 1), 0.3, m)
+            y = 2.0 * x + 1.0 + rng.normal(0, 0.5) + rng.normal(0, 0.05, m)  # segment bias 0.5, noise 0.05
+            ne = NormalEquations(2)
+            ne.add(np.column_stack([x, np.ones(m)]), y)
+            parts.append(ne)
+        fit = solve(NormalEquations.total(parts), ("k", "b"))
+        cc = cluster_covariance(fit, parts)
+        slopes.append(fit.coef[0])
+        se_cl.append(np.sqrt(robust_stderr(fit.cov, cc)[0, 0]))
+        se_classic.append(fit.stderr("k"))
+    spread = np.std(slopes)
+    assert np.median(se_classic) < 0.3 * spread
+    assert 0.75 * spread < np.median(se_cl) < 1.3 * spread
+    assert cluster_covariance(fit, parts[:5]) is None  # too few clusters

@@ -574,7 +574,9 @@ def _regress(preps, names, known_coef, min_speed, axis, friction=None):
         rho = max(rho, rg.residual_autocorrelation(fit_, ranges, p.log.q, p.w, p.a, p.log.tau,
                                                    p.log.channels.get("payload"), known_coef, min_speed, axis,
                                                    friction=friction))
-    return rg.solve(total, names, rho=rho), seg_ne
+    fit_ = rg.solve(total, names, rho=rho)
+    fit_.cov = rg.robust_stderr(fit_.cov, rg.cluster_covariance(fit_, [ne for *_, ne in seg_ne]))
+    return fit_, seg_ne
 
 
 def _set_mechanics(jf, reg_fit, known, names, has_q, axis, F0, w0, a0, why_reg, source):

@@ -9,7 +9,9 @@ data cannot separate (a joint that never moves through a gravity angle, no accel
 
 The standard errors account for the autocorrelation of the residuals (consecutive samples are not
 independent): the classical covariance ``s^2 (X^T X)^-1`` is inflated by ``(1 + rho) / (1 - rho)`` with
-``rho`` the lag-1 autocorrelation of the residuals within segments.
+``rho`` the lag-1 autocorrelation of the residuals within segments; with enough segments the larger of
+that and the cluster-robust (sandwich) covariance by segment is reported (:func:`cluster_covariance`),
+which also covers a residual that is biased differently from one segment to the next.
 """
 from __future__ import annotations
 
@@ -152,6 +154,46 @@ def solve(ne: NormalEquations, names: tuple[str, ...], rcond: float = 1e-10, rho
         if np.diag(ne.XtX)[j] == 0 and nm not in dependent:
             dependent.append(nm)
     return LinearFit(tuple(names), b, cov, s2, ne.n, dof, rho, dependent)
+
+
+#: Fewest clusters (segments) for the cluster-robust covariance; with fewer its estimate is too noisy.
+MIN_CLUSTERS = 8
+
+
+def robust_stderr(cov_classical: np.ndarray, cov_robust: np.ndarray | None) -> np.ndarray:
+    """The larger standard error of two covariance estimates, per parameter, with the robust estimate's
+    correlations: ``S C S`` with ``S = diag(max(se_classical, se_robust))`` (positive semi-definite)."""
+    if cov_robust is None or not np.all(np.isfinite(cov_robust)):
+        return cov_classical
+    se_c = np.sqrt(np.maximum(np.diag(cov_classical), 0.0))
+    se_r = np.sqrt(np.maximum(np.diag(cov_robust), 0.0))
+    se = np.maximum(se_c, se_r)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        corr = cov_robust / np.outer(se_r, se_r)
+    corr = np.where(np.isfinite(corr), corr, 0.0)
+    np.fill_diagonal(corr, 1.0)
+    return corr * np.outer(se, se)
+
+
+def cluster_covariance(fit: LinearFit, parts: list[NormalEquations]) -> np.ndarray | None:
+    """Cluster-robust (sandwich) covariance of a fit from the normal equations of its clusters (segments):
+    ``G/(G-1) B (sum_g s_g s_g^T) B`` with ``s_g = X_g^T y_g - X_g^T X_g b`` each cluster's score and
+    ``B = (X^T X)^-1``. It reflects the segment-to-segment scatter of the residual, correlated in time
+    within a segment and biased differently from one segment to the next (a friction map that does not
+    follow the data), where the classical ``s^2 (X^T X)^-1`` assumes independent samples. None with fewer
+    than :data:`MIN_CLUSTERS` non-empty clusters."""
+    parts = [ne for ne in parts if ne.n > 0]
+    G = len(parts)
+    if G < MIN_CLUSTERS:
+        return None
+    total = NormalEquations.total(parts)
+    d = np.sqrt(np.maximum(np.diag(total.XtX), 0.0))
+    d[d == 0] = 1.0
+    U, sv, Vt = np.linalg.svd(total.XtX / np.outer(d, d))
+    ok = sv > 1e-10 * (sv.max() if sv.size and sv.max() > 0 else 1.0)
+    B = ((Vt[ok].T / sv[ok]) @ Vt[ok]) / np.outer(d, d)
+    S = np.array([ne.Xty - ne.XtX @ fit.coef for ne in parts])
+    return G / (G - 1) * B @ (S.T @ S) @ B
 
 
 def _chunks(i0: int, i1: int, chunk: int):
