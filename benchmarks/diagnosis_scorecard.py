@@ -4,6 +4,7 @@
     python benchmarks/diagnosis_scorecard.py --quick               # one seed, fewer strengths
     python benchmarks/diagnosis_scorecard.py --out runs.jsonl      # keep every run (resumes if present)
     python benchmarks/diagnosis_scorecard.py --report runs.jsonl   # print the card from saved runs
+    python benchmarks/diagnosis_scorecard.py --bench               # diagnosis time: normal equations vs dense
     python benchmarks/diagnosis_scorecard.py --seeds 2 --first-seed 2 --out b.jsonl   # seeds 2, 3 (a second
                                                                    # process); --report a.jsonl,b.jsonl joins
 
@@ -138,6 +139,47 @@ def card(rows):
     return "\n".join(lines)
 
 
+def bench(seed: int = 0, size: str = "small"):
+    """Time the diagnosis (diagnose_joint inside frictid.fit) with the per-fold normal equations and with
+    dense least squares per fit, on one case per cause and plant; check both name the same causes with
+    the same gains."""
+    import functools
+
+    import frictid.diagnose as dg
+    import frictid.diagnose.chain as ch
+    from frictid.diagnose.model import Context
+
+    timing = {}
+    orig = dg.diagnose_joint
+
+    def timed(*a, **k):
+        t0 = time.perf_counter()
+        out = orig(*a, **k)
+        timing["t"] = timing.get("t", 0.0) + time.perf_counter() - t0
+        return out
+
+    dg.diagnose_joint = timed
+    ds.run_case("hydraulic", "none", 0.0, "tiny", 0)  # compile the kernels first
+    rows, tot = [], {True: 0.0, False: 0.0}
+    for cause, plants in PLANTS.items():
+        for plant in plants[:1]:
+            res = {}
+            for ne in (False, True):
+                ch.Context = functools.partial(Context, use_normal_equations=ne)
+                timing.clear()
+                jf, _, _ = ds.run_case(plant, cause, 0.15, size, seed)
+                res[ne] = (timing["t"], [(f["cause"], f["extension"], round(f["gain"], 6)) for f in jf.diagnosis])
+                tot[ne] += timing["t"]
+            same = res[True][1] == res[False][1]
+            rows.append(f"{plant:18} {cause:12} dense {res[False][0]:6.2f} s  normal equations {res[True][0]:6.2f} s  "
+                        f"same findings and gains (6 digits): {'yes' if same else 'NO ' + str(res)}")
+    ch.Context = Context
+    dg.diagnose_joint = orig
+    rows.append(f"total: dense {tot[False]:.1f} s, normal equations {tot[True]:.1f} s "
+                f"({100 * (1 - tot[True] / tot[False]):.0f} % less diagnosis time)")
+    return "\n".join(rows)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=2)
@@ -147,7 +189,12 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="one seed, strengths 0.05 and 0.15")
     ap.add_argument("--out", default=None, help="JSON-lines file of runs (appended; present runs are skipped)")
     ap.add_argument("--report", default=None, help="print the card from JSON-lines files (comma-separated) and exit")
+    ap.add_argument("--bench", action="store_true",
+                    help="time the diagnosis with and without the per-fold normal equations (one case per cause)")
     args = ap.parse_args(argv)
+    if args.bench:
+        print(bench())
+        return 0
     if args.report:
         rows = [json.loads(x) for f in args.report.split(",") for x in Path(f).read_text().splitlines() if x.strip()]
         print(card(rows))

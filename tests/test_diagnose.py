@@ -144,6 +144,27 @@ def test_gauss_newton_recovers_a_bilinear_model_exactly():
     assert c.base_pos[0] == pytest.approx(TRUE["Fc"], rel=1e-9)
 
 
+def test_normal_equations_per_fold_agree_with_dense_least_squares():
+    lg = plateau_log(lambda t, q, w, F: F + 0.1 + 0.3 * np.cos(q), seed=3)
+    S = build_samples([lg], 5)
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    st = Structure("stribeck", cp, (Term("offset", "offset", "additive", ()),
+                                    Term("asymmetry", "asym", "asym", ()),
+                                    Term("gravity", "gravity", "additive", ())))
+    for f in (None, 2):
+        idx = np.arange(S.n) if f is None else np.flatnonzero(S.fold != f)
+        ctx = Context(S)
+        assert ctx.fold_of(idx) == f
+        a = Evaluator(st, ctx).fit(idx)
+        b = Evaluator(st, Context(S, use_normal_equations=False)).fit(idx)
+        assert a.rms == pytest.approx(b.rms, rel=1e-8)
+        for d1, d2 in ((a.base_pos, b.base_pos), (a.base_neg, b.base_neg)):
+            assert d1.keys() == d2.keys() and all(d1[k] == pytest.approx(d2[k], rel=1e-8, abs=1e-12) for k in d1)
+        for i in a.gamma:
+            assert np.allclose(a.gamma[i], b.gamma[i], rtol=1e-8, atol=1e-12)
+    assert Context(S).fold_of(np.arange(10)) is False
+
+
 def test_significance_counts_segments_not_samples():
     # a consistent but tiny improvement in every group is significant; one huge group alone is not
     d = np.full(30, 1.0) + 0.1 * np.random.default_rng(0).standard_normal(30)

@@ -110,9 +110,12 @@ class Coef:
 class Context:
     """Column cache for one :class:`Samples` (columns of the base map and of each term)."""
 
-    def __init__(self, S: Samples):
+    def __init__(self, S: Samples, use_normal_equations: bool = True):
         self.S = S
         self._cache: dict = {}
+        #: solve linear fits on whole folds from the cached normal equations (False: dense least squares on
+        #: the samples, as before; kept for benchmarks/diagnosis_scorecard.py --bench, which compares both)
+        self.use_normal_equations = use_normal_equations
         self.sgn = np.sign(S.w)
         self.v = np.abs(S.w)
         # the largest speed and acceleration of the logs (not only of the sliding samples)
@@ -513,7 +516,7 @@ class Evaluator:
         if 1 in self.base_cols and 1 in MAP_SLOTS[self.st.map] and idx.size:
             if float(np.max(np.abs(self.base_cols[1][idx]))) < EXCITE:
                 self._held.add(1)
-        fold = self.ctx.fold_of(idx)
+        fold = self.ctx.fold_of(idx) if self.ctx.use_normal_equations else False
         linear = not (self.lf or self.af)
         rss = None
         for _ in range(4):
