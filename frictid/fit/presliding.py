@@ -196,7 +196,7 @@ def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float
     best = None
     for f in (1.0, 0.3, 3.0):
         try:
-            r = least_squares(resid, [math.log(s_start * f)], jac=jac, method="trf", x_scale=1.0)
+            r = least_squares(resid, [math.log(s_start * f)], jac=jac, method="lm", x_scale=1.0)
         except ValueError:
             continue
         if best is None or r.cost < best.cost:
