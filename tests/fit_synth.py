@@ -84,3 +84,29 @@ def truth_segments(log: JointLog) -> list[Segment]:
 def truth_derivatives(log: JointLog):
     """Exact velocity and acceleration (tests only)."""
     return log.truth["w"], log.truth["a"]
+
+
+def duty_log(n_cycles=20, cycle=20.0, dt=0.01, tau_c=60.0, drop=0.08, noise=0.02, seed=1, true=TRUE,
+             joint="1") -> JointLog:
+    """Duty cycles (back-and-forth sine moves for 3/4 of each cycle, then still) whose friction falls as the
+    joint warms: ``F (1 - drop x)``, x [K] the heat balance of the friction power with time constant tau_c
+    (K = 1 W/K), starting cold. Labels: ``duty_cycle`` with the cycle index."""
+    from frictid.models.thermal import heat_balance
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(n_cycles * cycle / dt)) * dt
+    tc = t % cycle
+    env = np.where(tc < 0.75 * cycle, np.sin(np.pi * tc / (0.75 * cycle)) ** 2, 0.0)
+    w = 1.5 * env * np.sin(2 * np.pi * tc / 2.5)
+    a = np.gradient(w, dt)
+    q = np.cumsum(w) * dt - 1.0
+    F0 = sm.stribeck(w, **true["stribeck"])
+    x = heat_balance(F0 * w, t, 0.0, tau_c, 1.0)
+    F = F0 * (1 - drop * x)
+    tau = true["J"] * a + F + true["Px"] * np.cos(q) + true["Py"] * np.sin(q) + true["offset"]
+    tau = tau + rng.normal(0, noise, t.size)
+    log = JointLog(joint=joint, t=t, tau=tau, q=q + rng.normal(0, 1e-6, t.size), qd=None,
+                   channels={"temp_env": np.full(t.size, 21.0)})
+    log.truth = {"segment": np.full(t.size, "duty_cycle"), "cycle": (t // cycle).astype(int), "params": true,
+                 "w": w, "a": a}
+    return log

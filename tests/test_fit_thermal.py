@@ -196,3 +196,17 @@ def test_plant_warm_up_predicted_within_5_percent():
     m4, m6 = jf.models["thermal4"].metrics, jf.models["thermal6"].metrics
     assert m6["rms"] <= m4["rms"] and m6["rms_heldout"] <= m4["rms_heldout"]
     assert abs(err_law["thermal6"] - err_law["thermal4"]) < 0.005
+
+
+def test_temperature_finding_survives_the_diagnosis_check():
+    """A warm-up over duty cycles found by the diagnosis is judged on held-out moving samples, duty cycles
+    included (the fit's own basis, the plateaus, leaves them out): the thermal model stays selected."""
+    import frictid
+    from fit_synth import duty_log, synth_log, truth_derivatives, truth_segments
+
+    res = frictid.fit([synth_log(dt=0.01), duty_log()], models="stribeck,stribeck_asym,polynomial",
+                      segmenter=truth_segments, differentiate=truth_derivatives)
+    jf = res["1"]
+    chk = jf.selection["diagnosis_check"]
+    assert "thermal" in jf.selected and "kept" not in chk, chk
+    assert chk["rms_heldout"] < chk["rms_heldout_fit_choice"]

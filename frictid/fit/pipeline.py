@@ -702,21 +702,28 @@ def _check_diagnosis(jf: JointFit, preps, choice: str, basis: str, keys, min_spe
     symmetric map plus an offset can miss a per-sign map's shape. A genuine finding (a temperature or
     position effect) takes its effect out of the held-out plateaus and so predicts them better. The
     findings stay listed. When the kept model has a periodic position factor, the plateau-basis static
-    maps are refitted with its effect taken out (:func:`_refit_static_maps`)."""
+    maps are refitted with its effect taken out (:func:`_refit_static_maps`). With duty cycles in the
+    logs the check runs on all moving samples, duty cycles included (a temperature effect shows there).
+    Any failure of the replay (a model the replay cannot run) leaves the diagnosis' choice in place."""
     if jf.selected in (None, choice):
         return
     from frictid.errors import ConfigError
 
+    # duty cycles stay out of the fit's basis (their friction drifts with temperature) but are where a
+    # temperature finding shows: with duty cycles the check runs on every moving sample of the logs
+    if any(s.kind == "duty_cycle" for p in preps for s in p.segments):
+        basis, excl = "samples", REGRESSION_EXCLUDE
     try:
         e_diag, mf_diag, pl_diag = _heldout_on_basis(jf, preps, jf.selected, basis, min_speed, excl, n_folds)
         e_fit, _, _ = _heldout_on_basis(jf, preps, choice, basis, min_speed, excl, n_folds)
     except (ConfigError, FrictidInputError, KeyError, ValueError):
         return
-    what = "the plateau means" if basis == "plateaus" else "the moving samples"
+    what = ("the plateau means" if basis == "plateaus" else
+            "the moving samples" + (" (duty cycles included)" if "duty_cycle" not in excl else ""))
     rec = {"model": jf.selected, "rms_heldout": e_diag, "fit_choice": choice, "rms_heldout_fit_choice": e_fit,
-           "rule": f"the diagnosis' model is selected when its held-out torque RMS on {what} (each model's "
-                   f"static map refitted without the held-out fold, its other terms replayed) is at most "
-                   f"{DIAGNOSIS_TOLERANCE:g} x that of the fit's choice"}
+           "rule": f"the diagnosis' model is selected when its held-out torque RMS on {what} is at most "
+                   f"{DIAGNOSIS_TOLERANCE:g} x that of the fit's choice (each model's static map refitted "
+                   "without the held-out fold, its other terms replayed)"}
     if math.isfinite(e_diag) and math.isfinite(e_fit) and e_diag > DIAGNOSIS_TOLERANCE * e_fit:
         rec["kept"] = choice
         jf.warnings.append(f"the diagnosis' model {jf.selected} predicts the torque on held-out {what} worse "
