@@ -28,29 +28,40 @@ def test_simulate_to_fit_through_a_real_shell_pipe(tmp_path):
     assert set(summary["joints"]) == set(d["joints"])
 
 
-def test_parquet_through_a_pipe_and_logs_from_stdin(tmp_path):
-    """Parquet on a pipe into segments (--json summary on stdout), then fit, report and replay reading
-    their log from standard input, each through a real shell."""
-    log, seg, params = tmp_path / "log.csv", tmp_path / "seg.parquet", tmp_path / "p.yaml"
-    q = shlex.quote
+def test_parquet_through_a_pipe_into_segments(tmp_path):
+    """Parquet on a pipe into segments, with the --json summary on stdout, through a real shell."""
+    seg = tmp_path / "seg.parquet"
     cmd = (f"{frictid_cmd()} simulate recipes/torque_steps.yaml -o - --format parquet --quiet | "
-           f"tee {q(str(tmp_path / 'log.parquet'))} | {frictid_cmd()} segments - -o {q(str(seg))} --json")
+           f"{frictid_cmd()} segments - -o {shlex.quote(str(seg))} --json")
     res = subprocess.run(["bash", "-o", "pipefail", "-c", cmd], cwd=ROOT, capture_output=True, timeout=600)
     assert res.returncode == 0, res.stderr.decode()[-2000:]
     summary = __import__("json").loads(res.stdout)
     assert summary["segments"] > 0 and seg.exists()
-    from test_poor_data import poor_log
-    poor_log("flat_torque").assign(tau=lambda d: 2.0 * __import__("numpy").sign(d.q.diff().fillna(0)) +
-                                   d.index % 7 * 0.01).to_csv(log, index=False)
-    steps = [f"{frictid_cmd()} fit - -o {q(str(params))} --models coulomb_viscous --no-diagnose < {q(str(log))}",
-             f"{frictid_cmd()} report {q(str(params))} - -o {q(str(tmp_path / 'r.html'))} < {q(str(log))}",
-             f"{frictid_cmd()} simulate --params {q(str(params))} --replay - -o - < {q(str(log))} | cat"]
-    res = subprocess.run(["bash", "-o", "pipefail", "-c", " && ".join(steps)], cwd=ROOT, capture_output=True,
-                         timeout=600)
-    assert res.returncode == 0, res.stderr.decode()[-2000:]
-    assert res.stdout.decode().startswith('"t","joint"') and "tau_model" in res.stdout.decode()
+
+
+def test_fit_report_and_replay_read_the_log_from_stdin(tmp_path, cli, monkeypatch):
+    import io
+
+    from conftest import hand_log
+    from frictid.io.logs import write_logs
+
+    log, params = tmp_path / "log.csv", tmp_path / "p.yaml"
+    write_logs([hand_log(n=600)], str(log))
+    data = log.read_bytes()
+
+    def stdin():
+        monkeypatch.setattr("sys.stdin", io.TextIOWrapper(io.BytesIO(data)))
+
+    stdin()
+    r = cli("fit", "-", "-o", params, "--models", "coulomb_viscous", "--no-diagnose")
+    assert r.code == 0, r
     assert yaml.safe_load(params.read_text())["sources"][0]["path"] in ("-", "<stdin>")
-    assert (tmp_path / "r.html").stat().st_size > 10_000
+    stdin()
+    r = cli("report", params, "-", "-o", tmp_path / "r.html")
+    assert r.code == 0 and (tmp_path / "r.html").stat().st_size > 10_000, r
+    stdin()
+    r = cli("simulate", "--params", params, "--replay", "-", "-o", "-")
+    assert r.code == 0 and r.out.startswith('"t","joint"') and "tau_model" in r.out.split("\n", 1)[0], r
 
 
 def test_simulate_to_stdout_is_only_csv(tmp_path):
