@@ -452,10 +452,13 @@ T_PLATEAU = 0.1
 T_STILL = 0.01
 #: A joint is still when that average is below this fraction of ``limits.velocity``.
 R_STILL = 5e-3
-#: A still joint is loaded while its drive torque changes by more than ``R_LOAD`` of the drive torque's
-#: range (0.1 to 99.9 percentile) within ``T_LOAD`` (docs/segments.md: R_RAMP and T_MIN).
+#: A still joint is loaded while its drive torque changes faster than ``R_LOAD`` of the drive torque's
+#: range (0.1 to 99.9 percentile) per ``T_LOAD`` (docs/segments.md: R_RAMP and T_MIN).
 R_LOAD = 0.05
 T_LOAD = 0.2
+#: A still, unloaded stretch within a move or an excitation is a rest when at least this long [s]
+#: (docs/segments.md: T_MIN, the shortest segment).
+T_REST = 0.2
 
 
 def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray | None = None) -> np.ndarray:
@@ -468,7 +471,9 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray |
     - with the drive torque ``u`` [F]: a rest lasts while the joint is still and not loaded (its torque
       changing by less than ``R_LOAD`` of the torque range within ``T_LOAD``): such samples at the start
       of the move that follows a rest (a slow fade-in: the reference moves, the joint and its torque not
-      yet) and at the end of the move before it (the joint stopped before its reference) are ``rest``."""
+      yet) and at the end of the move before it (the joint stopped before its reference) are ``rest``;
+      so are such stretches of at least ``T_REST`` within a move or an excitation (the joint stopped);
+      a closed-loop rest shorter than ``T_REST`` between two moves is part of the motion (``other``)."""
     label = label.copy()
     vmax = pr.joint.limits.velocity
     m = max(1, int(round(T_PLATEAU * pr.fs)))
@@ -493,23 +498,41 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray |
     if u is None:
         return label
     u = np.asarray(u, dtype=float)
-    k = max(1, int(round(T_LOAD * pr.fs)))
-    up = np.pad(u, (k // 2, k - k // 2), mode="edge")
-    loading = np.abs(up[k:] - up[:-k]) > R_LOAD * float(np.subtract(*np.percentile(u, [99.9, 0.1])))
-    return _still_moves_rest(label, np.abs(_smooth(w, m)) > tol_rest, loading)
+    # torque rate: mean over the T_LOAD/2 after each sample minus the mean over the T_LOAD/2 before it
+    # (the drive torque carries the controller's reaction to sensor noise: rates of single samples
+    # would be noise)
+    k = max(1, int(round(0.5 * T_LOAD * pr.fs)))
+    c = np.concatenate(([0.0], np.cumsum(np.pad(u, (k, k), mode="edge"))))
+    i = np.arange(u.size) + k
+    rate = ((c[i + k] - c[i]) - (c[i] - c[i - k])) / (k * k * pr.h)
+    loading = np.abs(rate) > R_LOAD * float(np.subtract(*np.percentile(u, [99.9, 0.1]))) / T_LOAD
+    return _still_moves_rest(label, np.abs(_smooth(w, m)) > tol_rest, loading, int(round(T_REST * pr.fs)))
 
 
-def _still_moves_rest(label: np.ndarray, moving: np.ndarray, loading: np.ndarray) -> np.ndarray:
+def _still_moves_rest(label: np.ndarray, moving: np.ndarray, loading: np.ndarray, n_min: int) -> np.ndarray:
     """Extend every ``rest`` run over the samples of adjacent ``other`` runs until the joint moves or is
-    loaded."""
+    loaded, or start it after the load of the move before it when that load (longer than ``n_min``: not a
+    jump) goes on into it on a still joint; and stretches of ``other`` of at least ``n_min`` samples where
+    the joint is still and not loaded (a stop within an excitation) are ``rest`` too."""
     change = np.flatnonzero(label[1:] != label[:-1]) + 1
     starts = np.concatenate(([0], change))
     ends = np.concatenate((change, [label.size]))
     kinds = label[starts]
     busy = moving | loading
+    calm_at = np.flatnonzero(~loading)
     for k in range(len(kinds)):
         if kinds[k] != L["rest"]:
             continue
+        a = int(starts[k])
+        if k > 0 and kinds[k - 1] == L["other"] and loading[a] and not moving[a]:
+            # the load of the move before goes on into the rest while the joint stands still (a
+            # controller unloading a creeping joint after a slow excitation): the rest starts after it
+            j = int(np.searchsorted(calm_at, a))
+            ls = int(calm_at[j - 1]) + 1 if j > 0 else 0
+            le = int(calm_at[j]) if j < calm_at.size else label.size
+            if le - ls > n_min and not moving[ls:le].any():
+                label[a:min(le, int(ends[k]))] = L["other"]
+                continue
         if k + 1 < len(kinds) and kinds[k + 1] == L["other"]:
             a, b = int(ends[k]), int(ends[k + 1])
             mv = np.flatnonzero(busy[a:b])
@@ -518,4 +541,15 @@ def _still_moves_rest(label: np.ndarray, moving: np.ndarray, loading: np.ndarray
             a, b = int(starts[k - 1]), int(starts[k])
             mv = np.flatnonzero(busy[a:b])
             label[a + (int(mv[-1]) + 1 if mv.size else 0):b] = L["rest"]
+    calm = np.concatenate(([False], (label == L["other"]) & ~busy, [False]))
+    edge = np.flatnonzero(calm[1:] != calm[:-1])
+    for a, b in zip(edge[::2], edge[1::2]):
+        if b - a >= n_min:
+            label[a:b] = L["rest"]
+    # a stop shorter than n_min (a reversal, a brief dwell) is part of the motion around it
+    rest = np.concatenate(([False], label == L["rest"], [False]))
+    edge = np.flatnonzero(rest[1:] != rest[:-1])
+    for a, b in zip(edge[::2], edge[1::2]):
+        if b - a < n_min and 0 < a and b < label.size and label[a - 1] == label[b] == L["other"]:
+            label[a:b] = L["other"]
     return label
