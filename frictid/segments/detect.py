@@ -254,23 +254,26 @@ def _flat_end(f: Features, a: int, b: int) -> int:
                           + f.sc.tau_step))
     end = b if not off.any() else a + int(np.argmax(off)) * m
     mn = max(m, 128)  # enough differences per chunk for a noise level known to about 8 %
-    nn = (end - a) // mn
+    nn = (b - a) // mn  # over the whole hold: a controller that takes over may also shift the mean
     if nn >= 5:
         rough = np.mean(np.abs(np.diff(f.tau[a:a + nn * mn].reshape(nn, mn), axis=1)), axis=1)
-        # from chunk c on (c >= 3) the torque is noisier when the mean roughness of the next (up to 4)
+        # from chunk c on (c >= 3) the torque is noisier when the mean roughness of the next (up to 8)
         # chunks exceeds that of all chunks before c by K_NOISE standard errors and by R_NOISIER
         c = np.arange(3, nn)
         cs = np.concatenate(([0.0], np.cumsum(rough)))
         before = cs[c] / c
-        na = np.minimum(4, nn - c)
+        na = np.minimum(8, nn - c)
         after = (cs[c + na] - cs[c]) / na
         se = R_ABSDIFF / math.sqrt(mn) * np.sqrt(1.0 / c + 1.0 / na)
         k = np.flatnonzero((after > before * (1.0 + K_NOISE * se)) & (after > R_NOISIER * before))
         if k.size and before[k[0]] > 0:
-            # the change is in the window: at its first chunk rougher than halfway between the levels
+            # the change is in that window or the chunk before it: where the cumulative sum of
+            # |difference| - (halfway between the two levels) is lowest (CUSUM change point)
             c0, c1 = int(c[k[0]]), int(c[k[0]] + na[k[0]])
             mid = 0.5 * (before[k[0]] + after[k[0]])
-            end = min(end, a + (c0 + int(np.argmax(rough[c0:c1] > mid))) * mn)
+            lo = a + (c0 - 1) * mn
+            d = np.abs(np.diff(f.tau[lo:a + c1 * mn]))
+            end = min(end, lo + 1 + int(np.argmin(np.cumsum(d - mid))))
     return end
 
 
@@ -374,14 +377,19 @@ def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]
     rate = R_RAMP * sc.tau_range / T_MIN
     loading = np.abs(f.s) > np.maximum(K_NOISE * sig_s, rate)
     loading = grow(loading, np.abs(sf) > np.maximum(2.0 * sig_sf, 0.5 * rate))
-    # ... and it breaks the joint away: the joint moves right after (a controller relaxing after a stop
-    # changes the torque too, but the joint stays)
+    # ... unless the joint does not move right after it and it is a controller relaxing after a stop (it
+    # starts right after motion, within hf) or a torque jump (no longer than the slope window, 2h)
     ls, le = runs(loading)
-    moves_after = np.array([not f.still_fine[min(e, n - 1): min(e + hf, n)].all() for e in le], dtype=bool)
-    if ls.size and not moves_after.all():
-        paint(loading, ls[~moves_after], le[~moves_after], False)
+    moving_c = np.concatenate(([0], np.cumsum(~f.still_fine)))
+    moves_after = moving_c[np.minimum(le + hf, n)] - moving_c[np.minimum(le, n)] > 0
+    moved_before = moving_c[ls] - moving_c[np.maximum(ls - hf, 0)] > 0
+    relax = (moved_before | (le - ls <= 2 * f.h)) & ~moves_after
+    if relax.any():
+        paint(loading, ls[relax], le[relax], False)
     calm = fill_short(~loading, 2 * hf + 2, False)  # a torque jump alone does not end a rest
     rest = grow(f.still & calm & (code < 0), f.still_fine & calm & (code < 0))
+    # a jolt shorter than two fine windows (the joint kicked by a torque jump) does not end a rest either
+    rest = fill_short(rest, 2 * hf, False) & (code < 0)
     rest = drop_short(rest, n_min)
     code[rest] = KIND_CODE["rest"]
     code[code < 0] = KIND_CODE["other"]

@@ -19,6 +19,8 @@ and repeat the same velocity profile. The search works on onsets of motion, not 
 """
 from __future__ import annotations
 
+from bisect import bisect_left, insort
+
 import numpy as np
 from numba import njit
 
@@ -77,19 +79,29 @@ def _difference(sig: _Signal, a: int, b: int, P: int) -> float:
     """Relative RMS difference of the velocity over ``[a, a+P)`` and ``[b, b+P)``; inf if a window is
     outside the log or does not hold both motion and part of a rest (duty cycles alternate motion and
     rest; a plateau or a smooth excitation repeats too, but never rests)."""
-    stride = max(1, P // N_PROFILE)
-    w = sig.w
-    if a < 0 or b < 0 or max(a, b) + P > w.size:
+    return _difference_nb(sig.w, sig.rests, sig.moves, a, b, P)
+
+
+# The chain search below is the inner loop of the duty-cycle detection (thousands of candidate chains
+# per log): compiled, with the python twins ``_chain_nb.py_func`` etc. for reading and testing.
+
+@njit(cache=True)
+def _difference_nb(w, rests, moves, a, b, P):  # pragma: no cover - compiled
+    """:func:`_difference` on the arrays of a :class:`_Signal`."""
+    n = w.size
+    if a < 0 or b < 0 or max(a, b) + P > n:
         return np.inf
-    if not (sig.rest_and_motion(a, a + P) and sig.rest_and_motion(b, b + P)):
-        return np.inf
-    return _rel_rms(w, a, b, P, stride)
+    for s in (a, b):
+        e = min(s + P, n)
+        if rests[e] - rests[s] <= 0 or moves[e] - moves[s] <= 0:
+            return np.inf
+    return _rel_rms(w, a, b, P, max(1, P // N_PROFILE))
 
 
 @njit(cache=True)
-def _rel_rms(w, a, b, P, stride):  # pragma: no cover - compiled; twin: _rel_rms.py_func
+def _rel_rms(w, a, b, P, stride):  # pragma: no cover - compiled
     """RMS of ``w[a:a+P:stride] - w[b:b+P:stride]`` over the larger RMS of the two; inf when both are 0.
-    One pass, no temporaries: this is the inner loop of the chain search."""
+    One pass, no temporaries."""
     sxx = syy = sdd = 0.0
     for k in range(0, P, stride):
         x = w[a + k]
@@ -108,31 +120,43 @@ def _similar(w: _Signal, a: int, b: int, P: int) -> bool:
     return _difference(w, a, b, P) <= R_SHAPE
 
 
-def _next_start(onsets: np.ndarray, w: _Signal, prev: int, target: int, P: int, tol: int,
-                virtual: bool) -> int | None:
+@njit(cache=True)
+def _next_start_nb(onsets, w, rests, moves, prev, target, P, tol, virtual):  # pragma: no cover
     """Start of the cycle after the one at ``prev``: the onset within ``tol`` of ``target`` or, when
-    ``virtual``, ``target`` itself, whichever repeats the previous cycle best; None if none does."""
-    cands = [target] if virtual else []
-    j = int(np.searchsorted(onsets, target - tol))
-    if j < onsets.size and abs(int(onsets[j]) - target) <= tol and int(onsets[j]) > prev:
-        cands.append(int(onsets[j]))
-    if not cands:
-        return None
-    diffs = [_difference(w, prev, c, P) for c in cands]
-    k = int(np.argmin(diffs))
-    return cands[k] if diffs[k] <= R_SHAPE else None
+    ``virtual``, ``target`` itself, whichever repeats the previous cycle best (the target on a tie);
+    -1 if none does."""
+    best, best_d = -1, np.inf
+    if virtual:
+        best, best_d = target, _difference_nb(w, rests, moves, prev, target, P)
+    j = np.searchsorted(onsets, target - tol)
+    if j < onsets.size and abs(onsets[j] - target) <= tol and onsets[j] > prev:
+        d = _difference_nb(w, rests, moves, prev, onsets[j], P)
+        if best < 0 or d < best_d:
+            best, best_d = onsets[j], d
+    if best < 0 or not best_d <= R_SHAPE:
+        return -1
+    return best
 
 
-def _chain(onsets: np.ndarray, w: _Signal, start: int, P: int, tol: int, virtual: bool) -> list[int]:
-    """Cycle starts of the chain from ``start`` with period ``P`` samples."""
+@njit(cache=True)
+def _chain_nb(onsets, w, rests, moves, start, P, tol, virtual):  # pragma: no cover - compiled
+    """Cycle starts of the chain from ``start`` with period ``P`` samples (see :func:`_chain`)."""
     chain = [start]
     period = float(P)
     while True:
-        nxt = _next_start(onsets, w, chain[-1], int(round(chain[-1] + period)), P, tol, virtual)
-        if nxt is None:
-            return chain
+        nxt = _next_start_nb(onsets, w, rests, moves, chain[-1], int(np.rint(chain[-1] + period)), P, tol,
+                             virtual)
+        if nxt < 0:
+            return np.array(chain, dtype=np.int64)
         chain.append(nxt)
         period = (chain[-1] - chain[0]) / (len(chain) - 1)
+
+
+def _chain(onsets: np.ndarray, w: _Signal, start: int, P: int, tol: int, virtual: bool) -> list[int]:
+    """Cycle starts of the chain from ``start`` with period ``P`` samples: the next cycle starts at the
+    onset within ``tol`` of one (mean) period later or, when ``virtual``, exactly there, whichever repeats
+    the previous cycle better (relative RMS difference at most ``R_SHAPE``)."""
+    return [int(v) for v in _chain_nb(onsets, w.w, w.rests, w.moves, int(start), int(P), int(tol), bool(virtual))]
 
 
 def _extend_back(onsets: np.ndarray, w: _Signal, chain: list[int], P: int, tol: int, floor: int
@@ -190,14 +214,15 @@ def _best_chain(onsets: np.ndarray, w: _Signal, i: int, tol_min: int, extra: lis
     start = int(onsets[i])
     cands = list(extra) + [int(onsets[j] - start) for j in range(i + 1, min(onsets.size, i + 1 + LOOKAHEAD))]
     best = None
-    tried: list[int] = []
+    tried: list[int] = []  # sorted
     for P in cands:
         if P < p_min or start + MIN_CYCLES * P > w.size + tol_min:
             continue
         tol = max(tol_min, int(R_PERIOD * P))
-        if any(abs(P - p) <= tol for p in tried):
+        j = bisect_left(tried, P - tol)
+        if j < len(tried) and tried[j] <= P + tol:  # a period within tol was tried already
             continue
-        tried.append(P)
+        insort(tried, P)
         ch = _chain(onsets, w, start, P, tol, True)
         if len(ch) < MIN_CYCLES:
             continue
@@ -253,6 +278,7 @@ def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, 
     onsets, gaps = motion_onsets(moving, gap_min)
     if onsets.size == 0:
         return []
+    onsets = onsets.astype(np.int64)
     # periods that repeat somewhere in the log, and stretches of motion without a rest (their starts
     # may open cycles that never stop)
     common = _autocorr_periods(w, 0, n, 2 * gap_min, R_AUTOCORR_LOG, 16)
@@ -261,6 +287,7 @@ def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, 
     bs, be = runs(fill_short(moving, rest_min, False))
     block_end = {int(s): int(e) for s, e in zip(bs, be)}
     claimed = -1
+    acf: dict[tuple[int, int], list[int]] = {}
     chains: list[tuple[np.ndarray, int]] = []
     i = 0
     while i < onsets.size:
@@ -276,7 +303,10 @@ def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, 
             extra = list(common)
             e = block_end.get(int(onsets[k]))
             if e is not None and e - onsets[k] >= MIN_CYCLES * 2 * gap_min:
-                extra += _autocorr_periods(raw, int(onsets[k]), e, 2 * gap_min)
+                key = (int(onsets[k]), e)
+                if key not in acf:  # an onset is tried again from each earlier onset within a period
+                    acf[key] = _autocorr_periods(raw, key[0], e, 2 * gap_min)
+                extra += acf[key]
             cand = _best_chain(onsets, w, k, tol_min, extra, 2 * rest_min)
             if cand is not None and (best is None or cand[0] > best[0] + 2 * tol_min):
                 best, bi = cand, k
