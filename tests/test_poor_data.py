@@ -114,3 +114,19 @@ def test_single_plateau(cli, tmp_path):
     for name in ("alpha0", "alpha1", "alpha2", "ws1", "ws2"):  # a two-exponential drop from one speed
         assert flagged(jd["models"]["stribeck_2exp"]["params"][name]), name
     assert_no_confident_numbers(jd)
+
+
+def test_read_warnings_reach_the_parameter_file(cli, tmp_path):
+    """Dropped NaN rows and a jittery sample period: on stderr and in the parameter file."""
+    df = poor_log("flat_torque").assign(tau=lambda d: FC * np.sign(np.gradient(d.q)) + 0.01 * (d.index % 5))
+    rng = np.random.default_rng(4)
+    df["t"] = df["t"] + rng.uniform(-0.3, 0.3, len(df)) * DT  # +-30 % of the period: jitter, still increasing
+    df.loc[[50, 3000], "tau"] = np.nan
+    src, out = tmp_path / "jitter.csv", tmp_path / "p.yaml"
+    df.to_csv(src, index=False)
+    res = cli("fit", src, "-o", out, "--models", "coulomb_viscous", "--no-diagnose")
+    assert res.code == 0, res
+    (jd,) = yaml.safe_load(out.read_text())["joints"].values()
+    for words in ("dropped 2 rows", "jitters"):
+        assert any(words in w for w in jd["warnings"]), (words, jd["warnings"])
+        assert words in res.err
