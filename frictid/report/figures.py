@@ -49,6 +49,12 @@ DPI = 100
 COLUMNS = int(WIDTH_IN * DPI)
 #: Above this many drawn points a figure is written as PNG instead of SVG.
 PNG_ABOVE = 40000
+#: A point drawn with error bars in both directions costs about as many SVG bytes as this many points of
+#: a line (marker, two bars, four caps: some 700 bytes against about 15 per line vertex).
+ERRORBAR_POINTS = 50
+#: An SVG larger than this [bytes] is written as PNG instead (a safety net for figures the point count
+#: underestimates).
+SVG_MAX_BYTES = 400_000
 
 RC = {
     "svg.fonttype": "none",  # text stays text: smaller files, selectable, printed by the browser's font
@@ -129,13 +135,16 @@ _SVG_SIZE = re.compile(r'\s(width|height)="[^"]*"')
 
 def render(fig, alt: str, salt: str, points: int = 0, png_above: int = PNG_ABOVE) -> Rendered:
     """Render a figure: inline SVG (XML prologue dropped, sized by CSS) or, above ``png_above`` drawn
-    points, a PNG. ``alt`` describes the figure for screen readers and when images are off."""
+    points or :data:`SVG_MAX_BYTES` of SVG, a PNG. ``alt`` describes the figure for screen readers and
+    when images are off."""
     w, h = (int(round(x * DPI)) for x in fig.get_size_inches())
     buf = io.BytesIO()
     if points > png_above:
         fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
         return Rendered("png", base64.b64encode(buf.getvalue()).decode("ascii"), alt, w, h, points, _labels(fig))
     fig.savefig(buf, format="svg", metadata={"Date": None, "Creator": None})
+    if buf.tell() > SVG_MAX_BYTES:
+        return render(fig, alt, salt, points, png_above=-1)
     axes = _labels(fig)
     svg = buf.getvalue().decode("utf-8")
     svg = _SVG_HEAD.sub(r"\1", svg, count=1)
@@ -379,7 +388,7 @@ def friction_map(pl, curves: list[dict], grids: dict, units: dict, salt: str) ->
             fig.legend(handles=handles, loc="outside lower center", ncol=min(4, len(handles)), frameon=False)
         alt = (f"Friction against velocity: {len(pl)} plateau points and {len(curves)} static models; "
                "log-velocity views of both signs")
-        npts = len(pl) * 3 + sum(len(grids["lin"]) + 2 * len(grids["log"]) for _ in curves)
+        npts = len(pl) * 2 * ERRORBAR_POINTS + sum(len(grids["lin"]) + 2 * len(grids["log"]) for _ in curves)
         return render(fig, alt, salt, npts)
 
 
