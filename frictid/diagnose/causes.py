@@ -156,16 +156,18 @@ def run_time(S: Samples) -> float:
 
 def tau_grid(S: Samples, ctx: Context | None = None) -> np.ndarray:
     """Thermal time constants [s] tried for the heat balance, only those the data resolve: from
-    :data:`TAU_MIN_RUNS` one-sign runs of the motion (and 1/100 of the recording) to the recording span
-    (a longer one is a trend the recording cannot tell from anything else slow), none when the recording
-    is shorter than :data:`SPAN_MIN_TAUS` of the shortest, and only those whose thermal state is a slow
-    variable, not a proxy for the speed (:data:`THERMAL_R2_MAX`)."""
+    :data:`TAU_MIN_RUNS` one-sign runs of the motion (and 1/100 of the recording) to the span of the
+    longest log (the state starts cold in every log; a longer time constant is a trend the recording
+    cannot tell from anything else slow), none when that log is shorter than :data:`SPAN_MIN_TAUS` of the
+    shortest, and only those whose thermal state is a slow variable, not a proxy for the speed
+    (:data:`THERMAL_R2_MAX`)."""
     if ctx is None:
         ctx = Context(S)
     key = ("tau_grid",)
     if key in ctx._cache:
         return ctx._cache[key]
-    span = max(float(S.th.max() - S.th.min()) * 3600.0, 10 * _dt(S))
+    # the thermal state starts cold at the start of every log: the longest log is what can resolve it
+    span = max(max((float(np.ptp(S.t[S.li == i])) for i in np.unique(S.li)), default=0.0), 10 * _dt(S))
     lo, hi = max(span / 100.0, TAU_MIN_RUNS * run_time(S)), span
     if not (SPAN_MIN_TAUS * lo <= hi):
         grid = np.zeros(0)
