@@ -355,3 +355,15 @@ def test_rest_lasts_while_the_joint_is_still_and_not_loaded():
     limit = 0.05 * np.subtract(*np.percentile(lg.tau, [99.9, 0.1])) / 0.2
     assert 0.8 * limit < abs(rate) < 1.5 * limit                # the load starts there (sensor noise: +-20 %)
     assert seg[-1] == "rest"
+
+
+def test_duty_cycles_start_with_their_motion():
+    """A duty cycle starts at its first moving sample (the joint breaks away after its program starts)
+    and the cycles of a run follow each other without a gap."""
+    lg = simulate_recipe("duty_cycle", plant="hydraulic", duration_scale=0.01)[0]
+    cyc, w = lg.truth["cycle"], lg.truth["velocity"]
+    vmax = load_plant("hydraulic").joints[0].limits.velocity
+    starts = np.flatnonzero((cyc >= 0) & (np.r_[-1, cyc[:-1]] != cyc))
+    assert starts.size == 40
+    for s in starts:
+        assert np.abs(w[s - 3:s - 1]).max() < 5e-3 * vmax < np.abs(w[s:s + 20]).max()

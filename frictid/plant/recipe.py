@@ -461,7 +461,8 @@ T_LOAD = 0.2
 T_REST = 0.2
 
 
-def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray | None = None) -> np.ndarray:
+def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray | None = None,
+                  cycle: np.ndarray | None = None) -> np.ndarray:
     """Honest labels from the true velocity ``w``:
 
     - plateau samples become constant_velocity once the true velocity (``T_PLATEAU`` mean) has settled
@@ -473,7 +474,9 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray |
       of the move that follows a rest (a slow fade-in: the reference moves, the joint and its torque not
       yet) and at the end of the move before it (the joint stopped before its reference) are ``rest``;
       so are such stretches of at least ``T_REST`` within a move or an excitation (the joint stopped);
-      a closed-loop rest shorter than ``T_REST`` between two moves is part of the motion (``other``)."""
+      a closed-loop rest shorter than ``T_REST`` between two moves is part of the motion (``other``);
+    - with the cycle indices ``cycle`` (changed in place): a duty cycle starts where its motion starts
+      (the joint breaks away a little after its program starts) and lasts one period."""
     label = label.copy()
     vmax = pr.joint.limits.velocity
     m = max(1, int(round(T_PLATEAU * pr.fs)))
@@ -495,6 +498,9 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray |
                 label[i0:i0 + last] = L["other"]
             else:
                 label[i0:i1] = L["other"]
+    moving = np.abs(_smooth(w, m)) > tol_rest
+    if cycle is not None:
+        _cycles_from_onsets(label, cycle, moving)
     if u is None:
         return label
     u = np.asarray(u, dtype=float)
@@ -506,7 +512,34 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray |
     i = np.arange(u.size) + k
     rate = ((c[i + k] - c[i]) - (c[i] - c[i - k])) / (k * k * pr.h)
     loading = np.abs(rate) > R_LOAD * float(np.subtract(*np.percentile(u, [99.9, 0.1]))) / T_LOAD
-    return _still_moves_rest(label, np.abs(_smooth(w, m)) > tol_rest, loading, int(round(T_REST * pr.fs)))
+    return _still_moves_rest(label, moving, loading, int(round(T_REST * pr.fs)))
+
+
+def _cycles_from_onsets(label: np.ndarray, cycle: np.ndarray, moving: np.ndarray) -> None:
+    """Shift each run of contiguous duty cycles so that every cycle starts at the first moving sample of
+    its program's cycle and lasts as long as the program's: the samples before the first onset go to the
+    piece before the run, the last cycle reaches as far into the rest after the run."""
+    is_c = np.concatenate(([False], (cycle >= 0) & (label == L["duty_cycle"]), [False]))
+    edge = np.flatnonzero(is_c[1:] != is_c[:-1])
+    for a, b in zip(edge[::2], edge[1::2]):
+        cut = np.flatnonzero(cycle[a + 1:b] != cycle[a:b - 1]) + a + 1
+        starts = np.concatenate(([a], cut))
+        ends = np.concatenate((cut, [b]))
+        ids = cycle[starts].copy()
+        shift = np.zeros(starts.size, dtype=np.int64)
+        for k, (s0, e0) in enumerate(zip(starts, ends)):
+            mv = np.flatnonzero(moving[s0:e0])
+            shift[k] = mv[0] if mv.size else 0
+        before_lab = label[a - 1] if a > 0 else L["rest"]
+        stop = b + int(shift[-1])
+        nxt = np.flatnonzero(label[b:stop] != L["rest"])   # reach only into a rest
+        stop = b + int(nxt[0]) if nxt.size else min(stop, label.size)
+        label[a:a + shift[0]] = before_lab
+        cycle[a:a + shift[0]] = -1
+        new = np.concatenate((starts + shift, [stop]))
+        for k in range(starts.size):
+            label[new[k]:new[k + 1]] = L["duty_cycle"]
+            cycle[new[k]:new[k + 1]] = ids[k]
 
 
 def _still_moves_rest(label: np.ndarray, moving: np.ndarray, loading: np.ndarray, n_min: int) -> np.ndarray:

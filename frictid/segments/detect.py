@@ -586,7 +586,7 @@ def find_duty_cycles(f: Features) -> list[tuple[int, int, int]]:
     """(start, end, cycle index) of each duty cycle (see :mod:`.duty`)."""
     gap_min = max(3, f.sc.window_w // 2)
     tol = max(2 * f.sc.window_w, int(round(2 * T_JUMP / f.sc.dt)))
-    return duty_cycles(f.w, ~f.still_fine, gap_min, f.n_min, tol)
+    return duty_cycles(f.w, ~f.still_fine, gap_min, f.n_min, tol, f.sc.sigma_w)
 
 
 def _segment(f: Features, kind: str, i0: int, i1: int, cycle: int | None = None) -> Segment:

@@ -347,14 +347,31 @@ def _whole_cycles(chains: list[tuple[np.ndarray, int]], w: _Signal) -> list[tupl
     return out
 
 
-def duty_cycles(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, tol_min: int
-                ) -> list[tuple[int, int, int]]:
+def motion_start(w: np.ndarray, onsets: np.ndarray, sigma_w: float, reach: int) -> np.ndarray:
+    """Where the motion detected at each onset really starts: back from the onset (at most ``reach``
+    samples) to the last sample whose velocity is within one noise level ``sigma_w`` of zero or of the
+    other sign (the motion mask needs several noise levels: on a slow start it trips late)."""
+    out = np.asarray(onsets, dtype=np.int64).copy()
+    for k, o in enumerate(out):
+        if o <= 0 or o >= w.size:
+            continue
+        a = max(0, int(o) - reach)
+        back = w[a:o] * np.sign(w[o])
+        quiet = np.flatnonzero(back <= sigma_w)
+        out[k] = a + int(quiet[-1]) + 1 if quiet.size else a
+    return out
+
+
+def duty_cycles(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, tol_min: int,
+                sigma_w: float = 0.0) -> list[tuple[int, int, int]]:
     """(start, end, cycle index) of every duty cycle; indices count on across the log's chains. A cycle
-    ends where the next one of its chain starts, the last one a period after its start."""
+    starts where its motion starts (:func:`motion_start` with the velocity noise ``sigma_w``), ends where
+    the next one of its chain starts, the last one a period after its start."""
     out = []
     k = 0
     n = w.size
     for starts, P in find_chains(w, moving, gap_min, rest_min, tol_min):
+        starts = np.maximum.accumulate(motion_start(w, starts, sigma_w, rest_min))
         ends = np.concatenate((starts[1:], [starts[-1] + P]))
         for s, e in zip(starts, ends):
             out.append((int(s), int(min(n, e)), k))
