@@ -753,7 +753,7 @@ def _refit_static_maps(jf: JointFit, pl: Plateaus, n_folds: int, source: str, ex
             continue
         new = fit_static(name, pl.w, pl.F, pl.F_se, axis=jf.axis)
         new.metrics["rms_heldout"] = sel.heldout_static(name, pl, n_folds, axis=jf.axis, full=new)
-        new.notes = list(mf.notes) + [f"refitted on plateau means with {source}'s {', '.join(exts)} effect "
+        new.notes = list(new.notes) + [f"refitted on plateau means with {source}'s {', '.join(exts)} effect "
                                       "replayed out (the friction averaged over position)"]
         new.extra = dict(mf.extra or {}, refitted_without=list(exts))
         jf.models[name] = new
