@@ -113,10 +113,10 @@ def card(rows):
     if big:
         lines.append(f"detection at effects >= 10 % of the friction RMS: {hit}/{len(big)} = {100 * hit / len(big):.1f} % "
                      "(aim >= 95 %)")
-        flat = [r for r in big if not (r["cause"] == "asymmetry" and r["plant"] == "linear_slide")]
-        hf = sum(1 for r in flat if r["top"] == r["cause"] and r["gain"] >= GAIN)
-        lines.append(f"  the same without asymmetry on the linear slide (a flat map: there an asymmetry and an offset "
-                     f"are the same sliding data, docs/diagnosis.md): {hf}/{len(flat)} = {100 * hf / len(flat):.1f} %")
+        for pl in sorted({r["plant"] for r in big}):
+            rp = [r for r in big if r["plant"] == pl]
+            hp = sum(1 for r in rp if r["top"] == r["cause"] and r["gain"] >= GAIN)
+            lines.append(f"  {pl}: {hp}/{len(rp)}")
     nulls = [r for r in rows if r["cause"] == "none"]
     false = [r for r in nulls if any(g > FALSE_GAIN for _, _, g in r["findings"])]
     anyf = [r for r in nulls if r["findings"]]
