@@ -430,7 +430,7 @@ def step_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
     can = bool(lp and lp["map"] and J and J > 0 and s0 and s1 is not None
                and evaluate_static(lp["map"], lp["values"], np.array([0.1])) is not None)
     if can:
-        level, viscous, _, _ = scalar_map(lp["map"], lp["values"])
+        level, _, c_pos, c_neg = scalar_map(lp["map"], lp["values"])
     items = []
     for d in datas:
         if d.log.q is None:
@@ -450,7 +450,7 @@ def step_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
             z0 = float(np.clip(u[0] / s0, -g0 / s0, g0 / s0))
             try:
                 with np.errstate(all="ignore"):
-                    model = simulate_step(t, u, q[0], 0.0, J, s0, s1, level, viscous, z0)
+                    model = simulate_step(t, u, q[0], 0.0, J, s0, s1, c_pos, c_neg, z0)
                 if not np.all(np.isfinite(model)):
                     model = None
             except (ArithmeticError, ValueError):
