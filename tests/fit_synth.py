@@ -20,8 +20,11 @@ def smooth_step(x):
 
 
 def synth_log(speeds=None, dt=2e-3, hold=1.5, move=0.6, noise=0.02, seed=0, true=TRUE, excitation=True,
-              ramps=0, joint="1") -> JointLog:
-    """Plateaus at ``speeds`` (rad/s) joined by smooth transitions, an excitation part, and optional ramps."""
+              ramps=0, joint="1", pos_amp=0.0, pos_period=0.5) -> JointLog:
+    """Plateaus at ``speeds`` (rad/s) joined by smooth transitions, an excitation part, and optional ramps.
+
+    pos_amp, pos_period [rad] : the Coulomb/Stribeck level times ``1 + pos_amp sin(2 pi q / pos_period)``
+    (a position-periodic friction, 004's linear slides)."""
     rng = np.random.default_rng(seed)
     if speeds is None:
         v = np.geomspace(0.01, 2.0, 10)
@@ -53,6 +56,9 @@ def synth_log(speeds=None, dt=2e-3, hold=1.5, move=0.6, noise=0.02, seed=0, true
     q = np.cumsum(w) * dt - 1.0
     a = np.gradient(w, dt)
     F = sm.stribeck(w, **true["stribeck"])
+    if pos_amp:
+        visc = true["stribeck"]["sigma2"] * w
+        F = (F - visc) * (1.0 + pos_amp * np.sin(2 * np.pi * q / pos_period)) + visc
     tau = true["J"] * a + F + true["Px"] * np.cos(q) + true["Py"] * np.sin(q) + true["offset"]
     tau = tau + rng.normal(0, noise, n)
     qn = q + rng.normal(0, 1e-6, n)

@@ -124,3 +124,22 @@ def test_any_points_give_a_verdict_not_a_crash(pts, name):
         assert p.identifiable or p.fixed or p.reason
         if p.identifiable and not p.fixed:
             assert p.value is not None and np.isfinite(p.value)
+
+
+def test_position_factor_found_by_the_diagnosis_is_replayed_out_of_the_plateaus():
+    """Plateaus too short to average a position-periodic friction (the slow ones travel a few percent of
+    the period) bias the static map; once the diagnosis keeps the position factor, the maps are refitted on
+    plateau means with it replayed out and recover the position-averaged map."""
+    import frictid
+    from fit_synth import TRUE, synth_log, truth_derivatives, truth_segments
+
+    res = frictid.fit(synth_log(pos_amp=0.1, pos_period=0.5), models="stribeck,stribeck_asym,polynomial",
+                      segmenter=truth_segments, differentiate=truth_derivatives)
+    jf = res["1"]
+    assert "position_periodic" in jf.selected
+    assert "stribeck" in jf.selection["diagnosis_check"]["static_maps_refitted"]
+    st = jf.models["stribeck"].params
+    assert st["Fc"].value == pytest.approx(TRUE["stribeck"]["Fc"], rel=0.01)  # 5 % off without the refit
+    assert st["Fs"].value == pytest.approx(TRUE["stribeck"]["Fs"], rel=0.015)
+    assert st["vs"].value == pytest.approx(TRUE["stribeck"]["vs"], rel=0.05)  # 11 % off without it
+    assert any("replayed out" in n for n in jf.models["stribeck"].notes)

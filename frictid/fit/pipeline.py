@@ -635,8 +635,11 @@ def _diagnose(jf: JointFit, preps) -> None:
 #: at most this factor of the choice's.
 DIAGNOSIS_TOLERANCE = 1.05
 #: Diagnosis extensions that average out over the joint's travel (a periodic level factor of position):
-#: when one is kept, the static maps are refitted on plateau means with its effect taken out.
+#: when one is kept (with at most rigid-body extensions besides), the static maps are refitted on plateau
+#: means with its effect taken out.
 MEAN_FREE_EXTENSIONS = ("position_periodic",)
+#: Extensions that re-estimate rigid-body terms (they do not change what the velocity-only map means).
+RIGID_EXTENSIONS = ("offset", "inertia", "gravity")
 
 
 def _static_targets(jf: JointFit, preps, name: str):
@@ -733,7 +736,7 @@ def _check_diagnosis(jf: JointFit, preps, choice: str, basis: str, keys, min_spe
     elif basis == "plateaus" and pl_diag is not None and len(pl_diag):
         ext = set((jf.models[jf.selected].extra or {}).get("extensions") or ())
         mean_free = sorted(ext & set(MEAN_FREE_EXTENSIONS))
-        if mean_free and ext <= set(MEAN_FREE_EXTENSIONS):
+        if mean_free and ext <= set(MEAN_FREE_EXTENSIONS) | set(RIGID_EXTENSIONS):
             rec["static_maps_refitted"] = _refit_static_maps(jf, pl_diag, n_folds, jf.selected, mean_free)
     jf.selection["diagnosis_check"] = rec
 
