@@ -107,3 +107,40 @@ def test_cli_error_in_a_worker_is_exit_2_without_traceback(monkeypatch, tmp_path
     assert outs["2"].endswith("frictid: error: joint a: the logs disagree on the axis\n")
     r = cli("fit", str(path), "-o", str(tmp_path / "x.yaml"), "--jobs", "-1")
     assert r.code == 2 and "Traceback" not in r.err
+
+
+@pytest.mark.parametrize("sig, code, word", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "terminated")])
+def test_interrupt_stops_the_workers_and_writes_nothing(tmp_path, sig, code, word):
+    """Ctrl-C (to the whole process group, as a terminal sends it) or SIGTERM (to the parent) while the
+    workers fit: one message, no traceback, no output, no worker left behind."""
+    import signal
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    path = tmp_path / "two.parquet"
+    write_logs([synth_log(seed=k, joint=str(k + 1)) for k in range(2)], str(path), "parquet")
+    out = tmp_path / "p.yaml"
+    proc = subprocess.Popen([sys.executable, "-m", "frictid", "fit", str(path), "-o", str(out), "--jobs", "2"],
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    kids: list[str] = []
+    deadline = time.monotonic() + 120
+    while len(kids) < 2 and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+        try:
+            kids = open(f"/proc/{proc.pid}/task/{proc.pid}/children").read().split()
+        except OSError:
+            kids = []
+    assert len(kids) == 2, "two workers started"
+    if sig == "SIGINT":
+        os.killpg(proc.pid, signal.SIGINT)
+    else:
+        proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    err = err.decode()
+    assert proc.returncode == code, err[-1000:]
+    assert word in err and "Traceback" not in err
+    assert not out.exists() and not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+    time.sleep(0.5)
+    assert not [k for k in kids if os.path.exists(f"/proc/{k}")], "no worker left running"
