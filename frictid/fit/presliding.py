@@ -293,13 +293,16 @@ def _simulate_step_py(t, u, q0, w0, J, sigma0, sigma1, level, viscous, z0, subst
         h = (t[i + 1] - t[i]) / substeps
         ui = float(u[i])
         for _ in range(substeps):
+            # slopes by differences on the branch of wi's sign (a difference across w = 0 would mix the
+            # two branches of a per-sign map)
             sg = 1.0 if wi >= 0 else -1.0
             v = abs(wi)
             g = max(level(wi), 1e-12)
             f = viscous(wi)
-            fp = (viscous(wi + eps) - viscous(wi - eps)) / (2 * eps)
-            lo = max(v - eps, 0.0)
-            dg = (level(sg * (v + eps)) - level(sg * lo)) / (v + eps - lo)
+            lo = v - eps if v > eps else v + eps
+            hi = lo + 2 * eps
+            fp = (viscous(sg * hi) - viscous(sg * lo)) / (sg * 2 * eps)
+            dg = (level(sg * hi) - level(sg * lo)) / (2 * eps)
             qi, wi, zi = step(qi, wi, zi, ui, h, J, sigma0, sigma1, g, dg, f, fp)
         q[i + 1] = qi
     return q
