@@ -31,7 +31,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))
 
-from segscore import PLANTS, Tally, decimated, plant_variant, random_ptp_logs, truth_segments  # noqa: E402
+from segscore import (PLANTS, Tally, decimated, plant_variant, random_ptp_logs, session_recipe,  # noqa: E402
+                      truth_segments)
 
 from frictid.data import SEGMENT_KINDS  # noqa: E402
 from frictid.plant import simulate_recipe  # noqa: E402
@@ -43,27 +44,6 @@ RECIPES = ("constant_velocity_sweep", "ramp_presliding", "torque_steps", "multis
 #: few samples between segments, e.g. the last samples of a deceleration, as ``other``).
 GATED = ("constant_velocity", "ramp_presliding", "step", "duty_cycle", "rest")
 TARGET = 0.95
-
-
-def session_recipe(duty_cycle_time: float = 40.0) -> dict:
-    """Every experiment in one log, with rests and the plant's repositioning moves in between."""
-    return {
-        "name": "session",
-        "description": "all experiments concatenated, rests and repositioning moves between them",
-        "default_plant": "direct_drive",
-        "start_rest": 2.0,
-        "experiments": [
-            {"kind": "constant_velocity", "velocities": {"min": 0.02, "max": 0.9, "count": 6},
-             "plateau": 2.0, "rest": 2.0},
-            {"kind": "ramp_presliding", "peaks": [0.5], "ramp_up": 3.0, "hold": 1.0, "ramp_down": 3.0,
-             "rest": 1.5},
-            {"kind": "torque_steps", "levels": [0.4], "rest": 1.5},
-            {"kind": "multisine", "duration": 20.0, "f0": 0.1, "rest": 2.0},
-            {"kind": "duty_cycle", "duty": 0.5, "cycles": 4, "cycle_time": duty_cycle_time, "slots": 4,
-             "rest": 2.0},
-            {"kind": "rest", "duration": 2.0, "rest": 0.0},
-        ],
-    }
 
 
 def tally_logs(logs, tally: Tally) -> float:

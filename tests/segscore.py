@@ -111,6 +111,27 @@ def plant_variant(name: str, noise: float = 1.0, sample_rate: float | None = Non
     return load_plant(d, where=f"{name} (noise x{noise:g})")
 
 
+def session_recipe(duty_cycle_time: float = 40.0) -> dict:
+    """Every experiment in one log, with rests and the plant's repositioning moves in between."""
+    return {
+        "name": "session",
+        "description": "all experiments concatenated, rests and repositioning moves between them",
+        "default_plant": "direct_drive",
+        "start_rest": 2.0,
+        "experiments": [
+            {"kind": "constant_velocity", "velocities": {"min": 0.02, "max": 0.9, "count": 6},
+             "plateau": 2.0, "rest": 2.0},
+            {"kind": "ramp_presliding", "peaks": [0.5], "ramp_up": 3.0, "hold": 1.0, "ramp_down": 3.0,
+             "rest": 1.5},
+            {"kind": "torque_steps", "levels": [0.4], "rest": 1.5},
+            {"kind": "multisine", "duration": 20.0, "f0": 0.1, "rest": 2.0},
+            {"kind": "duty_cycle", "duty": 0.5, "cycles": 4, "cycle_time": duty_cycle_time, "slots": 4,
+             "rest": 2.0},
+            {"kind": "rest", "duration": 2.0, "rest": 0.0},
+        ],
+    }
+
+
 def random_ptp_logs(plant, seed: int = 0, moves: int = 40):
     """The shipped ``random_ptp`` recipe (random point-to-point moves and dwells, no experiment) on every
     joint of ``plant``, its moves drawn with ``seed`` (the sensor noise too)."""

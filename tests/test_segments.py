@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 
 from conftest import hand_log
-from segscore import Tally, decimated, plant_variant, random_ptp_logs, truth_segments
+from segscore import Tally, decimated, plant_variant, random_ptp_logs, session_recipe, truth_segments
 from frictid.data import SEGMENT_KINDS, JointLog
 from frictid.errors import LogFormatError
 from frictid.io.logs import write_logs
@@ -166,9 +166,17 @@ def test_low_and_high_noise(noise):
 
 @pytest.mark.parametrize("plant", ["direct_drive", "linear_slide"])
 def test_random_point_to_point_motion_has_no_ramp_or_step(plant):
-    for lg in random_ptp_logs(plant_variant(plant), seed=3, moves=30):
+    logs = random_ptp_logs(plant_variant(plant), seed=3, moves=30)
+    for lg in logs:
         kinds = {s.kind for s in find_segments(lg)}
         assert not kinds & {"ramp_presliding", "step", "duty_cycle"}, kinds
+    _assert_f1(_tally(logs), ["rest"])
+
+
+def test_sessions_every_experiment_in_one_log():
+    """Every experiment concatenated with rests and repositioning moves (short duty cycles), all plants."""
+    logs = [lg for pl in PLANTS for lg in simulate_recipe(session_recipe(20.0), plant_variant(pl), seed=5)]
+    _assert_f1(_tally(logs), ["constant_velocity", "ramp_presliding", "step", "duty_cycle", "rest"])
 
 
 # ---------------------------------------------------------------------------------------------------

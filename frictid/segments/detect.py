@@ -375,15 +375,19 @@ def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]
     sig_sf = f.sigma_tau_loc * math.sqrt(2.0 / hf) / (hf * sc.dt)
     sig_s = f.sigma_tau_loc * math.sqrt(2.0 / f.h) / (f.h * sc.dt)
     rate = R_RAMP * sc.tau_range / T_MIN
-    loading = np.abs(f.s) > np.maximum(K_NOISE * sig_s, rate)
-    loading = grow(loading, np.abs(sf) > np.maximum(2.0 * sig_sf, 0.5 * rate))
+    core = np.abs(f.s) > np.maximum(K_NOISE * sig_s, rate)
+    loading = grow(core, np.abs(sf) > np.maximum(2.0 * sig_sf, 0.5 * rate))
     # ... unless the joint does not move right after it and it is a controller relaxing after a stop (it
-    # starts right after motion, within hf) or a torque jump (no longer than the slope window, 2h)
+    # starts right after motion, within h) or a torque jump (a jump found above, seen through the slope
+    # window: its core above the full threshold no longer than 2h)
     ls, le = runs(loading)
+    core_c = np.concatenate(([0], np.cumsum(core)))
     moving_c = np.concatenate(([0], np.cumsum(~f.still_fine)))
     moves_after = moving_c[np.minimum(le + hf, n)] - moving_c[np.minimum(le, n)] > 0
-    moved_before = moving_c[ls] - moving_c[np.maximum(ls - hf, 0)] > 0
-    relax = (moved_before | (le - ls <= 2 * f.h)) & ~moves_after
+    moved_before = moving_c[ls] - moving_c[np.maximum(ls - f.h, 0)] > 0
+    all_jumps = np.sort(jumps)
+    has_jump = np.searchsorted(all_jumps, le) > np.searchsorted(all_jumps, ls)
+    relax = (moved_before | (has_jump & (core_c[le] - core_c[ls] <= 2 * f.h + hj))) & ~moves_after
     if relax.any():
         paint(loading, ls[relax], le[relax], False)
     calm = fill_short(~loading, 2 * hf + 2, False)  # a torque jump alone does not end a rest
