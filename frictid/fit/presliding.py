@@ -137,12 +137,15 @@ class DynamicEstimate:
     details: dict = field(default_factory=dict)
 
 
-def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float = 0.0) -> DynamicEstimate:
+def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float = 0.0,
+               starts: tuple[float, ...] | None = None) -> DynamicEstimate:
     """sigma0 [F/q] from ramp-presliding segments.
 
     ramps : list of (q [q], F [F]) per segment, F the friction torque ``tau - G - offset`` (a ~ 0).
     g0 : static friction level at zero speed [F], one number or one per ramp (per-sign maps).
     resolution : encoder step [q] (0 when continuous).
+    starts : initial sigma0 values [F/q] (e.g. a held-out refit from the full-data optimum); default the
+    median slope of torque against displacement over the lower half of the ramps, times 1, 0.3 and 3.
     """
     if not ramps:
         return DynamicEstimate(None, None, False, "no ramp-presliding segments", "ramps")
@@ -161,15 +164,19 @@ def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float
                                f"the encoder does not resolve the presliding displacement: it spans "
                                f"{span / resolution:.1f} counts of {resolution:.3g} (at least {MIN_COUNTS} needed)",
                                "ramps", len(ramps), details={"span_counts": span / resolution})
-    # data-derived start: slope of F against displacement over the lower half of each ramp
-    slopes = []
-    for (q, F), g0 in zip(ramps, g0s):
-        x = q - q[0]
-        lim = 0.5 * g0
-        m = np.abs(F) < lim
-        if m.sum() > 5 and np.ptp(x[m]) > 0:
-            slopes.append(abs(np.polyfit(x[m], F[m], 1)[0]))
-    s_start = float(np.median(slopes)) if slopes else max(g0s) / span
+    if starts is None:
+        # data-derived start: slope of F against displacement over the lower half of each ramp
+        slopes = []
+        for (q, F), g0 in zip(ramps, g0s):
+            x = q - q[0]
+            lim = 0.5 * g0
+            m = np.abs(F) < lim
+            if m.sum() > 5 and np.ptp(x[m]) > 0:
+                slopes.append(abs(np.polyfit(x[m], F[m], 1)[0]))
+        s_start = float(np.median(slopes)) if slopes else max(g0s) / span
+        starts = (s_start, 0.3 * s_start, 3.0 * s_start)
+    else:
+        s_start = float(starts[0])
 
     # all ramps in one compiled pass; the residual and its analytic derivative in log(sigma0) together
     qs = np.concatenate([np.asarray(q, dtype=float) for q, _ in ramps])
@@ -194,9 +201,9 @@ def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float
         return dy.reshape(-1, 1).copy()
 
     best = None
-    for f in (1.0, 0.3, 3.0):
+    for s_init in starts:
         try:
-            r = least_squares(resid, [math.log(s_start * f)], jac=jac, method="lm", x_scale=1.0)
+            r = least_squares(resid, [math.log(s_init)], jac=jac, method="lm", x_scale=1.0)
         except ValueError:
             continue
         if best is None or r.cost < best.cost:
