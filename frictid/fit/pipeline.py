@@ -996,7 +996,7 @@ def _lugre(jf: JointFit, preps, selected, used, axis, F0, w0) -> None:
             if len(ramps) >= 2:
                 rest = [r for k, r in enumerate(ramps) if k != i]
                 gr = [g for k, g in enumerate(g_of) if k != i]
-                e = pre.fit_sigma0(rest, gr, resolution)
+                e = pre.fit_sigma0(rest, gr, resolution, starts=(s0.value,))
                 if e.value:
                     z0h = float(np.clip(F[0] / e.value, -g0 / e.value, g0 / e.value))
                     held.append(e.value * pre.bristle_path(q, z0h, e.value, g0) - F)
