@@ -74,13 +74,13 @@ def test_simulate_to_stdout_is_only_csv(tmp_path):
 
 def _interrupt_during_fit(tmp_path, sig):
     """Start ``frictid fit``, send ``sig`` as soon as it says the fit has started, return what it did."""
-    from test_poor_data import poor_log
-
-    log = tmp_path / "log.csv"
-    poor_log("one_sign").to_csv(log, index=False)
+    # two shipped sample logs (two joints, so the parallel path too): reading and fitting them take several
+    # seconds after the fit says it started, far longer than the signal takes to arrive on a loaded machine
+    # (a fit that finished first would make this test fail without any fault in frictid)
+    logs = [str(ROOT / "sample_logs" / name) for name in ("hydraulic_sweep.csv", "linear_slide_multisine.csv")]
     out = tmp_path / "params.yaml"
     out.write_text("previous: result\n")
-    proc = subprocess.Popen([sys.executable, "-m", "frictid", "fit", str(log), "-o", str(out)], cwd=ROOT,
+    proc = subprocess.Popen([sys.executable, "-m", "frictid", "fit", *logs, "-o", str(out)], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     first = b""
     while b"fitting" not in first:  # the fit has started: reading, segmenting and fitting take seconds
