@@ -9,8 +9,11 @@ parent stops the workers at once.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import pickle
+import signal
+import threading
 from typing import Any, Callable, Sequence
 
 from .errors import FrictidInputError
@@ -46,11 +49,14 @@ def map_forked(fn: Callable, items: Sequence, workers: int) -> list:
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
-    _TASK.update(fn=fn, items=items)
+    _TASK.update(fn=fn, items=items, parent=os.getpid())
     pool = ProcessPoolExecutor(max_workers=min(workers, len(items)), mp_context=mp.get_context("fork"),
                                initializer=_worker_init)
     try:
-        futures = [pool.submit(_call, k) for k in range(len(items))]
+        # the workers are forked by the first submit; Ctrl-C or SIGTERM meanwhile is held back until every
+        # worker is known to the pool (stopped below) and has its own handling (no worker's traceback)
+        with _signals_deferred():
+            futures = [pool.submit(_call, k) for k in range(len(items))]
         out = []
         for fut in futures:
             status, value = fut.result()
@@ -69,13 +75,39 @@ def map_forked(fn: Callable, items: Sequence, workers: int) -> list:
         _TASK.clear()
 
 
+@contextlib.contextmanager
+def _signals_deferred():
+    """SIGINT and SIGTERM received inside the block are raised again, with the handlers of before, when it
+    ends (main thread only: elsewhere Python cannot set handlers, and nothing is deferred)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    sigs = (signal.SIGINT, signal.SIGTERM)
+    before = {s: signal.signal(s, lambda signum, frame: got.append(signum)) for s in sigs}
+    try:
+        yield
+    finally:
+        for s, h in before.items():
+            signal.signal(s, h)
+        for s in dict.fromkeys(got):
+            signal.raise_signal(s)
+
+
 def _worker_init() -> None:
     """A worker: one BLAS thread (the items already share the cores), no Ctrl-C or SIGTERM handling of its
-    own (the parent stops the workers and reports an interruption once)."""
-    import signal
-
+    own (the parent stops the workers and reports an interruption once), and stopped with its parent
+    (a worker left waiting on the pool's queue would wait forever)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG (Linux)
+    except (OSError, AttributeError):  # pragma: no cover - not Linux
+        pass
+    if os.getppid() != _TASK.get("parent"):  # the parent died before the line above
+        os._exit(1)
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:  # optional: without it BLAS keeps its own thread count
