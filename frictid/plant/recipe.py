@@ -469,12 +469,13 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray |
       within 2 % (plus 0.1 % of the velocity limit) of the reference for the rest of the plateau;
     - leading samples of a closed-loop rest stay ``other`` until the joint has stopped (``T_STILL`` mean
       below ``R_STILL`` of the limit);
-    - with the drive torque ``u`` [F]: a rest lasts while the joint is still and not loaded (its torque
-      changing by less than ``R_LOAD`` of the torque range within ``T_LOAD``): such samples at the start
-      of the move that follows a rest (a slow fade-in: the reference moves, the joint and its torque not
-      yet) and at the end of the move before it (the joint stopped before its reference) are ``rest``;
-      so are such stretches of at least ``T_REST`` within a move or an excitation (the joint stopped);
-      a closed-loop rest shorter than ``T_REST`` between two moves is part of the motion (``other``);
+    - with the drive torque ``u`` [F]: a rest lasts while the joint is still and not loaded (the torque's
+      rate, means over ``T_LOAD``/2 after minus before, below ``R_LOAD`` of its range per ``T_LOAD``):
+      such samples at the start of the move that follows a rest (a slow fade-in: the reference moves, the
+      joint and its torque not yet) and at the end of the move before it (the joint stopped before its
+      reference) are ``rest``; a rest into which the load of the move before goes on, on a still joint,
+      starts after it; still, unloaded stretches of at least ``T_REST`` within a move or an excitation
+      are ``rest`` (the joint stopped); a rest shorter than ``T_REST`` between two moves is ``other``;
     - with the cycle indices ``cycle`` (changed in place): a duty cycle starts where its motion starts
       (the joint breaks away a little after its program starts) and lasts one period."""
     label = label.copy()
