@@ -153,6 +153,28 @@ def test_duty_cycles_one_row_per_cycle():
     assert max(fractions[:4]) < 0.6 < min(fractions[4:])
 
 
+def test_compiled_cycle_comparison_equals_numpy():
+    """The compiled profile comparison of the duty-cycle search against the plain numpy formula."""
+    from frictid.segments.duty import N_PROFILE, _difference, _Signal
+
+    rng = np.random.default_rng(7)
+    n = 50_000
+    w = np.where((np.arange(n) // 700) % 3 == 0, 0.0, np.sin(np.arange(n) / 50.0)) + rng.normal(0, 0.01, n)
+    sig = _Signal(w, np.abs(w) > 0.05, 200)
+    for _ in range(200):
+        P = int(rng.integers(100, 12_000))
+        a, b = (int(v) for v in rng.integers(-100, n - P // 2, 2))
+        stride = max(1, P // N_PROFILE)
+        ok = a >= 0 and b >= 0 and max(a, b) + P <= n and all(
+            sig.rest_and_motion(s, s + P) for s in (a, b))
+        if not ok:
+            assert _difference(sig, a, b, P) == np.inf
+            continue
+        x, y = w[a:a + P:stride], w[b:b + P:stride]
+        ref = np.sqrt(np.mean((x - y) ** 2)) / max(np.sqrt(np.mean(x * x)), np.sqrt(np.mean(y * y)))
+        assert _difference(sig, a, b, P) == pytest.approx(ref, rel=1e-9)
+
+
 @pytest.mark.parametrize("noise", [0.3, 3.0])
 def test_low_and_high_noise(noise):
     logs = [lg for rec in ("ramp_presliding", "torque_steps") for pl in PLANTS
