@@ -60,6 +60,18 @@ def test_number_of_workers():
         workers.n_workers(-1, 6)
 
 
+def test_workers_use_one_blas_thread():
+    """Each worker limits BLAS to one thread (the joints already share the cores)."""
+    import scipy.linalg  # noqa: F401 - loads scipy's OpenBLAS too
+    from threadpoolctl import threadpool_info
+
+    def blas_threads(_):
+        return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
+
+    assert blas_threads(0), "numpy's BLAS is visible to threadpoolctl"
+    assert workers.map_forked(blas_threads, [0, 1], 2) == [[1], [1]]
+
+
 def _failing(monkeypatch, exc_for):
     real = pipeline.fit_joint
 
