@@ -192,22 +192,6 @@ def test_nothing_hidden_ends_with_the_base_model():
     assert d["base"] == "stribeck" and d["steps"] and d["steps"][0]["chosen"] is None
 
 
-def test_the_base_is_the_symmetric_map_the_sliding_samples_support():
-    """Nothing hidden, but the fit's choice (a polynomial, chosen on its own basis) lacks the Stribeck hump
-    the sliding samples show: the base is the fit's Stribeck map, not a polynomial plus a finding."""
-    jf = fake_fit()
-    poly = {"c0": 2.3, "c1": 1.0, "c2": 0.0, "c3": 0.0}
-    jf.models["polynomial"] = ModelFit("polynomial", "polynomial",
-                                       {k: ParamEstimate(k, v, None, "", True) for k, v in poly.items()},
-                                       {"rms_heldout": 0.005, "aic": -1.0, "k": 4, "n": 24})
-    jf, findings = _run([plateau_log(seed=5)], jf)
-    rec = jf.selection["diagnosis"]
-    assert rec["base_choice"]["fit_choice"] == "polynomial"
-    assert rec["base"] == "stribeck" and jf.selected == "stribeck"
-    assert rec["base_choice"]["rms_heldout"]["stribeck"] < rec["base_choice"]["rms_heldout"]["polynomial"]
-    assert not [f for f in findings if f["gain"] > GAIN_NULL]
-
-
 def test_position_dependence_is_found_with_its_period_and_replays():
     P = 0.83
     def eff(t, q, w, F):

@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from .causes import CAUSES, EXTENSIONS
-from .chain import ALPHA, EXPLAINED_MIN, GAIN_MIN, Chain, Trial, group_d, paired_t
+from .chain import ALPHA, EXPLAINED_MIN, GAIN_MIN, Chain, Trial
 from .model import Structure, model_values
 from .samples import DiagLog, Samples, build_samples
 
@@ -39,44 +39,6 @@ def base_model_name(jf) -> str | None:
         return None
     name, _ = choose(jf.models, cands)
     return name
-
-
-def _symmetric_maps(jf) -> list[str]:
-    from ..fit.pipeline import BASE_MODELS
-
-    return [m for m in BASE_MODELS if not m.endswith("_asym") and m in jf.models
-            and all(v is not None for v in jf.models[m].values().values())]
-
-
-def _choose_base(jf, S: Samples, fit_base: str):
-    """(name, structure, chain, record) of the base: the fit's choice among its symmetric velocity-only maps,
-    unless another of them predicts the held-out sliding samples significantly better (the same paired t
-    over held-out groups as a finding, alpha split over the alternatives); then the best of those. The fit
-    chooses on its own basis (plateau means, or all moving samples); a velocity effect it missed there (a
-    Stribeck hump a polynomial lacks) would otherwise come back as a finding on data with nothing hidden."""
-    chains = {}
-    for name in _symmetric_maps(jf):
-        try:
-            chains[name] = Chain(S, _base_structure(jf, name, S))
-        except (KeyError, ValueError):
-            continue
-    if fit_base not in chains:
-        chains[fit_base] = Chain(S, _base_structure(jf, fit_base, S))
-    rms = {n: c.rms_heldout for n, c in chains.items()}
-    m = max(len(chains) - 1, 1)
-    r0 = S.F - chains[fit_base].pred
-    better = []
-    for n, c in chains.items():
-        if n == fit_base or not rms[n] < rms[fit_base]:
-            continue
-        _, p = paired_t(group_d(S, r0, S.F - c.pred))
-        if p < ALPHA / m:
-            better.append(n)
-    name = min(better, key=lambda n: rms[n]) if better else fit_base
-    record = {"fit_choice": fit_base, "rms_heldout": rms,
-              "rule": "the fit's choice unless another symmetric map predicts the held-out sliding samples "
-                      "significantly better (paired t over groups); then the best of those"}
-    return name, chains[name].st, chains[name], record
 
 
 def _base_structure(jf, name: str, S: Samples) -> Structure:
@@ -315,12 +277,11 @@ def diagnose_joint(jf, logs: list[DiagLog], n_folds: int = N_FOLDS) -> list[dict
                           "can be held out; the fit's own choice stands")
         jf.diagnosis = []
         return []
-    base, st0, chain, choice = _choose_base(jf, S, base)
-    rec["base"] = base
-    rec["base_choice"] = choice
+    st0 = _base_structure(jf, base, S)
     rigid = {"J": jf.inertia.value if jf.inertia and jf.inertia.value is not None else 0.0,
              "Px": jf.gravity["Px"].value if "Px" in jf.gravity and jf.gravity["Px"].value is not None else 0.0,
              "Py": jf.gravity["Py"].value if "Py" in jf.gravity and jf.gravity["Py"].value is not None else 0.0}
+    chain = Chain(S, st0)
     rec["rms_heldout_base"] = chain.rms_heldout
     rec["samples"] = int(S.n)
     rec["groups"] = int(S.n_groups)
