@@ -35,6 +35,9 @@ def report(
     units: UnitsOpt = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
+    jobs: Annotated[int, typer.Option(
+        "--jobs", min=0, help="Joints built at once, each in its own process (0: one per available core; "
+                              "1: one after another). The report does not depend on it.")] = 0,
 ) -> None:
     """Write a self-contained HTML report: summary, segment timeline, friction map, presliding, thermal,
     model comparison, diagnosis and provenance for every joint of a parameter file.
@@ -45,7 +48,6 @@ def report(
     """
     from ..errors import FrictidInputError
     from ..io.atomic import check_output_path
-    from ..io.logs import read_many
     from ..io.params_load import load_params_dict
     from ..report import write_report
 
@@ -64,11 +66,13 @@ def report(
     check_output_path(output, [params, *logs], mapping)
     t0 = time.perf_counter()
     pd = load_params_dict(params)
-    joint_logs = read_many(logs, mapping, units) if logs else []
+    joint_logs = read_report_logs(logs, mapping, units) if logs else []
     for w in log_warnings(joint_logs):
         con.warn(w)
-    cmd = command_line("report", [params, *logs], [("-o", output), ("--map", mapping), ("--units", units)])
-    nbytes = write_report(output, with_log_warnings(pd, joint_logs), joint_logs, params_path=params, command=cmd)
+    cmd = command_line("report", [params, *logs], [("-o", output), ("--map", mapping), ("--units", units),
+                                                    ("--jobs", str(jobs) if jobs else None)])
+    nbytes = write_report(output, with_log_warnings(pd, joint_logs), joint_logs, params_path=params, command=cmd,
+                          jobs=jobs)
     n = len(pd.get("joints") or {})
     if output != "-":
         con.info(f"frictid: wrote {output} ({nbytes / 1e6:.2f} MB, {n} joint{'s' if n != 1 else ''}, "
@@ -78,6 +82,39 @@ def report(
                              "joints": {str(j): joint_summary(jd) for j, jd in (pd.get("joints") or {}).items()
                                         if isinstance(jd, dict)},
                              "warnings": con.warnings})
+
+
+#: Channels only the closed-loop replay reads; it runs on logs whose metadata gives the controller gains.
+REFERENCE_CHANNELS = ("q_ref", "qd_ref", "tau_ref")
+
+
+def read_report_logs(paths: list[str], mapping=None, units=None) -> list:
+    """The logs of ``paths`` with the columns the report uses: the references (``q_ref``, ``qd_ref``,
+    ``tau_ref``) only from a file whose logs carry controller gains (``meta.control``), which is then read
+    again whole; standard input is read once, whole. Problems from all files are reported together."""
+    from ..errors import FrictidInputError, LogFormatError
+    from ..io.logs import read_logs
+    from ..replay import controller_from_meta
+
+    def closed_loop(lg) -> bool:
+        try:
+            return controller_from_meta(lg.meta or {}) is not None
+        except FrictidInputError:
+            return True  # the replay reports the bad gains itself
+
+    out, errors = [], []
+    for p in paths:
+        try:
+            got = read_logs(p, mapping, units, skip=() if p == "-" else REFERENCE_CHANNELS)
+            if p != "-" and any(closed_loop(lg) for lg in got):
+                got = read_logs(p, mapping, units)
+        except LogFormatError as exc:
+            errors.append(str(exc))
+            continue
+        out.extend(got)
+    if errors:
+        raise LogFormatError("", errors)
+    return out
 
 
 def with_log_warnings(params: dict, logs) -> dict:
@@ -111,10 +148,9 @@ def check_fit_report(report_path: str, output: str, logs: list[str], mapping: st
 def report_after_fit(report_path: str, result, logs: list[str], mapping, units, params_path: str,
                      command: str, con: Console) -> None:
     """``frictid fit --report``: the report of a fresh identification, from the same logs and options."""
-    from ..io.logs import read_many
     from ..report import write_report
 
     t0 = time.perf_counter()
-    nbytes = write_report(report_path, result.to_dict(), read_many(logs, mapping, units),
+    nbytes = write_report(report_path, result.to_dict(), read_report_logs(logs, mapping, units),
                           params_path=params_path if params_path != "-" else "(standard output)", command=command)
     con.info(f"frictid: wrote {report_path} ({nbytes / 1e6:.2f} MB) in {time.perf_counter() - t0:.1f} s")
