@@ -533,3 +533,67 @@ def test_docs_examples_run(scenario, cli, monkeypatch):
     code = re.search(r"```python\n(.*?)```", doc, re.S).group(1)
     exec(compile(code, "docs/report.md", "exec"), {})
     assert Path("report.html").stat().st_size > 10_000
+
+
+def test_friction_is_computed_on_the_slices_read(scenario):
+    """The friction torque and gravity computed on a slice (plateaus, ramps, steps, cycles) are the whole
+    log's ``tau - J a - G`` cut to that slice."""
+    from frictid.io.logs import read_many
+    from frictid.io.params_load import load_params_dict
+    from frictid.report import content as ct
+    from frictid.segments import derivatives
+
+    params = load_params_dict(scenario["params"])
+    jd = params["joints"][scenario["joint"]]
+    lg = read_many([scenario["log"]])[0]
+    d = ct.prepare_log(lg, jd, truth_segments, derivatives, segments=[])
+    terms = ct.rigid_terms(jd)
+    G = terms["Px"] * np.cos(lg.q) + terms["Py"] * np.sin(lg.q) + terms["offset"]
+    F = lg.tau - terms["J"] * np.nan_to_num(d.a) - G
+    assert abs(terms["Px"]) > 0 and terms["J"] > 0
+    for i0, i1 in ((0, 10), (lg.n // 3, lg.n // 2), (lg.n - 7, lg.n), (5, 5)):
+        np.testing.assert_allclose(d.F[i0:i1], F[i0:i1], rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(d.G[i0:i1], G[i0:i1], rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(d.F.full(), F, rtol=1e-12, atol=1e-9)
+    assert d.F[lg.n - 3:].shape == (3,) and d.F[::2].shape == F[::2].shape
+
+
+def test_cycle_rms_from_the_gram_matrix_is_the_polynomials():
+    """A duty cycle's F_rms from the Gram matrix of its regressors equals the polynomial evaluated at
+    every sample (two ways of computing the same number)."""
+    from frictid.models.static import polynomial
+    from frictid.report.content import _poly_basis, _quad_rms
+
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        w = rng.normal(0.0, rng.uniform(0.1, 3.0), rng.integers(10, 5000))
+        c = rng.normal(0.0, 20.0, 4)
+        X = _poly_basis(w)
+        assert _quad_rms(c, X.T @ X / len(w)) == pytest.approx(np.sqrt(np.mean(polynomial(w, *c) ** 2)), rel=1e-9)
+
+
+def test_report_reads_the_references_only_for_a_closed_loop(tmp_path):
+    """q_ref / qd_ref / tau_ref feed only the closed-loop replay: a log without controller gains is read
+    without them, a log with gains (meta.control) with them."""
+    from frictid.cli.report import read_report_logs
+    from frictid.data import JointLog
+    from frictid.io.logs import write_logs
+
+    t = np.arange(2000) * 1e-3
+    q = 0.1 * np.sin(2 * np.pi * t)
+    ch = {"q_ref": q, "qd_ref": np.gradient(q, t), "tau_ref": np.zeros_like(t)}
+    for name, meta, expect in (("open", {}, set()), ("closed", {"control": {"kp": 400.0, "kd": 20.0}},
+                                                     {"q_ref", "qd_ref", "tau_ref"})):
+        path = tmp_path / f"{name}.parquet"
+        write_logs([JointLog(joint="j", t=t, q=q, tau=np.cos(t), channels=dict(ch), meta=meta)], str(path))
+        got = read_report_logs([str(path)])
+        assert set(got[0].channels) & set(ch) == expect, name
+
+
+def test_cli_jobs(scenario, cli, tmp_path):
+    """``--jobs 1`` builds the joints one after another and is recorded in the command line."""
+    out = tmp_path / "r.html"
+    r = cli("report", scenario["params"], scenario["log"], "-o", out, "--jobs", "1")
+    assert r.code == 0, r
+    assert "--jobs 1" in out.read_text()
+    assert cli("report", scenario["params"], scenario["log"], "-o", out, "--jobs", "-1").code == 2

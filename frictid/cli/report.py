@@ -50,6 +50,7 @@ def report(
     from ..io.atomic import check_output_path
     from ..io.params_load import load_params_dict
     from ..report import write_report
+    from ..report.build import Prefetch, keep_freed_memory
 
     con = Console(quiet)
     logs = list(logs or [])
@@ -65,14 +66,19 @@ def report(
     refuse_json_with_stdout("report", as_json, output)
     check_output_path(output, [params, *logs], mapping)
     t0 = time.perf_counter()
-    pd = load_params_dict(params)
-    joint_logs = read_report_logs(logs, mapping, units) if logs else []
+    keep_freed_memory()
+    pre = Prefetch(logs)  # the files' hashes and the figures' imports, while the logs are read
+    try:
+        pd = load_params_dict(params)
+        joint_logs = read_report_logs(logs, mapping, units) if logs else []
+    finally:
+        hashes = pre.hashes()
     for w in log_warnings(joint_logs):
         con.warn(w)
     cmd = command_line("report", [params, *logs], [("-o", output), ("--map", mapping), ("--units", units),
                                                     ("--jobs", str(jobs) if jobs else None)])
     nbytes = write_report(output, with_log_warnings(pd, joint_logs), joint_logs, params_path=params, command=cmd,
-                          jobs=jobs)
+                          jobs=jobs, hashes=hashes)
     n = len(pd.get("joints") or {})
     if output != "-":
         con.info(f"frictid: wrote {output} ({nbytes / 1e6:.2f} MB, {n} joint{'s' if n != 1 else ''}, "

@@ -575,9 +575,70 @@ def _joint_part(jn: str, jd: dict, jlogs: list[JointLog], sources: list[dict], h
     return ctx, [d.source_index for d in datas], recorded, timings
 
 
+def preload() -> None:
+    """Import what building a joint needs (matplotlib for the figures, scipy.signal for the derivatives,
+    the replay and the presliding simulation) once, ahead of forking the workers that inherit it."""
+    from . import figures as fg
+
+    fg.preload()
+    import scipy.signal  # noqa: F401
+
+    import frictid.fit.presliding  # noqa: F401
+    import frictid.fit.result  # noqa: F401
+    import frictid.replay  # noqa: F401
+
+
+def keep_freed_memory() -> bool:
+    """Ask glibc's allocator to serve arrays up to 32 MB (a joint-hour of float64 at 1 kHz is 29 MB) from
+    its heap and to keep up to 512 MB freed there for the next array, instead of mapping fresh zeroed
+    pages for every temporary of the derivatives, replay and figures and unmapping them after (a quarter
+    of the report's system time on the benchmark's log). Process-wide: meant for the ``frictid report``
+    command, whose process ends with the report. False where the C library is not glibc."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return False
+    M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
+    return bool(mallopt(M_MMAP_THRESHOLD, 32 << 20)) and bool(mallopt(M_TRIM_THRESHOLD, 512 << 20))
+
+
+class Prefetch:
+    """What a report needs and does not depend on the logs' contents, started in background threads while
+    the caller reads the logs: the SHA-256 of every file (:func:`frictid.io.logs.file_sha256`) and the
+    imports of :func:`preload`. Reading, hashing (both release the GIL) and importing then overlap:
+    ``pre = Prefetch(paths)``, read the logs, then ``build_report(params, logs, hashes=pre.hashes())``.
+    """
+
+    def __init__(self, paths: Iterable[str]):
+        from concurrent.futures import ThreadPoolExecutor
+
+        from frictid.io.logs import file_sha256
+
+        self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="frictid-report")
+        self._imports = self._pool.submit(preload)  # an import error surfaces when the report is built
+        self._hashes = {str(p): self._pool.submit(file_sha256, str(p)) for p in dict.fromkeys(paths) if p != "-"}
+
+    def hashes(self) -> dict[str, str | None]:
+        """The files' SHA-256 (waits for them, and for the imports: no thread is left running, so that
+        the workers can be forked)."""
+        self._pool.shutdown(wait=True)
+        out = {}
+        for p, f in self._hashes.items():
+            try:
+                out[p] = f.result()
+            except OSError:  # unreadable: the reading reports it; build_report hashes what is missing
+                pass
+        return out
+
+
 def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params_path: str = "",
                  command: str = "", segmenter: Callable | None = None, differentiate: Callable | None = None,
-                 generated: str | None = None, timings: dict | None = None, jobs: int = 0) -> str:
+                 generated: str | None = None, timings: dict | None = None, jobs: int = 0,
+                 hashes: dict[str, str | None] | None = None) -> str:
     """The report as one HTML string.
 
     params : the parameter file as a dictionary (schema 1). logs : the joint logs to draw (any joints; logs
@@ -588,7 +649,9 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     source and the same number of rows. generated : a timestamp text (default: now, UTC). timings : a dict
     that receives the CPU seconds spent per part (summed over the workers). jobs : joints built at once in
     forked worker processes (0: one per available core; 1: one after another in this process); each
-    joint's arrays are freed before the worker takes the next. The HTML does not depend on it.
+    joint's arrays are freed before the worker takes the next. The HTML does not depend on it. hashes :
+    the SHA-256 of log files already computed (path -> hash, e.g. :meth:`Prefetch.hashes`); the others
+    are computed here.
     """
     from frictid import __version__
     from frictid.io.logs import file_sha256
@@ -601,7 +664,7 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
         differentiate = differentiate or _seg.derivatives
     joints = params.get("joints") or {}
     sources = [s for s in (params.get("sources") or []) if isinstance(s, dict)]
-    hashes: dict[str, str | None] = {}
+    hashes = dict(hashes or {})
     notes = []
     by_joint: dict[str, list[JointLog]] = {}
     t0 = time.process_time()
@@ -627,8 +690,7 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
 
     workers = n_workers(jobs, sum(1 for jn in names if by_joint.get(jn)))
     if workers > 1:
-        from . import figures as fg
-        fg.preload()  # imported once here, inherited by every worker
+        preload()  # imported once here, inherited by every worker
     jctx = []
     matched: dict[tuple[str, int], int | None] = {}  # (joint, position of the log) -> source index
     recorded: dict[tuple[str, int], bool] = {}  # ... -> its segments came from the parameter file

@@ -143,14 +143,15 @@ class LogData:
     """One log of a joint with what every figure needs: velocity, acceleration, friction torque, segments.
 
     w [q/s], a [q/s^2]: derivatives as the fit computes them; G [F]: gravity plus offset; F [F]: friction
-    torque ``tau - J a - G``. label: the file it came from. sha256: of that file (None for stdin).
+    torque ``tau - J a - G`` (both :class:`PerSample`: computed on the slices the figures read, the whole
+    log only where a figure needs it). label: the file it came from. sha256: of that file (None for stdin).
     """
 
     log: JointLog
     w: np.ndarray
     a: np.ndarray
-    G: np.ndarray
-    F: np.ndarray
+    G: "PerSample"
+    F: "PerSample"
     segments: list[Segment]
     label: str = ""
     sha256: str | None = None
@@ -158,15 +159,41 @@ class LogData:
     notes: list[str] = field(default_factory=list)
 
 
-def gravity_torque(log: JointLog, terms: dict[str, float]) -> np.ndarray:
-    """Gravity plus payload plus offset [F] along a log (as the fit models it)."""
-    n = log.n
+class PerSample:
+    """A per-sample quantity of a log computed only where it is read: ``x[i0:i1]`` computes those samples
+    (``fn(i0, i1)``), :meth:`full` the whole log once. The plateaus, ramps, steps and duty cycles read a
+    small part of an hour-long log; a whole-log array is made only for the figures that draw one."""
+
+    def __init__(self, n: int, fn: Callable[[int, int], np.ndarray]):
+        self.n = int(n)
+        self._fn = fn
+        self._all: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, key):
+        if self._all is None and isinstance(key, slice) and key.step in (None, 1):
+            i0, i1, _ = key.indices(self.n)
+            return self._fn(i0, max(i0, i1))
+        return self.full()[key]
+
+    def full(self) -> np.ndarray:
+        if self._all is None:
+            self._all = self._fn(0, self.n)
+        return self._all
+
+
+def gravity_torque(log: JointLog, terms: dict[str, float], i0: int = 0, i1: int | None = None) -> np.ndarray:
+    """Gravity plus payload plus offset [F] along a log (as the fit models it), samples ``i0:i1``."""
+    sl = slice(i0, log.n if i1 is None else i1)
+    n = len(range(*sl.indices(log.n)))
     G = np.zeros(n)
-    q = log.q
+    q = None if log.q is None else log.q[sl]
     if q is not None and log.axis == "rotary":
         G = terms.get("Px", 0.0) * np.cos(q) + terms.get("Py", 0.0) * np.sin(q)
     if "payload" in log.channels and q is not None:
-        pl = np.asarray(log.channels["payload"], float)
+        pl = np.asarray(log.channels["payload"][sl], float)
         G = G + terms.get("Mx", 0.0) * pl * (np.cos(q) if log.axis == "rotary" else 1.0)
         if log.axis == "rotary":
             G = G + terms.get("My", 0.0) * pl * np.sin(q)
@@ -207,9 +234,12 @@ def prepare_log(log: JointLog, jd: dict, segmenter: Callable, differentiate: Cal
     a = np.asarray(a, float)
     segs = list(segments) if segments is not None else list(segmenter(log))
     terms = rigid_terms(jd)
-    G = gravity_torque(log, terms)
-    F = np.asarray(log.tau, float) - terms["J"] * np.nan_to_num(a) - G
-    return LogData(log=log, w=w, a=a, G=G, F=F, segments=segs, label=log.source or "")
+    G = PerSample(log.n, lambda i0, i1: gravity_torque(log, terms, i0, i1))
+
+    def friction(i0: int, i1: int) -> np.ndarray:
+        return np.asarray(log.tau[i0:i1], float) - terms["J"] * np.nan_to_num(a[i0:i1]) - G[i0:i1]
+
+    return LogData(log=log, w=w, a=a, G=G, F=PerSample(log.n, friction), segments=segs, label=log.source or "")
 
 
 def match_sources(datas: list[LogData], sources: list[dict]) -> None:
@@ -500,6 +530,12 @@ def _poly_basis(w: np.ndarray) -> np.ndarray:
     return np.column_stack([np.sign(w), w, w * np.abs(w), w**3])
 
 
+def _quad_rms(c: np.ndarray, gram: np.ndarray) -> float:
+    """RMS over a cycle's samples of the polynomial friction with coefficients ``c``, from the cycle's
+    Gram matrix of the regressors (the same number as the polynomial evaluated at every sample)."""
+    return float(np.sqrt(max(float(c @ gram @ c), 0.0)))
+
+
 def thermal_cycles(datas: list[LogData], jd: dict) -> tuple[list[dict], list[dict], dict]:
     """Friction per duty cycle against time, and for each thermal model its friction at its own estimated
     cycle temperature. Both are 002's ``F_rms``: the RMS over the cycle's moving samples of the polynomial
@@ -541,7 +577,7 @@ def thermal_cycles(datas: list[LogData], jd: dict) -> tuple[list[dict], list[dic
         return [], [], info
     vmin = min_speed(datas)
     cycles = []
-    wins = []
+    grams = []
     for k, t0, t1, pos in windows:
         d = datas[k]
         i0, i1 = np.searchsorted(d.log.t, [t0, t1 + 1e-9])
@@ -556,11 +592,12 @@ def thermal_cycles(datas: list[LogData], jd: dict) -> tuple[list[dict], list[dic
         coef, *_ = np.linalg.lstsq(X, F, rcond=None)  # the cycle's own friction, as the fit identifies it
         te = d.log.channels.get("temp_env")
         tj = d.log.channels.get("temp_joint")
-        cycles.append({"t": 0.5 * (t0 + t1), "F_rms": float(np.sqrt(np.mean((X @ coef) ** 2))),
+        gram = X.T @ X / X.shape[0]  # RMS of c0 sgn(w) + c1 w + ... over the samples: sqrt(c' gram c)
+        cycles.append({"t": 0.5 * (t0 + t1), "F_rms": _quad_rms(coef, gram),
                        "temp_env": float(np.mean(te[i0:i1])) if te is not None else math.nan,
                        "temp_joint": float(np.mean(tj[i0:i1])) if tj is not None else math.nan,
                        "log": k, "pos": pos})
-        wins.append(ww[mv])
+        grams.append(gram)
     out_models = []
     for name in th_names:
         md = models[name]
@@ -568,13 +605,13 @@ def thermal_cycles(datas: list[LogData], jd: dict) -> tuple[list[dict], list[dic
         flat = [x for run in (md.get("cycle_temperature") or []) for x in (run if isinstance(run, list) else [run])]
         T = np.full(len(cycles), np.nan)
         Fm = np.full(len(cycles), np.nan)
-        for i, (c, ww) in enumerate(zip(cycles, wins)):
+        for i, (c, gram) in enumerate(zip(cycles, grams)):
             if 0 <= c["pos"] < len(flat):
                 T[i] = pvalue(flat[c["pos"]]) if pvalue(flat[c["pos"]]) is not None else np.nan
             if np.isfinite(T[i]):
                 co = thermal_coefficients(name, vals, T[i])
                 if co is not None:
-                    Fm[i] = float(np.sqrt(np.mean(sm.polynomial(ww, *co[0]) ** 2)))
+                    Fm[i] = _quad_rms(np.asarray(co[0], float), gram)
         out_models.append({"name": name, "selected": name == jd.get("selected"), "T": T, "F_rms": Fm,
                            "time_constant": md.get("time_constant")})
     return cycles, out_models, info
@@ -594,7 +631,7 @@ def static_replay(d: LogData, jd: dict, vmin: float | None = None) -> np.ndarray
     Fss = evaluate_static(sel["map"], sel["values"], d.w)
     if Fss is None:
         return None
-    out = rigid_terms(jd)["J"] * np.nan_to_num(d.a) + d.G + Fss
+    out = rigid_terms(jd)["J"] * np.nan_to_num(d.a) + d.G.full() + Fss
     if vmin is not None:
         out[np.abs(d.w) <= vmin] = np.nan
     return out
@@ -707,7 +744,7 @@ def variable_values(var: str, d: LogData, T: np.ndarray | None = None) -> tuple[
     if var == "payload" and "payload" in d.log.channels:
         return np.asarray(d.log.channels["payload"], float), "payload [kg]"
     if var == "gravity":
-        return np.abs(d.G), f"|gravity torque| [{u['tau']}]"
+        return np.abs(d.G.full()), f"|gravity torque| [{u['tau']}]"
     if var in ("load", "payload"):
         return np.abs(np.asarray(d.log.tau, float)), f"|transmitted torque| [{u['tau']}]"
     if var == "w":
