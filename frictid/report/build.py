@@ -372,6 +372,7 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
     # ---- thermal
     s = secs["thermal"]
     t0 = time.process_time()
+    vmin = ct.min_speed(datas)  # the speed below which a sample counts as at rest (thermal, diagnosis)
     th_reasons = [x["reason"] for x in _not_identified(jd) if x["what"] in ct.THERMAL_LAWS]
     th_models = [n for n in models if n in ct.THERMAL_LAWS]
     s.data["models"] = [{"name": n, "params": param_rows(models[n].get("params") or {}),
@@ -382,7 +383,7 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
         s.why = no_logs + (" The thermal parameters are listed below." if th_models else
                            (" The fit says: " + "; ".join(sorted(set(th_reasons))) + "." if th_reasons else ""))
     else:
-        cycles, tmods, tinfo = ct.thermal_cycles(datas, jd)
+        cycles, tmods, tinfo = ct.thermal_cycles(datas, jd, vmin=vmin)
         if not cycles:
             s.present = False
             s.why = ("No duty cycle in the logs: the thermal models need repeated cycles of motion and rest "
@@ -412,7 +413,6 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
     # ---- diagnosis and replay
     s = secs["diagnosis"]
     t0 = time.process_time()
-    vmin = ct.min_speed(datas)
     runs: dict[int, ct.Replay] = {}
     for k, d in enumerate(datas):
         r = ct.replay_log(d, jname, jd, closed=k < MAX_TIMELINES, vmin=vmin)
@@ -443,7 +443,7 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
             row["note"] = ("Judged on the presliding ramps, not along the sliding samples: see the Presliding "
                            "part (torque against displacement with LuGre's sigma0).")
         elif datas:
-            res = ct.diagnosis_residuals(datas, jname, jd, f, before=prev, cache=cache)
+            res = ct.diagnosis_residuals(datas, jname, jd, f, before=prev, cache=cache, vmin=vmin)
             if res is not None:
                 row["figure"] = fg.diagnosis(f, res, units, salt("diagnosis", i))
                 if res.get("given") is None:

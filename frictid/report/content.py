@@ -536,7 +536,8 @@ def _quad_rms(c: np.ndarray, gram: np.ndarray) -> float:
     return float(np.sqrt(max(float(c @ gram @ c), 0.0)))
 
 
-def thermal_cycles(datas: list[LogData], jd: dict) -> tuple[list[dict], list[dict], dict]:
+def thermal_cycles(datas: list[LogData], jd: dict, vmin: float | None = None
+                   ) -> tuple[list[dict], list[dict], dict]:
     """Friction per duty cycle against time, and for each thermal model its friction at its own estimated
     cycle temperature. Both are 002's ``F_rms``: the RMS over the cycle's moving samples of the polynomial
     friction, identified by least squares on the cycle (measured) or given by the law at the cycle's
@@ -575,7 +576,7 @@ def thermal_cycles(datas: list[LogData], jd: dict) -> tuple[list[dict], list[dic
         info["source"] = "the duty-cycle segments found in the logs"
     if not windows:
         return [], [], info
-    vmin = min_speed(datas)
+    vmin = min_speed(datas) if vmin is None else vmin
     cycles = []
     grams = []
     for k, t0, t1, pos in windows:
@@ -783,14 +784,14 @@ def binned(x: np.ndarray, y: np.ndarray, nbins: int = 30) -> dict:
 
 
 def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dict, before: str | None = None,
-                        cache: dict | None = None) -> dict | None:
+                        cache: dict | None = None, vmin: float | None = None) -> dict | None:
     """Residual ``tau - tau_model`` on the moving samples against the finding's cause variable, binned,
     before (model ``before``, default the chosen one) and after the extension (the finding's ``model``, or
     the chosen model with the extension's ``params``; else the finding's own ``binned: {x, after}``).
-    ``cache`` keeps replays per (model, log index)."""
+    ``cache`` keeps replays per (model, log index); ``vmin``: :func:`min_speed` of ``datas`` when known."""
     cache = {} if cache is None else cache
     var = cause_variable(str(finding.get("cause", "")), str(finding.get("extension", "")))
-    vmin = min_speed(datas)
+    vmin = min_speed(datas) if vmin is None else vmin
     ext = extension_model(jd, finding)
     before = before if before in (jd.get("models") or {}) else jd.get("selected")
 

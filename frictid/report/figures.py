@@ -223,9 +223,12 @@ def minmax_decimate(x: np.ndarray, y: np.ndarray, columns: int = COLUMNS) -> tup
     pad = m * k - n
     yp = np.concatenate([y, np.full(pad, y[-1])]) if pad else y
     blocks = yp.reshape(m, k)
-    finite = np.isfinite(blocks)
-    lo = np.argmin(np.where(finite, blocks, np.inf), axis=1)
-    hi = np.argmax(np.where(finite, blocks, -np.inf), axis=1)
+    if np.isfinite(y).all():  # the common case: no masked copies of the whole series
+        lo, hi = np.argmin(blocks, axis=1), np.argmax(blocks, axis=1)
+    else:
+        finite = np.isfinite(blocks)
+        lo = np.argmin(np.where(finite, blocks, np.inf), axis=1)
+        hi = np.argmax(np.where(finite, blocks, -np.inf), axis=1)
     base = np.arange(m) * k
     first = np.minimum(lo, hi) + base
     second = np.maximum(lo, hi) + base
