@@ -73,18 +73,27 @@ def dviscous_nb(w, c):
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM)
+def thermal_factors_nb(code, dT, alpha, beta, lam):
+    """(s, d) of the canonical rule ``c(T) = c0 s + dc d`` at ``dT = T - T0``: s the scale of the law
+    (code 1 thermal4 ``alpha dT + beta``, 3 exponential ``exp(-lam dT)``, else 1) and d the slopes'
+    factor (``dT`` for code 2, thermal6; else 0). Shared by the plant, replay and map kernels."""
+    if code == 1:
+        s = alpha * dT + beta
+    elif code == 3:
+        s = math.exp(-lam * dT)
+    else:
+        s = 1.0
+    return s, (dT if code == 2 else 0.0)
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FM)
 def thermal_canon_nb(c0, dc, code, theta, T, out):
     """Fill out with the canonical vector at temperature T: ``c0 s(T) + dc (T - T0)``.
 
     code 0 none, 1 thermal4, 2 thermal6, 3 exponential; theta = [alpha, beta, lam, T0].
     """
     dT = T - theta[3]
-    if code == 1:
-        s = theta[0] * dT + theta[1]
-    elif code == 3:
-        s = math.exp(-theta[2] * dT)
-    else:
-        s = 1.0
+    s, _ = thermal_factors_nb(code, dT, theta[0], theta[1], theta[2])
     for i in range(9):
         out[i] = c0[i]
     # shape parameters (vs1, d1, vs2) are not scaled

@@ -33,7 +33,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .lugre import _FM, _pair
+from .lugre import _FM, _pair, thermal_factors_nb
 from .static import canonical_level, canonical_viscous
 
 
@@ -93,14 +93,7 @@ def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
         if T_given:
             Tk = T_in[k]
         if thermal and Tk != T_used:
-            dTT = Tk - T0
-            if code == 1:
-                s = alpha * dTT + beta
-            elif code == 3:
-                s = math.exp(-lam * dTT)
-            else:
-                s = 1.0
-            dT = dTT if code == 2 else 0.0
+            s, dT = thermal_factors_nb(code, Tk - T0, alpha, beta, lam)
             T_used = Tk
         wk = w[k]
         v = abs(wk)

@@ -174,19 +174,5 @@ def heat_balance_bins(h, e, W0, W1, C, K, x0):  # pragma: no cover - compiled; t
     return Tm
 
 
-def heat_balance_bins_ref(h, e, W0, W1, C, K, x0):
-    """Plain python twin of :func:`heat_balance_bins` (for the agreement test)."""
-    Tm = np.empty(len(h))
-    x = float(x0)
-    for k in range(len(h)):
-        a = K - W1[k]
-        rh = a / C * h[k]
-        if abs(rh) < 1e-9:
-            drift = (W0[k] + K * e[k] - a * x) / C
-            Tm[k] = x + 0.5 * drift * h[k]
-            x = x + drift * h[k]
-        else:
-            x_inf = (W0[k] + K * e[k]) / a
-            Tm[k] = x_inf + (x - x_inf) * (-math.expm1(-rh)) / rh
-            x = x_inf + (x - x_inf) * (math.exp(-rh) if rh > -700 else math.inf)
-    return Tm
+#: Plain python twin of :func:`heat_balance_bins` (the same source, interpreted; for the agreement test).
+heat_balance_bins_ref = heat_balance_bins.py_func

@@ -25,7 +25,7 @@ from numba import njit
 
 from ..models.lugre import lugre_core, lugre_step_ref
 from ..models.static import canonical_level, canonical_viscous
-from ..models.lugre import _FM
+from ..models.lugre import _FM, thermal_factors_nb
 
 # Indices into the parameter vector p.
 P_J, P_S0P, P_S0N, P_S1P, P_S1N = 0, 1, 2, 3, 4
@@ -280,14 +280,7 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
             T = Tenv[k]
         # the map at temperature T; T moves slowly, so refresh only after a change of 1e-4 K
         if th_code != 0 and abs(T - T_used) > 1e-4:
-            dTT = T - T0
-            if th_code == 1:
-                s_th = alpha * dTT + beta
-            elif th_code == 3:
-                s_th = math.exp(-lam * dTT)
-            else:
-                s_th = 1.0
-            dT = dTT if th_code == 2 else 0.0
+            s_th, dT = thermal_factors_nb(th_code, T - T0, alpha, beta, lam)
             T_used = T
         # sensors
         qm = q + nq[k]
