@@ -407,15 +407,16 @@ def controller_from_meta(meta: dict) -> dict | None:
     return out
 
 
-def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness: float | None = None
-                ) -> tuple[np.ndarray, np.ndarray, list[str]]:
+def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness: float | None = None,
+                a=None) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Re-simulate the closed loop with the identified model; returns (q_model, qd_model, notes).
 
     The log's ``q_ref`` (``qd_ref`` and ``tau_ref`` as feedforward when present) drive the controller
     ``gains`` (``kp, kd, ki`` position PID or ``kv, kvi`` velocity PI, ``type``, ``tau_max``) on the plant
     kernel of :mod:`frictid.plant.kernel`, at the log's median sample period, noise-free, from the log's
     first measured position. A static model runs with stiff, critically damped bristles (presliding
-    displacement 1e-6 of the position scale), which reproduces its steady state.
+    displacement 1e-6 of the position scale), which reproduces its steady state. ``a``: the measured
+    acceleration [q/s^2] when the caller has it (default: :func:`frictid.segments.derivatives`).
     """
     from .plant.kernel import (MODE_PID, MODE_VEL, N_P, P_C, P_GOFF, P_J, P_K, P_KD, P_KI, P_KP, P_KV, P_KVI,
                                P_PAMP, P_PAY, P_PPER, P_PPH, P_PX, P_PY, P_S0N, P_S0P, P_S1N, P_S1P, P_TMAX,
@@ -466,8 +467,10 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
         notes.append("closed loop: payload gravity other than Mx m cos q is not simulated")
     start = log_start_time(log)
     t_off = start if (start is not None and ext.get("drift_t0")) else 0.0
-    from .segments import derivatives
-    _, a_meas = derivatives(log)
+    if a is None:
+        from .segments import derivatives
+        _, a = derivatives(log)
+    a_meas = np.asarray(a, dtype=float)
     gmul, fmul = multipliers(side, log.t + t_off, q_meas, a_meas, payload, G_meas)
     th = thermal_input(model, log, n)
     if th is not None:
