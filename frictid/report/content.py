@@ -156,6 +156,9 @@ class LogData:
     label: str = ""
     sha256: str | None = None
     source_index: int | None = None
+    #: the log's :class:`frictid.segments.Scales` when the derivatives are the fit's default ones (measured
+    #: once: the replay's stick zone and the closed loop reuse them instead of measuring them again)
+    scales: Any = None
     notes: list[str] = field(default_factory=list)
 
 
@@ -229,7 +232,14 @@ def prepare_log(log: JointLog, jd: dict, segmenter: Callable, differentiate: Cal
                 segments: list[Segment] | None = None) -> LogData:
     """Derivatives, segments (``segments`` when given, else ``segmenter(log)``) and the friction torque of
     one log for the joint entry ``jd``."""
-    w, a = differentiate(log)
+    from frictid.segments import derivatives, estimate_scales
+
+    sc = None
+    if differentiate is derivatives:
+        sc = estimate_scales(log)
+        w, a = derivatives(log, sc)
+    else:
+        w, a = differentiate(log)
     w = np.asarray(w, float)
     a = np.asarray(a, float)
     segs = list(segments) if segments is not None else list(segmenter(log))
@@ -239,7 +249,8 @@ def prepare_log(log: JointLog, jd: dict, segmenter: Callable, differentiate: Cal
     def friction(i0: int, i1: int) -> np.ndarray:
         return np.asarray(log.tau[i0:i1], float) - terms["J"] * np.nan_to_num(a[i0:i1]) - G[i0:i1]
 
-    return LogData(log=log, w=w, a=a, G=G, F=PerSample(log.n, friction), segments=segs, label=log.source or "")
+    return LogData(log=log, w=w, a=a, G=G, F=PerSample(log.n, friction), segments=segs, label=log.source or "",
+                   scales=sc)
 
 
 def match_sources(datas: list[LogData], sources: list[dict]) -> None:
@@ -672,13 +683,13 @@ def replay_log(d: LogData, jname: str, jd: dict, model: str | None = None, close
             jf = JointFit.from_dict(jname, jd)
             m = rp.joint_model(jf, name)
             with np.errstate(all="ignore"):
-                r = rp.replay(d.log, m, w=d.w, a=d.a)
+                r = rp.replay(d.log, m, w=d.w, a=d.a, scales=d.scales)
             T = None if r.T is None or not np.any(np.isfinite(r.T)) else np.asarray(r.T, float)
             out = Replay(name, np.asarray(r.tau_model, float), T=T, how="replay", notes=list(r.notes))
             gains = rp.controller_from_meta(d.log.meta or {}) if closed else None
             if gains is not None and "q_ref" in d.log.channels and m.J > 0 and d.log.q is not None:
                 with np.errstate(all="ignore"):
-                    q_model, _, notes = rp.closed_loop(d.log, m, gains)
+                    q_model, _, notes = rp.closed_loop(d.log, m, gains, a=d.a)
                 if np.all(np.isfinite(q_model)):
                     out.q_model = np.asarray(q_model, float)
                     out.notes.extend(notes)
