@@ -61,6 +61,9 @@ RC = {
     "font.family": ["DejaVu Sans"],
     "font.size": 9.0,
     "axes.titlesize": 9.5,
+    # titles at a fixed height above the axes (no axes has tick labels or a label on top): matplotlib's
+    # automatic placement measured every x axis's ticks again at each draw (about 8 % of the figures' time)
+    "axes.titley": 1.0,
     "axes.labelsize": 9.0,
     "legend.fontsize": 8.0,
     "axes.grid": True,
