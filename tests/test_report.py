@@ -572,12 +572,17 @@ def test_cycle_rms_from_the_gram_matrix_is_the_polynomials():
         assert _quad_rms(c, X.T @ X / len(w)) == pytest.approx(np.sqrt(np.mean(polynomial(w, *c) ** 2)), rel=1e-9)
 
 
-def test_report_reads_the_references_only_for_a_closed_loop(tmp_path):
+def test_report_reads_the_references_only_for_a_closed_loop(tmp_path, monkeypatch):
     """q_ref / qd_ref / tau_ref feed only the closed-loop replay: a log without controller gains is read
-    without them, a log with gains (meta.control) with them."""
+    without them, a log with gains (meta.control) with them, and read once (its metadata says so)."""
+    import frictid.io.logs as io_logs
     from frictid.cli.report import read_report_logs
     from frictid.data import JointLog
     from frictid.io.logs import write_logs
+
+    calls = []
+    real = io_logs.read_logs
+    monkeypatch.setattr(io_logs, "read_logs", lambda *a, **k: calls.append(a[0]) or real(*a, **k))
 
     t = np.arange(2000) * 1e-3
     q = 0.1 * np.sin(2 * np.pi * t)
@@ -586,8 +591,10 @@ def test_report_reads_the_references_only_for_a_closed_loop(tmp_path):
                                                      {"q_ref", "qd_ref", "tau_ref"})):
         path = tmp_path / f"{name}.parquet"
         write_logs([JointLog(joint="j", t=t, q=q, tau=np.cos(t), channels=dict(ch), meta=meta)], str(path))
+        calls.clear()
         got = read_report_logs([str(path)])
         assert set(got[0].channels) & set(ch) == expect, name
+        assert calls == [str(path)], name
 
 
 def test_cli_jobs(scenario, cli, tmp_path):

@@ -111,8 +111,9 @@ def read_report_logs(paths: list[str], mapping=None, units=None) -> list:
     out, errors = [], []
     for p in paths:
         try:
-            got = read_logs(p, mapping, units, skip=() if p == "-" else REFERENCE_CHANNELS)
-            if p != "-" and any(closed_loop(lg) for lg in got):
+            whole = p == "-" or _may_give_gains(p, mapping)
+            got = read_logs(p, mapping, units, skip=() if whole else REFERENCE_CHANNELS)
+            if not whole and any(closed_loop(lg) for lg in got):
                 got = read_logs(p, mapping, units)
         except LogFormatError as exc:
             errors.append(str(exc))
@@ -121,6 +122,32 @@ def read_report_logs(paths: list[str], mapping=None, units=None) -> list:
     if errors:
         raise LogFormatError("", errors)
     return out
+
+
+def _may_give_gains(path: str, mapping) -> bool:
+    """Whether the metadata of ``path`` (a Parquet file's schema, a sidecar ``.meta.yaml``) or the mapping
+    mentions ``control`` (the controller gains of a closed loop): such a file is read whole at once instead
+    of twice (first without the references, then whole). Only a hint: a file that turns out to give gains
+    without it is still read again whole."""
+    from pathlib import Path
+
+    texts = [str(mapping or "")]
+    try:
+        m = Path(str(mapping or ""))
+        if mapping and m.is_file() and m.stat().st_size < 1_000_000:
+            texts.append(m.read_text(errors="replace"))
+        for side in (Path(path + ".meta.yaml"), Path(path).with_suffix(".meta.yaml")):
+            if side.is_file() and side.stat().st_size < 10_000_000:
+                texts.append(side.read_text(errors="replace"))
+        with open(path, "rb") as fh:
+            parquet = fh.read(4) == b"PAR1"
+        if parquet:
+            import pyarrow.parquet as pq
+
+            texts.extend(v.decode("utf-8", "replace") for v in (pq.read_schema(path).metadata or {}).values())
+    except (OSError, ValueError):
+        return False  # read_logs reports the file's problem itself
+    return any("control" in t for t in texts)
 
 
 def with_log_warnings(params: dict, logs) -> dict:
