@@ -771,17 +771,25 @@ def variable_values(var: str, d: LogData, T: np.ndarray | None = None) -> tuple[
     return np.asarray(d.log.t, float), "time [s]"
 
 
-def binned(x: np.ndarray, y: np.ndarray, nbins: int = 30) -> dict:
-    """Mean of y in equal-count bins of x: centre, mean, standard error, count."""
-    ok = np.isfinite(x) & np.isfinite(y)
-    x, y = x[ok], y[ok]
-    if x.size < 2 * nbins:
-        nbins = max(1, x.size // 2)
-    if x.size == 0:
+def x_order(x: np.ndarray) -> np.ndarray:
+    """Indices of the finite samples of ``x`` in increasing ``x`` (stable): :func:`binned`'s sort, shared by
+    the residuals before and after an extension, which are binned against the same samples."""
+    idx = np.flatnonzero(np.isfinite(x))
+    return idx[np.argsort(x[idx], kind="stable")]
+
+
+def binned(x: np.ndarray, y: np.ndarray, nbins: int = 30, order: np.ndarray | None = None) -> dict:
+    """Mean of y in equal-count bins of x: centre, mean, standard error, count. ``order``: :func:`x_order`
+    of ``x`` when the caller has it."""
+    order = x_order(x) if order is None else order
+    ys = y[order]
+    ok = np.isfinite(ys)
+    xs, ys = x[order][ok], ys[ok]
+    if xs.size < 2 * nbins:
+        nbins = max(1, xs.size // 2)
+    if xs.size == 0:
         z = np.zeros(0)
         return {"x": z, "mean": z, "se": z, "n": z}
-    order = np.argsort(x, kind="stable")
-    xs, ys = x[order], y[order]
     edges = np.linspace(0, xs.size, nbins + 1).astype(int)
     cx, m, se, n = [], [], [], []
     for a, b in zip(edges[:-1], edges[1:]):
@@ -828,9 +836,11 @@ def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dic
     if not xs:
         return None
     x = np.concatenate(xs)
-    out = {"variable": var, "label": label, "before": binned(x, np.concatenate(rb)), "before_model": before}
+    order = x_order(x)
+    out = {"variable": var, "label": label, "before": binned(x, np.concatenate(rb), order=order),
+           "before_model": before}
     if ra and np.any(np.isfinite(np.concatenate(ra))):
-        aft = binned(x, np.concatenate(ra))
+        aft = binned(x, np.concatenate(ra), order=order)
         out["given"] = {"x": aft["x"], "after": aft["mean"], "before": None, "model": ext[0]}
     given = finding.get("binned")
     if "given" not in out and isinstance(given, dict) and given.get("x") is not None and given.get("after") is not None:
