@@ -44,7 +44,9 @@ def map_forked(fn: Callable, items: Sequence, workers: int) -> list:
     """``[fn(x) for x in items]``, run in ``workers`` forked processes (in this one when ``workers`` <= 1
     or there is one item). ``fn`` may be a closure: it is inherited, never pickled."""
     items = list(items)
-    if workers <= 1 or len(items) <= 1:
+    if workers <= 1 or len(items) <= 1 or threading.active_count() > 1:
+        # a fork copies the locks other threads hold, locked, and the child may wait on one forever (the
+        # manager thread of a pool stopped without waiting, a caller's threads): fork only a lone thread
         return [fn(x) for x in items]
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
