@@ -597,11 +597,9 @@ def keep_freed_memory() -> bool:
     for the ``frictid report`` command, whose process ends with the report. False where the C library is
     not glibc."""
     import ctypes
-    import ctypes.util
 
     try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        mallopt = libc.mallopt
+        mallopt = ctypes.CDLL(None).mallopt  # the process's own symbols (find_library would run ldconfig)
     except (OSError, AttributeError):
         return False
     M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
