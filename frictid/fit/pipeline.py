@@ -721,15 +721,15 @@ def _check_diagnosis(jf: JointFit, preps, choice: str, basis: str, keys, min_spe
         e_fit, _, _ = _heldout_on_basis(jf, preps, choice, basis, min_speed, excl, n_folds)
     except (ConfigError, FrictidInputError, KeyError, ValueError):
         return
-    what = ("the plateau means" if basis == "plateaus" else
-            "the moving samples" + (" (duty cycles included)" if "duty_cycle" not in excl else ""))
+    what = ("plateau means" if basis == "plateaus" else
+            "moving samples" + (" (duty cycles included)" if "duty_cycle" not in excl else ""))
     rec = {"model": jf.selected, "rms_heldout": e_diag, "fit_choice": choice, "rms_heldout_fit_choice": e_fit,
            "rule": f"the diagnosis' model is selected when its held-out torque RMS on {what} is at most "
                    f"{DIAGNOSIS_TOLERANCE:g} x that of the fit's choice (each model's static map refitted "
                    "without the held-out fold, its other terms replayed)"}
     if math.isfinite(e_diag) and math.isfinite(e_fit) and e_diag > DIAGNOSIS_TOLERANCE * e_fit:
         rec["kept"] = choice
-        jf.warnings.append(f"the diagnosis' model {jf.selected} predicts the torque on held-out {what} worse "
+        jf.warnings.append(f"the diagnosis' model {jf.selected} predicts the torque of held-out {what} worse "
                            f"(RMS {e_diag:.4g}) than the fit's choice {choice} ({e_fit:.4g}): {choice} stays "
                            "selected; the findings are kept as evidence")
         jf.selected = choice
