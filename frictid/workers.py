@@ -52,13 +52,16 @@ def map_forked(fn: Callable, items: Sequence, workers: int) -> list:
     from concurrent.futures import ProcessPoolExecutor
 
     _TASK.update(fn=fn, items=items, parent=os.getpid())
+    before = set(mp.active_children())
     pool = ProcessPoolExecutor(max_workers=min(workers, len(items)), mp_context=mp.get_context("fork"),
                                initializer=_worker_init)
+    ours: list = []
     try:
         # the workers are forked by the first submit; Ctrl-C or SIGTERM meanwhile is held back until every
         # worker is known to the pool (stopped below) and has its own handling (no worker's traceback)
         with _signals_deferred():
             futures = [pool.submit(_call, k) for k in range(len(items))]
+        ours = [p for p in mp.active_children() if p not in before]
         out = []
         for fut in futures:
             status, value = fut.result()
@@ -69,12 +72,25 @@ def map_forked(fn: Callable, items: Sequence, workers: int) -> list:
         return out
     except BaseException:
         # an error, Ctrl-C or SIGTERM: stop the other items now instead of waiting for them
-        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        ours = ours or [p for p in mp.active_children() if p not in before]
+        for proc in ours:
             proc.terminate()
         pool.shutdown(wait=False, cancel_futures=True)
         raise
     finally:
         _TASK.clear()
+        _reap(ours)
+
+
+def _reap(procs) -> None:
+    """Wait for the pool's processes and kill any still alive. A worker terminated while it held the pool's
+    queue lock leaves a sibling waiting on that lock for ever, and the interpreter's exit would then wait
+    for the sibling (seen once in a test run: pytest hung after its last test)."""
+    for proc in procs:
+        proc.join(timeout=2.0)
+        if proc.is_alive():
+            proc.kill()
+            proc.join(timeout=2.0)
 
 
 @contextlib.contextmanager
