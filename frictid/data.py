@@ -80,3 +80,13 @@ class Segment:
     @property
     def n(self) -> int:
         return self.i1 - self.i0
+
+
+def log_warnings(logs) -> list[str]:
+    """The read-time warnings of joint logs (dropped rows, jittery sample period), each naming its file."""
+    out = []
+    for lg in logs:
+        for w in lg.warnings:
+            src = lg.source or "<log>"
+            out.append(w if w.startswith(src) else f"{src}: {w}")
+    return out

@@ -192,3 +192,63 @@ def test_folder_of_signal_files_with_interleaved_joints(tmp_path):
     assert (j1.joint, j2.joint, j1.n) == ("j1", "j2", a.n)
     with pytest.raises(LogFormatError, match="folder"):
         read_logs(str(tmp_path))
+
+
+def _long_parquet(path, frames, row_group_size):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    pq.write_table(pa.Table.from_pandas(pd.concat(frames, ignore_index=True), preserve_index=False), path,
+                   row_group_size=row_group_size)
+
+
+@pytest.mark.parametrize("row_group_size", [150, 400, 1000, 5000])
+def test_joint_blocks_of_a_parquet_log_read_alone_equal_the_whole_read(tmp_path, row_group_size):
+    from frictid.io.logs import joint_row_blocks
+
+    logs = [hand_log(n=300 + 50 * k, joint=name, seed=k) for k, name in enumerate(["a", "b", "c"])]
+    path = tmp_path / "long.parquet"
+    write_logs(logs, str(path))
+    _long_parquet(path, [pd.read_parquet(path)], row_group_size)  # blocks cross row groups or share one
+    blocks = joint_row_blocks(str(path))
+    assert blocks == [("a", 0, 300), ("b", 300, 650), ("c", 650, 1050)]
+    whole = read_logs(str(path))
+    for (joint, a, b), full in zip(blocks, whole):
+        (part,) = read_logs(str(path), rows=(a, b))
+        assert part.joint == joint == full.joint
+        for name in ("t", "q", "qd", "tau"):
+            np.testing.assert_array_equal(getattr(part, name), getattr(full, name))
+        np.testing.assert_array_equal(part.channels["temp_env"], full.channels["temp_env"])
+
+
+def test_joint_blocks_only_where_each_joint_is_one_block(tmp_path):
+    from frictid.io.logs import joint_row_blocks
+
+    a, b = hand_log(n=200, joint="a"), hand_log(n=200, joint="b", seed=1)
+    write_logs([a, b], str(tmp_path / "long.csv"))
+    assert joint_row_blocks(str(tmp_path / "long.csv")) is None  # CSV: read whole
+    write_logs([a], str(tmp_path / "one.parquet"))
+    df = pd.read_parquet(tmp_path / "one.parquet").drop(columns=["joint"], errors="ignore")
+    _long_parquet(tmp_path / "nojoint.parquet", [df], 100)
+    assert joint_row_blocks(str(tmp_path / "nojoint.parquet")) is None  # no joint column
+    write_logs([a, b], str(tmp_path / "long.parquet"))
+    df = pd.read_parquet(tmp_path / "long.parquet")
+    mixed = pd.concat([df.iloc[:100], df.iloc[200:300], df.iloc[100:200], df.iloc[300:]], ignore_index=True)
+    _long_parquet(tmp_path / "mixed.parquet", [mixed], 150)
+    assert joint_row_blocks(str(tmp_path / "mixed.parquet")) is None  # joint a comes back after b
+
+
+def test_problems_in_a_block_name_rows_of_the_whole_file(tmp_path):
+    from frictid.io.logs import joint_row_blocks
+
+    a, b = hand_log(n=300, joint="a"), hand_log(n=300, joint="b", seed=1)
+    b.tau[123] = np.inf
+    path = tmp_path / "long.parquet"
+    write_logs([a, b], str(path))
+    _long_parquet(path, [pd.read_parquet(path)], 128)
+    (_, start, stop), = [blk for blk in joint_row_blocks(str(path)) if blk[0] == "b"]
+    with pytest.raises(LogFormatError) as whole:
+        read_logs(str(path))
+    with pytest.raises(LogFormatError) as part:
+        read_logs(str(path), rows=(start, stop))
+    assert "row 424 (line 425)" in str(part.value) and str(part.value) == str(whole.value)

@@ -604,3 +604,67 @@ def test_cli_jobs(scenario, cli, tmp_path):
     assert r.code == 0, r
     assert "--jobs 1" in out.read_text()
     assert cli("report", scenario["params"], scenario["log"], "-o", out, "--jobs", "-1").code == 2
+
+
+def _two_joint_file(scenario, path, spoil=None):
+    """The two joints of :func:`_two_joints` in one Parquet file (each joint one block of rows), with
+    ``spoil(k, log)`` applied to copies of the logs; returns the parameter dict."""
+    import dataclasses
+
+    from frictid.io.logs import write_logs
+
+    params, logs = _two_joints(scenario)
+    logs = [dataclasses.replace(lg, tau=lg.tau.copy()) for lg in logs]
+    for k, lg in enumerate(logs):
+        if spoil:
+            spoil(k, lg)
+    write_logs(logs, str(path))
+    return params
+
+
+def test_joints_read_by_their_workers_give_the_same_report(scenario, tmp_path):
+    """A Parquet log whose joints are blocks of rows is read joint by joint by the processes that draw
+    them: the same HTML as reading it whole first, with one worker or two."""
+    from frictid.cli.report import plan_report_logs, read_report_logs
+    from frictid.report import build_report
+    from frictid.report.build import DeferredLogs
+
+    path = tmp_path / "two.parquet"
+    params = _two_joint_file(scenario, path)
+    planned = plan_report_logs([str(path)])
+    assert [(type(x), x.joint) for x in planned] == [(DeferredLogs, scenario["joint"]),
+                                                      (DeferredLogs, "second joint")]
+    kw = dict(params_path="p.yaml", command="c", generated="2026-01-01 00:00 UTC", segmenter=truth_segments)
+    whole = build_report(params, read_report_logs([str(path)]), jobs=1, **kw)
+    assert build_report(params, planned, jobs=1, **kw) == whole
+    assert build_report(params, planned, jobs=2, **kw) == whole
+
+
+def test_cli_problems_and_warnings_of_joints_read_by_workers(scenario, cli, tmp_path):
+    """The joints' problems come together in one error (exit 2, the old report kept); a joint's read
+    warnings reach standard error and the report."""
+    def infinite(k, lg):
+        lg.tau[100 + k] = np.inf
+
+    def one_missing(k, lg):
+        if k == 1:
+            lg.tau[50] = np.nan
+
+    out = tmp_path / "r.html"
+    out.write_text("the old report")
+    pfile = tmp_path / "p.yaml"
+    for spoil, code in ((infinite, 2), (one_missing, 0)):
+        path = tmp_path / f"{spoil.__name__}.parquet"
+        params = _two_joint_file(scenario, path, spoil)
+        pfile.write_text(yaml.safe_dump(params, sort_keys=False))
+        r = cli("report", pfile, path, "-o", out)
+        assert r.code == code, r
+        assert "Traceback" not in r.err
+        if code == 2:
+            assert f"joint {scenario['joint']}: column 'tau': row 101 (line 102)" in r.err, r.err
+            n = _two_joints(scenario)[1][0].n  # rows of the first joint: the second's rows follow them
+            assert f"joint second joint: column 'tau': row {n + 102} (line {n + 103})" in r.err, r.err
+            assert out.read_text() == "the old report"
+        else:
+            assert "joint second joint: dropped 1 rows with missing values" in r.err, r.err
+            assert "dropped 1 rows with missing values" in out.read_text()

@@ -59,16 +59,6 @@ def refuse_json_with_stdout(command: str, as_json: bool, output: str | None) -> 
                                 "uses for the data; write the output to a file (-o FILE) or leave out --json")
 
 
-def log_warnings(logs) -> list[str]:
-    """The read-time warnings of joint logs (dropped rows, jittery sample period), each naming its file."""
-    out = []
-    for lg in logs:
-        for w in lg.warnings:
-            src = lg.source or "<log>"
-            out.append(w if w.startswith(src) else f"{src}: {w}")
-    return out
-
-
 def _plain(x: Any) -> Any:
     """JSON-safe copy: numpy scalars to Python, non-finite floats to null, tuples to lists."""
     if isinstance(x, dict):

@@ -8,7 +8,7 @@ from typing import Annotated, List, Optional
 import typer
 
 from .app import app
-from .common import (Console, JsonOpt, MapOpt, QuietOpt, UnitsOpt, emit_json, joint_summary, log_warnings,
+from .common import (Console, JsonOpt, MapOpt, QuietOpt, UnitsOpt, emit_json, joint_summary,
                      refuse_json_with_stdout)
 
 
@@ -67,18 +67,19 @@ def report(
     check_output_path(output, [params, *logs], mapping)
     t0 = time.perf_counter()
     keep_freed_memory()
-    pre = Prefetch(logs)  # the files' hashes and the figures' imports, while the logs are read
+    pre = Prefetch(logs)  # the files' hashes and the figures' imports, while the logs are planned
     try:
         pd = load_params_dict(params)
-        joint_logs = read_report_logs(logs, mapping, units) if logs else []
+        joint_logs = plan_report_logs(logs, mapping, units) if logs else []
     finally:
         hashes = pre.hashes()
-    for w in log_warnings(joint_logs):
-        con.warn(w)
     cmd = command_line("report", [params, *logs], [("-o", output), ("--map", mapping), ("--units", units),
                                                     ("--jobs", str(jobs) if jobs else None)])
-    nbytes = write_report(output, with_log_warnings(pd, joint_logs), joint_logs, params_path=params, command=cmd,
-                          jobs=jobs, hashes=hashes)
+    warned: list[str] = []
+    nbytes = write_report(output, pd, joint_logs, params_path=params, command=cmd, jobs=jobs, hashes=hashes,
+                          log_warnings_out=warned)
+    for w in warned:
+        con.warn(w)
     n = len(pd.get("joints") or {})
     if output != "-":
         con.info(f"frictid: wrote {output} ({nbytes / 1e6:.2f} MB, {n} joint{'s' if n != 1 else ''}, "
@@ -98,7 +99,22 @@ def read_report_logs(paths: list[str], mapping=None, units=None) -> list:
     """The logs of ``paths`` with the columns the report uses: the references (``q_ref``, ``qd_ref``,
     ``tau_ref``) only from a file whose logs carry controller gains (``meta.control``), which is then read
     again whole; standard input is read once, whole. Problems from all files are reported together."""
-    from ..errors import FrictidInputError, LogFormatError
+    from ..errors import LogFormatError
+
+    out, errors = [], []
+    for p in paths:
+        try:
+            out.extend(_read_report_log(p, mapping, units))
+        except LogFormatError as exc:
+            errors.append(str(exc))
+    if errors:
+        raise LogFormatError("", errors)
+    return out
+
+
+def _read_report_log(path: str, mapping=None, units=None, rows: tuple[int, int] | None = None) -> list:
+    """One file's logs (``rows``: only these rows of a Parquet file), as :func:`read_report_logs` reads them."""
+    from ..errors import FrictidInputError
     from ..io.logs import read_logs
     from ..replay import controller_from_meta
 
@@ -108,17 +124,39 @@ def read_report_logs(paths: list[str], mapping=None, units=None) -> list:
         except FrictidInputError:
             return True  # the replay reports the bad gains itself
 
+    whole = path == "-" or _may_give_gains(path, mapping)
+    got = read_logs(path, mapping, units, skip=() if whole else REFERENCE_CHANNELS, rows=rows)
+    if not whole and any(closed_loop(lg) for lg in got):
+        got = read_logs(path, mapping, units, rows=rows)
+    return got
+
+
+def plan_report_logs(paths: list[str], mapping=None, units=None) -> list:
+    """The logs of ``paths`` for :func:`frictid.report.build_report`: a Parquet file whose joints are
+    contiguous blocks of rows (:func:`frictid.io.logs.joint_row_blocks`) gives one
+    :class:`~frictid.report.build.DeferredLogs` per joint, read by the worker that draws the joint (the
+    reading is shared out between the workers and overlaps the drawing, and the parent never holds the
+    data); any other file is read here, whole, as :func:`read_report_logs` reads it. Problems of the
+    files read here are reported together; those of the deferred blocks when the workers read them."""
+    import functools
+    from pathlib import Path
+
+    from ..errors import LogFormatError
+    from ..io.logs import joint_row_blocks
+    from ..report.build import DeferredLogs
+
     out, errors = [], []
     for p in paths:
         try:
-            whole = p == "-" or _may_give_gains(p, mapping)
-            got = read_logs(p, mapping, units, skip=() if whole else REFERENCE_CHANNELS)
-            if not whole and any(closed_loop(lg) for lg in got):
-                got = read_logs(p, mapping, units)
+            blocks = joint_row_blocks(p, mapping, units) if p != "-" else None
+            if blocks is None:
+                out.extend(_read_report_log(p, mapping, units))
+                continue
         except LogFormatError as exc:
             errors.append(str(exc))
             continue
-        out.extend(got)
+        out.extend(DeferredLogs(joint, str(Path(p)), functools.partial(_read_report_log, p, mapping, units, (a, b)))
+                   for joint, a, b in blocks)
     if errors:
         raise LogFormatError("", errors)
     return out
@@ -150,19 +188,6 @@ def _may_give_gains(path: str, mapping) -> bool:
     return any("control" in t for t in texts)
 
 
-def with_log_warnings(params: dict, logs) -> dict:
-    """A copy of the parameter file whose joints also list the warnings of the logs drawn for them (rows
-    dropped, a jittery sample period), so that the report shows them beside the fit's own warnings."""
-    joints = dict(params.get("joints") or {})
-    for lg in logs:
-        jd = joints.get(str(lg.joint))
-        if not isinstance(jd, dict) or not lg.warnings:
-            continue
-        jd = joints[str(lg.joint)] = dict(jd)
-        jd["warnings"] = [*(jd.get("warnings") or []), *(f"log {w}" for w in log_warnings([lg]))]
-    return {**params, "joints": joints}
-
-
 def check_fit_report(report_path: str, output: str, logs: list[str], mapping: str | None = None) -> None:
     """Refuse a ``frictid fit --report`` path before any work (called by the fit command)."""
     from ..errors import FrictidInputError
@@ -184,6 +209,8 @@ def report_after_fit(report_path: str, result, logs: list[str], mapping, units, 
     from ..report import write_report
 
     t0 = time.perf_counter()
-    nbytes = write_report(report_path, result.to_dict(), read_report_logs(logs, mapping, units),
-                          params_path=params_path if params_path != "-" else "(standard output)", command=command)
+    warned: list[str] = []
+    nbytes = write_report(report_path, result.to_dict(), plan_report_logs(logs, mapping, units),
+                          params_path=params_path if params_path != "-" else "(standard output)", command=command,
+                          log_warnings_out=warned)
     con.info(f"frictid: wrote {report_path} ({nbytes / 1e6:.2f} MB) in {time.perf_counter() - t0:.1f} s")

@@ -6,7 +6,7 @@ from typing import Annotated, List, Optional
 import typer
 
 from .app import app
-from .common import Console, JsonOpt, MapOpt, QuietOpt, UnitsOpt, emit_json, log_warnings, refuse_json_with_stdout
+from .common import Console, JsonOpt, MapOpt, QuietOpt, UnitsOpt, emit_json, refuse_json_with_stdout
 
 
 @app.command()
@@ -28,6 +28,7 @@ def segments(
     stderr says so. Warnings raised while reading the logs are written with the table (Parquet
     metadata, the JSON document, or a sidecar TABLE.csv.meta.yaml).
     """
+    from ..data import log_warnings
     from ..errors import FrictidInputError
     from ..io.atomic import check_output_path
     from ..io.logs import read_many

@@ -7,7 +7,7 @@ from typing import Annotated, Optional
 import typer
 
 from .app import app
-from .common import Console, JsonOpt, MapOpt, QuietOpt, UnitsOpt, emit_json, log_warnings, refuse_json_with_stdout
+from .common import Console, JsonOpt, MapOpt, QuietOpt, UnitsOpt, emit_json, refuse_json_with_stdout
 
 
 def resolve_recipe(name: str, folder: str = "recipes") -> str:
@@ -81,6 +81,7 @@ def simulate(
 
 
 def _replay(params, log_path, output, plant, model, fmt, mapping, units, con, as_json=False) -> None:
+    from ..data import log_warnings
     from ..io.atomic import check_output_path
     from ..io.logs import output_format, read_logs
     from ..io.params import read_params

@@ -261,10 +261,11 @@ def _csv_header(src, label: str, spec: LogSpec) -> tuple[list[str], bool]:
     return names, True
 
 
-def _read_table(src, label: str, is_parquet: bool, spec: LogSpec,
-                skip: tuple[str, ...] = ()) -> tuple[pa.Table, dict]:
+def _read_table(src, label: str, is_parquet: bool, spec: LogSpec, skip: tuple[str, ...] = (),
+                rows: tuple[int, int] | None = None) -> tuple[pa.Table, dict]:
     """Read only the columns frictid uses (less the optional channels in ``skip``); returns the table
-    (columns under their source names) and the file's own metadata."""
+    (columns under their source names) and the file's own metadata. ``rows``: only these rows of a
+    Parquet file."""
     wanted_targets = set(KNOWN) - (set(skip) & set(OPTIONAL_CHANNELS))
     file_meta: dict = {}
     if is_parquet:
@@ -289,7 +290,7 @@ def _read_table(src, label: str, is_parquet: bool, spec: LogSpec,
         try:
             if text_joint:  # joint names as dictionary codes: no string per row
                 pf = pq.ParquetFile(src, read_dictionary=text_joint)
-            return _read_parquet_columns(pf, cols, labels), file_meta
+            return _read_parquet_columns(pf, cols, labels, rows), file_meta
         except (pa.ArrowInvalid, OSError) as exc:
             raise LogFormatError(label, [f"cannot be read as Parquet ({exc}); is the file complete?"]) from None
     spec = _skip_to(src, label, spec)
@@ -335,22 +336,33 @@ def _numeric_type(t: pa.DataType) -> bool:
     return pa.types.is_floating(t) or pa.types.is_integer(t) or pa.types.is_boolean(t)
 
 
-def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[str]) -> _Columns:
+def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[str],
+                          rows: tuple[int, int] | None = None) -> _Columns:
     """Read ``cols`` row group by row group into preallocated float64 arrays (numeric columns; the
-    columns in ``keep_arrow`` and non-numeric ones stay Arrow). Nulls become NaN.
+    columns in ``keep_arrow`` and non-numeric ones stay Arrow). Nulls become NaN. ``rows``: only rows
+    ``start:stop`` of the file (the row groups that hold none of them are not read).
 
     Reading the whole table and converting it would hold the Arrow table and its numpy copy at once
     (twice the data); this holds the arrays and one row group.
     """
     schema = pf.schema_arrow
-    n = pf.metadata.num_rows
+    total = pf.metadata.num_rows
+    start, stop = (0, total) if rows is None else (max(0, rows[0]), min(total, rows[1]))
+    n = max(0, stop - start)
     numeric = [c for c in cols if c not in keep_arrow and _numeric_type(schema.field(c).type)]
     out: dict = {c: np.empty(n) for c in numeric}
     arrow: dict[str, list] = {c: [] for c in cols if c not in out}
     pool = pa.default_memory_pool()
     off = 0
+    g1 = 0  # the file's rows g0:g1 are in row group i
     for i in range(pf.metadata.num_row_groups):
+        g0, g1 = g1, g1 + pf.metadata.row_group(i).num_rows
+        a, b = max(start, g0), min(stop, g1)
+        if b <= a:
+            continue
         rg = pf.read_row_group(i, columns=cols)
+        if (a, b) != (g0, g1):
+            rg = rg.slice(a - g0, b - a)
         m = rg.num_rows
         for c in numeric:
             col = rg.column(c)
@@ -415,18 +427,27 @@ def _row_label(i: int, has_header: bool = True) -> str:
     return f"row {i + 1} (line {i + 2})" if has_header else f"row {i + 1}"
 
 
+def _call_spec(mapping: str | LogSpec | None, units: str | None) -> LogSpec:
+    spec = mapping if isinstance(mapping, LogSpec) else make_spec(mapping, units)
+    if isinstance(mapping, LogSpec) and units:
+        spec = spec.merged(LogSpec(units=parse_units(units)))
+    return spec
+
+
 def read_logs(path: str, mapping: str | LogSpec | None = None, units: str | None = None, *,
-              skip: tuple[str, ...] = ()) -> list[JointLog]:
+              skip: tuple[str, ...] = (), rows: tuple[int, int] | None = None) -> list[JointLog]:
     """Read, validate and split one log file (or ``-`` for standard input).
 
     mapping : ``--map`` text, a mapping file path, or a :class:`LogSpec`. units : ``--units`` text.
     skip : optional channels the caller never uses (e.g. ``q_ref``): not read from CSV / Parquet.
+    rows : (start, stop), only these rows of a Parquet file (a block of :func:`joint_row_blocks`); the
+    problems found still name rows of the whole file.
     Raises :class:`LogFormatError` listing every problem found.
     """
-    spec = mapping if isinstance(mapping, LogSpec) else make_spec(mapping, units)
-    if isinstance(mapping, LogSpec) and units:
-        spec = spec.merged(LogSpec(units=parse_units(units)))
+    spec = _call_spec(mapping, units)
     label, src, is_parquet = _read_source(str(path))
+    if rows is not None and not is_parquet:
+        raise FrictidInputError(f"{label}: reading a range of rows needs a Parquet file")
     side_spec, side_meta = _sidecar_spec(str(path))
     spec_for_read = side_spec.merged(spec)
     if Path(str(path)).is_dir():
@@ -446,15 +467,91 @@ def read_logs(path: str, mapping: str | LogSpec | None = None, units: str | None
         eff = LogSpec(units=spec_for_read.units, axis=spec_for_read.axis, meta=spec_for_read.meta,
                       joint_meta=spec_for_read.joint_meta)
         return _validate_and_split(table, label, eff, side_meta, has_header=False)
-    table, file_meta = _read_table(src, label, is_parquet, spec_for_read, skip)
+    table, file_meta = _read_table(src, label, is_parquet, spec_for_read, skip, rows)
     file_spec = spec_from_dict({k: v for k, v in file_meta.items() if k in _SPEC_KEYS}, f"{label} metadata")
     eff = file_spec.merged(side_spec).merged(spec)
     meta_all = {**file_meta, **side_meta}
-    return _validate_and_split(table, label, eff, meta_all, has_header=eff.columns is None or is_parquet)
+    return _validate_and_split(table, label, eff, meta_all, has_header=eff.columns is None or is_parquet,
+                               row_offset=rows[0] if rows else 0)
+
+
+def joint_row_blocks(path: str, mapping: str | LogSpec | None = None,
+                     units: str | None = None) -> list[tuple[str, int, int]] | None:
+    """(joint, start row, stop row) of every joint of a Parquet log whose joints are each one contiguous
+    block of rows, in file order, found from the joint column alone: each block can then be read on its
+    own with ``read_logs(path, ..., rows=(start, stop))``, e.g. by the worker that handles that joint.
+    None when the log is not such a file (CSV, standard input, a folder or MATLAB file, no joint column,
+    joints interleaved, a joint cell empty): read it whole with :func:`read_logs`, which also reports
+    what is wrong with it."""
+    if is_stdio(str(path)) or Path(str(path)).is_dir() or str(path).lower().endswith(".mat"):
+        return None
+    spec = _call_spec(mapping, units)
+    label, src, is_parquet = _read_source(str(path))
+    if not is_parquet:
+        return None
+    try:
+        side_spec, _ = _sidecar_spec(str(path))
+        pf = pq.ParquetFile(src)
+        raw = (pf.schema_arrow.metadata or {}).get(META_KEY.encode())
+        file_meta = json.loads(raw) if raw else {}
+        fspec = spec_from_dict({k: v for k, v in file_meta.items() if k in _SPEC_KEYS}, f"{label} metadata")
+        eff = fspec.merged(side_spec.merged(spec))
+        names = [c for c in pf.schema_arrow.names if eff.rename.get(c, c) == "joint"]
+        if len(names) != 1:
+            return None
+        jtype = pf.schema_arrow.field(names[0]).type
+        text = pa.types.is_string(jtype) or pa.types.is_large_string(jtype)
+        if not (text or pa.types.is_integer(jtype) or pa.types.is_floating(jtype)):
+            return None
+        icol = pf.schema_arrow.names.index(names[0])
+        runs: list[list] = []  # [joint, start, stop], consecutive rows
+        g1 = 0
+        for g in range(pf.metadata.num_row_groups):
+            g0, g1 = g1, g1 + pf.metadata.row_group(g).num_rows
+            one = _uniform_label(pf.metadata.row_group(g).column(icol).statistics, text)
+            if one is not None:
+                parts = [(one, slice(0, g1 - g0))]
+            else:  # the group holds several joints (or has no statistics): read its joint column
+                jcol = pq.ParquetFile(src, read_dictionary=names if text else None).read_row_group(
+                    g, columns=names).column(0)
+                if jcol.null_count:
+                    return None
+                parts = _joint_blocks(jcol)
+            for jid, sel in parts:
+                if not isinstance(sel, slice):
+                    return None
+                if runs and runs[-1][0] == jid and runs[-1][2] == g0 + sel.start:
+                    runs[-1][2] = g0 + sel.stop
+                else:
+                    runs.append([jid, g0 + sel.start, g0 + sel.stop])
+    except (pa.ArrowInvalid, OSError, ValueError, FrictidInputError):
+        return None  # read_logs says what is wrong
+    if len({r[0] for r in runs}) != len(runs):
+        return None  # a joint in several places: interleaved
+    return [(str(j), int(a), int(b)) for j, a, b in runs]
+
+
+def _uniform_label(stats, text: bool) -> str | None:
+    """The joint of a row group whose statistics say every row holds the same one (named as
+    :func:`_joint_blocks` names it), else None."""
+    if stats is None or not stats.has_min_max or stats.null_count or stats.min != stats.max:
+        return None
+    v = stats.min
+    if text:
+        return v.decode("utf-8", "replace") if isinstance(v, bytes) else str(v)
+    if isinstance(v, (int, np.integer)) or (isinstance(v, float) and v.is_integer()):
+        return str(int(v))
+    return None
 
 
 def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec, meta_all: dict,
-                        has_header: bool) -> list[JointLog]:
+                        has_header: bool, row_offset: int = 0) -> list[JointLog]:
+    """Rename, convert, check and split a table; ``row_offset``: the file row of the table's first row
+    (problems name rows of the file)."""
+
+    def row(i) -> str:
+        return _row_label(int(i) + row_offset, has_header)
+
     problems: list[str] = []
     warnings: list[str] = []
     # rename to canonical names; refuse two sources for one target
@@ -497,7 +594,7 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
                 s_ = col.to_pandas()
                 dropped |= (pd.to_numeric(s_, errors="coerce").isna() & s_.notna()).to_numpy()
             elif bad is not None:
-                problems.append(f"column {c!r}: {_row_label(bad[0], has_header)} holds {bad[1][:40]!r}, "
+                problems.append(f"column {c!r}: {row(bad[0])} holds {bad[1][:40]!r}, "
                                 "not a number; fix the value or drop the row")
                 continue
         if not (pa.types.is_integer(col.type) or pa.types.is_floating(col.type)
@@ -517,7 +614,7 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
     if dropped.any():
         i = int(np.flatnonzero(dropped)[0])
         warnings.append(f"dropped {int(dropped.sum())} rows with non-numeric values (bad_rows: drop), "
-                        f"first at {_row_label(i, has_header)}")
+                        f"first at {row(i)}")
         keep = ~dropped
         arrays = {c: v[keep] for c, v in arrays.items()}
         cols = {c: (v.filter(pa.array(keep)) if c in ("joint", "segment") else v) for c, v in cols.items()}
@@ -548,7 +645,7 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
         jcol = cols["joint"]
         if jcol.null_count:
             i = int(np.flatnonzero(jcol.is_null().to_numpy(zero_copy_only=False))[0])
-            raise LogFormatError(label, [f"column 'joint': {_row_label(i, has_header)} is empty"])
+            raise LogFormatError(label, [f"column 'joint': {row(i)} is empty"])
         blocks = _joint_blocks(jcol)
     else:
         blocks = [(str(spec.meta.get("joint", "1")), slice(0, n_rows))]
@@ -567,7 +664,7 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
         t = a["t"]
         if not np.all(np.isfinite(t)):
             i = int(np.flatnonzero(~np.isfinite(t))[0])
-            jprob.append(f"{where}column 't': {_row_label(rows[i], has_header)} is not a finite time")
+            jprob.append(f"{where}column 't': {row(rows[i])} is not a finite time")
         # inf / huge anywhere
         for c in a:
             if c in ("t", "cycle"):
@@ -576,7 +673,7 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
             bad = np.abs(v) >= HUGE  # inf included, NaN not
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
-                jprob.append(f"{where}column {c!r}: {_row_label(rows[i], has_header)} holds {v[i]:g}, which is "
+                jprob.append(f"{where}column {c!r}: {row(rows[i])} holds {v[i]:g}, which is "
                              "infinite or implausibly large; check the units and scaling")
         if jprob:
             problems.extend(jprob)
@@ -592,11 +689,11 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
             first_col = next(c for c in checked if np.isnan(a[c][i]))
             if frac > MAX_NAN_FRACTION:
                 jprob.append(f"{where}{int(nan_any.sum())} rows ({100 * frac:.1f} %) have missing values, "
-                             f"first at {_row_label(rows[i], has_header)} in column {first_col!r}; "
+                             f"first at {row(rows[i])} in column {first_col!r}; "
                              f"at most {100 * MAX_NAN_FRACTION:g} % are dropped automatically: clean the log")
             else:
                 jwarn.append(f"{where}dropped {int(nan_any.sum())} rows with missing values "
-                             f"(first at {_row_label(rows[i], has_header)}, column {first_col!r})")
+                             f"(first at {row(rows[i])}, column {first_col!r})")
                 keep = ~nan_any
                 a = {c: v[keep] for c, v in a.items()}
                 rows = rows[keep]
@@ -608,7 +705,7 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
             if np.any(dt <= 0):
                 i = int(np.flatnonzero(dt <= 0)[0]) + 1
                 what = "repeats" if dt[i - 1] == 0 else "goes back"
-                jprob.append(f"{where}column 't': time {what} at {_row_label(rows[i], has_header)} "
+                jprob.append(f"{where}column 't': time {what} at {row(rows[i])} "
                              f"({t[i - 1]:g} -> {t[i]:g} s); time must increase strictly within a joint "
                              "(sort the log, or split joints with a 'joint' column)")
             else:

@@ -17,7 +17,7 @@ from typing import Any, Callable, Iterable
 
 import numpy as np
 
-from frictid.data import JointLog
+from frictid.data import JointLog, log_warnings
 
 from . import content as ct
 
@@ -556,11 +556,61 @@ def _environment():
     return env
 
 
-def _joint_part(jn: str, jd: dict, jlogs: list[JointLog], sources: list[dict], hashes: dict, segmenter,
-                differentiate) -> tuple[dict, list, list, dict]:
-    """One joint of the report: (template context, source index per log, whether each log's segments
-    came from the parameter file, seconds per part)."""
-    timings: dict[str, float] = {}
+@dataclass
+class DeferredLogs:
+    """Logs of one joint that the process drawing the joint reads itself, just before drawing it (a block
+    of rows of a file, :func:`frictid.io.logs.joint_row_blocks`): the parent never holds them, and the
+    workers read in parallel. ``load()`` returns the logs or raises
+    :class:`~frictid.errors.LogFormatError`; ``joint`` and ``source`` (the file, as the logs will name it)
+    say where they belong before they are read."""
+
+    joint: str
+    source: str
+    load: Callable[[], list[JointLog]]
+
+
+@dataclass
+class _Part:
+    """What a worker sends back for one joint: the template context, and per log given (a
+    :class:`JointLog` or :class:`DeferredLogs`) its rows, the parameter file's source it matches, whether
+    its segments came from the parameter file and its warnings; or the problems of the logs it read."""
+
+    ctx: dict | None = None
+    rows: list[int] = field(default_factory=list)
+    source_index: list[int | None] = field(default_factory=list)
+    recorded: list[bool] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    timings: dict[str, float] = field(default_factory=dict)
+    problems: list[tuple[str, list[str]]] = field(default_factory=list)
+
+
+def _joint_part(jn: str, jd: dict, given: list, sources: list[dict], hashes: dict, segmenter,
+                differentiate) -> _Part:
+    """One joint of the report from the logs ``given`` for it (:class:`JointLog` or :class:`DeferredLogs`,
+    read here). The joint's warnings gain those of its logs."""
+    from frictid.errors import LogFormatError
+
+    out = _Part()
+    t0 = time.process_time()
+    jlogs: list[JointLog] = []
+    first: list[int] = []  # index in jlogs of each given item's first log
+    for item in given:
+        first.append(len(jlogs))
+        if not isinstance(item, DeferredLogs):
+            jlogs.append(item)
+            continue
+        try:
+            jlogs.extend(item.load())
+        except LogFormatError as exc:
+            out.problems.append((exc.path, exc.problems))
+    if out.problems:
+        return out
+    first.append(len(jlogs))
+    out.warnings = log_warnings(jlogs)
+    if out.warnings:
+        jd = {**jd, "warnings": [*(jd.get("warnings") or []), *(f"log {w}" for w in out.warnings)]}
+    timings = out.timings
+    timings["read"] = time.process_time() - t0
     t0 = time.process_time()
     datas, recorded = [], []
     for lg in jlogs:
@@ -571,8 +621,12 @@ def _joint_part(jn: str, jd: dict, jlogs: list[JointLog], sources: list[dict], h
         datas.append(d)
     ct.match_sources(datas, sources)
     timings["segments"] = time.process_time() - t0
-    ctx = joint_report(jn, jd, datas, timings)
-    return ctx, [d.source_index for d in datas], recorded, timings
+    out.ctx = joint_report(jn, jd, datas, timings)
+    for a, b in zip(first[:-1], first[1:]):
+        out.rows.append(sum(lg.n for lg in jlogs[a:b]))
+        out.source_index.append(datas[a].source_index if b > a else None)
+        out.recorded.append(recorded[a] if b > a else False)
+    return out
 
 
 def preload() -> None:
@@ -583,8 +637,10 @@ def preload() -> None:
     fg.preload()
     import scipy.signal  # noqa: F401
 
+    import frictid.fit.pipeline  # noqa: F401
     import frictid.fit.presliding  # noqa: F401
     import frictid.fit.result  # noqa: F401
+    import frictid.plant.simulate  # noqa: F401
     import frictid.replay  # noqa: F401
 
 
@@ -638,11 +694,15 @@ class Prefetch:
 def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params_path: str = "",
                  command: str = "", segmenter: Callable | None = None, differentiate: Callable | None = None,
                  generated: str | None = None, timings: dict | None = None, jobs: int = 0,
-                 hashes: dict[str, str | None] | None = None) -> str:
+                 hashes: dict[str, str | None] | None = None, log_warnings_out: list[str] | None = None) -> str:
     """The report as one HTML string.
 
     params : the parameter file as a dictionary (schema 1). logs : the joint logs to draw (any joints; logs
-    of joints not in the file are listed and skipped). params_path, command : shown under provenance.
+    of joints not in the file are listed and skipped): :class:`JointLog` objects, or :class:`DeferredLogs`
+    that the worker drawing their joint reads (the problems of every joint's logs are raised together, as
+    one :class:`~frictid.errors.LogFormatError`, and nothing is returned). Each joint's warnings gain those
+    of its logs; ``log_warnings_out``, a list, receives them all. params_path, command : shown under
+    provenance.
     segmenter(log) -> segments and differentiate(log) -> (w, a) default to :func:`frictid.segments.find_segments`
     and :func:`frictid.segments.derivatives` (the fit's). The segments the fit recorded in the parameter
     file (``segment_list``) are used instead of ``segmenter`` for a log whose file has the SHA-256 of that
@@ -654,6 +714,7 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     are computed here.
     """
     from frictid import __version__
+    from frictid.errors import LogFormatError
     from frictid.io.logs import file_sha256
 
     timings = timings if timings is not None else {}
@@ -666,7 +727,7 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     sources = [s for s in (params.get("sources") or []) if isinstance(s, dict)]
     hashes = dict(hashes or {})
     notes = []
-    by_joint: dict[str, list[JointLog]] = {}
+    by_joint: dict[str, list[JointLog | DeferredLogs]] = {}
     t0 = time.process_time()
     for lg in logs:
         if lg.source and lg.source not in hashes:
@@ -691,24 +752,32 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     workers = n_workers(jobs, sum(1 for jn in names if by_joint.get(jn)))
     if workers > 1:
         preload()  # imported once here, inherited by every worker
+    results = map_forked(one, parts, workers)
+    problems: dict[str, list[str]] = {}  # the logs' problems, all joints together, per file
+    for r in results:
+        for path, probs in r.problems:
+            seen = problems.setdefault(path, [])
+            seen += [p for p in probs if p not in seen]
+    if problems:
+        raise LogFormatError("", [str(LogFormatError(path, probs)) for path, probs in problems.items()])
     jctx = []
-    matched: dict[tuple[str, int], int | None] = {}  # (joint, position of the log) -> source index
-    recorded: dict[tuple[str, int], bool] = {}  # ... -> its segments came from the parameter file
-    for jn, (ctx, src, rec, tim) in zip(names, map_forked(one, parts, workers)):
-        jctx.append(ctx)
-        for k, (si, r) in enumerate(zip(src, rec)):
-            matched[jn, k], recorded[jn, k] = si, r
-        for key, v in tim.items():
+    got: dict[int, tuple[int, int | None, bool]] = {}  # id of a given log -> rows, source index, recorded
+    for jn, r in zip(names, results):
+        jctx.append(r.ctx)
+        for item, n, si, rec in zip(by_joint.get(jn, []), r.rows, r.source_index, r.recorded):
+            got[id(item)] = (n, si, rec)
+        if log_warnings_out is not None:
+            log_warnings_out.extend(r.warnings)
+        for key, v in r.timings.items():
             timings[key] = timings.get(key, 0.0) + v
-    pos = {id(lg): (str(lg.joint), k) for jl in by_joint.values() for k, lg in enumerate(jl)}
     inputs = []
     for lg in logs:
         label = lg.source or "<memory>"
         if any(i["path"] == label and i["joint"] == str(lg.joint) for i in inputs):
             continue
-        inputs.append({"path": label, "joint": str(lg.joint), "rows": lg.n, "sha256": hashes.get(label),
-                       "source": matched.get(pos.get(id(lg))),
-                       "segments": "the fit's" if recorded.get(pos.get(id(lg))) else "found again"})
+        n, si, rec = got.get(id(lg), (getattr(lg, "n", None), None, False))
+        inputs.append({"path": label, "joint": str(lg.joint), "rows": n, "sha256": hashes.get(label),
+                       "source": si, "segments": "the fit's" if rec else "found again"})
     for i in inputs:
         if i["source"] is None and str(i["joint"]) in joints and sources:
             notes.append(f"{i['path']}: not among the files the fit read (different hash and name); its curves are "
