@@ -325,14 +325,15 @@ def thermal_input(model: ReplayModel, log: JointLog, n: int) -> dict | None:
 
 
 def replay(log: JointLog, model: ReplayModel, w=None, a=None, t_offset: float | None = None,
-           scales=None) -> ReplayResult:
+           scales=None, G=None) -> ReplayResult:
     """Predicted friction and torque of ``model`` along ``log`` (one value per sample).
 
     w, a : velocity [q/s] and acceleration [q/s^2] to use (default: :func:`frictid.segments.derivatives`,
     as the fit uses them). t_offset [s] : where the log starts on the drift clock (default: its metadata
     ``start_time`` when the model was identified with one, else 0). scales : the log's
     :class:`frictid.segments.Scales` when the caller has them; measured only when needed (for the
-    derivatives, and for a static model's stick zone).
+    derivatives, and for a static model's stick zone). G [F] : ``model.gravity`` along the log when the
+    caller has it (models of one joint share it); not modified.
     """
     sc = scales
     if w is None or a is None:
@@ -348,7 +349,8 @@ def replay(log: JointLog, model: ReplayModel, w=None, a=None, t_offset: float | 
     notes = []
     payload = log.channels.get("payload")
     q = None if log.q is None else np.asarray(log.q, dtype=float)
-    G = model.gravity(q, payload) if q is not None else np.full(n, model.offset)
+    if G is None:
+        G = model.gravity(q, payload) if q is not None else np.full(n, model.offset)
     if q is None and (model.Px or model.Py):
         notes.append("velocity-only log: gravity not applied")
     if t_offset is None:
@@ -408,7 +410,7 @@ def controller_from_meta(meta: dict) -> dict | None:
 
 
 def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness: float | None = None,
-                a=None) -> tuple[np.ndarray, np.ndarray, list[str]]:
+                a=None, G=None) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Re-simulate the closed loop with the identified model; returns (q_model, qd_model, notes).
 
     The log's ``q_ref`` (``qd_ref`` and ``tau_ref`` as feedforward when present) drive the controller
@@ -416,7 +418,8 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
     kernel of :mod:`frictid.plant.kernel`, at the log's median sample period, noise-free, from the log's
     first measured position. A static model runs with stiff, critically damped bristles (presliding
     displacement 1e-6 of the position scale), which reproduces its steady state. ``a``: the measured
-    acceleration [q/s^2] when the caller has it (default: :func:`frictid.segments.derivatives`).
+    acceleration [q/s^2] when the caller has it (default: :func:`frictid.segments.derivatives`); ``G``:
+    ``model.gravity`` along the measured position when the caller has it.
     """
     from .plant.kernel import (MODE_PID, MODE_VEL, N_P, P_C, P_GOFF, P_J, P_K, P_KD, P_KI, P_KP, P_KV, P_KVI,
                                P_PAMP, P_PAY, P_PPER, P_PPH, P_PX, P_PY, P_S0N, P_S0P, P_S1N, P_S1P, P_TMAX,
@@ -460,7 +463,7 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
         sub.pop(k, None)
     side = ReplayModel(**{**model.__dict__, "ext": sub})
     q_meas = np.asarray(log.q if log.q is not None else q_ref, dtype=float)
-    G_meas = model.gravity(q_meas, payload) - model.offset
+    G_meas = (model.gravity(q_meas, payload) if G is None or log.q is None else G) - model.offset
     if model.Mx and model.axis == "rotary":
         p[P_PAY] = model.Mx  # the kernel's payload gravity: m P_PAY cos q
     if model.My or (model.Mx and model.axis != "rotary"):

@@ -160,6 +160,8 @@ class LogData:
     #: once: the replay's stick zone and the closed loop reuse them instead of measuring them again)
     scales: Any = None
     notes: list[str] = field(default_factory=list)
+    #: the replay models' gravity along the log, per rigid-body terms (:func:`model_gravity`)
+    gravity: dict = field(default_factory=dict)
 
 
 class PerSample:
@@ -649,6 +651,17 @@ def static_replay(d: LogData, jd: dict, vmin: float | None = None) -> np.ndarray
     return out
 
 
+def model_gravity(d: LogData, m) -> np.ndarray | None:
+    """``m.gravity`` (a :class:`frictid.replay.ReplayModel`) along the log, computed once per set of rigid-body
+    terms: the models replayed for a joint share them. None for a log without position."""
+    if d.log.q is None:
+        return None
+    key = (m.axis, m.Px, m.Py, m.Mx, m.My, m.offset)
+    if key not in d.gravity:
+        d.gravity[key] = m.gravity(np.asarray(d.log.q, float), d.log.channels.get("payload"))
+    return d.gravity[key]
+
+
 @dataclass
 class Replay:
     """A model run along a log: torque (and, in closed loop, position) measured against the model."""
@@ -682,14 +695,15 @@ def replay_log(d: LogData, jname: str, jd: dict, model: str | None = None, close
         try:
             jf = JointFit.from_dict(jname, jd)
             m = rp.joint_model(jf, name)
+            G = model_gravity(d, m)
             with np.errstate(all="ignore"):
-                r = rp.replay(d.log, m, w=d.w, a=d.a, scales=d.scales)
+                r = rp.replay(d.log, m, w=d.w, a=d.a, scales=d.scales, G=G)
             T = None if r.T is None or not np.any(np.isfinite(r.T)) else np.asarray(r.T, float)
             out = Replay(name, np.asarray(r.tau_model, float), T=T, how="replay", notes=list(r.notes))
             gains = rp.controller_from_meta(d.log.meta or {}) if closed else None
             if gains is not None and "q_ref" in d.log.channels and m.J > 0 and d.log.q is not None:
                 with np.errstate(all="ignore"):
-                    q_model, _, notes = rp.closed_loop(d.log, m, gains, a=d.a)
+                    q_model, _, notes = rp.closed_loop(d.log, m, gains, a=d.a, G=G)
                 if np.all(np.isfinite(q_model)):
                     out.q_model = np.asarray(q_model, float)
                     out.notes.extend(notes)
