@@ -199,7 +199,6 @@ def _refined(q, w, z, u, hs, cc, dcc, s_th, dT, lmul, fm, amp, kper, ph, pay,
     return q, w, z
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FM)
 def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, gmul, fmul,
                    nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0):
     """Run the closed loop over n samples. Returns (q, w, z, F, T, u, qm, qdm), each of length n.
@@ -209,18 +208,28 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
     nq [q], nqd [q/s] sensor noise; p parameters (see P_* indices); c_pos, c_neg canonical static vectors;
     dc_pos, dc_neg thermal6 slopes; th_code, theta thermal law; state0 = (q, w, z, T).
 
+    The outputs are allocated here, by numpy, and filled by the compiled loop :func:`_closed_loop`:
+    numpy asks the kernel for transparent huge pages for large arrays, so the first touch of the
+    8 n doubles costs a few hundred page faults instead of one per 4 KiB page (numba's own allocator):
+    those faults were a fifth of the CPU time of a one-hour run.
+    """
+    n = mode.shape[0]
+    out = tuple(np.empty(n) for _ in range(8))
+    _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, gmul, fmul,
+                 nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0, *out)
+    return out
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FM)
+def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, gmul, fmul,
+                 nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0,
+                 q_o, w_o, z_o, F_o, T_o, u_o, qm_o, qdm_o):
+    """The loop of :func:`simulate_joint`, filling the output arrays q_o ... qdm_o (length n each).
+
     The parameters are unpacked into scalars once (the loop then keeps them in registers), and the
     thermal law enters as a scale and an offset of the map (see :func:`_map_at`).
     """
     n = mode.shape[0]
-    q_o = np.empty(n)
-    w_o = np.empty(n)
-    z_o = np.empty(n)
-    F_o = np.empty(n)
-    T_o = np.empty(n)
-    u_o = np.empty(n)
-    qm_o = np.empty(n)
-    qdm_o = np.empty(n)
     cc = np.empty(18)
     dcc = np.empty(18)
     for i in range(9):
@@ -363,7 +372,6 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
         F_o[k] = Fk
         Tss = Tenv[k] + Fk * w_k * iK
         T = Tss + (T - Tss) * eK
-    return q_o, w_o, z_o, F_o, T_o, u_o, qm_o, qdm_o
 
 
 def simulate_joint_ref(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, gmul, fmul,
