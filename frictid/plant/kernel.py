@@ -38,25 +38,39 @@ N_P = 22
 MODE_TORQUE, MODE_PID, MODE_VEL = 0, 1, 2
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
-def _map_at(w, cc, dcc, o, s_th, dT):
-    """The canonical map of branch ``o`` (0: w >= 0, 9: w < 0) at speed |w| and temperature.
+@njit(cache=True, error_model="numpy", fastmath=_FM)
+def _branch(c, dc):
+    """The map's coefficients of one velocity sign as tuples (values, not arrays: no reference
+    counting where the loop passes them on): canonical vector c with the velocity scales vs1, vs2
+    (entries 2 and 5) replaced by their reciprocals, and the thermal6 slopes of (a0, b1, b2, b3)."""
+    return ((c[0], c[1], 1.0 / c[2], c[3], c[4], 1.0 / c[5], c[6], c[7], c[8]),
+            (dc[0], dc[6], dc[7], dc[8]))
 
-    cc, dcc : the two canonical vectors and thermal slopes, concatenated (18 each), with the velocity
-    scales vs1, vs2 (entries 2 and 5 of each vector) replaced by their reciprocals. The map at joint
-    temperature T is ``c0 s(T) + dc (T - T0)`` (:func:`frictid.models.lugre.thermal_canon_nb`); since the
-    level is linear in the amplitudes (a0, a1, a2) and the viscous part in (b1, b2, b3), it is evaluated
-    as ``s g0(v) + dT dc_a0`` and ``s f0(w) + dT f_dc(w)``: no per-sample copy of the vectors.
+
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+def _map_at(w, cp, cn, dp, dn, s_th, dT):
+    """The canonical map at velocity w (branch cp, dp for w >= 0, cn, dn for w < 0) and temperature.
+
+    cp, cn, dp, dn : tuples from :func:`_branch`. The map at joint temperature T is
+    ``c0 s(T) + dc (T - T0)`` (:func:`frictid.models.lugre.thermal_canon_nb`); since the level is linear
+    in the amplitudes (a0, a1, a2) and the viscous part in (b1, b2, b3), it is evaluated as
+    ``s g0(v) + dT dc_a0`` and ``s f0(w) + dT f_dc(w)``: no per-sample copy of the vectors.
     s_th = s(T); dT = T - T0 for thermal6 (0 otherwise). Returns (g, dg/d|w|, f, df/dw).
     """
+    if w >= 0.0:
+        c = cp
+        dc = dp
+    else:
+        c = cn
+        dc = dn
     v = abs(w)
-    g = cc[o]
+    g = c[0]
     dg = 0.0
-    c1 = cc[o + 1]
+    c1 = c[1]
     if c1 != 0.0:
-        ivs = cc[o + 2]
+        ivs = c[2]
         x = v * ivs
-        d = cc[o + 3]
+        d = c[3]
         if d == 1.0:
             e = math.exp(-x)
             g += c1 * e
@@ -72,15 +86,15 @@ def _map_at(w, cc, dcc, o, s_th, dT):
             dg -= c1 * d * ivs * xd1 * e
         else:
             g += c1
-    c4 = cc[o + 4]
+    c4 = c[4]
     if c4 != 0.0:
-        ivs2 = cc[o + 5]
+        ivs2 = c[5]
         e = math.exp(-v * ivs2)
         g += c4 * (1.0 - e)
         dg += c4 * ivs2 * e
-    b1 = cc[o + 6]
-    b2 = cc[o + 7]
-    b3 = cc[o + 8]
+    b1 = c[6]
+    b2 = c[7]
+    b3 = c[8]
     f = w * (b1 + b2 * v + b3 * w * w)
     fp = b1 + 2.0 * b2 * v + 3.0 * b3 * w * w
     g *= s_th
@@ -88,10 +102,10 @@ def _map_at(w, cc, dcc, o, s_th, dT):
     f *= s_th
     fp *= s_th
     if dT != 0.0:
-        g += dcc[o] * dT
-        d1 = dcc[o + 6]
-        d2 = dcc[o + 7]
-        d3 = dcc[o + 8]
+        g += dc[0] * dT
+        d1 = dc[1]
+        d2 = dc[2]
+        d3 = dc[3]
         f += dT * w * (d1 + d2 * v + d3 * w * w)
         fp += dT * (d1 + 2.0 * d2 * v + 3.0 * d3 * w * w)
     return g, dg, f, fp
@@ -153,10 +167,10 @@ def _rotate(qm, qg, cg, sg, exact):
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
-def _step(q, w, z, u, hs, cc, dcc, s_th, dT, lmul, fm, amp, kper, ph, pay,
+def _step(q, w, z, u, hs, cp, cn, dp, dn, s_th, dT, lmul, fm, amp, kper, ph, pay,
           iJ, s0p, s0n, s1p, s1n, goff, px, py, parm):
     """:func:`_step_map` with the map looked up from w and gravity computed; returns (q, w, z)."""
-    g0, dg0, f0, fp0 = _map_at(w, cc, dcc, 0 if w >= 0.0 else 9, s_th, dT)
+    g0, dg0, f0, fp0 = _map_at(w, cp, cn, dp, dn, s_th, dT)
     G = _gravity(q + 0.5 * hs * w, pay, goff, px, py, parm)
     sin_end = math.sin(kper * (q + hs * w) + ph) if amp != 0.0 else 0.0
     q1, w1, z1, _ = _step_map(q, w, z, u, hs, g0, dg0, f0, fp0, lmul, fm, amp, sin_end, G,
@@ -183,18 +197,18 @@ def _needs_refine(w, w1, z, z1, s0, hs, ig, per_sign):
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM)
-def _refined(q, w, z, u, hs, cc, dcc, s_th, dT, lmul, fm, amp, kper, ph, pay,
+def _refined(q, w, z, u, hs, cp, cn, dp, dn, s_th, dT, lmul, fm, amp, kper, ph, pay,
              iJ, s0p, s0n, s1p, s1n, goff, px, py, parm):
     """The step hs cut into REFINE pieces; a piece in which the velocity changes sign is cut again."""
     hr = hs / REFINE
     for _ in range(REFINE):
-        q1, w1, z1 = _step(q, w, z, u, hr, cc, dcc, s_th, dT, lmul, fm, amp, kper, ph, pay,
+        q1, w1, z1 = _step(q, w, z, u, hr, cp, cn, dp, dn, s_th, dT, lmul, fm, amp, kper, ph, pay,
                            iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
         if w1 * w < 0.0:
             q1, w1, z1 = q, w, z
             for _ in range(REFINE):
-                q1, w1, z1 = _step(q1, w1, z1, u, hr / REFINE, cc, dcc, s_th, dT, lmul, fm, amp, kper, ph,
-                                   pay, iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
+                q1, w1, z1 = _step(q1, w1, z1, u, hr / REFINE, cp, cn, dp, dn, s_th, dT, lmul, fm, amp,
+                                   kper, ph, pay, iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
         q, w, z = q1, w1, z1
     return q, w, z
 
@@ -230,15 +244,8 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
     thermal law enters as a scale and an offset of the map (see :func:`_map_at`).
     """
     n = mode.shape[0]
-    cc = np.empty(18)
-    dcc = np.empty(18)
-    for i in range(9):
-        cc[i] = c_pos[i]
-        cc[9 + i] = c_neg[i]
-        dcc[i] = dc_pos[i]
-        dcc[9 + i] = dc_neg[i]
-    for i in (2, 5, 11, 14):  # velocity scales -> reciprocals (see _map_at)
-        cc[i] = 1.0 / cc[i]
+    cp, dp = _branch(c_pos, dc_pos)
+    cn, dn = _branch(c_neg, dc_neg)
     q = state0[0]
     w = state0[1]
     z = state0[2]
@@ -331,7 +338,7 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
         w_k = w
         # the map at the sample (its level at the current position: the friction output and the
         # refinement test use it; the step's level is at its predicted end position)
-        g0, dg0, f0, fp0 = _map_at(w, cc, dcc, 0 if w >= 0.0 else 9, s_th, dT)
+        g0, dg0, f0, fp0 = _map_at(w, cp, cn, dp, dn, s_th, dT)
         g = lmul * g0
         if amp != 0.0:
             g *= 1.0 + amp * math.sin(kper * q + ph)
@@ -342,7 +349,7 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
             Fk = s0 * z + s1 * (w - s0 * abs(w) * ig * z) + fm * f0
         for s in range(nsub):
             if s > 0:
-                g0, dg0, f0, fp0 = _map_at(w, cc, dcc, 0 if w >= 0.0 else 9, s_th, dT)
+                g0, dg0, f0, fp0 = _map_at(w, cp, cn, dp, dn, s_th, dT)
             # gravity at the step's midpoint position, its cos/sin rotated from the previous step's
             qmid = q + 0.5 * hs * w
             G = goff
@@ -366,7 +373,7 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
                 # (z' jumps from ~0 to ~2w when w reverses in sliding), across z = 0 with per-sign
                 # stiffness, or along a steep Stribeck curve: redo this step in REFINE pieces (rare:
                 # starts, stops and reversals; dithering at rest does not qualify)
-                q1, w1, z1 = _refined(q, w, z, u, hs, cc, dcc, s_th, dT, lmul, fm, amp, kper, ph, pay,
+                q1, w1, z1 = _refined(q, w, z, u, hs, cp, cn, dp, dn, s_th, dT, lmul, fm, amp, kper, ph, pay,
                                       iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
             q, w, z = q1, w1, z1
         F_o[k] = Fk
