@@ -24,6 +24,19 @@ class LogFormatError(FrictidInputError):
         super().__init__(msg)
 
 
+def combined_log_error(found) -> LogFormatError | None:
+    """One :class:`LogFormatError` for the problems of several logs read apart (e.g. the joints of one file
+    read by different workers), given as (file, problems) pairs: per file, in order, each problem once.
+    None when there are none."""
+    per_file: dict[str, list[str]] = {}
+    for path, problems in found:
+        seen = per_file.setdefault(path, [])
+        seen += [p for p in problems if p not in seen]
+    if not per_file:
+        return None
+    return LogFormatError("", [str(LogFormatError(path, probs)) for path, probs in per_file.items()])
+
+
 class ConfigError(FrictidInputError):
     """A plant, recipe, mapping or parameter file is invalid."""
 

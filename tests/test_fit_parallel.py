@@ -166,3 +166,52 @@ def test_interrupt_stops_the_workers_and_writes_nothing(tmp_path, sig, code, wor
     while any(running(k) for k in kids) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not [k for k in kids if running(k)], "no worker left running"
+
+
+@pytest.fixture(scope="module")
+def three_joint_file(tmp_path_factory):
+    """The three joints in one Parquet file (each one block of rows) and their fit from the logs read
+    whole (in memory, one after another)."""
+    from frictid.io.logs import read_logs
+
+    path = tmp_path_factory.mktemp("blocks") / "three.parquet"
+    write_logs(three_joints(), str(path))
+    whole = frictid.fit(read_logs(str(path)), models=MODELS, segmenter=truth_segments, jobs=1)
+    return path, whole
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_joints_read_by_their_workers_give_the_same_fit(three_joint_file, jobs):
+    """A Parquet log whose joints are blocks of rows is read joint by joint by the process that fits the
+    joint: the same models as the logs read whole, and the file's rows in its source entry."""
+    path, whole = three_joint_file
+    got = frictid.fit(str(path), models=MODELS, segmenter=truth_segments, jobs=jobs)
+    assert list(got.joints) == list(whole.joints) == ["1", "2", "3"]
+    for j, jf in whole.joints.items():
+        a, b = got.joints[j].to_dict(), jf.to_dict()
+        assert (a["selected"], a["models"]) == (b["selected"], b["models"]), j
+    assert got.sources == [{"path": str(path), "sha256": got.sources[0]["sha256"],
+                            "rows": sum(lg.n for lg in three_joints())}]
+
+
+def test_problems_of_joints_read_by_their_workers_come_together(tmp_path):
+    """Every joint's bad rows are reported in one error naming rows of the whole file (no fit is
+    returned), with one worker or two; a row with a missing value is dropped and the file's rows count
+    it out."""
+    logs = three_joints()
+    logs[0].tau[7] = np.inf
+    logs[2].tau[3] = np.inf
+    path = tmp_path / "bad.parquet"
+    write_logs(logs, str(path))
+    for jobs in (1, 2):
+        with pytest.raises(LogFormatError) as err:
+            frictid.fit(str(path), models=MODELS, segmenter=truth_segments, jobs=jobs)
+        msg = str(err.value)
+        first = logs[0].n + logs[1].n
+        assert "joint 1: column 'tau': row 8 " in msg and f"joint 3: column 'tau': row {first + 4} " in msg, msg
+    logs = three_joints()
+    logs[1].tau[5] = np.nan
+    write_logs(logs, str(path))
+    got = frictid.fit(str(path), models=MODELS, segmenter=truth_segments, jobs=2)
+    assert got.sources[0]["rows"] == sum(lg.n for lg in logs) - 1
+    assert any("dropped 1 rows" in w for w in got.joints["2"].warnings)

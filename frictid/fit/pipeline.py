@@ -118,10 +118,28 @@ def parse_models(models) -> list[str]:
     return list(dict.fromkeys(out))
 
 
-def _load(paths_or_logs, mapping, units) -> tuple[list[JointLog], list[dict]]:
+@dataclass
+class _Block:
+    """One joint's rows of a Parquet file (:func:`frictid.io.logs.joint_row_blocks`), read by the process
+    that fits the joint: ``source`` indexes the fit's sources, ``rows`` is the block's size."""
+
+    joint: str
+    source: int
+    rows: int
+    load: Callable[[], list[JointLog]]
+
+
+def _load(paths_or_logs, mapping, units) -> tuple[list[JointLog | _Block], list[dict]]:
+    """The logs to fit and the sources they come from. A Parquet file whose joints are contiguous blocks
+    of rows gives one :class:`_Block` per joint, read when the joint is fitted (in its worker: the
+    reading is shared out, and no process holds every joint's samples); other files are read here."""
+    import functools
+
+    from frictid.errors import LogFormatError
+
     if isinstance(paths_or_logs, (str, os.PathLike, JointLog)):
         paths_or_logs = [paths_or_logs]
-    logs: list[JointLog] = []
+    logs: list[JointLog | _Block] = []
     sources: list[dict] = []
     errors: list[str] = []
     for item in paths_or_logs:
@@ -130,9 +148,17 @@ def _load(paths_or_logs, mapping, units) -> tuple[list[JointLog], list[dict]]:
             sources.append({"path": item.source or "<memory>", "sha256": None, "rows": item.n})
             item._fit_source = len(sources) - 1
             continue
-        from frictid.errors import LogFormatError
-        from frictid.io.logs import file_sha256, read_logs
+        from frictid.io.logs import file_sha256, joint_row_blocks, read_logs
         try:
+            blocks = joint_row_blocks(str(item), mapping, units) if str(item) != "-" else None
+            if blocks is not None:
+                k = len(sources)
+                sources.append({"path": str(item), "sha256": file_sha256(str(item)),
+                                "rows": int(sum(b - a for _, a, b in blocks))})
+                logs.extend(_Block(j, k, b - a, functools.partial(read_logs, str(item), mapping, units,
+                                                                  skip=UNUSED_CHANNELS, rows=(a, b)))
+                            for j, a, b in blocks)
+                continue
             got = read_logs(str(item), mapping, units, skip=UNUSED_CHANNELS)
         except LogFormatError as exc:
             errors.append(str(exc))
@@ -142,11 +168,37 @@ def _load(paths_or_logs, mapping, units) -> tuple[list[JointLog], list[dict]]:
             g._fit_source = len(sources) - 1
         logs.extend(got)
     if errors:
-        from frictid.errors import LogFormatError
         raise LogFormatError("", errors)
     if not logs:
         raise FrictidInputError("fit: no logs given")
     return logs, sources
+
+
+def _fit_given(given: list, fit_one: Callable[[list[JointLog]], JointFit]
+               ) -> tuple[JointFit | None, list[tuple[int, int]], list[tuple[str, list[str]]]]:
+    """Read a joint's :class:`_Block` items, then fit it: (the fit, rows dropped per source while reading,
+    the problems of the blocks as (file, problems), the fit None then)."""
+    from frictid.errors import LogFormatError
+
+    jlogs: list[JointLog] = []
+    dropped: list[tuple[int, int]] = []
+    problems: list[tuple[str, list[str]]] = []
+    for item in given:
+        if not isinstance(item, _Block):
+            jlogs.append(item)
+            continue
+        try:
+            got = item.load()
+        except LogFormatError as exc:
+            problems.append((exc.path, exc.problems))
+            continue
+        for g in got:
+            g._fit_source = item.source
+        dropped.append((item.source, item.rows - sum(g.n for g in got)))
+        jlogs.extend(got)
+    if problems:
+        return None, dropped, problems
+    return fit_one(jlogs), dropped, problems
 
 
 def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, units=None, *,
@@ -169,7 +221,7 @@ def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, unit
     """
     wanted = parse_models(models)
     logs, sources = _load(paths_or_logs, mapping, units)
-    by_joint: dict[str, list[JointLog]] = {}
+    by_joint: dict[str, list[JointLog | _Block]] = {}
     for lg in logs:
         by_joint.setdefault(str(lg.joint), []).append(lg)
     if joint is not None:
@@ -186,14 +238,22 @@ def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, unit
     del logs  # by_joint holds them; a joint's logs are freed once it is fitted (serial path)
     names = list(by_joint)
     workers = n_workers(jobs, len(names))
-    if workers > 1:
-        def one(j):
-            return fit_joint(by_joint[j], wanted, n_folds, segmenter, differentiate, diagnose=diagnose)
-        res.joints.update(zip(names, map_forked(one, names, workers)))
-    else:
-        for j in names:
-            res.joints[j] = fit_joint(by_joint.pop(j), wanted, n_folds, segmenter, differentiate,
-                                      diagnose=diagnose)
+
+    def one(j):
+        return _fit_given(by_joint.pop(j) if workers <= 1 else by_joint[j],
+                          lambda jlogs: fit_joint(jlogs, wanted, n_folds, segmenter, differentiate,
+                                                  diagnose=diagnose))
+
+    done = map_forked(one, names, workers) if workers > 1 else [one(j) for j in names]
+    from frictid.errors import combined_log_error
+
+    bad = combined_log_error(p for _, _, probs in done for p in probs)  # every joint's, together
+    if bad is not None:
+        raise bad
+    for _, dropped, _ in done:
+        for k, n in dropped:
+            sources[k]["rows"] -= n
+    res.joints.update((j, jf) for j, (jf, _, _) in zip(names, done))
     res.settings["diagnose"] = bool(diagnose)
     return res
 

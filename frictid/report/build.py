@@ -714,7 +714,7 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     are computed here.
     """
     from frictid import __version__
-    from frictid.errors import LogFormatError
+    from frictid.errors import combined_log_error
     from frictid.io.logs import file_sha256
 
     timings = timings if timings is not None else {}
@@ -753,13 +753,9 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     if workers > 1:
         preload()  # imported once here, inherited by every worker
     results = map_forked(one, parts, workers)
-    problems: dict[str, list[str]] = {}  # the logs' problems, all joints together, per file
-    for r in results:
-        for path, probs in r.problems:
-            seen = problems.setdefault(path, [])
-            seen += [p for p in probs if p not in seen]
-    if problems:
-        raise LogFormatError("", [str(LogFormatError(path, probs)) for path, probs in problems.items()])
+    bad = combined_log_error(p for r in results for p in r.problems)  # every joint's, together
+    if bad is not None:
+        raise bad
     jctx = []
     got: dict[int, tuple[int, int | None, bool]] = {}  # id of a given log -> rows, source index, recorded
     for jn, r in zip(names, results):
