@@ -539,8 +539,15 @@ def thermal_coefficients(name: str, values: dict, T) -> np.ndarray | None:
 
 
 def _poly_basis(w: np.ndarray) -> np.ndarray:
-    """Regressors of the polynomial friction c0 sgn(w) + c1 w + c2 w|w| + c3 w^3."""
-    return np.column_stack([np.sign(w), w, w * np.abs(w), w**3])
+    """Regressors of the polynomial friction c0 sgn(w) + c1 w + c2 w|w| + c3 w^3 (columns filled in
+    place, the cube as w|w||w|: no general power, no stacking copies)."""
+    X = np.empty((w.shape[0], 4))
+    aw = np.abs(w)
+    np.sign(w, out=X[:, 0])
+    X[:, 1] = w
+    np.multiply(w, aw, out=X[:, 2])
+    np.multiply(X[:, 2], aw, out=X[:, 3])
+    return X
 
 
 def _quad_rms(c: np.ndarray, gram: np.ndarray) -> float:
