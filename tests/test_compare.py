@@ -51,3 +51,27 @@ def test_cli_exit_codes_and_json(tmp_path, cli):
     assert r.code == 2 and "missing.yaml" in r.err and "Traceback" not in r.err
     (tmp_path / "junk.yaml").write_text("schema: 7\n")
     assert cli("compare", b, tmp_path / "junk.yaml").code == 2
+
+
+def test_cli_reads_one_parameter_file_from_stdin(tmp_path, cli, monkeypatch):
+    """``frictid fit LOG -o - | frictid compare base.yaml -``: either side may be standard input, not both."""
+    import io
+
+    b = tmp_path / "b.yaml"
+    b.write_text(yaml.safe_dump(params_file()))
+    new = yaml.safe_dump(params_file(sigma2=2.5)).encode()
+
+    def stdin(data: bytes):
+        monkeypatch.setattr("sys.stdin", io.TextIOWrapper(io.BytesIO(data)))
+
+    stdin(new)
+    r = cli("compare", b, "-", "--tol", "sigma2=15%")
+    assert r.code == 3 and "sigma2" in r.err, r
+    stdin(new)
+    assert cli("compare", "-", b, "--tol", "sigma2=30%").code == 0
+    stdin(new)
+    r = cli("compare", "-", "-")
+    assert r.code == 2 and "only one" in r.err, r
+    stdin(b"joints: [\n")
+    r = cli("compare", b, "-")
+    assert r.code == 2 and "<stdin>" in r.err and "Traceback" not in r.err, r

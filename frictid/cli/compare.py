@@ -15,8 +15,8 @@ def _fmt(x, digits=4) -> str:
 
 @app.command()
 def compare(
-    base: Annotated[str, typer.Argument(help="Parameter YAML of the reference identification.")],
-    new: Annotated[str, typer.Argument(help="Parameter YAML of the new identification.")],
+    base: Annotated[str, typer.Argument(help="Parameter YAML of the reference identification (- for stdin).")],
+    new: Annotated[str, typer.Argument(help="Parameter YAML of the new identification (- for stdin).")],
     tol: Annotated[Optional[str], typer.Option(
         "--tol", help="Limits, e.g. Fc=10%,sigma2=15%,J=0.01 (absolute, in the unit); *=20% for all.")] = None,
     as_json: JsonOpt = False,
@@ -24,10 +24,12 @@ def compare(
 ) -> None:
     """Compare two parameter files; exit code 3 when a change exceeds its tolerance."""
     from ..compare import compare as run_compare, parse_tolerances
-    from ..errors import QualityGateError
+    from ..errors import FrictidInputError, QualityGateError
     from ..io.params_load import load_params_dict
 
     con = Console(quiet)
+    if base == "-" and new == "-":
+        raise FrictidInputError("compare: standard input (-) can give only one of the two parameter files")
     tolerances = parse_tolerances(tol)
     result = run_compare(load_params_dict(base), load_params_dict(new), tolerances)
     if as_json:
