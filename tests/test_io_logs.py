@@ -252,3 +252,24 @@ def test_problems_in_a_block_name_rows_of_the_whole_file(tmp_path):
     with pytest.raises(LogFormatError) as part:
         read_logs(str(path), rows=(start, stop))
     assert "row 424 (line 425)" in str(part.value) and str(part.value) == str(whole.value)
+
+
+@pytest.mark.parametrize("last", [True, False])
+def test_a_row_with_the_wrong_number_of_fields_names_its_line(tmp_path, last):
+    """A CSV cut short in its last line, or a row with one field too many, names the line (Arrow's
+    threaded reader does not number rows) and says which of the two it looks like."""
+    lg = hand_log(n=3000)
+    path = tmp_path / "log.csv"
+    write_logs([lg], str(path))
+    lines = path.read_text().splitlines()
+    if last:
+        path.write_text("\n".join(lines[:-1]) + "\n" + lines[-1][: len(lines[-1]) // 3])
+    else:
+        lines[1234] += ",7"
+        path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(LogFormatError) as err:
+        read_logs(str(path))
+    msg = str(err.value)
+    line = len(lines) if last else 1235
+    assert f"line {line} has " in msg, msg
+    assert ("cut short" in msg) == last and ("delimiter" in msg) != last, msg

@@ -313,10 +313,53 @@ def _read_table(src, label: str, is_parquet: bool, spec: LogSpec, skip: tuple[st
     try:
         table = pacsv.read_csv(src, read_options=read_opts, parse_options=parse_opts, convert_options=conv)
     except (pa.ArrowInvalid, pa.ArrowTypeError, OSError) as exc:
+        bad = _first_bad_csv_row(src, read_opts, parse_opts)
+        if bad is not None:
+            raise LogFormatError(label, [bad]) from None
         msg = str(exc).split("\n")[0]
         raise LogFormatError(label, [f"cannot be parsed as CSV: {msg}; check the delimiter (comma), "
                                      "the header and that every row has the same number of fields"]) from None
     return table, file_meta
+
+
+def _first_bad_csv_row(src, read_opts, parse_opts) -> str | None:
+    """The problem with the first row whose number of fields differs from the header's, naming its line
+    (Arrow's threaded reader cannot number rows: the file is parsed again, on the error path only, by the
+    serial reader up to that row); None when the error is another one."""
+    rows: list = []
+
+    def first(row):
+        rows.append(row)
+        return "error"
+
+    opts = pacsv.ReadOptions(column_names=read_opts.column_names, skip_rows=read_opts.skip_rows,
+                             block_size=read_opts.block_size, use_threads=False)
+    popts = pacsv.ParseOptions(delimiter=parse_opts.delimiter, invalid_row_handler=first)
+    if isinstance(src, io.BytesIO):
+        src.seek(0)
+    try:
+        pacsv.read_csv(src, read_options=opts, parse_options=popts)
+    except (pa.ArrowInvalid, pa.ArrowTypeError, OSError):
+        pass
+    if not rows or rows[0].number is None:
+        return None
+    row = rows[0]
+    text = row.text or ""
+    where = (f"line {row.number} has {row.actual_columns} field{'s' if row.actual_columns != 1 else ''} where "
+             f"the header has {row.expected_columns} ({text[:60]!r})")
+    try:
+        if isinstance(src, io.BytesIO):
+            tail = src.getvalue()[-len(text.encode()) - 2:]
+        else:
+            with open(src, "rb") as fh:
+                fh.seek(max(0, os.path.getsize(src) - len(text.encode()) - 2))
+                tail = fh.read()
+    except OSError:
+        tail = b""
+    if text and tail.rstrip(b"\r\n").endswith(text.encode()):
+        return (f"{where}, and it is the last line: the file looks cut short (an interrupted copy or "
+                "write); copy or export it again, or delete the incomplete last line")
+    return f"{where}; check the delimiter (comma) and that every row has the same number of fields"
 
 
 class _Columns:
