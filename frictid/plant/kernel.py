@@ -301,7 +301,7 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
         # sensors
         qm = q + nq[k]
         if qres > 0.0:
-            qm = math.floor(qm * iqres + 0.5) * qres
+            qm = np.floor(qm * iqres + 0.5) * qres   # float floor: no round trip through int64
         qdm = w + nqd[k]
         # controller
         md = mode[k]
