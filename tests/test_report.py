@@ -668,3 +668,23 @@ def test_cli_problems_and_warnings_of_joints_read_by_workers(scenario, cli, tmp_
         else:
             assert "joint second joint: dropped 1 rows with missing values" in r.err, r.err
             assert "dropped 1 rows with missing values" in out.read_text()
+
+
+def test_the_fits_scales_are_reused(scenario):
+    """The fit records each log's scales with its segments; the report's are the same numbers as
+    measuring the log again (so its derivatives are the fit's)."""
+    from frictid.io.logs import file_sha256, read_many
+    from frictid.io.params_load import load_params_dict
+    from frictid.report import content as ct
+    from frictid.segments import estimate_scales
+
+    params = load_params_dict(scenario["params"])
+    jd = params["joints"][scenario["joint"]]
+    assert all(isinstance(e.get("scales"), dict) for e in jd["segment_list"])
+    lg = read_many([scenario["log"]])[0]
+    got = ct.recorded_scales(lg, jd, params["sources"], file_sha256(scenario["log"]))
+    want = estimate_scales(lg)
+    assert got is not None and got.to_dict().keys() == want.to_dict().keys()
+    for k, v in want.to_dict().items():
+        assert got.to_dict()[k] == v or (v != v and got.to_dict()[k] != got.to_dict()[k]), k
+    assert ct.recorded_scales(lg, jd, params["sources"], "0" * 64) is None  # another file: measured again

@@ -67,6 +67,7 @@ class _Prep:
     F: np.ndarray | None = None
     G: np.ndarray | None = None
     warnings: list[str] = field(default_factory=list)
+    scales: object = None  # the log's frictid.segments.Scales when the default derivatives measured them
 
 
 #: A log that is one steady run: its first third is the start transient ...
@@ -372,11 +373,15 @@ def _scalar_map(c_pos, c_neg):
     return level, viscous
 
 
-def segment_list(source: int, rows: int, segments: list[Segment]) -> dict:
-    """The parameter file's record of one log's segments (``segment_list``; cycle -1 when none)."""
-    return {"source": int(source), "rows": int(rows), "kind": [s.kind for s in segments],
-            "i0": [int(s.i0) for s in segments], "i1": [int(s.i1) for s in segments],
-            "cycle": [-1 if s.cycle is None else int(s.cycle) for s in segments]}
+def segment_list(source: int, rows: int, segments: list[Segment], scales=None) -> dict:
+    """The parameter file's record of one log's segments (``segment_list``; cycle -1 when none), with the
+    log's scales (noise levels and derivative windows, :class:`frictid.segments.Scales`) when given."""
+    out = {"source": int(source), "rows": int(rows), "kind": [s.kind for s in segments],
+           "i0": [int(s.i0) for s in segments], "i1": [int(s.i1) for s in segments],
+           "cycle": [-1 if s.cycle is None else int(s.cycle) for s in segments]}
+    if scales is not None:
+        out["scales"] = scales.to_dict()
+    return out
 
 
 def segments_from_list(entry: dict, t: np.ndarray) -> list[Segment]:
@@ -395,13 +400,20 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
         raise FrictidInputError(f"joint {jf.joint}: logs disagree on the axis (rotary / linear)")
     preps: list[_Prep] = []
     n_steady = 0
+    from frictid import segments as _seg
+
+    scales = None
     for lg in jlogs:
-        w, a = differentiate(lg)
+        if differentiate is _seg.derivatives:  # the default: keep the scales it measures (segment_list)
+            scales = _seg.estimate_scales(lg)
+            w, a = _seg.derivatives(lg, scales)
+        else:
+            w, a = differentiate(lg)
         w, a = np.asarray(w, float), np.asarray(a, float)
         segs = steady_run(lg, w)
         n_steady += segs is not None
         segs = segs if segs is not None else list(segmenter(lg))
-        preps.append(_Prep(lg, getattr(lg, "_fit_source", 0), w, a, segs))
+        preps.append(_Prep(lg, getattr(lg, "_fit_source", 0), w, a, segs, scales=scales))
         jf.warnings.extend(lg.warnings)
     if n_steady:
         jf.warnings.append(f"{n_steady} of {len(jlogs)} logs are single steady runs at one velocity: the last "
@@ -410,7 +422,7 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
     for p in preps:
         for s in p.segments:
             jf.segments[s.kind] = jf.segments.get(s.kind, 0) + 1
-    jf.segment_list = [segment_list(p.index, p.log.n, p.segments) for p in preps]
+    jf.segment_list = [segment_list(p.index, p.log.n, p.segments, p.scales) for p in preps]
     used: dict[str, list] = {}
 
     # scales of the data

@@ -59,6 +59,9 @@ class SegmentList(_Closed):
     i0: list[int]
     i1: list[int]
     cycle: list[int]
+    #: the log's scales as the fit measured them (frictid.segments.Scales: noise levels, encoder and torque
+    #: steps, derivative windows), when it used the default derivatives; the report reuses them
+    scales: Optional[dict[str, Union[float, int, bool, None]]] = None  # null: not measured (NaN)
 
     @model_validator(mode="after")
     def _same_length(self):

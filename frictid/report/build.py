@@ -614,9 +614,11 @@ def _joint_part(jn: str, jd: dict, given: list, sources: list[dict], hashes: dic
     t0 = time.process_time()
     datas, recorded = [], []
     for lg in jlogs:
-        segs = ct.recorded_segments(lg, jd, sources, hashes.get(lg.source or ""))
+        sha = hashes.get(lg.source or "")
+        segs = ct.recorded_segments(lg, jd, sources, sha)
         recorded.append(segs is not None)
-        d = ct.prepare_log(lg, jd, segmenter, differentiate, segments=segs)
+        d = ct.prepare_log(lg, jd, segmenter, differentiate, segments=segs,
+                           scales=ct.recorded_scales(lg, jd, sources, sha))
         d.sha256 = hashes.get(d.label)
         datas.append(d)
     ct.match_sources(datas, sources)

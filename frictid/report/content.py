@@ -208,6 +208,31 @@ def gravity_torque(log: JointLog, terms: dict[str, float], i0: int = 0, i1: int 
 def recorded_segments(log: JointLog, jd: dict, sources: list[dict], sha256: str | None) -> list[Segment] | None:
     """The segments the fit recorded for this log (the joint's ``segment_list``), when the log's file has
     the SHA-256 of that source and the entry's number of rows; else None (segment the log again)."""
+    entry = recorded_entry(log, jd, sources, sha256)
+    if entry is None:
+        return None
+    from frictid.fit.pipeline import segments_from_list
+    return segments_from_list(entry, log.t)
+
+
+def recorded_scales(log: JointLog, jd: dict, sources: list[dict], sha256: str | None):
+    """The log's :class:`frictid.segments.Scales` as the fit measured them (``scales`` of its
+    ``segment_list`` entry, on the conditions of :func:`recorded_segments`); None when not recorded."""
+    entry = recorded_entry(log, jd, sources, sha256)
+    rec = (entry or {}).get("scales")
+    if not isinstance(rec, dict):
+        return None
+    from frictid.segments import Scales
+    try:
+        sc = Scales(**{k: math.nan if v is None else v for k, v in rec.items()})  # null: NaN in the file
+    except TypeError:  # other fields: written by another version
+        return None
+    return sc if sc.n == log.n else None
+
+
+def recorded_entry(log: JointLog, jd: dict, sources: list[dict], sha256: str | None) -> dict | None:
+    """The joint's ``segment_list`` entry for this log: the log's file has the entry's source SHA-256, the
+    log the entry's number of rows, and the entry's segments are well formed; else None."""
     if not sha256:
         return None
     for entry in jd.get("segment_list") or []:
@@ -219,26 +244,26 @@ def recorded_segments(log: JointLog, jd: dict, sources: list[dict], sha256: str 
         except (KeyError, IndexError, TypeError, ValueError):
             continue
         if src.get("sha256") == sha256 and rows == log.n:
-            from frictid.fit.pipeline import segments_from_list
             try:
                 i0, i1 = np.asarray(entry["i0"], int), np.asarray(entry["i1"], int)
                 ok = i0.shape == i1.shape == (len(entry["kind"]),) == (len(entry["cycle"]),)
             except (KeyError, TypeError, ValueError):
                 continue
             if ok and np.all((0 <= i0) & (i0 < i1) & (i1 <= log.n)):
-                return segments_from_list(entry, log.t)
+                return entry
     return None
 
 
 def prepare_log(log: JointLog, jd: dict, segmenter: Callable, differentiate: Callable,
-                segments: list[Segment] | None = None) -> LogData:
+                segments: list[Segment] | None = None, scales=None) -> LogData:
     """Derivatives, segments (``segments`` when given, else ``segmenter(log)``) and the friction torque of
-    one log for the joint entry ``jd``."""
+    one log for the joint entry ``jd``. ``scales``: the log's :class:`frictid.segments.Scales` when known
+    (:func:`recorded_scales`; used by the default derivatives instead of measuring them again)."""
     from frictid.segments import derivatives, estimate_scales
 
     sc = None
     if differentiate is derivatives:
-        sc = estimate_scales(log)
+        sc = scales or estimate_scales(log)
         w, a = derivatives(log, sc)
     else:
         w, a = differentiate(log)
