@@ -749,17 +749,21 @@ def fig_fit_report(quick: bool, repeat: int, keep: str | None = None) -> list[Ro
     ]
     if fb.returncode == 0:
         html = work / "report.html"
-        rr = run_child(["frictid", "report", str(work / "params_8.yaml"), str(big),
-                        "-o", str(html)])
+        runs = [run_child(["frictid", "report", str(work / "params_8.yaml"), str(big), "-o", str(html)])
+                for _ in range(max(1, repeat))]
+        rr = sorted(runs, key=lambda x: x.wall)[len(runs) // 2]  # the median run by wall time
         size = html.stat().st_size if html.exists() else 0
-        rows.append(Row(f"report: {joints} joints x {hours:.2f} h", f"{rr.wall:.0f} s (CPU {rr.cpu:.0f} s), "
+        ok = all(x.returncode == 0 for x in runs)
+        rows.append(Row(f"report: {joints} joints x {hours:.2f} h", f"{rr.wall:.1f} s (CPU {rr.cpu:.0f} s), "
                         f"{size / 1e6:.2f} MB, peak {gb(rr.peak)}, exit {rr.returncode}", "-", "-",
-                        "< 10 s, < 5 MB", rr.returncode == 0 and rr.wall < 10 and size < 5e6, rr.load,
+                        "< 10 s, < 5 MB", ok and rr.wall < 10 and size < 5e6, rr.load,
                         "`frictid report PARAMS LOG -o REPORT.html` in a fresh process, joints built in "
-                        "parallel (one worker per core): judged on wall time, CPU time is summed over the "
-                        "workers"))
-        if rr.returncode:
-            print(rr.stderr[-3000:], file=sys.stderr)
+                        "parallel (one worker per core): judged on the median wall time of "
+                        f"{len(runs)} runs (" + ", ".join(f"{x.wall:.1f}" for x in runs) + " s), CPU time "
+                        "summed over the workers"))
+        for x in runs:
+            if x.returncode:
+                print(x.stderr[-3000:], file=sys.stderr)
     return rows
 
 
