@@ -341,7 +341,12 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
         g0, dg0, f0, fp0 = _map_at(w, cp, cn, dp, dn, s_th, dT)
         g = lmul * g0
         if amp != 0.0:
-            g *= 1.0 + amp * math.sin(kper * q + ph)
+            # the position effect's phase at the sample, rotated from the previous step's predicted end
+            # (a fraction of the step's own rotation away: the prediction misses by the velocity change)
+            pa = kper * q + ph
+            ce, se = _rotate(pa, pe, ce, se, False)
+            pe = pa
+            g *= 1.0 + amp * se
         ig = 1.0 / g
         s0 = s0p if z >= 0.0 else s0n
         if amp != 0.0:
