@@ -375,6 +375,17 @@ class _Columns:
         return self._data[name]
 
 
+def _values(arr: pa.Array) -> np.ndarray:
+    """A numeric Arrow array as numpy: a view of its values buffer when it is fixed-width and has no null,
+    else Arrow's copy (nulls as NaN). Arrow's ``to_numpy`` imports pandas on its first call (0.7 s in a
+    fresh process, a worker's or the parent's), which reading a Parquet log never needs otherwise."""
+    t = arr.type
+    if arr.null_count == 0 and (pa.types.is_floating(t) or pa.types.is_integer(t)):
+        dtype = np.dtype(t.to_pandas_dtype())
+        return np.frombuffer(arr.buffers()[1], dtype=dtype, count=len(arr) + arr.offset)[arr.offset:]
+    return arr.to_numpy(zero_copy_only=False)
+
+
 def _numeric_type(t: pa.DataType) -> bool:
     return pa.types.is_floating(t) or pa.types.is_integer(t) or pa.types.is_boolean(t)
 
@@ -415,13 +426,14 @@ def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[s
                 L = len(chunk)
                 if not pa.types.is_float64(chunk.type):
                     chunk = chunk.cast(pa.float64())
-                dst[k:k + L] = chunk.to_numpy(zero_copy_only=False)
+                dst[k:k + L] = _values(chunk)
                 k += L
         for c in arrow:
             arrow[c].extend(rg.column(c).chunks)
         off += m
-        del rg
-        pool.release_unused()  # the row group's buffers, which the allocator would otherwise keep
+        del rg  # its buffers go back to Arrow's allocator, which serves the next row group from them
+    pool.release_unused()  # and now to the system (returned after every row group, they were faulted
+    # in again by the next one: a fifth of a report worker's page faults)
     if off != n:
         raise pa.ArrowInvalid(f"the row groups hold {off} rows, the footer says {n}")
     for c in arrow:
@@ -456,7 +468,7 @@ def _to_float(col: pa.ChunkedArray) -> np.ndarray:
         import pandas as pd
 
         return pd.to_numeric(col.to_pandas(), errors="coerce").to_numpy(dtype=float)
-    arr = col.to_numpy()
+    arr = np.concatenate([_values(c) for c in col.chunks]) if col.num_chunks else np.zeros(0)
     return arr if arr.dtype == np.float64 else arr.astype(np.float64)
 
 
@@ -792,7 +804,7 @@ def _dictionary_codes(jcol: pa.ChunkedArray) -> tuple[np.ndarray, list[str]]:
     for ch in jcol.chunks:
         words = ch.dictionary.cast(pa.string()).to_pylist()
         lut = np.array([index.setdefault(str(x), len(index)) for x in words], dtype=np.int32)
-        idx = ch.indices.to_numpy(zero_copy_only=False)
+        idx = _values(ch.indices)
         if len(idx):
             np.take(lut, idx, out=codes[k:k + len(idx)])
         k += len(idx)
@@ -807,11 +819,11 @@ def _joint_blocks(jcol: pa.ChunkedArray) -> list[tuple[str, slice | np.ndarray]]
         col = jcol.combine_chunks()
         names = None
         if pa.types.is_floating(col.type):
-            v = col.to_numpy()
+            v = _values(col)
             if np.all(np.mod(v, 1) == 0):
                 col = pa.array(v.astype(np.int64))
         if pa.types.is_integer(col.type):
-            codes = col.to_numpy()
+            codes = _values(col)
         else:
             codes, names = _dictionary_codes(jcol.cast(pa.string()).dictionary_encode())
     else:  # text: encoded chunk by chunk, never copied whole
