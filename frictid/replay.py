@@ -410,7 +410,7 @@ def controller_from_meta(meta: dict) -> dict | None:
 
 
 def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness: float | None = None,
-                a=None, G=None) -> tuple[np.ndarray, np.ndarray, list[str]]:
+                a=None, G=None, velocity: bool = True) -> tuple[np.ndarray, np.ndarray | None, list[str]]:
     """Re-simulate the closed loop with the identified model; returns (q_model, qd_model, notes).
 
     The log's ``q_ref`` (``qd_ref`` and ``tau_ref`` as feedforward when present) drive the controller
@@ -419,7 +419,8 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
     first measured position. A static model runs with stiff, critically damped bristles (presliding
     displacement 1e-6 of the position scale), which reproduces its steady state. ``a``: the measured
     acceleration [q/s^2] when the caller has it (default: :func:`frictid.segments.derivatives`); ``G``:
-    ``model.gravity`` along the measured position when the caller has it.
+    ``model.gravity`` along the measured position when the caller has it. ``velocity=False``: qd_model is
+    None (not kept: the simulation then touches two arrays of the log's length instead of eight).
     """
     from .plant.kernel import (MODE_PID, MODE_VEL, N_P, P_C, P_GOFF, P_J, P_K, P_KD, P_KI, P_KP, P_KV, P_KVI,
                                P_PAMP, P_PAY, P_PPER, P_PPH, P_PX, P_PY, P_S0N, P_S0P, P_S1N, P_S1P, P_TMAX,
@@ -434,8 +435,8 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
     q_ref = np.asarray(log.channels["q_ref"], dtype=float)
     qd_ref = np.asarray(log.channels.get("qd_ref", np.gradient(q_ref, log.t)), dtype=float)
     tau_ff = np.asarray(log.channels.get("tau_ref", np.zeros(n)), dtype=float)
-    velocity = gains.get("type") == "velocity"
-    mode = np.full(n, MODE_VEL if velocity else MODE_PID, dtype=np.int64)
+    velocity_loop = gains.get("type") == "velocity"
+    mode = np.full(n, MODE_VEL if velocity_loop else MODE_PID, dtype=np.int64)
     payload = np.asarray(log.channels.get("payload", np.zeros(n)), dtype=float)
     ext = model.ext
     p = np.zeros(N_P)
@@ -474,7 +475,8 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
         from .segments import derivatives
         _, a = derivatives(log)
     a_meas = np.asarray(a, dtype=float)
-    gmul, fmul = multipliers(side, log.t + t_off, q_meas, a_meas, payload, G_meas)
+    t_abs = log.t + t_off if ext.get("drift_per_hour") else None  # the drift clock, only when it acts
+    gmul, fmul = multipliers(side, t_abs, q_meas, a_meas, payload, G_meas)
     th = thermal_input(model, log, n)
     if th is not None:
         if "T" in th:
@@ -498,9 +500,9 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
                          Tenv=np.ascontiguousarray(Tenv, dtype=float), payload=payload,
                          reset_T=np.zeros(n, dtype=np.bool_), gmul=gmul, fmul=fmul, nq=zeros, nqd=zeros, p=p,
                          c_pos=model.c_pos, c_neg=model.c_neg, dc_pos=dc9, dc_neg=dc9, th_code=code,
-                         theta=theta, state0=state0)
+                         theta=theta, state0=state0, outputs=("q", "w") if velocity else ("q",))
     q_model, qd_model = out[0], out[1]
-    if velocity:
+    if velocity_loop:
         notes.append("velocity PI loop on qd_ref")
     return q_model, qd_model, notes
 

@@ -176,6 +176,13 @@ def test_kernel_equals_python_twin_with_every_effect(law):
     # the twin differentiates the map numerically, so agreement is to ~1e-8, not to round-off
     for x, y in zip(a, b):
         assert np.allclose(x, y, rtol=1e-6, atol=1e-8 * (1 + np.abs(y).max()))
+    # only some outputs asked for: the same numbers, the others None (written into a scratch array)
+    some = simulate_joint(**sl, outputs=("q", "T"))
+    assert [x is None for x in some] == [k not in ("q", "T") for k in ("q", "w", "z", "F", "T", "u", "qm", "qdm")]
+    np.testing.assert_array_equal(some[0], a[0])
+    np.testing.assert_array_equal(some[4], a[4])
+    with pytest.raises(ValueError, match="unknown outputs"):
+        simulate_joint(**sl, outputs=("q", "speed"))
 
 
 def test_kernel_matches_tight_radau_reference():

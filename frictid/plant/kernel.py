@@ -213,9 +213,15 @@ def _refined(q, w, z, u, hs, cp, cn, dp, dn, s_th, dT, lmul, fm, amp, kper, ph, 
     return q, w, z
 
 
+#: The outputs of :func:`simulate_joint`, in order.
+OUTPUTS = ("q", "w", "z", "F", "T", "u", "qm", "qdm")
+
+
 def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, gmul, fmul,
-                   nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0):
-    """Run the closed loop over n samples. Returns (q, w, z, F, T, u, qm, qdm), each of length n.
+                   nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0, outputs=OUTPUTS):
+    """Run the closed loop over n samples. Returns (q, w, z, F, T, u, qm, qdm), each of length n;
+    ``outputs`` names those wanted, the others are None (the loop writes them into one scratch array:
+    a caller that needs the position alone touches two arrays of n doubles instead of eight).
 
     h [s] sample period; nsub substeps; mode (int) per sample; q_ref [q], qd_ref [q/s], tau_ff [F];
     Tenv [degC]; payload [kg]; reset_T (bool) resets T to Tenv; gmul, fmul [1] level/viscous multipliers;
@@ -228,10 +234,14 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
     of 56,000, one per 4 KiB page with numba's own allocator: those were a fifth of its CPU time.
     """
     n = mode.shape[0]
-    out = tuple(np.empty(n) for _ in range(8))
+    unknown = set(outputs) - set(OUTPUTS)
+    if unknown:
+        raise ValueError(f"simulate_joint: unknown outputs {sorted(unknown)}; known: {OUTPUTS}")
+    scratch = np.empty(n) if len(set(outputs)) < len(OUTPUTS) else None
+    out = tuple(np.empty(n) if name in outputs else scratch for name in OUTPUTS)
     _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, gmul, fmul,
                  nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0, *out)
-    return out
+    return tuple(a if name in outputs else None for name, a in zip(OUTPUTS, out))
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM)

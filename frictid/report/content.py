@@ -732,10 +732,11 @@ def replay_log(d: LogData, jname: str, jd: dict, model: str | None = None, close
                 r = rp.replay(d.log, m, w=d.w, a=d.a, scales=d.scales, G=G)
             T = None if r.T is None or not np.any(np.isfinite(r.T)) else np.asarray(r.T, float)
             out = Replay(name, np.asarray(r.tau_model, float), T=T, how="replay", notes=list(r.notes))
+            del r  # its friction, bristle and residual arrays: freed before the closed loop allocates
             gains = rp.controller_from_meta(d.log.meta or {}) if closed else None
             if gains is not None and "q_ref" in d.log.channels and m.J > 0 and d.log.q is not None:
                 with np.errstate(all="ignore"):
-                    q_model, _, notes = rp.closed_loop(d.log, m, gains, a=d.a, G=G)
+                    q_model, _, notes = rp.closed_loop(d.log, m, gains, a=d.a, G=G, velocity=False)
                 if np.all(np.isfinite(q_model)):
                     out.q_model = np.asarray(q_model, float)
                     out.notes.extend(notes)
