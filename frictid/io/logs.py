@@ -390,6 +390,10 @@ def _numeric_type(t: pa.DataType) -> bool:
     return pa.types.is_floating(t) or pa.types.is_integer(t) or pa.types.is_boolean(t)
 
 
+#: Parquet row groups decoded at once by :func:`_read_parquet_columns`.
+GROUPS_AT_ONCE = 2
+
+
 def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[str],
                           rows: tuple[int, int] | None = None) -> _Columns:
     """Read ``cols`` row group by row group into preallocated float64 arrays (numeric columns; the
@@ -404,17 +408,24 @@ def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[s
     start, stop = (0, total) if rows is None else (max(0, rows[0]), min(total, rows[1]))
     n = max(0, stop - start)
     numeric = [c for c in cols if c not in keep_arrow and _numeric_type(schema.field(c).type)]
-    out: dict = {c: np.empty(n) for c in numeric}
-    arrow: dict[str, list] = {c: [] for c in cols if c not in out}
     pool = pa.default_memory_pool()
+    # the arrays come from Arrow's allocator too: it keeps the pages of freed arrays for the next read
+    # in the process (as it does for read_table's), where numpy would map fresh ones for each
+    out: dict = {c: np.frombuffer(pa.allocate_buffer(8 * n, memory_pool=pool), dtype=np.float64) for c in numeric}
+    arrow: dict[str, list] = {c: [] for c in cols if c not in out}
     off = 0
-    g1 = 0  # the file's rows g0:g1 are in row group i
+    # the row groups that hold rows start:stop, read GROUPS_AT_ONCE at a time (Arrow decodes them in
+    # parallel), each batch then copied into the arrays
+    spans, g1 = [], 0
     for i in range(pf.metadata.num_row_groups):
         g0, g1 = g1, g1 + pf.metadata.row_group(i).num_rows
+        if min(stop, g1) > max(start, g0):
+            spans.append((i, g0, g1))
+    for j in range(0, len(spans), GROUPS_AT_ONCE):
+        batch = spans[j:j + GROUPS_AT_ONCE]
+        g0, g1 = batch[0][1], batch[-1][2]
         a, b = max(start, g0), min(stop, g1)
-        if b <= a:
-            continue
-        rg = pf.read_row_group(i, columns=cols)
+        rg = pf.read_row_groups([i for i, _, _ in batch], columns=cols)
         if (a, b) != (g0, g1):
             rg = rg.slice(a - g0, b - a)
         m = rg.num_rows
@@ -431,9 +442,8 @@ def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[s
         for c in arrow:
             arrow[c].extend(rg.column(c).chunks)
         off += m
-        del rg  # its buffers go back to Arrow's allocator, which serves the next row group from them
-    pool.release_unused()  # and now to the system (returned after every row group, they were faulted
-    # in again by the next one: a fifth of a report worker's page faults)
+        del rg  # its buffers go back to Arrow's allocator, which serves the next row group from them (returned
+        # to the system after every row group, they were faulted in again by the next one)
     if off != n:
         raise pa.ArrowInvalid(f"the row groups hold {off} rows, the footer says {n}")
     for c in arrow:
@@ -711,34 +721,39 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
     truth_meta = meta_all.get("truth") or {}
     logs: list[JointLog] = []
     for jid, sel in blocks:
-        rows = np.arange(sel.start, sel.stop) if isinstance(sel, slice) else sel
+        # the file rows of the joint's samples: a range (made an array only where a problem names a row)
+        rows = range(sel.start, sel.stop) if isinstance(sel, slice) else sel
         a = {c: v[sel] for c, v in arrays.items()}
         jprob: list[str] = []
         jwarn: list[str] = []
         where = f"joint {jid}: " if multi else ""
         t = a["t"]
-        if not np.all(np.isfinite(t)):
+        if not _all_finite(t):
             i = int(np.flatnonzero(~np.isfinite(t))[0])
             jprob.append(f"{where}column 't': {row(rows[i])} is not a finite time")
-        # inf / huge anywhere
-        for c in a:
-            if c in ("t", "cycle"):
-                continue
+        # inf / huge anywhere; NaN (missing) where the extremes say so
+        checked = [c for c in a if c not in ("t", "cycle")]
+        with_nan = []
+        for c in checked:
             v = a[c]
+            lo, hi = (float(v.min()), float(v.max())) if v.size else (0.0, 0.0)
+            if -HUGE < lo and hi < HUGE:  # the common case: every value finite and plausible
+                continue
             bad = np.abs(v) >= HUGE  # inf included, NaN not
             if bad.any():
                 i = int(np.flatnonzero(bad)[0])
                 jprob.append(f"{where}column {c!r}: {row(rows[i])} holds {v[i]:g}, which is "
                              "infinite or implausibly large; check the units and scaling")
+            elif math.isnan(lo) or math.isnan(hi):
+                with_nan.append(c)
         if jprob:
             problems.extend(jprob)
             continue
         # NaN rows
-        checked = [c for c in a if c not in ("t", "cycle")]
-        nan_any = np.zeros(len(t), dtype=bool)
-        for c in checked:
-            nan_any |= np.isnan(a[c])
-        if nan_any.any():
+        if with_nan:
+            nan_any = np.zeros(len(t), dtype=bool)
+            for c in with_nan:
+                nan_any |= np.isnan(a[c])
             frac = nan_any.mean()
             i = int(np.flatnonzero(nan_any)[0])
             first_col = next(c for c in checked if np.isnan(a[c][i]))
@@ -751,21 +766,23 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
                              f"(first at {row(rows[i])}, column {first_col!r})")
                 keep = ~nan_any
                 a = {c: v[keep] for c, v in a.items()}
-                rows = rows[keep]
+                rows = np.asarray(rows)[keep]
                 t = a["t"]
         if len(t) < MIN_SAMPLES:
             jprob.append(f"{where}only {len(t)} samples; at least {MIN_SAMPLES} are needed")
-        elif np.all(np.isfinite(t)):
+        elif _all_finite(t):
             dt = np.diff(t)
-            if np.any(dt <= 0):
+            if dt.min() <= 0:
                 i = int(np.flatnonzero(dt <= 0)[0]) + 1
                 what = "repeats" if dt[i - 1] == 0 else "goes back"
                 jprob.append(f"{where}column 't': time {what} at {row(rows[i])} "
                              f"({t[i - 1]:g} -> {t[i]:g} s); time must increase strictly within a joint "
                              "(sort the log, or split joints with a 'joint' column)")
             else:
-                med = float(np.median(dt))
-                jitter = float(np.percentile(np.abs(dt - med), 95)) / med if med > 0 else 0.0
+                # the sample period and its jitter from up to PERIOD_SAMPLES intervals spread over the log
+                dts = dt[::max(1, dt.size // PERIOD_SAMPLES)]
+                med = float(np.median(dts))
+                jitter = float(np.percentile(np.abs(dts - med), 95)) / med if med > 0 else 0.0
                 if jitter > 0.1:
                     jwarn.append(f"{where}sample period jitters (95th percentile deviation {100 * jitter:.0f} % "
                                  f"of the median {med:g} s)")
@@ -784,7 +801,7 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
         channels = {c: a[c] for c in OPTIONAL_CHANNELS if c in a}
         truth = {}
         if seg_truth is not None:
-            truth["segment"] = seg_truth[rows]
+            truth["segment"] = seg_truth[sel if isinstance(rows, range) else rows]
         if "cycle" in a:
             truth["cycle"] = np.nan_to_num(a["cycle"], nan=-1).astype(np.int64)
         if jid in truth_meta:
@@ -794,6 +811,16 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
     if problems:
         raise LogFormatError(label, problems)
     return logs
+
+
+#: Sample intervals (spread evenly over a joint's log) from which the sample period and its jitter are
+#: measured: a median and a 95th percentile need no more.
+PERIOD_SAMPLES = 1 << 17
+
+
+def _all_finite(x: np.ndarray) -> bool:
+    """Whether every value of x is finite (two reductions, no temporary array)."""
+    return not x.size or (math.isfinite(float(x.min())) and math.isfinite(float(x.max())))
 
 
 def _dictionary_codes(jcol: pa.ChunkedArray) -> tuple[np.ndarray, list[str]]:
