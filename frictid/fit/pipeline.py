@@ -412,8 +412,9 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
         w, a = np.asarray(w, float), np.asarray(a, float)
         segs = steady_run(lg, w)
         n_steady += segs is not None
-        segs = segs if segs is not None else list(segmenter(lg))
-        preps.append(_Prep(lg, getattr(lg, "_fit_source", 0), w, a, segs, scales=scales))
+        if segs is None:  # the default segmenter takes the scales already measured
+            segs = _seg.find_segments(lg, scales) if segmenter is _seg.find_segments and scales else segmenter(lg)
+        preps.append(_Prep(lg, getattr(lg, "_fit_source", 0), w, a, list(segs), scales=scales))
         jf.warnings.extend(lg.warnings)
     if n_steady:
         jf.warnings.append(f"{n_steady} of {len(jlogs)} logs are single steady runs at one velocity: the last "
@@ -574,7 +575,7 @@ def _unidentifiable(preps) -> str | None:
     moving = need = 0
     flat = True
     for p in preps:
-        sc = estimate_scales(p.log)
+        sc = p.scales or estimate_scales(p.log)
         moving += int(np.sum(np.abs(p.w) > K_NOISE * sc.sigma_w))
         need = max(need, int(round(T_MIN / sc.dt)))
         flat &= sc.tau_range <= sc.tau_step

@@ -19,12 +19,13 @@ __all__ = ["find_segments", "segment_labels", "derivatives", "velocity", "estima
            "noise_sigma", "quantum", "log_position", "features", "KIND_CODE", "CODE_KIND"]
 
 
-def find_segments(log: JointLog) -> list[Segment]:
-    """The segments of one joint log, in time order (empty for a log too short to hold one).
+def find_segments(log: JointLog, scales: Scales | None = None) -> list[Segment]:
+    """The segments of one joint log, in time order (empty for a log too short to hold one). ``scales``:
+    the log's :func:`estimate_scales` when the caller has measured them.
 
     Raises :class:`~frictid.errors.LogFormatError` for non-finite samples or non-increasing time.
     """
-    return classify(log)[1]
+    return classify(log, scales)[1]
 
 
 def segment_labels(log: JointLog) -> np.ndarray:

@@ -307,10 +307,11 @@ def grow(core: np.ndarray, ok: np.ndarray) -> np.ndarray:
 # Main
 
 
-def classify(log: JointLog) -> tuple[np.ndarray, list[Segment], Features | None]:
-    """Kind code per sample, the segments, and the features (None for a log too short to segment)."""
+def classify(log: JointLog, scales: Scales | None = None) -> tuple[np.ndarray, list[Segment], Features | None]:
+    """Kind code per sample, the segments, and the features (None for a log too short to segment);
+    ``scales``: the log's :func:`estimate_scales` when known."""
     n = log.n
-    sc = estimate_scales(log)
+    sc = scales or estimate_scales(log)
     n_min = max(10, int(round(T_MIN / sc.dt)))
     if n < 2 * n_min:
         return np.full(n, KIND_CODE["other"], dtype=np.int8), [], None
