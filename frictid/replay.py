@@ -276,26 +276,27 @@ class ReplayResult:
 
 
 def multipliers(model: ReplayModel, t_abs, q, a, payload, G=None) -> tuple[np.ndarray, np.ndarray]:
-    """Level and viscous multipliers (gmul, fmul) [1] per sample for the model's extensions.
+    """Level and viscous multipliers (gmul, fmul) [1] per sample for the model's extensions (each of length
+    1 when it is the same for every sample).
 
     t_abs [s] time on the drift clock; q [q] or None; a [q/s^2] acceleration; payload [kg] or None;
     G [F] the gravity torque without the offset (default from the model).
     """
     ext = model.ext
     n = np.shape(a)[0]
-    gmul = np.ones(n)
+    gmul = np.ones(1)  # length 1: the same for every sample (the replay kernel takes it so)
     if q is not None and (ext.get("pos_amp") or ext.get("pos_lin") or ext.get("pos_quad")):
-        gmul *= position_factor(q, ext)
+        gmul = gmul * position_factor(q, ext)
     if ext.get("load_torque") or ext.get("load_gravity") or ext.get("load_payload"):
         a = np.nan_to_num(np.asarray(a, dtype=float))
         if G is None:
             G = model.gravity(q, payload) - model.offset if q is not None else np.zeros(n)
-        gmul *= load_factor(np.abs(model.J * a + G), np.abs(G), payload, ext)
+        gmul = gmul * load_factor(np.abs(model.J * a + G), np.abs(G), payload, ext)
     d = drift_factor(t_abs, ext)
-    fmul = np.ones(n)
+    fmul = np.ones(1)
     if np.ndim(d) or d != 1.0:
-        fmul *= d
-        gmul *= d
+        fmul = fmul * d
+        gmul = gmul * d
     return gmul, fmul
 
 
@@ -476,7 +477,8 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
         _, a = derivatives(log)
     a_meas = np.asarray(a, dtype=float)
     t_abs = log.t + t_off if ext.get("drift_per_hour") else None  # the drift clock, only when it acts
-    gmul, fmul = multipliers(side, t_abs, q_meas, a_meas, payload, G_meas)
+    gmul, fmul = (np.ascontiguousarray(np.broadcast_to(m, (n,)))  # the plant kernel reads n values
+                  for m in multipliers(side, t_abs, q_meas, a_meas, payload, G_meas))
     th = thermal_input(model, log, n)
     if th is not None:
         if "T" in th:

@@ -72,6 +72,8 @@ def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
     page faults when the kernel allocated them). ``flat`` (a compile-time constant, see
     :func:`_kernel_flat`): the level is the constant a0 (no Stribeck or saturation term)."""
     n = w.shape[0]
+    sg = 1 if gmul.shape[0] > 1 else 0  # a multiplier of length 1 holds for every sample
+    sf = 1 if fmul.shape[0] > 1 else 0
     zk = z0
     Tk = T_init
     T_used = math.nan
@@ -98,10 +100,10 @@ def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
         wk = w[k]
         v = abs(wk)
         o = 0 if wk >= 0.0 else 9
-        g = gmul[k] * (s * (cc[o] if flat else _level(v, cc, o)) + dT * dd[o])
+        g = gmul[k * sg] * (s * (cc[o] if flat else _level(v, cc, o)) + dT * dd[o])
         if g < 1e-300:
             g = 1e-300
-        fv = fmul[k] * wk * (s * (cc[o + 6] + cc[o + 7] * v + cc[o + 8] * wk * wk)
+        fv = fmul[k * sf] * wk * (s * (cc[o + 6] + cc[o + 7] * v + cc[o + 8] * wk * wk)
                              + dT * (dd[o + 6] + dd[o + 7] * v + dd[o + 8] * wk * wk))
         if dynamic:
             if zk >= 0.0:
@@ -135,8 +137,8 @@ def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
                 if wm != 0.0:
                     vm = abs(wm)
                     om = 0 if wm >= 0.0 else 9
-                    gm = 0.5 * (gmul[k] + gmul[k + 1]) * (s * (cc[om] if flat else _level(vm, cc, om))
-                                                          + dT * dd[om])
+                    gm = 0.5 * (gmul[k * sg] + gmul[(k + 1) * sg]) * (
+                        s * (cc[om] if flat else _level(vm, cc, om)) + dT * dd[om])
                     if gm < 1e-300:
                         gm = 1e-300
                     # a = sigma0 |wm| / g, z_ss = wm / a = g sgn(wm) / sigma0: one division
@@ -236,6 +238,17 @@ def replay_friction_ref(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, z0, 
     return F, z, T
 
 
+def _multiplier(m, n: int) -> np.ndarray:
+    """A per-sample multiplier as the kernel takes it: one value (length 1) when it is the same for every
+    sample (None: 1), else n contiguous values. A constant then costs no array of the log's length."""
+    if m is None:
+        return np.ones(1)
+    m = np.asarray(m, dtype=float)
+    if m.size == 1:
+        return np.full(1, float(m.reshape(-1)[0]))
+    return np.ascontiguousarray(np.broadcast_to(m, (n,)))
+
+
 def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=None, sigma1=0.0, z0=0.0,
                     thermal=None, u_stick=None, w_stick=0.0, reference=False):
     """Friction [F] predicted along a measured velocity; returns ``(F, z, T)``.
@@ -265,8 +278,7 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
     n = w.shape[0]
     c_pos = np.ascontiguousarray(c_pos, dtype=float)
     c_neg = c_pos.copy() if c_neg is None else np.ascontiguousarray(c_neg, dtype=float)
-    gmul = np.ones(n) if gmul is None else np.ascontiguousarray(np.broadcast_to(gmul, (n,)), dtype=float)
-    fmul = np.ones(n) if fmul is None else np.ascontiguousarray(np.broadcast_to(fmul, (n,)), dtype=float)
+    gmul, fmul = _multiplier(gmul, n), _multiplier(fmul, n)
     dynamic = sigma0 is not None
     s0p, s0n = _pair(sigma0) if dynamic else (1.0, 1.0)
     s1p, s1n = _pair(sigma1)
@@ -299,6 +311,7 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
         u_stick = np.ascontiguousarray(np.broadcast_to(u_stick, (n,)), dtype=float)
         w_stick = float(w_stick)
     if reference:
+        gmul, fmul = np.broadcast_to(gmul, (n,)), np.broadcast_to(fmul, (n,))
         return replay_friction_ref(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, float(z0), bool(dynamic),
                                    code, theta, dc_pos, dc_neg, C, K, Tenv, T_init, T_in, T_given, u_stick,
                                    w_stick)
