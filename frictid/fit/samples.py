@@ -107,6 +107,14 @@ class SampleSet:
         """Effective number of independent samples."""
         return self.n / self.inflation
 
+    def speed_order(self) -> np.ndarray:
+        """Indices of the samples in increasing |w| (stable), computed once: every binning of these samples
+        or of a subset of them (:func:`bin_points`) takes its order from it instead of sorting again."""
+        order = self.__dict__.get("_speed_order")
+        if order is None:
+            order = self.__dict__["_speed_order"] = np.argsort(np.abs(self.w), kind="stable")
+        return order
+
 
 def block_ranges(t_list: list[np.ndarray], n_folds: int) -> list[list[tuple[int, int, int]]]:
     """Per log, ``(i0, i1, block)`` index ranges of the time blocks (logs laid end to end in time)."""
@@ -184,16 +192,23 @@ def _warm_start(full: ModelFit) -> dict:
     return start
 
 
-def bin_points(w: np.ndarray, F: np.ndarray, per_sign: int = BINS_PER_SIGN
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Means of (w, F) in velocity bins of equal counts, per sign: (w_bin [q/s], F_bin [F], count)."""
+def bin_points(w: np.ndarray, F: np.ndarray, per_sign: int = BINS_PER_SIGN, order: np.ndarray | None = None,
+               keep: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Means of (w, F) in velocity bins of equal counts, per sign: (w_bin [q/s], F_bin [F], count).
+
+    order : the samples' stable order by |w| when known (:meth:`SampleSet.speed_order`); keep : a mask of
+    the samples to bin (default all). The same bins as sorting the kept samples of each sign again."""
+    if order is None:
+        order = np.argsort(np.abs(w), kind="stable")
+    if keep is not None:
+        order = order[keep[order]]
+    ws = w[order]
     out_w, out_F, out_n = [], [], []
     for sgn in (1.0, -1.0):
-        m = np.sign(w) == sgn
+        m = np.sign(ws) == sgn
         if not m.any():
             continue
-        order = np.argsort(np.abs(w[m]), kind="stable")
-        ww, ff = w[m][order], F[m][order]
+        ww, ff = ws[m], F[order[m]]
         nb = max(1, min(per_sign, ww.size // MIN_PER_BIN))
         edges = np.linspace(0, ww.size, nb + 1).astype(np.int64)[:-1]
         cnt = np.diff(np.append(edges, ww.size))
@@ -206,9 +221,9 @@ def bin_points(w: np.ndarray, F: np.ndarray, per_sign: int = BINS_PER_SIGN
     return np.concatenate(out_w), np.concatenate(out_F), np.concatenate(out_n).astype(float)
 
 
-def _fit_binned(name, w, F, axis, start=None, var_inflation=1.0) -> tuple[ModelFit, np.ndarray, np.ndarray,
-                                                                          np.ndarray]:
-    wb, Fb, nb = bin_points(w, F)
+def _fit_binned(name, S: SampleSet, axis, start=None, var_inflation=1.0, keep=None
+                ) -> tuple[ModelFit, np.ndarray, np.ndarray, np.ndarray]:
+    wb, Fb, nb = bin_points(S.w, S.F, order=S.speed_order(), keep=keep)
     return fit_static(name, wb, Fb, 1.0 / np.sqrt(nb), axis=axis, start=start,
                       var_inflation=var_inflation), wb, Fb, nb
 
@@ -221,7 +236,7 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary") -> ModelFit:
     objective as on the samples while the map is smooth across a bin, and hundreds of times faster);
     its covariance is then rescaled to the residual variance of the samples times their variance factor.
     """
-    mf, wb, Fb, nb = _fit_binned(name, S.w, S.F, axis)
+    mf, wb, Fb, nb = _fit_binned(name, S, axis)
     vals = mf.values()
     k = int(mf.metrics.get("k") or 0)
     pred = predict(name, vals, S.w)
@@ -237,7 +252,7 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary") -> ModelFit:
         s2_bins = float(np.sum(nb * rb**2)) / max(wb.size - k, 1)
         s2_samples = rss / max(n - k, 1)
         if s2_bins > 0:
-            mf, *_ = _fit_binned(name, S.w, S.F, axis, start=_warm_start(mf),
+            mf, *_ = _fit_binned(name, S, axis, start=_warm_start(mf),
                                  var_inflation=S.inflation * s2_samples / s2_bins)
             vals = mf.values()
         start = _warm_start(mf)
@@ -246,7 +261,7 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary") -> ModelFit:
             te = S.fold == f
             if not te.any() or te.all():
                 continue
-            m, *_ = _fit_binned(name, S.w[~te], S.F[~te], axis, start=start)
+            m, *_ = _fit_binned(name, S, axis, start=start, keep=~te)
             ph[te] = predict(name, m.values(), S.w[te])
         rh = ph - S.F
         if np.isfinite(rh).all():
