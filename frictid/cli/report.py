@@ -99,17 +99,9 @@ def read_report_logs(paths: list[str], mapping=None, units=None) -> list:
     """The logs of ``paths`` with the columns the report uses: the references (``q_ref``, ``qd_ref``,
     ``tau_ref``) only from a file whose logs carry controller gains (``meta.control``), which is then read
     again whole; standard input is read once, whole. Problems from all files are reported together."""
-    from ..errors import LogFormatError
+    from ..io.logs import read_many
 
-    out, errors = [], []
-    for p in paths:
-        try:
-            out.extend(_read_report_log(p, mapping, units))
-        except LogFormatError as exc:
-            errors.append(str(exc))
-    if errors:
-        raise LogFormatError("", errors)
-    return out
+    return read_many(paths, mapping, units, read=_read_report_log)
 
 
 def _read_report_log(path: str, mapping=None, units=None, rows: tuple[int, int] | None = None) -> list:

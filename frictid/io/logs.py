@@ -894,12 +894,14 @@ def _degrees_check(t: np.ndarray, q: np.ndarray, qd: np.ndarray | None) -> str |
     return None
 
 
-def read_many(paths, mapping=None, units=None) -> list[JointLog]:
-    """Read several logs; problems from all files are reported together."""
+def read_many(paths, mapping=None, units=None, read=None) -> list[JointLog]:
+    """Read several logs (each with ``read(path, mapping, units)``, default :func:`read_logs`); problems from
+    all files are reported together."""
+    read = read or read_logs
     logs, errors = [], []
     for p in paths:
         try:
-            logs.extend(read_logs(p, mapping, units))
+            logs.extend(read(p, mapping, units))
         except LogFormatError as exc:
             errors.append(str(exc))
     if errors:
