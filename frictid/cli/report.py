@@ -201,8 +201,6 @@ def report_after_fit(report_path: str, result, logs: list[str], mapping, units, 
     from ..report import write_report
 
     t0 = time.perf_counter()
-    warned: list[str] = []
     nbytes = write_report(report_path, result.to_dict(), plan_report_logs(logs, mapping, units),
-                          params_path=params_path if params_path != "-" else "(standard output)", command=command,
-                          log_warnings_out=warned)
+                          params_path=params_path if params_path != "-" else "(standard output)", command=command)
     con.info(f"frictid: wrote {report_path} ({nbytes / 1e6:.2f} MB) in {time.perf_counter() - t0:.1f} s")
