@@ -245,7 +245,7 @@ def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, unit
                           lambda jlogs: fit_joint(jlogs, wanted, n_folds, segmenter, differentiate,
                                                   diagnose=diagnose))
 
-    done = map_forked(one, names, workers) if workers > 1 else [one(j) for j in names]
+    done = map_forked(one, names, workers)  # in this process when workers <= 1
     from frictid.errors import combined_log_error
 
     bad = combined_log_error(p for _, _, probs in done for p in probs)  # every joint's, together
