@@ -261,6 +261,18 @@ def _csv_header(src, label: str, spec: LogSpec) -> tuple[list[str], bool]:
     return names, True
 
 
+def _parquet_spec(pf: pq.ParquetFile, label: str, spec: LogSpec) -> tuple[dict, LogSpec]:
+    """A Parquet log's own metadata (frictid's key in its schema; {} when unreadable) and ``spec`` over
+    the reading instructions that metadata carries."""
+    raw = (pf.schema_arrow.metadata or {}).get(META_KEY.encode())
+    try:
+        file_meta = json.loads(raw) if raw else {}
+    except ValueError:
+        file_meta = {}
+    fspec = spec_from_dict({k: v for k, v in file_meta.items() if k in _SPEC_KEYS}, f"{label} metadata")
+    return file_meta, fspec.merged(spec)
+
+
 def _read_table(src, label: str, is_parquet: bool, spec: LogSpec, skip: tuple[str, ...] = (),
                 rows: tuple[int, int] | None = None) -> tuple[pa.Table, dict]:
     """Read only the columns frictid uses (less the optional channels in ``skip``); returns the table
@@ -273,15 +285,8 @@ def _read_table(src, label: str, is_parquet: bool, spec: LogSpec, skip: tuple[st
             pf = pq.ParquetFile(src)
         except (pa.ArrowInvalid, OSError) as exc:
             raise LogFormatError(label, [f"cannot be read as Parquet ({exc}); is the file complete?"]) from None
-        raw = (pf.schema_arrow.metadata or {}).get(META_KEY.encode())
-        if raw:
-            try:
-                file_meta = json.loads(raw)
-            except ValueError:
-                file_meta = {}
+        file_meta, eff = _parquet_spec(pf, label, spec)
         names = pf.schema_arrow.names
-        fspec = spec_from_dict({k: v for k, v in file_meta.items() if k in _SPEC_KEYS}, f"{label} metadata")
-        eff = fspec.merged(spec)
         cols = [c for c in names if eff.rename.get(c, c) in wanted_targets]
         labels = {c for c in cols if eff.rename.get(c, c) in ("joint", "segment")}
         text_joint = [c for c in cols if eff.rename.get(c, c) == "joint"
@@ -557,10 +562,7 @@ def joint_row_blocks(path: str, mapping: str | LogSpec | None = None,
     try:
         side_spec, _ = _sidecar_spec(str(path))
         pf = pq.ParquetFile(src)
-        raw = (pf.schema_arrow.metadata or {}).get(META_KEY.encode())
-        file_meta = json.loads(raw) if raw else {}
-        fspec = spec_from_dict({k: v for k, v in file_meta.items() if k in _SPEC_KEYS}, f"{label} metadata")
-        eff = fspec.merged(side_spec.merged(spec))
+        _, eff = _parquet_spec(pf, label, side_spec.merged(spec))
         names = [c for c in pf.schema_arrow.names if eff.rename.get(c, c) == "joint"]
         if len(names) != 1:
             return None
@@ -570,6 +572,7 @@ def joint_row_blocks(path: str, mapping: str | LogSpec | None = None,
             return None
         icol = pf.schema_arrow.names.index(names[0])
         runs: list[list] = []  # [joint, start, stop], consecutive rows
+        codes = pq.ParquetFile(src, read_dictionary=names) if text else pf  # text joints as dictionary codes
         g1 = 0
         for g in range(pf.metadata.num_row_groups):
             g0, g1 = g1, g1 + pf.metadata.row_group(g).num_rows
@@ -577,8 +580,7 @@ def joint_row_blocks(path: str, mapping: str | LogSpec | None = None,
             if one is not None:
                 parts = [(one, slice(0, g1 - g0))]
             else:  # the group holds several joints (or has no statistics): read its joint column
-                jcol = pq.ParquetFile(src, read_dictionary=names if text else None).read_row_group(
-                    g, columns=names).column(0)
+                jcol = codes.read_row_group(g, columns=names).column(0)
                 if jcol.null_count:
                     return None
                 parts = _joint_blocks(jcol)
