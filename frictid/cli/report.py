@@ -50,7 +50,8 @@ def report(
     from ..io.atomic import check_output_path
     from ..io.params_load import load_params_dict
     from ..report import write_report
-    from ..report.build import Prefetch, keep_freed_memory
+    from ..report.build import Prefetch
+    from ..workers import keep_freed_memory
 
     con = Console(quiet)
     logs = list(logs or [])

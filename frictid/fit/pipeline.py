@@ -31,7 +31,7 @@ from frictid.data import SEGMENT_KINDS, JointLog, Segment
 from frictid.errors import FrictidInputError
 from frictid.models import static as sm
 from frictid.models.params import unit_of
-from frictid.workers import map_forked, n_workers
+from frictid.workers import Prefetch, map_forked, n_workers
 
 from . import presliding as pre
 from . import regression as rg
@@ -130,18 +130,42 @@ class _Block:
     load: Callable[[], list[JointLog]]
 
 
+def preload() -> None:
+    """Import what fitting a joint needs beyond this module (scipy.signal for the derivatives, 1.2 s in
+    each of two workers at once against 0.75 s here; the diagnosis and the replay), once, ahead of forking
+    the workers that inherit it."""
+    import scipy.signal  # noqa: F401
+
+    import frictid.diagnose  # noqa: F401
+    import frictid.replay  # noqa: F401
+
+
 def _load(paths_or_logs, mapping, units) -> tuple[list[JointLog | _Block], list[dict]]:
     """The logs to fit and the sources they come from. A Parquet file whose joints are contiguous blocks
     of rows gives one :class:`_Block` per joint, read when the joint is fitted (in its worker: the
-    reading is shared out, and no process holds every joint's samples); other files are read here."""
+    reading is shared out, and no process holds every joint's samples); other files are read here.
+    The files' SHA-256 and :func:`preload` run in background threads meanwhile."""
+    if isinstance(paths_or_logs, (str, os.PathLike, JointLog)):
+        paths_or_logs = [paths_or_logs]
+    prefetch = Prefetch([str(p) for p in paths_or_logs if not isinstance(p, JointLog)], preload)
+    try:
+        logs, sources, files = _read_or_plan(paths_or_logs, mapping, units)
+    finally:
+        hashes = prefetch.hashes()
+    for k in files:
+        sources[k]["sha256"] = hashes.get(sources[k]["path"])
+    return logs, sources
+
+
+def _read_or_plan(paths_or_logs, mapping, units) -> tuple[list[JointLog | _Block], list[dict], list[int]]:
+    """:func:`_load` without the hashes (``sha256`` None), and the indices of the sources that are files."""
     import functools
 
     from frictid.errors import LogFormatError
 
-    if isinstance(paths_or_logs, (str, os.PathLike, JointLog)):
-        paths_or_logs = [paths_or_logs]
     logs: list[JointLog | _Block] = []
     sources: list[dict] = []
+    files: list[int] = []
     errors: list[str] = []
     for item in paths_or_logs:
         if isinstance(item, JointLog):
@@ -149,13 +173,13 @@ def _load(paths_or_logs, mapping, units) -> tuple[list[JointLog | _Block], list[
             sources.append({"path": item.source or "<memory>", "sha256": None, "rows": item.n})
             item._fit_source = len(sources) - 1
             continue
-        from frictid.io.logs import file_sha256, joint_row_blocks, read_logs
+        from frictid.io.logs import joint_row_blocks, read_logs
         try:
             blocks = joint_row_blocks(str(item), mapping, units) if str(item) != "-" else None
             if blocks is not None:
                 k = len(sources)
-                sources.append({"path": str(item), "sha256": file_sha256(str(item)),
-                                "rows": int(sum(b - a for _, a, b in blocks))})
+                files.append(k)
+                sources.append({"path": str(item), "sha256": None, "rows": int(sum(b - a for _, a, b in blocks))})
                 logs.extend(_Block(j, k, b - a, functools.partial(read_logs, str(item), mapping, units,
                                                                   skip=UNUSED_CHANNELS, rows=(a, b)))
                             for j, a, b in blocks)
@@ -164,7 +188,8 @@ def _load(paths_or_logs, mapping, units) -> tuple[list[JointLog | _Block], list[
         except LogFormatError as exc:
             errors.append(str(exc))
             continue
-        sources.append({"path": str(item), "sha256": file_sha256(str(item)), "rows": int(sum(g.n for g in got))})
+        files.append(len(sources))
+        sources.append({"path": str(item), "sha256": None, "rows": int(sum(g.n for g in got))})
         for g in got:
             g._fit_source = len(sources) - 1
         logs.extend(got)
@@ -172,7 +197,7 @@ def _load(paths_or_logs, mapping, units) -> tuple[list[JointLog | _Block], list[
         raise LogFormatError("", errors)
     if not logs:
         raise FrictidInputError("fit: no logs given")
-    return logs, sources
+    return logs, sources, files
 
 
 def _fit_given(given: list, fit_one: Callable[[list[JointLog]], JointFit]

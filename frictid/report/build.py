@@ -18,6 +18,7 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 from frictid.data import JointLog, log_warnings
+from frictid.workers import Prefetch as _Prefetch
 
 from . import content as ct
 
@@ -646,59 +647,15 @@ def preload() -> None:
     import frictid.replay  # noqa: F401
 
 
-def keep_freed_memory() -> bool:
-    """Ask glibc's allocator to serve arrays up to 32 MB (a joint-hour of float64 at 1 kHz is 29 MB) from
-    its heap and to keep up to 512 MB freed there for the next array, instead of mapping fresh zeroed
-    pages for every temporary of the derivatives, replay and figures and unmapping them after (a quarter
-    of the report's system time on the benchmark's log). On six joint-hours it saves 0.6-0.9 s CPU and
-    costs 0.4 GB of peak memory (2.46 against 2.07 GB, Pss of the tree; docs/report.md). Process-wide: meant
-    for the ``frictid report`` command, whose process ends with the report. False where the C library is
-    not glibc."""
-    import ctypes
-
-    try:
-        mallopt = ctypes.CDLL(None).mallopt  # the process's own symbols (find_library would run ldconfig)
-    except (OSError, AttributeError):
-        return False
-    M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
-    if not (mallopt(M_MMAP_THRESHOLD, 32 << 20) and mallopt(M_TRIM_THRESHOLD, 512 << 20)):
-        return False
-    import pyarrow as pa
-
-    # Arrow's buffers (the row groups read, the arrays the reader fills) from the same heap: its own
-    # allocator returns freed pages to the system after a few milliseconds, and each joint's read in a
-    # worker then faulted them in again (0.3-0.5 s per joint-hour on this VM)
-    pa.set_memory_pool(pa.system_memory_pool())
-    return True
-
-
-class Prefetch:
+class Prefetch(_Prefetch):
     """What a report needs and does not depend on the logs' contents, started in background threads while
-    the caller reads the logs: the SHA-256 of every file (:func:`frictid.io.logs.file_sha256`) and the
-    imports of :func:`preload`. Reading, hashing (both release the GIL) and importing then overlap:
-    ``pre = Prefetch(paths)``, read the logs, then ``build_report(params, logs, hashes=pre.hashes())``.
+    the caller reads the logs: the SHA-256 of every file and the imports of :func:`preload`
+    (:class:`frictid.workers.Prefetch`): ``pre = Prefetch(paths)``, read the logs, then
+    ``build_report(params, logs, hashes=pre.hashes())``.
     """
 
     def __init__(self, paths: Iterable[str]):
-        from concurrent.futures import ThreadPoolExecutor
-
-        from frictid.io.logs import file_sha256
-
-        self._pool = ThreadPoolExecutor(max_workers=2, thread_name_prefix="frictid-report")
-        self._imports = self._pool.submit(preload)  # an import error surfaces when the report is built
-        self._hashes = {str(p): self._pool.submit(file_sha256, str(p)) for p in dict.fromkeys(paths) if p != "-"}
-
-    def hashes(self) -> dict[str, str | None]:
-        """The files' SHA-256 (waits for them, and for the imports: no thread is left running, so that
-        the workers can be forked)."""
-        self._pool.shutdown(wait=True)
-        out = {}
-        for p, f in self._hashes.items():
-            try:
-                out[p] = f.result()
-            except OSError:  # unreadable: the reading reports it; build_report hashes what is missing
-                pass
-        return out
+        super().__init__(paths, preload)
 
 
 def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params_path: str = "",
