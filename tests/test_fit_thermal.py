@@ -210,3 +210,28 @@ def test_temperature_finding_survives_the_diagnosis_check():
     chk = jf.selection["diagnosis_check"]
     assert "thermal" in jf.selected and "kept" not in chk, chk
     assert chk["rms_heldout"] < chk["rms_heldout_fit_choice"]
+
+
+def test_prepare_matches_plain_per_sample_formulas(run_and_truth):
+    """prepare sums the power basis per bin and fills the cycle regressors column by column; the plain
+    formulas (a per-sample matrix of all terms, bincount per column, lstsq on the scaled matrix) agree."""
+    _, (t, w, F, T, cyc) = run_and_truth
+    a = np.gradient(w, t) * np.random.default_rng(3).uniform(0.5, 1.5, t.size)  # not collinear with w
+    run = prepare(t, w, F, cyc, temp_env=np.full(t.size, 20.0), min_speed=0.02, a=a)
+    nb = run.bin_h.size
+    b = np.minimum(((t - t[0]) / ((t[-1] - t[0]) / nb)).astype(int), nb - 1)
+    v = np.abs(w)
+    P = np.column_stack([v, w * w, v**3, w**4])
+    counts = np.maximum(np.bincount(b, minlength=nb), 1)
+    ref_P = np.column_stack([np.bincount(b, weights=P[:, i], minlength=nb) for i in range(4)]) / counts[:, None]
+    np.testing.assert_allclose(run.bin_P, ref_P, rtol=1e-12, atol=1e-14 * np.abs(ref_P).max())
+    for k, (i0, i1, _) in enumerate(cyc):
+        m = np.abs(w[i0:i1]) > 0.02
+        ww = w[i0:i1][m]
+        X = np.column_stack([np.sign(ww), ww, ww * np.abs(ww), ww**3, a[i0:i1][m]])
+        d = np.sqrt(np.mean(X * X, axis=0))
+        c = np.linalg.lstsq(X / d, F[i0:i1][m], rcond=None)[0] / d
+        np.testing.assert_allclose(run.cycle_c[k], c[:4], rtol=1e-9, atol=1e-12)
+        G = X.T @ X / m.sum()
+        M = G[:4, :4] - np.outer(G[:4, 4], G[4, :4]) / G[4, 4]
+        np.testing.assert_allclose(run.cycle_L[k] @ run.cycle_L[k].T, M, rtol=1e-9, atol=1e-12 * np.trace(M))

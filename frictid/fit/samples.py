@@ -107,17 +107,39 @@ class SampleSet:
         """Effective number of independent samples."""
         return self.n / self.inflation
 
-    def speed_order(self) -> np.ndarray:
-        """Indices of the samples in increasing |w| (stable), computed once: every binning of these samples
-        or of a subset of them (:func:`bin_points`) takes its order from it instead of sorting again."""
-        order = self.__dict__.get("_speed_order")
-        if order is None:
-            order = self.__dict__["_speed_order"] = np.argsort(np.abs(self.w), kind="stable")
-        return order
+    def by_speed(self) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
+        """Per velocity sign (positive, then negative): ``(w, F, fold)`` of its samples in increasing |w|
+        (stable), computed once: every binning of these samples or of a subset of folds
+        (:func:`_bin_samples`) takes them from here instead of sorting and gathering again."""
+        out = self.__dict__.get("_by_speed")
+        if out is None:
+            out = []
+            for idx in (np.flatnonzero(self.w > 0), np.flatnonzero(self.w < 0)):
+                idx = idx[argsort_stable(np.abs(self.w[idx]))]
+                out.append((self.w[idx], self.F[idx], self.fold[idx]))
+            out = self.__dict__["_by_speed"] = tuple(out)
+        return out
+
+
+def argsort_stable(a: np.ndarray) -> np.ndarray:
+    """``np.argsort(a, kind="stable")`` of a float array, by a faster unstable sort whose runs of equal
+    values (NaNs together) are then put back in index order."""
+    a = np.asarray(a, dtype=float)
+    order = np.argsort(a)
+    s = a[order]
+    same = (s[1:] == s[:-1]) | (np.isnan(s[1:]) & np.isnan(s[:-1]))
+    if same.any():  # sort by (rank of the distinct value, index): unique int64 keys
+        rank = np.concatenate([[0], np.cumsum(~same)])
+        order = order[np.argsort(rank * a.size + order)]
+    return order
 
 
 def block_ranges(t_list: list[np.ndarray], n_folds: int) -> list[list[tuple[int, int, int]]]:
-    """Per log, ``(i0, i1, block)`` index ranges of the time blocks (logs laid end to end in time)."""
+    """Per log, ``(i0, i1, block)`` index ranges of the time blocks (logs laid end to end in time).
+
+    Sample ``i`` of a log is in block ``min((t_i - t_0 + t_off) // L, n_blocks - 1)``. The times of a log
+    increase, so the blocks are found at their edges: a bisection of t per edge, settled on that formula
+    evaluated at the samples beside the edge (no pass over every sample)."""
     spans = [float(t[-1] - t[0]) if t.size > 1 else 0.0 for t in t_list]
     total = sum(spans)
     n_blocks = BLOCKS_PER_FOLD * n_folds
@@ -127,11 +149,24 @@ def block_ranges(t_list: list[np.ndarray], n_folds: int) -> list[list[tuple[int,
         if t.size == 0:
             out.append([])
             continue
-        b = np.minimum(((t - t[0] + t_off) // L).astype(np.int64), n_blocks - 1)
-        edges = np.flatnonzero(np.diff(b)) + 1
-        starts = np.concatenate([[0], edges])
-        ends = np.concatenate([edges, [t.size]])
-        out.append([(int(i0), int(i1), int(b[i0])) for i0, i1 in zip(starts, ends)])
+
+        def block(i, t=t, t_off=t_off):
+            return min(int(((t[i:i + 1] - t[0] + t_off) // L)[0]), n_blocks - 1)
+
+        n = t.size
+        rr, i0 = [], 0
+        for k in range(block(0) + 1, block(n - 1) + 1):
+            i = int(np.searchsorted(t, t[0] - t_off + k * L))  # first sample of block k, to rounding
+            i = min(max(i, i0), n - 1)
+            while i > i0 and block(i - 1) >= k:
+                i -= 1
+            while i < n and block(i) < k:
+                i += 1
+            if i > i0:
+                rr.append((i0, i, block(i0)))
+                i0 = i
+        rr.append((i0, n, block(i0)))
+        out.append(rr)
         t_off += span
     return out
 
@@ -192,40 +227,52 @@ def _warm_start(full: ModelFit) -> dict:
     return start
 
 
-def bin_points(w: np.ndarray, F: np.ndarray, per_sign: int = BINS_PER_SIGN, order: np.ndarray | None = None,
-               keep: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def bin_points(w: np.ndarray, F: np.ndarray, per_sign: int = BINS_PER_SIGN
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Means of (w, F) in velocity bins of equal counts, per sign: (w_bin [q/s], F_bin [F], count).
 
-    order : the samples' stable order by |w| when known (:meth:`SampleSet.speed_order`); keep : a mask of
-    the samples to bin (default all). The same bins as sorting the kept samples of each sign again."""
-    if order is None:
-        order = np.argsort(np.abs(w), kind="stable")
-    if keep is not None:
-        order = order[keep[order]]
+    The samples of each sign in their stable order by |w| (zero and NaN velocities left out) are cut into
+    ``min(per_sign, n // MIN_PER_BIN)`` bins of equal counts. The definition, for any arrays; a
+    :class:`SampleSet` is binned by :func:`_bin_samples`, which gives the same bins from its sorted copy."""
+    order = np.argsort(np.abs(w), kind="stable")
     ws = w[order]
-    out_w, out_F, out_n = [], [], []
-    for sgn in (1.0, -1.0):
-        m = np.sign(ws) == sgn
-        if not m.any():
-            continue
-        ww, ff = ws[m], F[order[m]]
-        nb = max(1, min(per_sign, ww.size // MIN_PER_BIN))
-        edges = np.linspace(0, ww.size, nb + 1).astype(np.int64)[:-1]
-        cnt = np.diff(np.append(edges, ww.size))
-        out_w.append(np.add.reduceat(ww, edges) / cnt)
-        out_F.append(np.add.reduceat(ff, edges) / cnt)
-        out_n.append(cnt)
-    if not out_w:
+    return _join_bins([_sign_bins(ws[m], F[order[m]], per_sign)
+                       for m in (np.sign(ws) == 1.0, np.sign(ws) == -1.0) if m.any()])
+
+
+def _sign_bins(ww: np.ndarray, ff: np.ndarray, per_sign: int):
+    """Equal-count bin means of one sign's samples (w, F) already in increasing |w|, and the counts."""
+    nb = max(1, min(per_sign, ww.size // MIN_PER_BIN))
+    edges = np.linspace(0, ww.size, nb + 1).astype(np.int64)[:-1]
+    cnt = np.diff(np.append(edges, ww.size))
+    return np.add.reduceat(ww, edges) / cnt, np.add.reduceat(ff, edges) / cnt, cnt
+
+
+def _join_bins(parts):
+    """One (w_bin, F_bin, count) from the per-sign ones (counts as floats)."""
+    if not parts:
         z = np.zeros(0)
         return z, z, z
-    return np.concatenate(out_w), np.concatenate(out_F), np.concatenate(out_n).astype(float)
+    wb, Fb, cnt = (np.concatenate(x) for x in zip(*parts))
+    return wb, Fb, cnt.astype(float)
 
 
-def _fit_binned(name, S: SampleSet, axis, start=None, var_inflation=1.0, keep=None
-                ) -> tuple[ModelFit, np.ndarray, np.ndarray, np.ndarray]:
-    wb, Fb, nb = bin_points(S.w, S.F, order=S.speed_order(), keep=keep)
-    return fit_static(name, wb, Fb, 1.0 / np.sqrt(nb), axis=axis, start=start,
-                      var_inflation=var_inflation), wb, Fb, nb
+def _bin_samples(S: SampleSet, leave_out: int | None = None, per_sign: int = BINS_PER_SIGN):
+    """:func:`bin_points` of the samples of S outside fold ``leave_out`` (all when None), from the
+    speed-sorted samples of :meth:`SampleSet.by_speed` (the same bins, without sorting again)."""
+    parts = []
+    for ww, ff, fold in S.by_speed():
+        if leave_out is not None:
+            keep = fold != leave_out
+            ww, ff = ww[keep], ff[keep]
+        if ww.size:
+            parts.append(_sign_bins(ww, ff, per_sign))
+    return _join_bins(parts)
+
+
+def _fit_binned(name, bins, axis, start=None, var_inflation=1.0) -> ModelFit:
+    wb, Fb, nb = bins
+    return fit_static(name, wb, Fb, 1.0 / np.sqrt(nb), axis=axis, start=start, var_inflation=var_inflation)
 
 
 def fit_map(name: str, S: SampleSet, axis: str = "rotary") -> ModelFit:
@@ -236,7 +283,8 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary") -> ModelFit:
     objective as on the samples while the map is smooth across a bin, and hundreds of times faster);
     its covariance is then rescaled to the residual variance of the samples times their variance factor.
     """
-    mf, wb, Fb, nb = _fit_binned(name, S, axis)
+    bins = wb, Fb, nb = _bin_samples(S)
+    mf = _fit_binned(name, bins, axis)
     vals = mf.values()
     k = int(mf.metrics.get("k") or 0)
     pred = predict(name, vals, S.w)
@@ -252,8 +300,8 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary") -> ModelFit:
         s2_bins = float(np.sum(nb * rb**2)) / max(wb.size - k, 1)
         s2_samples = rss / max(n - k, 1)
         if s2_bins > 0:
-            mf, *_ = _fit_binned(name, S, axis, start=_warm_start(mf),
-                                 var_inflation=S.inflation * s2_samples / s2_bins)
+            mf = _fit_binned(name, bins, axis, start=_warm_start(mf),
+                             var_inflation=S.inflation * s2_samples / s2_bins)
             vals = mf.values()
         start = _warm_start(mf)
         ph = np.full(S.n, np.nan)
@@ -261,7 +309,7 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary") -> ModelFit:
             te = S.fold == f
             if not te.any() or te.all():
                 continue
-            m, *_ = _fit_binned(name, S, axis, start=start, keep=~te)
+            m = _fit_binned(name, _bin_samples(S, leave_out=f), axis, start=start)
             ph[te] = predict(name, m.values(), S.w[te])
         rh = ph - S.F
         if np.isfinite(rh).all():

@@ -1,0 +1,85 @@
+"""Sample basis: the stable speed order, velocity-bin means of a SampleSet and its time blocks, each
+checked against the plain definition (a stable sort of every subset, the block formula on every sample)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from frictid.fit.samples import (BINS_PER_SIGN, BLOCKS_PER_FOLD, SampleSet, _bin_samples, argsort_stable,
+                                 bin_points, block_ranges)
+
+
+@pytest.mark.parametrize("levels", [None, 7])
+def test_argsort_stable_matches_numpy_stable_sort(levels):
+    rng = np.random.default_rng(0)
+    for n in (0, 1, 2, 50, 5000):
+        a = rng.normal(size=n)
+        if levels:  # many ties, and NaNs
+            a = np.round(a * levels) / levels
+            a[rng.random(n) < 0.05] = np.nan
+        np.testing.assert_array_equal(argsort_stable(a), np.argsort(a, kind="stable"))
+
+
+def _sample_set(n, n_folds, seed, quantised=False):
+    rng = np.random.default_rng(seed)
+    w = rng.normal(size=n) * rng.choice([0.1, 1.0, 3.0], n)
+    if quantised:  # an encoder's velocity: many equal speeds, both signs, and some zeros
+        w = np.round(w * 20) / 20
+    F = np.sign(w) * (1 + 0.3 * np.abs(w)) + rng.normal(0, 0.1, n)
+    block = np.sort(rng.integers(0, BLOCKS_PER_FOLD * n_folds, n))
+    return SampleSet(w, F, block, block % n_folds, np.zeros(n, int), 1, n, n_folds)
+
+
+@pytest.mark.parametrize("n, quantised", [(40_000, False), (40_000, True), (700, True), (30, False)])
+def test_binning_a_sample_set_gives_the_bins_of_its_definition(n, quantised):
+    S = _sample_set(n, 5, seed=n, quantised=quantised)
+    for f in (None, 0, 3):
+        keep = np.ones(n, bool) if f is None else S.fold != f
+        got = _bin_samples(S, leave_out=f)
+        ref = bin_points(S.w[keep], S.F[keep])
+        for g, r in zip(got, ref):
+            np.testing.assert_array_equal(g, r)  # the same samples summed in the same order
+    wb, Fb, nb = _bin_samples(S)
+    assert nb.sum() == np.count_nonzero(S.w)
+    assert wb.size <= 2 * BINS_PER_SIGN
+
+
+def test_bin_points_by_hand():
+    w = np.array([-2.0, 1.0, 3.0, -1.0, 2.0, 0.0, 4.0, np.nan])
+    F = np.array([-20.0, 10.0, 30.0, -10.0, 20.0, 5.0, 40.0, 1.0])
+    wb, Fb, nb = bin_points(w, F, per_sign=2)  # 4 positive samples: one bin (MIN_PER_BIN); 2 negative: one
+    np.testing.assert_allclose(wb, [2.5, -1.5])
+    np.testing.assert_allclose(Fb, [25.0, -15.0])
+    np.testing.assert_array_equal(nb, [4.0, 2.0])
+
+
+def _dense_blocks(t_list, n_folds):
+    """The block of every sample by its formula, and the ranges where it is constant."""
+    spans = [float(t[-1] - t[0]) if t.size > 1 else 0.0 for t in t_list]
+    n_blocks = BLOCKS_PER_FOLD * n_folds
+    L = sum(spans) / n_blocks if sum(spans) > 0 else 1.0
+    out, t_off = [], 0.0
+    for t, span in zip(t_list, spans):
+        b = np.minimum(((t - t[0] + t_off) // L).astype(np.int64), n_blocks - 1) if t.size else t
+        cuts = [0] + [int(i) + 1 for i in np.flatnonzero(np.diff(b))] + [t.size]
+        out.append([(i0, i1, int(b[i0])) for i0, i1 in zip(cuts[:-1], cuts[1:])] if t.size else [])
+        t_off += span
+    return out
+
+
+def test_block_ranges_match_the_block_of_every_sample():
+    rng = np.random.default_rng(1)
+    cases = [[np.arange(10.0)], [np.arange(10.0), np.arange(10.0)], [np.zeros(0), np.arange(3.0)], [np.ones(1)],
+             [np.arange(0, 3600, 1e-3)]]
+    for _ in range(200):
+        logs = []
+        for _ in range(rng.integers(1, 4)):
+            n = int(rng.integers(0, 300))
+            t = rng.random() * 10 + np.cumsum(rng.exponential(rng.choice([1e-3, 0.1, 1 / 3]), n))
+            if n > 10 and rng.random() < 0.3:
+                t[n // 2:] += 50 * rng.random()  # a pause longer than a block
+            logs.append(t)
+        cases.append(logs)
+    for logs in cases:
+        for n_folds in (2, 3, 5):
+            assert block_ranges(logs, n_folds) == _dense_blocks(logs, n_folds)
