@@ -21,7 +21,7 @@ from frictid.diagnose import DiagLog, diagnose_joint
 from frictid.diagnose.causes import best_period
 from frictid.diagnose.chain import paired_t
 from frictid.diagnose.model import Context, Evaluator, Structure, Term
-from frictid.diagnose.samples import build_samples, heat_balance_rise
+from frictid.diagnose.samples import _rise, build_samples, heat_balance_rise
 from frictid.fit.result import FitResult, JointFit, ModelFit, ParamEstimate
 from frictid.models import static as sm
 from frictid.replay import joint_model, replay
@@ -113,6 +113,29 @@ def test_heat_balance_rise_is_exact_for_constant_power():
     t = np.arange(0, 200.0, 0.5)
     x = heat_balance_rise(t, np.full(t.size, 3.0), np.zeros(t.size), tau_c=40.0, K=1.0)
     assert np.allclose(x, 3.0 * (1 - np.exp(-t / 40.0)), rtol=1e-12, atol=1e-12)
+
+
+def test_compiled_heat_balance_agrees_with_lfilter():
+    u = np.random.default_rng(4).uniform(-1.0, 5.0, 20000)
+    for tau_c in (0.05, 3.0, 600.0):
+        a = _rise(u, 0.01, 0.7, tau_c)
+        b = _rise(u, 0.01, 0.7, tau_c, ref=True)
+        assert np.allclose(a, b, rtol=1e-13, atol=1e-13)
+
+
+def test_thermal_state_is_the_heat_balance_of_the_whole_log_at_the_samples():
+    lg = plateau_log(seed=5)
+    lg2 = plateau_log(seed=6, t0=7200.0)
+    lg2.channels = {}  # no ambient temperature: held at T0
+    S = build_samples([lg, lg2], 5)
+    for tau_c in (2.0, 30.0):
+        x = S.thermal_state(tau_c)
+        for i, g in enumerate(S.logs):
+            Tenv = g.channels.get("temp_env", np.full(g.n, S.T0))
+            full = heat_balance_rise(g.t, np.nan_to_num(g.F * g.w), Tenv - S.T0, tau_c, ref=True)
+            sel = S.li == i
+            assert sel.any()
+            assert np.allclose(x[sel], full[S.k[sel]], rtol=1e-12, atol=1e-12)
 
 
 def test_periodogram_finds_the_period():

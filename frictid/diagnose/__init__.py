@@ -236,7 +236,7 @@ def _cum_energy(S: Samples) -> np.ndarray:
     out = np.empty(S.n)
     base = 0.0
     for i, lg in enumerate(S.logs):
-        P = np.nan_to_num(lg.F * lg.w)
+        P = S.power(i)
         dt = np.diff(lg.t, prepend=lg.t[0])
         E = base + np.cumsum(P * dt)
         sel = S.li == i

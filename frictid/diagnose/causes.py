@@ -99,8 +99,7 @@ def candidates(S: Samples, st: Structure, ctx: Context | None = None) -> list[st
 
 
 def _dt(S: Samples) -> float:
-    lg = S.logs[0]
-    return float(np.median(np.diff(lg.t))) if lg.n > 1 else 1.0
+    return S.dt(0)
 
 
 def _period_range(S: Samples):
@@ -115,9 +114,13 @@ def _period_range(S: Samples):
 def acceleration_share(S: Samples) -> float:
     """Share of the acceleration excitation (sum of a^2 over the moving samples, faster than 2 % of the top
     speed) that the sliding samples carry (their decimation undone)."""
+    return S.cached("acceleration_share", lambda: _acceleration_share(S))
+
+
+def _acceleration_share(S: Samples) -> float:
     tot = 0.0
-    for lg in S.logs:
-        w, a = np.nan_to_num(lg.w), np.nan_to_num(lg.a)
+    for i in range(len(S.logs)):
+        w, a = S.log_w(i), S.log_a(i)
         m = np.abs(w) > 0.02 * S.w0
         tot += float(np.sum(a[m] ** 2))
     if tot <= 0:
@@ -142,8 +145,8 @@ def run_time(S: Samples) -> float:
     """Mean duration [s] of a run of one velocity sign (moving faster than 2 % of the top speed) over the
     logs: the time scale of the excitation (half a cycle of a back-and-forth motion)."""
     total, runs = 0.0, 0
-    for lg in S.logs:
-        w = np.nan_to_num(lg.w)
+    for i, lg in enumerate(S.logs):
+        w = S.log_w(i)
         m = np.abs(w) > 0.02 * S.w0
         if m.sum() < 2:
             continue
@@ -286,16 +289,22 @@ def best_period(q, resid, level, prange, n_keep: int = 3) -> float | None:
     sel = np.linspace(0, q.size - 1, m).astype(int)
     qq, r1, g1 = q[sel], np.asarray(resid, float)[sel], np.asarray(level, float)[sel]
 
+    df = 1.0 / (N * h)
+
     def exact(freqs):
-        ph = 2 * np.pi * np.outer(freqs, qq)
-        s_, c_ = np.sin(ph) * g1, np.cos(ph) * g1
+        # exp(2 pi i f q) on the evenly spaced freqs (step df / 4): the first row, then rotations by the step
+        z = np.empty((freqs.size, qq.size), complex)
+        z[0] = np.exp(2j * np.pi * freqs[0] * qq)
+        rot = np.exp(2j * np.pi * (0.25 * df) * qq)
+        for k in range(1, freqs.size):
+            np.multiply(z[k - 1], rot, out=z[k])
+        s_, c_ = z.imag * g1, z.real * g1
         a, b, x = (s_ * s_).sum(1), (c_ * c_).sum(1), (s_ * c_).sum(1)
         u, v = s_ @ r1, c_ @ r1
         dd = a * b - x * x
         dd = np.where(dd > 0, dd, np.inf)
         return (b * u * u - 2 * x * u * v + a * v * v) / dd
 
-    df = 1.0 / (N * h)
     best_f, best_s = None, -np.inf
     for i in np.argsort(score)[::-1][:n_keep]:
         fine = np.linspace(f[i] - 2 * df, f[i] + 2 * df, 17)

@@ -119,8 +119,8 @@ class Context:
         self.sgn = np.sign(S.w)
         self.v = np.abs(S.w)
         # the largest speed and acceleration of the logs (not only of the sliding samples)
-        self.w_top = max(float(np.max(np.abs(np.nan_to_num(lg.w)))) for lg in S.logs)
-        self.a_top = max(float(np.max(np.abs(np.nan_to_num(lg.a)))) for lg in S.logs)
+        self.w_top = max(float(np.max(np.abs(S.log_w(i)))) for i in range(len(S.logs)))
+        self.a_top = max(float(np.max(np.abs(S.log_a(i)))) for i in range(len(S.logs)))
 
     @staticmethod
     def base_key(slot: int, shapes, term_nl=None) -> tuple:
@@ -242,6 +242,13 @@ class Context:
         self._cache[key] = c
         return c
 
+    def term_vectors(self, term: Term) -> list:
+        """The columns of :meth:`term_columns` as contiguous vectors (cached)."""
+        key = ("term_vectors", term.ext, term.nl)
+        if key not in self._cache:
+            self._cache[key] = [np.ascontiguousarray(x) for x in self.term_columns(term).T]
+        return self._cache[key]
+
     def thermal(self, tau_c: float, source: str = "heat_balance") -> np.ndarray:
         key = ("thermal", round(float(tau_c), 9), source)
         if key not in self._cache:
@@ -249,15 +256,24 @@ class Context:
         return self._cache[key]
 
 
-def _lstsq(X: np.ndarray, y: np.ndarray) -> np.ndarray:
-    if X.shape[1] == 0:
+def _lstsq(cols: list, y: np.ndarray) -> np.ndarray:
+    """Least-squares coefficients of y on the columns ``cols`` (1-D arrays of y's length).
+
+    Normal equations of the columns scaled to unit RMS, solved by a rank-revealing pseudo-inverse. Their
+    sums are einsum dot products of contiguous vectors: no n x p matrix, and no threaded BLAS for these
+    thin products."""
+    p = len(cols)
+    if p == 0:
         return np.zeros(0)
-    d = np.sqrt(np.einsum("ij,ij->j", X, X) / X.shape[0])
+    XtX = np.empty((p, p))
+    Xty = np.empty(p)
+    for i, a in enumerate(cols):
+        Xty[i] = np.einsum("i,i->", a, y)
+        for j in range(i, p):
+            XtX[i, j] = XtX[j, i] = np.einsum("i,i->", a, cols[j])
+    d = np.sqrt(XtX.diagonal() / y.shape[0])
     d[~(d > 0)] = 1.0
-    Xs = X / d
-    # normal equations of the scaled columns (einsum: no threaded BLAS for these thin products), solved by
-    # a rank-revealing pseudo-inverse
-    b = np.linalg.pinv(np.einsum("ij,ik->jk", Xs, Xs), rcond=1e-10, hermitian=True) @ np.einsum("ij,i->j", Xs, y)
+    b = np.linalg.pinv(XtX / np.outer(d, d), rcond=1e-10, hermitian=True) @ (Xty / d)
     return b / d
 
 
@@ -268,6 +284,26 @@ BOUND = 10.0
 EXCITE = 0.2
 #: ... and a factor term at most this much (1 + phi gamma between -1 and 3).
 FACTOR_BOUND = 2.0
+
+
+def _combination(cols, coef) -> np.ndarray:
+    """``sum_j coef_j cols_j`` (cols: 1-D arrays), summed in column order."""
+    out = cols[0] * coef[0]
+    for x, g in zip(cols[1:], coef[1:]):
+        out = out + x * g
+    return out
+
+
+class _At:
+    """The columns of an :class:`Evaluator` at samples idx (all samples when idx is None), gathered once
+    for a whole fit or prediction. base : {slot: column}; vec : {term index: columns}; pos : w >= 0."""
+
+    def __init__(self, ev: "Evaluator", idx):
+        take = (lambda x: x) if idx is None else (lambda x: x[idx])
+        self.n = ev.ctx.S.n if idx is None else int(idx.size)
+        self.pos = take(ev.pos)
+        self.base = {sl: take(col) for sl, col in ev.base_cols.items()}
+        self.vec = {i: [take(x) for x in cols] for i, cols in ev.vec.items()}
 
 
 class Evaluator:
@@ -293,59 +329,65 @@ class Evaluator:
         self.af = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "whole_factor"]
         self.add = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "additive"]
         self.t6 = next(((i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "thermal6"), None)
+        #: each term's columns as contiguous vectors, by term index
+        self.vec = {i: ctx.term_vectors(t)
+                    for i, t, _ in self.lf + self.af + self.add + ([self.t6] if self.t6 is not None else [])}
 
     # pieces -----------------------------------------------------------------------------------------
-    def _gf(self, c: Coef, idx):
-        """Level part g (signed, incl. thermal6 dc0) and viscous part f at samples idx."""
-        g = np.zeros(idx.size)
-        f = np.zeros(idx.size)
-        pos = self.pos[idx]
-        for sl, col in self.base_cols.items():
-            amp = np.where(pos, c.base_pos.get(sl, 0.0), c.base_neg.get(sl, 0.0))
+    def _gf(self, c: Coef, a: _At):
+        """Level part g (signed, incl. thermal6 dc0) and viscous part f at the samples of a."""
+        g = np.zeros(a.n)
+        f = np.zeros(a.n)
+        for sl, col in a.base.items():
+            ap, an = c.base_pos.get(sl, 0.0), c.base_neg.get(sl, 0.0)
+            amp = ap if ap == an else np.where(a.pos, ap, an)  # per sign only when they differ
             if sl in LEVEL_SLOTS:
-                g += amp * col[idx]
+                g += amp * col
             else:
-                f += amp * col[idx]
+                f += amp * col
         if self.t6 is not None:
-            X = self.t6[2][idx]
-            g += X[:, 0] * c.dc[0]
-            f += np.einsum("ij,j->i", X[:, 1:], c.dc[1:])
+            X = a.vec[self.t6[0]]
+            g += X[0] * c.dc[0]
+            f += _combination(X[1:], c.dc[1:])
         return g, f
 
-    def _factor(self, group, c: Coef, idx, skip=None):
-        m = np.ones(idx.size)
+    def _factor(self, group, c: Coef, a: _At, skip=None):
+        m = np.ones(a.n)
         for i, t, X in group:
             if i == skip:
                 continue
-            m *= 1.0 + np.einsum("ij,j->i", X[idx], np.atleast_1d(c.gamma.get(i, np.zeros(X.shape[1]))))
+            m *= 1.0 + _combination(a.vec[i], np.atleast_1d(c.gamma.get(i, np.zeros(X.shape[1]))))
         return m
 
-    def _additive(self, c: Coef, idx):
-        out = np.zeros(idx.size)
+    def _additive(self, c: Coef, a: _At):
+        out = np.zeros(a.n)
         for i, t, X in self.add:
-            out += np.einsum("ij,j->i", X[idx], np.atleast_1d(c.gamma.get(i, np.zeros(X.shape[1]))))
+            out += _combination(a.vec[i], np.atleast_1d(c.gamma.get(i, np.zeros(X.shape[1]))))
         return out
 
     def level(self, c: Coef, idx) -> np.ndarray:
         """The signed friction level ``mA mL g`` [F] at samples idx (what level factors multiply)."""
-        g, f = self._gf(c, idx)
-        return self._factor(self.af, c, idx) * self._factor(self.lf, c, idx) * g
+        a = _At(self, idx)
+        g, f = self._gf(c, a)
+        return self._factor(self.af, c, a) * self._factor(self.lf, c, a) * g
 
     def predict(self, c: Coef, idx=None) -> np.ndarray:
-        idx = np.arange(self.ctx.S.n) if idx is None else idx
-        g, f = self._gf(c, idx)
-        return self._factor(self.af, c, idx) * (self._factor(self.lf, c, idx) * g + f) + self._additive(c, idx)
+        return self._predict(c, _At(self, idx))
+
+    def _predict(self, c: Coef, a: _At) -> np.ndarray:
+        g, f = self._gf(c, a)
+        return self._factor(self.af, c, a) * (self._factor(self.lf, c, a) * g + f) + self._additive(c, a)
 
     # fit ----------------------------------------------------------------------------------------------
-    def _linear_columns(self, c: Coef, idx, mL, mA):
+    def _linear_columns(self, c: Coef, a: _At, mL, mA):
         """Columns of the coefficients that enter linearly (base amplitudes, thermal6 slopes, additive
-        terms) at samples idx, with their keys, the excluded ones left out."""
-        pos = self.pos[idx]
+        terms) at the samples of a, with their keys, the excluded ones left out."""
+        pos = a.pos
         cols, keys = [], []
-        for sl, col in self.base_cols.items():
+        for sl, col in a.base.items():
             if sl in self._held:
                 continue
-            x = col[idx] * (mA * mL if sl in LEVEL_SLOTS else mA)
+            x = col * (mA * mL if sl in LEVEL_SLOTS else mA)
             if self.st.asym:
                 cols += [x * pos, x * ~pos]
                 keys += [("p", sl, 0), ("n", sl, 0)]
@@ -353,23 +395,23 @@ class Evaluator:
                 cols.append(x)
                 keys.append(("b", sl, 0))
         if self.t6 is not None:
-            X = self.t6[2][idx]
-            cols.append(X[:, 0] * mA * mL)
+            X = a.vec[self.t6[0]]
+            cols.append(X[0] * mA * mL)
             keys.append(("dc", 0, 0))
             for j in range(1, 4):
-                cols.append(X[:, j] * mA)
+                cols.append(X[j] * mA)
                 keys.append(("dc", j, 0))
         for i, t, X in self.add:
-            for j in range(X.shape[1]):
-                cols.append(X[idx, j])
+            for j, x in enumerate(a.vec[i]):
+                cols.append(x)
                 keys.append(("g", i, j))
         keep = [k not in self._excl for k in keys]
         return [x for x, o in zip(cols, keep) if o], [k for k, o in zip(keys, keep) if o]
 
-    def _linear_block(self, c: Coef, idx, y):
-        mL = self._factor(self.lf, c, idx)
-        mA = self._factor(self.af, c, idx)
-        cols, keys = self._linear_columns(c, idx, mL, mA)
+    def _linear_block(self, c: Coef, a: _At, y):
+        mL = self._factor(self.lf, c, a)
+        mA = self._factor(self.af, c, a)
+        cols, keys = self._linear_columns(c, a, mL, mA)
         c.base_pos, c.base_neg, c.dc = {}, {}, np.zeros(4)
         for i, t, X in self.add:
             c.gamma[i] = np.zeros(X.shape[1])
@@ -377,16 +419,15 @@ class Evaluator:
         for sl in self._held:
             c.base_pos[sl] = c.base_neg[sl] = float(self.st.shapes[sl])
         if self._held:
-            g, f = self._gf(c, idx)
+            g, f = self._gf(c, a)
             y = y - mA * (mL * g + f)
         if cols:
-            self._apply(c, keys, _lstsq(np.column_stack(cols), y))
+            self._apply(c, keys, _lstsq(cols, y))
 
     def _linear_items(self):
         """The linear columns with every factor at one, on all samples: [(key, vector, coefficient key)],
         the excluded ones left out, and the held base columns [(key, vector, value)]."""
         items, held = [], []
-        pos = self.pos
         for sl, col in self.base_cols.items():
             k = self.base_keys[sl]
             if sl in self._held:
@@ -398,8 +439,8 @@ class Evaluator:
             else:
                 items.append((k, col, ("b", sl, 0)))
         for i, t, X in ([self.t6] if self.t6 is not None else []) + self.add:
-            for j in range(X.shape[1]):
-                items.append((("term", t.ext, t.nl, j), X[:, j], ("dc", j, 0) if t.role == "thermal6" else ("g", i, j)))
+            for j, x in enumerate(self.vec[i]):
+                items.append((("term", t.ext, t.nl, j), x, ("dc", j, 0) if t.role == "thermal6" else ("g", i, j)))
         return [x for x in items if x[2] not in self._excl], held
 
     def _linear_block_ne(self, c: Coef, fold):
@@ -429,27 +470,27 @@ class Evaluator:
         rss = float(yty - 2 * b @ Xty + b @ XtX @ b) if p else float(yty)
         return max(rss, 0.0), ne.n
 
-    def _jacobian(self, c: Coef, idx):
+    def _jacobian(self, c: Coef, a: _At):
         """Prediction and the columns of its derivative in every coefficient, with their keys."""
-        g, f = self._gf(c, idx)
-        mL = self._factor(self.lf, c, idx)
-        mA = self._factor(self.af, c, idx)
-        cols, keys = self._linear_columns(c, idx, mL, mA)
+        g, f = self._gf(c, a)
+        mL = self._factor(self.lf, c, a)
+        mA = self._factor(self.af, c, a)
+        cols, keys = self._linear_columns(c, a, mL, mA)
         for i, t, X in self.lf:
-            d = mA * self._factor(self.lf, c, idx, skip=i) * g
-            for j in range(X.shape[1]):
+            d = mA * self._factor(self.lf, c, a, skip=i) * g
+            for j, x in enumerate(a.vec[i]):
                 if ("g", i, j) not in self._excl:
-                    cols.append(d * X[idx, j])
+                    cols.append(d * x)
                     keys.append(("g", i, j))
         inner = mL * g + f
         for i, t, X in self.af:
-            d = self._factor(self.af, c, idx, skip=i) * inner
-            for j in range(X.shape[1]):
+            d = self._factor(self.af, c, a, skip=i) * inner
+            for j, x in enumerate(a.vec[i]):
                 if ("g", i, j) not in self._excl:
-                    cols.append(d * X[idx, j])
+                    cols.append(d * x)
                     keys.append(("g", i, j))
-        pred = mA * inner + self._additive(c, idx)
-        return pred, np.column_stack(cols), keys
+        pred = mA * inner + self._additive(c, a)
+        return pred, cols, keys
 
     def _unsupported(self, c: Coef, y_scale: float) -> list:
         """Coefficients whose term would exceed the data anywhere on the samples (inputs only, never the
@@ -518,6 +559,8 @@ class Evaluator:
                 self._held.add(1)
         fold = self.ctx.fold_of(idx) if self.ctx.use_normal_equations else False
         linear = not (self.lf or self.af)
+        # the columns at idx, gathered once (not needed by a linear fit from the normal equations)
+        rows = _At(self, idx) if (fold is False or not linear) else None
         rss = None
         for _ in range(4):
             c = Coef({}, {}, np.zeros(4), {})
@@ -526,14 +569,14 @@ class Evaluator:
             if fold is not False:
                 rss, n_ne = self._linear_block_ne(c, fold)
             else:
-                self._linear_block(c, idx, y)
+                self._linear_block(c, rows, y)
             if self.lf or self.af:
                 prev = np.inf
                 for _ in range(max_iter):
-                    pred, Jm, keys = self._jacobian(c, idx)
+                    pred, cols, keys = self._jacobian(c, rows)
                     r = y - pred
                     cost = float(np.einsum("i,i->", r, r))
-                    self._apply(c, keys, _lstsq(Jm, r))
+                    self._apply(c, keys, _lstsq(cols, r))
                     if abs(prev - cost) <= tol * max(cost, 1e-300):
                         break
                     prev = cost
@@ -556,7 +599,7 @@ class Evaluator:
         if linear and fold is not False and not bad and rss is not None:
             c.rms = float(np.sqrt(rss / n_ne)) if n_ne else float("nan")
         else:
-            r = y - self.predict(c, idx)
+            r = y - self._predict(c, rows if rows is not None else _At(self, idx))
             c.rms = float(np.sqrt(np.mean(r * r))) if r.size else float("nan")
         c.n = int(idx.size)
         return c
