@@ -39,7 +39,8 @@ import numpy as np
 from ..data import JointLog, Segment
 from . import stats as _stats
 from .duty import duty_cycles
-from .runs import box_mean, box_slope, drop_short, fill_short, paint, runs
+from .runs import (any_in_runs, box_mean, box_slope, closed_runs, count_prefix, drop_short, fill_short, paint,
+                   prefix_sum, runs)
 from .scales import Scales, estimate_scales, local_noise, log_position, velocity
 
 #: Noise multiple for "clearly nonzero".
@@ -98,6 +99,7 @@ class Features:
     sigma_tau_loc: np.ndarray
     sigma_wc: float
     sigma_dv: float
+    tau_c: np.ndarray | None = None  # prefix_sum(tau): every torque slope (box_slope) works from it
 
 
 def features(log: JointLog, sc: Scales | None = None) -> Features:
@@ -124,17 +126,23 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
         sigma_dv = 2.0 * sc.sigma_q / (h * dt)
     sigma_wc = max(sigma_wc, sc.sigma_w / math.sqrt(max(1.0, 2 * h / sc.window_w)))
     sigma_dv = max(sigma_dv, sc.sigma_w * math.sqrt(2.0 / max(1.0, h / sc.window_w)))
-    dv = box_slope(w, h, dt) * (h * dt)
+    dv = box_slope(w, h, dt)
+    dv *= h * dt
     floor = R_STILL * sc.w_scale
-    still = np.abs(wc) < max(K_NOISE * sigma_wc, floor)
+    band = np.abs(wc)  # |wc|, then the steady band (in place: one full-length temporary, not four)
+    still = band < max(K_NOISE * sigma_wc, floor)
     still_fine = fill_short(np.abs(w) < max(K_NOISE * sc.sigma_w, floor), sc.window_w, False)
-    steady = np.abs(dv) < np.maximum(K_NOISE * sigma_dv, R_STEADY * np.abs(wc))
-    s = box_slope(tau, h, dt)
+    band *= R_STEADY
+    steady = np.abs(dv) < np.maximum(band, K_NOISE * sigma_dv, out=band)
+    del band
+    tau_c = prefix_sum(tau)
+    s = box_slope(tau, h, dt, tau_c)
     floor = max(sc.tau_step / math.sqrt(12.0), 1e-9 * max(sc.tau_range, 1e-300))
-    sigma_tau_loc = np.maximum(local_noise(tau, n_min), floor)
+    sigma_tau_loc = local_noise(tau, n_min)
+    np.maximum(sigma_tau_loc, floor, out=sigma_tau_loc)
     return Features(sc=sc, t=np.asarray(log.t, dtype=float), q=q, tau=tau, w=w, h=h, n_min=n_min, wc=wc,
                     dv=dv, still=still, still_fine=still_fine, steady=steady, s=s,
-                    sigma_tau_loc=sigma_tau_loc, sigma_wc=sigma_wc, sigma_dv=sigma_dv)
+                    sigma_tau_loc=sigma_tau_loc, sigma_wc=sigma_wc, sigma_dv=sigma_dv, tau_c=tau_c)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -147,8 +155,13 @@ def find_jumps(f: Features) -> np.ndarray:
     standard errors; one index per jump (the steepest sample). Small jumps in noisy torque are looked for
     again at four times that scale."""
     hj = max(1, int(round(T_JUMP / f.sc.dt)))
-    fine = _jumps_at(f, hj)
-    coarse = _jumps_at(f, 4 * hj)
+    # torque change over hj, 4 hj and 16 hj samples (4 hj is the long change of the fine scale and the
+    # short change of the coarse one)
+    d = {k: _slope(f, k) for k in (hj, 4 * hj, 16 * hj)}
+    for k, v in d.items():
+        v *= k * f.sc.dt
+    fine = _jumps_at(f, hj, d[hj], d[4 * hj])
+    coarse = _jumps_at(f, 4 * hj, d[4 * hj], d[16 * hj])
     if coarse.size and fine.size:
         k = np.searchsorted(fine, coarse)
         near = np.zeros(coarse.size, dtype=bool)
@@ -159,19 +172,37 @@ def find_jumps(f: Features) -> np.ndarray:
     return np.sort(np.concatenate((fine, coarse)))
 
 
-def _jumps_at(f: Features, hj: int) -> np.ndarray:
-    dt = f.sc.dt
-    d1 = box_slope(f.tau, hj, dt) * (hj * dt)
-    d4 = box_slope(f.tau, 4 * hj, dt) * (4 * hj * dt)
-    thr = K_NOISE * f.sigma_tau_loc * math.sqrt(2.0 / hj)
-    big = np.abs(d1 - 0.25 * d4) > thr
+def _slope(f: Features, h: int) -> np.ndarray:
+    """Torque slope [F/s] at half-width ``h`` samples (:func:`~.runs.box_slope` of ``f.tau``)."""
+    return box_slope(f.tau, h, f.sc.dt, f.tau_c)
+
+
+def _jumps_at(f: Features, hj: int, d1: np.ndarray, d4: np.ndarray) -> np.ndarray:
+    """Jumps at scale ``hj``: ``d1``, ``d4`` the torque changes over ``hj`` and ``4 hj`` samples."""
+    thr = K_NOISE * f.sigma_tau_loc
+    thr *= math.sqrt(2.0 / hj)
+    u = 0.25 * d4
+    np.subtract(d1, u, out=u)
+    big = np.abs(u, out=u) > thr
+    del u, thr
     s, e = runs(big)
     if s.size == 0:
         return np.zeros(0, dtype=np.int64)
-    absd = np.abs(d1)
-    peak = np.array([s0 + int(np.argmax(absd[s0:e0])) for s0, e0 in zip(s, e)], dtype=np.int64)
+    peak = _run_peak(d1, s, e)
     inst = np.abs(d1[peak]) >= 0.75 * np.abs(d4[peak])
     return peak[inst]
+
+
+def _run_peak(x: np.ndarray, s: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """Index of the largest ``|x|`` (the first one on a tie) in each run ``[s, e)`` (non-empty, in order),
+    looking at the samples of the runs only."""
+    n = e - s
+    first = np.concatenate(([0], np.cumsum(n)[:-1]))
+    idx = np.arange(int(n.sum()), dtype=np.int64) + np.repeat(s - first, n)
+    v = np.abs(x[idx])
+    top = np.maximum.reduceat(v, first)
+    hit = np.flatnonzero(v == np.repeat(top, n))
+    return idx[hit[np.searchsorted(hit, first)]]
 
 
 def _step(f: Features, j: int, hj: int, events: np.ndarray, code: np.ndarray) -> tuple[int, int] | None:
@@ -294,11 +325,8 @@ def grow(core: np.ndarray, ok: np.ndarray) -> np.ndarray:
     s, e = runs(ok)
     if s.size == 0:
         return np.zeros_like(ok, dtype=bool)
-    c = np.concatenate(([0], np.cumsum(core & ok)))
-    keep = (c[e] - c[s]) > 0
+    keep = any_in_runs(core, s, e)  # core outside ok is outside every run
     out = np.zeros_like(ok, dtype=bool)
-    from .runs import paint
-
     paint(out, s[keep], e[keep], True)
     return out
 
@@ -345,10 +373,8 @@ def classify(log: JointLog, scales: Scales | None = None) -> tuple[np.ndarray, l
 
     # 4. constant velocity
     cv = f.steady & ~f.still & (code < 0)
-    cv = fill_short(cv, max(2, f.h // 4), False)
-    cv = drop_short(cv, n_min)
     plateaus = []
-    for i0, i1 in zip(*runs(cv)):
+    for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), n_min)):
         i0, i1 = _extend_plateau(f, int(i0), int(i1), code)
         if i1 - i0 < n_min or not _same_sign(f.w[i0:i1]):
             continue
@@ -372,18 +398,23 @@ def classify(log: JointLog, scales: Scales | None = None) -> tuple[np.ndarray, l
     # does not change by more than R_RAMP of its range within T_MIN (a controller loading a stuck joint)
     # (hysteresis: the loading is found at the feature scale, its edges at a finer one)
     hf = max(f.sc.window_w, f.h // 4)
-    sf = box_slope(f.tau, hf, sc.dt)
-    sig_sf = f.sigma_tau_loc * math.sqrt(2.0 / hf) / (hf * sc.dt)
-    sig_s = f.sigma_tau_loc * math.sqrt(2.0 / f.h) / (f.h * sc.dt)
+    sf = _slope(f, hf)
     rate = R_RAMP * sc.tau_range / T_MIN
-    core = np.abs(f.s) > np.maximum(K_NOISE * sig_s, rate)
-    loading = grow(core, np.abs(sf) > np.maximum(2.0 * sig_sf, 0.5 * rate))
+    thr = f.sigma_tau_loc * math.sqrt(2.0 / f.h)  # K_NOISE sig_s, the noise of f.s, or the rate
+    thr /= f.h * sc.dt
+    thr *= K_NOISE
+    core = np.abs(f.s) > np.maximum(thr, rate, out=thr)
+    thr = f.sigma_tau_loc * math.sqrt(2.0 / hf)  # 2 sig_sf, the noise of sf, or half the rate
+    thr /= hf * sc.dt
+    thr *= 2.0
+    loading = grow(core, np.abs(sf, out=sf) > np.maximum(thr, 0.5 * rate, out=thr))
+    del sf, thr
     # ... unless the joint does not move right after it and it is a controller relaxing after a stop (it
     # starts right after motion, within h) or a torque jump (a jump found above, seen through the slope
     # window: its core above the full threshold no longer than 2h)
     ls, le = runs(loading)
-    core_c = np.concatenate(([0], np.cumsum(core)))
-    moving_c = np.concatenate(([0], np.cumsum(~f.still_fine)))
+    core_c = count_prefix(core)
+    moving_c = count_prefix(~f.still_fine)
     moves_after = moving_c[np.minimum(le + hf, n)] - moving_c[np.minimum(le, n)] > 0
     moved_before = moving_c[ls] - moving_c[np.maximum(ls - f.h, 0)] > 0
     all_jumps = np.sort(jumps)
@@ -453,18 +484,20 @@ def _ramp_candidates(f: Features, code: np.ndarray, scale: int) -> np.ndarray:
     classified samples; edges where the slope falls to half the run's median (the corners of a ramp)."""
     out = []
     dt = f.sc.dt
-    s = f.s if scale == f.h else box_slope(f.tau, scale, dt)
-    thr = 2.0 * f.sigma_tau_loc * math.sqrt(2.0 / scale) / (scale * dt)
+    s = f.s if scale == f.h else _slope(f, scale)
+    thr = 2.0 * f.sigma_tau_loc
+    thr *= math.sqrt(2.0 / scale)
+    thr /= scale * dt
+    free = code < 0
     for sign in (1, -1):
-        m = (sign * s > thr) & (code < 0)
-        m = fill_short(m, scale, False)
-        m = drop_short(m, f.n_min)
-        for s0, e0 in zip(*runs(m)):
+        m = s > thr if sign > 0 else s < np.negative(thr)  # sign * s > thr
+        m &= free
+        for s0, e0 in zip(*closed_runs(m, scale, f.n_min)):
             seg = sign * s[s0:e0]
             half = 0.5 * float(np.median(seg))
             # the longest stretch at or above half the typical slope (the corners of the ramp), short
             # dips closed: noise next to a ramp must not drag its edges out
-            a, b = runs(fill_short(seg >= half, max(1, scale // 4), False))
+            a, b = closed_runs(seg >= half, max(1, scale // 4))
             if a.size == 0:
                 continue
             k = int(np.argmax(b - a))
@@ -477,7 +510,6 @@ def _ramp_candidates(f: Features, code: np.ndarray, scale: int) -> np.ndarray:
 def _ramp_ok(f: Features, i0: int, i1: int, sign: int, tau_b: np.ndarray, code: np.ndarray) -> bool:
     """A torque run is a presliding ramp candidate: long enough, a large enough torque change, a straight
     line within the noise (an open-loop ramp, not a controller wandering) and no sliding."""
-    sc = f.sc
     if i1 - i0 < f.n_min or np.any(code[i0:i1] >= 0):
         return False
     dtau = tau_b[i1 - 1] - tau_b[i0]

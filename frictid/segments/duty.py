@@ -24,7 +24,7 @@ from bisect import bisect_left, insort
 import numpy as np
 from numba import njit
 
-from .runs import fill_short, runs
+from .runs import count_prefix, fill_short, paint, runs
 
 #: Fewest cycles that make a duty-cycle run.
 MIN_CYCLES = 3
@@ -63,11 +63,10 @@ class _Signal:
         self.size = w.size
         s, e = runs(~moving)
         long = (e - s) >= rest_min
-        delta = np.zeros(w.size + 1, dtype=np.int64)
-        np.add.at(delta, s[long], 1)
-        np.add.at(delta, e[long], -1)
-        self.rests = np.concatenate(([0], np.cumsum(np.cumsum(delta[:-1]) > 0)))
-        self.moves = np.concatenate(([0], np.cumsum(moving)))
+        resting = np.zeros(w.size, dtype=bool)
+        paint(resting, s[long], e[long], True)
+        self.rests = count_prefix(resting)
+        self.moves = count_prefix(moving)
 
     def rest_and_motion(self, a: int, b: int) -> bool:
         """The window ``[a, b)`` holds part of a rest and some motion."""
@@ -210,7 +209,6 @@ def _autocorr_periods(w: np.ndarray, a: int, b: int, p_min: int, level: float = 
 
 def _best_chain(onsets: np.ndarray, w: _Signal, i: int, tol_min: int, extra: list[int], p_min: int):
     """(cover, starts, period) of the best chain from onset ``i``, or None."""
-    n = w.size
     start = int(onsets[i])
     cands = list(extra) + [int(onsets[j] - start) for j in range(i + 1, min(onsets.size, i + 1 + LOOKAHEAD))]
     best = None

@@ -1,8 +1,20 @@
-"""Run-length helpers on boolean masks and label arrays (vectorised; no per-sample Python loops)."""
+"""Run-length helpers on boolean masks and label arrays (vectorised; no per-sample Python loops), and
+moving means and slopes.
+
+One loop is compiled: the prefix sum that every moving slope works from (:func:`prefix_sum`). numpy's
+``cumsum`` of float64 runs several times slower than a plain compiled loop adding in the same order (the
+same sums, bit for bit; :func:`prefix_sum_ref` is the numpy twin the tests compare with).
+"""
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from scipy.ndimage import uniform_filter1d
+
+#: :func:`paint` slices run by run up to this many runs, or one run per this many samples (a slice costs
+#: about as much as a pass over that many samples).
+FEW_RUNS = 64
+SAMPLES_PER_RUN = 256
 
 
 def runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -51,23 +63,61 @@ def drop_short(mask: np.ndarray, min_len: int) -> np.ndarray:
     return m
 
 
+def closed_runs(mask: np.ndarray, max_gap: int, min_len: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end (exclusive) of the runs of True in ``mask`` once the gaps shorter than ``max_gap``
+    samples between them are closed and the runs shorter than ``min_len`` dropped:
+    ``runs(drop_short(fill_short(mask, max_gap, False), min_len))`` without the two masks."""
+    s, e = runs(mask)
+    if s.size > 1:
+        join = (s[1:] - e[:-1]) < max_gap
+        s = s[np.concatenate(([True], ~join))]
+        e = e[np.concatenate((~join, [True]))]
+    long = (e - s) >= min_len
+    return s[long], e[long]
+
+
 def paint(arr: np.ndarray, starts: np.ndarray, ends: np.ndarray, value) -> None:
-    """Set ``arr[s:e] = value`` for every run, in place, without a Python loop over samples."""
+    """Set ``arr[s:e] = value`` for every run, in place, without a Python loop over samples (a loop over
+    the runs when they are few: one slice each, instead of passes over the whole array)."""
     starts = np.asarray(starts, dtype=np.int64)
     ends = np.asarray(ends, dtype=np.int64)
     keep = ends > starts
     starts, ends = starts[keep], ends[keep]
     if starts.size == 0:
         return
-    if arr.dtype == bool or np.isscalar(value):
-        delta = np.zeros(arr.size + 1, dtype=np.int64)
-        np.add.at(delta, starts, 1)
-        np.add.at(delta, ends, -1)
-        cover = np.cumsum(delta[:-1]) > 0
-        arr[cover] = value
-    else:  # pragma: no cover - not used
-        for s, e in zip(starts, ends):
+    few = starts.size <= max(FEW_RUNS, arr.size // SAMPLES_PER_RUN)
+    if few or not (arr.dtype == bool or np.isscalar(value)):
+        for s, e in zip(starts.tolist(), ends.tolist()):
             arr[s:e] = value
+        return
+    delta = np.zeros(arr.size + 1, dtype=np.int32 if starts.size < 2**31 else np.int64)  # runs covering
+    np.add.at(delta, starts, 1)
+    np.add.at(delta, ends, -1)
+    arr[np.cumsum(delta[:-1], dtype=delta.dtype) > 0] = value
+
+
+def count_prefix(mask: np.ndarray) -> np.ndarray:
+    """``c[k]`` = number of True in ``mask[:k]`` (``n + 1`` values), so a window ``[a, b)`` holds
+    ``c[b] - c[a]``. int32 when that holds the count (a bool to int64 cumulative sum is several times
+    slower)."""
+    m = np.asarray(mask, dtype=bool)
+    c = np.zeros(m.size + 1, dtype=np.int32 if m.size < 2**31 else np.int64)
+    np.cumsum(m, dtype=c.dtype, out=c[1:])
+    return c
+
+
+def any_in_runs(mask: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """For each run ``[s, e)`` (non-empty, in order, not overlapping), whether ``mask[s:e]`` holds a True."""
+    m = np.asarray(mask, dtype=bool)
+    starts = np.asarray(starts, dtype=np.int64)
+    if starts.size == 0:
+        return np.zeros(0, dtype=bool)
+    bounds = np.empty(2 * starts.size, dtype=np.int64)
+    bounds[0::2] = starts
+    bounds[1::2] = ends
+    if bounds[-1] >= m.size:  # the last run ends with the mask: its reduction runs to the end unbounded
+        bounds = bounds[:-1]
+    return np.logical_or.reduceat(m, bounds)[0::2]
 
 
 def box_mean(x: np.ndarray, h: int) -> np.ndarray:
@@ -75,24 +125,57 @@ def box_mean(x: np.ndarray, h: int) -> np.ndarray:
     return uniform_filter1d(np.asarray(x, dtype=float), size=max(1, int(h)), mode="nearest")
 
 
-def box_slope(x: np.ndarray, h: int, dt: float) -> np.ndarray:
+def prefix_sum(x: np.ndarray) -> np.ndarray:
+    """``c[k]`` = sum of ``x[:k] - x[0]`` (``n + 1`` values; offset by the first sample to keep the sums
+    small): what :func:`box_slope` works from, computed once for several window lengths. Equal, bit for
+    bit, to :func:`prefix_sum_ref`."""
+    x = np.ascontiguousarray(x, dtype=float)
+    c = np.empty(x.size + 1)
+    c[0] = 0.0
+    if x.size:
+        _offset_cumsum(x, c)
+    return c
+
+
+def prefix_sum_ref(x: np.ndarray) -> np.ndarray:
+    """:func:`prefix_sum` in numpy."""
+    x = np.asarray(x, dtype=float)
+    c = np.empty(x.size + 1)
+    c[0] = 0.0
+    if x.size:
+        np.cumsum(x - x[0], out=c[1:])
+    return c
+
+
+@njit(cache=True)
+def _offset_cumsum(x, c):  # pragma: no cover - compiled
+    """``c[k + 1] = c[k] + (x[k] - x[0])``, in order (as ``np.cumsum(x - x[0])`` adds)."""
+    x0 = x[0]
+    acc = 0.0
+    for k in range(x.size):
+        acc += x[k] - x0
+        c[k + 1] = acc
+
+
+def box_slope(x: np.ndarray, h: int, dt: float, c: np.ndarray | None = None) -> np.ndarray:
     """Slope [x/s] at each sample: mean of the ``h`` samples after it minus mean of the ``h`` samples
     before it, over ``h dt`` (fewer samples near the ends). Noise: ``sigma sqrt(2/h) / (h dt)`` for white
-    noise ``sigma``. O(n) whatever ``h``."""
+    noise ``sigma``. O(n) whatever ``h``. ``c``: :func:`prefix_sum` of ``x`` when the caller has it."""
     h = max(1, int(h))
-    x = np.asarray(x, dtype=float)
-    n = x.size
+    n = np.size(x) if c is None else c.size - 1
     out = np.zeros(n)
     if n < 2:
         return out
-    c = np.empty(n + 1)
-    c[0] = 0.0
-    np.cumsum(x - x[0], out=c[1:])
+    if c is None:
+        c = prefix_sum(x)
     if n > 2 * h:
-        # interior: full windows on both sides, plain slices (no index arrays)
-        before = c[h:n - h + 1] - c[0:n - 2 * h + 1]
-        after = c[2 * h:n + 1] - c[h:n - h + 1]
-        out[h:n - h + 1] = (after - before) / (h * h * dt)
+        # interior: full windows on both sides, plain slices (no index arrays); the sum of the h samples
+        # after sample i is the sum before sample i + h: one array of window sums serves both
+        sums = np.subtract(c[h:], c[:n + 1 - h])  # sums[j] = c[j + h] - c[j]
+        mid = out[h:n - h + 1]
+        np.subtract(sums[h:], sums[:n + 1 - 2 * h], out=mid)
+        mid /= h * h * dt
+        del sums
     if n > 2 * h:
         i = np.concatenate((np.arange(0, h), np.arange(n - h + 1, n)))
     else:

@@ -87,7 +87,7 @@ def noise_sigma(x: np.ndarray) -> float:
         d = np.concatenate([np.diff(x[s:s + step], 4) for s in starts])
     else:
         d = np.diff(x, 4)
-    return float(MAD_TO_SIGMA * np.median(np.abs(d)) / math.sqrt(DIFF4_GAIN))
+    return float(MAD_TO_SIGMA * np.median(np.abs(d, out=d), overwrite_input=True) / math.sqrt(DIFF4_GAIN))
 
 
 def local_noise(x: np.ndarray, block: int) -> np.ndarray:
@@ -99,16 +99,22 @@ def local_noise(x: np.ndarray, block: int) -> np.ndarray:
     block = max(8, int(block))
     if n < 2 * block:
         return np.full(n, noise_sigma(x))
-    d = np.abs(np.diff(x, 4))
+    d = np.diff(x, 4)
+    np.abs(d, out=d)
     nb = d.size // block
-    sig = MAD_TO_SIGMA * np.median(d[:nb * block].reshape(nb, block), axis=1) / math.sqrt(DIFF4_GAIN)
+    sig = (MAD_TO_SIGMA * np.median(d[:nb * block].reshape(nb, block), axis=1, overwrite_input=True)
+           / math.sqrt(DIFF4_GAIN))
     if d.size > nb * block:
         sig = np.append(sig, MAD_TO_SIGMA * np.median(d[nb * block:]) / math.sqrt(DIFF4_GAIN)
                         if d.size - nb * block >= 8 else sig[-1])
     padded = np.concatenate(([sig[0]], sig, [sig[-1]]))
     sig = np.maximum(np.maximum(padded[:-2], padded[1:-1]), padded[2:])
-    idx = np.minimum(np.arange(n) // block, sig.size - 1)
-    return sig[idx]
+    # sample i takes block min(i // block, last): whole blocks, then the last value to the end
+    out = np.empty(n)
+    m = (sig.size - 1) * block
+    out[:m].reshape(sig.size - 1, block)[...] = sig[:-1, None]
+    out[m:] = sig[-1]
+    return out
 
 
 def quantum(x: np.ndarray) -> float:
@@ -123,7 +129,7 @@ def quantum(x: np.ndarray) -> float:
         d = np.abs(np.concatenate([np.diff(x[s:s + QUANTUM_SAMPLES // nb]) for s in starts]))
     else:
         d = np.abs(np.diff(x))
-    tol = 1e-9 * max(float(np.max(np.abs(x))), 1e-300)
+    tol = 1e-9 * max(_abs_max(x), 1e-300)
     nz = d[d > tol]
     if nz.size < 10:
         return 0.0
@@ -132,6 +138,11 @@ def quantum(x: np.ndarray) -> float:
     r = r[r < 1e6]
     on_grid = np.abs(r - np.round(r)) < 0.05
     return step if on_grid.mean() > 0.95 else 0.0
+
+
+def _abs_max(x: np.ndarray) -> float:
+    """``np.max(np.abs(x))`` without the full-length ``|x|``."""
+    return max(float(np.max(x)), -float(np.min(x)))
 
 
 def _odd(n: float) -> int:
@@ -175,7 +186,8 @@ def log_position(log: JointLog) -> np.ndarray:
     return q
 
 
-def _check(log: JointLog) -> None:
+def _check(log: JointLog) -> np.ndarray:
+    """The sample periods ``diff(t)`` [s], after checking the log."""
     problems = []
     if log.q is None and log.qd is None:
         problems.append("neither position 'q' nor velocity 'qd' is present; one is required")
@@ -184,36 +196,43 @@ def _check(log: JointLog) -> None:
         if v is not None and not np.all(np.isfinite(v)):
             problems.append(f"column {name!r} holds missing or infinite values; read logs with "
                             "frictid.io.logs.read_logs, which drops or refuses them")
-    if log.n >= 2 and np.any(np.diff(log.t) <= 0):
+    dts = np.diff(np.asarray(log.t, dtype=float))
+    if log.n >= 2 and np.any(dts <= 0):
         problems.append("column 't': time must increase strictly")
     if problems:
         raise LogFormatError(log.source or f"joint {log.joint}", problems)
+    return dts
 
 
 def estimate_scales(log: JointLog) -> Scales:
     """Measure the noise levels, encoder step, torque range, speed scales and derivative windows of
     ``log``. Raises :class:`LogFormatError` on non-finite values or non-increasing time."""
-    _check(log)
+    dts = _check(log)
     n = log.n
-    dt = log.dt if n > 1 else 1.0
+    dt = float(np.median(dts)) if n > 1 else 1.0  # log.dt, from the periods already at hand
+    del dts
     tau = np.asarray(log.tau, dtype=float)
     q = log_position(log)
     lag = max(1, min(n // 4, int(round(T_PILOT / dt))))
     n_max = max(MIN_WINDOW, min(_odd(T_WINDOW_MAX / dt), n // 2 if (n // 2) % 2 else n // 2 - 1))
 
-    lo, hi = np.percentile(tau, [0.1, 99.9]) if n else (0.0, 0.0)
+    if n:
+        lo, hi = np.percentile(tau, [0.1, 99.9])
+    else:
+        lo = hi = 0.0
     tau_range = float(hi - lo)
     q_range = float(np.ptp(q)) if n else 0.0
     q_step = quantum(q) if log.q is not None else 0.0
-    sigma_q = max(noise_sigma(q), q_step / math.sqrt(12.0), REL_FLOOR * max(q_range, np.max(np.abs(q))))
+    sigma_q = max(noise_sigma(q), q_step / math.sqrt(12.0), REL_FLOOR * max(q_range, _abs_max(q)))
     tau_step = quantum(tau)
     sigma_tau = max(noise_sigma(tau), tau_step / math.sqrt(12.0), REL_FLOOR * max(tau_range, 1e-300))
 
     if n > 2 * lag:
         w_pilot = (q[2 * lag:] - q[:-2 * lag]) / (2 * lag * dt)
-        w_scale = float(np.percentile(np.abs(w_pilot), 99))
+        w_scale = float(np.percentile(np.abs(w_pilot, out=w_pilot), 99, overwrite_input=True))
         a_pilot = (q[2 * lag:] - 2 * q[lag:-lag] + q[:-2 * lag]) / (lag * dt) ** 2
-        a_scale = float(np.percentile(np.abs(a_pilot), 99))
+        a_scale = float(np.percentile(np.abs(a_pilot, out=a_pilot), 99, overwrite_input=True))
+        del w_pilot, a_pilot
     else:
         w_scale = a_scale = 0.0
 
