@@ -68,6 +68,14 @@ class _Prep:
     G: np.ndarray | None = None
     warnings: list[str] = field(default_factory=list)
     scales: object = None  # the log's frictid.segments.Scales when the default derivatives measured them
+    _trig: tuple | None = None
+
+    def trig(self) -> tuple[np.ndarray, np.ndarray]:
+        """cos q and sin q, computed once: the friction torque is formed again with every new estimate of
+        the gravity terms."""
+        if self._trig is None:
+            self._trig = (np.cos(self.log.q), np.sin(self.log.q))
+        return self._trig
 
 
 #: A log that is one steady run: its first third is the start transient ...
@@ -877,15 +885,20 @@ def _plateaus(jf, preps, axis):
         q = p.log.q
         G = np.zeros(p.log.n)
         if q is not None and axis == "rotary":
-            G = coef.get("Px", 0.0) * np.cos(q) + coef.get("Py", 0.0) * np.sin(q)
+            cos_q, sin_q = p.trig()
+            G = coef.get("Px", 0.0) * cos_q
+            G += coef.get("Py", 0.0) * sin_q
         if "payload" in p.log.channels and q is not None:
             pl_ = p.log.channels["payload"]
-            G = G + coef.get("Mx", 0.0) * pl_ * (np.cos(q) if axis == "rotary" else 1.0)
+            G += coef.get("Mx", 0.0) * pl_ * (p.trig()[0] if axis == "rotary" else 1.0)
             if axis == "rotary":
-                G = G + coef.get("My", 0.0) * pl_ * np.sin(q)
-        G = G + coef.get("offset", 0.0)
+                G += coef.get("My", 0.0) * pl_ * p.trig()[1]
+        G += coef.get("offset", 0.0)
         p.G = G
-        p.F = p.log.tau - coef.get("J", 0.0) * np.nan_to_num(p.a) - G
+        F = coef.get("J", 0.0) * np.nan_to_num(p.a)
+        np.subtract(p.log.tau, F, out=F)
+        F -= G
+        p.F = F
         pls.append((pi_, plateau_points(p.log.t, p.w, p.F, p.segments)))
     # one Plateaus for all logs; keys[i] = (prep index, segment index) of plateau i
     cat = [(pi_, pl) for pi_, pl in pls if len(pl)]
