@@ -176,9 +176,9 @@ def keep_freed_memory() -> bool:
     pages for every temporary (segments, derivatives, fits, replays, figures) and unmapping them after:
     this VM charges 1-2.5 s of system time per GB a process touches first. On six joint-hours it saves
     0.6-0.9 s CPU of the report's 17 s (docs/report.md) and 10 s of system time of the fit's 57 s CPU
-    (docs/benchmarks.md), for 0.3-0.5 GB more peak memory. Process-wide: meant for the ``frictid fit`` and ``frictid report``
-    commands, whose process ends with their output; the workers they fork inherit it. False where the C
-    library is not glibc."""
+    (docs/benchmarks.md), for 0.3-0.5 GB more peak memory. Process-wide: meant for the ``frictid fit``
+    and ``frictid report`` commands, whose process ends with their output; the workers they fork inherit
+    it. False where the C library is not glibc."""
     import ctypes
 
     try:
