@@ -434,8 +434,9 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
     n = log.n
     h = log.dt
     q_ref = np.asarray(log.channels["q_ref"], dtype=float)
-    qd_ref = np.asarray(log.channels.get("qd_ref", np.gradient(q_ref, log.t)), dtype=float)
-    tau_ff = np.asarray(log.channels.get("tau_ref", np.zeros(n)), dtype=float)
+    qd_ref = np.asarray(log.channels["qd_ref"] if "qd_ref" in log.channels else np.gradient(q_ref, log.t),
+                        dtype=float)
+    tau_ff = np.asarray(log.channels["tau_ref"] if "tau_ref" in log.channels else np.zeros(n), dtype=float)
     velocity_loop = gains.get("type") == "velocity"
     mode = np.full(n, MODE_VEL if velocity_loop else MODE_PID, dtype=np.int64)
     payload = np.asarray(log.channels.get("payload", np.zeros(n)), dtype=float)
