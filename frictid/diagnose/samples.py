@@ -46,6 +46,8 @@ INERTIA_RATIO = 1.0
 MIN_SAMPLES, MIN_PER_GROUP = 500, 20
 #: At most this many samples enter the fits (evenly decimated beyond).
 N_MAX = 20000
+#: Group keys are ``log index * LOG_KEY + run * 100000 + chunk``.
+LOG_KEY = 10 ** 12
 
 
 @dataclass
@@ -259,6 +261,36 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
+def _sliding_rows(lg: DiagLog, w: np.ndarray, fin_w: np.ndarray, v_min: float, v_move: float, J: float,
+                  F_level: float, e: int) -> tuple[np.ndarray, np.ndarray]:
+    """The samples of one log that enter the diagnosis and their segment indices: finite, sliding faster
+    than ``v_min`` on constant-velocity plateaus and ``v_move`` elsewhere, outside the excluded kinds, with
+    an inertial torque ``|J a|`` within :data:`INERTIA_RATIO` of the typical friction ``F_level``, and at
+    least ``e`` samples inside a run of such samples. w : the velocity with NaN as zero; fin_w : where it
+    was finite."""
+    n = lg.n
+    seg_id = np.full(n, -1, dtype=np.int32 if len(lg.segments) < 2**31 else np.int64)
+    kind_ok = np.ones(n, dtype=bool)
+    vlim = np.full(n, v_move)
+    for si, s in enumerate(lg.segments):
+        seg_id[s.i0:s.i1] = si
+        if s.kind in EXCLUDED_KINDS:
+            kind_ok[s.i0:s.i1] = False
+        elif s.kind == "constant_velocity":
+            vlim[s.i0:s.i1] = v_min
+    ok = np.isfinite(lg.F) & fin_w & np.isfinite(lg.a) & kind_ok
+    if J > 0:
+        ok &= np.abs(J * _nan_as_zero(lg.a)) <= INERTIA_RATIO * F_level
+    pos, neg = (w > vlim) & ok, (w < -vlim) & ok
+    keep = np.zeros(n, dtype=bool)
+    for m in (pos, neg):
+        for a, b in _runs(m):
+            if b - a > 2 * e:
+                keep[a + e:b - e] = True
+    idx = np.flatnonzero(keep)
+    return idx, seg_id[idx]
+
+
 def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None,
                   n_max: int = N_MAX, axis: str = "rotary", J: float = 0.0) -> Samples | None:
     """The :class:`Samples` of a joint's logs, or None when fewer than ``2 n_folds`` groups slide (or fewer
@@ -274,6 +306,7 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
     if not allw.size:
         return None
     w0 = float(np.percentile(allw, 99.5))
+    del allw  # the function's large temporaries go as soon as they are used: its peak is the fit's
     if w0 <= 0:
         return None
     from ..segments import noise_sigma
@@ -283,6 +316,7 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
     w_nan0 = [lg.w if f.all() else np.nan_to_num(lg.w) for lg, f in zip(logs, fin_w)]   # NaN as zero
     movF = np.concatenate([np.abs(lg.F[np.isfinite(lg.F) & (np.abs(w) > v_move)]) for lg, w in zip(logs, w_nan0)])
     F_level = float(np.median(movF)) if movF.size else np.inf
+    del movF
     dts = [float(np.median(np.diff(lg.t))) if lg.n > 1 else 1.0 for lg in logs]   # sample periods [s]
     # drift clock
     starts = [lg.start for lg in logs]
@@ -296,39 +330,16 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
             offs.append(acc - float(lg.t[0]))
             acc += float(lg.t[-1] - lg.t[0]) + (dt if lg.n > 1 else 0.0)
     clock_t0 = min(o + float(lg.t[0]) for o, lg in zip(offs, logs))
-    rows = []   # per log: (indices, seg id per index)
-    for i, lg in enumerate(logs):
-        n = lg.n
-        seg_id = np.full(n, -1, dtype=np.int64)
-        kind_ok = np.ones(n, dtype=bool)
-        vlim = np.full(n, v_move)
-        for si, s in enumerate(lg.segments):
-            seg_id[s.i0:s.i1] = si
-            if s.kind in EXCLUDED_KINDS:
-                kind_ok[s.i0:s.i1] = False
-            elif s.kind == "constant_velocity":
-                vlim[s.i0:s.i1] = v_min
-        w = w_nan0[i]
-        ok = np.isfinite(lg.F) & fin_w[i] & np.isfinite(lg.a) & kind_ok
-        if J > 0:
-            ok &= np.abs(J * _nan_as_zero(lg.a)) <= INERTIA_RATIO * F_level
-        pos, neg = (w > vlim) & ok, (w < -vlim) & ok
-        dt = dts[i]
-        e = edge if edge is not None else max(5, int(round(0.05 / dt)))
-        keep = np.zeros(n, dtype=bool)
-        for m in (pos, neg):
-            for a, b in _runs(m):
-                if b - a > 2 * e:
-                    keep[a + e:b - e] = True
-        idx = np.flatnonzero(keep)
-        rows.append((idx, seg_id[idx]))
+    rows = [_sliding_rows(lg, w_nan0[i], fin_w[i], v_min, v_move, J, F_level,
+                          edge if edge is not None else max(5, int(round(0.05 / dts[i]))))
+            for i, lg in enumerate(logs)]   # per log: (indices, seg id per index)
     total = sum(r[0].size for r in rows)
     if total == 0:
         return None
     # groups: (log, segment, chunk) with chunks of at most L seconds
     sliding_time = sum(dt * r[0].size for lg, dt, r in zip(logs, dts, rows) if lg.n > 1)
     L = max(sliding_time / MAX_GROUPS_TARGET, 1e-9)
-    parts = {k: [] for k in ("t", "th", "li", "k", "gkey")}
+    parts = {k: [] for k in ("t", "k", "gkey")}
     for i, (lg, (idx, sid)) in enumerate(zip(logs, rows)):
         if not idx.size:
             continue
@@ -341,11 +352,9 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
         chunk = np.floor((t - run_t0) / L).astype(np.int64)
         gkey = run_id * 100000 + chunk
         parts["t"].append(t)
-        parts["th"].append((t + offs[i] - clock_t0) / 3600.0)
-        parts["li"].append(np.full(idx.size, i))
         parts["k"].append(idx)
-        parts["gkey"].append(gkey + i * 10 ** 12)
-    cat = {k: np.concatenate(v) for k, v in parts.items()}
+        parts["gkey"].append(gkey + i * LOG_KEY)
+    cat = {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in parts.items()}  # one log: no copy
     # at most n_max samples: the same cap for every group (each segment weighs alike, a one-hour run does
     # not drown a short sweep), groups below it kept whole, evenly spaced samples within a group
     keys_u, ginv, gcount = np.unique(cat["gkey"], return_inverse=True, return_counts=True)
@@ -365,6 +374,10 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
         keep &= rank < np.ceil(gcount[ginv] / step) * step
         cat = {k: v[keep] for k, v in cat.items()}
         dec = int(math.ceil(total / max(int(keep.sum()), 1)))
+    # the log of each sample (its group key carries it) and its time on the drift clock [h], for the
+    # samples kept only
+    cat["li"] = cat["gkey"] // LOG_KEY
+    cat["th"] = (cat["t"] + np.asarray(offs)[cat["li"]] - clock_t0) / 3600.0
     _, group = np.unique(cat["gkey"], return_inverse=True)
     ng = int(group.max()) + 1
     # merge groups too small to matter (fewer than 5 samples) into their predecessor in time
