@@ -90,3 +90,10 @@ def log_warnings(logs) -> list[str]:
             src = lg.source or "<log>"
             out.append(w if w.startswith(src) else f"{src}: {w}")
     return out
+
+
+def finite(x) -> np.ndarray:
+    """x as float64 with NaN and infinities replaced by numbers (``np.nan_to_num``), copied only when it
+    holds any: the check is much cheaper than the copy of a whole log."""
+    x = np.asarray(x, dtype=float)
+    return x if np.isfinite(x).all() else np.nan_to_num(x)

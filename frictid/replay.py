@@ -25,7 +25,7 @@ from datetime import datetime
 
 import numpy as np
 
-from .data import JointLog
+from .data import JointLog, finite
 from .errors import ConfigError, FrictidInputError
 from .models import static as sm
 from .models.replay_kernel import replay_friction
@@ -300,12 +300,6 @@ def multipliers(model: ReplayModel, t_abs, q, a, payload, G=None) -> tuple[np.nd
     return gmul, fmul
 
 
-def _finite(x) -> np.ndarray:
-    """x as float64 (no copy when it already is), NaN and infinities replaced by numbers only if present."""
-    x = np.asarray(x, dtype=float)
-    return x if np.isfinite(x).all() else np.nan_to_num(x)
-
-
 def thermal_input(model: ReplayModel, log: JointLog, n: int) -> dict | None:
     """The thermal dict of :func:`frictid.models.replay_kernel.replay_friction` for a log, or None."""
     th = model.thermal
@@ -345,7 +339,7 @@ def replay(log: JointLog, model: ReplayModel, w=None, a=None, t_offset: float | 
         a = a0 if a is None else a
     w = np.asarray(w, dtype=float)
     a = np.asarray(a, dtype=float)
-    wf, af = _finite(w), _finite(a)
+    wf, af = finite(w), finite(a)
     n = log.n
     notes = []
     payload = log.channels.get("payload")

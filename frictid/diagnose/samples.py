@@ -30,6 +30,8 @@ import numpy as np
 from numba import njit
 from scipy.signal import lfilter
 
+from ..data import finite
+
 #: Segment kinds the sliding samples never come from.
 EXCLUDED_KINDS = ("ramp_presliding", "step", "rest")
 #: Aim for at least this many held-out groups (long segments are cut into chunks).
@@ -148,15 +150,15 @@ class Samples:
     def power(self, i: int) -> np.ndarray:
         """The measured friction power ``F w`` [W] of every sample of log i (NaN as zero)."""
         lg = self.logs[i]
-        return self.cached(("power", i), lambda: _nan_as_zero(lg.F * lg.w))
+        return self.cached(("power", i), lambda: finite(lg.F * lg.w))
 
     def log_w(self, i: int) -> np.ndarray:
         """The velocity [q/s] of every sample of log i (NaN as zero)."""
-        return self.cached(("log_w", i), lambda: _nan_as_zero(self.logs[i].w))
+        return self.cached(("log_w", i), lambda: finite(self.logs[i].w))
 
     def log_a(self, i: int) -> np.ndarray:
         """The acceleration [q/s^2] of every sample of log i (NaN as zero)."""
-        return self.cached(("log_a", i), lambda: _nan_as_zero(self.logs[i].a))
+        return self.cached(("log_a", i), lambda: finite(self.logs[i].a))
 
     def _rows(self, i: int):
         """(mask of the samples of log i, their indices in the log, the largest of them + 1)."""
@@ -199,13 +201,6 @@ class Samples:
     def _heat_input(self, i: int):
         """(u, x0) of :func:`heat_balance_rise` for log i with the measured power (computed once)."""
         return self.cached(("heat_input", i), lambda: _heat_input(self.power(i), self._dTenv(i)))
-
-
-def _nan_as_zero(x) -> np.ndarray:
-    """``np.nan_to_num(x)`` (NaN as zero, infinities as the largest floats), or x itself when every value
-    is finite (the check is much cheaper than the copy)."""
-    x = np.asarray(x)
-    return x if np.isfinite(x).all() else np.nan_to_num(x)
 
 
 def heat_balance_rise(t, P, dTenv, tau_c, K: float = 1.0, ref: bool = False) -> np.ndarray:
@@ -280,7 +275,7 @@ def _sliding_rows(lg: DiagLog, w: np.ndarray, fin_w: np.ndarray, v_min: float, v
             vlim[s.i0:s.i1] = v_min
     ok = np.isfinite(lg.F) & fin_w & np.isfinite(lg.a) & kind_ok
     if J > 0:
-        ok &= np.abs(J * _nan_as_zero(lg.a)) <= INERTIA_RATIO * F_level
+        ok &= np.abs(J * finite(lg.a)) <= INERTIA_RATIO * F_level
     pos, neg = (w > vlim) & ok, (w < -vlim) & ok
     keep = np.zeros(n, dtype=bool)
     for m in (pos, neg):
