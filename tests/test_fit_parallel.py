@@ -215,3 +215,43 @@ def test_problems_of_joints_read_by_their_workers_come_together(tmp_path):
     got = frictid.fit(str(path), models=MODELS, segmenter=truth_segments, jobs=2)
     assert got.sources[0]["rows"] == sum(lg.n for lg in logs) - 1
     assert any("dropped 1 rows" in w for w in got.joints["2"].warnings)
+
+
+def test_read_ahead_gives_its_reading_once_and_raises_its_error_where_called():
+    calls = []
+    ra = workers.ReadAhead(lambda: calls.append(1) or len(calls))
+    ra.ahead()
+    assert calls == [1]
+    assert ra() == 1 and ra() == 2  # the reading done ahead, once; then fresh readings
+    ra.ahead()
+    ra.drop()
+    assert ra() == 4
+    bad = workers.ReadAhead(lambda: 1 / 0)
+    bad.ahead()  # nothing raised here: the error belongs to the caller
+    with pytest.raises(ZeroDivisionError):
+        bad()
+
+
+def test_each_workers_first_joint_is_read_ahead_and_the_parent_drops_it(three_joint_file, monkeypatch):
+    """With two workers the parent reads joints 1 and 2 while it imports, and drops its copy once the
+    workers are forked; the fit is the one of the logs read whole."""
+    path, whole = three_joint_file
+    parent, seen = os.getpid(), {"ahead": 0, "drop": 0}
+    ahead, drop = workers.ReadAhead.ahead, workers.ReadAhead.drop
+
+    def count(name, fn):
+        def spy(self):
+            if os.getpid() == parent:
+                seen[name] += 1
+            return fn(self)
+        return spy
+
+    monkeypatch.setattr(workers.ReadAhead, "ahead", count("ahead", ahead))
+    monkeypatch.setattr(workers.ReadAhead, "drop", count("drop", drop))
+    got = frictid.fit(str(path), models=MODELS, segmenter=truth_segments, jobs=2)
+    assert seen == {"ahead": 2, "drop": 2}
+    for j, jf in whole.joints.items():
+        assert got.joints[j].to_dict()["models"] == jf.to_dict()["models"], j
+    seen.update(ahead=0, drop=0)
+    frictid.fit(str(path), models=MODELS, segmenter=truth_segments, jobs=1)
+    assert seen == {"ahead": 0, "drop": 0}  # one process: each joint read when it is fitted
