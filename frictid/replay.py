@@ -75,21 +75,29 @@ class ReplayModel:
         """Gravity and offset torque G(q) [F] (payload [kg] per sample or None)."""
         if q is None:
             return np.asarray(self.offset, dtype=float)
-        q = np.asarray(q, dtype=float)
-        if self.axis == "rotary" and (self.Px or self.Py):
-            # Px cos q + Py sin q = R cos(q - phi): one trigonometric function per sample instead of two
-            G = np.subtract(q, math.atan2(self.Py, self.Px))
-            np.cos(G, out=G)
-            G *= math.hypot(self.Px, self.Py)
-            G += self.offset
-        else:
-            G = np.full(q.shape[0], self.offset, dtype=float)
-        if payload is not None:
-            pay = np.asarray(payload, dtype=float)
-            G = G + (self.Mx * pay * (np.cos(q) if self.axis == "rotary" else 1.0))
-            if self.axis == "rotary":
-                G = G + self.My * pay * np.sin(q)
-        return G
+        return rigid_torque(q, self.axis, self.Px, self.Py, self.offset, payload, self.Mx, self.My)
+
+
+def rigid_torque(q, axis: str, Px: float, Py: float, offset: float, payload=None, Mx: float = 0.0,
+                 My: float = 0.0) -> np.ndarray:
+    """Gravity, payload and offset torque [F] at positions q [q]: ``Px cos q + Py sin q + offset`` on a
+    rotary axis (``offset`` on a linear one), plus ``payload`` [kg] per sample times ``Mx cos q + My sin q``
+    (times ``Mx`` on a linear axis)."""
+    q = np.asarray(q, dtype=float)
+    if axis == "rotary" and (Px or Py):
+        # Px cos q + Py sin q = R cos(q - phi): one trigonometric function per sample instead of two
+        G = np.subtract(q, math.atan2(Py, Px))
+        np.cos(G, out=G)
+        G *= math.hypot(Px, Py)
+        G += offset
+    else:
+        G = np.full(q.shape[0], offset, dtype=float)
+    if payload is not None:
+        pay = np.asarray(payload, dtype=float)
+        G = G + (Mx * pay * (np.cos(q) if axis == "rotary" else 1.0))
+        if axis == "rotary":
+            G = G + My * pay * np.sin(q)
+    return G
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -191,18 +191,14 @@ class PerSample:
 
 def gravity_torque(log: JointLog, terms: dict[str, float], i0: int = 0, i1: int | None = None) -> np.ndarray:
     """Gravity plus payload plus offset [F] along a log (as the fit models it), samples ``i0:i1``."""
+    from frictid.replay import rigid_torque
+
     sl = slice(i0, log.n if i1 is None else i1)
-    n = len(range(*sl.indices(log.n)))
-    G = np.zeros(n)
-    q = None if log.q is None else log.q[sl]
-    if q is not None and log.axis == "rotary":
-        G = terms.get("Px", 0.0) * np.cos(q) + terms.get("Py", 0.0) * np.sin(q)
-    if "payload" in log.channels and q is not None:
-        pl = np.asarray(log.channels["payload"][sl], float)
-        G = G + terms.get("Mx", 0.0) * pl * (np.cos(q) if log.axis == "rotary" else 1.0)
-        if log.axis == "rotary":
-            G = G + terms.get("My", 0.0) * pl * np.sin(q)
-    return G + terms.get("offset", 0.0)
+    if log.q is None:
+        return np.full(len(range(*sl.indices(log.n))), terms.get("offset", 0.0))
+    payload = log.channels["payload"][sl] if "payload" in log.channels else None
+    return rigid_torque(log.q[sl], log.axis, terms.get("Px", 0.0), terms.get("Py", 0.0), terms.get("offset", 0.0),
+                        payload, terms.get("Mx", 0.0), terms.get("My", 0.0))
 
 
 def recorded_segments(log: JointLog, jd: dict, sources: list[dict], sha256: str | None) -> list[Segment] | None:
