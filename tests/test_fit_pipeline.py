@@ -150,3 +150,20 @@ def test_cli_fit_writes_the_file(tmp_path, cli):
     assert r.code == 2 and "bogus" in r.err and not (tmp_path / "q.yaml").exists()
     r = cli("fit", src)
     assert r.code == 2
+
+
+def test_abs_percentile_equals_the_plain_formulas():
+    """The data scales of fit_joint from one in-place copy: the same values as from the concatenated finite
+    samples, their absolute values and (for the torque) their distance to the median."""
+    from frictid.fit.pipeline import _abs_percentile
+
+    rng = np.random.default_rng(8)
+    a, b = rng.normal(3.0, 2.0, 10_001), rng.normal(-1.0, 5.0, 4_000)
+    b[::97] = np.nan
+    b[5] = np.inf
+    a_before = a.copy()
+    x = np.concatenate([a, b[np.isfinite(b)]])
+    assert _abs_percentile([a, b]) == float(np.percentile(np.abs(x), 99.5))
+    assert _abs_percentile([a, b], centre=True) == float(np.percentile(np.abs(x - np.median(x)), 99.5))
+    assert _abs_percentile([np.full(3, np.nan)]) == 0.0
+    np.testing.assert_array_equal(a, a_before)

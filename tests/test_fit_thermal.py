@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from frictid.fit.thermal import (fit_thermal, heldout, nested_start, predict_coefficients, prepare,
-                                 simulate_temperature)
+from frictid.fit.thermal import (_power_bins, fit_thermal, heldout, nested_start, predict_coefficients,
+                                 prepare, simulate_temperature)
 from frictid.models import thermal as mt
 
 C_TRUE = (10.0, 5.0, 1.0, 0.2)
@@ -235,3 +235,15 @@ def test_prepare_matches_plain_per_sample_formulas(run_and_truth):
         G = X.T @ X / m.sum()
         M = G[:4, :4] - np.outer(G[:4, 4], G[4, :4]) / G[4, 4]
         np.testing.assert_allclose(run.cycle_L[k] @ run.cycle_L[k].T, M, rtol=1e-9, atol=1e-12 * np.trace(M))
+
+
+def test_power_bins_in_place_equal_the_plain_products():
+    """_power_bins forms |w|^3 and w^4 in the memory of |w| and w^2; the same products, summed per bin."""
+    rng = np.random.default_rng(5)
+    w = rng.normal(0.0, 2.0, 5000)
+    b = np.sort(rng.integers(0, 40, w.size))
+    v, w2 = np.abs(w), w * w
+    ref = np.column_stack([np.bincount(b, weights=p, minlength=40) for p in (v, w2, v * w2, w2 * w2)])
+    w_before = w.copy()
+    np.testing.assert_array_equal(_power_bins(b, w, 40), ref)
+    np.testing.assert_array_equal(w, w_before)

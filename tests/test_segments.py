@@ -331,3 +331,16 @@ def test_docs_example_runs(steps_log, tmp_path, monkeypatch):
     exec(compile(code, "docs/segments.md", "exec"), scope)
     assert [s.kind for s in scope["segments"]].count("step") >= 7
     assert scope["w"].shape == scope["a"].shape == scope["log"].t.shape
+
+
+def test_segments_do_not_depend_on_the_chunk_size(monkeypatch):
+    """The threshold tests and moving slopes computed chunk by chunk (runs.chunks) give the same segments,
+    bit for bit, with chunks much shorter than the features' windows."""
+    import frictid.segments.runs as runs_module
+
+    lg = simulate_recipe(session_recipe(20.0), plant_variant("geared_industrial"), seed=5)[0]
+    ref = find_segments(lg)
+    monkeypatch.setattr(runs_module, "CHUNK", 997)
+    got = find_segments(lg)
+    assert [(s.kind, s.i0, s.i1, s.cycle) for s in got] == [(s.kind, s.i0, s.i1, s.cycle) for s in ref]
+    np.testing.assert_equal([s.stats for s in got], [s.stats for s in ref])

@@ -81,3 +81,23 @@ def test_run_peak_is_the_first_largest_sample_of_each_run():
     s, e = runs(rng.random(x.size) < 0.6)
     want = [a + int(np.argmax(np.abs(x[a:b]))) for a, b in zip(s, e)]
     assert _run_peak(x, s, e).tolist() == want
+
+
+def test_box_slope_in_chunks_equals_the_whole_array(monkeypatch):
+    """The interior of box_slope, computed chunk by chunk, equals the whole-array formula bit for bit."""
+    rng = np.random.default_rng(2)
+    x = np.cumsum(rng.normal(size=20_000))
+    c = prefix_sum(x)
+    n = x.size
+    monkeypatch.setattr(runs_module, "CHUNK", 1000)
+    for h in (1, 7, 125, 126, 999, 4000):
+        sums = c[h:] - c[:n + 1 - h]
+        mid = (sums[h:] - sums[:n + 1 - 2 * h]) / (h * h * 1e-3)
+        np.testing.assert_array_equal(box_slope(x, h, 1e-3, c)[h:n - h + 1], mid)
+
+
+def test_chunks_cover_the_range_in_order():
+    for n, size in ((0, 4), (1, 4), (8, 4), (9, 4), (10, 3)):
+        got = [i for k in runs_module.chunks(n, size) for i in range(n)[k]]
+        assert got == list(range(n))
+        assert all(k.stop - k.start <= size for k in runs_module.chunks(n, size))

@@ -39,8 +39,8 @@ import numpy as np
 from ..data import JointLog, Segment
 from . import stats as _stats
 from .duty import duty_cycles
-from .runs import (any_in_runs, box_mean, box_slope, closed_runs, count_prefix, drop_short, fill_short, paint,
-                   prefix_sum, runs)
+from .runs import (any_in_runs, box_mean, box_slope, chunks, closed_runs, count_prefix, drop_short, fill_short,
+                   paint, prefix_sum, runs)
 from .scales import Scales, estimate_scales, local_noise, log_position, velocity
 
 #: Noise multiple for "clearly nonzero".
@@ -90,8 +90,6 @@ class Features:
     w: np.ndarray
     h: int
     n_min: int
-    wc: np.ndarray
-    dv: np.ndarray
     still: np.ndarray
     still_fine: np.ndarray
     steady: np.ndarray
@@ -129,20 +127,23 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
     dv = box_slope(w, h, dt)
     dv *= h * dt
     floor = R_STILL * sc.w_scale
-    band = np.abs(wc)  # |wc|, then the steady band (in place: one full-length temporary, not four)
+    # wc and dv serve only the masks: |wc| then the steady band in wc's memory, |dv| in dv's (keeping the
+    # two for the whole segmentation was 58 MB of its peak on a joint-hour)
+    band = np.abs(wc, out=wc)
+    del wc
     still = band < max(K_NOISE * sigma_wc, floor)
     still_fine = fill_short(np.abs(w) < max(K_NOISE * sc.sigma_w, floor), sc.window_w, False)
     band *= R_STEADY
-    steady = np.abs(dv) < np.maximum(band, K_NOISE * sigma_dv, out=band)
-    del band
+    steady = np.abs(dv, out=dv) < np.maximum(band, K_NOISE * sigma_dv, out=band)
+    del band, dv
     tau_c = prefix_sum(tau)
     s = box_slope(tau, h, dt, tau_c)
     floor = max(sc.tau_step / math.sqrt(12.0), 1e-9 * max(sc.tau_range, 1e-300))
     sigma_tau_loc = local_noise(tau, n_min)
     np.maximum(sigma_tau_loc, floor, out=sigma_tau_loc)
-    return Features(sc=sc, t=np.asarray(log.t, dtype=float), q=q, tau=tau, w=w, h=h, n_min=n_min, wc=wc,
-                    dv=dv, still=still, still_fine=still_fine, steady=steady, s=s,
-                    sigma_tau_loc=sigma_tau_loc, sigma_wc=sigma_wc, sigma_dv=sigma_dv, tau_c=tau_c)
+    return Features(sc=sc, t=np.asarray(log.t, dtype=float), q=q, tau=tau, w=w, h=h, n_min=n_min,
+                    still=still, still_fine=still_fine, steady=steady, s=s, sigma_tau_loc=sigma_tau_loc,
+                    sigma_wc=sigma_wc, sigma_dv=sigma_dv, tau_c=tau_c)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -155,13 +156,18 @@ def find_jumps(f: Features) -> np.ndarray:
     standard errors; one index per jump (the steepest sample). Small jumps in noisy torque are looked for
     again at four times that scale."""
     hj = max(1, int(round(T_JUMP / f.sc.dt)))
-    # torque change over hj, 4 hj and 16 hj samples (4 hj is the long change of the fine scale and the
-    # short change of the coarse one)
-    d = {k: _slope(f, k) for k in (hj, 4 * hj, 16 * hj)}
-    for k, v in d.items():
+
+    def change(k):  # torque change over k samples
+        v = _slope(f, k)
         v *= k * f.sc.dt
-    fine = _jumps_at(f, hj, d[hj], d[4 * hj])
-    coarse = _jumps_at(f, 4 * hj, d[4 * hj], d[16 * hj])
+        return v
+
+    # over hj, 4 hj and 16 hj samples (4 hj is the long change of the fine scale and the short change of
+    # the coarse one), two at a time: the three at once were the segmentation's peak
+    d1, d4 = change(hj), change(4 * hj)
+    fine = _jumps_at(f, hj, d1, d4)
+    del d1
+    coarse = _jumps_at(f, 4 * hj, d4, change(16 * hj))
     if coarse.size and fine.size:
         k = np.searchsorted(fine, coarse)
         near = np.zeros(coarse.size, dtype=bool)
@@ -179,12 +185,13 @@ def _slope(f: Features, h: int) -> np.ndarray:
 
 def _jumps_at(f: Features, hj: int, d1: np.ndarray, d4: np.ndarray) -> np.ndarray:
     """Jumps at scale ``hj``: ``d1``, ``d4`` the torque changes over ``hj`` and ``4 hj`` samples."""
-    thr = K_NOISE * f.sigma_tau_loc
-    thr *= math.sqrt(2.0 / hj)
-    u = 0.25 * d4
-    np.subtract(d1, u, out=u)
-    big = np.abs(u, out=u) > thr
-    del u, thr
+    big = np.empty(d1.size, dtype=bool)
+    for c in chunks(d1.size):
+        thr = K_NOISE * f.sigma_tau_loc[c]
+        thr *= math.sqrt(2.0 / hj)
+        u = 0.25 * d4[c]
+        np.subtract(d1[c], u, out=u)
+        np.greater(np.abs(u, out=u), thr, out=big[c])
     s, e = runs(big)
     if s.size == 0:
         return np.zeros(0, dtype=np.int64)
@@ -400,15 +407,19 @@ def classify(log: JointLog, scales: Scales | None = None) -> tuple[np.ndarray, l
     hf = max(f.sc.window_w, f.h // 4)
     sf = _slope(f, hf)
     rate = R_RAMP * sc.tau_range / T_MIN
-    thr = f.sigma_tau_loc * math.sqrt(2.0 / f.h)  # K_NOISE sig_s, the noise of f.s, or the rate
-    thr /= f.h * sc.dt
-    thr *= K_NOISE
-    core = np.abs(f.s) > np.maximum(thr, rate, out=thr)
-    thr = f.sigma_tau_loc * math.sqrt(2.0 / hf)  # 2 sig_sf, the noise of sf, or half the rate
-    thr /= hf * sc.dt
-    thr *= 2.0
-    loading = grow(core, np.abs(sf, out=sf) > np.maximum(thr, 0.5 * rate, out=thr))
-    del sf, thr
+    core, fast = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+    for c in chunks(n):  # chunk by chunk: no full-length thresholds or |slopes|
+        thr = f.sigma_tau_loc[c] * math.sqrt(2.0 / f.h)  # K_NOISE sig_s, the noise of f.s, or the rate
+        thr /= f.h * sc.dt
+        thr *= K_NOISE
+        np.greater(np.abs(f.s[c]), np.maximum(thr, rate, out=thr), out=core[c])
+        thr = f.sigma_tau_loc[c] * math.sqrt(2.0 / hf)  # 2 sig_sf, the noise of sf, or half the rate
+        thr /= hf * sc.dt
+        thr *= 2.0
+        np.greater(np.abs(sf[c]), np.maximum(thr, 0.5 * rate, out=thr), out=fast[c])
+    del sf
+    loading = grow(core, fast)
+    del fast
     # ... unless the joint does not move right after it and it is a controller relaxing after a stop (it
     # starts right after motion, within h) or a torque jump (a jump found above, seen through the slope
     # window: its core above the full threshold no longer than 2h)
@@ -485,12 +496,16 @@ def _ramp_candidates(f: Features, code: np.ndarray, scale: int) -> np.ndarray:
     out = []
     dt = f.sc.dt
     s = f.s if scale == f.h else _slope(f, scale)
-    thr = 2.0 * f.sigma_tau_loc
-    thr *= math.sqrt(2.0 / scale)
-    thr /= scale * dt
+    # sign * s > thr, both signs in one pass chunk by chunk (no full-length thresholds)
+    up, down = np.empty(s.size, dtype=bool), np.empty(s.size, dtype=bool)
+    for c in chunks(s.size):
+        thr = 2.0 * f.sigma_tau_loc[c]
+        thr *= math.sqrt(2.0 / scale)
+        thr /= scale * dt
+        np.greater(s[c], thr, out=up[c])
+        np.less(s[c], np.negative(thr, out=thr), out=down[c])
     free = code < 0
-    for sign in (1, -1):
-        m = s > thr if sign > 0 else s < np.negative(thr)  # sign * s > thr
+    for sign, m in ((1, up), (-1, down)):
         m &= free
         for s0, e0 in zip(*closed_runs(m, scale, f.n_min)):
             seg = sign * s[s0:e0]
