@@ -41,10 +41,9 @@ def n_workers(jobs: int | None, n_items: int) -> int:
     return max(1, min(jobs, n_items))
 
 
-def map_forked(fn: Callable, items: Sequence, workers: int, forked: Callable[[], None] | None = None) -> list:
+def map_forked(fn: Callable, items: Sequence, workers: int) -> list:
     """``[fn(x) for x in items]``, run in ``workers`` forked processes (in this one when ``workers`` <= 1
-    or there is one item). ``fn`` may be a closure: it is inherited, never pickled. ``forked()`` runs in
-    this process once the workers exist (e.g. to drop data that only they need: :class:`ReadAhead`)."""
+    or there is one item). ``fn`` may be a closure: it is inherited, never pickled."""
     items = list(items)
     if workers <= 1 or len(items) <= 1 or threading.active_count() > 1:
         # a fork copies the locks other threads hold, locked, and the child may wait on one forever (the
@@ -68,8 +67,6 @@ def map_forked(fn: Callable, items: Sequence, workers: int, forked: Callable[[],
         with _signals_deferred():
             futures = [pool.submit(_call, k) for k in range(len(items))]
         ours = [p for p in mp.active_children() if p not in before]
-        if forked is not None:
-            forked()
         out = []
         for fut in futures:
             status, value = fut.result()
@@ -228,46 +225,3 @@ class Prefetch:
             except OSError:
                 pass
         return out
-
-
-class ReadAhead:
-    """A reading deferred to the worker that needs its result (one joint's rows of a file), which the
-    parent may do ahead instead while it waits for :class:`Prefetch`'s imports: call it to get the result
-    (the one read ahead, once, or a fresh reading), :meth:`ahead` to read now. A worker's first joint then
-    starts with its data at hand, read on a core the imports leave idle. An exception of the reading
-    ahead is raised by the call, in the worker, as the reading there would raise it."""
-
-    def __init__(self, read: Callable[[], Any]):
-        self.read = read
-        self._done: tuple[bool, Any] | None = None
-
-    def ahead(self) -> None:
-        try:
-            self._done = (True, self.read())
-        except Exception as exc:  # noqa: BLE001 - raised again by the call, where the reading belongs
-            self._done = (False, exc)
-
-    def drop(self) -> None:
-        """Forget what was read ahead (the parent, once its workers have inherited it)."""
-        self._done = None
-
-    def __call__(self):
-        done, self._done = self._done, None
-        if done is None:
-            return self.read()
-        if not done[0]:
-            raise done[1]
-        return done[1]
-
-
-def release_freed_memory() -> None:
-    """Give the pages freed in this process's heap back to the system (glibc's ``malloc_trim``; nothing
-    elsewhere): after the parent drops data its forked workers inherited, its copy goes, and only the
-    workers' stays."""
-    import ctypes
-
-    gc.collect()
-    try:
-        ctypes.CDLL(None).malloc_trim(0)
-    except (OSError, AttributeError):  # pragma: no cover - not glibc
-        pass

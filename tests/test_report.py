@@ -627,7 +627,7 @@ def test_joints_read_by_their_workers_give_the_same_report(scenario, tmp_path):
     them: the same HTML as reading it whole first, with one worker or two."""
     from frictid.cli.report import plan_report_logs, read_report_logs
     from frictid.report import build_report
-    from frictid.report.build import DeferredLogs, read_ahead
+    from frictid.report.build import DeferredLogs
 
     path = tmp_path / "two.parquet"
     params = _two_joint_file(scenario, path)
@@ -638,12 +638,6 @@ def test_joints_read_by_their_workers_give_the_same_report(scenario, tmp_path):
     whole = build_report(params, read_report_logs([str(path)]), jobs=1, **kw)
     assert build_report(params, planned, jobs=1, **kw) == whole
     assert build_report(params, planned, jobs=2, **kw) == whole
-    read_ahead(params, planned, jobs=2)  # both joints, one per worker, read while the imports run
-    assert all(x.load._done is not None for x in planned)
-    assert build_report(params, planned, jobs=2, **kw) == whole
-    assert all(x.load._done is None for x in planned)  # dropped once the workers have them
-    read_ahead(params, planned, jobs=1)  # one process: each joint read when it is drawn
-    assert all(x.load._done is None for x in planned)
 
 
 def test_cli_problems_and_warnings_of_joints_read_by_workers(scenario, cli, tmp_path):

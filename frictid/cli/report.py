@@ -50,7 +50,7 @@ def report(
     from ..io.atomic import check_output_path
     from ..io.params_load import load_params_dict
     from ..report import write_report
-    from ..report.build import Prefetch, read_ahead
+    from ..report.build import Prefetch
     from ..workers import keep_freed_memory
 
     con = Console(quiet)
@@ -72,7 +72,6 @@ def report(
     try:
         pd = load_params_dict(params)
         joint_logs = plan_report_logs(logs, mapping, units) if logs else []
-        read_ahead(pd, joint_logs, jobs)  # the workers' first joints, while the imports finish
     finally:
         hashes = pre.hashes()
     cmd = command_line("report", [params, *logs], [("-o", output), ("--map", mapping), ("--units", units),
@@ -138,7 +137,6 @@ def plan_report_logs(paths: list[str], mapping=None, units=None) -> list:
     from ..errors import LogFormatError
     from ..io.logs import joint_row_blocks
     from ..report.build import DeferredLogs
-    from ..workers import ReadAhead
 
     out, errors = [], []
     for p in paths:
@@ -150,8 +148,7 @@ def plan_report_logs(paths: list[str], mapping=None, units=None) -> list:
         except LogFormatError as exc:
             errors.append(str(exc))
             continue
-        out.extend(DeferredLogs(joint, str(Path(p)), ReadAhead(functools.partial(_read_report_log, p, mapping,
-                                                                                 units, (a, b))))
+        out.extend(DeferredLogs(joint, str(Path(p)), functools.partial(_read_report_log, p, mapping, units, (a, b)))
                    for joint, a, b in blocks)
     if errors:
         raise LogFormatError("", errors)

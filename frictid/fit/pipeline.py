@@ -31,7 +31,7 @@ from frictid.data import SEGMENT_KINDS, JointLog, Segment
 from frictid.errors import FrictidInputError
 from frictid.models import static as sm
 from frictid.models.params import unit_of
-from frictid.workers import Prefetch, ReadAhead, map_forked, n_workers, release_freed_memory
+from frictid.workers import Prefetch, map_forked, n_workers
 
 from . import presliding as pre
 from . import regression as rg
@@ -130,13 +130,12 @@ def parse_models(models) -> list[str]:
 @dataclass
 class _Block:
     """One joint's rows of a Parquet file (:func:`frictid.io.logs.joint_row_blocks`), read by the process
-    that fits the joint (or ahead, see :func:`_load`): ``source`` indexes the fit's sources, ``rows`` is
-    the block's size."""
+    that fits the joint: ``source`` indexes the fit's sources, ``rows`` is the block's size."""
 
     joint: str
     source: int
     rows: int
-    load: ReadAhead  # () -> list[JointLog]
+    load: Callable[[], list[JointLog]]
 
 
 def preload() -> None:
@@ -149,20 +148,16 @@ def preload() -> None:
     import frictid.replay  # noqa: F401
 
 
-def _load(paths_or_logs, mapping, units, ahead: Callable[[list], list] | None = None
-          ) -> tuple[list[JointLog | _Block], list[dict]]:
+def _load(paths_or_logs, mapping, units) -> tuple[list[JointLog | _Block], list[dict]]:
     """The logs to fit and the sources they come from. A Parquet file whose joints are contiguous blocks
     of rows gives one :class:`_Block` per joint, read when the joint is fitted (in its worker: the
     reading is shared out, and no process holds every joint's samples); other files are read here.
-    The files' SHA-256 and :func:`preload` run in background threads meanwhile, and the blocks that
-    ``ahead(logs)`` names are read then (the workers' first joints: the imports leave a core idle)."""
+    The files' SHA-256 and :func:`preload` run in background threads meanwhile."""
     if isinstance(paths_or_logs, (str, os.PathLike, JointLog)):
         paths_or_logs = [paths_or_logs]
     prefetch = Prefetch([str(p) for p in paths_or_logs if not isinstance(p, JointLog)], preload)
     try:
         logs, sources, files = _read_or_plan(paths_or_logs, mapping, units)
-        for block in ahead(logs) if ahead is not None else ():
-            block.load.ahead()
     finally:
         hashes = prefetch.hashes()
     for k in files:
@@ -193,8 +188,8 @@ def _read_or_plan(paths_or_logs, mapping, units) -> tuple[list[JointLog | _Block
                 k = len(sources)
                 files.append(k)
                 sources.append({"path": str(item), "sha256": None, "rows": int(sum(b - a for _, a, b in blocks))})
-                logs.extend(_Block(j, k, b - a, ReadAhead(functools.partial(read_logs, str(item), mapping, units,
-                                                                            skip=UNUSED_CHANNELS, rows=(a, b))))
+                logs.extend(_Block(j, k, b - a, functools.partial(read_logs, str(item), mapping, units,
+                                                                  skip=UNUSED_CHANNELS, rows=(a, b)))
                             for j, a, b in blocks)
                 continue
             got = read_logs(str(item), mapping, units, skip=UNUSED_CHANNELS)
@@ -259,20 +254,7 @@ def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, unit
     Returns a :class:`~frictid.fit.result.FitResult`; ``.write(path)`` writes the parameter file.
     """
     wanted = parse_models(models)
-    first: list[_Block] = []  # the blocks read ahead: each worker's first joint
-
-    def ahead(logs):
-        names = list(dict.fromkeys(str(lg.joint) for lg in logs if joint is None or str(lg.joint) == str(joint)))
-        k = n_workers(jobs, len(names))
-        first.extend(lg for lg in logs if isinstance(lg, _Block) and k > 1 and lg.joint in names[:k])
-        return first
-
-    def forked():  # the workers have their first joints' rows: this process needs no copy
-        for block in first:
-            block.load.drop()
-        release_freed_memory()
-
-    logs, sources = _load(paths_or_logs, mapping, units, ahead)
+    logs, sources = _load(paths_or_logs, mapping, units)
     by_joint: dict[str, list[JointLog | _Block]] = {}
     for lg in logs:
         by_joint.setdefault(str(lg.joint), []).append(lg)
@@ -296,7 +278,7 @@ def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, unit
                           lambda jlogs: fit_joint(jlogs, wanted, n_folds, segmenter, differentiate,
                                                   diagnose=diagnose))
 
-    done = map_forked(one, names, workers, forked)  # in this process when workers <= 1
+    done = map_forked(one, names, workers)  # in this process when workers <= 1
     from frictid.errors import combined_log_error
 
     bad = combined_log_error(p for _, _, probs in done for p in probs)  # every joint's, together

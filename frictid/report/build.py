@@ -19,7 +19,6 @@ import numpy as np
 
 from frictid.data import JointLog, log_warnings
 from frictid.workers import Prefetch as _Prefetch
-from frictid.workers import ReadAhead
 
 from . import content as ct
 
@@ -568,7 +567,7 @@ class DeferredLogs:
 
     joint: str
     source: str
-    load: ReadAhead  # () -> list[JointLog]
+    load: Callable[[], list[JointLog]]
 
 
 @dataclass
@@ -659,22 +658,6 @@ class Prefetch(_Prefetch):
         super().__init__(paths, preload)
 
 
-def read_ahead(params: dict, logs: list, jobs: int = 0) -> None:
-    """Read now the :class:`DeferredLogs` of the joints the workers draw first (one joint per worker, in
-    the parameter file's order): called while :class:`Prefetch` imports, on the core the imports leave
-    idle, so that each worker starts drawing at once. :func:`build_report` drops this process's copy
-    once the workers have inherited it."""
-    from frictid.workers import n_workers
-
-    given = {str(lg.joint) for lg in logs if isinstance(lg, DeferredLogs)}
-    order = [str(j) for j, jd in (params.get("joints") or {}).items() if isinstance(jd, dict) and str(j) in given]
-    k = n_workers(jobs, len(order))
-    if k > 1:
-        for lg in logs:
-            if isinstance(lg, DeferredLogs) and lg.joint in order[:k]:
-                lg.load.ahead()
-
-
 def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params_path: str = "",
                  command: str = "", segmenter: Callable | None = None, differentiate: Callable | None = None,
                  generated: str | None = None, timings: dict | None = None, jobs: int = 0,
@@ -731,18 +714,12 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
         jn, jd = part
         return _joint_part(jn, jd, by_joint.get(jn, []), sources, hashes, segmenter, differentiate)
 
-    from frictid.workers import map_forked, n_workers, release_freed_memory
-
-    def forked():  # the workers have inherited the logs read ahead (read_ahead): this process needs no copy
-        for lg in logs:
-            if isinstance(lg, DeferredLogs):
-                lg.load.drop()
-        release_freed_memory()
+    from frictid.workers import map_forked, n_workers
 
     workers = n_workers(jobs, sum(1 for jn in names if by_joint.get(jn)))
     if workers > 1:
         preload()  # imported once here, inherited by every worker
-    results = map_forked(one, parts, workers, forked)
+    results = map_forked(one, parts, workers)
     bad = combined_log_error(p for r in results for p in r.problems)  # every joint's, together
     if bad is not None:
         raise bad
