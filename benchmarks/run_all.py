@@ -79,6 +79,10 @@ def timed(fn, repeat: int, warm: bool = False) -> Timing:
     out = fn() if warm else None
     walls, cpus = [], []
     for _ in range(repeat):
+        # the previous run's result is freed first, as a caller's would be: held, it made every run map
+        # fresh pages for its outputs, which this VM charges for (the kernel's rate then measured the
+        # memory system: 18 M/s in one run, 40-44 M/s in the others)
+        out = None
         t0, c0 = time.perf_counter(), time.process_time()
         out = fn()
         walls.append(time.perf_counter() - t0)
