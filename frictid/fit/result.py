@@ -258,7 +258,11 @@ class FitResult:
 
 def dump_yaml(d: dict) -> str:
     import yaml
-    return yaml.safe_dump(d, sort_keys=False, default_flow_style=None, width=120, allow_unicode=True)
+
+    # libyaml's emitter when built in: the same text, 0.31 -> 0.09 s for the six joint-hours' file (the
+    # fit's parent writes it after its workers, alone on the critical path)
+    return yaml.dump(d, Dumper=getattr(yaml, "CSafeDumper", yaml.SafeDumper), sort_keys=False,
+                     default_flow_style=None, width=120, allow_unicode=True)
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
