@@ -275,6 +275,8 @@ def kind_spans(segments: list[tuple[str, float, float]], lo: float, hi: float, c
                ) -> dict[str, list[tuple[float, float]]]:
     """Segments (kind, t_start, t_end) merged per kind at the resolution of ``columns`` pixels:
     (start, width) rectangles, at most ``columns / 2`` per kind whatever the number of segments."""
+    from frictid.segments.runs import paint, runs
+
     out: dict[str, list[tuple[float, float]]] = {}
     span = hi - lo
     if not segments or span <= 0:
@@ -289,13 +291,9 @@ def kind_spans(segments: list[tuple[str, float, float]], lo: float, hi: float, c
         c0 = np.clip(np.floor((a - lo) / px).astype(int), 0, columns - 1)
         c1 = np.clip(np.ceil((b - lo) / px).astype(int), 1, columns)
         c1 = np.maximum(c1, c0 + 1)
-        diff = np.zeros(columns + 1, int)
-        np.add.at(diff, c0, 1)
-        np.add.at(diff, c1, -1)
-        cov = np.cumsum(diff[:-1]) > 0
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], cov.astype(int), [0]])))
-        starts, ends = edges[0::2], edges[1::2]
-        out[kind] = [(lo + s * px, (e - s) * px) for s, e in zip(starts, ends)]
+        cov = np.zeros(columns, dtype=bool)  # the pixel columns a segment of this kind covers
+        paint(cov, c0, c1, True)
+        out[kind] = [(lo + s * px, (e - s) * px) for s, e in zip(*runs(cov))]
     return out
 
 
