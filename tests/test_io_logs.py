@@ -273,3 +273,19 @@ def test_a_row_with_the_wrong_number_of_fields_names_its_line(tmp_path, last):
     line = len(lines) if last else 1235
     assert f"line {line} has " in msg, msg
     assert ("cut short" in msg) == last and ("delimiter" in msg) != last, msg
+
+
+def test_file_sha256_is_the_hash_of_the_bytes(tmp_path):
+    import hashlib
+
+    from frictid.io.logs import file_sha256
+
+    data = np.random.default_rng(3).bytes(3 << 20)
+    f = tmp_path / "log.parquet"
+    f.write_bytes(data)
+    empty = tmp_path / "empty.csv"
+    empty.write_bytes(b"")
+    assert file_sha256(str(f)) == hashlib.sha256(data).hexdigest()
+    assert file_sha256(str(empty)) == hashlib.sha256(b"").hexdigest()  # cannot be mapped: read instead
+    assert file_sha256("-") is None
+    assert file_sha256(str(tmp_path)) is None  # not a file

@@ -1014,13 +1014,24 @@ def write_logs(logs: list[JointLog], path: str, fmt: str | None = None) -> None:
 
 
 def file_sha256(path: str) -> str | None:
-    """SHA-256 of a file, or None for standard input."""
+    """SHA-256 of a file, or None for standard input.
+
+    The file is mapped into memory and hashed by one ``update`` call, which releases the GIL for the
+    whole file: the commands hash their logs in a background thread while another imports modules, and a
+    loop over blocks waits for the GIL twice per block (a 0.7 GB log: 0.45 s alone, 1.4 s beside the fit's
+    imports and 7 s beside a thread that never waits). A file that cannot be mapped (empty, or a special
+    file) is read in blocks."""
     import hashlib
+    import mmap
 
     if is_stdio(path) or not os.path.isfile(path):
         return None
     h = hashlib.sha256()
     with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
+        try:
+            with mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as mm:
+                h.update(mm)
+        except (ValueError, OSError):
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
     return h.hexdigest()
