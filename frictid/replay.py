@@ -374,9 +374,12 @@ def replay(log: JointLog, model: ReplayModel, w=None, a=None, t_offset: float | 
         if sc is None:
             from .segments import estimate_scales
             sc = estimate_scales(log)
-        u_net = tau - Ja - G - off
+        u_net = tau - Ja
+        u_net -= G
+        u_net -= off
         F, z, T = replay_friction(log.t, wf, model.c_pos, model.c_neg, gmul=gmul, fmul=fmul, thermal=th,
                                   u_stick=u_net, w_stick=STICK_NOISE * sc.sigma_w)
+        del u_net  # before the torque and residual are allocated
     else:
         F, z, T = replay_friction(log.t, wf, model.c_pos, model.c_neg, gmul=gmul, fmul=fmul, sigma0=sig0,
                                   sigma1=model.sigma1, thermal=th)

@@ -282,7 +282,9 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
     dynamic = sigma0 is not None
     s0p, s0n = _pair(sigma0) if dynamic else (1.0, 1.0)
     s1p, s1n = _pair(sigma1)
-    T_in = np.zeros(n)
+    # inputs the loop does not read stay one value long (the joint temperature unless given, the ambient
+    # without a heat balance, the applied torque without a stick zone): no array of the log's length
+    T_in = np.zeros(1)
     T_given = False
     if thermal:
         code = int(thermal["code"])
@@ -293,7 +295,7 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
             T_in = np.ascontiguousarray(np.broadcast_to(np.asarray(thermal["T"], float), (n,)))
             T_given = True
             C = K = 1.0
-            Tenv = np.zeros(n)
+            Tenv = np.zeros(1)
             T_init = float(T_in[0]) if n else 0.0
         else:
             C, K = float(thermal["C"]), float(thermal["K"])
@@ -303,15 +305,16 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
         code, theta = 0, np.zeros(4)
         dc_pos = dc_neg = np.zeros(9)
         C = K = 1.0
-        Tenv = np.zeros(n)
+        Tenv = np.zeros(1)
         T_init = math.nan
     if u_stick is None:
-        u_stick, w_stick = np.zeros(n), -1.0
+        u_stick, w_stick = np.zeros(1), -1.0
     else:
         u_stick = np.ascontiguousarray(np.broadcast_to(u_stick, (n,)), dtype=float)
         w_stick = float(w_stick)
     if reference:
         gmul, fmul = np.broadcast_to(gmul, (n,)), np.broadcast_to(fmul, (n,))
+        T_in, Tenv, u_stick = (x if x.shape[0] == n else np.broadcast_to(x[:1], (n,)) for x in (T_in, Tenv, u_stick))
         return replay_friction_ref(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, float(z0), bool(dynamic),
                                    code, theta, dc_pos, dc_neg, C, K, Tenv, T_init, T_in, T_given, u_stick,
                                    w_stick)
