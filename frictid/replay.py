@@ -443,8 +443,11 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
                         dtype=float)
     tau_ff = np.asarray(log.channels["tau_ref"] if "tau_ref" in log.channels else np.zeros(n), dtype=float)
     velocity_loop = gains.get("type") == "velocity"
-    mode = np.full(n, MODE_VEL if velocity_loop else MODE_PID, dtype=np.int64)
-    payload = np.asarray(log.channels.get("payload", np.zeros(n)), dtype=float)
+    # what is the same for every sample goes in one value long (the kernel holds it): the controller's
+    # mode, no payload, no temperature reset, no sensor noise, constant multipliers and ambient
+    mode = np.full(1, MODE_VEL if velocity_loop else MODE_PID, dtype=np.int64)
+    pay_in = log.channels.get("payload")
+    payload = np.zeros(1) if pay_in is None else np.asarray(pay_in, dtype=float)
     ext = model.ext
     p = np.zeros(N_P)
     p[P_J] = model.J
@@ -471,7 +474,7 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
         sub.pop(k, None)
     side = ReplayModel(**{**model.__dict__, "ext": sub})
     q_meas = np.asarray(log.q if log.q is not None else q_ref, dtype=float)
-    G_meas = (model.gravity(q_meas, payload) if G is None or log.q is None else G) - model.offset
+    G_meas = (model.gravity(q_meas, pay_in) if G is None or log.q is None else G) - model.offset
     if model.Mx and model.axis == "rotary":
         p[P_PAY] = model.Mx  # the kernel's payload gravity: m P_PAY cos q
     if model.My or (model.Mx and model.axis != "rotary"):
@@ -483,15 +486,15 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
         _, a = derivatives(log)
     a_meas = np.asarray(a, dtype=float)
     t_abs = log.t + t_off if ext.get("drift_per_hour") else None  # the drift clock, only when it acts
-    gmul, fmul = (np.ascontiguousarray(np.broadcast_to(m, (n,)))  # the plant kernel reads n values
-                  for m in multipliers(side, t_abs, q_meas, a_meas, payload, G_meas))
+    gmul, fmul = (np.ascontiguousarray(m, dtype=float)  # length 1 when the same for every sample
+                  for m in multipliers(side, t_abs, q_meas, a_meas, pay_in, G_meas))
     th = thermal_input(model, log, n)
     if th is not None:
         if "T" in th:
             notes.append("closed loop: the thermal law reads temp_joint, which the kernel cannot; thermal "
                          "part held at the first temperature")
             code, theta, dc9 = th["code"], th["theta"], th["dc_pos"]
-            Tenv = np.full(n, float(th["T"][0]))
+            Tenv = np.full(1, float(th["T"][0]))
             C, K = 1e300, 1.0
         else:
             code, theta, dc9 = th["code"], th["theta"], th["dc_pos"]
@@ -499,14 +502,14 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
         p[P_C], p[P_K] = C, K
     else:
         code, theta, dc9 = 0, np.zeros(4), np.zeros(9)
-        Tenv = np.full(n, 25.0)
+        Tenv = np.full(1, 25.0)
         p[P_C], p[P_K] = 1.0, 1.0
     w0 = float(log.qd[0]) if log.qd is not None else 0.0
     state0 = np.array([float(q_meas[0]), w0, 0.0, float(Tenv[0])])
-    zeros = np.zeros(n)
+    zero = np.zeros(1)
     out = simulate_joint(h=h, nsub=1, mode=mode, q_ref=q_ref, qd_ref=qd_ref, tau_ff=tau_ff,
                          Tenv=np.ascontiguousarray(Tenv, dtype=float), payload=payload,
-                         reset_T=np.zeros(n, dtype=np.bool_), gmul=gmul, fmul=fmul, nq=zeros, nqd=zeros, p=p,
+                         reset_T=np.zeros(1, dtype=np.bool_), gmul=gmul, fmul=fmul, nq=zero, nqd=zero, p=p,
                          c_pos=model.c_pos, c_neg=model.c_neg, dc_pos=dc9, dc_neg=dc9, th_code=code,
                          theta=theta, state0=state0, outputs=("q", "w") if velocity else ("q",))
     q_model, qd_model = out[0], out[1]

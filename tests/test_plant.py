@@ -185,6 +185,27 @@ def test_kernel_equals_python_twin_with_every_effect(law):
         simulate_joint(**sl, outputs=("q", "speed"))
 
 
+def test_inputs_one_value_long_hold_for_every_sample():
+    """An input given one value long (a replay's closed loop: mode, no payload, no reset, no noise,
+    constant multipliers and ambient) gives the same run as that value repeated for every sample, in the
+    kernel and in its twin."""
+    pl = quiet(load_plant("geared_industrial"))
+    rec, _ = load_recipe("multisine")
+    prog, args, _ = prepare_joint(pl, pl.joints[0], rec, 0, 0.2)
+    n = 600
+    full = {k: (v[:n] if isinstance(v, np.ndarray) and v.shape == prog["mode"].shape else v)
+            for k, v in args.items()}
+    const = {"mode": full["mode"][:1], "payload": np.full(1, 2.5), "reset_T": np.zeros(1, dtype=np.bool_),
+             "gmul": np.full(1, 1.1), "fmul": np.full(1, 0.9), "nq": np.zeros(1), "nqd": np.zeros(1),
+             "Tenv": np.full(1, 31.0)}
+    short = {**full, **const}
+    repeated = {**full, **{k: np.repeat(v, n) for k, v in const.items()}}
+    for fn in (simulate_joint, simulate_joint_ref):
+        for x, y in zip(fn(**short), fn(**repeated)):
+            assert x.shape == (n,)
+            np.testing.assert_array_equal(x, y)
+
+
 def test_kernel_matches_tight_radau_reference():
     pl = quiet(load_plant("direct_drive"))
     rec, _ = load_recipe("multisine")

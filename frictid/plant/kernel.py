@@ -228,12 +228,15 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
     nq [q], nqd [q/s] sensor noise; p parameters (see P_* indices); c_pos, c_neg canonical static vectors;
     dc_pos, dc_neg thermal6 slopes; th_code, theta thermal law; state0 = (q, w, z, T).
 
+    mode, Tenv, payload, reset_T, gmul, fmul, nq and nqd may be one value long, a constant for every
+    sample (a replay's closed loop: no array of the log's length for what does not change); q_ref sets n.
+
     The outputs are allocated here, by numpy, and filled by the compiled loop :func:`_closed_loop`:
     numpy asks the kernel for transparent huge pages for large arrays, so the first touch of the
     8 n doubles of a one-hour run costs ~4,000 page faults (the unaligned ends of each array) instead
     of 56,000, one per 4 KiB page with numba's own allocator: those were a fifth of its CPU time.
     """
-    n = mode.shape[0]
+    n = q_ref.shape[0]
     unknown = set(outputs) - set(OUTPUTS)
     if unknown:
         raise ValueError(f"simulate_joint: unknown outputs {sorted(unknown)}; known: {OUTPUTS}")
@@ -251,9 +254,18 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
     """The loop of :func:`simulate_joint`, filling the output arrays q_o ... qdm_o (length n each).
 
     The parameters are unpacked into scalars once (the loop then keeps them in registers), and the
-    thermal law enters as a scale and an offset of the map (see :func:`_map_at`).
+    thermal law enters as a scale and an offset of the map (see :func:`_map_at`). An input one value long
+    holds for every sample (its index stays 0).
     """
-    n = mode.shape[0]
+    n = q_ref.shape[0]
+    s_md = 1 if mode.shape[0] > 1 else 0
+    s_te = 1 if Tenv.shape[0] > 1 else 0
+    s_pa = 1 if payload.shape[0] > 1 else 0
+    s_rs = 1 if reset_T.shape[0] > 1 else 0
+    s_gm = 1 if gmul.shape[0] > 1 else 0
+    s_fm = 1 if fmul.shape[0] > 1 else 0
+    s_nq = 1 if nq.shape[0] > 1 else 0
+    s_nd = 1 if nqd.shape[0] > 1 else 0
     cp, dp = _branch(c_pos, dc_pos)
     cn, dn = _branch(c_neg, dc_neg)
     q = state0[0]
@@ -302,19 +314,19 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
     s_th = 1.0
     dT = 0.0
     for k in range(n):
-        if reset_T[k]:
-            T = Tenv[k]
+        if reset_T[k * s_rs]:
+            T = Tenv[k * s_te]
         # the map at temperature T; T moves slowly, so refresh only after a change of 1e-4 K
         if th_code != 0 and abs(T - T_used) > 1e-4:
             s_th, dT = thermal_factors_nb(th_code, T - T0, alpha, beta, lam)
             T_used = T
         # sensors
-        qm = q + nq[k]
+        qm = q + nq[k * s_nq]
         if qres > 0.0:
             qm = np.floor(qm * iqres + 0.5) * qres   # float floor: no round trip through int64
-        qdm = w + nqd[k]
+        qdm = w + nqd[k * s_nd]
         # controller
-        md = mode[k]
+        md = mode[k * s_md]
         if md != prev_mode:
             integ = 0.0
             prev_mode = md
@@ -342,9 +354,9 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
         u_o[k] = u
         qm_o[k] = qm
         qdm_o[k] = qdm
-        lmul = gmul[k] * (1.0 + load * abs(u))
-        fm = fmul[k]
-        pay = payload[k]
+        lmul = gmul[k * s_gm] * (1.0 + load * abs(u))
+        fm = fmul[k * s_fm]
+        pay = payload[k * s_pa]
         w_k = w
         # the map at the sample (its level at the current position: the friction output and the
         # refinement test use it; the step's level is at its predicted end position)
@@ -392,7 +404,7 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
                                       iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
             q, w, z = q1, w1, z1
         F_o[k] = Fk
-        Tss = Tenv[k] + Fk * w_k * iK
+        Tss = Tenv[k * s_te] + Fk * w_k * iK
         T = Tss + (T - Tss) * eK
 
 
@@ -401,7 +413,9 @@ def simulate_joint_ref(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, rese
     """Plain-python twin of :func:`simulate_joint` (numpy map functions, scipy expm step). Slow."""
     from ..models.thermal import canonical_at
 
-    n = len(mode)
+    n = len(q_ref)
+    mode, Tenv, payload, reset_T, gmul, fmul, nq, nqd = (np.broadcast_to(x, (n,)) for x in (
+        mode, Tenv, payload, reset_T, gmul, fmul, nq, nqd))  # one value long: the same for every sample
     out = {k: np.empty(n) for k in ("q", "w", "z", "F", "T", "u", "qm", "qdm")}
     q, w, z, T = (float(x) for x in state0)
     integ, prev = 0.0, -1
