@@ -143,3 +143,43 @@ def test_position_factor_found_by_the_diagnosis_is_replayed_out_of_the_plateaus(
     assert st["Fs"].value == pytest.approx(TRUE["stribeck"]["Fs"], rel=0.015)
     assert st["vs"].value == pytest.approx(TRUE["stribeck"]["vs"], rel=0.05)  # 11 % off without it
     assert any("replayed out" in n for n in jf.models["stribeck"].notes)
+
+
+def _model(name, identifiable):
+    from frictid.fit.result import ModelFit, ParamEstimate
+
+    params = {"Fc": ParamEstimate("Fc", 1.0, 0.1, "N m", identifiable, "" if identifiable else "at a bound")}
+    return ModelFit(name, name, params, {"aic": {"a": 3.0, "b": 1.0, "c": -9.0}[name], "k": 1})
+
+
+@pytest.mark.parametrize("ident", [(True, True, False), (False, False, False), (True, False, False)])
+def test_heldout_only_where_the_choice_can_use_it(ident):
+    """Held-out errors are computed for the identifiable models only, unless none is: the choice is the
+    one every model's held-out error gives, and a model left out says why."""
+    from frictid.fit import select as sel
+
+    errors = {"a": 1.0, "b": 1.02, "c": 0.5}  # c predicts best and has the lowest AIC, but is not identifiable
+    full = {n: _model(n, i) for n, i in zip("abc", ident)}
+    for n in full:
+        full[n].metrics["rms_heldout"] = errors[n]
+    some = {n: _model(n, i) for n, i in zip("abc", ident)}
+    asked = []
+    left = sel.heldout_for_choice(some, list(some), lambda n: asked.append(n) or errors[n])
+    assert sel.choose(some)[0] == sel.choose(full)[0]
+    if any(ident):
+        assert sorted(asked) == [n for n, i in zip("abc", ident) if i]
+        assert left == [n for n, i in zip("abc", ident) if not i]
+        for n in left:
+            assert some[n].metrics["rms_heldout"] is None and sel.NOT_HELDOUT in some[n].notes
+    else:
+        assert sorted(asked) == ["a", "b", "c"] and left == []
+
+
+def test_heldout_of_all_models_when_no_identifiable_one_gets_one():
+    from frictid.fit import select as sel
+
+    some = {n: _model(n, i) for n, i in zip("abc", (True, False, False))}
+    errors = {"a": None, "b": 1.0, "c": 0.5}
+    assert sel.heldout_for_choice(some, list(some), lambda n: errors[n]) == []
+    assert [some[n].metrics["rms_heldout"] for n in "abc"] == [None, 1.0, 0.5]
+    assert sel.choose(some)[0] == "c"

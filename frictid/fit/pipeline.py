@@ -545,14 +545,12 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
             S.inflation = smp.variance_factor(
                 S.F - sm.polynomial(S.w, **{c: reg_fit.value(c) for c in ("c0", "c1", "c2", "c3")}))
         for name in static_names:
-            jf.models[name] = smp.fit_map(name, S, axis)
+            jf.models[name] = smp.fit_map(name, S, axis, heldout=False)
     for name in static_names if basis == "plateaus" else ():
         if len(plat) == 0:
             jf.not_identified.append({"what": name, "reason": "no constant-velocity plateaus"})
             continue
-        mf = fit_static(name, plat.w, plat.F, plat.F_se, axis=axis)
-        mf.metrics["rms_heldout"] = sel.heldout_static(name, plat, n_folds, axis=axis, full=mf)
-        jf.models[name] = mf
+        jf.models[name] = fit_static(name, plat.w, plat.F, plat.F_se, axis=axis)
     if "polynomial_ls" in wanted:
         if basis == "samples":
             mf = _polynomial_ls_samples(reg_fit, preps, free_names, known_coef, min_speed, axis, F0, w0, a0,
@@ -564,6 +562,14 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter,
             jf.models["polynomial_ls"] = mf
         else:
             jf.not_identified.append({"what": "polynomial_ls", "reason": why_reg or "no moving samples"})
+    # held-out errors of the maps the choice can take (the identifiable ones, unless none gets one)
+    fitted = [n for n in static_names if n in jf.models]
+    if basis == "samples":
+        sel.heldout_for_choice(jf.models, fitted, lambda n: smp.heldout_map(n, S, jf.models[n], axis),
+                               others=["polynomial_ls"])
+    else:
+        sel.heldout_for_choice(jf.models, fitted, lambda n: sel.heldout_static(
+            n, plat, n_folds, axis=axis, full=jf.models[n]), others=["polynomial_ls"])
 
     # ---- 4. choice among the velocity-only static models
     cands = [m for m in BASE_MODELS if m in jf.models]
@@ -886,12 +892,14 @@ def _refit_static_maps(jf: JointFit, pl: Plateaus, n_folds: int, source: str, ex
         if name not in sm.map_names() or (mf.extra or {}).get("basis") == "moving samples":
             continue
         new = fit_static(name, pl.w, pl.F, pl.F_se, axis=jf.axis)
-        new.metrics["rms_heldout"] = sel.heldout_static(name, pl, n_folds, axis=jf.axis, full=new)
         new.notes = list(new.notes) + [f"refitted on plateau means with {source}'s {', '.join(exts)} effect "
                                       "replayed out (the friction averaged over position)"]
         new.extra = dict(mf.extra or {}, refitted_without=list(exts))
         jf.models[name] = new
         done.append(name)
+    sel.heldout_for_choice(jf.models, done, lambda n: sel.heldout_static(n, pl, n_folds, axis=jf.axis,
+                                                                           full=jf.models[n]),
+                           others=["polynomial_ls"])
     lug = jf.models.get("lugre")
     if lug is not None and (lug.extra or {}).get("static_model") in done:
         base = jf.models[lug.extra["static_model"]]

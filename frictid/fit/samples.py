@@ -275,9 +275,10 @@ def _fit_binned(name, bins, axis, start=None, var_inflation=1.0) -> ModelFit:
     return fit_static(name, wb, Fb, 1.0 / np.sqrt(nb), axis=axis, start=start, var_inflation=var_inflation)
 
 
-def fit_map(name: str, S: SampleSet, axis: str = "rotary") -> ModelFit:
-    """Static map ``name`` (symmetric or ``_asym``) on the friction samples, with held-out error by fold,
-    standard errors of autocorrelated samples and AIC on the effective sample count.
+def fit_map(name: str, S: SampleSet, axis: str = "rotary", heldout: bool = True) -> ModelFit:
+    """Static map ``name`` (symmetric or ``_asym``) on the friction samples, with held-out error by fold
+    (:func:`heldout_map`; ``heldout=False``: None, for the caller to compute when needed), standard errors
+    of autocorrelated samples and AIC on the effective sample count.
 
     The least squares runs on velocity-bin means weighted by their counts (:func:`bin_points`; the same
     objective as on the samples while the map is smooth across a bin, and hundreds of times faster);
@@ -303,23 +304,33 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary") -> ModelFit:
             mf = _fit_binned(name, bins, axis, start=_warm_start(mf),
                              var_inflation=S.inflation * s2_samples / s2_bins)
             vals = mf.values()
-        start = _warm_start(mf)
-        ph = np.full(S.n, np.nan)
-        for f in range(S.n_folds):
-            te = S.fold == f
-            if not te.any() or te.all():
-                continue
-            m = _fit_binned(name, _bin_samples(S, leave_out=f), axis, start=start)
-            ph[te] = predict(name, m.values(), S.w[te])
-        rh = ph - S.F
-        if np.isfinite(rh).all():
-            held = float(math.sqrt(np.mean(rh ** 2)))
+        if heldout:
+            held = heldout_map(name, S, mf, axis)
     mf.metrics = sample_metrics(rss, n, k, held, S)
     mf.method = ("bounded least squares on the moving samples (velocity-bin means), F = tau - J a - G(q) - "
                  "offset with J, gravity and offset from the linear stage"
                  + ("" if mf.map.startswith(("coulomb", "polynomial")) else ", multi-start"))
     mf.extra["basis"] = "moving samples"
     return mf
+
+
+def heldout_map(name: str, S: SampleSet, mf: ModelFit, axis: str = "rotary") -> float | None:
+    """Held-out RMS [F] of map ``name`` on the samples: refitted without each fold (warm-started at the
+    fit ``mf`` on all samples), predicting the fold. None when a prediction is not finite."""
+    if any(v is None for v in mf.values().values()):
+        return None
+    start = _warm_start(mf)
+    ph = np.full(S.n, np.nan)
+    for f in range(S.n_folds):
+        te = S.fold == f
+        if not te.any() or te.all():
+            continue
+        m = _fit_binned(name, _bin_samples(S, leave_out=f), axis, start=start)
+        ph[te] = predict(name, m.values(), S.w[te])
+    rh = ph - S.F
+    if np.isfinite(rh).all():
+        return float(math.sqrt(np.mean(rh ** 2)))
+    return None
 
 
 def sample_metrics(rss: float, n: int, k: int, rms_heldout: float | None, S: SampleSet) -> dict:
