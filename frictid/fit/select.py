@@ -79,7 +79,7 @@ def heldout_for_choice(models: dict, names: list[str], heldout: Callable[[str], 
     unless none has a held-out RMS. The refits of a model whose parameters the data do not pin down are the
     most expensive ones (the least squares wander along the flat direction to their evaluation cap) and
     their error depends on where they stop (a one-ulp change of the inputs moved ``stribeck_2exp_asym``'s by
-    5 %): they were 0.25-0.39 s of a joint-hour's 3.2 s."""
+    5 %): on the hour's joints they were 0.25-0.39 s of 3.6 s CPU per joint-hour."""
     left = [n for n in names if not models[n].identifiable]
     for n in names:
         if n not in left:

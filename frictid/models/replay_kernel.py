@@ -314,7 +314,7 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
         w_stick = float(w_stick)
     if reference:
         gmul, fmul = np.broadcast_to(gmul, (n,)), np.broadcast_to(fmul, (n,))
-        T_in, Tenv, u_stick = (x if x.shape[0] == n else np.broadcast_to(x[:1], (n,)) for x in (T_in, Tenv, u_stick))
+        T_in, Tenv, u_stick = (np.broadcast_to(x, (n,)) if x.shape[0] == 1 else x for x in (T_in, Tenv, u_stick))
         return replay_friction_ref(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, float(z0), bool(dynamic),
                                    code, theta, dc_pos, dc_neg, C, K, Tenv, T_init, T_in, T_given, u_stick,
                                    w_stick)
