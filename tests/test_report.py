@@ -688,3 +688,27 @@ def test_the_fits_scales_are_reused(scenario):
     for k, v in want.to_dict().items():
         assert got.to_dict()[k] == v or (v != v and got.to_dict()[k] != got.to_dict()[k]), k
     assert ct.recorded_scales(lg, jd, params["sources"], "0" * 64) is None  # another file: measured again
+
+
+def test_models_without_heldout_error_are_explained(scenario):
+    """A static map the fit gave no held-out error (not all identifiable, an identifiable one had one)
+    shows "—" in the model table, and the table's note names it and says why; the note is absent when every
+    model has its error."""
+    from frictid.fit.select import NOT_HELDOUT
+    from frictid.io.params_load import load_params_dict
+    from frictid.report import build_report
+
+    jid = "j-" + scenario["joint"]
+    params = load_params_dict(scenario["params"])
+    models = params["joints"][scenario["joint"]]["models"]
+    skipped = [n for n, m in models.items() if NOT_HELDOUT in (m.get("notes") or [])]
+    assert ("not computed (—)" in section_text(build_report(params, []), jid, "models")) == bool(skipped)
+    for m in models.values():
+        m["notes"] = [x for x in (m.get("notes") or []) if x != NOT_HELDOUT]
+    assert "not computed (—)" not in section_text(build_report(params, []), jid, "models")
+    name = next(n for n, m in models.items() if n != params["joints"][scenario["joint"]]["selected"]
+                and "params" in m)
+    models[name]["metrics"]["rms_heldout"] = None
+    models[name]["notes"].append(NOT_HELDOUT)
+    text = section_text(build_report(params, []), jid, "models")
+    assert f"not computed (—) for {name}: their parameters are not all identifiable" in text

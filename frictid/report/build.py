@@ -406,6 +406,8 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
     # ---- models
     s = secs["models"]
     s.data["rows"] = model_rows(jd)
+    from frictid.fit.select import NOT_HELDOUT
+    s.data["heldout_skipped"] = [r["name"] for r in s.data["rows"] if NOT_HELDOUT in r["notes"]]
     if not s.data["rows"]:
         s.present, s.why = False, "No model was fitted for this joint."
     sel_rec = jd.get("selection") or {}
