@@ -318,13 +318,17 @@ def _read_table(src, label: str, is_parquet: bool, spec: LogSpec, skip: tuple[st
     try:
         table = pacsv.read_csv(src, read_options=read_opts, parse_options=parse_opts, convert_options=conv)
     except (pa.ArrowInvalid, pa.ArrowTypeError, OSError) as exc:
-        bad = _first_bad_csv_row(src, read_opts, parse_opts)
-        if bad is not None:
-            raise LogFormatError(label, [bad]) from None
         msg = str(exc).split("\n")[0]
-        raise LogFormatError(label, [f"cannot be parsed as CSV: {msg}; check the delimiter (comma), "
-                                     "the header and that every row has the same number of fields"]) from None
-    return table, file_meta
+    else:
+        return table, file_meta
+    # parsed again after the except block: Arrow calls the re-parse's Python row handler, which must not
+    # run while the first error is still being handled (a clean-clone CI run once reported that error as
+    # raised in the handler)
+    bad = _first_bad_csv_row(src, read_opts, parse_opts)
+    if bad is not None:
+        raise LogFormatError(label, [bad]) from None
+    raise LogFormatError(label, [f"cannot be parsed as CSV: {msg}; check the delimiter (comma), "
+                                 "the header and that every row has the same number of fields"]) from None
 
 
 def _first_bad_csv_row(src, read_opts, parse_opts) -> str | None:
