@@ -645,7 +645,7 @@ def preload() -> None:
     import frictid.fit.pipeline  # noqa: F401
     import frictid.fit.presliding  # noqa: F401
     import frictid.fit.result  # noqa: F401
-    import frictid.plant.simulate  # noqa: F401
+    import frictid.plant.kernel  # noqa: F401
     import frictid.replay  # noqa: F401
 
 
