@@ -19,6 +19,7 @@ Numbers only: no files, no pandas. True plant parameters (``JointLog.truth``) ar
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -261,14 +262,16 @@ STICK_NOISE = 5.0
 class ReplayResult:
     """Per-sample output of :func:`replay` (one value per log sample).
 
-    F_model [F] friction, tau_model [F] torque, residual [F] = tau - tau_model, z [q] bristle deflection,
+    F_model [F] friction, tau_model [F] torque, tau [F] the measured torque, z [q] bristle deflection,
     T [degC] joint temperature (NaN without a thermal law), w, a [q/s, q/s^2] the velocity and
     acceleration used; q_model, qd_model, tau_cmd from :func:`closed_loop` (None unless it ran).
+    ``residual`` [F] = tau - tau_model is formed when first read (kept then): a caller that needs the
+    model torque alone (the report's replays) never holds a third array of the log's length.
     """
 
     F_model: np.ndarray
     tau_model: np.ndarray
-    residual: np.ndarray
+    tau: np.ndarray
     z: np.ndarray
     T: np.ndarray
     w: np.ndarray
@@ -276,6 +279,10 @@ class ReplayResult:
     q_model: np.ndarray | None = None
     qd_model: np.ndarray | None = None
     notes: list[str] = field(default_factory=list)
+
+    @functools.cached_property
+    def residual(self) -> np.ndarray:
+        return self.tau - self.tau_model
 
     @property
     def rms(self) -> float:
@@ -388,7 +395,7 @@ def replay(log: JointLog, model: ReplayModel, w=None, a=None, t_offset: float | 
     tau_model = Ja
     tau_model += G
     tau_model += F
-    return ReplayResult(F_model=F, tau_model=tau_model, residual=tau - tau_model, z=z, T=T, w=w, a=a,
+    return ReplayResult(F_model=F, tau_model=tau_model, tau=tau, z=z, T=T, w=w, a=a,
                         notes=notes)
 
 

@@ -712,3 +712,40 @@ def test_models_without_heldout_error_are_explained(scenario):
     models[name]["notes"].append(NOT_HELDOUT)
     text = section_text(build_report(params, []), jid, "models")
     assert f"not computed (—) for {name}: their parameters are not all identifiable" in text
+
+
+def test_diagnosis_replays_are_dropped_once_used_and_the_residuals_do_not_change(scenario):
+    """The findings' replays stay in the cache only while a later finding needs them (each is arrays of the
+    log's length); the binned residuals are the same as with every replay kept."""
+    from frictid.io.logs import read_many
+    from frictid.io.params_load import load_params_dict
+    from frictid.report import content as ct
+    from frictid.segments import derivatives
+
+    params = load_params_dict(scenario["params"])
+    jd = params["joints"][scenario["joint"]]
+    d = ct.prepare_log(read_many([scenario["log"]])[0], jd, truth_segments, derivatives, segments=[])
+    sel, models = jd["selected"], list(jd["models"])
+    other = next(m for m in models if m != sel and "+" not in m)
+    named = {"cause": "velocity dependence", "extension": "stribeck", "model": sel}
+    findings = [named, {"cause": "presliding", "extension": "lugre"}, dict(FINDING), dict(named)]
+    jd2 = {**jd, "diagnosis": findings, "selection": {**jd.get("selection", {}), "diagnosis": {"base": other}}}
+    befores = ct.diagnosis_befores(jd2, findings)
+    assert befores == [other, sel, sel, sel]  # the base, then the model of the finding before
+    assert ct.replayed_models(jd2, findings[1], sel) == set()  # judged on the ramps
+    assert ct.replayed_models(jd2, findings[2], sel) == {sel}  # its extended model is a copy, never cached
+    assert ct.replayed_models(jd2, named, other) == {other, sel}
+    kept, dropped = {}, {}
+    for i, (f, before) in enumerate(zip(findings, befores)):
+        if not ct.on_sliding_samples(f):
+            continue
+        later = set().union(*(ct.replayed_models(jd2, g, b) for g, b in zip(findings[i + 1:], befores[i + 1:])))
+        a = ct.diagnosis_residuals([d], scenario["joint"], jd2, f, before=before, cache=kept)
+        b = ct.diagnosis_residuals([d], scenario["joint"], jd2, f, before=before, cache=dropped, keep=later)
+        assert a is not None and b is not None
+        for part in ("before", "given"):
+            for key in ("x", "mean", "after"):
+                if key in (a.get(part) or {}):
+                    np.testing.assert_array_equal(a[part][key], b[part][key])
+        assert {name for name, _, _ in dropped} <= later
+    assert dropped == {} and len(kept) >= 3  # the last finding leaves nothing; without keep, all stay

@@ -416,19 +416,40 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
     # ---- diagnosis and replay
     s = secs["diagnosis"]
     t0 = time.process_time()
-    runs: dict[int, ct.Replay] = {}
+    entries = [f if isinstance(f, dict) else {"cause": str(f)} for f in (jd.get("diagnosis") or [])]
+    befores = ct.diagnosis_befores(jd, entries)
+    # the models each finding replays, and from finding i on (a replay is kept only while one needs it:
+    # each is three arrays of the log's length, and the first joint of a worker pays for fresh memory)
+    later = [set()]
+    for f, before in zip(reversed(entries), reversed(befores)):
+        later.insert(0, later[0] | ct.replayed_models(jd, f, before))
+    cache: dict = {}
+    replays, replayed = [], False
     for k, d in enumerate(datas):
         r = ct.replay_log(d, jname, jd, closed=k < MAX_TIMELINES, vmin=vmin)
-        if r is not None:
-            runs[k] = r
+        if r is None:
+            continue
+        replayed = replayed or r.how == "replay"
+        if k < MAX_TIMELINES:
+            res_ = r.residual(d)
+            rms = float(np.sqrt(np.nanmean(res_ ** 2)))
+            del res_
+            title = (f"Replay of {r.model} along {d.label or 'the log'}: torque residual RMS {fmt_num(rms, 3)} "
+                     f"{units['tau']}")
+            replays.append(fg.replay(d.log.t, d.log.tau, r.tau_model, units, title, salt("replay", k),
+                                     q=d.log.q, q_model=r.q_model))
+            if r.how == "static":
+                s.notes.append(f"{d.label or 'log'}: replayed with the steady-state map of {r.model} only "
+                               f"(J a + G(q) + offset + F_ss(w)); samples slower than {fmt_num(vmin, 3)} "
+                               f"{units['qd']} are left out, as a static map cannot tell the friction at rest.")
+            for n in r.notes:
+                s.notes.append(f"{d.label or 'log'}: {n}")
+        r.q_model = None  # drawn
+        if sel in later[0]:
+            cache[(sel, k, 0)] = r
+        r = None  # not held past the loop
     findings = []
-    cache: dict = {(sel, k, 0): r for k, r in runs.items()}
-    base = ((jd.get("selection") or {}).get("diagnosis") or {}).get("base") if isinstance(
-        (jd.get("selection") or {}).get("diagnosis"), dict) else None
-    prev = base or sel
-    for i, f in enumerate(jd.get("diagnosis") or []):
-        if not isinstance(f, dict):
-            f = {"cause": str(f)}
+    for i, (f, prev) in enumerate(zip(entries, befores)):
         row = {"cause": f.get("cause", ""), "evidence": f.get("evidence", ""),
                "statistic": f.get("statistic", ""), "extension": f.get("extension", ""),
                "model": f.get("model", ""), "before": prev,
@@ -442,11 +463,12 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
             ext = row["extension"]
             row["extension"] = " ".join(x for x in (str(ext.get("name") or ext.get("model") or ""),
                                                     _compact_params(ext.get("params") or {})) if x) or str(ext)
-        if str(f.get("cause", "")) == "presliding" or f.get("extension") == "lugre":
+        if not ct.on_sliding_samples(f):
             row["note"] = ("Judged on the presliding ramps, not along the sliding samples: see the Presliding "
                            "part (torque against displacement with LuGre's sigma0).")
         elif datas:
-            res = ct.diagnosis_residuals(datas, jname, jd, f, before=prev, cache=cache, vmin=vmin)
+            res = ct.diagnosis_residuals(datas, jname, jd, f, before=prev, cache=cache, vmin=vmin,
+                                         keep=later[i + 1])
             if res is not None:
                 row["figure"] = fg.diagnosis(f, res, units, salt("diagnosis", i))
                 if res.get("given") is None:
@@ -456,28 +478,11 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
                 row["note"] = "No residual drawn: the model cannot be run along the log."
         else:
             row["note"] = "No residual drawn: no log given."
-        if isinstance(f.get("model"), str) and f["model"] in models:
-            prev = f["model"]
         findings.append(row)
+    cache.clear()
     s.data["findings"] = findings
-    replays = []
-    for k, d in enumerate(datas[:MAX_TIMELINES]):
-        r = runs.get(k)
-        if r is None:
-            continue
-        res_ = r.residual(d)
-        rms = float(np.sqrt(np.nanmean(res_ ** 2)))
-        title = f"Replay of {r.model} along {d.label or 'the log'}: torque residual RMS {fmt_num(rms, 3)} {units['tau']}"
-        replays.append(fg.replay(d.log.t, d.log.tau, r.tau_model, units, title, salt("replay", k),
-                                 q=d.log.q, q_model=r.q_model))
-        if r.how == "static":
-            s.notes.append(f"{d.label or 'log'}: replayed with the steady-state map of {r.model} only "
-                           f"(J a + G(q) + offset + F_ss(w)); samples slower than {fmt_num(vmin, 3)} "
-                           f"{units['qd']} are left out, as a static map cannot tell the friction at rest.")
-        for n in r.notes:
-            s.notes.append(f"{d.label or 'log'}: {n}")
     s.figures = replays
-    if replays and any(runs[k].how == "replay" for k in runs):
+    if replays and replayed:
         s.notes.append("Replay: the chosen model run along the measured motion by frictid.replay "
                        "(tau_model = J a + G(q) + offset + F_model, with the LuGre and thermal states and "
                        "Karnopp's stick law at rest); in closed loop, the position simulated with the log's "

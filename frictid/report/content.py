@@ -845,45 +845,94 @@ def binned(x: np.ndarray, y: np.ndarray, nbins: int = 30, order: np.ndarray | No
     return {"x": np.array(cx), "mean": np.array(m), "se": np.array(se), "n": np.array(n)}
 
 
+def on_sliding_samples(finding: dict) -> bool:
+    """Whether a finding's residual is drawn along the sliding samples (a presliding or LuGre finding is
+    judged on the presliding ramps instead)."""
+    return not (str(finding.get("cause", "")) == "presliding" or finding.get("extension") == "lugre")
+
+
+def diagnosis_befores(jd: dict, findings: list[dict]) -> list[str | None]:
+    """The model each finding is measured against: the diagnosis base (else the chosen model) for the
+    first, then the model of the finding before (when the parameter file has it)."""
+    models = jd.get("models") or {}
+    diag = (jd.get("selection") or {}).get("diagnosis")
+    prev = (diag.get("base") if isinstance(diag, dict) else None) or jd.get("selected")
+    out = []
+    for f in findings:
+        out.append(prev)
+        if isinstance(f.get("model"), str) and f["model"] in models:
+            prev = f["model"]
+    return out
+
+
+def replayed_models(jd: dict, finding: dict, before: str | None) -> set[str]:
+    """The models of the parameter file that :func:`diagnosis_residuals` replays for a finding (those it
+    can take from, or leave in, its cache)."""
+    if not on_sliding_samples(finding):
+        return set()
+    out = {before if before in (jd.get("models") or {}) else jd.get("selected")}
+    ext = extension_model(jd, finding)
+    if ext is not None and ext[1] is jd:
+        out.add(ext[0])
+    return out
+
+
 def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dict, before: str | None = None,
-                        cache: dict | None = None, vmin: float | None = None) -> dict | None:
+                        cache: dict | None = None, vmin: float | None = None,
+                        keep: set[str] | None = None) -> dict | None:
     """Residual ``tau - tau_model`` on the moving samples against the finding's cause variable, binned,
     before (model ``before``, default the chosen one) and after the extension (the finding's ``model``, or
     the chosen model with the extension's ``params``; else the finding's own ``binned: {x, after}``).
-    ``cache`` keeps replays per (model, log index); ``vmin``: :func:`min_speed` of ``datas`` when known."""
+    ``cache`` keeps replays per (model, log index); ``keep``: the models whose replays stay in it (the
+    others are dropped once used, each as soon as its residual is taken: None keeps all); ``vmin``:
+    :func:`min_speed` of ``datas`` when known."""
     cache = {} if cache is None else cache
     var = cause_variable(str(finding.get("cause", "")), str(finding.get("extension", "")))
     vmin = min_speed(datas) if vmin is None else vmin
     ext = extension_model(jd, finding)
     before = before if before in (jd.get("models") or {}) else jd.get("selected")
 
+    def key(name, entry, k):
+        return name, k, id(entry) if entry is not jd else 0
+
     def run(name, entry, k, d):
-        key = (name, k, id(entry) if entry is not jd else 0)
-        if key not in cache:
-            cache[key] = replay_log(d, jname, entry, model=name, closed=False, vmin=vmin)
-        return cache[key]
+        if key(name, entry, k) not in cache:
+            cache[key(name, entry, k)] = replay_log(d, jname, entry, model=name, closed=False, vmin=vmin)
+        return cache[key(name, entry, k)]
+
+    def release(kk, unless=None):
+        if keep is not None and kk != unless and (kk[2] != 0 or kk[0] not in keep):
+            cache.pop(kk, None)
 
     xs, rb, ra, label = [], [], [], ""
     for k, d in enumerate(datas):
+        mv = np.abs(d.w) > vmin
         rb_k = run(before, jd, k, d)
         if rb_k is None:
             return None
-        ra_k = run(ext[0], ext[1], k, d) if ext is not None else None
-        T = ra_k.T if ra_k is not None and ra_k.T is not None else rb_k.T
-        x, label = variable_values(var, d, T)
-        mv = np.abs(d.w) > vmin
-        xs.append(x[mv])
         rb.append(rb_k.residual(d)[mv])
+        T_before = rb_k.T
+        del rb_k
+        k_after = key(ext[0], ext[1], k) if ext is not None else None
+        release(key(before, jd, k), unless=k_after)
+        ra_k = run(ext[0], ext[1], k, d) if ext is not None else None
+        T = ra_k.T if ra_k is not None and ra_k.T is not None else T_before
+        x, label = variable_values(var, d, T)
+        xs.append(x[mv])
         if ext is not None:
             ra.append(ra_k.residual(d)[mv] if ra_k is not None else np.full(int(mv.sum()), np.nan))
+            del ra_k
+            release(k_after)
+        del T, T_before, x
     if not xs:
         return None
     x = np.concatenate(xs)
     order = x_order(x)
     out = {"variable": var, "label": label, "before": binned(x, np.concatenate(rb), order=order),
            "before_model": before}
-    if ra and np.any(np.isfinite(np.concatenate(ra))):
-        aft = binned(x, np.concatenate(ra), order=order)
+    ra = np.concatenate(ra) if ra else None
+    if ra is not None and np.any(np.isfinite(ra)):
+        aft = binned(x, ra, order=order)
         out["given"] = {"x": aft["x"], "after": aft["mean"], "before": None, "model": ext[0]}
     given = finding.get("binned")
     if "given" not in out and isinstance(given, dict) and given.get("x") is not None and given.get("after") is not None:
