@@ -58,6 +58,7 @@ def map_forked(fn: Callable, items: Sequence, workers: int) -> list:
     # to every object it visits, and each page written is copied from the parent (a worker's first item
     # cost about a second of system time more without this)
     gc.freeze()
+    _release_free_heap()
     pool = ProcessPoolExecutor(max_workers=min(workers, len(items)), mp_context=mp.get_context("fork"),
                                initializer=_worker_init)
     ours: list = []
@@ -86,6 +87,21 @@ def map_forked(fn: Callable, items: Sequence, workers: int) -> list:
         gc.unfreeze()
         _TASK.clear()
         _reap(ours)
+
+
+def _release_free_heap() -> None:
+    """Give the pages of this process's freed heap memory back to the system before forking (glibc's
+    ``malloc_trim``; nothing elsewhere). A worker's allocator hands out the chunks freed here first: kept,
+    each page it writes there is copied from this process's (copy-on-write) instead of given fresh, and a
+    copy costs more than a zeroed page. The report's parent holds 30-40 MB of such chunks at the fork (the
+    parameter file parsed, the joint column read); trimmed, a worker's first joint took 0.49-0.81 s of
+    system time instead of 0.63-1.65 s in three alternating pairs (docs/benchmarks.md, session 7)."""
+    import ctypes
+
+    try:
+        ctypes.CDLL(None).malloc_trim(0)
+    except (OSError, AttributeError):  # pragma: no cover - not glibc
+        pass
 
 
 def _reap(procs) -> None:
