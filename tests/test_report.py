@@ -572,6 +572,23 @@ def test_cycle_rms_from_the_gram_matrix_is_the_polynomials():
         assert _quad_rms(c, X.T @ X / len(w)) == pytest.approx(np.sqrt(np.mean(polynomial(w, *c) ** 2)), rel=1e-9)
 
 
+def test_cycle_coefficients_from_the_normal_equations_fit_as_lstsq():
+    """A duty cycle's polynomial from its Gram matrix (scaled normal equations) has the fitted values of
+    ``lstsq`` on the samples, also when the regressors cannot be told apart (one speed: sgn, w, w|w|, w^3
+    collinear) or a column is zero."""
+    from frictid.report.content import _normal_solve, _poly_basis
+
+    rng = np.random.default_rng(11)
+    cases = [rng.normal(0.0, rng.uniform(0.05, 3.0), rng.integers(50, 20000)) for _ in range(6)]
+    cases += [np.full(300, 0.7), np.r_[np.full(200, 0.4), np.full(100, -0.4)]]
+    for w in cases:
+        X = _poly_basis(w)
+        F = 40.0 * np.sign(w) + 3.0 * w + rng.normal(0.0, 0.5, w.size)
+        want = X @ np.linalg.lstsq(X, F, rcond=None)[0]
+        got = X @ _normal_solve(X.T @ X / w.size, X.T @ F / w.size)
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.abs(F).max())
+
+
 def test_report_reads_the_references_only_for_a_closed_loop(tmp_path, monkeypatch):
     """q_ref / qd_ref / tau_ref feed only the closed-loop replay: a log without controller gains is read
     without them, a log with gains (meta.control) with them, and read once (its metadata says so)."""
