@@ -215,3 +215,22 @@ def test_problems_of_joints_read_by_their_workers_come_together(tmp_path):
     got = frictid.fit(str(path), models=MODELS, segmenter=truth_segments, jobs=2)
     assert got.sources[0]["rows"] == sum(lg.n for lg in logs) - 1
     assert any("dropped 1 rows" in w for w in got.joints["2"].warnings)
+
+
+@pytest.mark.parametrize("given, want", [(None, "system"), ("mimalloc", "mimalloc")])
+def test_arrow_allocates_from_the_c_heap_unless_the_user_chose(given, want):
+    """``keep_freed_memory`` (fit and report) makes Arrow's process-wide allocator the C library's, whose
+    freed pages numpy reuses, when pyarrow has not been loaded yet; a choice in ARROW_DEFAULT_MEMORY_POOL
+    stays. Checked in a fresh interpreter (this one has loaded pyarrow)."""
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "ARROW_DEFAULT_MEMORY_POOL"}
+    if given:
+        env["ARROW_DEFAULT_MEMORY_POOL"] = given
+    code = ("import os; from frictid.workers import keep_freed_memory; ok = keep_freed_memory(); "
+            "print(ok, os.environ.get('ARROW_DEFAULT_MEMORY_POOL'))")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    ok, chosen = out.stdout.split()
+    if ok == "True":  # glibc: the allocator settings apply
+        assert chosen == want
