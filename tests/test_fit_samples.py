@@ -83,3 +83,25 @@ def test_block_ranges_match_the_block_of_every_sample():
     for logs in cases:
         for n_folds in (2, 3, 5):
             assert block_ranges(logs, n_folds) == _dense_blocks(logs, n_folds)
+
+
+def test_a_set_with_the_same_samples_takes_the_other_sets_speed_order():
+    """Two targets on one joint's samples (same velocities and folds, different friction) bin alike: the
+    second takes the first's sort, and its bins are those of sorting again; other samples are sorted anew."""
+    rng = np.random.default_rng(5)
+    n = 4000
+    w = np.round(rng.normal(0.0, 1.0, n), 2)  # ties: the stable order matters
+    fold = rng.integers(0, 5, n)
+
+    def sample_set(F, w=w, fold=fold):
+        return SampleSet(w, F, fold, fold, np.zeros(n, dtype=int), 1, n, 5)
+
+    first, second, fresh = sample_set(rng.normal(size=n)), sample_set(rng.normal(size=n)), None
+    fresh = sample_set(second.F.copy())
+    assert second.share_order(first)
+    for f in (None, 0, 3):
+        for a, b in zip(_bin_samples(second, leave_out=f), _bin_samples(fresh, leave_out=f)):
+            np.testing.assert_array_equal(a, b)
+    other = sample_set(second.F, w=w[::-1].copy())
+    assert not other.share_order(first) and not sample_set(second.F, fold=fold[::-1].copy()).share_order(first)
+    assert "_speed_order" not in other.__dict__

@@ -807,10 +807,12 @@ def _target_plateaus(preps, Y) -> Plateaus:
                       ("w", "F", "F_se", "w_se", "n", "t_start", "t_end", "seg")))
 
 
-def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds):
+def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds, like=None):
     """Held-out RMS [F] of model ``name`` on the fit's basis: its static map refitted without each fold
     (plateau folds, or the time blocks of the sample basis) on the targets of :func:`_static_targets`, the
-    rest of the model held. Returns (rms_heldout, refit ModelFit, target Plateaus or None)."""
+    rest of the model held. Returns (rms_heldout, refit ModelFit, target Plateaus or the sample set).
+    ``like``: the sample set of another model of the joint, whose speed order is reused when the samples
+    are the same (one sort of up to 2 M samples less)."""
     mapname, _, Y = _static_targets(jf, preps, name)
     if basis == "plateaus":
         pl = _target_plateaus(preps, Y)
@@ -824,9 +826,11 @@ def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds):
     S = smp.build(pseudo, min_speed, n_folds, exclude=excl)
     if S is None:
         return math.nan, None, None
+    if isinstance(like, smp.SampleSet):
+        S.share_order(like)
     mf = smp.fit_map(mapname, S, jf.axis)
     rh = mf.metrics.get("rms_heldout")
-    return (rh if rh is not None else math.nan), mf, None
+    return (rh if rh is not None else math.nan), mf, S
 
 
 def _check_diagnosis(jf: JointFit, preps, choice: str, basis: str, keys, min_speed: float, excl,
@@ -855,7 +859,7 @@ def _check_diagnosis(jf: JointFit, preps, choice: str, basis: str, keys, min_spe
         basis, excl = "samples", REGRESSION_EXCLUDE
     try:
         e_diag, mf_diag, pl_diag = _heldout_on_basis(jf, preps, jf.selected, basis, min_speed, excl, n_folds)
-        e_fit, _, _ = _heldout_on_basis(jf, preps, choice, basis, min_speed, excl, n_folds)
+        e_fit, _, _ = _heldout_on_basis(jf, preps, choice, basis, min_speed, excl, n_folds, like=pl_diag)
     except (ConfigError, FrictidInputError, KeyError, ValueError):
         return
     what = ("plateau means" if basis == "plateaus" else

@@ -113,12 +113,30 @@ class SampleSet:
         (:func:`_bin_samples`) takes them from here instead of sorting and gathering again."""
         out = self.__dict__.get("_by_speed")
         if out is None:
-            out = []
-            for idx in (np.flatnonzero(self.w > 0), np.flatnonzero(self.w < 0)):
-                idx = idx[argsort_stable(np.abs(self.w[idx]))]
-                out.append((self.w[idx], self.F[idx], self.fold[idx]))
-            out = self.__dict__["_by_speed"] = tuple(out)
+            out = tuple((self.w[idx], self.F[idx], self.fold[idx]) for idx in self.speed_order())
+            self.__dict__["_by_speed"] = out
         return out
+
+    def speed_order(self) -> tuple[np.ndarray, np.ndarray]:
+        """Indices of the positive, then the negative velocity samples in increasing |w| (stable), sorted
+        once (or taken from a set with the same samples, :meth:`share_order`)."""
+        order = self.__dict__.get("_speed_order")
+        if order is None:
+            order = []
+            for idx in (np.flatnonzero(self.w > 0), np.flatnonzero(self.w < 0)):
+                order.append(idx[argsort_stable(np.abs(self.w[idx]))])
+            order = self.__dict__["_speed_order"] = tuple(order)
+        return order
+
+    def share_order(self, other: "SampleSet") -> bool:
+        """Take ``other``'s :meth:`speed_order` when both hold the same samples (velocities and folds; the
+        friction may differ: two models' targets on one joint's samples); True when taken."""
+        if (self.w.shape != other.w.shape or not np.array_equal(self.w, other.w)
+                or not np.array_equal(self.fold, other.fold)):
+            return False
+        self.__dict__["_speed_order"] = other.speed_order()
+        self.__dict__.pop("_by_speed", None)
+        return True
 
 
 def argsort_stable(a: np.ndarray) -> np.ndarray:
