@@ -86,22 +86,33 @@ def test_block_ranges_match_the_block_of_every_sample():
 
 
 def test_a_set_with_the_same_samples_takes_the_other_sets_speed_order():
-    """Two targets on one joint's samples (same velocities and folds, different friction) bin alike: the
-    second takes the first's sort, and its bins are those of sorting again; other samples are sorted anew."""
+    """Two targets on one joint's samples (the same velocity arrays and masks, different friction) bin
+    alike: the second takes the first's sort, and its bins are those of sorting again; a set of other
+    samples (another mask, stride or velocity array) sorts anew."""
+    from types import SimpleNamespace
+
+    from frictid.data import JointLog, Segment
+    from frictid.fit.samples import build
+
     rng = np.random.default_rng(5)
-    n = 4000
+    n = 6000
+    t = np.arange(n) * 1e-3
     w = np.round(rng.normal(0.0, 1.0, n), 2)  # ties: the stable order matters
-    fold = rng.integers(0, 5, n)
+    log = JointLog(joint="j", t=t, q=np.cumsum(w) * 1e-3, tau=np.zeros(n))
+    rest = [Segment("rest", 1000, 1500, t[1000], t[1499])]
 
-    def sample_set(F, w=w, fold=fold):
-        return SampleSet(w, F, fold, fold, np.zeros(n, dtype=int), 1, n, 5)
+    def prep(F, segments=(), w=w):
+        return SimpleNamespace(log=log, w=w, F=F, segments=list(segments))
 
-    first, second, fresh = sample_set(rng.normal(size=n)), sample_set(rng.normal(size=n)), None
-    fresh = sample_set(second.F.copy())
-    assert second.share_order(first)
+    F1, F2 = rng.normal(size=n), rng.normal(size=n)
+    first = build([prep(F1)], 0.05, 5)
+    key = first.order_key()
+    second, fresh = build([prep(F2)], 0.05, 5), build([prep(F2)], 0.05, 5)
+    assert second.share_order(key)
     for f in (None, 0, 3):
         for a, b in zip(_bin_samples(second, leave_out=f), _bin_samples(fresh, leave_out=f)):
             np.testing.assert_array_equal(a, b)
-    other = sample_set(second.F, w=w[::-1].copy())
-    assert not other.share_order(first) and not sample_set(second.F, fold=fold[::-1].copy()).share_order(first)
-    assert "_speed_order" not in other.__dict__
+    others = [build([prep(F2, rest)], 0.05, 5, exclude=("rest",)), build([prep(F2)], 0.05, 5, max_samples=n // 3),
+              build([prep(F2, w=w.copy())], 0.05, 5), build([prep(F2)], 0.05, 4)]
+    for other in others:
+        assert not other.share_order(key) and "_speed_order" not in other.__dict__

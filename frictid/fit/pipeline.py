@@ -810,9 +810,9 @@ def _target_plateaus(preps, Y) -> Plateaus:
 def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds, like=None):
     """Held-out RMS [F] of model ``name`` on the fit's basis: its static map refitted without each fold
     (plateau folds, or the time blocks of the sample basis) on the targets of :func:`_static_targets`, the
-    rest of the model held. Returns (rms_heldout, refit ModelFit, target Plateaus or the sample set).
-    ``like``: the sample set of another model of the joint, whose speed order is reused when the samples
-    are the same (one sort of up to 2 M samples less)."""
+    rest of the model held. Returns (rms_heldout, refit ModelFit, target Plateaus or the samples' speed
+    order, :meth:`~frictid.fit.samples.SampleSet.order_key`). ``like``: that speed order from another model
+    of the joint, reused when the samples are the same (one sort of up to 2 M samples less)."""
     mapname, _, Y = _static_targets(jf, preps, name)
     if basis == "plateaus":
         pl = _target_plateaus(preps, Y)
@@ -826,11 +826,11 @@ def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds, like=Non
     S = smp.build(pseudo, min_speed, n_folds, exclude=excl)
     if S is None:
         return math.nan, None, None
-    if isinstance(like, smp.SampleSet):
+    if isinstance(like, smp.SpeedOrder):
         S.share_order(like)
     mf = smp.fit_map(mapname, S, jf.axis)
     rh = mf.metrics.get("rms_heldout")
-    return (rh if rh is not None else math.nan), mf, S
+    return (rh if rh is not None else math.nan), mf, S.order_key()
 
 
 def _check_diagnosis(jf: JointFit, preps, choice: str, basis: str, keys, min_speed: float, excl,

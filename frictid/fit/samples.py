@@ -97,6 +97,9 @@ class SampleSet:
     n_moving: int
     n_folds: int
     inflation: float = 1.0
+    #: what the samples were taken from (:func:`build`): per log its velocity array and the mask of the
+    #: samples kept, and the stride; two sets with the same source hold the same samples (:meth:`share_order`)
+    source: tuple | None = None
 
     @property
     def n(self) -> int:
@@ -128,15 +131,35 @@ class SampleSet:
             order = self.__dict__["_speed_order"] = tuple(order)
         return order
 
-    def share_order(self, other: "SampleSet") -> bool:
-        """Take ``other``'s :meth:`speed_order` when both hold the same samples (velocities and folds; the
-        friction may differ: two models' targets on one joint's samples); True when taken."""
-        if (self.w.shape != other.w.shape or not np.array_equal(self.w, other.w)
-                or not np.array_equal(self.fold, other.fold)):
+    def order_key(self) -> "SpeedOrder | None":
+        """This set's :meth:`speed_order` with what identifies its samples, to hand to another set of the
+        same samples (:meth:`share_order`) without keeping this one (None without a known source)."""
+        return None if self.source is None else SpeedOrder(self.source, self.n_folds, self.speed_order())
+
+    def share_order(self, key: "SpeedOrder | None") -> bool:
+        """Take the speed order of ``key`` (:meth:`order_key` of another set) when both sets hold the same
+        samples: taken from the same velocity arrays with the same masks, stride and folds (the friction
+        may differ: two models' targets on one joint's samples). True when taken."""
+        if key is None or self.source is None or key.n_folds != self.n_folds:
             return False
-        self.__dict__["_speed_order"] = other.speed_order()
+        (w1, m1, st1), (w2, m2, st2) = key.source, self.source
+        if st1 != st2 or len(w1) != len(w2) or any(a is not b for a, b in zip(w1, w2)):
+            return False
+        if any(a.shape != b.shape or not np.array_equal(a, b) for a, b in zip(m1, m2)):
+            return False
+        self.__dict__["_speed_order"] = key.order
         self.__dict__.pop("_by_speed", None)
         return True
+
+
+@dataclass
+class SpeedOrder:
+    """A sample set's speed order and the source of its samples (:meth:`SampleSet.order_key`): the masks
+    and the order are about a tenth of the set's memory."""
+
+    source: tuple
+    n_folds: int
+    order: tuple
 
 
 def argsort_stable(a: np.ndarray) -> np.ndarray:
@@ -195,6 +218,7 @@ def build(logs, min_speed: float, n_folds: int, exclude: tuple[str, ...] = (),
     ``.segments``): |w| > min_speed, finite, outside segments of the kinds in ``exclude``."""
     ranges = block_ranges([np.asarray(p.log.t, float) for p in logs], n_folds)
     ws, Fs, bs, ls = [], [], [], []
+    src_w, src_m = [], []
     for li, (p, rr) in enumerate(zip(logs, ranges)):
         if p.F is None:
             continue
@@ -202,6 +226,8 @@ def build(logs, min_speed: float, n_folds: int, exclude: tuple[str, ...] = (),
         for s in p.segments:
             if s.kind in exclude:
                 m[s.i0:s.i1] = False
+        src_w.append(p.w)
+        src_m.append(m)
         blk = np.empty(p.log.n, dtype=np.int64)
         for i0, i1, b in rr:
             blk[i0:i1] = b
@@ -219,7 +245,8 @@ def build(logs, min_speed: float, n_folds: int, exclude: tuple[str, ...] = (),
     if stride > 1:
         sl = slice(0, None, stride)
         w, F, blk, lg = w[sl], F[sl], blk[sl], lg[sl]
-    return SampleSet(w, F, blk, blk % n_folds, lg, stride, n_moving, n_folds)
+    return SampleSet(w, F, blk, blk % n_folds, lg, stride, n_moving, n_folds,
+                     source=(tuple(src_w), tuple(src_m), stride))
 
 
 def variance_factor(r: np.ndarray) -> float:
