@@ -333,11 +333,11 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary", heldout: bool = True)
     mf = _fit_binned(name, bins, axis)
     vals = mf.values()
     k = int(mf.metrics.get("k") or 0)
-    pred = predict(name, vals, S.w)
-    r = pred - S.F
+    r = predict(name, vals, S.w) - S.F
     ok = np.isfinite(r)
     n = int(ok.sum())
     rss = float(np.sum(r[ok] ** 2))
+    del r, ok  # two arrays of the samples' length fewer through the held-out refits (the check's peak)
     held = None
     if all(v is not None for v in vals.values()):
         # covariance of the samples: residual variance of the samples, inflated for their autocorrelation,
@@ -372,9 +372,9 @@ def heldout_map(name: str, S: SampleSet, mf: ModelFit, axis: str = "rotary") -> 
             continue
         m = _fit_binned(name, _bin_samples(S, leave_out=f), axis, start=start)
         ph[te] = predict(name, m.values(), S.w[te])
-    rh = ph - S.F
-    if np.isfinite(rh).all():
-        return float(math.sqrt(np.mean(rh ** 2)))
+    ph -= S.F  # the held-out residual, in place
+    if np.isfinite(ph).all():
+        return float(math.sqrt(np.mean(np.square(ph, out=ph))))
     return None
 
 
