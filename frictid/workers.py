@@ -194,15 +194,23 @@ def keep_freed_memory() -> bool:
     0.6-0.9 s CPU of the report's 17 s (docs/report.md) and 10 s of system time of the fit's 57 s CPU
     (docs/benchmarks.md), for 0.3-0.5 GB more peak memory. Process-wide: meant for the ``frictid fit``
     and ``frictid report`` commands, whose process ends with their output; the workers they fork inherit
-    it. False where the C library is not glibc."""
+    it. False where the C library is not glibc.
+
+    One heap for every thread (``M_ARENA_MAX`` 1): glibc gives each thread that allocates its own heap
+    (arena), and the Parquet reader's decoding threads left a worker's read buffers there, freed but out
+    of reach of the arrays numpy then allocates in the main thread: a report worker's first joint held
+    803-883 MB of private memory with them, 575-679 MB without (0.85-2.28 -> 0.29-0.81 s of system time;
+    docs/benchmarks.md, session 7). The decoding threads allocate few, large buffers: one heap's lock costs
+    them nothing measurable."""
     import ctypes
 
     try:
         mallopt = ctypes.CDLL(None).mallopt  # the process's own symbols (find_library would run ldconfig)
     except (OSError, AttributeError):
         return False
-    M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
-    if not (mallopt(M_MMAP_THRESHOLD, 32 << 20) and mallopt(M_TRIM_THRESHOLD, 512 << 20)):
+    M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -3, -8
+    if not (mallopt(M_MMAP_THRESHOLD, 32 << 20) and mallopt(M_TRIM_THRESHOLD, 512 << 20)
+            and mallopt(M_ARENA_MAX, 1)):
         return False
     import sys
 
