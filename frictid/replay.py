@@ -481,7 +481,9 @@ def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness:
         sub.pop(k, None)
     side = ReplayModel(**{**model.__dict__, "ext": sub})
     q_meas = np.asarray(log.q if log.q is not None else q_ref, dtype=float)
-    G_meas = (model.gravity(q_meas, pay_in) if G is None or log.q is None else G) - model.offset
+    G_meas = None  # the gravity torque without the offset: only the load extensions read it
+    if ext.get("load_torque") or ext.get("load_gravity") or ext.get("load_payload"):
+        G_meas = (model.gravity(q_meas, pay_in) if G is None or log.q is None else G) - model.offset
     if model.Mx and model.axis == "rotary":
         p[P_PAY] = model.Mx  # the kernel's payload gravity: m P_PAY cos q
     if model.My or (model.Mx and model.axis != "rotary"):
