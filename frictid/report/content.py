@@ -762,17 +762,27 @@ def replay_log(d: LogData, jname: str, jd: dict, model: str | None = None, close
     return Replay(sel["name"], tm, how="static")
 
 
+def named_extension_model(jd: dict, finding: dict) -> str | None:
+    """The model of the parameter file a finding names as carrying its extension (``model``, or
+    ``extension`` as a name or ``{model: ...}``), or None."""
+    models = jd.get("models") or {}
+    ext = finding.get("extension")
+    for n in (finding.get("model"), ext if isinstance(ext, str) else None,
+              ext.get("model") if isinstance(ext, dict) else None):
+        if isinstance(n, str) and n in models:
+            return n
+    return None
+
+
 def extension_model(jd: dict, finding: dict) -> tuple[str, dict] | None:
     """The model that carries a finding's extension: a model named by the finding (``model``, or
     ``extension`` as a name or ``{model: ...}``), else the chosen model with the extension's ``params``
     added. Returns (model name, joint entry to replay it from) or None."""
     models = jd.get("models") or {}
     ext = finding.get("extension")
-    names = [finding.get("model"), ext if isinstance(ext, str) else None,
-             ext.get("model") if isinstance(ext, dict) else None]
-    for n in names:
-        if isinstance(n, str) and n in models:
-            return n, jd
+    named = named_extension_model(jd, finding)
+    if named is not None:
+        return named, jd
     if isinstance(ext, dict) and isinstance(ext.get("params"), dict) and jd.get("selected") in models:
         import copy
         jd2 = copy.deepcopy(jd)
@@ -884,9 +894,9 @@ def replayed_models(jd: dict, finding: dict, before: str | None) -> set[str]:
     if not on_sliding_samples(finding):
         return set()
     out = {before if before in (jd.get("models") or {}) else jd.get("selected")}
-    ext = extension_model(jd, finding)
-    if ext is not None and ext[1] is jd:
-        out.add(ext[0])
+    named = named_extension_model(jd, finding)  # a model built from the extension's params is never cached
+    if named is not None:
+        out.add(named)
     return out
 
 
