@@ -573,10 +573,10 @@ def test_cycle_rms_from_the_gram_matrix_is_the_polynomials():
 
 
 def test_cycle_coefficients_from_the_normal_equations_fit_as_lstsq():
-    """A duty cycle's polynomial from its Gram matrix (scaled normal equations) has the fitted values of
-    ``lstsq`` on the samples, also when the regressors cannot be told apart (one speed: sgn, w, w|w|, w^3
-    collinear) or a column is zero."""
-    from frictid.report.content import _normal_solve, _poly_basis
+    """A duty cycle's polynomial from the fit's normal equations has the fitted values of ``lstsq`` on the
+    samples, also when the regressors cannot be told apart (one speed: sgn, w, w|w|, w^3 collinear), and its
+    Gram matrix is the regressors'."""
+    from frictid.report.content import _cycle_polynomial, _poly_basis
 
     rng = np.random.default_rng(11)
     cases = [rng.normal(0.0, rng.uniform(0.05, 3.0), rng.integers(50, 20000)) for _ in range(6)]
@@ -585,8 +585,9 @@ def test_cycle_coefficients_from_the_normal_equations_fit_as_lstsq():
         X = _poly_basis(w)
         F = 40.0 * np.sign(w) + 3.0 * w + rng.normal(0.0, 0.5, w.size)
         want = X @ np.linalg.lstsq(X, F, rcond=None)[0]
-        got = X @ _normal_solve(X.T @ X / w.size, X.T @ F / w.size)
-        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9 * np.abs(F).max())
+        coef, gram = _cycle_polynomial(w, F)
+        np.testing.assert_allclose(X @ coef, want, rtol=1e-9, atol=1e-9 * np.abs(F).max())
+        np.testing.assert_allclose(gram, X.T @ X / w.size, rtol=1e-12)
 
 
 def test_report_reads_the_references_only_for_a_closed_loop(tmp_path, monkeypatch):

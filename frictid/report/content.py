@@ -571,17 +571,16 @@ def _poly_basis(w: np.ndarray) -> np.ndarray:
     return X
 
 
-def _normal_solve(gram: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Least-squares coefficients from the normal equations ``gram c = b`` (``gram = X'X / n``,
-    ``b = X'y / n``), with the columns scaled to unit norm first and the minimum-norm solution where the
-    columns cannot be told apart. The same fitted values as ``lstsq(X, y)`` (the scaled Gram matrix of a
-    cycle's four regressors has a condition number near 1e4: about 1e-12 relative), from the Gram matrix
-    the cycle's RMS needs anyway, instead of a factorisation of the samples (7 ms per cycle of a
-    joint-hour)."""
-    sc = np.sqrt(np.diag(gram))
-    sc[sc == 0] = 1.0
-    c, *_ = np.linalg.lstsq(gram / np.outer(sc, sc), b / sc, rcond=1e-12)
-    return c / sc
+def _cycle_polynomial(w: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A cycle's polynomial friction ``c0 sgn(w) + c1 w + c2 w|w| + c3 w^3`` fitted to (w, F) by the fit's
+    own least squares (:func:`frictid.fit.regression.solve`: normal equations with the columns scaled, the
+    dependent ones left out), and the Gram matrix ``X'X / n`` its RMS needs (:func:`_quad_rms`): one pass
+    over the samples instead of a factorisation of them (``lstsq``, 7 ms per cycle of a joint-hour)."""
+    from frictid.fit import regression as rg
+
+    ne = rg.NormalEquations(4)
+    ne.add(_poly_basis(w), F)
+    return rg.solve(ne, ("c0", "c1", "c2", "c3")).coef, ne.XtX / max(ne.n, 1)
 
 
 def _quad_rms(c: np.ndarray, gram: np.ndarray) -> float:
@@ -642,10 +641,8 @@ def thermal_cycles(datas: list[LogData], jd: dict, vmin: float | None = None
         mv = np.abs(ww) > vmin
         if mv.sum() < 4:
             continue
-        F = d.F[i0:i1][mv]
-        X = _poly_basis(ww[mv])
-        gram = X.T @ X / X.shape[0]  # RMS of c0 sgn(w) + c1 w + ... over the samples: sqrt(c' gram c)
-        coef = _normal_solve(gram, X.T @ F / X.shape[0])  # the cycle's own friction, as the fit identifies it
+        # the cycle's own friction, as the fit identifies it; its RMS over the samples is sqrt(c' gram c)
+        coef, gram = _cycle_polynomial(ww[mv], d.F[i0:i1][mv])
         te = d.log.channels.get("temp_env")
         tj = d.log.channels.get("temp_joint")
         cycles.append({"t": 0.5 * (t0 + t1), "F_rms": _quad_rms(coef, gram),
