@@ -916,9 +916,10 @@ def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dic
         return name, k, id(entry) if entry is not jd else 0
 
     def run(name, entry, k, d):
-        if key(name, entry, k) not in cache:
-            cache[key(name, entry, k)] = replay_log(d, jname, entry, model=name, closed=False, vmin=vmin)
-        return cache[key(name, entry, k)]
+        kk = key(name, entry, k)
+        if kk not in cache:
+            cache[kk] = replay_log(d, jname, entry, model=name, closed=False, vmin=vmin)
+        return cache[kk]
 
     def release(kk, unless=None):
         if keep is not None and kk != unless and (kk[2] != 0 or kk[0] not in keep):
