@@ -410,7 +410,11 @@ def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[s
     ``start:stop`` of the file (the row groups that hold none of them are not read).
 
     Reading the whole table and converting it would hold the Arrow table and its numpy copy at once
-    (twice the data); this holds the arrays and one row group.
+    (twice the data); this holds the arrays and what Arrow decodes at once: for the whole file,
+    ``GROUPS_AT_ONCE`` row groups of every column (decoded column-parallel); for a block of ``rows`` (one
+    joint, read in a worker beside the others, whose decoding threads would only compete with them), one
+    column of one row group: a worker's read then held 289-322 MB of fresh memory instead of 468-484 MB
+    for a joint-hour of 8 columns, in the same time (docs/benchmarks.md, session 8).
     """
     schema = pf.schema_arrow
     total = pf.metadata.num_rows
@@ -423,36 +427,40 @@ def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[s
     out: dict = {c: np.frombuffer(pa.allocate_buffer(8 * n, memory_pool=pool), dtype=np.float64) for c in numeric}
     arrow: dict[str, list] = {c: [] for c in cols if c not in out}
     off = 0
-    # the row groups that hold rows start:stop, read GROUPS_AT_ONCE at a time (Arrow decodes them in
-    # parallel), each batch then copied into the arrays
+    # the row groups that hold rows start:stop, read as the docstring says, each read then copied into the
+    # arrays
     spans, g1 = [], 0
     for i in range(pf.metadata.num_row_groups):
         g0, g1 = g1, g1 + pf.metadata.row_group(i).num_rows
         if min(stop, g1) > max(start, g0):
             spans.append((i, g0, g1))
-    for j in range(0, len(spans), GROUPS_AT_ONCE):
-        batch = spans[j:j + GROUPS_AT_ONCE]
+    per, parts = (GROUPS_AT_ONCE, [cols]) if rows is None else (1, [[c] for c in cols])
+    for j in range(0, len(spans), per):
+        batch = spans[j:j + per]
         g0, g1 = batch[0][1], batch[-1][2]
         a, b = max(start, g0), min(stop, g1)
-        rg = pf.read_row_groups([i for i, _, _ in batch], columns=cols)
-        if (a, b) != (g0, g1):
-            rg = rg.slice(a - g0, b - a)
-        m = rg.num_rows
-        for c in numeric:
-            col = rg.column(c)
-            dst = out[c][off:off + m]
-            k = 0
-            for chunk in col.chunks:
-                L = len(chunk)
-                if not pa.types.is_float64(chunk.type):
-                    chunk = chunk.cast(pa.float64())
-                dst[k:k + L] = _values(chunk)
-                k += L
-        for c in arrow:
-            arrow[c].extend(rg.column(c).chunks)
-        off += m
-        del rg  # its buffers go back to Arrow's allocator, which serves the next row group from them (returned
-        # to the system after every row group, they were faulted in again by the next one)
+        for part in parts:
+            rg = pf.read_row_groups([i for i, _, _ in batch], columns=part)
+            if (a, b) != (g0, g1):
+                rg = rg.slice(a - g0, b - a)
+            if rg.num_rows != b - a:
+                raise pa.ArrowInvalid(f"row groups {batch[0][0]}-{batch[-1][0]} hold {rg.num_rows} rows, "
+                                      f"the footer says {b - a}")
+            for c in part:
+                if c in arrow:
+                    arrow[c].extend(rg.column(c).chunks)
+                    continue
+                dst = out[c][off:off + b - a]
+                k = 0
+                for chunk in rg.column(c).chunks:
+                    L = len(chunk)
+                    if not pa.types.is_float64(chunk.type):
+                        chunk = chunk.cast(pa.float64())
+                    dst[k:k + L] = _values(chunk)
+                    k += L
+            del rg  # its buffers go back to Arrow's allocator, which serves the next read from them (returned
+            # to the system after every row group, they were faulted in again by the next one)
+        off += b - a
     if off != n:
         raise pa.ArrowInvalid(f"the row groups hold {off} rows, the footer says {n}")
     for c in arrow:
