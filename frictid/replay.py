@@ -32,6 +32,9 @@ from .models import static as sm
 from .models.replay_kernel import replay_friction
 from .models.thermal import thermal_code
 
+#: The channels only :func:`closed_loop` reads: the references and the feedforward torque.
+REFERENCE_CHANNELS = ("q_ref", "qd_ref", "tau_ref")
+
 #: Parameter names of the diagnosis extensions (see docs/parameter-file.md, "Extended models").
 EXTENSION_PARAMS = {
     "position": ("pos_amp", "pos_period", "pos_phase", "pos_q0", "pos_lin", "pos_quad"),
@@ -384,9 +387,10 @@ def replay(log: JointLog, model: ReplayModel, w=None, a=None, t_offset: float | 
         u_net = tau - Ja
         u_net -= G
         u_net -= off
+        # the friction is written over the net torque, read sample by sample before it
         F, z, T = replay_friction(log.t, wf, model.c_pos, model.c_neg, gmul=gmul, fmul=fmul, thermal=th,
-                                  u_stick=u_net, w_stick=STICK_NOISE * sc.sigma_w)
-        del u_net  # before the torque and residual are allocated
+                                  u_stick=u_net, w_stick=STICK_NOISE * sc.sigma_w, out=u_net)
+        del u_net
     else:
         F, z, T = replay_friction(log.t, wf, model.c_pos, model.c_neg, gmul=gmul, fmul=fmul, sigma0=sig0,
                                   sigma1=model.sigma1, thermal=th)

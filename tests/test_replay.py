@@ -89,6 +89,14 @@ def test_static_replay_is_the_map_and_karnopp_holds_at_rest():
     assert F2[2] == pytest.approx(1.2)        # sticking: the friction balances the applied torque ...
     assert F2[3] == pytest.approx(-float(canonical_level(0.001, C_NEG)))  # ... up to the level (3.2)
     assert np.allclose(F2[[0, 1, 4, 5]], F[[0, 1, 4, 5]])
+    # the friction written over the applied torque it reads gives the same values, in that array
+    u2 = u.copy()
+    F3, z3, T3 = replay_friction(t, w, C_POS, C_NEG, u_stick=u2, w_stick=0.01, out=u2)
+    assert F3 is u2 and np.array_equal(F3, F2)
+    # a state that cannot change comes back as one value per sample all the same, and read-only
+    assert z3.shape == T3.shape == (6,) and not z3.flags.writeable and np.all(z3 == 0) and np.all(np.isnan(T3))
+    with pytest.raises(ValueError, match="out must be"):
+        replay_friction(t, w, C_POS, C_NEG, out=np.empty(5))
 
 
 def test_lugre_replay_reaches_the_map_and_the_heat_balance_its_steady_state():
