@@ -658,6 +658,43 @@ def test_joints_read_by_their_workers_give_the_same_report(scenario, tmp_path):
     assert build_report(params, planned, jobs=2, **kw) == whole
 
 
+def test_references_dropped_only_from_the_logs_the_report_read(scenario, tmp_path):
+    """Once the closed loops have run, the references are dropped from the logs a worker read itself (the
+    diagnosis' replays reuse that memory), never from the caller's logs; the HTML is the same either way."""
+    from frictid.cli.report import plan_report_logs, read_report_logs
+    from frictid.replay import REFERENCE_CHANNELS
+    from frictid.report import build_report
+    from frictid.report import content as ct
+
+    def closed(k, lg):
+        q = np.asarray(lg.q, float)
+        lg.channels = {**lg.channels, "q_ref": q.copy(), "qd_ref": np.gradient(q, lg.t), "tau_ref": np.zeros_like(q)}
+        lg.meta = {**lg.meta, "control": {"kp": 400.0, "kd": 40.0, "ki": 0.0}}
+
+    path = tmp_path / "closed.parquet"
+    params = _two_joint_file(scenario, path, spoil=closed)
+    given = read_report_logs([str(path)])
+    assert all(set(REFERENCE_CHANNELS) <= set(lg.channels) for lg in given)
+    kw = dict(params_path="p.yaml", command="c", generated="2026-01-01 00:00 UTC", segmenter=truth_segments)
+    import frictid.replay as rp
+
+    loops, runs = [], []
+    real, real_loop = ct.drop_reference_channels, rp.closed_loop
+    ct.drop_reference_channels = lambda datas: (loops.extend(d.own for d in datas), real(datas))
+    rp.closed_loop = lambda log, *a, **k: (runs.append(set(REFERENCE_CHANNELS) <= set(log.channels)),
+                                           real_loop(log, *a, **k))[1]
+    try:
+        whole = build_report(params, given, jobs=1, **kw)
+        assert all(set(REFERENCE_CHANNELS) <= set(lg.channels) for lg in given)  # the caller's: kept
+        assert loops and not any(loops)
+        loops.clear()
+        assert build_report(params, plan_report_logs([str(path)]), jobs=1, **kw) == whole
+        assert loops and all(loops)
+    finally:
+        ct.drop_reference_channels, rp.closed_loop = real, real_loop
+    assert len(runs) == 4 and all(runs)  # each log's closed loop ran with its references, in both reports
+
+
 def test_cli_problems_and_warnings_of_joints_read_by_workers(scenario, cli, tmp_path):
     """The joints' problems come together in one error (exit 2, the old report kept); a joint's read
     warnings reach standard error and the report."""

@@ -92,13 +92,9 @@ def report(
                              "warnings": con.warnings})
 
 
-#: Channels only the closed-loop replay reads; it runs on logs whose metadata gives the controller gains.
-REFERENCE_CHANNELS = ("q_ref", "qd_ref", "tau_ref")
-
-
 def read_report_logs(paths: list[str], mapping=None, units=None) -> list:
     """The logs of ``paths`` with the columns the report uses: the references (``q_ref``, ``qd_ref``,
-    ``tau_ref``) only from a file whose logs carry controller gains (``meta.control``), which is then read
+    ``tau_ref``: :data:`frictid.replay.REFERENCE_CHANNELS`, which only the closed-loop replay reads) only from a file whose logs carry controller gains (``meta.control``), which is then read
     again whole; standard input is read once, whole. Problems from all files are reported together."""
     from ..io.logs import read_many
 
@@ -109,7 +105,7 @@ def _read_report_log(path: str, mapping=None, units=None, rows: tuple[int, int] 
     """One file's logs (``rows``: only these rows of a Parquet file), as :func:`read_report_logs` reads them."""
     from ..errors import FrictidInputError
     from ..io.logs import read_logs
-    from ..replay import controller_from_meta
+    from ..replay import REFERENCE_CHANNELS, controller_from_meta
 
     def closed_loop(lg) -> bool:
         try:

@@ -448,6 +448,7 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
         if sel in later[0]:
             cache[(sel, k, 0)] = r
         r = None  # not held past the loop
+    ct.drop_reference_channels(datas)  # the closed loops have run
     findings = []
     for i, (f, prev) in enumerate(zip(entries, befores)):
         row = {"cause": f.get("cause", ""), "evidence": f.get("evidence", ""),
@@ -602,15 +603,19 @@ def _joint_part(jn: str, jd: dict, given: list, sources: list[dict], hashes: dic
     t0 = time.process_time()
     jlogs: list[JointLog] = []
     first: list[int] = []  # index in jlogs of each given item's first log
+    own: set[int] = set()  # ids of the logs read here (the others are the caller's)
     for item in given:
         first.append(len(jlogs))
         if not isinstance(item, DeferredLogs):
             jlogs.append(item)
             continue
         try:
-            jlogs.extend(item.load())
+            got = item.load()
         except LogFormatError as exc:
             out.problems.append((exc.path, exc.problems))
+            continue
+        jlogs.extend(got)
+        own.update(id(lg) for lg in got)
     if out.problems:
         return out
     first.append(len(jlogs))
@@ -628,6 +633,7 @@ def _joint_part(jn: str, jd: dict, given: list, sources: list[dict], hashes: dic
         d = ct.prepare_log(lg, jd, segmenter, differentiate, segments=segs,
                            scales=ct.recorded_scales(lg, jd, sources, sha))
         d.sha256 = hashes.get(d.label)
+        d.own = id(lg) in own
         datas.append(d)
     ct.match_sources(datas, sources)
     timings["segments"] = time.process_time() - t0

@@ -162,6 +162,21 @@ class LogData:
     notes: list[str] = field(default_factory=list)
     #: the replay models' gravity along the log, per rigid-body terms (:func:`model_gravity`)
     gravity: dict = field(default_factory=dict)
+    #: the report read the log itself (a worker's :class:`~frictid.report.build.DeferredLogs`): the
+    #: channels no part still to come reads may be dropped from it (:func:`drop_reference_channels`)
+    own: bool = False
+
+
+def drop_reference_channels(datas: list["LogData"]) -> None:
+    """Drop the closed loop's references (:data:`frictid.replay.REFERENCE_CHANNELS`) from the logs the
+    report read itself, once their closed loops have run: 87 MB a joint-hour that the diagnosis' replays,
+    which come next, then reuse instead of fresh memory. A caller's logs are left as they were."""
+    from frictid.replay import REFERENCE_CHANNELS
+
+    for d in datas:
+        if d.own:
+            for c in REFERENCE_CHANNELS:
+                d.log.channels.pop(c, None)
 
 
 class PerSample:
