@@ -10,6 +10,7 @@ parent stops the workers at once.
 from __future__ import annotations
 
 import contextlib
+import functools
 import gc
 import os
 import pickle
@@ -228,6 +229,33 @@ def keep_freed_memory() -> bool:
     # worker then faulted them in again (0.3-0.5 s per joint-hour on this VM)
     pa.set_memory_pool(pa.system_memory_pool())
     return True
+
+
+def huge_pages(a) -> None:
+    """Ask the kernel to back a large array with transparent huge pages, as numpy does for the arrays it
+    allocates itself (4 MB and more, unless ``NUMPY_MADVISE_HUGEPAGE=0``): for arrays allocated elsewhere
+    (Arrow's allocator, which the log reader's columns come from). One fault then maps 2 MB instead of
+    4 kB; on this VM a report's first joints paid 0.2-0.4 s less system time with their columns advised
+    so, after idling too (docs/benchmarks.md, session 8). Nothing where the system has no such advice."""
+    import mmap
+
+    advice = getattr(mmap, "MADV_HUGEPAGE", None)
+    if advice is None or a.nbytes < (4 << 20) or os.environ.get("NUMPY_MADVISE_HUGEPAGE", "1") == "0":
+        return
+    start = a.__array_interface__["data"][0]
+    first = -(-start // mmap.PAGESIZE) * mmap.PAGESIZE  # madvise takes whole pages
+    end = (start + a.nbytes) // mmap.PAGESIZE * mmap.PAGESIZE
+    if end > first:
+        _madvise()(first, end - first, advice)
+
+
+@functools.cache
+def _madvise():
+    import ctypes
+
+    fn = ctypes.CDLL(None, use_errno=True).madvise
+    fn.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
+    return fn
 
 
 class Prefetch:

@@ -234,3 +234,26 @@ def test_arrow_allocates_from_the_c_heap_unless_the_user_chose(given, want):
     ok, chosen = out.stdout.split()
     if ok == "True":  # glibc: the allocator settings apply
         assert chosen == want
+
+
+@pytest.mark.parametrize("env", ["1", "0"])
+def test_huge_page_advice_covers_the_array_whole_pages(monkeypatch, env):
+    """``huge_pages`` advises the whole pages inside a large array (as numpy does for its own arrays),
+    nothing for a small one, and nothing when ``NUMPY_MADVISE_HUGEPAGE=0`` turns numpy's advice off."""
+    import mmap
+
+    if not hasattr(mmap, "MADV_HUGEPAGE"):
+        pytest.skip("no huge-page advice on this system")
+    calls = []
+    monkeypatch.setattr(workers, "_madvise", lambda: lambda *a: calls.append(a))
+    monkeypatch.setenv("NUMPY_MADVISE_HUGEPAGE", env)
+    big = np.empty(3 << 20)[1:]  # 24 MB, starting off a page boundary
+    workers.huge_pages(big)
+    workers.huge_pages(np.empty(1000))
+    if env == "0":
+        assert calls == []
+        return
+    ((start, length, advice),) = calls
+    lo = big.__array_interface__["data"][0]
+    assert advice == mmap.MADV_HUGEPAGE and start % mmap.PAGESIZE == 0 and length % mmap.PAGESIZE == 0
+    assert lo <= start < lo + mmap.PAGESIZE and lo + big.nbytes - mmap.PAGESIZE < start + length <= lo + big.nbytes

@@ -28,6 +28,7 @@ import yaml
 
 from ..data import OPTIONAL_CHANNELS, TRUTH_COLUMNS, JointLog
 from ..errors import ConfigError, FrictidInputError, LogFormatError
+from ..workers import huge_pages
 from .atomic import atomic_path, is_stdio
 from .units import conversion, parse_units
 
@@ -425,6 +426,8 @@ def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[s
     # the arrays come from Arrow's allocator too: it keeps the pages of freed arrays for the next read
     # in the process (as it does for read_table's), where numpy would map fresh ones for each
     out: dict = {c: np.frombuffer(pa.allocate_buffer(8 * n, memory_pool=pool), dtype=np.float64) for c in numeric}
+    for v in out.values():
+        huge_pages(v)
     arrow: dict[str, list] = {c: [] for c in cols if c not in out}
     off = 0
     # the row groups that hold rows start:stop, read as the docstring says, each read then copied into the
