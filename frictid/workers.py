@@ -235,8 +235,9 @@ def huge_pages(a) -> None:
     """Ask the kernel to back a large array with transparent huge pages, as numpy does for the arrays it
     allocates itself (4 MB and more, unless ``NUMPY_MADVISE_HUGEPAGE=0``): for arrays allocated elsewhere
     (Arrow's allocator, which the log reader's columns come from). One fault then maps 2 MB instead of
-    4 kB; on this VM a report's first joints paid 0.2-0.4 s less system time with their columns advised
-    so, after idling too (docs/benchmarks.md, session 8). Nothing where the system has no such advice."""
+    4 kB: a report worker's first joint took 56-60 k page faults instead of 109-117 k, and after idling
+    0.1-0.4 s less system time in three of four pairs (docs/benchmarks.md, session 8). Nothing where the
+    system has no such advice."""
     import mmap
 
     advice = getattr(mmap, "MADV_HUGEPAGE", None)
@@ -245,15 +246,20 @@ def huge_pages(a) -> None:
     start = a.__array_interface__["data"][0]
     first = -(-start // mmap.PAGESIZE) * mmap.PAGESIZE  # madvise takes whole pages
     end = (start + a.nbytes) // mmap.PAGESIZE * mmap.PAGESIZE
-    if end > first:
-        _madvise()(first, end - first, advice)
+    madvise = _madvise()
+    if end > first and madvise is not None:
+        madvise(first, end - first, advice)  # advice only: a refusal changes nothing
 
 
 @functools.cache
 def _madvise():
+    """The C library's ``madvise`` (None where it cannot be found)."""
     import ctypes
 
-    fn = ctypes.CDLL(None, use_errno=True).madvise
+    try:
+        fn = ctypes.CDLL(None, use_errno=True).madvise
+    except (OSError, AttributeError):  # pragma: no cover - not a Unix C library
+        return None
     fn.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
     return fn
 

@@ -94,8 +94,9 @@ def report(
 
 def read_report_logs(paths: list[str], mapping=None, units=None) -> list:
     """The logs of ``paths`` with the columns the report uses: the references (``q_ref``, ``qd_ref``,
-    ``tau_ref``: :data:`frictid.replay.REFERENCE_CHANNELS`, which only the closed-loop replay reads) only from a file whose logs carry controller gains (``meta.control``), which is then read
-    again whole; standard input is read once, whole. Problems from all files are reported together."""
+    ``tau_ref``: :data:`frictid.replay.REFERENCE_CHANNELS`, which only the closed-loop replay reads) only
+    from a file whose logs carry controller gains (``meta.control``), which is then read again whole;
+    standard input is read once, whole. Problems from all files are reported together."""
     from ..io.logs import read_many
 
     return read_many(paths, mapping, units, read=_read_report_log)

@@ -414,8 +414,8 @@ def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[s
     (twice the data); this holds the arrays and what Arrow decodes at once: for the whole file,
     ``GROUPS_AT_ONCE`` row groups of every column (decoded column-parallel); for a block of ``rows`` (one
     joint, read in a worker beside the others, whose decoding threads would only compete with them), one
-    column of one row group: a worker's read then held 289-322 MB of fresh memory instead of 468-484 MB
-    for a joint-hour of 8 columns, in the same time (docs/benchmarks.md, session 8).
+    column of one row group: a report worker's read of a joint-hour (8 columns, 230 MB) then added 299-320
+    MB of fresh memory instead of 482-514 MB, in the same time (docs/benchmarks.md, session 8).
     """
     schema = pf.schema_arrow
     total = pf.metadata.num_rows
