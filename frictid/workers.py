@@ -97,12 +97,9 @@ def _release_free_heap() -> None:
     copy costs more than a zeroed page. The report's parent holds 30-40 MB of such chunks at the fork (the
     parameter file parsed, the joint column read); trimmed, a worker's first joint took 0.49-0.81 s of
     system time instead of 0.63-1.65 s in three alternating pairs (docs/benchmarks.md, session 7)."""
-    import ctypes
-
-    try:
-        ctypes.CDLL(None).malloc_trim(0)
-    except (OSError, AttributeError):  # pragma: no cover - not glibc
-        pass
+    trim = _libc("malloc_trim")
+    if trim is not None:  # nothing elsewhere than glibc
+        trim(0)
 
 
 def _reap(procs) -> None:
@@ -141,12 +138,9 @@ def _worker_init() -> None:
     (a worker left waiting on the pool's queue would wait forever)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    try:
-        import ctypes
-
-        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG (Linux)
-    except (OSError, AttributeError):  # pragma: no cover - not Linux
-        pass
+    prctl = _libc("prctl")
+    if prctl is not None:  # Linux
+        prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG
     if os.getppid() != _TASK.get("parent"):  # the parent died before the line above
         os._exit(1)
     try:
@@ -203,11 +197,8 @@ def keep_freed_memory() -> bool:
     803-883 MB of private memory with them, 575-679 MB without (0.85-2.28 -> 0.29-0.81 s of system time;
     docs/benchmarks.md, session 7). The decoding threads allocate few, large buffers: one heap's lock costs
     them nothing measurable."""
-    import ctypes
-
-    try:
-        mallopt = ctypes.CDLL(None).mallopt  # the process's own symbols (find_library would run ldconfig)
-    except (OSError, AttributeError):
+    mallopt = _libc("mallopt")
+    if mallopt is None:
         return False
     M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, M_ARENA_MAX = -1, -3, -8
     if not (mallopt(M_MMAP_THRESHOLD, 32 << 20) and mallopt(M_TRIM_THRESHOLD, 512 << 20)
@@ -246,21 +237,24 @@ def huge_pages(a) -> None:
     start = a.__array_interface__["data"][0]
     first = -(-start // mmap.PAGESIZE) * mmap.PAGESIZE  # madvise takes whole pages
     end = (start + a.nbytes) // mmap.PAGESIZE * mmap.PAGESIZE
-    madvise = _madvise()
+    madvise = _libc("madvise")
     if end > first and madvise is not None:
         madvise(first, end - first, advice)  # advice only: a refusal changes nothing
 
 
 @functools.cache
-def _madvise():
-    """The C library's ``madvise`` (None where it cannot be found)."""
+def _libc(name: str):
+    """A function of the process's C library (its own symbols: ``find_library`` would run ldconfig), or
+    None where there is no such function (not glibc, not Linux). ``madvise`` takes an address: its
+    arguments are declared."""
     import ctypes
 
     try:
-        fn = ctypes.CDLL(None, use_errno=True).madvise
-    except (OSError, AttributeError):  # pragma: no cover - not a Unix C library
+        fn = getattr(ctypes.CDLL(None, use_errno=True), name)
+    except (OSError, AttributeError):  # pragma: no cover - not a Unix C library, or not this function
         return None
-    fn.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
+    if name == "madvise":
+        fn.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
     return fn
 
 
