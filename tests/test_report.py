@@ -658,7 +658,7 @@ def test_joints_read_by_their_workers_give_the_same_report(scenario, tmp_path):
     assert build_report(params, planned, jobs=2, **kw) == whole
 
 
-def test_references_dropped_only_from_the_logs_the_report_read(scenario, tmp_path):
+def test_references_dropped_only_from_the_logs_the_report_read(scenario, tmp_path, monkeypatch):
     """Once the closed loops have run, the references are dropped from the logs a worker read itself (the
     diagnosis' replays reuse that memory), never from the caller's logs; the HTML is the same either way."""
     from frictid.cli.report import plan_report_logs, read_report_logs
@@ -680,18 +680,16 @@ def test_references_dropped_only_from_the_logs_the_report_read(scenario, tmp_pat
 
     loops, runs = [], []
     real, real_loop = ct.drop_reference_channels, rp.closed_loop
-    ct.drop_reference_channels = lambda datas: (loops.extend(d.own for d in datas), real(datas))
-    rp.closed_loop = lambda log, *a, **k: (runs.append(set(REFERENCE_CHANNELS) <= set(log.channels)),
-                                           real_loop(log, *a, **k))[1]
-    try:
-        whole = build_report(params, given, jobs=1, **kw)
-        assert all(set(REFERENCE_CHANNELS) <= set(lg.channels) for lg in given)  # the caller's: kept
-        assert loops and not any(loops)
-        loops.clear()
-        assert build_report(params, plan_report_logs([str(path)]), jobs=1, **kw) == whole
-        assert loops and all(loops)
-    finally:
-        ct.drop_reference_channels, rp.closed_loop = real, real_loop
+    monkeypatch.setattr(ct, "drop_reference_channels",
+                        lambda datas: (loops.extend(d.own for d in datas), real(datas)))
+    monkeypatch.setattr(rp, "closed_loop", lambda log, *a, **k: (
+        runs.append(set(REFERENCE_CHANNELS) <= set(log.channels)), real_loop(log, *a, **k))[1])
+    whole = build_report(params, given, jobs=1, **kw)
+    assert all(set(REFERENCE_CHANNELS) <= set(lg.channels) for lg in given)  # the caller's: kept
+    assert loops and not any(loops)
+    loops.clear()
+    assert build_report(params, plan_report_logs([str(path)]), jobs=1, **kw) == whole
+    assert loops and all(loops)
     assert len(runs) == 4 and all(runs)  # each log's closed loop ran with its references, in both reports
 
 
