@@ -229,6 +229,7 @@ def huge_pages(a) -> None:
     4 kB: a report worker's first joint took 56-60 k page faults instead of 109-117 k, and after idling
     0.1-0.4 s less system time in three of four pairs (docs/benchmarks.md, session 8). Nothing where the
     system has no such advice."""
+    import ctypes
     import mmap
 
     advice = getattr(mmap, "MADV_HUGEPAGE", None)
@@ -237,24 +238,24 @@ def huge_pages(a) -> None:
     start = a.__array_interface__["data"][0]
     first = -(-start // mmap.PAGESIZE) * mmap.PAGESIZE  # madvise takes whole pages
     end = (start + a.nbytes) // mmap.PAGESIZE * mmap.PAGESIZE
-    madvise = _libc("madvise")
+    madvise = _libc("madvise", (ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int))  # an address: declared
     if end > first and madvise is not None:
         madvise(first, end - first, advice)  # advice only: a refusal changes nothing
 
 
 @functools.cache
-def _libc(name: str):
-    """A function of the process's C library (its own symbols: ``find_library`` would run ldconfig), or
-    None where there is no such function (not glibc, not Linux). ``madvise`` takes an address: its
-    arguments are declared."""
+def _libc(name: str, argtypes: tuple = ()):
+    """A function of the process's C library (its own symbols: ``find_library`` would run ldconfig), with
+    its ``argtypes`` declared when given (an argument wider than a C int, e.g. an address, needs them), or
+    None where there is no such function (not glibc, not Linux)."""
     import ctypes
 
     try:
         fn = getattr(ctypes.CDLL(None, use_errno=True), name)
     except (OSError, AttributeError):  # pragma: no cover - not a Unix C library, or not this function
         return None
-    if name == "madvise":
-        fn.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
+    if argtypes:
+        fn.argtypes = list(argtypes)
     return fn
 
 

@@ -245,7 +245,8 @@ def test_huge_page_advice_covers_the_array_whole_pages(monkeypatch, env):
     if not hasattr(mmap, "MADV_HUGEPAGE"):
         pytest.skip("no huge-page advice on this system")
     calls = []
-    monkeypatch.setattr(workers, "_libc", lambda name: (lambda *a: calls.append(a)) if name == "madvise" else None)
+    monkeypatch.setattr(workers, "_libc",
+                        lambda name, argtypes=(): (lambda *a: calls.append(a)) if name == "madvise" else None)
     monkeypatch.setenv("NUMPY_MADVISE_HUGEPAGE", env)
     big = np.empty(3 << 20)[1:]  # 24 MB, starting off a page boundary
     workers.huge_pages(big)
