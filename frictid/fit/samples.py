@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .result import ModelFit
-from .static import _aic, fit_static, predict
+from .static import _aic, fit_static, predict, warm_start
 
 #: Distinct plateau speeds per velocity sign needed to fit the static maps on plateau points.
 MIN_PLATEAU_LEVELS = 5
@@ -264,14 +264,6 @@ def variance_factor(r: np.ndarray) -> float:
     return max(1.0, m * float(np.var(bm)) / v)
 
 
-def _warm_start(full: ModelFit) -> dict:
-    start = full.values()
-    for k, p in full.params.items():
-        if k.startswith("delta") and p.fixed:
-            start["__delta_fixed" + k[len("delta"):]] = True
-    return start
-
-
 def bin_points(w: np.ndarray, F: np.ndarray, per_sign: int = BINS_PER_SIGN
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Means of (w, F) in velocity bins of equal counts, per sign: (w_bin [q/s], F_bin [F], count).
@@ -346,7 +338,7 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary", heldout: bool = True)
         s2_bins = float(np.sum(nb * rb**2)) / max(wb.size - k, 1)
         s2_samples = rss / max(n - k, 1)
         if s2_bins > 0:
-            mf = _fit_binned(name, bins, axis, start=_warm_start(mf),
+            mf = _fit_binned(name, bins, axis, start=warm_start(mf),
                              var_inflation=S.inflation * s2_samples / s2_bins)
             vals = mf.values()
         if heldout:
@@ -364,7 +356,7 @@ def heldout_map(name: str, S: SampleSet, mf: ModelFit, axis: str = "rotary") -> 
     fit ``mf`` on all samples), predicting the fold. None when a prediction is not finite."""
     if any(v is None for v in mf.values().values()):
         return None
-    start = _warm_start(mf)
+    start = warm_start(mf)
     ph = np.full(S.n, np.nan)
     for f in range(S.n_folds):
         te = S.fold == f

@@ -20,7 +20,7 @@ from typing import Callable
 
 import numpy as np
 
-from .static import Plateaus, fit_static, predict
+from .static import Plateaus, fit_static, predict, warm_start
 
 #: Held-out RMS within this fraction of the best counts as equally good.
 TOLERANCE = 0.05
@@ -49,10 +49,7 @@ def heldout_static(name: str, pl: Plateaus, n_folds: int = 5, axis: str = "rotar
     pred = np.full(n, np.nan)
     start = None
     if full is not None:  # warm start at the full-data optimum, with delta held where it was held
-        start = full.values()
-        for k, p in full.params.items():
-            if k.startswith("delta") and p.fixed:
-                start["__delta_fixed" + k[len("delta"):]] = True
+        start = warm_start(full)
     for f in range(n_folds):
         tr = folds != f
         m = fit_static(name, pl.w[tr], pl.F[tr], pl.F_se[tr], axis=axis, start=start, **kw)

@@ -45,6 +45,16 @@ SCREEN_NFEV_PER_PARAM = 8
 #: Relative size (of the torque scale) below which an uncertain parameter does not matter.
 NEGLIGIBLE = 0.01
 
+#: Shape parameters of each map and the amplitude they shape, as a contrast of linear parameters
+#: (name -> coefficient). A decay speed or exponent means something only when its amplitude does.
+SHAPES = {"stribeck": ((("vs", "delta"), {"Fs": 1.0, "Fc": -1.0}, "the Stribeck drop Fs - Fc"),),
+          "stribeck_2exp": ((("ws1",), {"alpha1": 1.0}, "the Stribeck amplitude alpha1"),
+                            (("ws2",), {"alpha2": 1.0}, "the second amplitude alpha2"))}
+#: Prefix of a warm start's key that holds a parameter at the given value (:func:`warm_start`).
+HELD = "__held_"
+#: Standard errors an amplitude must stand clear of zero for its shape parameters to be identifiable.
+SHAPE_Z = 2.0
+
 
 @dataclass
 class Plateaus:
@@ -350,6 +360,37 @@ def fit_branch(base: str, w, F, F_se=None, fixed: dict | None = None, n_refine: 
                      bool(best.success), str(best.message))
 
 
+def warm_start(full: ModelFit) -> dict:
+    """Start of a refit (a held-out fold) at the optimum of ``full``, with the parameters it held (delta at
+    2, the shape of a drop it could not see) held at the same values and with the same verdict: key
+    ``HELD + name``, value ``(value, reason it is not identifiable or "")``."""
+    start = full.values()
+    start.update({HELD + k: (p.value, "" if p.identifiable else p.reason) for k, p in full.params.items()
+                  if p.fixed and p.value is not None})
+    return start
+
+
+def _shapeless(base: str, values: dict, cov: np.ndarray, free: list[str]) -> dict[str, str]:
+    """Shape parameters (decay speeds, exponent) of map ``base`` whose amplitude is within
+    :data:`SHAPE_Z` standard errors of zero, with the reason: a drop that the data cannot tell from none
+    has no speed at which it decays (one plateau speed, or a map without a Stribeck effect)."""
+    out = {}
+    for shape, contrast, what in SHAPES.get(base, ()):
+        # the amplitude's error with its shape held where it is: a drop whose speed trades with the other
+        # terms still counts when, at that speed, it stands clear of zero
+        keep = [j for j, nm in enumerate(free) if nm not in shape]
+        cond = np.linalg.pinv(np.linalg.pinv(cov)[np.ix_(keep, keep)])
+        c = np.array([contrast.get(free[j], 0.0) for j in keep])
+        amp = sum(coef * values[nm] for nm, coef in contrast.items())
+        se = math.sqrt(max(float(c @ cond @ c), 0.0))
+        if abs(amp) < SHAPE_Z * se:
+            for nm in shape:
+                if nm in free:
+                    out[nm] = (f"{what} = {amp:.3g} +- {se:.2g} is not distinguishable from zero: the speed "
+                               "and shape of a drop the data do not show cannot be placed; held where the fit put it")
+    return out
+
+
 # ---------------------------------------------------------------------------------------------------
 # Public entry: symmetric or per-sign map on plateau points
 
@@ -418,6 +459,7 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
         branches = [("_pos", w[pos], F[pos], None if F_se is None else F_se[pos], "positive"),
                     ("_neg", -w[neg], -F[neg], None if F_se is None else F_se[neg], "negative")]
     params: dict[str, ParamEstimate] = {}
+    shapeless: dict[str, str] = {}
     covs = []
     k_total = 0
     success = True
@@ -446,9 +488,18 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
         bstart = None
         if start is not None:
             bstart = {n: start.get(n + suf) for n in smap.names}
-            if base == "stribeck" and start.get("__delta_fixed" + suf):
-                bfixed.setdefault("delta", 2.0)
+            for n in smap.names:
+                if (h := start.get(HELD + n + suf)) is not None:
+                    bfixed[n] = h[0]
+                    if h[1]:
+                        shapeless[n + suf] = h[1]
         bf = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0), start=bstart, var_inflation=var_inflation)
+        held = {} if bf.cov is None else _shapeless(base, bf.values, bf.cov, bf.free)
+        if held:  # a drop the data cannot tell from none: its shape held where it came out, the rest refitted
+            bfixed.update({nm: bf.values[nm] for nm in held})
+            bf = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0), start=bstart,
+                            var_inflation=var_inflation)
+            shapeless.update({nm + suf: why for nm, why in held.items()})
         if base == "stribeck" and delta == "auto" and "delta" in bf.reasons and "delta" not in bfixed:
             why = bf.reasons["delta"]
             bfixed["delta"] = 2.0
@@ -463,7 +514,10 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
         for prm in smap.table:
             nm = prm.name
             unit = unit_of(prm.dim, axis)
-            if nm in bf.fixed:
+            if nm + suf in shapeless:
+                params[nm + suf] = ParamEstimate(nm + suf, bf.fixed[nm], None, unit, False,
+                                                 shapeless[nm + suf], fixed=True)
+            elif nm in bf.fixed:
                 params[nm + suf] = ParamEstimate(nm + suf, bf.fixed[nm], None, unit, True,
                                                  "held fixed", fixed=True)
             else:
