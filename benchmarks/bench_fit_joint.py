@@ -25,8 +25,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import frictid  # noqa: E402
 from frictid import segments as sg  # noqa: E402
-from frictid.fit import pipeline as pl  # noqa: E402
-from frictid.fit import select as sel  # noqa: E402
+from frictid.identify import pipeline as pl  # noqa: E402
+from frictid.identify import select as sel  # noqa: E402
 from frictid.io.logs import joint_row_blocks, read_logs  # noqa: E402
 from frictid.workers import keep_freed_memory  # noqa: E402
 

@@ -19,9 +19,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import frictid  # noqa: E402
-from frictid.fit import pipeline as pl  # noqa: E402
-from frictid.fit import select as sel  # noqa: E402
-from frictid.fit.static import fit_static, plateau_points  # noqa: E402
+from frictid.identify import pipeline as pl  # noqa: E402
+from frictid.identify import select as sel  # noqa: E402
+from frictid.identify.static import fit_static, plateau_points  # noqa: E402
 from frictid.models import static as sm  # noqa: E402
 from frictid.plant import simulate_recipe  # noqa: E402
 from frictid.segments import derivatives, find_segments  # noqa: E402

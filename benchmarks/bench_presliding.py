@@ -1,4 +1,4 @@
-"""Benchmark of the LuGre dynamic-parameter fits of :mod:`frictid.fit.presliding`.
+"""Benchmark of the LuGre dynamic-parameter fits of :mod:`frictid.identify.presliding`.
 
     python benchmarks/bench_presliding.py [--repeat 5]
 
@@ -26,7 +26,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from frictid.fit import presliding as pre  # noqa: E402
+from frictid.identify import presliding as pre  # noqa: E402
 from frictid.models.static import canonical_level, canonical_pair, canonical_viscous  # noqa: E402
 
 

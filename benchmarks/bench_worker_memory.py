@@ -42,13 +42,13 @@ STAGES = {
                                                           "replay", "diagnosis"))],
     "fit": [("frictid.io.logs", "read_logs"), ("frictid.segments", "estimate_scales"),
             ("frictid.segments", "derivatives"), ("frictid.segments", "find_segments"),
-            ("frictid.fit.pipeline", "_regress"), ("frictid.fit.pipeline", "_plateaus"),
-            ("frictid.fit.pipeline", "_stage2_map"), ("frictid.fit.pipeline", "_lugre"),
-            ("frictid.fit.pipeline", "_thermal"), ("frictid.fit.pipeline", "_diagnose"),
-            ("frictid.fit.pipeline", "_check_diagnosis")],
+            ("frictid.identify.pipeline", "_regress"), ("frictid.identify.pipeline", "_plateaus"),
+            ("frictid.identify.pipeline", "_stage2_map"), ("frictid.identify.pipeline", "_lugre"),
+            ("frictid.identify.pipeline", "_thermal"), ("frictid.identify.pipeline", "_diagnose"),
+            ("frictid.identify.pipeline", "_check_diagnosis")],
 }
 #: The function that builds one joint in a worker, per command.
-JOINT = {"report": ("frictid.report.build", "_joint_part"), "fit": ("frictid.fit.pipeline", "fit_joint")}
+JOINT = {"report": ("frictid.report.build", "_joint_part"), "fit": ("frictid.identify.pipeline", "fit_joint")}
 
 
 def private_memory() -> tuple[int, int]:

@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import frictid  # noqa: E402
-from frictid.fit.static import fit_static  # noqa: E402
+from frictid.identify.static import fit_static  # noqa: E402
 from frictid.models import static as sm  # noqa: E402
 from frictid.models.thermal import canonical_at, thermal_code  # noqa: E402
 from frictid.plant import simulate_recipe  # noqa: E402
@@ -75,7 +75,7 @@ def curve_error(model, true_params, wmax):
     w = np.concatenate([np.geomspace(0.01 * wmax, wmax, 60), -np.geomspace(0.01 * wmax, wmax, 60)])
     cp, cn = np.array(true_params["canonical_pos"]), np.array(true_params["canonical_neg"])
     Ft = sm.canonical_friction(w, cp, cn)
-    from frictid.fit.static import predict
+    from frictid.identify.static import predict
     Fp = predict(model.map, model.values(), w)
     return float(np.sqrt(np.mean((Fp - Ft) ** 2)) / (Ft.max() - Ft.min()))
 
@@ -239,7 +239,7 @@ def score_tables():
         F = np.where(w > 0, sm.stribeck_2exp(w, **pos), sm.stribeck_2exp(w, **neg))
         Fn = F + rng.normal(0, 0.002 * (F.max() - F.min()), F.size)
         m = fit_static("stribeck_2exp_asym", w, Fn, np.full(w.size, 0.002 * (F.max() - F.min())))
-        from frictid.fit.static import predict
+        from frictid.identify.static import predict
         rms = float(np.sqrt(np.mean((predict(m.name, m.values(), w) - F) ** 2)) / (F.max() - F.min()))
         row("tables", name, "stribeck_2exp_asym RMS / range", 0.0, rms, 0.01)
 

@@ -378,7 +378,7 @@ def dip(w: np.ndarray, F: np.ndarray) -> bool:
 
 
 def screw_drives(data: Path, tmp: str) -> list[str]:
-    from frictid.fit.result import FitResult
+    from frictid.io.params import read_params
 
     rows = ["### Screw drives (steady-state runs, one file per speed, both directions; motor side)", "",
             "| drive | runs | chosen model | map RMS error / torque range | target | | Stribeck dip: data / model | "
@@ -393,7 +393,7 @@ def screw_drives(data: Path, tmp: str) -> list[str]:
         except RuntimeError as exc:
             rows.append(f"| {d} | {len(files)} | fit failed: {str(exc)[:150]} | | | | | | |")
             continue
-        res = FitResult.load(pf)
+        res = read_params(pf)
         jid, jf = next(iter(res.joints.items()))
         j = P["joints"][jid]
         pts = screw_points(files, mp)

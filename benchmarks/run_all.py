@@ -17,7 +17,7 @@ Figures (each a ratio measured in one run, with the absolute value; the baseline
   ``benchmarks/bench_plant.py``);
 - read: :func:`frictid.io.logs.read_logs` against a bare ``pyarrow.parquet.read_table`` of the same file
   (and the columns it asks Parquet for), and against pandas' C reader for CSV (``benchmarks/bench_io.py``);
-- normal equations: :func:`frictid.fit.regression.accumulate` (chunked) against ``np.linalg.lstsq`` on
+- normal equations: :func:`frictid.identify.regression.accumulate` (chunked) against ``np.linalg.lstsq`` on
   the stacked matrix, 7 regressors;
 - fit: ``frictid fit`` in a fresh process on a 6-joint, 1 kHz, 1-hour log (8 passes of every
   experiment kind, simulated by the plant), against the bare read of the same file; its peak memory
@@ -633,7 +633,7 @@ def fig_read(quick: bool, repeat: int) -> list[Row]:
 
 
 def fig_normal_equations(quick: bool, repeat: int) -> list[Row]:
-    from frictid.fit.regression import accumulate, column, solve
+    from frictid.identify.regression import accumulate, column, solve
 
     n = 1_000_000 if quick else 10_000_000
     names = ("J", "c0", "c1", "c2", "c3", "Px", "Py")
@@ -669,7 +669,7 @@ def fig_normal_equations(quick: bool, repeat: int) -> list[Row]:
                 f"np.linalg.lstsq {td.wall:.2f} s (CPU {td.cpu:.2f} s), {gb(pd_)}",
                 f"{td.wall / tc.wall:.1f}x faster (CPU {td.cpu / tc.cpu:.1f}x), {pd_ / max(pc, 1):.0f}x less memory",
                 "faster and smaller than lstsq", tc.wall < td.wall and pc < pd_, tc.load,
-                f"frictid.fit.regression.accumulate + solve; coefficients agree with lstsq to {agree:.1e} "
+                f"frictid.identify.regression.accumulate + solve; coefficients agree with lstsq to {agree:.1e} "
                 "(relative); memory by tracemalloc (numpy allocations)")]
 
 

@@ -1,13 +1,13 @@
-"""frictid: identify friction in robot joints and drives from measured logs."""
+"""frictid: identify friction in robot joints and drives from measured logs.
+
+``frictid.fit(logs)`` identifies every model the data support and returns a
+:class:`~frictid.result.FitResult`; ``frictid.load(path)`` reads a parameter file back.
+"""
 from __future__ import annotations
 
 __version__ = "0.1.0"
 
-__all__ = ["__version__"]
+from .identify import FitResult, fit  # noqa: E402
+from .io.params import read_params as load  # noqa: E402
 
-
-def __getattr__(name):  # lazy: frictid.fit(...) without importing the numerics at package import
-    if name == "fit":
-        import importlib
-        return importlib.import_module("frictid.fit")
-    raise AttributeError(f"module 'frictid' has no attribute {name!r}")
+__all__ = ["__version__", "fit", "load", "FitResult"]

@@ -192,7 +192,7 @@ def _static_params(mapname: str, params: dict) -> dict:
 def joint_model(jf, name: str | None = None) -> ReplayModel:
     """The :class:`ReplayModel` of model ``name`` (default: the selected one) of a joint's fit.
 
-    jf : a :class:`frictid.fit.result.JointFit` (a loaded parameter file's ``joints[j]``).
+    jf : a :class:`frictid.result.JointFit` (a loaded parameter file's ``joints[j]``).
     Raises :class:`~frictid.errors.ConfigError` when the model is missing or incomplete.
     """
     name = name or jf.selected
@@ -540,7 +540,7 @@ def replay_logs(logs: list[JointLog], result, model: str | None = None, plant=No
     """Replay every joint log with its joint's model from a parameter file.
 
     logs : joint logs (from :func:`frictid.io.logs.read_logs`). result : a
-    :class:`frictid.fit.result.FitResult`. model : model name (default: each joint's ``selected``).
+    :class:`frictid.result.FitResult`. model : model name (default: each joint's ``selected``).
     plant : a plant (path, name or loaded) whose joints' controllers close the loop. closed : force the
     closed-loop re-simulation on (True: an error when impossible) or off (False); None: whenever the log
     has ``q_ref`` and a controller is known (the plant, or ``control:`` gains in the log's metadata).

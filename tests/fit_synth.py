@@ -1,7 +1,7 @@
 """Synthetic joint logs with known parameters and known segments, for the fit tests.
 
 Kinematics are prescribed and the torque follows from inverse dynamics with a static friction map (a
-fast stand-in for the plant); ramps are simulated with the LuGre step of :mod:`frictid.fit.presliding`.
+fast stand-in for the plant); ramps are simulated with the LuGre step of :mod:`frictid.identify.presliding`.
 """
 from __future__ import annotations
 

@@ -27,13 +27,14 @@ COMMANDS = {
 @pytest.fixture(scope="session")
 def params_file(tmp_path_factory):
     """A parameter file of the valid log (report and replay need one beside the log)."""
-    from frictid.fit import fit
+    from frictid import fit
+    from frictid.io.params import write_params
 
     tmp = tmp_path_factory.mktemp("params")
     src = tmp / "valid.csv"
     src.write_bytes(_csv(valid_frame()))
     out = tmp / "params.yaml"
-    fit([str(src)], models="coulomb_viscous,polynomial", diagnose=False).write(out)
+    write_params(fit([str(src)], models="coulomb_viscous,polynomial", diagnose=False), out)
     return out
 
 

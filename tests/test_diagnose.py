@@ -22,7 +22,7 @@ from frictid.diagnose.causes import best_period
 from frictid.diagnose.chain import paired_t
 from frictid.diagnose.model import Context, Evaluator, Structure, Term
 from frictid.diagnose.samples import _rise, build_samples, heat_balance_rise
-from frictid.fit.result import FitResult, JointFit, ModelFit, ParamEstimate
+from frictid.result import FitResult, JointFit, ModelFit, ParamEstimate
 from frictid.models import static as sm
 from frictid.replay import joint_model, replay
 

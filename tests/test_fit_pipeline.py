@@ -9,7 +9,7 @@ import yaml
 
 import frictid
 from frictid.data import JointLog, Segment
-from frictid.fit.result import FitResult
+from frictid.io.atomic import _umask
 from frictid.io.params import read_params, write_params
 
 from fit_synth import TRUE, synth_log, truth_derivatives, truth_segments
@@ -45,11 +45,10 @@ def test_recovers_mechanics_and_stribeck(synth_result):
 
 def test_file_reloads_to_same_values(synth_result, tmp_path):
     p = tmp_path / "params.yaml"
-    synth_result.write(p)
-    again = FitResult.load(p)
-    assert again.to_dict() == synth_result.to_dict()
-    write_params(synth_result, str(tmp_path / "b.yaml"))
-    assert read_params(str(tmp_path / "b.yaml")).to_dict() == synth_result.to_dict()
+    write_params(synth_result, p)
+    assert read_params(p).to_dict() == synth_result.to_dict()
+    assert frictid.load(p).to_dict() == synth_result.to_dict()
+    assert p.stat().st_mode & 0o777 == 0o666 & ~_umask()
     d = yaml.safe_load(p.read_text())
     assert d["schema"] == 1 and d["joints"]["1"]["selected"] == synth_result["1"].selected
     e = d["joints"]["1"]["models"]["stribeck"]["params"]["Fc"]
@@ -59,13 +58,13 @@ def test_file_reloads_to_same_values(synth_result, tmp_path):
 def test_no_partial_file_on_failure(synth_result, tmp_path, monkeypatch):
     p = tmp_path / "params.yaml"
     p.write_text("old\n")
-    import frictid.fit.result as r
+    import frictid.io.params as r
 
     def boom(d):
         raise RuntimeError("disk full")
     monkeypatch.setattr(r, "dump_yaml", boom)
     with pytest.raises(RuntimeError):
-        synth_result.write(p)
+        write_params(synth_result, p)
     assert p.read_text() == "old\n"
     assert [x.name for x in tmp_path.iterdir()] == ["params.yaml"]
 
@@ -92,7 +91,7 @@ def test_poor_data_gives_a_file_not_a_crash(tmp_path):
     for lg in (still, one):
         res = frictid.fit(lg, **FAST)
         jf = res[lg.joint]
-        res.write(tmp_path / f"{lg.joint}.yaml")
+        write_params(res, tmp_path / f"{lg.joint}.yaml")
         assert read_params(str(tmp_path / f"{lg.joint}.yaml")).to_dict() == res.to_dict()
         assert jf.not_identified
         for m in jf.models.values():
@@ -155,7 +154,7 @@ def test_cli_fit_writes_the_file(tmp_path, cli):
 def test_abs_percentile_equals_the_plain_formulas():
     """The data scales of fit_joint from one in-place copy: the same values as from the concatenated finite
     samples, their absolute values and (for the torque) their distance to the median."""
-    from frictid.fit.pipeline import _abs_percentile
+    from frictid.identify.pipeline import _abs_percentile
 
     rng = np.random.default_rng(8)
     a, b = rng.normal(3.0, 2.0, 10_001), rng.normal(-1.0, 5.0, 4_000)

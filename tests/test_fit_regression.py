@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from frictid.fit.regression import NormalEquations, accumulate, residual_autocorrelation, solve
+from frictid.identify.regression import NormalEquations, accumulate, residual_autocorrelation, solve
 
 NAMES = ("J", "c0", "c1", "c2", "c3", "Px", "Py", "offset")
 
@@ -68,7 +68,7 @@ def test_autocorrelation_inflates_errors():
 def test_cluster_covariance_covers_segment_to_segment_bias():
     """Residuals biased per segment (a misfit that differs from one segment to the next) make the classical
     standard error far too small; the cluster-robust one by segment matches the Monte Carlo spread."""
-    from frictid.fit.regression import cluster_covariance, robust_stderr
+    from frictid.identify.regression import cluster_covariance, robust_stderr
 
     G, m, reps = 20, 40, 300
     slopes, se_cl, se_classic = [], [], []

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from frictid.fit.samples import (BINS_PER_SIGN, BLOCKS_PER_FOLD, SampleSet, _bin_samples, argsort_stable,
+from frictid.identify.samples import (BINS_PER_SIGN, BLOCKS_PER_FOLD, SampleSet, _bin_samples, argsort_stable,
                                  bin_points, block_ranges)
 
 
@@ -92,7 +92,7 @@ def test_a_set_with_the_same_samples_takes_the_other_sets_speed_order():
     from types import SimpleNamespace
 
     from frictid.data import JointLog, Segment
-    from frictid.fit.samples import build
+    from frictid.identify.samples import build
 
     rng = np.random.default_rng(5)
     n = 6000

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from frictid.data import Segment
-from frictid.fit.static import fit_static, plateau_points, predict
+from frictid.identify.static import fit_static, plateau_points, predict
 from frictid.models import static as sm
 
 
@@ -95,7 +95,7 @@ def test_plateau_points_average_and_stderr():
 
 
 def test_bristle_path_compiled_matches_reference():
-    from frictid.fit.presliding import bristle_path, bristle_path_ref
+    from frictid.identify.presliding import bristle_path, bristle_path_ref
     q = np.cumsum(np.random.default_rng(4).normal(0, 1e-5, 500))
     assert np.allclose(bristle_path(q, 1e-5, 1e4, 2.0), bristle_path_ref(q, 1e-5, 1e4, 2.0))
 
@@ -146,7 +146,7 @@ def test_position_factor_found_by_the_diagnosis_is_replayed_out_of_the_plateaus(
 
 
 def _model(name, identifiable):
-    from frictid.fit.result import ModelFit, ParamEstimate
+    from frictid.result import ModelFit, ParamEstimate
 
     params = {"Fc": ParamEstimate("Fc", 1.0, 0.1, "N m", identifiable, "" if identifiable else "at a bound")}
     return ModelFit(name, name, params, {"aic": {"a": 3.0, "b": 1.0, "c": -9.0}[name], "k": 1})
@@ -156,7 +156,7 @@ def _model(name, identifiable):
 def test_heldout_only_where_the_choice_can_use_it(ident):
     """Held-out errors are computed for the identifiable models only, unless none is: the choice is the
     one every model's held-out error gives, and a model left out says why."""
-    from frictid.fit import select as sel
+    from frictid.identify import select as sel
 
     errors = {"a": 1.0, "b": 1.02, "c": 0.5}  # c predicts best and has the lowest AIC, but is not identifiable
     full = {n: _model(n, i) for n, i in zip("abc", ident)}
@@ -176,7 +176,7 @@ def test_heldout_only_where_the_choice_can_use_it(ident):
 
 
 def test_heldout_of_all_models_when_no_identifiable_one_gets_one():
-    from frictid.fit import select as sel
+    from frictid.identify import select as sel
 
     some = {n: _model(n, i) for n, i in zip("abc", (True, False, False))}
     errors = {"a": None, "b": 1.0, "c": 0.5}

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from frictid.fit.thermal import (_power_bins, fit_thermal, heldout, nested_start, predict_coefficients,
+from frictid.identify.thermal import (_power_bins, fit_thermal, heldout, nested_start, predict_coefficients,
                                  prepare, simulate_temperature)
 from frictid.models import thermal as mt
 

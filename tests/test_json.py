@@ -28,7 +28,8 @@ def documented_keys() -> dict[str, set[str]]:
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     """A small plateau log with a dropped-row warning, and its parameter file."""
-    from frictid.fit import fit
+    from frictid import fit
+    from frictid.io.params import write_params
 
     tmp = tmp_path_factory.mktemp("json")
     rng = np.random.default_rng(1)
@@ -39,7 +40,7 @@ def files(tmp_path_factory):
     log = tmp / "log.csv"
     pd.DataFrame({"t": t, "q": q, "tau": tau}).to_csv(log, index=False)
     params = tmp / "params.yaml"
-    fit([str(log)], models="coulomb_viscous,stribeck", diagnose=False).write(params)
+    write_params(fit([str(log)], models="coulomb_viscous,stribeck", diagnose=False), params)
     return {"dir": tmp, "log": log, "params": params}
 
 

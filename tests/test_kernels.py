@@ -1,4 +1,4 @@
-"""Compiled fit kernels against their python twins: the step simulation of :mod:`frictid.fit.presliding`
+"""Compiled fit kernels against their python twins: the step simulation of :mod:`frictid.identify.presliding`
 (sigma1's simulation-error fit) and a sigma1 round trip through it."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from frictid.fit import presliding as pre
+from frictid.identify import presliding as pre
 from frictid.models.static import canonical_level, canonical_pair, canonical_viscous
 
 MAPS = {

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import frictid
-from frictid.fit.result import FitResult
+from frictid.result import FitResult
 from frictid.io.logs import read_logs
 from frictid.replay import replay_logs
 

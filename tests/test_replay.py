@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from frictid.fit.result import FitResult, JointFit, ModelFit, ParamEstimate
+from frictid.result import FitResult, JointFit, ModelFit, ParamEstimate
 from frictid.models import thermal as th
 from frictid.models.replay_kernel import replay_friction
 from frictid.models.static import canonical_friction, canonical_level, canonical_pair

@@ -451,7 +451,7 @@ def test_numbers_are_rounded_to_their_uncertainty():
 
 
 def test_numerics_never_import_matplotlib():
-    code = ("import sys; import frictid.models.static, frictid.fit.static, frictid.segments, frictid.report, "
+    code = ("import sys; import frictid.models.static, frictid.identify.static, frictid.segments, frictid.report, "
             "frictid.report.content, frictid.report.build; "
             "assert 'matplotlib' not in sys.modules, 'matplotlib imported'")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
@@ -747,7 +747,7 @@ def test_models_without_heldout_error_are_explained(scenario):
     """A static map the fit gave no held-out error (not all identifiable, an identifiable one had one)
     shows "—" in the model table, and the table's note names it and says why; the note is absent when every
     model has its error."""
-    from frictid.fit.select import NOT_HELDOUT
+    from frictid.identify.select import NOT_HELDOUT
     from frictid.io.params_load import load_params_dict
     from frictid.report import build_report
 

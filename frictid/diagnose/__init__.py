@@ -30,8 +30,8 @@ N_FOLDS = 5
 
 def base_model_name(jf) -> str | None:
     """The base of the chain: the fit's choice rule over its symmetric velocity-only static maps."""
-    from ..fit.pipeline import BASE_MODELS
-    from ..fit.select import choose
+    from ..identify.pipeline import BASE_MODELS
+    from ..identify.select import choose
 
     cands = [m for m in BASE_MODELS if not m.endswith("_asym") and m in jf.models
              and all(v is not None for v in jf.models[m].values().values())]
@@ -91,7 +91,7 @@ _GRID = {"C": 0.5 * (10 ** (1 / 9) - 1), "str_vs": 0.25}
 
 def _param_entries(mapname: str, vals: dict, fold_vals: list[dict], axis: str):
     """ParamEstimate per value; stderr from the spread of the fold refits (grouped jackknife)."""
-    from ..fit.result import ParamEstimate
+    from ..result import ParamEstimate
     from ..models import static as sm
     from ..models.params import unit_of
 
@@ -256,12 +256,12 @@ def _cum_energy(S: Samples) -> np.ndarray:
 def diagnose_joint(jf, logs: list[DiagLog], n_folds: int = N_FOLDS) -> list[dict]:
     """Run the diagnosis on one joint; updates ``jf`` in place and returns its ``diagnosis`` list.
 
-    jf : the :class:`frictid.fit.result.JointFit` the fit produced (its models, inertia, gravity,
+    jf : the :class:`frictid.result.JointFit` the fit produced (its models, inertia, gravity,
     offset). logs : the joint's logs as the fit prepared them (:class:`DiagLog`).
     Adds one model per finding to ``jf.models``, sets ``jf.selected`` to the end of the chain, and records
     the base, the rule and every candidate's numbers in ``jf.selection['diagnosis']``.
     """
-    from ..fit.result import ModelFit
+    from ..result import ModelFit
 
     rec: dict = {"rule": (f"a cause enters when its held-out gain is significant (one-sided t over held-out "
                           f"segments, alpha {ALPHA} split over the candidates) and it explains at least "
@@ -344,7 +344,7 @@ def diagnose_joint(jf, logs: list[DiagLog], n_folds: int = N_FOLDS) -> list[dict
 
 def _presliding(jf, prev: str) -> dict | None:
     """A presliding finding from the fit's LuGre comparison on held-out ramps, with its model."""
-    from ..fit.result import ModelFit, ParamEstimate
+    from ..result import ModelFit, ParamEstimate
 
     lug = jf.models.get("lugre")
     if lug is None or not str(jf.selection.get("lugre", "")).startswith("chosen"):

@@ -154,12 +154,12 @@ class Context:
         return out
 
     def normal_equations(self, items, fold: int | None):
-        """:class:`frictid.fit.regression.NormalEquations` of the columns ``items`` (list of (key, vector))
+        """:class:`frictid.identify.regression.NormalEquations` of the columns ``items`` (list of (key, vector))
         against the friction torque, over all samples (fold None) or outside fold ``fold``.
 
         Accumulated once per fold and column pair and cached: a candidate's system is the current one
         bordered by its own columns, and only the border is new."""
-        from ..fit.regression import NormalEquations
+        from ..identify.regression import NormalEquations
 
         S = self.S
         sel = (lambda v: v.sum()) if fold is None else (lambda v: v.sum() - v[fold])
@@ -446,7 +446,7 @@ class Evaluator:
     def _linear_block_ne(self, c: Coef, fold):
         """:meth:`_linear_block` with the factors at one, from the cached per-fold normal equations; returns
         the residual sum of squares and the sample count."""
-        from ..fit.regression import solve
+        from ..identify.regression import solve
 
         items, held = self._linear_items()
         c.base_pos, c.base_neg, c.dc = {}, {}, np.zeros(4)
@@ -464,7 +464,7 @@ class Evaluator:
             yty = yty - 2 * h @ ne.Xty[p:] + h @ ne.XtX[p:, p:] @ h
         b = np.zeros(0)
         if p:
-            from ..fit.regression import NormalEquations
+            from ..identify.regression import NormalEquations
             b = solve(NormalEquations(p, XtX, Xty, yty, ne.n), tuple(str(x[2]) for x in items)).coef
             self._apply(c, [x[2] for x in items], b)
         rss = float(yty - 2 * b @ Xty + b @ XtX @ b) if p else float(yty)

@@ -406,7 +406,7 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
     # ---- models
     s = secs["models"]
     s.data["rows"] = model_rows(jd)
-    from frictid.fit.select import NOT_HELDOUT
+    from frictid.identify.select import NOT_HELDOUT
     s.data["heldout_skipped"] = [r["name"] for r in s.data["rows"] if NOT_HELDOUT in r["notes"]]
     if not s.data["rows"]:
         s.present, s.why = False, "No model was fitted for this joint."
@@ -653,9 +653,9 @@ def preload() -> None:
     fg.preload()
     import scipy.signal  # noqa: F401
 
-    import frictid.fit.pipeline  # noqa: F401
-    import frictid.fit.presliding  # noqa: F401
-    import frictid.fit.result  # noqa: F401
+    import frictid.identify.pipeline  # noqa: F401
+    import frictid.identify.presliding  # noqa: F401
+    import frictid.result  # noqa: F401
     import frictid.plant.kernel  # noqa: F401
     import frictid.replay  # noqa: F401
 

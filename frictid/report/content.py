@@ -4,7 +4,7 @@ numpy only: no matplotlib, no HTML. Everything here recomputes from the logs wha
 identification itself is never redone. The friction torque is ``F = tau - J a - G(q) - offset`` with the
 identified inertia, gravity and offset of the parameter file, and the velocity and acceleration from the
 same Savitzky-Golay derivatives the fit uses (:func:`frictid.segments.derivatives`), so the plateau points
-drawn are the ones the fit saw (:func:`frictid.fit.static.plateau_points`).
+drawn are the ones the fit saw (:func:`frictid.identify.static.plateau_points`).
 """
 from __future__ import annotations
 
@@ -222,7 +222,7 @@ def recorded_segments(log: JointLog, jd: dict, sources: list[dict], sha256: str 
     entry = recorded_entry(log, jd, sources, sha256)
     if entry is None:
         return None
-    from frictid.fit.pipeline import segments_from_list
+    from frictid.identify.pipeline import segments_from_list
     return segments_from_list(entry, log.t)
 
 
@@ -335,7 +335,7 @@ class PlateauSet:
 
 def plateaus(datas: list[LogData]) -> PlateauSet:
     """One averaged (w, F) point per constant-velocity segment of every log (as the fit computes it)."""
-    from frictid.fit.static import plateau_points
+    from frictid.identify.static import plateau_points
 
     parts = []
     for k, d in enumerate(datas):
@@ -464,7 +464,7 @@ def lugre_params(jd: dict) -> dict | None:
 def ramp_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
     """Torque against displacement for each ramp-presliding segment (at most :data:`MAX_RAMPS_DRAWN`),
     with LuGre's bristle path at the identified sigma0 when there is one. Returns (curves, info)."""
-    from frictid.fit.presliding import bristle_path
+    from frictid.identify.presliding import bristle_path
 
     lp = lugre_params(jd)
     s0 = pvalue(lp["sigma0"]) if lp else None
@@ -499,7 +499,7 @@ def ramp_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
 def step_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
     """Measured step transients (position from its start against time) and LuGre's simulated ones when
     J, sigma0 and sigma1 are known (at most :data:`MAX_STEPS_DRAWN`). Returns (curves, info)."""
-    from frictid.fit.presliding import simulate_step
+    from frictid.identify.presliding import simulate_step
 
     lp = lugre_params(jd)
     J = pvalue(jd.get("inertia"))
@@ -588,10 +588,10 @@ def _poly_basis(w: np.ndarray) -> np.ndarray:
 
 def _cycle_polynomial(w: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """A cycle's polynomial friction ``c0 sgn(w) + c1 w + c2 w|w| + c3 w^3`` fitted to (w, F) by the fit's
-    own least squares (:func:`frictid.fit.regression.solve`: normal equations with the columns scaled, the
+    own least squares (:func:`frictid.identify.regression.solve`: normal equations with the columns scaled, the
     dependent ones left out), and the Gram matrix ``X'X / n`` its RMS needs (:func:`_quad_rms`): one pass
     over the samples instead of a factorisation of them (``lstsq``, 7 ms per cycle of a joint-hour)."""
-    from frictid.fit import regression as rg
+    from frictid.identify import regression as rg
 
     ne = rg.NormalEquations(4)
     ne.add(_poly_basis(w), F)
@@ -737,7 +737,7 @@ def replay_log(d: LogData, jname: str, jd: dict, model: str | None = None, close
     when the log has ``q_ref`` and its metadata the controller gains. Falls back on the static map alone
     (:func:`static_replay`) when the replay cannot build the model. None when neither can."""
     from frictid.errors import FrictidInputError
-    from frictid.fit.result import JointFit
+    from frictid.result import JointFit
 
     try:
         from frictid import replay as rp

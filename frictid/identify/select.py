@@ -96,7 +96,7 @@ def heldout_for_choice(models: dict, names: list[str], heldout: Callable[[str], 
 
 def choose(models: dict, candidates: list[str] | None = None, tolerance: float = TOLERANCE
            ) -> tuple[str | None, dict]:
-    """Choose a base model. models : name -> :class:`~frictid.fit.result.ModelFit`.
+    """Choose a base model. models : name -> :class:`~frictid.result.ModelFit`.
 
     Returns (name or None, a record of the rule, the ranking and why).
     """

@@ -2,16 +2,13 @@
 
 Every number carries its standard error and an ``identifiable`` verdict with the reason when the data
 could not pin it down. :meth:`FitResult.to_dict` gives the schema-1 parameter file (documented in
-``docs/parameter-file.md``); :meth:`FitResult.write` writes it atomically and :meth:`FitResult.load`
-reads it back to the same values.
+``docs/parameter-file.md``); :mod:`frictid.io.params` is its one writer and reader (schema-checked,
+atomic). Numbers only: no files here.
 """
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -226,13 +223,6 @@ class FitResult:
             "settings": _plain(self.settings),
         }
 
-    def to_yaml(self) -> str:
-        return dump_yaml(self.to_dict())
-
-    def write(self, path: str | os.PathLike) -> Path:
-        """Write the parameter file atomically (a temporary file renamed into place): never a partial file."""
-        return write_text_atomic(path, self.to_yaml())
-
     @classmethod
     def from_dict(cls, d: dict) -> "FitResult":
         if not isinstance(d, dict) or d.get("schema") != SCHEMA_VERSION:
@@ -242,44 +232,3 @@ class FitResult:
         return cls(joints={str(j): JointFit.from_dict(str(j), jd) for j, jd in (d.get("joints") or {}).items()},
                    sources=list(d.get("sources") or []), version=str(d.get("frictid", "")),
                    settings=dict(d.get("settings") or {}))
-
-    @classmethod
-    def load(cls, path: str | os.PathLike) -> "FitResult":
-        """Read a parameter file written by :meth:`write` (same values back)."""
-        import yaml
-        from frictid.errors import ConfigError
-        try:
-            text = Path(path).read_text()
-            d = yaml.safe_load(text)
-        except (OSError, yaml.YAMLError) as exc:
-            raise ConfigError(f"{path}: cannot read parameter file: {exc}") from exc
-        return cls.from_dict(d)
-
-
-def dump_yaml(d: dict) -> str:
-    import yaml
-
-    # libyaml's emitter when built in: the same text, 0.31 -> 0.09 s for the six joint-hours' file (the
-    # fit's parent writes it after its workers, alone on the critical path)
-    return yaml.dump(d, Dumper=getattr(yaml, "CSafeDumper", yaml.SafeDumper), sort_keys=False,
-                     default_flow_style=None, width=120, allow_unicode=True)
-
-
-def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and an atomic rename."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix="." + path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path

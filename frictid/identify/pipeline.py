@@ -38,7 +38,7 @@ from . import regression as rg
 from . import samples as smp
 from . import select as sel
 from . import thermal as th
-from .result import FitResult, JointFit, ModelFit, ParamEstimate
+from frictid.result import FitResult, JointFit, ModelFit, ParamEstimate
 from .static import NEGLIGIBLE, Plateaus, fit_static, metrics, plateau_points, predict
 
 #: Velocity-only models (candidates for the choice), in the order they are reported.
@@ -251,7 +251,7 @@ def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, unit
     one per available core, 1 (the default) fits them one after another in this process. The result does
     not depend on it.
 
-    Returns a :class:`~frictid.fit.result.FitResult`; ``.write(path)`` writes the parameter file.
+    Returns a :class:`~frictid.result.FitResult`; :func:`frictid.io.params.write_params` writes the parameter file.
     """
     wanted = parse_models(models)
     logs, sources = _load(paths_or_logs, mapping, units)
@@ -811,7 +811,7 @@ def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds, like=Non
     """Held-out RMS [F] of model ``name`` on the fit's basis: its static map refitted without each fold
     (plateau folds, or the time blocks of the sample basis) on the targets of :func:`_static_targets`, the
     rest of the model held. Returns (rms_heldout, refit ModelFit, target Plateaus or the samples' speed
-    order, :meth:`~frictid.fit.samples.SampleSet.order_key`). ``like``: that speed order from another model
+    order, :meth:`~frictid.identify.samples.SampleSet.order_key`). ``like``: that speed order from another model
     of the joint, reused when the samples are the same (one sort of up to 2 M samples less)."""
     mapname, _, Y = _static_targets(jf, preps, name)
     if basis == "plateaus":

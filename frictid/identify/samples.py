@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .result import ModelFit
+from frictid.result import ModelFit
 from .static import _aic, fit_static, predict, warm_start
 
 #: Distinct plateau speeds per velocity sign needed to fit the static maps on plateau points.

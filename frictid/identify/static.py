@@ -27,7 +27,7 @@ from scipy.optimize import least_squares
 from frictid.models import static as sm
 from frictid.models.params import Param, data_scale, scaled_table, unit_of
 
-from .result import ModelFit, ParamEstimate
+from frictid.result import ModelFit, ParamEstimate
 
 #: Nonlinear parameters of each map (the rest enter linearly).
 NONLINEAR = {"coulomb_viscous": (), "polynomial": (), "stribeck": ("vs", "delta"),
