@@ -108,7 +108,7 @@ def score_plant(plant, scale, seed):
                     note=("" if p is None else f"se {fmt(p.stderr)}") +
                          ("" if p is None or p.identifiable else f"; not identifiable: {p.reason}"),
                     se=None if p is None else p.stderr, identifiable=p is None or p.identifiable)
-        sel = jf.model
+        sel = jf.selected_fit
         if sel is not None:
             row(plant, j, f"curve error of {jf.selected}", None, curve_error(sel, tp, wmax), None,
                 note="RMS over the true range")

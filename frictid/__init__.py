@@ -7,7 +7,9 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-from .identify import FitResult, fit  # noqa: E402
-from .io.params import read_params as load  # noqa: E402
+from .identify import fit  # noqa: E402
+from .io.params import load_model as load, read_params, write_params  # noqa: E402
+from .model import FrictionModel  # noqa: E402
+from .result import FitResult  # noqa: E402
 
-__all__ = ["__version__", "fit", "load", "FitResult"]
+__all__ = ["__version__", "fit", "load", "read_params", "write_params", "FitResult", "FrictionModel"]

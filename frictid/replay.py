@@ -28,126 +28,20 @@ import numpy as np
 
 from .data import JointLog, finite
 from .errors import ConfigError, FrictidInputError
+from .model import (EXTENSION_PARAMS, FrictionModel, drift_factor, load_factor, position_factor,
+                    rigid_torque)
 from .models import static as sm
 from .models.replay_kernel import replay_friction
-from .models.thermal import thermal_code
 
 #: The channels only :func:`closed_loop` reads: the references and the feedforward torque.
 REFERENCE_CHANNELS = ("q_ref", "qd_ref", "tau_ref")
 
-#: Parameter names of the diagnosis extensions (see docs/parameter-file.md, "Extended models").
-EXTENSION_PARAMS = {
-    "position": ("pos_amp", "pos_period", "pos_phase", "pos_q0", "pos_lin", "pos_quad"),
-    "load": ("load_torque", "load_gravity", "load_payload"),
-    "offset": ("tau_offset",),
-    "drift": ("drift_per_hour", "drift_t0"),
-    "stribeck": ("str_amp", "str_vs", "str_delta"),
-    "presliding": ("sigma0", "sigma1"),
-    "inertia": ("J",),
-    "gravity": ("Px", "Py"),
-    "temperature": ("alpha", "beta", "lam", "dc0", "dc1", "dc2", "dc3", "C", "K", "T0"),
-}
+#: The identified model is :class:`frictid.model.FrictionModel`; ``ReplayModel`` is its former name.
+ReplayModel = FrictionModel
 
-
-@dataclass
-class ReplayModel:
-    """Everything needed to predict the torque of one joint. Units: [q] rad or m, [F] N m or N.
-
-    name, map : model name and static map. c_pos, c_neg : canonical vectors (w >= 0, w < 0).
-    sigma0, sigma1 : LuGre (None: static map). J [kg m^2 | kg], Px, Py [F], Mx, My [F/kg], offset [F]:
-    rigid-body terms. thermal : law ('thermal4', 'thermal6', 'exponential') and its numbers, or None.
-    ext : extension parameters by name (``pos_amp``, ``load_torque``, ``drift_per_hour``, ``tau_offset``, ...).
-    """
-
-    name: str
-    map: str
-    c_pos: np.ndarray
-    c_neg: np.ndarray
-    axis: str = "rotary"
-    sigma0: tuple[float, float] | None = None
-    sigma1: tuple[float, float] = (0.0, 0.0)
-    J: float = 0.0
-    Px: float = 0.0
-    Py: float = 0.0
-    Mx: float = 0.0
-    My: float = 0.0
-    offset: float = 0.0
-    thermal: dict | None = None
-    ext: dict = field(default_factory=dict)
-
-    def gravity(self, q, payload=None):
-        """Gravity and offset torque G(q) [F] (payload [kg] per sample or None)."""
-        if q is None:
-            return np.asarray(self.offset, dtype=float)
-        return rigid_torque(q, self.axis, self.Px, self.Py, self.offset, payload, self.Mx, self.My)
-
-
-def rigid_torque(q, axis: str, Px: float, Py: float, offset: float, payload=None, Mx: float = 0.0,
-                 My: float = 0.0) -> np.ndarray:
-    """Gravity, payload and offset torque [F] at positions q [q]: ``Px cos q + Py sin q + offset`` on a
-    rotary axis (``offset`` on a linear one), plus ``payload`` [kg] per sample times ``Mx cos q + My sin q``
-    (times ``Mx`` on a linear axis)."""
-    q = np.asarray(q, dtype=float)
-    if axis == "rotary" and (Px or Py):
-        # Px cos q + Py sin q = R cos(q - phi): one trigonometric function per sample instead of two
-        G = np.subtract(q, math.atan2(Py, Px))
-        np.cos(G, out=G)
-        G *= math.hypot(Px, Py)
-        G += offset
-    else:
-        G = np.full(q.shape[0], offset, dtype=float)
-    if payload is not None:
-        pay = np.asarray(payload, dtype=float)
-        G = G + (Mx * pay * (np.cos(q) if axis == "rotary" else 1.0))
-        if axis == "rotary":
-            G = G + My * pay * np.sin(q)
-    return G
-
-
-# ---------------------------------------------------------------------------------------------------
-# Extension multipliers (shared with frictid.diagnose)
-
-
-def position_factor(q, ext: dict) -> np.ndarray:
-    """Level multiplier [1] of the position extension at positions q [q].
-
-    Periodic: ``1 + pos_amp sin(2 pi q / pos_period + pos_phase)``; smooth (non-periodic):
-    ``1 + pos_lin (q - pos_q0) + pos_quad (q - pos_q0)^2``. Absent parameters count as zero.
-    """
-    q = np.asarray(q, dtype=float)
-    out = np.ones_like(q)
-    amp = ext.get("pos_amp")
-    if amp:
-        out = out + amp * np.sin(2 * np.pi * q / ext["pos_period"] + ext.get("pos_phase", 0.0))
-    lin, quad = ext.get("pos_lin") or 0.0, ext.get("pos_quad") or 0.0
-    if lin or quad:
-        d = q - (ext.get("pos_q0") or 0.0)
-        out = out * (1.0 + lin * d + quad * d * d)
-    return out
-
-
-def load_factor(load_abs, G_abs, payload, ext: dict) -> np.ndarray | float:
-    """Level multiplier [1] of the load extension:
-    ``1 + load_torque |J a + G| + load_gravity |G| + load_payload m``.
-
-    load_abs : the torque the transmission carries besides friction, ``|J a + G(q)|`` [F] (inertial and
-    gravity torque; not the measured torque, which contains the friction itself); G_abs : |gravity
-    torque| [F]; payload [kg] (arrays or None).
-    """
-    out = 1.0
-    for key, x in (("load_torque", load_abs), ("load_gravity", G_abs), ("load_payload", payload)):
-        k = ext.get(key)
-        if k and x is not None:
-            out = out + k * np.asarray(x, dtype=float)
-    return out
-
-
-def drift_factor(t_abs, ext: dict) -> np.ndarray | float:
-    """Whole-map multiplier [1] of the drift extension: ``1 + drift_per_hour (t_abs - drift_t0) / 3600``."""
-    k = ext.get("drift_per_hour")
-    if not k or t_abs is None:
-        return 1.0
-    return 1.0 + k * (np.asarray(t_abs, dtype=float) - (ext.get("drift_t0") or 0.0)) / 3600.0
+__all__ = ["FrictionModel", "ReplayModel", "ReplayResult", "joint_model", "replay", "closed_loop", "replay_logs",
+           "controller_from_meta", "log_start_time", "multipliers", "thermal_input", "rigid_torque",
+           "position_factor", "load_factor", "drift_factor", "EXTENSION_PARAMS", "REFERENCE_CHANNELS"]
 
 
 def log_start_time(log: JointLog) -> float | None:
@@ -172,86 +66,10 @@ def log_start_time(log: JointLog) -> float | None:
 # From the parameter file
 
 
-def _value(params: dict, name: str):
-    p = params.get(name)
-    if p is None:
-        return None
-    v = p.value if hasattr(p, "value") else (p.get("value") if isinstance(p, dict) else p)
-    return None if v is None else float(v)
-
-
-def _static_params(mapname: str, params: dict) -> dict:
-    names = [p.name for p in sm.param_table(mapname)]
-    vals = {n: _value(params, n) for n in names}
-    missing = [n for n, v in vals.items() if v is None]
-    if missing:
-        raise ConfigError(f"model parameters {', '.join(missing)} of map {mapname} have no value")
-    return vals
-
-
-def joint_model(jf, name: str | None = None) -> ReplayModel:
-    """The :class:`ReplayModel` of model ``name`` (default: the selected one) of a joint's fit.
-
-    jf : a :class:`frictid.result.JointFit` (a loaded parameter file's ``joints[j]``).
-    Raises :class:`~frictid.errors.ConfigError` when the model is missing or incomplete.
-    """
-    name = name or jf.selected
-    if not name:
-        raise ConfigError(f"joint {jf.joint}: the parameter file has no selected model; name one with --model")
-    if name not in jf.models:
-        raise ConfigError(f"joint {jf.joint}: no model {name!r} in the parameter file; models: "
-                          + ", ".join(jf.models))
-    mf = jf.models[name]
-    params = mf.params
-    mapname = mf.map
-    try:
-        sm.split_asym(mapname)
-    except KeyError as exc:
-        raise ConfigError(f"joint {jf.joint}, model {name}: {exc.args[0]}") from None
-    c_pos, c_neg = sm.canonical_pair(mapname, _static_params(mapname, params))
-    ext = {}
-    for names in EXTENSION_PARAMS.values():
-        for n in names:
-            v = _value(params, n)
-            if v is not None:
-                ext[n] = v
-    # stribeck extension: the canonical Stribeck slot of a map that has none
-    if ext.get("str_amp"):
-        for c in (c_pos, c_neg):
-            c[1], c[2], c[3] = ext["str_amp"], ext["str_vs"], ext.get("str_delta", 2.0)
-
-    def rb(pe, default=0.0):
-        return float(pe.value) if pe is not None and pe.value is not None else default
-
-    m = ReplayModel(name=name, map=mapname, c_pos=c_pos, c_neg=c_neg, axis=jf.axis,
-                    J=rb(jf.inertia), offset=rb(jf.offset),
-                    Px=rb(jf.gravity.get("Px")), Py=rb(jf.gravity.get("Py")),
-                    Mx=rb(jf.gravity.get("Mx")), My=rb(jf.gravity.get("My")), ext=ext)
-    for k in ("J", "Px", "Py"):
-        if k in ext:
-            setattr(m, k, ext[k])
-    if (mf.extra or {}).get("extensions") is not None and (jf.offset is None or
-                                                           jf.offset.source != "log metadata"):
-        # a diagnosis model: the torque offset is one of its terms (tau_offset), not the fit's estimate
-        m.offset = 0.0
-    if "sigma0" in ext:
-        s0n = _value(params, "sigma0_neg")
-        s1n = _value(params, "sigma1_neg")
-        s1 = ext.get("sigma1", 0.0)
-        m.sigma0 = (ext["sigma0"], s0n if s0n is not None else ext["sigma0"])
-        m.sigma1 = (s1, s1n if s1n is not None else s1)
-    law = ("thermal6" if "dc0" in ext else "thermal4" if "alpha" in ext else
-           "exponential" if "lam" in ext else None)
-    if law:
-        missing = [k for k in ("C", "K") if k not in ext]
-        source = (mf.extra or {}).get("temperature", "heat_balance")
-        if missing and source != "temp_joint":
-            raise ConfigError(f"joint {jf.joint}, model {name}: thermal law {law} without {', '.join(missing)}")
-        m.thermal = {"law": law, "alpha": ext.get("alpha", 0.0), "beta": ext.get("beta", 1.0),
-                     "lam": ext.get("lam", 0.0), "T0": ext.get("T0", 25.0),
-                     "dc": [ext.get(f"dc{i}", 0.0) for i in range(4)],
-                     "C": ext.get("C"), "K": ext.get("K"), "source": source}
-    return m
+def joint_model(jf, name: str | None = None) -> FrictionModel:
+    """The :class:`~frictid.model.FrictionModel` of model ``name`` (default: the selected one) of a joint's
+    fit (:class:`frictid.result.JointFit`): :meth:`FrictionModel.from_joint`."""
+    return FrictionModel.from_joint(jf, name)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -293,38 +111,17 @@ class ReplayResult:
         return float(np.sqrt(np.mean(r * r))) if r.size else math.nan
 
 
-def multipliers(model: ReplayModel, t_abs, q, a, payload, G=None) -> tuple[np.ndarray, np.ndarray]:
-    """Level and viscous multipliers (gmul, fmul) [1] per sample for the model's extensions (each of length
-    1 when it is the same for every sample).
-
-    t_abs [s] time on the drift clock; q [q] or None; a [q/s^2] acceleration; payload [kg] or None;
-    G [F] the gravity torque without the offset (default from the model).
-    """
-    ext = model.ext
-    n = np.shape(a)[0]
-    gmul = np.ones(1)  # length 1: the same for every sample (the replay kernel takes it so)
-    if q is not None and (ext.get("pos_amp") or ext.get("pos_lin") or ext.get("pos_quad")):
-        gmul = gmul * position_factor(q, ext)
-    if ext.get("load_torque") or ext.get("load_gravity") or ext.get("load_payload"):
-        a = np.nan_to_num(np.asarray(a, dtype=float))
-        if G is None:
-            G = model.gravity(q, payload) - model.offset if q is not None else np.zeros(n)
-        gmul = gmul * load_factor(np.abs(model.J * a + G), np.abs(G), payload, ext)
-    d = drift_factor(t_abs, ext)
-    fmul = np.ones(1)
-    if np.ndim(d) or d != 1.0:
-        fmul = fmul * d
-        gmul = gmul * d
-    return gmul, fmul
+def multipliers(model: FrictionModel, t_abs, q, a, payload, G=None) -> tuple[np.ndarray, np.ndarray]:
+    """Level and viscous multipliers (gmul, fmul) [1] per sample: :meth:`FrictionModel.multipliers`."""
+    return model.multipliers(t_abs, q, a, payload, G)
 
 
-def thermal_input(model: ReplayModel, log: JointLog, n: int) -> dict | None:
+def thermal_input(model: FrictionModel, log: JointLog, n: int) -> dict | None:
     """The thermal dict of :func:`frictid.models.replay_kernel.replay_friction` for a log, or None."""
-    th = model.thermal
-    if not th:
+    out = model.thermal_law()
+    if out is None:
         return None
-    code, theta, dc9 = thermal_code(th["law"], th["alpha"], th["beta"], th["lam"], th["T0"], th["dc"])
-    out = {"code": code, "theta": theta, "dc_pos": dc9, "dc_neg": dc9}
+    th = model.thermal
     if th.get("source") == "temp_joint":
         if "temp_joint" not in log.channels:
             raise FrictidInputError(f"{log.source or 'log'}: joint {log.joint}: model {model.name} reads the "
@@ -337,7 +134,7 @@ def thermal_input(model: ReplayModel, log: JointLog, n: int) -> dict | None:
     return out
 
 
-def replay(log: JointLog, model: ReplayModel, w=None, a=None, t_offset: float | None = None,
+def replay(log: JointLog, model: FrictionModel, w=None, a=None, t_offset: float | None = None,
            scales=None, G=None) -> ReplayResult:
     """Predicted friction and torque of ``model`` along ``log`` (one value per sample).
 
@@ -426,7 +223,7 @@ def controller_from_meta(meta: dict) -> dict | None:
     return out
 
 
-def closed_loop(log: JointLog, model: ReplayModel, gains: dict, rigid_stiffness: float | None = None,
+def closed_loop(log: JointLog, model: FrictionModel, gains: dict, rigid_stiffness: float | None = None,
                 a=None, G=None, velocity: bool = True) -> tuple[np.ndarray, np.ndarray | None, list[str]]:
     """Re-simulate the closed loop with the identified model; returns (q_model, qd_model, notes).
 

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from .model import FrictionModel
+
 SCHEMA_VERSION = 1
 
 
@@ -155,10 +157,15 @@ class JointFit:
     #: the segments the fit worked on, per log: {source, rows, kind, i0, i1, cycle} (lists, one item per
     #: segment; cycle -1 when none). Lets ``frictid report`` skip re-segmenting the same file.
     segment_list: list[dict[str, Any]] = field(default_factory=list)
+    #: ranges the data covered: ``speed`` [lo, hi] of |w| [q/s] on the static maps' basis, ``temperature``
+    #: [degC], ``position`` [q]; what :attr:`frictid.model.FrictionModel.validity` warns outside of
+    validity: dict[str, list[float]] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         d = self._to_dict()
-        if self.segment_list:  # optional key: files without it stay as before
+        if self.validity:  # optional keys: files without them stay as before
+            d["validity"] = _plain(self.validity)
+        if self.segment_list:
             d["segment_list"] = _plain(self.segment_list)
         return d
 
@@ -192,12 +199,22 @@ class JointFit:
             models={n: ModelFit.from_dict(n, m) for n, m in (d.get("models") or {}).items()},
             selected=d.get("selected"), selection=dict(d.get("selection") or {}),
             not_identified=list(d.get("not_identified") or []), warnings=list(d.get("warnings") or []),
-            diagnosis=list(d.get("diagnosis") or []), segment_list=list(d.get("segment_list") or []))
+            diagnosis=list(d.get("diagnosis") or []), segment_list=list(d.get("segment_list") or []),
+            validity=dict(d.get("validity") or {}))
 
     @property
-    def model(self) -> ModelFit | None:
-        """The selected base model."""
+    def selected_fit(self) -> ModelFit | None:
+        """The fit record (parameters, metrics) of the selected model."""
         return self.models.get(self.selected) if self.selected else None
+
+    @property
+    def model(self) -> FrictionModel:
+        """The selected model as a :class:`~frictid.model.FrictionModel` (evaluates itself)."""
+        return FrictionModel.from_joint(self)
+
+    def friction_model(self, name: str | None = None) -> FrictionModel:
+        """Model ``name`` (default: the selected one) as a :class:`~frictid.model.FrictionModel`."""
+        return FrictionModel.from_joint(self, name)
 
 
 @dataclass

@@ -47,7 +47,7 @@ def test_file_reloads_to_same_values(synth_result, tmp_path):
     p = tmp_path / "params.yaml"
     write_params(synth_result, p)
     assert read_params(p).to_dict() == synth_result.to_dict()
-    assert frictid.load(p).to_dict() == synth_result.to_dict()
+    assert frictid.read_params(p).to_dict() == synth_result.to_dict()
     assert p.stat().st_mode & 0o777 == 0o666 & ~_umask()
     d = yaml.safe_load(p.read_text())
     assert d["schema"] == 1 and d["joints"]["1"]["selected"] == synth_result["1"].selected

@@ -14,6 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from ..errors import ConfigError
 import yaml
 
+from ..model import FrictionModel
 from ..result import FitResult
 from .atomic import atomic_open
 from .params_load import load_params_dict
@@ -93,6 +94,7 @@ class JointEntry(_Closed):
     warnings: list[str] = Field(default_factory=list)
     diagnosis: list[Any] = Field(default_factory=list)
     segment_list: list[SegmentList] = Field(default_factory=list)
+    validity: dict[str, list[Optional[float]]] = Field(default_factory=dict)
 
 
 class Source(_Open):
@@ -149,3 +151,20 @@ def read_params(path) -> FitResult:
     d = load_params_dict(path)
     validate_params(d, str(path))
     return FitResult.from_dict(d)
+
+
+def load_model(path, joint: str | None = None, model: str | None = None) -> FrictionModel:
+    """The identified model of one joint of a parameter file, ready to evaluate
+    (:class:`~frictid.model.FrictionModel`): ``frictid.load("params.yaml", joint="j1")``.
+
+    joint : may be left out when the file holds one joint. model : a model name of that joint (default: the
+    selected one). Raises :class:`~frictid.errors.ConfigError` naming the file and what it holds.
+    """
+    res = read_params(path)
+    if joint is None:
+        if len(res.joints) != 1:
+            raise ConfigError(f"{path}: holds joints {', '.join(res.joints)}; name one with joint=")
+        joint = next(iter(res.joints))
+    if str(joint) not in res.joints:
+        raise ConfigError(f"{path}: no joint {joint!r}; joints: {', '.join(res.joints)}")
+    return res.joints[str(joint)].friction_model(model)
