@@ -36,7 +36,7 @@ import numpy as np
 from .errors import ConfigError
 from .models import static as sm
 from .models.replay_kernel import replay_friction
-from .models.thermal import thermal_code
+from .models.thermal import canonical_at, thermal_code
 
 #: Parameter names of the diagnosis extensions (see docs/parameter-file.md, "Extended models").
 EXTENSION_PARAMS = {
@@ -276,6 +276,15 @@ class FrictionModel:
         F, z, T_out = replay_friction(t, w, self.c_pos, self.c_neg, gmul=gmul, fmul=fmul, sigma0=self.sigma0,
                                       sigma1=self.sigma1, z0=z0, thermal=th)
         return F + self.ext.get("tau_offset", 0.0), z, T_out
+
+    def canonical_at(self, T: float) -> tuple[np.ndarray, np.ndarray]:
+        """The canonical vectors (w >= 0, w < 0) at joint temperature T [degC]: the thermal law applied to the
+        amplitudes (the identified vectors themselves for a model without one)."""
+        law = self.thermal_law()
+        if law is None:
+            return self.c_pos.copy(), self.c_neg.copy()
+        return (canonical_at(self.c_pos, T, law["code"], law["theta"], law["dc_pos"]),
+                canonical_at(self.c_neg, T, law["code"], law["theta"], law["dc_neg"]))
 
     # ---- the thermal law as the kernel takes it
 

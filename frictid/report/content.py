@@ -16,7 +16,10 @@ from typing import Any, Callable
 import numpy as np
 
 from frictid.data import JointLog, Segment
+from frictid.errors import ConfigError
+from frictid.model import FrictionModel
 from frictid.models import static as sm
+from frictid.result import JointFit
 
 #: Moving samples: |w| above this fraction of the 99.5th percentile of |w| (as the fit).
 MIN_SPEED_FRACTION = 0.02
@@ -65,73 +68,48 @@ def model_values(md: dict) -> dict[str, float | None]:
     return {n: pvalue(p) for n, p in (md.get("params") or {}).items()}
 
 
-def static_map_of(name: str, md: dict) -> str | None:
-    """The static map that evaluates a model's steady state, or None (thermal models, unknown maps)."""
-    if name.startswith("thermal") or name == "exponential":
-        return None
-    m = md.get("map") or name
+def friction_model(jd: dict, name: str) -> FrictionModel | None:
+    """Model ``name`` of a joint entry as the :class:`~frictid.model.FrictionModel` that evaluates it, or
+    None when the file does not hold all its values (the report then leaves its curve out)."""
     try:
-        sm.split_asym(m)
-    except KeyError:
+        return JointFit.from_dict("", jd).friction_model(name)
+    except (ConfigError, KeyError, TypeError, ValueError):
         return None
-    return m
-
-
-def evaluate_static(mapname: str, values: dict, w) -> np.ndarray | None:
-    """Steady-state friction [F] of a static map at w, or None when a parameter is missing."""
-    smap, asym = sm.split_asym(mapname)
-    names = [n + s for n in smap.names for s in (("_pos", "_neg") if asym else ("",))]
-    if any(values.get(n) is None for n in names):
-        return None
-    with np.errstate(all="ignore"):
-        return sm.evaluate(mapname, np.asarray(w, float), values)
 
 
 def static_models(jd: dict) -> list[dict]:
-    """Every model of a joint whose steady state is a static map with all values known.
+    """Every model of a joint that has a steady-state velocity map and all its values.
 
-    Returns dicts: name, map, values, selected (bool). ``lugre`` is left out when its static part is
+    Returns dicts: name, map, model (:class:`FrictionModel`), selected (bool), label. Thermal laws are drawn
+    against temperature instead (:func:`thermal_cycles`); ``lugre`` is left out when its static part is
     another listed model (its steady state is that model's curve).
     """
     models = jd.get("models") or {}
     sel = jd.get("selected")
     out = []
     for name, md in models.items():
-        if not isinstance(md, dict):
+        if not isinstance(md, dict) or name.startswith("thermal") or name == "exponential":
             continue
-        m = static_map_of(name, md)
+        if name == "lugre" and md.get("static_model") in models and sel != "lugre":
+            continue
+        m = friction_model(jd, name)
         if m is None:
             continue
-        vals = model_values(md)
+        label = name + (" (chosen)" if name == sel else "")
         if name == "lugre":
-            base = md.get("static_model")
-            if base in models and sel != "lugre":
-                continue
-        if evaluate_static(m, vals, np.array([0.1])) is None:
-            continue
-        label = name
-        if name == sel:
-            label += " (chosen)"
-        if name == "lugre":
-            label += f", steady state of {md.get('static_model') or m}"
-        out.append({"name": name, "map": m, "values": vals, "selected": name == sel, "label": label})
+            label += f", steady state of {md.get('static_model') or m.map}"
+        out.append({"name": name, "map": m.map, "model": m, "selected": name == sel, "label": label})
     return out
 
 
 def selected_static(jd: dict) -> dict | None:
-    """The static map of the selected model (LuGre's static part when LuGre is selected)."""
+    """The selected model when it has a steady-state velocity map (LuGre's static part when LuGre is
+    selected): name, map, model."""
     sel = jd.get("selected")
-    models = jd.get("models") or {}
-    if sel not in models:
+    if sel not in (jd.get("models") or {}) or sel.startswith("thermal") or sel == "exponential":
         return None
-    md = models[sel]
-    m = static_map_of(sel, md)
-    if m is None:
-        return None
-    vals = model_values(md)
-    if evaluate_static(m, vals, np.array([0.1])) is None:
-        return None
-    return {"name": sel, "map": m, "values": vals}
+    m = friction_model(jd, sel)
+    return None if m is None else {"name": sel, "map": m.map, "model": m}
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -368,15 +346,13 @@ def velocity_grids(pl: PlateauSet, datas: list[LogData]) -> dict[str, np.ndarray
 
 
 def model_curves(jd: dict, grids: dict[str, np.ndarray]) -> list[dict]:
-    """Each static model evaluated on the grids: name, selected, lin (F on the linear grid), pos, neg
-    (|F| on the log grid for w > 0 and w < 0)."""
+    """Each static model's steady state (:meth:`FrictionModel.steady_state`) on the grids: name, selected,
+    lin (F on the linear grid), pos, neg (|F| on the log grid for w > 0 and w < 0)."""
     out = []
     for m in static_models(jd):
-        lin = evaluate_static(m["map"], m["values"], grids["lin"])
-        pos = evaluate_static(m["map"], m["values"], grids["log"])
-        neg = evaluate_static(m["map"], m["values"], -grids["log"])
-        out.append({"name": m["name"], "label": m["label"], "selected": m["selected"], "lin": lin, "pos": pos,
-                    "neg": None if neg is None else -neg})
+        ss = m["model"].steady_state
+        out.append({"name": m["name"], "label": m["label"], "selected": m["selected"], "lin": ss(grids["lin"]),
+                    "pos": ss(grids["log"]), "neg": -ss(-grids["log"])})
     out.sort(key=lambda c: (not c["selected"], c["name"]))
     return out
 
@@ -416,28 +392,6 @@ def coverage(datas: list[LogData], pl: PlateauSet, jd: dict) -> dict:
 # presliding: ramps and steps
 
 
-def _canon_level(c: np.ndarray, v: float) -> float:
-    out = c[0]
-    if c[1] != 0.0:
-        out += c[1] * math.exp(-((v / c[2]) ** c[3]))
-    if c[4] != 0.0:
-        out += c[4] * (1.0 - math.exp(-v / c[5]))
-    return float(out)
-
-
-def scalar_map(mapname: str, values: dict):
-    """Scalar level g(w) [F] and viscous f(w) [F] of a static map (for the step simulation)."""
-    c_pos, c_neg = sm.canonical_pair(mapname, values)
-
-    def level(w):
-        return _canon_level(c_pos if w >= 0 else c_neg, abs(w))
-
-    def viscous(w):
-        c = c_pos if w >= 0 else c_neg
-        return float(c[6] * w + c[7] * w * abs(w) + c[8] * w**3)
-    return level, viscous, c_pos, c_neg
-
-
 def _stride(n: int, most: int) -> slice:
     return slice(None, None, max(1, int(math.ceil(n / most))))
 
@@ -451,14 +405,19 @@ def _spread(items: list, most: int) -> list:
 
 
 def lugre_params(jd: dict) -> dict | None:
-    """LuGre's static map, its values and sigma0 / sigma1 entries, or None when there is no LuGre."""
+    """LuGre's model (:class:`FrictionModel`, None when its values are incomplete) and its sigma0 / sigma1
+    entries, or None when there is no LuGre."""
     md = (jd.get("models") or {}).get("lugre")
     if not isinstance(md, dict):
         return None
-    vals = model_values(md)
-    m = static_map_of("lugre", md)
     params = md.get("params") or {}
-    return {"map": m, "values": vals, "sigma0": params.get("sigma0") or {}, "sigma1": params.get("sigma1") or {}}
+    return {"model": friction_model(jd, "lugre"), "sigma0": params.get("sigma0") or {},
+            "sigma1": params.get("sigma1") or {}}
+
+
+def _rest_level(m: FrictionModel, sign: float) -> float:
+    """The model's level g at rest [F] on the branch of ``sign``: the break-away level of its map."""
+    return float(sm.canonical_level(np.zeros(1), m.c_pos if sign >= 0 else m.c_neg)[0])
 
 
 def ramp_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
@@ -469,9 +428,7 @@ def ramp_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
     lp = lugre_params(jd)
     s0 = pvalue(lp["sigma0"]) if lp else None
     info = {"sigma0": lp["sigma0"] if lp else None, "n_total": 0}
-    level = None
-    if lp and lp["map"] and s0 and evaluate_static(lp["map"], lp["values"], np.array([0.1])) is not None:
-        level, _, _, _ = scalar_map(lp["map"], lp["values"])
+    m = lp["model"] if lp and s0 else None
     items = []
     for d in datas:
         if d.log.q is None:
@@ -485,8 +442,8 @@ def ramp_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
         q = np.asarray(d.log.q[s.i0:s.i1], float)
         F = d.F[s.i0:s.i1]
         model = None
-        if level is not None:
-            g0 = abs(level(1e-12 if np.mean(F) >= 0 else -1e-12))
+        if m is not None:
+            g0 = abs(_rest_level(m, np.mean(F)))
             if g0 > 0:
                 z0 = float(np.clip(F[0] / s0, -g0 / s0, g0 / s0))
                 model = s0 * bristle_path(q, z0, s0, g0)
@@ -506,10 +463,8 @@ def step_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
     s0 = pvalue(lp["sigma0"]) if lp else None
     s1 = pvalue(lp["sigma1"]) if lp else None
     info = {"sigma1": lp["sigma1"] if lp else None, "n_total": 0, "J": J}
-    can = bool(lp and lp["map"] and J and J > 0 and s0 and s1 is not None
-               and evaluate_static(lp["map"], lp["values"], np.array([0.1])) is not None)
-    if can:
-        level, _, c_pos, c_neg = scalar_map(lp["map"], lp["values"])
+    m = lp["model"] if lp else None
+    can = bool(m is not None and J and J > 0 and s0 and s1 is not None)
     items = []
     for d in datas:
         if d.log.q is None:
@@ -525,11 +480,11 @@ def step_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
         u = np.asarray(d.log.tau[s.i0:s.i1], float) - d.G[s.i0:s.i1]
         model = None
         if can:
-            g0 = max(level(0.0), 1e-12)
+            g0 = max(_rest_level(m, 1.0), 1e-12)
             z0 = float(np.clip(u[0] / s0, -g0 / s0, g0 / s0))
             try:
                 with np.errstate(all="ignore"):
-                    model = simulate_step(t, u, q[0], 0.0, J, s0, s1, c_pos, c_neg, z0)
+                    model = simulate_step(t, u, q[0], 0.0, J, s0, s1, m.c_pos, m.c_neg, z0)
                 if not np.all(np.isfinite(model)):
                     model = None
             except (ArithmeticError, ValueError):
@@ -547,31 +502,14 @@ def step_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
 THERMAL_LAWS = ("thermal4", "thermal6", "exponential")
 
 
-def thermal_coefficients(name: str, values: dict, T) -> np.ndarray | None:
-    """Polynomial coefficients c0..c3 of a thermal law at joint temperature(s) T [degC], shape (n, 4)."""
-    T = np.atleast_1d(np.asarray(T, float))
-    c = [values.get(f"c{i}") for i in range(4)]
-    T0 = values.get("T0")
-    if any(v is None for v in c) or T0 is None:
-        return None
-    c = np.array(c, float)
-    dT = (T - T0)[:, None]
-    if name == "thermal4":
-        a, b = values.get("alpha"), values.get("beta")
-        if a is None or b is None:
-            return None
-        return c[None, :] * (a * dT + b)
-    if name == "thermal6":
-        dc = [values.get(f"dc{i}") for i in range(4)]
-        if any(v is None for v in dc):
-            return None
-        return c[None, :] + np.array(dc, float)[None, :] * dT
-    if name == "exponential":
-        lam = values.get("lam")
-        if lam is None:
-            return None
-        return c[None, :] * np.exp(-lam * dT)
-    return None
+#: Canonical entries of the polynomial map's c0..c3 (a0, b1, b2, b3).
+POLY_SLOTS = tuple(sm.CANON.index(k) for k in ("a0", "b1", "b2", "b3"))
+
+
+def thermal_coefficients(m: FrictionModel, T: float) -> np.ndarray:
+    """Polynomial coefficients c0..c3 of a thermal model at joint temperature T [degC]
+    (:meth:`FrictionModel.canonical_at`)."""
+    return m.canonical_at(T)[0][list(POLY_SLOTS)]
 
 
 def _poly_basis(w: np.ndarray) -> np.ndarray:
@@ -668,17 +606,15 @@ def thermal_cycles(datas: list[LogData], jd: dict, vmin: float | None = None
     out_models = []
     for name in th_names:
         md = models[name]
-        vals = model_values(md)
+        m = friction_model(jd, name) if md.get("map", "polynomial") == "polynomial" else None
         flat = [x for run in (md.get("cycle_temperature") or []) for x in (run if isinstance(run, list) else [run])]
         T = np.full(len(cycles), np.nan)
         Fm = np.full(len(cycles), np.nan)
         for i, (c, gram) in enumerate(zip(cycles, grams)):
             if 0 <= c["pos"] < len(flat):
                 T[i] = pvalue(flat[c["pos"]]) if pvalue(flat[c["pos"]]) is not None else np.nan
-            if np.isfinite(T[i]):
-                co = thermal_coefficients(name, vals, T[i])
-                if co is not None:
-                    Fm[i] = _quad_rms(np.asarray(co[0], float), gram)
+            if np.isfinite(T[i]) and m is not None:
+                Fm[i] = _quad_rms(thermal_coefficients(m, T[i]), gram)
         out_models.append({"name": name, "selected": name == jd.get("selected"), "T": T, "F_rms": Fm,
                            "time_constant": md.get("time_constant")})
     return cycles, out_models, info
@@ -695,9 +631,8 @@ def static_replay(d: LogData, jd: dict, vmin: float | None = None) -> np.ndarray
     sel = selected_static(jd)
     if sel is None:
         return None
-    Fss = evaluate_static(sel["map"], sel["values"], d.w)
-    if Fss is None:
-        return None
+    Fss = sel["model"].steady_state(np.nan_to_num(d.w))
+    Fss[~np.isfinite(d.w)] = np.nan
     out = rigid_terms(jd)["J"] * np.nan_to_num(d.a) + d.G.full() + Fss
     if vmin is not None:
         out[np.abs(d.w) <= vmin] = np.nan
