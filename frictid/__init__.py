@@ -1,11 +1,14 @@
 """frictid: identify friction in robot joints and drives from measured logs.
 
 ``frictid.fit(logs)`` identifies every model the data support and returns a
-:class:`~frictid.result.FitResult`; ``frictid.load(path)`` reads a parameter file back.
+:class:`~frictid.result.FitResult`; ``frictid.load(path, joint=...)`` gives the identified model of a
+parameter file as a :class:`~frictid.model.FrictionModel` that evaluates itself
+(``.friction(w, T=..., q=...)``); ``frictid.read_params(path)`` / ``frictid.write_params(result, path)``
+are the parameter file's one reader and writer.
 """
 from __future__ import annotations
 
-__version__ = "0.1.0"
+from .version import __version__
 
 from .identify import fit  # noqa: E402
 from .io.params import load_model as load, read_params, write_params  # noqa: E402

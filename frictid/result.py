@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from .model import FrictionModel
+from .version import __version__
 
 SCHEMA_VERSION = 1
 
@@ -231,7 +232,6 @@ class FitResult:
 
     def to_dict(self) -> dict:
         """The schema-1 parameter file as plain Python data."""
-        from frictid import __version__
         return {
             "schema": SCHEMA_VERSION,
             "frictid": self.version or __version__,

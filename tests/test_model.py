@@ -163,3 +163,25 @@ def test_load_gives_the_model_and_params_reload(fitted, tmp_path):
     assert np.array_equal(m.friction(w), res[log.joint].model.friction(w))
     with pytest.raises(frictid.errors.ConfigError, match="no joint"):
         frictid.load(p, joint="nope")
+
+
+def test_the_examples_of_docs_model_md_run(tmp_path, monkeypatch):
+    """Every python block of docs/model.md, in order, in a folder with the sample logs."""
+    import re
+
+    text = (ROOT / "docs" / "model.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
+    assert len(blocks) == 2
+    (tmp_path / "sample_logs").symlink_to(SAMPLES)
+    monkeypatch.chdir(tmp_path)
+    ns: dict = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ValidityWarning)
+        for code in blocks:
+            exec(compile(code, "docs/model.md", "exec"), ns)
+    tau_ff, m = ns["tau_ff"], ns["m"]
+    assert tau_ff.shape == ns["t"].shape and np.all(np.isfinite(tau_ff))
+    # the friction part of the feed-forward has the sign of the motion wherever the joint moves
+    F = tau_ff - m.J * ns["qdd_ref"] - m.gravity(ns["q_ref"])
+    moving = np.abs(ns["qd_ref"]) > 0.05
+    assert np.all(np.sign(F[moving]) == np.sign(ns["qd_ref"][moving]))
