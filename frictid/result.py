@@ -102,9 +102,9 @@ class ModelFit:
     def to_dict(self) -> dict:
         d: dict[str, Any] = {"map": self.map, "method": self.method,
                              "params": {n: p.to_dict() for n, p in self.params.items()},
-                             "metrics": _plain(self.metrics)}
+                             "metrics": plain(self.metrics)}
         for k, v in self.extra.items():
-            d[k] = _plain(v)
+            d[k] = plain(v)
         if self.notes:
             d["notes"] = list(self.notes)
         return d
@@ -118,14 +118,16 @@ class ModelFit:
                    extra={k: v for k, v in d.items() if k not in known})
 
 
-def _plain(x):
-    """Plain Python containers / numbers for YAML (numpy scalars and arrays converted)."""
+def plain(x):
+    """Plain Python data for YAML and JSON, the one converter of the package: dicts (string keys), lists
+    (from tuples and arrays), bool, int, float (non-finite ones become None), str and None; objects with
+    ``to_dict`` through it; anything else as its string."""
     if isinstance(x, dict):
-        return {str(k): _plain(v) for k, v in x.items()}
+        return {str(k): plain(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
+        return [plain(v) for v in x]
     if isinstance(x, np.ndarray):
-        return [_plain(v) for v in x.tolist()]
+        return [plain(v) for v in x.tolist()]
     if isinstance(x, (bool, np.bool_)):
         return bool(x)
     if isinstance(x, (int, np.integer)):
@@ -133,8 +135,10 @@ def _plain(x):
     if isinstance(x, (float, np.floating)):
         return _num(x)
     if hasattr(x, "to_dict"):
-        return _plain(x.to_dict())
-    return x
+        return plain(x.to_dict())
+    if x is None or isinstance(x, str):
+        return x
+    return str(x)
 
 
 @dataclass
@@ -165,9 +169,9 @@ class JointFit:
     def to_dict(self) -> dict:
         d = self._to_dict()
         if self.validity:  # optional keys: files without them stay as before
-            d["validity"] = _plain(self.validity)
+            d["validity"] = plain(self.validity)
         if self.segment_list:
-            d["segment_list"] = _plain(self.segment_list)
+            d["segment_list"] = plain(self.segment_list)
         return d
 
     def _to_dict(self) -> dict:
@@ -178,13 +182,13 @@ class JointFit:
             "gravity": {n: p.to_dict() for n, p in self.gravity.items()},
             "offset": self.offset.to_dict() if self.offset else None,
             "segments": {k: int(v) for k, v in self.segments.items()},
-            "segments_used": _plain(self.segments_used),
+            "segments_used": plain(self.segments_used),
             "models": {n: m.to_dict() for n, m in self.models.items()},
             "selected": self.selected,
-            "selection": _plain(self.selection),
-            "not_identified": _plain(self.not_identified),
+            "selection": plain(self.selection),
+            "not_identified": plain(self.not_identified),
             "warnings": list(self.warnings),
-            "diagnosis": _plain(self.diagnosis),
+            "diagnosis": plain(self.diagnosis),
         }
 
     @classmethod
@@ -236,8 +240,8 @@ class FitResult:
             "schema": SCHEMA_VERSION,
             "frictid": self.version or __version__,
             "joints": {j: jf.to_dict() for j, jf in self.joints.items()},
-            "sources": _plain(self.sources),
-            "settings": _plain(self.settings),
+            "sources": plain(self.sources),
+            "settings": plain(self.settings),
         }
 
     @classmethod

@@ -8,11 +8,12 @@ it fails. Human messages always go to standard error.
 from __future__ import annotations
 
 import json
-import math
 import sys
-from typing import Annotated, Any, Optional
+from typing import Annotated, Optional
 
 import typer
+
+from ..result import plain
 
 #: Version of the ``--json`` shapes; bumped only when a key is removed or changes meaning.
 JSON_SCHEMA = 1
@@ -59,24 +60,6 @@ def refuse_json_with_stdout(command: str, as_json: bool, output: str | None) -> 
                                 "uses for the data; write the output to a file (-o FILE) or leave out --json")
 
 
-def _plain(x: Any) -> Any:
-    """JSON-safe copy: numpy scalars to Python, non-finite floats to null, tuples to lists."""
-    if isinstance(x, dict):
-        return {str(k): _plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if hasattr(x, "item") and not isinstance(x, (str, bytes)):
-        try:
-            x = x.item()
-        except (TypeError, ValueError):
-            return str(x)
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if x is None or isinstance(x, (bool, int, str)):
-        return x
-    return str(x)
-
-
 class JsonState:
     """Whether this run asked for ``--json`` and whether its document was printed (so that a failure
     after the summary, e.g. compare's gate, does not print a second document)."""
@@ -88,7 +71,7 @@ class JsonState:
 def emit_json(command: str, payload: dict, ok: bool = True) -> None:
     """Print the one JSON document of a command on standard output."""
     doc = {"schema": JSON_SCHEMA, "command": command, "ok": ok, **payload}
-    sys.stdout.write(json.dumps(_plain(doc), indent=1, allow_nan=False) + "\n")
+    sys.stdout.write(json.dumps(plain(doc), indent=1, allow_nan=False) + "\n")
     sys.stdout.flush()
     JsonState.emitted = True
 
