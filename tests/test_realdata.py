@@ -1,7 +1,7 @@
 """frictid on measured data from real machines (../shared/realdata), against the published values.
 
 The data are not copied into the repository. These tests look for them beside it (``../shared/realdata``,
-or ``FRICTID_REALDATA``) and are skipped, with that reason shown, only when the folder is absent. Each
+or ``FRICTID_REALDATA``) and fail, saying where they looked, when the folder is absent. Each
 dataset is read through its mapping file in ``recipes/realdata/``. Targets the data meet are asserted;
 where they are not met the measured bound is asserted and the reason is in docs/realdata.md.
 The full scorecard with every number is ``benchmarks/realdata.py``.
@@ -24,8 +24,14 @@ ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("FRICTID_REALDATA", ROOT.parent / "shared" / "realdata"))
 MAPS = ROOT / "recipes" / "realdata"
 
-pytestmark = pytest.mark.skipif(not DATA.is_dir(), reason=f"real-data sets not found at {DATA} (they are not "
-                                                          "copied into the repository; CI provides them)")
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _realdata_present():
+    """The real data are the final judge: without them these tests fail, they do not skip."""
+    if not DATA.is_dir():
+        pytest.fail(f"real-data sets not found at {DATA}: they are not copied into the repository; put the "
+                    "shared folder beside the checkout (../shared/realdata) or set FRICTID_REALDATA", pytrace=False)
 
 
 def lowpass(x, dt, hz=100.0):
