@@ -51,6 +51,40 @@ EXTENSION_PARAMS = {
     "temperature": ("alpha", "beta", "lam", "dc0", "dc1", "dc2", "dc3", "C", "K", "T0"),
 }
 
+#: Each static map in words and in symbols (F [F] at velocity w [q/s]).
+MAP_FORMULAS = {
+    "coulomb_viscous": ("Coulomb level plus viscous friction", "F = Fc sgn(w) + sigma2 w"),
+    "stribeck": ("Coulomb level with a Stribeck drop from the break-away level at low speed, plus viscous "
+                 "friction", "F = (Fc + (Fs - Fc) exp(-|w/vs|^delta)) sgn(w) + sigma2 w"),
+    "stribeck_2exp": ("level with two exponential terms (Stribeck drop, second rise), plus viscous and "
+                      "quadratic friction", "F = (alpha0 + alpha1 exp(-|w|/ws1) + alpha2 (1 - exp(-|w|/ws2))) "
+                      "sgn(w) + alpha3 w + alpha4 w|w|"),
+    "polynomial": ("third-order polynomial in velocity", "F = c0 sgn(w) + c1 w + c2 w|w| + c3 w^3"),
+}
+#: What each model term adds to the map, in symbols (g: the map's level, F: the friction).
+TERM_FORMULAS = {
+    "asym": "parameters _pos for w >= 0, _neg for w < 0",
+    "lugre": "LuGre: dz/dt = w - sigma0 |w| z / g(w), F = sigma0 z + sigma1 dz/dt + viscous part; steady "
+             "state: the map",
+    "thermal4": "at joint temperature T every amplitude is scaled by alpha (T - T0) + beta",
+    "thermal6": "at joint temperature T each coefficient is c_i + dc_i (T - T0)",
+    "exponential": "at joint temperature T every amplitude is scaled by exp(-lam (T - T0))",
+    "position": "g scaled by 1 + pos_amp sin(2 pi q / pos_period + pos_phase) (periodic) or "
+                "1 + pos_lin (q - pos_q0) + pos_quad (q - pos_q0)^2",
+    "load": "g scaled by 1 + load_torque |J a + G(q)| + load_gravity |G(q)| + load_payload m",
+    "drift": "F scaled by 1 + drift_per_hour (t - drift_t0) / 3600",
+    "offset": "F + tau_offset",
+    "stribeck": "g + str_amp exp(-(|w|/str_vs)^str_delta)",
+}
+
+#: Each term in words.
+TERM_WORDS = {"asym": "its own parameters per velocity sign", "lugre": "LuGre bristle dynamics",
+              "thermal4": "scaled with joint temperature (thermal4)",
+              "thermal6": "coefficients linear in joint temperature (thermal6)",
+              "exponential": "scaled exponentially with joint temperature", "position": "varies with position",
+              "load": "grows with the transmitted load", "drift": "drifts with time",
+              "offset": "with a constant torque offset", "stribeck": "with an added Stribeck drop"}
+
 #: Relative margin beyond a validity range before an evaluation warns.
 VALIDITY_MARGIN = 0.05
 
@@ -342,6 +376,39 @@ class FrictionModel:
                           "extrapolated", ValidityWarning, stacklevel=4)
 
     # ---- plain data
+
+    def terms(self) -> list[str]:
+        """The model's terms beyond its static map, by name (keys of :data:`TERM_FORMULAS`)."""
+        ext = self.ext
+        out = ["asym"] if self.map.endswith("_asym") else []
+        out += ["lugre"] if self.sigma0 is not None else []
+        out += [self.thermal["law"]] if self.thermal else []
+        checks = {"position": ("pos_amp", "pos_lin", "pos_quad"), "load": ("load_torque", "load_gravity",
+                  "load_payload"), "drift": ("drift_per_hour",), "offset": ("tau_offset",), "stribeck": ("str_amp",)}
+        return out + [t for t, keys in checks.items() if any(ext.get(k) for k in keys)]
+
+    def formula(self) -> dict:
+        """The model in words and symbols: ``words``, ``friction`` (the map and each term), ``torque`` (the
+        one-line joint torque with the rigid-body terms and the offset convention it is used with)."""
+        words, sym = MAP_FORMULAS[sm.split_asym(self.map)[0].name]
+        terms = self.terms()
+        grav = ("Px cos(q) + Py sin(q)" + (" + payload (Mx cos(q) + My sin(q))" if self.Mx or self.My else "")
+                if self.axis == "rotary" else "0")
+        off = "tau_offset (in F)" if "offset" in terms else "offset"
+        return {"words": "; ".join([words] + [TERM_WORDS[t] for t in terms]),
+                "friction": [sym] + [TERM_FORMULAS[t] for t in terms],
+                "torque": f"tau = J a + {grav} + {off} + F(w)"}
+
+    def head(self) -> dict:
+        """What a feed-forward user needs of this model, for the top of a joint in the parameter file: name,
+        formula, parameters (value, unit, stderr, identifiable), rigid-body terms and validity."""
+        params = {}
+        for n, p in self.params.items():
+            d = p.to_dict() if hasattr(p, "to_dict") else dict(p)
+            params[n] = {k: d.get(k) for k in ("value", "unit", "stderr", "identifiable")}
+        d = self.to_dict()
+        return {"name": self.name, **self.formula(), "params": params, "rigid_body": d["rigid_body"],
+                "validity": d["validity"]}
 
     def to_dict(self) -> dict:
         """The model as plain data: name, map, axis, parameters (value, unit, stderr, verdict), the rigid-body

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from .errors import ConfigError
 from .model import FrictionModel
 from .version import __version__
 
@@ -168,6 +169,9 @@ class JointFit:
 
     def to_dict(self) -> dict:
         d = self._to_dict()
+        head = self._head()
+        if head is not None:  # first: all a feed-forward user needs; the evidence follows
+            d = {"model": head, **d}
         if self.validity:  # optional keys: files without them stay as before
             d["validity"] = plain(self.validity)
         if self.segment_list:
@@ -190,6 +194,15 @@ class JointFit:
             "warnings": list(self.warnings),
             "diagnosis": plain(self.diagnosis),
         }
+
+    def _head(self) -> dict | None:
+        """The selected model's head (:meth:`FrictionModel.head`), or None without a usable selection."""
+        if not self.selected:
+            return None
+        try:
+            return plain(FrictionModel.from_joint(self).head())
+        except (ConfigError, KeyError, ValueError):
+            return None
 
     @classmethod
     def from_dict(cls, joint: str, d: dict) -> "JointFit":

@@ -79,7 +79,19 @@ class SegmentList(_Closed):
         return self
 
 
+class ModelHead(_Closed):
+    """The head of a joint: its selected model as a feed-forward user reads it (derived, not read back)."""
+    name: str
+    words: str
+    friction: list[str]
+    torque: str
+    params: dict[str, dict[str, Any]]
+    rigid_body: dict[str, Number]
+    validity: dict[str, list[Number]] = Field(default_factory=dict)
+
+
 class JointEntry(_Closed):
+    model: Optional[ModelHead] = None
     axis: Literal["rotary", "linear"] = "rotary"
     units: dict[str, str] = Field(default_factory=dict)
     inertia: Optional[ParamEntry] = None
