@@ -8,6 +8,7 @@ fit). Sections that the data cannot support are still written, saying why they a
 """
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
 import math
 import re
@@ -15,15 +16,27 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
+import jinja2
 import numpy as np
+import yaml
 
+from frictid import __version__
+from frictid import segments as _seg
 from frictid.data import JointLog, log_warnings
+from frictid.errors import LogFormatError, combined_log_error
+from frictid.identify.select import NOT_HELDOUT
+from frictid.io.atomic import atomic_open
+from frictid.io.logs import file_sha256
 from frictid.workers import Prefetch as _Prefetch
 
 from . import content as ct
+from . import figures as fg  # matplotlib itself is imported by the figure functions only
 
 #: Most logs drawn as separate timelines per joint (all logs still feed the other figures).
 MAX_TIMELINES = 4
+#: Why a part drawn from the logs is empty when the joint has no log.
+NO_LOGS = ("No log was given for this joint: this part is drawn from the logs "
+           "(frictid report PARAMS.yaml LOG... with the --map/--units the fit used).")
 
 SECTIONS = (
     ("summary", "Summary"),
@@ -153,8 +166,6 @@ def _round(v, digits: int = 7):
 
 def yaml_snippet(jname: str, jd: dict) -> str:
     """A copyable YAML block of the chosen model: values with units, and the rigid-body terms."""
-    import yaml
-
     sel = jd.get("selected")
     md = (jd.get("models") or {}).get(sel) or {}
     body: dict[str, Any] = {"model": sel, "map": md.get("map", sel)}
@@ -241,246 +252,292 @@ def _units(jd: dict, datas: list[ct.LogData]) -> dict:
     return base
 
 
-def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | None = None) -> dict:
-    """The template context of one joint: summary, sections with their figures, tables, snippet."""
-    from . import figures as fg
+@contextlib.contextmanager
+def _timed(timings: dict, key: str):
+    """Add the CPU seconds spent in the ``with`` block to ``timings[key]``."""
+    t0 = time.process_time()
+    yield
+    timings[key] = timings.get(key, 0.0) + time.process_time() - t0
 
-    timings = timings if timings is not None else {}
-    jid = "j-" + slug(jname)
-    units = _units(jd, datas)
+
+@dataclass
+class _Joint:
+    """What the sections of one joint's report draw on: its entry ``jd`` of the parameter file, its
+    prepared logs, its units, its models and the chosen one, and the plateau points and the coverage
+    measured on its logs."""
+
+    name: str
+    jd: dict
+    datas: list[ct.LogData]
+    id: str
+    units: dict
+    models: dict
+    sel: str | None
+    selmd: dict | None
+    pl: ct.PlateauSet
+    cov: dict
+
+    def salt(self, part: str, i: int = 0) -> str:
+        """The prefix that makes a figure's SVG ids unique in the page."""
+        return f"{self.id}-{part}-{i}"
+
+
+def _gather(jname: str, jd: dict, datas: list[ct.LogData]) -> _Joint:
+    """The joint's data every section draws on, with its plateau points and coverage."""
     models = jd.get("models") or {}
     sel = jd.get("selected")
-    selmd = models.get(sel) if sel else None
-    secs: dict[str, Section] = {k: Section(k, t) for k, t in SECTIONS}
-    no_logs = ("No log was given for this joint: this part is drawn from the logs "
-               "(frictid report PARAMS.yaml LOG... with the --map/--units the fit used).")
-
-    def salt(part, i=0):
-        return f"{jid}-{part}-{i}"
-
-    # plateau points and coverage
-    t0 = time.process_time()
     pl = ct.plateaus(datas) if datas else ct.plateaus([])
-    cov = ct.coverage(datas, pl, jd)
-    timings["plateaus"] = timings.get("plateaus", 0.0) + time.process_time() - t0
+    return _Joint(name=jname, jd=jd, datas=datas, id="j-" + slug(jname), units=_units(jd, datas),
+                  models=models, sel=sel, selmd=models.get(sel) if sel else None, pl=pl,
+                  cov=ct.coverage(datas, pl, jd))
 
-    # ---- summary
-    s = secs["summary"]
+
+def _section(key: str) -> Section:
+    """An empty section ``key``, titled as in :data:`SECTIONS`."""
+    return Section(key, dict(SECTIONS)[key])
+
+
+def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | None = None) -> dict:
+    """The template context of one joint: summary, sections with their figures, tables, snippet.
+    ``timings`` receives the CPU seconds spent per part."""
+    timings = timings if timings is not None else {}
+    with _timed(timings, "plateaus"):
+        j = _gather(jname, jd, datas)
+    secs = {"summary": _summary(j)}
+    with _timed(timings, "timeline"):
+        secs["timeline"] = _timeline(j)
+    with _timed(timings, "map"):
+        secs["friction-map"] = _friction_map(j)
+    with _timed(timings, "presliding"):
+        secs["presliding"] = _presliding(j)
+    with _timed(timings, "thermal"):
+        vmin = ct.min_speed(datas)  # the speed below which a sample counts as at rest (thermal, diagnosis)
+        secs["thermal"] = _thermal(j, vmin)
+    secs["models"] = _models(j)
+    with _timed(timings, "diagnosis"):
+        secs["diagnosis"] = _diagnosis(j, vmin)
+    secs["provenance"] = _provenance(j)
+    return _joint_context(j, secs)
+
+
+def _joint_context(j: _Joint, secs: dict[str, Section]) -> dict:
+    """The template context of the joint from its sections (keyed as in :data:`SECTIONS`)."""
+    summary = secs["summary"].data
+    return {"name": j.name, "id": j.id, "units": j.units, "sections": [secs[k] for k, _ in SECTIONS],
+            "section": secs, "selected": j.sel, "key": s_summary_key(summary["key_params"]),
+            "n_findings": len(secs["diagnosis"].data["findings"]),
+            "n_not_identified": len(summary["not_identified"]),
+            "rms_heldout": fmt_num(((j.selmd or {}).get("metrics") or {}).get("rms_heldout"))}
+
+
+def _summary(j: _Joint) -> Section:
+    """The summary section: the chosen model, its parameters and notes, the rigid-body terms, what the
+    logs cover, what could not be identified, and the warnings."""
+    s = _section("summary")
+    selmd = j.selmd or {}
     s.data = {
-        "selected": sel, "method": (selmd or {}).get("method", ""), "map": (selmd or {}).get("map", ""),
-        "selection": _selection_text(jd), "key_params": param_rows((selmd or {}).get("params") or {}),
-        "rigid": rigid_rows(jd), "coverage": _coverage_lines(cov, units), "not_identified": _not_identified(jd),
-        "warnings": [str(w) for w in (jd.get("warnings") or [])], "notes": list((selmd or {}).get("notes") or []),
+        "selected": j.sel, "method": selmd.get("method", ""), "map": selmd.get("map", ""),
+        "selection": _selection_text(j.jd), "key_params": param_rows(selmd.get("params") or {}),
+        "rigid": rigid_rows(j.jd), "coverage": _coverage_lines(j.cov, j.units),
+        "not_identified": _not_identified(j.jd), "warnings": [str(w) for w in (j.jd.get("warnings") or [])],
+        "notes": list(selmd.get("notes") or []),
     }
-    if sel is None:
-        s.notes.append("No model was chosen for this joint" + (
-            f": {(jd.get('selection') or {}).get('reason')}" if (jd.get("selection") or {}).get("reason") else "."))
+    if j.sel is None:
+        reason = (j.jd.get("selection") or {}).get("reason")
+        s.notes.append("No model was chosen for this joint" + (f": {reason}" if reason else "."))
+    return s
 
-    # ---- timeline
-    s = secs["timeline"]
-    t0 = time.process_time()
-    if not datas:
-        s.present, s.why = False, no_logs
-    else:
-        for i, d in enumerate(datas[:MAX_TIMELINES]):
-            lg = d.log
-            segs = [(x.kind, float(lg.t[x.i0]), float(lg.t[x.i1 - 1])) for x in d.segments]
-            title = f"Joint {jname}: {d.label or 'log'}"
-            s.figures.append(fg.timeline(lg.t, lg.q, d.w, lg.tau, segs, units, title, salt("timeline", i)))
-        if len(datas) > MAX_TIMELINES:
-            s.notes.append(f"{len(datas) - MAX_TIMELINES} more logs of this joint are not drawn here "
-                           "(they enter every other figure).")
-        if not any(d.segments for d in datas):
-            s.notes.append("No segment was found in the logs: nothing is shaded.")
-        if any(d.log.q is None for d in datas):
-            s.notes.append("A log without position: its position panel is left out.")
-    timings["timeline"] = timings.get("timeline", 0.0) + time.process_time() - t0
 
-    # ---- friction map
-    s = secs["friction-map"]
-    t0 = time.process_time()
-    grids = ct.velocity_grids(pl, datas)
-    if not datas and not ct.static_models(jd):
+def _timeline(j: _Joint) -> Section:
+    """The segment timeline section: position, velocity and torque of the first :data:`MAX_TIMELINES`
+    logs with their segments; absent without logs."""
+    s = _section("timeline")
+    if not j.datas:
+        s.present, s.why = False, NO_LOGS
+        return s
+    for i, d in enumerate(j.datas[:MAX_TIMELINES]):
+        lg = d.log
+        segs = [(x.kind, float(lg.t[x.i0]), float(lg.t[x.i1 - 1])) for x in d.segments]
+        title = f"Joint {j.name}: {d.label or 'log'}"
+        s.figures.append(fg.timeline(lg.t, lg.q, d.w, lg.tau, segs, j.units, title, j.salt("timeline", i)))
+    if len(j.datas) > MAX_TIMELINES:
+        s.notes.append(f"{len(j.datas) - MAX_TIMELINES} more logs of this joint are not drawn here "
+                       "(they enter every other figure).")
+    if not any(d.segments for d in j.datas):
+        s.notes.append("No segment was found in the logs: nothing is shaded.")
+    if any(d.log.q is None for d in j.datas):
+        s.notes.append("A log without position: its position panel is left out.")
+    return s
+
+
+def _friction_map(j: _Joint) -> Section:
+    """The friction-velocity map section: the plateau points and the curve of every static model, with
+    notes on what is not drawn; absent with neither plateaus nor a static model."""
+    s = _section("friction-map")
+    grids = ct.velocity_grids(j.pl, j.datas)
+    if not j.datas and not ct.static_models(j.jd):
         s.present, s.why = False, ("No static friction model in the parameter file and no log given: the map "
                                    "needs constant-velocity plateaus at several velocities of both signs "
                                    "(recipes/constant_velocity_sweep.yaml).")
-    else:
-        curves = ct.model_curves(jd, grids)
-        if not curves and not len(pl):
-            s.present, s.why = False, ("No constant-velocity plateau in the logs and no static model in the "
-                                       "parameter file: the map needs plateaus at several constant velocities "
-                                       "of both signs (recipes/constant_velocity_sweep.yaml).")
-        else:
-            s.figures.append(fg.friction_map(pl, curves, grids, units, salt("map")))
-            if not datas:
-                s.notes.append("No log given: the plateau points are not drawn, and the velocity axis spans "
-                               f"±{fmt_num(grids['lin'][-1], 3)} {units['qd']} by default.")
-            elif not len(pl):
-                s.notes.append("No usable constant-velocity plateau in the logs: only the model curves are drawn.")
-            if not curves:
-                s.notes.append("No static model could be evaluated: only the plateau points are drawn.")
-            for side, name in (("pos", "positive"), ("neg", "negative")):
-                if datas and len(pl) and cov.get(side) is None:
-                    s.notes.append(f"No {name}-velocity plateau: the {name} branch of every model is an "
-                                   "extrapolation.")
-            s.data["n_points"] = len(pl)
-            s.data["n_models"] = len(curves)
-    timings["map"] = timings.get("map", 0.0) + time.process_time() - t0
+        return s
+    curves = ct.model_curves(j.jd, grids)
+    if not curves and not len(j.pl):
+        s.present, s.why = False, ("No constant-velocity plateau in the logs and no static model in the "
+                                   "parameter file: the map needs plateaus at several constant velocities "
+                                   "of both signs (recipes/constant_velocity_sweep.yaml).")
+        return s
+    s.figures.append(fg.friction_map(j.pl, curves, grids, j.units, j.salt("map")))
+    if not j.datas:
+        s.notes.append("No log given: the plateau points are not drawn, and the velocity axis spans "
+                       f"±{fmt_num(grids['lin'][-1], 3)} {j.units['qd']} by default.")
+    elif not len(j.pl):
+        s.notes.append("No usable constant-velocity plateau in the logs: only the model curves are drawn.")
+    if not curves:
+        s.notes.append("No static model could be evaluated: only the plateau points are drawn.")
+    for side, name in (("pos", "positive"), ("neg", "negative")):
+        if j.datas and len(j.pl) and j.cov.get(side) is None:
+            s.notes.append(f"No {name}-velocity plateau: the {name} branch of every model is an "
+                           "extrapolation.")
+    s.data["n_points"] = len(j.pl)
+    s.data["n_models"] = len(curves)
+    return s
 
-    # ---- presliding
-    s = secs["presliding"]
-    t0 = time.process_time()
-    lp = ct.lugre_params(jd)
+
+def _presliding(j: _Joint) -> Section:
+    """The presliding section: LuGre's sigma0 / sigma1 rows and the figure of the ramps and steps with
+    the model's curves; absent without logs, or without ramps and steps in them."""
+    s = _section("presliding")
+    lp = ct.lugre_params(j.jd)
     s.data["sigma"] = []
     if lp:
-        s.data["sigma"] = param_rows({k: v for k, v in (models["lugre"].get("params") or {}).items()
+        s.data["sigma"] = param_rows({k: v for k, v in (j.models["lugre"].get("params") or {}).items()
                                       if k in ("sigma0", "sigma1")})
-    if not datas:
+    if not j.datas:
         s.present = False
-        s.why = no_logs + (" The identified sigma0 / sigma1 are listed in the model table." if lp else "")
-    else:
-        ramps, rinfo = ct.ramp_curves(datas, jd)
-        steps, sinfo = ct.step_curves(datas, jd)
-        if not ramps and not steps:
-            s.present = False
-            s.why = ("No presliding ramp and no torque step in the logs: sigma0 needs slow open-loop torque ramps "
-                     "kept below break-away (recipes/ramp_presliding.yaml), sigma1 torque steps "
-                     "(recipes/torque_steps.yaml).")
-        else:
-            s0, s1 = (lp or {}).get("sigma0") or {}, (lp or {}).get("sigma1") or {}
-            lab0 = f"LuGre, sigma0 = {fmt_pm(s0.get('value'), s0.get('stderr'))} {s0.get('unit', '')}"
-            lab1 = f"LuGre, sigma1 = {fmt_pm(s1.get('value'), s1.get('stderr'))} {s1.get('unit', '')}"
-            s.figures.append(fg.presliding(ramps, steps, units, lab0, lab1, salt("presliding")))
-            if rinfo["n_total"] > len(ramps):
-                s.notes.append(f"{len(ramps)} of {rinfo['n_total']} ramps drawn, spread over the log.")
-            if sinfo["n_total"] > len(steps):
-                s.notes.append(f"{len(steps)} of {sinfo['n_total']} steps drawn, spread over the log.")
-            if ramps and not any(r["model"] is not None for r in ramps):
-                s.notes.append("No model curve on the ramps: " + (
-                    f"sigma0 is not identified ({s0.get('reason') or 'no value'})." if lp else
-                    "the parameter file has no LuGre model."))
-            if steps and not any(x["model"] is not None for x in steps):
-                s.notes.append("No simulated transient: " + (
-                    f"sigma1 is not identified ({s1.get('reason') or 'no value'})." if lp and s1.get("value") is None
-                    else "the inertia J is not known." if lp and not sinfo.get("J") else
-                    "sigma0 is not identified." if lp else "the parameter file has no LuGre model."))
-            if not ramps:
-                s.notes.append("No presliding ramp in the logs (sigma0 needs recipes/ramp_presliding.yaml).")
-            if not steps:
-                s.notes.append("No torque step in the logs (sigma1 needs recipes/torque_steps.yaml).")
-    timings["presliding"] = timings.get("presliding", 0.0) + time.process_time() - t0
-
-    # ---- thermal
-    s = secs["thermal"]
-    t0 = time.process_time()
-    vmin = ct.min_speed(datas)  # the speed below which a sample counts as at rest (thermal, diagnosis)
-    th_reasons = [x["reason"] for x in _not_identified(jd) if x["what"] in ct.THERMAL_LAWS]
-    th_models = [n for n in models if n in ct.THERMAL_LAWS]
-    s.data["models"] = [{"name": n, "params": param_rows(models[n].get("params") or {}),
-                         "notes": list(models[n].get("notes") or []),
-                         "time_constant": models[n].get("time_constant")} for n in th_models]
-    if not datas:
+        s.why = NO_LOGS + (" The identified sigma0 / sigma1 are listed in the model table." if lp else "")
+        return s
+    ramps, rinfo = ct.ramp_curves(j.datas, j.jd)
+    steps, sinfo = ct.step_curves(j.datas, j.jd)
+    if not ramps and not steps:
         s.present = False
-        s.why = no_logs + (" The thermal parameters are listed below." if th_models else
-                           (" The fit says: " + "; ".join(sorted(set(th_reasons))) + "." if th_reasons else ""))
-    else:
-        cycles, tmods, tinfo = ct.thermal_cycles(datas, jd, vmin=vmin)
-        if not cycles:
-            s.present = False
-            s.why = ("No duty cycle in the logs: the thermal models need repeated cycles of motion and rest "
-                     "from a cold start, with a temp_env channel (recipes/duty_cycle.yaml)."
-                     + (" The fit says: " + "; ".join(sorted(set(th_reasons))) + "." if th_reasons else ""))
-        else:
-            s.figures.append(fg.thermal(cycles, tmods, units, salt("thermal")))
-            s.notes.append(f"{len(cycles)} cycles, from {tinfo['source']}.")
-            if not tmods:
-                s.notes.append("No thermal model in the parameter file"
-                               + (": " + "; ".join(sorted(set(th_reasons))) if th_reasons else "")
-                               + ". Only the measured friction per cycle is drawn.")
-            for m in tmods:
-                if not np.any(np.isfinite(m["T"])):
-                    s.notes.append(f"{m['name']}: the parameter file gives no per-cycle temperature "
-                                   "(cycle_temperature), so its curve is not drawn.")
-    timings["thermal"] = timings.get("thermal", 0.0) + time.process_time() - t0
+        s.why = ("No presliding ramp and no torque step in the logs: sigma0 needs slow open-loop torque ramps "
+                 "kept below break-away (recipes/ramp_presliding.yaml), sigma1 torque steps "
+                 "(recipes/torque_steps.yaml).")
+        return s
+    s0, s1 = (lp or {}).get("sigma0") or {}, (lp or {}).get("sigma1") or {}
+    lab0 = f"LuGre, sigma0 = {fmt_pm(s0.get('value'), s0.get('stderr'))} {s0.get('unit', '')}"
+    lab1 = f"LuGre, sigma1 = {fmt_pm(s1.get('value'), s1.get('stderr'))} {s1.get('unit', '')}"
+    s.figures.append(fg.presliding(ramps, steps, j.units, lab0, lab1, j.salt("presliding")))
+    s.notes.extend(_presliding_notes(ramps, rinfo, steps, sinfo, lp))
+    return s
 
-    # ---- models
-    s = secs["models"]
-    s.data["rows"] = model_rows(jd)
-    from frictid.identify.select import NOT_HELDOUT
+
+def _presliding_notes(ramps: list[dict], rinfo: dict, steps: list[dict], sinfo: dict, lp: dict | None
+                      ) -> list[str]:
+    """What the presliding figure leaves out: ramps and steps not drawn, model curves missing (and why),
+    and the experiment the logs lack."""
+    s0, s1 = (lp or {}).get("sigma0") or {}, (lp or {}).get("sigma1") or {}
+    notes = []
+    if rinfo["n_total"] > len(ramps):
+        notes.append(f"{len(ramps)} of {rinfo['n_total']} ramps drawn, spread over the log.")
+    if sinfo["n_total"] > len(steps):
+        notes.append(f"{len(steps)} of {sinfo['n_total']} steps drawn, spread over the log.")
+    if ramps and not any(r["model"] is not None for r in ramps):
+        notes.append("No model curve on the ramps: " + (
+            f"sigma0 is not identified ({s0.get('reason') or 'no value'})." if lp else
+            "the parameter file has no LuGre model."))
+    if steps and not any(x["model"] is not None for x in steps):
+        notes.append("No simulated transient: " + (
+            f"sigma1 is not identified ({s1.get('reason') or 'no value'})." if lp and s1.get("value") is None
+            else "the inertia J is not known." if lp and not sinfo.get("J") else
+            "sigma0 is not identified." if lp else "the parameter file has no LuGre model."))
+    if not ramps:
+        notes.append("No presliding ramp in the logs (sigma0 needs recipes/ramp_presliding.yaml).")
+    if not steps:
+        notes.append("No torque step in the logs (sigma1 needs recipes/torque_steps.yaml).")
+    return notes
+
+
+def _thermal(j: _Joint, vmin: float) -> Section:
+    """The thermal section: the thermal models' parameters and the figure of the friction per duty cycle
+    with each model; absent without logs or duty cycles. ``vmin``: the speed below which a sample is at
+    rest [unit of qd]."""
+    s = _section("thermal")
+    th_reasons = [x["reason"] for x in _not_identified(j.jd) if x["what"] in ct.THERMAL_LAWS]
+    th_models = [n for n in j.models if n in ct.THERMAL_LAWS]
+    s.data["models"] = [{"name": n, "params": param_rows(j.models[n].get("params") or {}),
+                         "notes": list(j.models[n].get("notes") or []),
+                         "time_constant": j.models[n].get("time_constant")} for n in th_models]
+    says = "; ".join(sorted(set(th_reasons)))  # what the fit says of the thermal models it left out
+    if not j.datas:
+        s.present = False
+        s.why = NO_LOGS + (" The thermal parameters are listed below." if th_models else
+                           (" The fit says: " + says + "." if th_reasons else ""))
+        return s
+    cycles, tmods, tinfo = ct.thermal_cycles(j.datas, j.jd, vmin=vmin)
+    if not cycles:
+        s.present = False
+        s.why = ("No duty cycle in the logs: the thermal models need repeated cycles of motion and rest "
+                 "from a cold start, with a temp_env channel (recipes/duty_cycle.yaml)."
+                 + (" The fit says: " + says + "." if th_reasons else ""))
+        return s
+    s.figures.append(fg.thermal(cycles, tmods, j.units, j.salt("thermal")))
+    s.notes.append(f"{len(cycles)} cycles, from {tinfo['source']}.")
+    if not tmods:
+        s.notes.append("No thermal model in the parameter file" + (": " + says if th_reasons else "")
+                       + ". Only the measured friction per cycle is drawn.")
+    for m in tmods:
+        if not np.any(np.isfinite(m["T"])):
+            s.notes.append(f"{m['name']}: the parameter file gives no per-cycle temperature "
+                           "(cycle_temperature), so its curve is not drawn.")
+    return s
+
+
+def _models(j: _Joint) -> Section:
+    """The model comparison section: a row per fitted model, those left out of the held-out comparison,
+    and the selection rule; absent when no model was fitted."""
+    s = _section("models")
+    s.data["rows"] = model_rows(j.jd)
     s.data["heldout_skipped"] = [r["name"] for r in s.data["rows"] if NOT_HELDOUT in r["notes"]]
     if not s.data["rows"]:
         s.present, s.why = False, "No model was fitted for this joint."
-    sel_rec = jd.get("selection") or {}
-    s.data["rule"] = sel_rec.get("rule", "")
+    s.data["rule"] = (j.jd.get("selection") or {}).get("rule", "")
+    return s
 
-    # ---- diagnosis and replay
-    s = secs["diagnosis"]
-    t0 = time.process_time()
+
+@dataclass
+class _Findings:
+    """The diagnosis entries of one joint and the model each was judged against (``befores``), with the
+    replays kept for them: ``later[i]`` are the models that findings ``i`` and after replay (a replay is
+    kept only while one needs it: each is three arrays of the log's length, and the first joint of a
+    worker pays for fresh memory); ``cache`` holds the kept replays."""
+
+    entries: list[dict]
+    befores: list
+    later: list[set]
+    cache: dict = field(default_factory=dict)
+
+
+def _findings(jd: dict) -> _Findings:
+    """The joint's diagnosis entries (text entries as causes) and the models each replays."""
     entries = [f if isinstance(f, dict) else {"cause": str(f)} for f in (jd.get("diagnosis") or [])]
     befores = ct.diagnosis_befores(jd, entries)
-    # the models each finding replays, and from finding i on (a replay is kept only while one needs it:
-    # each is three arrays of the log's length, and the first joint of a worker pays for fresh memory)
     later = [set()]
     for f, before in zip(reversed(entries), reversed(befores)):
         later.insert(0, later[0] | ct.replayed_models(jd, f, before))
-    cache: dict = {}
-    replays, replayed = [], False
-    for k, d in enumerate(datas):
-        r = ct.replay_log(d, jname, jd, closed=k < MAX_TIMELINES, vmin=vmin)
-        if r is None:
-            continue
-        replayed = replayed or r.how == "replay"
-        if k < MAX_TIMELINES:
-            res_ = r.residual(d)
-            rms = float(np.sqrt(np.nanmean(res_ ** 2)))
-            del res_
-            title = (f"Replay of {r.model} along {d.label or 'the log'}: torque residual RMS {fmt_num(rms, 3)} "
-                     f"{units['tau']}")
-            replays.append(fg.replay(d.log.t, d.log.tau, r.tau_model, units, title, salt("replay", k),
-                                     q=d.log.q, q_model=r.q_model))
-            if r.how == "static":
-                s.notes.append(f"{d.label or 'log'}: replayed with the steady-state map of {r.model} only "
-                               f"(J a + G(q) + offset + F_ss(w)); samples slower than {fmt_num(vmin, 3)} "
-                               f"{units['qd']} are left out, as a static map cannot tell the friction at rest.")
-            for n in r.notes:
-                s.notes.append(f"{d.label or 'log'}: {n}")
-        r.q_model = None  # drawn
-        if sel in later[0]:
-            cache[(sel, k, 0)] = r
-        r = None  # not held past the loop
-    ct.drop_reference_channels(datas)  # the closed loops have run
-    findings = []
-    for i, (f, prev) in enumerate(zip(entries, befores)):
-        row = {"cause": f.get("cause", ""), "evidence": f.get("evidence", ""),
-               "statistic": f.get("statistic", ""), "extension": f.get("extension", ""),
-               "model": f.get("model", ""), "before": prev,
-               "rms_before": fmt_num(f.get("rms_before")), "rms_after": fmt_num(f.get("rms_after")),
-               "gain": _fmt_gain(f.get("gain")), "heldout": _heldout_text(f.get("heldout")), "figure": None,
-               "note": ""}
-        if isinstance(row["statistic"], dict):
-            row["statistic"] = "; ".join(f"{k} = {fmt_num(v) if isinstance(v, (int, float)) else v}"
-                                         for k, v in row["statistic"].items())
-        if isinstance(row["extension"], dict):
-            ext = row["extension"]
-            row["extension"] = " ".join(x for x in (str(ext.get("name") or ext.get("model") or ""),
-                                                    _compact_params(ext.get("params") or {})) if x) or str(ext)
-        if not ct.on_sliding_samples(f):
-            row["note"] = ("Judged on the presliding ramps, not along the sliding samples: see the Presliding "
-                           "part (torque against displacement with LuGre's sigma0).")
-        elif datas:
-            res = ct.diagnosis_residuals(datas, jname, jd, f, before=prev, cache=cache, vmin=vmin,
-                                         keep=later[i + 1])
-            if res is not None:
-                row["figure"] = fg.diagnosis(f, res, units, salt("diagnosis", i))
-                if res.get("given") is None:
-                    row["note"] = ("Only the residual before the extension is drawn: the parameter file holds "
-                                   "neither the extended model nor the binned residual after it.")
-            else:
-                row["note"] = "No residual drawn: the model cannot be run along the log."
-        else:
-            row["note"] = "No residual drawn: no log given."
-        findings.append(row)
-    cache.clear()
+    return _Findings(entries, befores, later)
+
+
+def _diagnosis(j: _Joint, vmin: float) -> Section:
+    """The diagnosis section: the replays of the chosen model along the logs, and a row per finding of
+    the parameter file with its residual figure; absent with neither. ``vmin``: the speed below which a
+    sample is at rest [unit of qd]."""
+    s = _section("diagnosis")
+    fi = _findings(j.jd)
+    replays, replayed = _replays(j, fi, vmin, s.notes)
+    ct.drop_reference_channels(j.datas)  # the closed loops have run
+    findings = [_finding(j, fi, i, vmin) for i in range(len(fi.entries))]
+    fi.cache.clear()
     s.data["findings"] = findings
     s.figures = replays
     if replays and replayed:
@@ -491,29 +548,104 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
     if not findings:
         s.notes.append("The parameter file has no diagnosis entries: the diagnosis step has not run on this "
                        "identification, or found nothing to add.")
-    if datas and not replays:
+    if j.datas and not replays:
         s.notes.append("No replay: the chosen model cannot be run along the log.")
     if not findings and not replays:
         s.present = False
-        s.why = " ".join(s.notes) + ("" if datas else " " + no_logs)
+        s.why = " ".join(s.notes) + ("" if j.datas else " " + NO_LOGS)
         s.notes = []
-    timings["diagnosis"] = timings.get("diagnosis", 0.0) + time.process_time() - t0
+    return s
 
-    # ---- provenance (per joint: the snippet)
-    s = secs["provenance"]
-    if sel:
-        s.data["yaml"] = yaml_snippet(jname, jd)
+
+def _replays(j: _Joint, fi: _Findings, vmin: float, notes: list[str]) -> tuple[list, bool]:
+    """The replay figures of the chosen model along the first :data:`MAX_TIMELINES` logs (in closed loop
+    where the log allows), and whether any log was replayed in full rather than with the steady-state map
+    only. Their notes are added to ``notes``; the replays the findings need are kept in ``fi.cache``."""
+    replays, replayed = [], False
+    for k, d in enumerate(j.datas):
+        r = ct.replay_log(d, j.name, j.jd, closed=k < MAX_TIMELINES, vmin=vmin)
+        if r is None:
+            continue
+        replayed = replayed or r.how == "replay"
+        if k < MAX_TIMELINES:
+            replays.append(_replay_figure(j, d, k, r))
+            if r.how == "static":
+                notes.append(f"{d.label or 'log'}: replayed with the steady-state map of {r.model} only "
+                             f"(J a + G(q) + offset + F_ss(w)); samples slower than {fmt_num(vmin, 3)} "
+                             f"{j.units['qd']} are left out, as a static map cannot tell the friction at rest.")
+            for n in r.notes:
+                notes.append(f"{d.label or 'log'}: {n}")
+        r.q_model = None  # drawn
+        if j.sel in fi.later[0]:
+            fi.cache[(j.sel, k, 0)] = r
+        r = None  # not held past the loop
+    return replays, replayed
+
+
+def _replay_figure(j: _Joint, d: ct.LogData, k: int, r: ct.Replay) -> fg.Rendered:
+    """The figure of replay ``r`` along log ``d`` (the joint's ``k``-th), titled with its residual RMS."""
+    res_ = r.residual(d)
+    rms = float(np.sqrt(np.nanmean(res_ ** 2)))
+    del res_
+    title = (f"Replay of {r.model} along {d.label or 'the log'}: torque residual RMS {fmt_num(rms, 3)} "
+             f"{j.units['tau']}")
+    return fg.replay(d.log.t, d.log.tau, r.tau_model, j.units, title, j.salt("replay", k),
+                     q=d.log.q, q_model=r.q_model)
+
+
+def _finding_row(f: dict, prev) -> dict:
+    """The table row of diagnosis entry ``f`` as text (``prev``: the model it was judged against),
+    without its figure or note."""
+    row = {"cause": f.get("cause", ""), "evidence": f.get("evidence", ""),
+           "statistic": f.get("statistic", ""), "extension": f.get("extension", ""),
+           "model": f.get("model", ""), "before": prev,
+           "rms_before": fmt_num(f.get("rms_before")), "rms_after": fmt_num(f.get("rms_after")),
+           "gain": _fmt_gain(f.get("gain")), "heldout": _heldout_text(f.get("heldout")), "figure": None,
+           "note": ""}
+    if isinstance(row["statistic"], dict):
+        row["statistic"] = "; ".join(f"{k} = {fmt_num(v) if isinstance(v, (int, float)) else v}"
+                                     for k, v in row["statistic"].items())
+    if isinstance(row["extension"], dict):
+        ext = row["extension"]
+        row["extension"] = " ".join(x for x in (str(ext.get("name") or ext.get("model") or ""),
+                                                _compact_params(ext.get("params") or {})) if x) or str(ext)
+    return row
+
+
+def _finding(j: _Joint, fi: _Findings, i: int, vmin: float) -> dict:
+    """The table row of the ``i``-th finding with its residual figure, or a note saying why none is
+    drawn."""
+    f, prev = fi.entries[i], fi.befores[i]
+    row = _finding_row(f, prev)
+    if not ct.on_sliding_samples(f):
+        row["note"] = ("Judged on the presliding ramps, not along the sliding samples: see the Presliding "
+                       "part (torque against displacement with LuGre's sigma0).")
+    elif j.datas:
+        res = ct.diagnosis_residuals(j.datas, j.name, j.jd, f, before=prev, cache=fi.cache, vmin=vmin,
+                                     keep=fi.later[i + 1])
+        if res is not None:
+            row["figure"] = fg.diagnosis(f, res, j.units, j.salt("diagnosis", i))
+            if res.get("given") is None:
+                row["note"] = ("Only the residual before the extension is drawn: the parameter file holds "
+                               "neither the extended model nor the binned residual after it.")
+        else:
+            row["note"] = "No residual drawn: the model cannot be run along the log."
+    else:
+        row["note"] = "No residual drawn: no log given."
+    return row
+
+
+def _provenance(j: _Joint) -> Section:
+    """The joint's part of the provenance: the YAML snippet of the chosen model and the logs drawn."""
+    s = _section("provenance")
+    if j.sel:
+        s.data["yaml"] = yaml_snippet(j.name, j.jd)
     else:
         s.data["yaml"] = ""
         s.notes.append("No model was chosen: there is no snippet to copy.")
     s.data["logs"] = [{"label": d.label, "sha256": d.sha256, "rows": d.log.n,
-                       "source": d.source_index} for d in datas]
-
-    key = s_summary_key(secs["summary"].data["key_params"])
-    return {"name": jname, "id": jid, "units": units, "sections": [secs[k] for k, _ in SECTIONS],
-            "section": secs, "selected": sel, "key": key, "n_findings": len(findings),
-            "n_not_identified": len(secs["summary"].data["not_identified"]),
-            "rms_heldout": fmt_num(((selmd or {}).get("metrics") or {}).get("rms_heldout"))}
+                       "source": d.source_index} for d in j.datas]
+    return s
 
 
 def s_summary_key(rows: list[dict], most: int = 4) -> list[str]:
@@ -556,8 +688,6 @@ def _selection_text(jd: dict) -> str:
 
 
 def _environment():
-    import jinja2
-
     env = jinja2.Environment(loader=jinja2.PackageLoader("frictid.report", "templates"),
                              autoescape=jinja2.select_autoescape(["html"]), trim_blocks=True, lstrip_blocks=True,
                              undefined=jinja2.StrictUndefined)
@@ -597,8 +727,6 @@ def _joint_part(jn: str, jd: dict, given: list, sources: list[dict], hashes: dic
                 differentiate) -> _Part:
     """One joint of the report from the logs ``given`` for it (:class:`JointLog` or :class:`DeferredLogs`,
     read here). The joint's warnings gain those of its logs."""
-    from frictid.errors import LogFormatError
-
     out = _Part()
     t0 = time.process_time()
     jlogs: list[JointLog] = []
@@ -647,9 +775,8 @@ def _joint_part(jn: str, jd: dict, given: list, sources: list[dict], hashes: dic
 
 def preload() -> None:
     """Import what building a joint needs (matplotlib for the figures, scipy.signal for the derivatives,
-    the replay and the presliding simulation) once, ahead of forking the workers that inherit it."""
-    from . import figures as fg
-
+    the replay and the presliding simulation) once, ahead of forking the workers that inherit it; the
+    imports here are the work, not hidden dependencies."""
     fg.preload()
     import scipy.signal  # noqa: F401
 
@@ -693,31 +820,18 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     the SHA-256 of log files already computed (path -> hash, e.g. :meth:`Prefetch.hashes`); the others
     are computed here.
     """
-    from frictid import __version__
-    from frictid.errors import combined_log_error
-    from frictid.io.logs import file_sha256
-
     timings = timings if timings is not None else {}
     logs = list(logs or [])
     if logs and (segmenter is None or differentiate is None):
-        from frictid import segments as _seg
         segmenter = segmenter or _seg.find_segments
         differentiate = differentiate or _seg.derivatives
     joints = params.get("joints") or {}
     sources = [s for s in (params.get("sources") or []) if isinstance(s, dict)]
     hashes = dict(hashes or {})
-    notes = []
-    by_joint: dict[str, list[JointLog | DeferredLogs]] = {}
     t0 = time.process_time()
-    for lg in logs:
-        if lg.source and lg.source not in hashes:
-            hashes[lg.source] = file_sha256(lg.source)
-        if str(lg.joint) in joints:
-            by_joint.setdefault(str(lg.joint), []).append(lg)
+    by_joint = _logs_by_joint(logs, joints, hashes)
     timings["hash"] = time.process_time() - t0
-    skipped = sorted({str(lg.joint) for lg in logs} - set(map(str, joints)))
-    if skipped:
-        notes.append(f"Logs of joint(s) {', '.join(skipped)} are not drawn: the parameter file has no entry for them.")
+    notes = _skipped_joints(logs, joints)
     # joints in forked workers (one per core); in each, one joint at a time: its derivatives, friction
     # torque, replays and figures are freed before the next
     parts = [(str(jn), jd) for jn, jd in joints.items() if isinstance(jd, dict)]
@@ -736,28 +850,10 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     bad = combined_log_error(p for r in results for p in r.problems)  # every joint's, together
     if bad is not None:
         raise bad
-    jctx = []
-    got: dict[int, tuple[int, int | None, bool]] = {}  # id of a given log -> rows, source index, recorded
-    for jn, r in zip(names, results):
-        jctx.append(r.ctx)
-        for item, n, si, rec in zip(by_joint.get(jn, []), r.rows, r.source_index, r.recorded):
-            got[id(item)] = (n, si, rec)
-        if log_warnings_out is not None:
-            log_warnings_out.extend(r.warnings)
-        for key, v in r.timings.items():
-            timings[key] = timings.get(key, 0.0) + v
-    inputs = []
-    for lg in logs:
-        label = lg.source or "<memory>"
-        if any(i["path"] == label and i["joint"] == str(lg.joint) for i in inputs):
-            continue
-        n, si, rec = got.get(id(lg), (getattr(lg, "n", None), None, False))
-        inputs.append({"path": label, "joint": str(lg.joint), "rows": n, "sha256": hashes.get(label),
-                       "source": si, "segments": "the fit's" if rec else "found again"})
-    for i in inputs:
-        if i["source"] is None and str(i["joint"]) in joints and sources:
-            notes.append(f"{i['path']}: not among the files the fit read (different hash and name); its curves are "
-                         "compared with parameters identified from other data.")
+    jctx = [r.ctx for r in results]
+    _add_up(results, timings, log_warnings_out)
+    inputs = _inputs(logs, _given_logs(names, results, by_joint), hashes)
+    notes += _unmatched_inputs(inputs, joints, sources)
     t0 = time.process_time()
     env = _environment()
     html = env.get_template("report.html").render(
@@ -770,10 +866,71 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     return html
 
 
+def _logs_by_joint(logs: list, joints: dict, hashes: dict[str, str | None]) -> dict[str, list]:
+    """The logs given (:class:`JointLog` or :class:`DeferredLogs`) of each joint of the parameter file
+    ``joints``, in their order; the SHA-256 of every log file not yet in ``hashes`` is added to it."""
+    by_joint: dict[str, list[JointLog | DeferredLogs]] = {}
+    for lg in logs:
+        if lg.source and lg.source not in hashes:
+            hashes[lg.source] = file_sha256(lg.source)
+        if str(lg.joint) in joints:
+            by_joint.setdefault(str(lg.joint), []).append(lg)
+    return by_joint
+
+
+def _skipped_joints(logs: list, joints: dict) -> list[str]:
+    """The page's note on logs of joints that the parameter file does not hold (none if all are in it)."""
+    skipped = sorted({str(lg.joint) for lg in logs} - set(map(str, joints)))
+    if not skipped:
+        return []
+    return [f"Logs of joint(s) {', '.join(skipped)} are not drawn: the parameter file has no entry for them."]
+
+
+def _add_up(results: list[_Part], timings: dict, log_warnings_out: list[str] | None) -> None:
+    """Add the CPU seconds of every joint's part to ``timings``, and their logs' warnings to
+    ``log_warnings_out`` (when a list)."""
+    for r in results:
+        if log_warnings_out is not None:
+            log_warnings_out.extend(r.warnings)
+        for key, v in r.timings.items():
+            timings[key] = timings.get(key, 0.0) + v
+
+
+def _given_logs(names: list[str], results: list[_Part], by_joint: dict[str, list]
+                ) -> dict[int, tuple[int, int | None, bool]]:
+    """Per log given (by ``id``), as its joint's part found it: its rows, the index of the parameter
+    file's source it matches (or None) and whether its segments are the ones the fit recorded."""
+    got: dict[int, tuple[int, int | None, bool]] = {}
+    for jn, r in zip(names, results):
+        for item, n, si, rec in zip(by_joint.get(jn, []), r.rows, r.source_index, r.recorded):
+            got[id(item)] = (n, si, rec)
+    return got
+
+
+def _inputs(logs: list, got: dict[int, tuple[int, int | None, bool]], hashes: dict[str, str | None]
+            ) -> list[dict]:
+    """The provenance's rows of the logs given, one per file and joint: path, joint, rows, SHA-256, the
+    parameter file's source it matches, and whose segments were drawn (``got``: :func:`_given_logs`)."""
+    inputs = []
+    for lg in logs:
+        label = lg.source or "<memory>"
+        if any(i["path"] == label and i["joint"] == str(lg.joint) for i in inputs):
+            continue
+        n, si, rec = got.get(id(lg), (getattr(lg, "n", None), None, False))
+        inputs.append({"path": label, "joint": str(lg.joint), "rows": n, "sha256": hashes.get(label),
+                       "source": si, "segments": "the fit's" if rec else "found again"})
+    return inputs
+
+
+def _unmatched_inputs(inputs: list[dict], joints: dict, sources: list[dict]) -> list[str]:
+    """The page's notes on logs of the file's joints that are none of the files the fit read."""
+    return [f"{i['path']}: not among the files the fit read (different hash and name); its curves are "
+            "compared with parameters identified from other data."
+            for i in inputs if i["source"] is None and str(i["joint"]) in joints and sources]
+
+
 def write_report(path: str, params: dict, logs: Iterable[JointLog] | None = None, **kw) -> int:
     """Build the report and write it atomically to ``path`` (``-`` for standard output). Returns bytes."""
-    from frictid.io.atomic import atomic_open
-
     html = build_report(params, logs, **kw)
     with atomic_open(path, "w") as fh:
         fh.write(html)

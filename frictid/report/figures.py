@@ -1,8 +1,8 @@
 """The report's figures: matplotlib (Agg, object API, no pyplot, no display) rendered to inline SVG, or to
 PNG when a figure would draw too many points for a light SVG.
 
-matplotlib is imported inside the functions only, so importing :mod:`frictid.report` costs nothing and
-the numerics layers never load it. Every axis carries its unit. Colours are the Okabe-Ito palette (safe for
+matplotlib is imported inside the functions only (the imports left inside functions here are all
+matplotlib's), so importing :mod:`frictid.report` does not load it and the numerics layers never do. Every axis carries its unit. Colours are the Okabe-Ito palette (safe for
 the common colour-vision deficiencies) and every series that colour tells apart is also told apart by line
 style or marker, so the figures survive greyscale printing.
 
@@ -20,6 +20,8 @@ import re
 from dataclasses import dataclass
 
 import numpy as np
+
+from frictid.segments.runs import paint, runs
 
 #: Okabe-Ito colours (Wong 2011, Nature Methods 8:441); yellow is left out (too light on white paper).
 BLACK, ORANGE, SKY, GREEN, BLUE, VERMILLION, PURPLE, GREY = (
@@ -275,8 +277,6 @@ def kind_spans(segments: list[tuple[str, float, float]], lo: float, hi: float, c
                ) -> dict[str, list[tuple[float, float]]]:
     """Segments (kind, t_start, t_end) merged per kind at the resolution of ``columns`` pixels:
     (start, width) rectangles, at most ``columns / 2`` per kind whatever the number of segments."""
-    from frictid.segments.runs import paint, runs
-
     out: dict[str, list[tuple[float, float]]] = {}
     span = hi - lo
     if not segments or span <= 0:
@@ -476,6 +476,8 @@ def presliding(ramps: list[dict], steps: list[dict], units: dict, sigma0_label: 
                salt: str) -> Rendered:
     """Presliding: torque against displacement on the ramps with LuGre's bristle path at the fitted
     sigma0, and the step transients measured (solid) against the model (dashed)."""
+    from matplotlib.lines import Line2D  # matplotlib only where a figure is drawn
+
     panels = [p for p in (("ramps", ramps), ("steps", steps)) if p[1]]
     with rc_context(salt):
         fig = new_figure(3.9)
@@ -495,7 +497,6 @@ def presliding(ramps: list[dict], steps: list[dict], units: dict, sigma0_label: 
                 ax.set_xlabel(f"displacement from ramp start [{xu}]")
                 ax.set_ylabel(f"friction torque [{units['tau']}]")
                 ax.set_title("Ramps: torque against displacement", loc="left")
-                from matplotlib.lines import Line2D
                 hs = [Line2D([], [], color=GREY, lw=1.1, marker="o", ms=3, label="measured (one colour per ramp)")]
                 if any(r["model"] is not None for r in items):
                     hs.append(Line2D([], [], color=BLACK, lw=1.4, ls=(0, (4, 2)), label=sigma0_label))
@@ -514,7 +515,6 @@ def presliding(ramps: list[dict], steps: list[dict], units: dict, sigma0_label: 
                 ax.set_xlabel("time from step start [ms]")
                 ax.set_ylabel(f"displacement [{xu}]")
                 ax.set_title("Steps: transient measured and simulated", loc="left")
-                from matplotlib.lines import Line2D
                 hs = [Line2D([], [], color=GREY, lw=1.1, marker="o", ms=3, label="measured (one colour per step)")]
                 if any(s["model"] is not None for s in items):
                     hs.append(Line2D([], [], color=GREY, lw=1.5, ls=(0, (4, 2)), marker="o", mfc="white", ms=4,

@@ -212,6 +212,16 @@ def _run_peak(x: np.ndarray, s: np.ndarray, e: np.ndarray) -> np.ndarray:
     return idx[hit[np.searchsorted(hit, first)]]
 
 
+def _steps(f: Features, code: np.ndarray, jumps: np.ndarray, ramps: list[tuple[int, int, int]], hj: int
+           ) -> list[tuple[int, int]]:
+    """(start, end) of the steps: a torque jump of ``jumps`` from a still joint, settled (still) again
+    within the hold, in groups that return the torque to where it started. The starts of ``ramps`` (the
+    ramp candidates) end a hold as a jump does; ``hj``: the longest rise of a jump [samples]."""
+    events = np.sort(np.concatenate([jumps, np.array([r[0] for r in ramps], dtype=np.int64)]))
+    cands = [seg for seg in (_step(f, int(j), hj, events, code) for j in jumps) if seg is not None]
+    return _step_groups(f, cands, hj)
+
+
 def _step(f: Features, j: int, hj: int, events: np.ndarray, code: np.ndarray) -> tuple[int, int] | None:
     """The step segment of the jump at ``j``: from the jump to the next torque event or to the end of the
     still stretch that follows the transient; None unless the joint is still before the jump and has
@@ -342,43 +352,65 @@ def grow(core: np.ndarray, ok: np.ndarray) -> np.ndarray:
 # Main
 
 
+@dataclass
+class _Labels:
+    """The kind code of every sample of a log (-1 until classified) and the segments found so far."""
+
+    f: Features
+    code: np.ndarray
+    segs: list[Segment]
+
+    def mark(self, kind: str, i0: int, i1: int, cycle: int | None = None) -> None:
+        """Give the samples ``[i0, i1)`` the kind ``kind`` and add their segment."""
+        self.code[i0:i1] = KIND_CODE[kind]
+        self.segs.append(_segment(self.f, kind, i0, i1, cycle=cycle))
+
+
 def classify(log: JointLog, scales: Scales | None = None) -> tuple[np.ndarray, list[Segment], Features | None]:
     """Kind code per sample, the segments, and the features (None for a log too short to segment);
-    ``scales``: the log's :func:`estimate_scales` when known."""
+    ``scales``: the log's :func:`estimate_scales` when known.
+
+    The kinds are found in the order of the module's description, each among the samples the earlier
+    ones left: duty cycles, steps, ramps, constant velocity, rest; what remains is *other*."""
     n = log.n
     sc = scales or estimate_scales(log)
     n_min = max(10, int(round(T_MIN / sc.dt)))
     if n < 2 * n_min:
         return np.full(n, KIND_CODE["other"], dtype=np.int8), [], None
     f = features(log, sc)
-    code = np.full(n, -1, dtype=np.int8)
-    segs: list[Segment] = []
-
-    # 1. duty cycles
+    lab = _Labels(f, np.full(n, -1, dtype=np.int8), [])
     for i0, i1, cyc in find_duty_cycles(f):
-        code[i0:i1] = KIND_CODE["duty_cycle"]
-        segs.append(_segment(f, "duty_cycle", i0, i1, cycle=cyc))
-
+        lab.mark("duty_cycle", i0, i1, cycle=cyc)
     # torque events: jumps, and runs of one slope sign
     jumps = find_jumps(f)
-    jumps = jumps[code[jumps] < 0]
-    ramps = _ramp_list(f, code, jumps)
-    events = np.sort(np.concatenate([jumps, np.array([r[0] for r in ramps], dtype=np.int64)]))
-
-    # 2. steps: still before, settled (still) again within the hold, in groups that return the torque to
-    # where it started
+    jumps = jumps[lab.code[jumps] < 0]
+    ramps = _ramp_list(f, lab.code, jumps)
     hj = max(1, int(round(T_JUMP / sc.dt)))
-    cands = [seg for seg in (_step(f, int(j), hj, events, code) for j in jumps) if seg is not None]
-    for i0, i1 in _step_groups(f, cands, hj):
-        code[i0:i1] = KIND_CODE["step"]
-        segs.append(_segment(f, "step", i0, i1))
-
-    # 3. ramps
+    for i0, i1 in _steps(f, lab.code, jumps, ramps, hj):
+        lab.mark("step", i0, i1)
     for i0, i1 in _ramps(f, ramps):
-        code[i0:i1] = KIND_CODE["ramp_presliding"]
-        segs.append(_segment(f, "ramp_presliding", i0, i1))
+        lab.mark("ramp_presliding", i0, i1)
+    for i0, i1 in _constant_velocity(f, lab.code, n_min):
+        lab.mark("constant_velocity", i0, i1)
+    for i0, i1 in zip(*runs(_rest(f, lab.code, _loading(f, jumps, hj), n_min))):
+        lab.mark("rest", int(i0), int(i1))
+    for i0, i1 in zip(*runs(lab.code < 0)):
+        lab.mark("other", int(i0), int(i1))
+    lab.segs.sort(key=lambda s: (s.i0, s.i1))
+    return lab.code, lab.segs, f
 
-    # 4. constant velocity
+
+# ---------------------------------------------------------------------------------------------------
+# Constant velocity
+
+
+def _constant_velocity(f: Features, code: np.ndarray, n_min: int) -> list[tuple[int, int]]:
+    """(start, end) of the constant-velocity plateaus among the unclassified samples: steady, moving runs
+    of one sign and at least ``n_min`` samples, edged where the velocity leaves the plateau's band.
+
+    A static map needs plateaus at several speeds: none are kept unless they hold ``MIN_PLATEAUS``
+    distinct speeds (one or two steady stretches are moves, not a sweep); in a sweep over both signs, a
+    plateau next to neither of its mirror speeds is a repositioning move and is left out."""
     cv = f.steady & ~f.still & (code < 0)
     plateaus = []
     for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), n_min)):
@@ -386,66 +418,20 @@ def classify(log: JointLog, scales: Scales | None = None) -> tuple[np.ndarray, l
         if i1 - i0 < n_min or not _same_sign(f.w[i0:i1]):
             continue
         plateaus.append((i0, i1, float(np.median(f.w[i0:i1]))))
-    # a static map needs plateaus at several speeds; one or two steady stretches are moves, not a sweep;
-    # in a sweep over both signs, a plateau next to neither of its mirror speeds is a repositioning move
-    def mirror(a, b):  # opposite speeds, apart by at most four times the longer of the two
-        apart = max(a[0], b[0]) - min(a[1], b[1])
-        return abs(a[2] + b[2]) <= R_STEADY * abs(a[2]) and apart <= 4 * max(a[1] - a[0], b[1] - b[0])
-
     paired = [p for k, p in enumerate(plateaus)
-              if (k > 0 and mirror(p, plateaus[k - 1])) or (k + 1 < len(plateaus) and mirror(p, plateaus[k + 1]))]
+              if (k > 0 and _mirror(p, plateaus[k - 1])) or (k + 1 < len(plateaus) and _mirror(p, plateaus[k + 1]))]
     if _distinct_speeds([p[2] for p in paired]) >= MIN_PLATEAUS:
         plateaus = paired
-    if _distinct_speeds([p[2] for p in plateaus]) >= MIN_PLATEAUS:
-        for i0, i1, _ in plateaus:
-            code[i0:i1] = KIND_CODE["constant_velocity"]
-            segs.append(_segment(f, "constant_velocity", i0, i1))
+    if _distinct_speeds([p[2] for p in plateaus]) < MIN_PLATEAUS:
+        return []
+    return [(i0, i1) for i0, i1, _ in plateaus]
 
-    # 5. rest: still runs (fine scale) that hold a still sample at the coarse scale, with a torque that
-    # does not change by more than R_RAMP of its range within T_MIN (a controller loading a stuck joint)
-    # (hysteresis: the loading is found at the feature scale, its edges at a finer one)
-    hf = max(f.sc.window_w, f.h // 4)
-    sf = _slope(f, hf)
-    rate = R_RAMP * sc.tau_range / T_MIN
-    core, fast = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
-    for c in chunks(n):  # chunk by chunk: no full-length thresholds or |slopes|
-        thr = f.sigma_tau_loc[c] * math.sqrt(2.0 / f.h)  # K_NOISE sig_s, the noise of f.s, or the rate
-        thr /= f.h * sc.dt
-        thr *= K_NOISE
-        np.greater(np.abs(f.s[c]), np.maximum(thr, rate, out=thr), out=core[c])
-        thr = f.sigma_tau_loc[c] * math.sqrt(2.0 / hf)  # 2 sig_sf, the noise of sf, or half the rate
-        thr /= hf * sc.dt
-        thr *= 2.0
-        np.greater(np.abs(sf[c]), np.maximum(thr, 0.5 * rate, out=thr), out=fast[c])
-    del sf
-    loading = grow(core, fast)
-    del fast
-    # ... unless the joint does not move right after it and it is a controller relaxing after a stop (it
-    # starts right after motion, within h) or a torque jump (a jump found above, seen through the slope
-    # window: its core above the full threshold no longer than 2h)
-    ls, le = runs(loading)
-    core_c = count_prefix(core)
-    moving_c = count_prefix(~f.still_fine)
-    moves_after = moving_c[np.minimum(le + hf, n)] - moving_c[np.minimum(le, n)] > 0
-    moved_before = moving_c[ls] - moving_c[np.maximum(ls - f.h, 0)] > 0
-    all_jumps = np.sort(jumps)
-    has_jump = np.searchsorted(all_jumps, le) > np.searchsorted(all_jumps, ls)
-    relax = (moved_before | (has_jump & (core_c[le] - core_c[ls] <= 2 * f.h + hj))) & ~moves_after
-    if relax.any():
-        paint(loading, ls[relax], le[relax], False)
-    calm = fill_short(~loading, 2 * hf + 2, False)  # a torque jump alone does not end a rest
-    rest = grow(f.still & calm & (code < 0), f.still_fine & calm & (code < 0))
-    # a jolt shorter than two fine windows (the joint kicked by a torque jump) does not end a rest either
-    rest = fill_short(rest, 2 * hf, False) & (code < 0)
-    rest = drop_short(rest, n_min)
-    code[rest] = KIND_CODE["rest"]
-    code[code < 0] = KIND_CODE["other"]
-    for i0, i1 in zip(*runs(rest)):
-        segs.append(_segment(f, "rest", int(i0), int(i1)))
-    for i0, i1 in zip(*runs(code == KIND_CODE["other"])):
-        segs.append(_segment(f, "other", int(i0), int(i1)))
-    segs.sort(key=lambda s: (s.i0, s.i1))
-    return code, segs, f
+
+def _mirror(a: tuple[int, int, float], b: tuple[int, int, float]) -> bool:
+    """True if plateaus ``a`` and ``b`` (start, end, velocity) run at opposite speeds and lie apart by at
+    most four times the longer of the two."""
+    apart = max(a[0], b[0]) - min(a[1], b[1])
+    return abs(a[2] + b[2]) <= R_STEADY * abs(a[2]) and apart <= 4 * max(a[1] - a[0], b[1] - b[0])
 
 
 def _distinct_speeds(w: list[float]) -> int:
@@ -484,6 +470,72 @@ def _extend_plateau(f: Features, i0: int, i1: int, code: np.ndarray) -> tuple[in
     if inner.size:
         i0n, i1n = i0n + int(inner[0]), i0n + int(inner[-1]) + 1
     return i0n, i1n
+
+
+# ---------------------------------------------------------------------------------------------------
+# Rest
+
+
+def _fine_width(f: Features) -> int:
+    """Half-width [samples] of the fine torque slope that edges a loading; twice it, the longest jolt that
+    does not end a rest."""
+    return max(f.sc.window_w, f.h // 4)
+
+
+def _loading(f: Features, jumps: np.ndarray, hj: int) -> np.ndarray:
+    """Where a controller is loading a still joint towards break-away (per sample): the torque changes by
+    more than ``R_RAMP`` of its range within ``T_MIN``, found at the feature scale and edged at a finer one
+    (hysteresis) ... unless the joint does not move right after it and it is a controller relaxing after a
+    stop (it starts right after motion, within ``h``) or a torque jump (one of ``jumps``, seen through the
+    slope window: its core above the full threshold no longer than ``2 h + hj``)."""
+    n, hf = f.t.size, _fine_width(f)
+    core, loading = _torque_changing(f, hf)
+    ls, le = runs(loading)
+    core_c = count_prefix(core)
+    moving_c = count_prefix(~f.still_fine)
+    moves_after = moving_c[np.minimum(le + hf, n)] - moving_c[np.minimum(le, n)] > 0
+    moved_before = moving_c[ls] - moving_c[np.maximum(ls - f.h, 0)] > 0
+    all_jumps = np.sort(jumps)
+    has_jump = np.searchsorted(all_jumps, le) > np.searchsorted(all_jumps, ls)
+    relax = (moved_before | (has_jump & (core_c[le] - core_c[ls] <= 2 * f.h + hj))) & ~moves_after
+    if relax.any():
+        paint(loading, ls[relax], le[relax], False)
+    return loading
+
+
+def _torque_changing(f: Features, hf: int) -> tuple[np.ndarray, np.ndarray]:
+    """Two masks: where the torque slope at the feature scale clearly exceeds both its noise
+    (``K_NOISE`` levels) and the loading rate (``R_RAMP`` of the torque range per ``T_MIN``); and the runs
+    of a slope at the fine scale ``hf`` above two noise levels and half that rate which hold such a
+    sample."""
+    n, sc = f.t.size, f.sc
+    sf = _slope(f, hf)
+    rate = R_RAMP * sc.tau_range / T_MIN
+    core, fast = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+    for c in chunks(n):  # chunk by chunk: no full-length thresholds or |slopes|
+        thr = f.sigma_tau_loc[c] * math.sqrt(2.0 / f.h)  # K_NOISE sig_s, the noise of f.s, or the rate
+        thr /= f.h * sc.dt
+        thr *= K_NOISE
+        np.greater(np.abs(f.s[c]), np.maximum(thr, rate, out=thr), out=core[c])
+        thr = f.sigma_tau_loc[c] * math.sqrt(2.0 / hf)  # 2 sig_sf, the noise of sf, or half the rate
+        thr /= hf * sc.dt
+        thr *= 2.0
+        np.greater(np.abs(sf[c]), np.maximum(thr, 0.5 * rate, out=thr), out=fast[c])
+    del sf
+    return core, grow(core, fast)
+
+
+def _rest(f: Features, code: np.ndarray, loading: np.ndarray, n_min: int) -> np.ndarray:
+    """Where the joint rests (per sample), among the unclassified samples: still runs at the fine scale
+    that hold a still sample at the coarse scale, outside a ``loading``, of at least ``n_min`` samples. A
+    torque jump alone, or a jolt shorter than two fine windows (the joint kicked by a torque jump), does
+    not end a rest."""
+    hf = _fine_width(f)
+    free = code < 0
+    calm = fill_short(~loading, 2 * hf + 2, False)
+    rest = grow(f.still & calm & free, f.still_fine & calm & free)
+    rest = fill_short(rest, 2 * hf, False) & free
+    return drop_short(rest, n_min)
 
 
 # ---------------------------------------------------------------------------------------------------
