@@ -1,0 +1,48 @@
+"""The ranges a joint's data covered: where its identified models are valid.
+
+A model is an interpolation of what was measured: speeds between the slowest and the fastest the static
+maps were fitted on, the joint temperatures and the positions the joint went through while it moved.
+:func:`validity` measures them once per joint; the parameter file records them (``validity``) and
+:class:`frictid.model.FrictionModel` warns when it is evaluated outside them.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+#: Share of the moving samples left out at each end of a range measured on samples (a stray sample at a
+#: reversal spike does not widen a range the data do not really cover).
+TAIL = 0.005
+
+
+def _range(x: np.ndarray, tail: float = 0.0) -> list[float] | None:
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return None
+    if tail > 0 and x.size >= 1 / tail:
+        lo, hi = np.quantile(x, [tail, 1.0 - tail])
+    else:
+        lo, hi = x.min(), x.max()
+    return [float(lo), float(hi)]
+
+
+def validity(basis_w: np.ndarray, moving_q: list[np.ndarray], moving_T: list[np.ndarray]) -> dict:
+    """Ranges covered by a joint's data.
+
+    basis_w : velocities [q/s] the static maps were fitted on (plateau means, or the moving samples);
+    moving_q : per log, positions [q] while moving (empty arrays for velocity-only logs); moving_T : per
+    log, joint temperatures [degC] while moving (measured ``temp_joint``; empty when not logged).
+    Returns ``speed`` [lo, hi] of |w| (the plateau speeds, or the moving samples without their extreme
+    :data:`TAIL`), and ``position`` and ``temperature`` [lo, hi] where the logs hold them.
+    """
+    out: dict[str, list[float]] = {}
+    w = np.abs(np.asarray(basis_w, dtype=float))
+    speed = _range(w, TAIL if w.size > 1000 else 0.0)
+    if speed is not None:
+        out["speed"] = speed
+    for key, arrays in (("position", moving_q), ("temperature", moving_T)):
+        arrays = [np.asarray(a, dtype=float) for a in arrays if a is not None and np.size(a)]
+        rng = _range(np.concatenate(arrays), TAIL) if arrays else None
+        if rng is not None:
+            out[key] = rng
+    return out
