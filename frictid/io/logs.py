@@ -28,7 +28,6 @@ import yaml
 
 from ..data import OPTIONAL_CHANNELS, TRUTH_COLUMNS, JointLog
 from ..errors import ConfigError, FrictidInputError, LogFormatError
-from ..workers import huge_pages
 from .atomic import atomic_path, is_stdio
 from .units import conversion, parse_units
 
@@ -422,12 +421,7 @@ def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[s
     start, stop = (0, total) if rows is None else (max(0, rows[0]), min(total, rows[1]))
     n = max(0, stop - start)
     numeric = [c for c in cols if c not in keep_arrow and _numeric_type(schema.field(c).type)]
-    pool = pa.default_memory_pool()
-    # the arrays come from Arrow's allocator too: it keeps the pages of freed arrays for the next read
-    # in the process (as it does for read_table's), where numpy would map fresh ones for each
-    out: dict = {c: np.frombuffer(pa.allocate_buffer(8 * n, memory_pool=pool), dtype=np.float64) for c in numeric}
-    for v in out.values():
-        huge_pages(v)
+    out: dict = {c: np.empty(n) for c in numeric}
     arrow: dict[str, list] = {c: [] for c in cols if c not in out}
     off = 0
     # the row groups that hold rows start:stop, read as the docstring says, each read then copied into the
@@ -461,8 +455,7 @@ def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[s
                         chunk = chunk.cast(pa.float64())
                     dst[k:k + L] = _values(chunk)
                     k += L
-            del rg  # its buffers go back to Arrow's allocator, which serves the next read from them (returned
-            # to the system after every row group, they were faulted in again by the next one)
+            del rg  # the next row groups are decoded into the buffers freed here
         off += b - a
     if off != n:
         raise pa.ArrowInvalid(f"the row groups hold {off} rows, the footer says {n}")
