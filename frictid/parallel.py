@@ -9,7 +9,9 @@ exception raised for an item reaches the caller as the same class with the same 
 pickles itself, :mod:`frictid.errors`), the first failing item in order winning, as in a loop. Ctrl-C or
 SIGTERM in the caller stops the workers.
 
-This module imports only :mod:`frictid.errors` from frictid and changes no process-wide state.
+This module imports only :mod:`frictid.errors` from frictid. It leaves no process-wide state changed: no
+allocator, environment or garbage-collector settings; Ctrl-C and SIGTERM are only held back while the
+workers are forked (then handled as before).
 """
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ from typing import Any, Callable, Iterable, Sequence
 
 from .errors import FrictidInputError
 
-#: The signals the caller handles for its workers (they ignore Ctrl-C and die on SIGTERM).
+#: Ctrl-C and SIGTERM: held back while the workers are forked; a worker ignores the first, dies on the second.
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 #: In a worker process only: the function and items it inherited, and its BLAS thread limit.

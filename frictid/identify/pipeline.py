@@ -155,7 +155,7 @@ def _load(paths_or_logs, mapping, units) -> tuple[list[JointLog | _Block], list[
     The files' SHA-256 and :func:`preload` run in background threads meanwhile."""
     if isinstance(paths_or_logs, (str, os.PathLike, JointLog)):
         paths_or_logs = [paths_or_logs]
-    from frictid.io.logs import file_sha256  # pyarrow loads only when logs are read (frictid.fit on JointLogs)
+    from frictid.io.logs import file_sha256  # here, not at the top: `import frictid` does not load pyarrow
 
     prefetch = Prefetch([str(p) for p in paths_or_logs if not isinstance(p, JointLog)], file_sha256, preload)
     try:

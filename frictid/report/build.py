@@ -668,7 +668,7 @@ class Prefetch(_Prefetch):
     """
 
     def __init__(self, paths: Iterable[str]):
-        from frictid.io.logs import file_sha256  # as build_report: pyarrow loads only when logs are read
+        from frictid.io.logs import file_sha256  # here, as in build_report: importing the report loads no pyarrow
 
         super().__init__(paths, file_sha256, preload)
 
