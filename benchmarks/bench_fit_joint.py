@@ -4,8 +4,8 @@
 
 The log is run_all's (8 passes of every experiment kind, 7.5 min each at 1 kHz, the geared joint with
 thermal6): 3.6 M samples of joint j1, built once (about 40 s) unless ``--log`` names a Parquet file with a
-joint ``j1``. The process is set up as ``frictid fit``'s workers are (glibc keeping freed memory, the
-workers' imports done), one unmeasured fit warms the compilation caches and the allocator, then the best
+joint ``j1``. The process is set up as ``frictid fit``'s workers are (the workers' imports done), one
+unmeasured fit warms the compilation caches and the allocator, then the best
 of ``--repeat`` fits is printed with the CPU time of each stage (stages nest: the diagnosis check holds
 its own static-map fits; the total is the whole fit).
 """
@@ -28,7 +28,6 @@ from frictid import segments as sg  # noqa: E402
 from frictid.identify import pipeline as pl  # noqa: E402
 from frictid.identify import select as sel  # noqa: E402
 from frictid.io.logs import joint_row_blocks, read_logs  # noqa: E402
-from frictid.workers import keep_freed_memory  # noqa: E402
 
 #: (module, function) pairs timed; the label is the function's name.
 STAGES = [(sg, "estimate_scales"), (sg, "derivatives"), (sg, "find_segments"), (pl, "_regress"),
@@ -70,7 +69,6 @@ def main(argv=None) -> int:
     ap.add_argument("--log", help="a Parquet log with joint j1 as one block of rows (default: build one)")
     ap.add_argument("--repeat", type=int, default=3)
     a = ap.parse_args(argv)
-    keep_freed_memory()
     pl.preload()
     log = joint_log(a.log)
     frictid.fit([log])  # warm: compilation caches, lazy imports, the allocator's heap

@@ -9,8 +9,8 @@ unless ``--log`` names it, e.g. ``/tmp/ra_keep/fit_6j_8p_1_v2.parquet`` after ``
 /tmp/ra_keep``); the report's parameter file is fitted first unless ``--params`` names it. Each run is the
 command in a fresh process. Printed per joint: the worker, wall time, user and system time, minor page
 faults (of the function that builds the joint: the fit's read comes before it), and the worker's private
-dirty memory (``Private_Dirty`` of ``/proc/self/smaps_rollup``) and the
-part of it in transparent huge pages before and after the joint; then, for the first joint of each worker
+dirty memory (``Private_Dirty`` of ``/proc/self/smaps_rollup``) before and after the joint; then, for the
+first joint of each worker
 (the one that touches the worker's memory first), the stages that added private memory.
 
 On this VM the system time of a worker's first joint is mostly the first touch of that memory (the kernel
@@ -51,15 +51,15 @@ STAGES = {
 JOINT = {"report": ("frictid.report.build", "_joint_part"), "fit": ("frictid.identify.pipeline", "fit_joint")}
 
 
-def private_memory() -> tuple[int, int]:
-    """(private dirty, of which anonymous huge pages) of this process [MB]."""
+def private_memory() -> int:
+    """Private dirty memory of this process [MB]."""
     got = {}
     with open("/proc/self/smaps_rollup") as fh:
         for line in fh:
             parts = line.split()
             if len(parts) >= 3 and parts[2] == "kB":
                 got[parts[0].rstrip(":")] = int(parts[1]) // 1024
-    return got.get("Private_Dirty", 0), got.get("AnonHugePages", 0)
+    return got.get("Private_Dirty", 0)
 
 
 def _usage() -> tuple[float, float, int]:
@@ -73,7 +73,7 @@ def instrument(command: str, out_path: str) -> None:
     import functools
     import importlib
 
-    stages: dict[str, list[float]] = {}  # name -> [+private MB, +huge MB, system s]; nested calls count in both
+    stages: dict[str, list[float]] = {}  # name -> [+private MB, system s]; nested calls count in both
 
     def wrap(mod_name: str, name: str, per_joint: bool = False) -> None:
         mod = importlib.import_module(mod_name)
@@ -90,16 +90,15 @@ def instrument(command: str, out_path: str) -> None:
                     joint = a[0] if command == "report" else (a[0][0].joint if a[0] else "")
                     rec = {"joint": str(joint), "pid": os.getpid(),
                            "wall": time.perf_counter() - t0, "user": u1[0] - u0[0], "sys": u1[1] - u0[1],
-                           "faults": u1[2] - u0[2], "private": [m0[0], m1[0]], "huge": [m0[1], m1[1]],
+                           "faults": u1[2] - u0[2], "private": [m0, m1],
                            "stages": dict(stages)}
                     with open(out_path, "a") as fh:
                         fh.write(json.dumps(rec) + "\n")
                     stages.clear()  # the next joint's stages start here (the fit reads a joint before fit_joint)
                 else:
-                    s = stages.setdefault(name, [0.0, 0.0, 0.0])
-                    s[0] += m1[0] - m0[0]
-                    s[1] += m1[1] - m0[1]
-                    s[2] += u1[1] - u0[1]
+                    s = stages.setdefault(name, [0.0, 0.0])
+                    s[0] += m1 - m0
+                    s[1] += u1[1] - u0[1]
         setattr(mod, name, wrapper)
 
     for mod_name, name in STAGES[command]:
@@ -124,12 +123,11 @@ def report_rows(lines: list[dict]) -> list[str]:
         seen.add(r["pid"])
         out.append(f"  {r['joint'] or '-':6s} pid {r['pid']:>7d} {'first' if first else '     '} "
                    f"wall {r['wall']:5.2f} s  user {r['user']:5.2f} s  sys {r['sys']:5.2f} s  "
-                   f"faults {r['faults'] // 1000:4d} k  private {r['private'][0]:5d} -> {r['private'][1]:5d} MB  "
-                   f"huge {r['huge'][0]:4d} -> {r['huge'][1]:4d} MB")
+                   f"faults {r['faults'] // 1000:4d} k  private {r['private'][0]:5d} -> {r['private'][1]:5d} MB")
         if first:
-            grow = [(n, s) for n, s in r["stages"].items() if s[0] >= 5 or s[2] >= 0.05]
-            out.append("         first joint's stages (+private MB / +huge MB / system s): " + ", ".join(
-                f"{n} +{s[0]:.0f}/{s[1]:.0f}/{s[2]:.2f}" for n, s in grow))
+            grow = [(n, s) for n, s in r["stages"].items() if s[0] >= 5 or s[1] >= 0.05]
+            out.append("         first joint's stages (+private MB / system s): " + ", ".join(
+                f"{n} +{s[0]:.0f}/{s[1]:.2f}" for n, s in grow))
     return out
 
 

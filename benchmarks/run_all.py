@@ -23,8 +23,7 @@ Figures (each a ratio measured in one run, with the absolute value; the baseline
   experiment kind, simulated by the plant), against the bare read of the same file; its peak memory
   (proportional set size of the process tree, sampled); the same on one pass (1/8 of the data) for the
   scaling; its CPU time over wall time (parallel joints);
-- report: ``frictid report`` of that fit and log, time and size; and the same after the machine idled
-  (``COLD_WAIT`` seconds before each run; not in ``--quick``), when the memory it touches is the host's.
+- report: ``frictid report`` of that fit and log, time and size.
 
 Times are medians of repeated runs (``--repeat``); every figure carries the CPU time of the process
 (``time.process_time`` or the child's rusage) and the 1-minute load average when it was measured,
@@ -812,26 +811,7 @@ def fig_fit_report(quick: bool, repeat: int, keep: str | None = None) -> list[Ro
         for x in runs:
             if x.returncode:
                 print(x.stderr[-3000:], file=sys.stderr)
-        # the same command after the machine idled: this VM returns the memory processes freed to its host
-        # within seconds to a minute, and a process that touches memory then pays the host for every
-        # page (back to back, as above, the report finds memory the runs before it freed)
-        cold = []
-        for _ in range(0 if quick else max(1, repeat)):
-            time.sleep(COLD_WAIT)
-            cold.append(run_child(cmd, interval=None))
-        if cold:
-            rc = sorted(cold, key=lambda x: x.wall)[len(cold) // 2]
-            rows.append(Row(
-                f"report after {COLD_WAIT:.0f} s idle", f"{rc.wall:.1f} s (CPU {rc.cpu:.0f} s), exit {rc.returncode}",
-                "-", "-", "< 10 s", rc.returncode == 0 and rc.wall < 10, rc.load,
-                f"the report command as above, each of {len(cold)} runs after {COLD_WAIT:.0f} s without work ("
-                + ", ".join(f"{x.wall:.1f}" for x in cold) + " s): the memory freed by the runs before has gone "
-                "back to the host, and every page the report touches first costs a host fault"))
     return rows
-
-
-#: Seconds the machine idles before each "report after idle" run.
-COLD_WAIT = 60.0
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -1,7 +1,8 @@
 """Every exception frictid raises on purpose.
 
 Each message says what is wrong, where (file, column, row, key) and how to fix it. Only the CLI turns
-these into exit codes: :class:`FrictidInputError` and its subclasses give exit code 2.
+these into exit codes: :class:`FrictidInputError` and its subclasses give exit code 2. Every one pickles
+to the same class and message (an error raised in a worker process reaches the caller unchanged).
 """
 from __future__ import annotations
 
@@ -22,6 +23,10 @@ class LogFormatError(FrictidInputError):
         else:
             msg = head + f"{len(self.problems)} problems:\n" + "\n".join(f"  - {p}" for p in self.problems)
         super().__init__(msg)
+
+    def __reduce__(self):
+        """Pickled as its path and problems (e.g. raised in a worker process, raised again in the caller)."""
+        return type(self), (self.path, self.problems)
 
 
 def combined_log_error(found) -> LogFormatError | None:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import frictid
-from frictid import workers
+from frictid import parallel
 from frictid.data import JointLog
 from frictid.errors import FrictidInputError, LogFormatError
 from frictid.identify import pipeline
@@ -53,12 +53,12 @@ def test_parallel_result_equals_serial_and_runs_in_workers(serial, tmp_path):
 
 def test_number_of_workers():
     cores = len(os.sched_getaffinity(0))
-    assert workers.n_workers(0, 6) == min(6, cores)
-    assert workers.n_workers(0, 1) == 1
-    assert workers.n_workers(4, 3) == 3
-    assert workers.n_workers(1, 6) == 1
+    assert parallel.n_workers(0, 6) == min(6, cores)
+    assert parallel.n_workers(0, 1) == 1
+    assert parallel.n_workers(4, 3) == 3
+    assert parallel.n_workers(1, 6) == 1
     with pytest.raises(FrictidInputError):
-        workers.n_workers(-1, 6)
+        parallel.n_workers(-1, 6)
 
 
 def test_workers_use_one_blas_thread():
@@ -70,7 +70,44 @@ def test_workers_use_one_blas_thread():
         return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
 
     assert blas_threads(0), "numpy's BLAS is visible to threadpoolctl"
-    assert workers.map_forked(blas_threads, [0, 1], 2) == [[1], [1]]
+    assert parallel.map_ordered(blas_threads, [0, 1], 2) == [[1], [1]]
+
+
+def _square_or_fail(x):
+    """x squared and the process that computed it; items 2 and 4 fail (4 first in time)."""
+    if x in (2, 4):
+        time.sleep(0.5 if x == 2 else 0.0)
+        raise LogFormatError(f"f{x}.csv", [f"row {x}", "more"])
+    return x * x, os.getpid()
+
+
+def test_map_keeps_the_order_raises_the_first_error_and_leaves_the_process_alone():
+    """Results in the items' order from worker processes; the first failing item in order raises its own
+    exception (class, message, attributes); the caller's signal handling, GC and environment unchanged."""
+    import gc
+    import signal
+
+    handlers = {s: signal.getsignal(s) for s in parallel.STOP_SIGNALS}
+    mask, env = signal.pthread_sigmask(signal.SIG_BLOCK, []), dict(os.environ)
+    got = parallel.map_ordered(_square_or_fail, [0, 1, 3, 5], 2)
+    assert [v for v, _ in got] == [0, 1, 9, 25]
+    assert os.getpid() not in {pid for _, pid in got}
+    with pytest.raises(LogFormatError) as info:
+        parallel.map_ordered(_square_or_fail, [1, 2, 3, 4], 2)
+    assert (info.value.path, info.value.problems) == ("f2.csv", ["row 2", "more"])
+    assert str(info.value) == "f2.csv: 2 problems:\n  - row 2\n  - more"
+    assert {s: signal.getsignal(s) for s in parallel.STOP_SIGNALS} == handlers
+    assert signal.pthread_sigmask(signal.SIG_BLOCK, []) == mask
+    assert gc.get_freeze_count() == 0 and dict(os.environ) == env
+
+
+@pytest.mark.parametrize("exc", [LogFormatError("run.csv", ["a", "b"]), LogFormatError("", ["one"]),
+                                 FrictidInputError("--jobs -1: bad")])
+def test_errors_pickle_to_the_same_class_and_message(exc):
+    import pickle
+
+    back = pickle.loads(pickle.dumps(exc))
+    assert type(back) is type(exc) and str(back) == str(exc) and back.__dict__ == exc.__dict__
 
 
 def _failing(monkeypatch, exc_for):
@@ -216,46 +253,3 @@ def test_problems_of_joints_read_by_their_workers_come_together(tmp_path):
     got = frictid.fit(str(path), models=MODELS, segmenter=truth_segments, jobs=2)
     assert got.sources[0]["rows"] == sum(lg.n for lg in logs) - 1
     assert any("dropped 1 rows" in w for w in got.joints["2"].warnings)
-
-
-@pytest.mark.parametrize("given, want", [(None, "system"), ("mimalloc", "mimalloc")])
-def test_arrow_allocates_from_the_c_heap_unless_the_user_chose(given, want):
-    """``keep_freed_memory`` (fit and report) makes Arrow's process-wide allocator the C library's, whose
-    freed pages numpy reuses, when pyarrow has not been loaded yet; a choice in ARROW_DEFAULT_MEMORY_POOL
-    stays. Checked in a fresh interpreter (this one has loaded pyarrow)."""
-    import subprocess
-    import sys
-
-    env = {k: v for k, v in os.environ.items() if k != "ARROW_DEFAULT_MEMORY_POOL"}
-    if given:
-        env["ARROW_DEFAULT_MEMORY_POOL"] = given
-    code = ("import os; from frictid.workers import keep_freed_memory; ok = keep_freed_memory(); "
-            "print(ok, os.environ.get('ARROW_DEFAULT_MEMORY_POOL'))")
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
-    ok, chosen = out.stdout.split()
-    if ok == "True":  # glibc: the allocator settings apply
-        assert chosen == want
-
-
-@pytest.mark.parametrize("env", ["1", "0"])
-def test_huge_page_advice_covers_the_array_whole_pages(monkeypatch, env):
-    """``huge_pages`` advises the whole pages inside a large array (as numpy does for its own arrays),
-    nothing for a small one, and nothing when ``NUMPY_MADVISE_HUGEPAGE=0`` turns numpy's advice off."""
-    import mmap
-
-    if not hasattr(mmap, "MADV_HUGEPAGE"):
-        pytest.skip("no huge-page advice on this system")
-    calls = []
-    monkeypatch.setattr(workers, "_libc",
-                        lambda name, argtypes=(): (lambda *a: calls.append(a)) if name == "madvise" else None)
-    monkeypatch.setenv("NUMPY_MADVISE_HUGEPAGE", env)
-    big = np.empty(3 << 20)[1:]  # 24 MB, starting off a page boundary
-    workers.huge_pages(big)
-    workers.huge_pages(np.empty(1000))
-    if env == "0":
-        assert calls == []
-        return
-    ((start, length, advice),) = calls
-    lo = big.__array_interface__["data"][0]
-    assert advice == mmap.MADV_HUGEPAGE and start % mmap.PAGESIZE == 0 and length % mmap.PAGESIZE == 0
-    assert lo <= start < lo + mmap.PAGESIZE and lo + big.nbytes - mmap.PAGESIZE < start + length <= lo + big.nbytes

@@ -35,7 +35,6 @@ def fit(
     from ..identify.pipeline import fit as run_fit, parse_models
     from ..io.atomic import check_output_path
     from ..io.params import write_params
-    from ..workers import keep_freed_memory
 
     con = Console(quiet)
     if not logs:
@@ -51,7 +50,6 @@ def fit(
         check_fit_report(report, output, logs, mapping)
     parse_models(models)  # refuse unknown names before reading anything
     con.info(f"frictid: fitting {len(logs)} log{'s' if len(logs) != 1 else ''} ...")
-    keep_freed_memory()
     res = run_fit(logs, joint=joint, models=models, mapping=mapping, units=units, diagnose=not no_diagnose,
                   jobs=jobs)
     write_params(res, output)

@@ -51,7 +51,6 @@ def report(
     from ..io.params_load import load_params_dict
     from ..report import write_report
     from ..report.build import Prefetch
-    from ..workers import keep_freed_memory
 
     con = Console(quiet)
     logs = list(logs or [])
@@ -67,7 +66,6 @@ def report(
     refuse_json_with_stdout("report", as_json, output)
     check_output_path(output, [params, *logs], mapping)
     t0 = time.perf_counter()
-    keep_freed_memory()
     pre = Prefetch(logs)  # the files' hashes and the figures' imports, while the logs are planned
     try:
         pd = load_params_dict(params)

@@ -31,7 +31,7 @@ from frictid.data import SEGMENT_KINDS, JointLog, Segment
 from frictid.errors import FrictidInputError
 from frictid.models import static as sm
 from frictid.models.params import unit_of
-from frictid.workers import Prefetch, map_forked, n_workers
+from frictid.parallel import Prefetch, map_ordered, n_workers
 
 from . import presliding as pre
 from . import regression as rg
@@ -155,7 +155,9 @@ def _load(paths_or_logs, mapping, units) -> tuple[list[JointLog | _Block], list[
     The files' SHA-256 and :func:`preload` run in background threads meanwhile."""
     if isinstance(paths_or_logs, (str, os.PathLike, JointLog)):
         paths_or_logs = [paths_or_logs]
-    prefetch = Prefetch([str(p) for p in paths_or_logs if not isinstance(p, JointLog)], preload)
+    from frictid.io.logs import file_sha256  # here, not at the top: `import frictid` does not load pyarrow
+
+    prefetch = Prefetch([str(p) for p in paths_or_logs if not isinstance(p, JointLog)], file_sha256, preload)
     try:
         logs, sources, files = _read_or_plan(paths_or_logs, mapping, units)
     finally:
@@ -278,7 +280,7 @@ def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, unit
                           lambda jlogs: fit_joint(jlogs, wanted, n_folds, segmenter, differentiate,
                                                   diagnose=diagnose))
 
-    done = map_forked(one, names, workers)  # in this process when workers <= 1
+    done = map_ordered(one, names, workers)  # in this process when workers <= 1
     from frictid.errors import combined_log_error
 
     bad = combined_log_error(p for _, _, probs in done for p in probs)  # every joint's, together

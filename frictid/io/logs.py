@@ -19,6 +19,7 @@ import os
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pyarrow as pa
@@ -28,7 +29,6 @@ import yaml
 
 from ..data import OPTIONAL_CHANNELS, TRUTH_COLUMNS, JointLog
 from ..errors import ConfigError, FrictidInputError, LogFormatError
-from ..workers import huge_pages
 from .atomic import atomic_path, is_stdio
 from .units import conversion, parse_units
 
@@ -422,12 +422,7 @@ def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[s
     start, stop = (0, total) if rows is None else (max(0, rows[0]), min(total, rows[1]))
     n = max(0, stop - start)
     numeric = [c for c in cols if c not in keep_arrow and _numeric_type(schema.field(c).type)]
-    pool = pa.default_memory_pool()
-    # the arrays come from Arrow's allocator too: it keeps the pages of freed arrays for the next read
-    # in the process (as it does for read_table's), where numpy would map fresh ones for each
-    out: dict = {c: np.frombuffer(pa.allocate_buffer(8 * n, memory_pool=pool), dtype=np.float64) for c in numeric}
-    for v in out.values():
-        huge_pages(v)
+    out: dict = {c: np.empty(n) for c in numeric}
     arrow: dict[str, list] = {c: [] for c in cols if c not in out}
     off = 0
     # the row groups that hold rows start:stop, read as the docstring says, each read then copied into the
@@ -461,8 +456,7 @@ def _read_parquet_columns(pf: pq.ParquetFile, cols: list[str], keep_arrow: set[s
                         chunk = chunk.cast(pa.float64())
                     dst[k:k + L] = _values(chunk)
                     k += L
-            del rg  # its buffers go back to Arrow's allocator, which serves the next read from them (returned
-            # to the system after every row group, they were faulted in again by the next one)
+            del rg  # the next row groups are decoded into the buffers freed here
         off += b - a
     if off != n:
         raise pa.ArrowInvalid(f"the row groups hold {off} rows, the footer says {n}")
@@ -626,17 +620,53 @@ def _uniform_label(stats, text: bool) -> str | None:
     return None
 
 
+@dataclass
+class _Door:
+    """What every joint of a table is checked and built with (:func:`_validate_and_split`)."""
+
+    label: str
+    spec: LogSpec
+    row: Callable[[int], str]  # a table row's label in the file ("row 8 (line 9)")
+    axis: str
+    axis_given: bool  # by --units or the spec: a joint's metadata cannot change it
+    multi: bool  # a 'joint' column: problems name the joint
+    warnings: list[str]  # the table's, given to every joint
+
+
 def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec, meta_all: dict,
                         has_header: bool, row_offset: int = 0) -> list[JointLog]:
     """Rename, convert, check and split a table; ``row_offset``: the file row of the table's first row
-    (problems name rows of the file)."""
+    (problems name rows of the file). Every problem of every joint is raised together."""
 
     def row(i) -> str:
         return _row_label(int(i) + row_offset, has_header)
 
+    cols = _canonical_columns(table, label, spec)
+    arrays, cols, n_rows, warnings = _numeric_arrays(cols, table.num_rows, label, spec, row)
+    axis, unit_axes = _to_si(arrays, label, spec)
+    blocks = _split_joints(cols, n_rows, label, spec, row)
+    door = _Door(label, spec, row, axis, bool(spec.axis or unit_axes), "joint" in cols, warnings)
+    seg_truth = cols["segment"].to_numpy(zero_copy_only=False).astype(str) if "segment" in cols else None
     problems: list[str] = []
-    warnings: list[str] = []
-    # rename to canonical names; refuse two sources for one target
+    logs: list[JointLog] = []
+    for jid, sel in blocks:
+        # the file rows of the joint's samples: a range (made an array only where a problem names a row)
+        rows = range(sel.start, sel.stop) if isinstance(sel, slice) else sel
+        a, rows, jprob, jwarn = _check_joint({c: v[sel] for c, v in arrays.items()}, rows, jid, door)
+        if jprob:
+            problems.extend(jprob)
+            continue
+        segments = seg_truth[sel if isinstance(rows, range) else rows] if seg_truth is not None else None
+        logs.append(_joint_log(jid, a, segments, meta_all, door, jwarn))
+    if problems:
+        raise LogFormatError(label, problems)
+    return logs
+
+
+def _canonical_columns(table: "pa.Table | _Columns", label: str, spec: LogSpec) -> dict:
+    """The table's columns under their canonical names (``--map``); every problem with the required ones
+    raised together, then an empty table."""
+    problems: list[str] = []
     cols: dict[str, pa.ChunkedArray] = {}
     for name in table.column_names:
         target = spec.rename.get(name, name)
@@ -644,7 +674,6 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
             problems.append(f"columns {name!r} and another both map to {target!r}; keep one (--map)")
             continue
         cols[target] = table.column(name)
-    n_rows = table.num_rows
     for req in ("t", "tau"):
         if req not in cols:
             problems.append(f"required column {req!r} is missing (columns found: "
@@ -654,28 +683,27 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
                         "(rename with --map SOURCE=q)")
     if problems:
         raise LogFormatError(label, problems)
-    if n_rows == 0:
+    if table.num_rows == 0:
         raise LogFormatError(label, ["the log has a header but no samples"])
+    return cols
 
-    numeric = [c for c in cols if c not in ("joint", "segment")]
+
+def _numeric_arrays(cols: dict, n_rows: int, label: str, spec: LogSpec, row
+                    ) -> tuple[dict[str, np.ndarray], dict, int, list[str]]:
+    """Every column but ``joint`` and ``segment`` as float64, scaled (``scale``): (the arrays, the columns,
+    the rows, the warnings). Rows with text in a number column are dropped when ``bad_rows`` says so (then
+    from the columns too), else each such column is a problem; all raised together."""
+    problems: list[str] = []
     arrays: dict[str, np.ndarray] = {}
     dropped = np.zeros(n_rows, dtype=bool)
-    for c in numeric:
+    for c in [c for c in cols if c not in ("joint", "segment")]:
         col = cols[c]
         if isinstance(col, np.ndarray):  # Parquet numeric column, already float64
             arrays[c] = col * spec.scale[c] if c in spec.scale and _number(spec.scale[c], label, c) else col
             continue
         if pa.types.is_string(col.type) or pa.types.is_large_string(col.type) or pa.types.is_binary(col.type):
-            bad = _first_non_numeric(col)
-            if bad is not None and spec.bad_rows == "number_prefix":
-                col = _number_prefix(col)
-                bad = _first_non_numeric(col)
-            if bad is not None and spec.bad_rows in ("drop", "number_prefix"):
-                import pandas as pd
-
-                s_ = col.to_pandas()
-                dropped |= (pd.to_numeric(s_, errors="coerce").isna() & s_.notna()).to_numpy()
-            elif bad is not None:
+            col, bad = _text_numbers(col, spec, dropped)
+            if bad is not None:
                 problems.append(f"column {c!r}: {row(bad[0])} holds {bad[1][:40]!r}, "
                                 "not a number; fix the value or drop the row")
                 continue
@@ -693,6 +721,7 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
         arrays[c] = arr
     if problems:
         raise LogFormatError(label, problems)
+    warnings: list[str] = []
     if dropped.any():
         i = int(np.flatnonzero(dropped)[0])
         warnings.append(f"dropped {int(dropped.sum())} rows with non-numeric values (bad_rows: drop), "
@@ -701,9 +730,30 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
         arrays = {c: v[keep] for c, v in arrays.items()}
         cols = {c: (v.filter(pa.array(keep)) if c in ("joint", "segment") else v) for c, v in cols.items()}
         n_rows = int(keep.sum())
+    return arrays, cols, n_rows, warnings
 
-    # units -> SI, axis
-    axis = spec.axis
+
+def _text_numbers(col: pa.ChunkedArray, spec: LogSpec, dropped: np.ndarray
+                  ) -> tuple[pa.ChunkedArray, tuple[int, str] | None]:
+    """A text column of numbers, as ``bad_rows`` treats its cells that are not numbers: their number
+    prefixes (``number_prefix``), their rows marked in ``dropped`` (``drop``, and what ``number_prefix``
+    leaves); with neither, the first such cell (row, text) is returned, else None."""
+    bad = _first_non_numeric(col)
+    if bad is not None and spec.bad_rows == "number_prefix":
+        col = _number_prefix(col)
+        bad = _first_non_numeric(col)
+    if bad is not None and spec.bad_rows in ("drop", "number_prefix"):
+        import pandas as pd
+
+        s_ = col.to_pandas()
+        dropped |= (pd.to_numeric(s_, errors="coerce").isna() & s_.notna()).to_numpy()
+        bad = None
+    return col, bad
+
+
+def _to_si(arrays: dict[str, np.ndarray], label: str, spec: LogSpec) -> tuple[str, set[str]]:
+    """Convert ``arrays`` in place to SI units (``--units``): (the log's axis, the axis the units imply when
+    the spec names one too, else empty)."""
     unit_axes = set()
     for c, u in spec.units.items():
         if c not in arrays:
@@ -718,116 +768,135 @@ def _validate_and_split(table: "pa.Table | _Columns", label: str, spec: LogSpec,
     if len(unit_axes) > 1:
         raise FrictidInputError(f"{label}: units mix rotary and linear axes ({spec.units}); "
                                 "declare q, qd and tau in matching units")
+    axis = spec.axis
     if axis is None:
-        axis = unit_axes.pop() if unit_axes else "rotary"
+        axis = unit_axes.pop() if unit_axes else "rotary"  # then a joint's metadata may name another
+    return axis, unit_axes
 
-    # joints: contiguous blocks are sliced (no copies); interleaved rows are gathered
-    blocks: list[tuple[str, slice | np.ndarray]]
-    if "joint" in cols:
-        jcol = cols["joint"]
-        if jcol.null_count:
-            i = int(np.flatnonzero(jcol.is_null().to_numpy(zero_copy_only=False))[0])
-            raise LogFormatError(label, [f"column 'joint': {row(i)} is empty"])
-        blocks = _joint_blocks(jcol)
-    else:
-        blocks = [(str(spec.meta.get("joint", "1")), slice(0, n_rows))]
-    multi = "joint" in cols
 
-    seg_truth = cols["segment"].to_numpy(zero_copy_only=False).astype(str) if "segment" in cols else None
+def _split_joints(cols: dict, n_rows: int, label: str, spec: LogSpec, row
+                  ) -> list[tuple[str, slice | np.ndarray]]:
+    """Each joint's rows: contiguous blocks are sliced (no copies); interleaved rows are gathered. Without
+    a ``joint`` column, one joint (named by the metadata, else ``1``)."""
+    if "joint" not in cols:
+        return [(str(spec.meta.get("joint", "1")), slice(0, n_rows))]
+    jcol = cols["joint"]
+    if jcol.null_count:
+        i = int(np.flatnonzero(jcol.is_null().to_numpy(zero_copy_only=False))[0])
+        raise LogFormatError(label, [f"column 'joint': {row(i)} is empty"])
+    return _joint_blocks(jcol)
+
+
+def _check_joint(a: dict[str, np.ndarray], rows, jid: str, door: _Door
+                 ) -> tuple[dict[str, np.ndarray], "range | np.ndarray", list[str], list[str]]:
+    """One joint's arrays checked: (the arrays and their file rows, without the rows of a few missing
+    values; the problems; the warnings)."""
+    where = f"joint {jid}: " if door.multi else ""
+    jprob, with_nan = _value_problems(a, rows, where, door.row)
+    jwarn: list[str] = []
+    if jprob:
+        return a, rows, jprob, jwarn
+    if with_nan:
+        a, rows = _drop_missing(a, rows, with_nan, where, door.row, jprob, jwarn)
+    _time_checks(a["t"], rows, where, door.row, jprob, jwarn)
+    if not jprob and "q" in a and "q" not in door.spec.units and door.axis == "rotary":
+        msg = _degrees_check(a["t"], a["q"], a.get("qd"))
+        if msg:
+            jprob.append(where + msg)
+    return a, rows, jprob, jwarn
+
+
+def _value_problems(a: dict[str, np.ndarray], rows, where: str, row) -> tuple[list[str], list[str]]:
+    """(a time that is not finite, and infinite or huge values, each column's first; the columns with
+    missing values (NaN), found where a column's extremes say so)."""
+    jprob: list[str] = []
+    t = a["t"]
+    if not _all_finite(t):
+        i = int(np.flatnonzero(~np.isfinite(t))[0])
+        jprob.append(f"{where}column 't': {row(rows[i])} is not a finite time")
+    with_nan = []
+    for c in [c for c in a if c not in ("t", "cycle")]:
+        v = a[c]
+        lo, hi = (float(v.min()), float(v.max())) if v.size else (0.0, 0.0)
+        if -HUGE < lo and hi < HUGE:  # the common case: every value finite and plausible
+            continue
+        bad = np.abs(v) >= HUGE  # inf included, NaN not
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            jprob.append(f"{where}column {c!r}: {row(rows[i])} holds {v[i]:g}, which is "
+                         "infinite or implausibly large; check the units and scaling")
+        elif math.isnan(lo) or math.isnan(hi):
+            with_nan.append(c)
+    return jprob, with_nan
+
+
+def _drop_missing(a: dict[str, np.ndarray], rows, with_nan: list[str], where: str, row, jprob: list[str],
+                  jwarn: list[str]) -> tuple[dict[str, np.ndarray], "range | np.ndarray"]:
+    """The NaN policy: the rows with a missing value dropped, with a warning, when they are at most
+    ``MAX_NAN_FRACTION`` of the joint's; more is a problem (the arrays are returned as they are)."""
+    nan_any = np.zeros(len(a["t"]), dtype=bool)
+    for c in with_nan:
+        nan_any |= np.isnan(a[c])
+    frac = nan_any.mean()
+    i = int(np.flatnonzero(nan_any)[0])
+    first_col = next(c for c in a if c not in ("t", "cycle") and np.isnan(a[c][i]))
+    if frac > MAX_NAN_FRACTION:
+        jprob.append(f"{where}{int(nan_any.sum())} rows ({100 * frac:.1f} %) have missing values, "
+                     f"first at {row(rows[i])} in column {first_col!r}; "
+                     f"at most {100 * MAX_NAN_FRACTION:g} % are dropped automatically: clean the log")
+        return a, rows
+    jwarn.append(f"{where}dropped {int(nan_any.sum())} rows with missing values "
+                 f"(first at {row(rows[i])}, column {first_col!r})")
+    keep = ~nan_any
+    return {c: v[keep] for c, v in a.items()}, np.asarray(rows)[keep]
+
+
+def _time_checks(t: np.ndarray, rows, where: str, row, jprob: list[str], jwarn: list[str]) -> None:
+    """Enough samples, a time that increases strictly (a problem), and a steady sample period (a warning
+    when it jitters)."""
+    if len(t) < MIN_SAMPLES:
+        jprob.append(f"{where}only {len(t)} samples; at least {MIN_SAMPLES} are needed")
+        return
+    if not _all_finite(t):
+        return
+    dt = np.diff(t)
+    if dt.min() <= 0:
+        i = int(np.flatnonzero(dt <= 0)[0]) + 1
+        what = "repeats" if dt[i - 1] == 0 else "goes back"
+        jprob.append(f"{where}column 't': time {what} at {row(rows[i])} "
+                     f"({t[i - 1]:g} -> {t[i]:g} s); time must increase strictly within a joint "
+                     "(sort the log, or split joints with a 'joint' column)")
+        return
+    # the sample period and its jitter from up to PERIOD_SAMPLES intervals spread over the log
+    dts = dt[::max(1, dt.size // PERIOD_SAMPLES)]
+    med = float(np.median(dts))
+    jitter = float(np.percentile(np.abs(dts - med), 95)) / med if med > 0 else 0.0
+    if jitter > 0.1:
+        jwarn.append(f"{where}sample period jitters (95th percentile deviation {100 * jitter:.0f} % "
+                     f"of the median {med:g} s)")
+
+
+def _joint_log(jid: str, a: dict[str, np.ndarray], segments: np.ndarray | None, meta_all: dict, door: _Door,
+               jwarn: list[str]) -> JointLog:
+    """A checked joint's :class:`JointLog`: its metadata (the spec's, then the file's for the joint, then
+    the spec's for the joint), axis, optional channels and the simulator's truth when the log has it."""
     per_joint_meta = (meta_all.get("joints") or {}) if isinstance(meta_all.get("joints"), dict) else {}
     truth_meta = meta_all.get("truth") or {}
-    logs: list[JointLog] = []
-    for jid, sel in blocks:
-        # the file rows of the joint's samples: a range (made an array only where a problem names a row)
-        rows = range(sel.start, sel.stop) if isinstance(sel, slice) else sel
-        a = {c: v[sel] for c, v in arrays.items()}
-        jprob: list[str] = []
-        jwarn: list[str] = []
-        where = f"joint {jid}: " if multi else ""
-        t = a["t"]
-        if not _all_finite(t):
-            i = int(np.flatnonzero(~np.isfinite(t))[0])
-            jprob.append(f"{where}column 't': {row(rows[i])} is not a finite time")
-        # inf / huge anywhere; NaN (missing) where the extremes say so
-        checked = [c for c in a if c not in ("t", "cycle")]
-        with_nan = []
-        for c in checked:
-            v = a[c]
-            lo, hi = (float(v.min()), float(v.max())) if v.size else (0.0, 0.0)
-            if -HUGE < lo and hi < HUGE:  # the common case: every value finite and plausible
-                continue
-            bad = np.abs(v) >= HUGE  # inf included, NaN not
-            if bad.any():
-                i = int(np.flatnonzero(bad)[0])
-                jprob.append(f"{where}column {c!r}: {row(rows[i])} holds {v[i]:g}, which is "
-                             "infinite or implausibly large; check the units and scaling")
-            elif math.isnan(lo) or math.isnan(hi):
-                with_nan.append(c)
-        if jprob:
-            problems.extend(jprob)
-            continue
-        # NaN rows
-        if with_nan:
-            nan_any = np.zeros(len(t), dtype=bool)
-            for c in with_nan:
-                nan_any |= np.isnan(a[c])
-            frac = nan_any.mean()
-            i = int(np.flatnonzero(nan_any)[0])
-            first_col = next(c for c in checked if np.isnan(a[c][i]))
-            if frac > MAX_NAN_FRACTION:
-                jprob.append(f"{where}{int(nan_any.sum())} rows ({100 * frac:.1f} %) have missing values, "
-                             f"first at {row(rows[i])} in column {first_col!r}; "
-                             f"at most {100 * MAX_NAN_FRACTION:g} % are dropped automatically: clean the log")
-            else:
-                jwarn.append(f"{where}dropped {int(nan_any.sum())} rows with missing values "
-                             f"(first at {row(rows[i])}, column {first_col!r})")
-                keep = ~nan_any
-                a = {c: v[keep] for c, v in a.items()}
-                rows = np.asarray(rows)[keep]
-                t = a["t"]
-        if len(t) < MIN_SAMPLES:
-            jprob.append(f"{where}only {len(t)} samples; at least {MIN_SAMPLES} are needed")
-        elif _all_finite(t):
-            dt = np.diff(t)
-            if dt.min() <= 0:
-                i = int(np.flatnonzero(dt <= 0)[0]) + 1
-                what = "repeats" if dt[i - 1] == 0 else "goes back"
-                jprob.append(f"{where}column 't': time {what} at {row(rows[i])} "
-                             f"({t[i - 1]:g} -> {t[i]:g} s); time must increase strictly within a joint "
-                             "(sort the log, or split joints with a 'joint' column)")
-            else:
-                # the sample period and its jitter from up to PERIOD_SAMPLES intervals spread over the log
-                dts = dt[::max(1, dt.size // PERIOD_SAMPLES)]
-                med = float(np.median(dts))
-                jitter = float(np.percentile(np.abs(dts - med), 95)) / med if med > 0 else 0.0
-                if jitter > 0.1:
-                    jwarn.append(f"{where}sample period jitters (95th percentile deviation {100 * jitter:.0f} % "
-                                 f"of the median {med:g} s)")
-        if not jprob and "q" in a and "q" not in spec.units and axis == "rotary":
-            msg = _degrees_check(t, a["q"], a.get("qd"))
-            if msg:
-                jprob.append(where + msg)
-        if jprob:
-            problems.extend(jprob)
-            continue
-        jmeta = dict(spec.meta)
-        jm = per_joint_meta.get(jid) or {}
-        jmeta.update(jm.get("meta") or {})
-        jmeta.update(spec.joint_meta.get(jid) or {})
-        jaxis = jm.get("axis", axis) if not spec.axis and not unit_axes else axis
-        channels = {c: a[c] for c in OPTIONAL_CHANNELS if c in a}
-        truth = {}
-        if seg_truth is not None:
-            truth["segment"] = seg_truth[sel if isinstance(rows, range) else rows]
-        if "cycle" in a:
-            truth["cycle"] = np.nan_to_num(a["cycle"], nan=-1).astype(np.int64)
-        if jid in truth_meta:
-            truth["params"] = truth_meta[jid]
-        logs.append(JointLog(joint=jid, t=t, tau=a["tau"], q=a.get("q"), qd=a.get("qd"), channels=channels,
-                             axis=jaxis, meta=jmeta, source=label, truth=truth, warnings=warnings + jwarn))
-    if problems:
-        raise LogFormatError(label, problems)
-    return logs
+    jmeta = dict(door.spec.meta)
+    jm = per_joint_meta.get(jid) or {}
+    jmeta.update(jm.get("meta") or {})
+    jmeta.update(door.spec.joint_meta.get(jid) or {})
+    jaxis = jm.get("axis", door.axis) if not door.axis_given else door.axis
+    channels = {c: a[c] for c in OPTIONAL_CHANNELS if c in a}
+    truth = {}
+    if segments is not None:
+        truth["segment"] = segments
+    if "cycle" in a:
+        truth["cycle"] = np.nan_to_num(a["cycle"], nan=-1).astype(np.int64)
+    if jid in truth_meta:
+        truth["params"] = truth_meta[jid]
+    return JointLog(joint=jid, t=a["t"], tau=a["tau"], q=a.get("q"), qd=a.get("qd"), channels=channels,
+                    axis=jaxis, meta=jmeta, source=door.label, truth=truth, warnings=door.warnings + jwarn)
 
 
 #: Sample intervals (spread evenly over a joint's log) from which the sample period and its jitter are

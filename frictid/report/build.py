@@ -20,14 +20,14 @@ import jinja2
 import numpy as np
 import yaml
 
-from frictid import __version__
+from frictid.version import __version__
 from frictid import segments as _seg
 from frictid.data import JointLog, log_warnings
 from frictid.errors import LogFormatError, combined_log_error
 from frictid.identify.select import NOT_HELDOUT
 from frictid.io.atomic import atomic_open
 from frictid.io.logs import file_sha256
-from frictid.workers import Prefetch as _Prefetch
+from frictid.parallel import Prefetch as _Prefetch, map_ordered, n_workers
 
 from . import content as ct
 from . import figures as fg  # matplotlib itself is imported by the figure functions only
@@ -790,12 +790,13 @@ def preload() -> None:
 class Prefetch(_Prefetch):
     """What a report needs and does not depend on the logs' contents, started in background threads while
     the caller reads the logs: the SHA-256 of every file and the imports of :func:`preload`
-    (:class:`frictid.workers.Prefetch`): ``pre = Prefetch(paths)``, read the logs, then
+    (:class:`frictid.parallel.Prefetch`): ``pre = Prefetch(paths)``, read the logs, then
     ``build_report(params, logs, hashes=pre.hashes())``.
     """
 
     def __init__(self, paths: Iterable[str]):
-        super().__init__(paths, preload)
+
+        super().__init__(paths, file_sha256, preload)
 
 
 def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params_path: str = "",
@@ -841,12 +842,10 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
         jn, jd = part
         return _joint_part(jn, jd, by_joint.get(jn, []), sources, hashes, segmenter, differentiate)
 
-    from frictid.workers import map_forked, n_workers
-
     workers = n_workers(jobs, sum(1 for jn in names if by_joint.get(jn)))
     if workers > 1:
         preload()  # imported once here, inherited by every worker
-    results = map_forked(one, parts, workers)
+    results = map_ordered(one, parts, workers)
     bad = combined_log_error(p for r in results for p in r.problems)  # every joint's, together
     if bad is not None:
         raise bad
