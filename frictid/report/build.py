@@ -795,7 +795,6 @@ class Prefetch(_Prefetch):
     """
 
     def __init__(self, paths: Iterable[str]):
-
         super().__init__(paths, file_sha256, preload)
 
 
