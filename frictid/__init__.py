@@ -7,7 +7,8 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-from .identify import FitResult, fit  # noqa: E402
+from .api import fit  # noqa: E402
+from .result import FitResult  # noqa: E402
 from .io.params import read_params as load  # noqa: E402
 
 __all__ = ["__version__", "fit", "load", "FitResult"]

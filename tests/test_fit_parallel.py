@@ -9,10 +9,9 @@ import numpy as np
 import pytest
 
 import frictid
-from frictid import workers
+from frictid import api, workers
 from frictid.data import JointLog
 from frictid.errors import FrictidInputError, LogFormatError
-from frictid.identify import pipeline
 from frictid.io.logs import write_logs
 from frictid.io.params import dump_yaml
 
@@ -74,14 +73,14 @@ def test_workers_use_one_blas_thread():
 
 
 def _failing(monkeypatch, exc_for):
-    real = pipeline.fit_joint
+    real = api.fit_joint
 
     def fit_joint(jlogs, *a, **kw):
         exc = exc_for(jlogs[0].joint)
         if exc is not None:
             raise exc
         return real(jlogs, *a, **kw)
-    monkeypatch.setattr(pipeline, "fit_joint", fit_joint)  # forked workers inherit the patched module
+    monkeypatch.setattr(api, "fit_joint", fit_joint)  # forked workers inherit the patched module
 
 
 @pytest.mark.parametrize("jobs", [1, 3])
