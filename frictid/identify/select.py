@@ -12,6 +12,9 @@ not need the richer one. When no model is fully identifiable the same rule runs 
 warning. The held-out refits therefore run for the models the rule can take (:func:`heldout_for_choice`):
 a model whose parameters are not all identifiable gets no held-out error, and a note saying so, unless no
 identifiable model gets one.
+
+Shared with the diagnosis: :data:`BASE_MODELS` and :func:`base_model_name` (the base of its chain, by this
+rule). This module imports neither the fit's steps nor :mod:`frictid.diagnose`.
 """
 from __future__ import annotations
 
