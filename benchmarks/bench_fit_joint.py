@@ -25,15 +25,17 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import frictid  # noqa: E402
 from frictid import segments as sg  # noqa: E402
-from frictid.identify import pipeline as pl  # noqa: E402
+from frictid import api  # noqa: E402
+from frictid.identify import dynamics, maps, mechanics, thermal_fit  # noqa: E402
+from frictid.identify import samples as smp  # noqa: E402
 from frictid.identify import select as sel  # noqa: E402
 from frictid.io.logs import joint_row_blocks, read_logs  # noqa: E402
 
 #: (module, function) pairs timed; the label is the function's name.
-STAGES = [(sg, "estimate_scales"), (sg, "derivatives"), (sg, "find_segments"), (pl, "_regress"),
-          (pl, "_plateaus"), (pl, "_stage2_map"), (pl, "fit_static"), (sel, "heldout_static"),
-          (pl, "_lugre"), (pl, "_thermal"), (pl, "_diagnose"), (pl, "_check_diagnosis"),
-          (pl.smp, "build"), (pl.smp, "fit_map")]
+STAGES = [(sg, "estimate_scales"), (sg, "derivatives"), (sg, "find_segments"), (mechanics, "regress"),
+          (mechanics, "plateaus"), (mechanics, "_stage2_map"), (maps, "fit_static"), (sel, "heldout_static"),
+          (dynamics, "fit_lugre"), (thermal_fit, "fit_thermal_models"), (api, "diagnose_fit"),
+          (api, "check_diagnosis"), (smp, "build"), (smp, "fit_map")]
 
 
 def timed_stages(spent: dict, calls: collections.Counter) -> None:
@@ -61,7 +63,7 @@ def joint_log(path: str | None):
     blocks = {j: (a, b) for j, a, b in joint_row_blocks(path, None, None) or []}
     if "j1" not in blocks:
         raise SystemExit(f"{path}: no joint 'j1' stored as one block of rows")
-    return read_logs(path, skip=pl.UNUSED_CHANNELS, rows=blocks["j1"])[0]
+    return read_logs(path, skip=api.UNUSED_CHANNELS, rows=blocks["j1"])[0]
 
 
 def main(argv=None) -> int:
@@ -69,7 +71,7 @@ def main(argv=None) -> int:
     ap.add_argument("--log", help="a Parquet log with joint j1 as one block of rows (default: build one)")
     ap.add_argument("--repeat", type=int, default=3)
     a = ap.parse_args(argv)
-    pl.preload()
+    api.preload()
     log = joint_log(a.log)
     frictid.fit([log])  # warm: compilation caches, lazy imports, the allocator's heap
     spent: dict = collections.defaultdict(float)

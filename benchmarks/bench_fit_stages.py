@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import frictid  # noqa: E402
-from frictid.identify import pipeline as pl  # noqa: E402
+from frictid.identify import thermal_fit  # noqa: E402
 from frictid.identify import select as sel  # noqa: E402
 from frictid.identify.static import fit_static, plateau_points  # noqa: E402
 from frictid.models import static as sm  # noqa: E402
@@ -48,17 +48,17 @@ def time_static(sets) -> float:
 
 def time_thermal(duty) -> float:
     spent = []
-    orig = pl._thermal
+    orig = thermal_fit.fit_thermal_models
 
     def timed(*a, **k):
         t0 = time.perf_counter()
         orig(*a, **k)
         spent.append(time.perf_counter() - t0)
-    pl._thermal = timed
+    thermal_fit.fit_thermal_models = timed
     try:
         frictid.fit(duty, models="polynomial_ls,thermal4,thermal6", diagnose=False)
     finally:
-        pl._thermal = orig
+        thermal_fit.fit_thermal_models = orig
     return sum(spent)
 
 

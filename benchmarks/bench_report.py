@@ -92,7 +92,7 @@ def record_segments(params: dict, logs, path: Path) -> float:
     """Write the logs to ``path`` (Parquet) and record in ``params`` what ``frictid fit`` records: the
     file as source 0 and each joint's segments found by the real segmenter (``segment_list``). Returns
     the seconds the segmenter took (the fit's cost, not the report's)."""
-    from frictid.identify.pipeline import segment_list
+    from frictid.identify.prepare import segment_list
     from frictid.io.logs import file_sha256, write_logs
     from frictid.segments import find_segments
 

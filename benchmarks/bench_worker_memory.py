@@ -42,13 +42,13 @@ STAGES = {
                                                           "replay", "diagnosis"))],
     "fit": [("frictid.io.logs", "read_logs"), ("frictid.segments", "estimate_scales"),
             ("frictid.segments", "derivatives"), ("frictid.segments", "find_segments"),
-            ("frictid.identify.pipeline", "_regress"), ("frictid.identify.pipeline", "_plateaus"),
-            ("frictid.identify.pipeline", "_stage2_map"), ("frictid.identify.pipeline", "_lugre"),
-            ("frictid.identify.pipeline", "_thermal"), ("frictid.identify.pipeline", "_diagnose"),
-            ("frictid.identify.pipeline", "_check_diagnosis")],
+            ("frictid.identify.mechanics", "regress"), ("frictid.identify.mechanics", "plateaus"),
+            ("frictid.identify.mechanics", "_stage2_map"), ("frictid.identify.dynamics", "fit_lugre"),
+            ("frictid.identify.thermal_fit", "fit_thermal_models"), ("frictid.api", "diagnose_fit"),
+            ("frictid.api", "check_diagnosis")],
 }
 #: The function that builds one joint in a worker, per command.
-JOINT = {"report": ("frictid.report.build", "_joint_part"), "fit": ("frictid.identify.pipeline", "fit_joint")}
+JOINT = {"report": ("frictid.report.build", "_joint_part"), "fit": ("frictid.api", "fit_joint")}
 
 
 def private_memory() -> int:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from .version import __version__
 
-from .identify import fit  # noqa: E402
+from .api import fit  # noqa: E402
 from .io.params import load_model as load, read_params, write_params  # noqa: E402
 from .model import FrictionModel  # noqa: E402
 from .result import FitResult  # noqa: E402

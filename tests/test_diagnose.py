@@ -141,7 +141,7 @@ def test_thermal_state_is_the_heat_balance_of_the_whole_log_at_the_samples():
 def test_cumulative_energy_in_place_equals_the_plain_formula():
     """_cum_energy sums P dt in one array in place; the plain formula (periods with the first at 0, products,
     cumulative sum, offset by the energy of the logs before) gives the same values bit for bit."""
-    from frictid.diagnose import _cum_energy
+    from frictid.diagnose.evidence import _cum_energy
 
     S = build_samples([plateau_log(seed=5), plateau_log(seed=6, t0=7200.0)], 5)
     got = _cum_energy(S)

@@ -9,10 +9,9 @@ import numpy as np
 import pytest
 
 import frictid
-from frictid import parallel
+from frictid import api, parallel
 from frictid.data import JointLog
 from frictid.errors import FrictidInputError, LogFormatError
-from frictid.identify import pipeline
 from frictid.io.logs import write_logs
 from frictid.io.params import dump_yaml
 
@@ -111,14 +110,14 @@ def test_errors_pickle_to_the_same_class_and_message(exc):
 
 
 def _failing(monkeypatch, exc_for):
-    real = pipeline.fit_joint
+    real = api.fit_joint
 
     def fit_joint(jlogs, *a, **kw):
         exc = exc_for(jlogs[0].joint)
         if exc is not None:
             raise exc
         return real(jlogs, *a, **kw)
-    monkeypatch.setattr(pipeline, "fit_joint", fit_joint)  # forked workers inherit the patched module
+    monkeypatch.setattr(api, "fit_joint", fit_joint)  # forked workers inherit the patched module
 
 
 @pytest.mark.parametrize("jobs", [1, 3])

@@ -154,7 +154,7 @@ def test_cli_fit_writes_the_file(tmp_path, cli):
 def test_abs_percentile_equals_the_plain_formulas():
     """The data scales of fit_joint from one in-place copy: the same values as from the concatenated finite
     samples, their absolute values and (for the torque) their distance to the median."""
-    from frictid.identify.pipeline import _abs_percentile
+    from frictid.identify.prepare import _abs_percentile
 
     rng = np.random.default_rng(8)
     a, b = rng.normal(3.0, 2.0, 10_001), rng.normal(-1.0, 5.0, 4_000)

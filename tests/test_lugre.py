@@ -6,7 +6,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from frictid.models import thermal as th
-from frictid.models.lugre import lugre_friction, lugre_step, lugre_step_ref
+from frictid.models.lugre import lugre_step, lugre_step_ref
 from frictid.models.static import canonical_friction, canonical_level, canonical_pair
 
 C_POS, C_NEG = canonical_pair("stribeck_asym", dict(Fc_pos=2.0, Fs_pos=3.0, vs_pos=0.05, delta_pos=1.5,
@@ -65,41 +65,6 @@ def test_step_kernel_second_order_against_radau():
         errs.append(np.sqrt(np.mean((out - w_ref) ** 2)) / np.sqrt(np.mean(w_ref**2)))
     assert errs[0] < 2e-3
     assert errs[1] < errs[0] / 2.5 and errs[2] < errs[1] / 2.5
-
-
-@pytest.mark.parametrize("thermal", [False, True])
-def test_replay_kernel_equals_numpy_twin(thermal):
-    rng = np.random.default_rng(2)
-    t = np.cumsum(rng.uniform(0.5e-3, 1.5e-3, 600))
-    w = 0.3 * np.sin(2 * np.pi * 1.3 * t) + 0.01 * rng.normal(size=t.size)
-    kw = dict(sigma0=(3e4, 1.5e4), sigma1=(60.0, 40.0), z0=1e-5)
-    if thermal:
-        code, theta, dc9 = th.thermal_code("thermal6", T0=25.0, dc=(-0.05, -0.01, 0.0, 0.0))
-        kw["thermal"] = dict(code=code, theta=theta, dc_pos=dc9, dc_neg=dc9, C=2.0, K=0.5, Tenv=25.0)
-    F1, z1, T1 = lugre_friction(t, w, C_POS, C_NEG, **kw)
-    F2, z2, T2 = lugre_friction(t, w, C_POS, C_NEG, reference=True, **kw)
-    assert np.allclose(F1, F2, rtol=1e-10, atol=1e-12)
-    assert np.allclose(z1, z2, rtol=1e-10, atol=1e-16)
-    if thermal:
-        assert np.allclose(T1, T2, rtol=1e-12)
-        assert T1[-1] > 25.0  # friction power warmed the joint
-    else:
-        assert np.isnan(T1).all()
-
-
-def test_replay_steady_state_is_static_map():
-    t = np.arange(3000) * 1e-3
-    for v in (-1.0, -0.03, 0.02, 0.5):
-        F, z, _ = lugre_friction(t, np.full(t.size, v), C_POS, C_NEG, sigma0=1e4, sigma1=30.0)
-        assert F[-1] == pytest.approx(float(canonical_friction(v, C_POS, C_NEG)), rel=1e-9)
-
-
-def test_replay_presliding_is_a_spring():
-    t = np.arange(2000) * 1e-4
-    x = 1e-6 * np.sin(2 * np.pi * 5 * t)            # displacement far below g/sigma0 = 2e-4
-    w = np.gradient(x, t)
-    F, z, _ = lugre_friction(t, w, C_POS, C_NEG, sigma0=1e4, sigma1=0.0)
-    assert np.allclose(F, 1e4 * x, atol=2e-2 * 1e4 * 1e-6)
 
 
 def test_thermal_laws_by_hand():

@@ -32,7 +32,7 @@ def fit(
 ) -> None:
     """Find the segments, identify every model the data support, choose one, write the parameter file."""
     from ..errors import FrictidInputError
-    from ..identify.pipeline import fit as run_fit, parse_models
+    from ..api import fit as run_fit, parse_models
     from ..io.atomic import check_output_path
     from ..io.params import write_params
 

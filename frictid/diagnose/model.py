@@ -26,6 +26,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..identify.regression import NormalEquations, solve
 from ..models import static as sm
 from .samples import Samples
 
@@ -159,8 +160,6 @@ class Context:
 
         Accumulated once per fold and column pair and cached: a candidate's system is the current one
         bordered by its own columns, and only the border is new."""
-        from ..identify.regression import NormalEquations
-
         S = self.S
         sel = (lambda v: v.sum()) if fold is None else (lambda v: v.sum() - v[fold])
         p = len(items)
@@ -446,8 +445,6 @@ class Evaluator:
     def _linear_block_ne(self, c: Coef, fold):
         """:meth:`_linear_block` with the factors at one, from the cached per-fold normal equations; returns
         the residual sum of squares and the sample count."""
-        from ..identify.regression import solve
-
         items, held = self._linear_items()
         c.base_pos, c.base_neg, c.dc = {}, {}, np.zeros(4)
         for i, t, X in self.add:
@@ -464,7 +461,6 @@ class Evaluator:
             yty = yty - 2 * h @ ne.Xty[p:] + h @ ne.XtX[p:, p:] @ h
         b = np.zeros(0)
         if p:
-            from ..identify.regression import NormalEquations
             b = solve(NormalEquations(p, XtX, Xty, yty, ne.n), tuple(str(x[2]) for x in items)).coef
             self._apply(c, [x[2] for x in items], b)
         rss = float(yty - 2 * b @ Xty + b @ XtX @ b) if p else float(yty)

@@ -28,9 +28,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
-from scipy.signal import lfilter
 
 from ..data import finite
+from ..segments import noise_sigma
+from ..segments.runs import paint, runs
 
 #: Segment kinds the sliding samples never come from.
 EXCLUDED_KINDS = ("ramp_presliding", "step", "rest")
@@ -230,6 +231,7 @@ def _rise(u, h, x0, tau_c, ref: bool = False) -> np.ndarray:
         return u.copy()
     e = math.exp(-h / tau_c)
     if ref:
+        from scipy.signal import lfilter  # only the tests' twin: scipy.signal costs ~0.5 s to import
         y, _ = lfilter([0.0, 1.0 - e], [1.0, -e], u, zi=[x0])
         return y
     return _rise_nb(np.ascontiguousarray(u, dtype=float), e, float(x0))
@@ -270,8 +272,6 @@ def _sliding_rows(lg: DiagLog, w: np.ndarray, fin_w: np.ndarray, v_min: float, v
     if J > 0:
         ok &= np.abs(J * finite(lg.a)) <= INERTIA_RATIO * F_level
     pos, neg = (w > vlim) & ok, (w < -vlim) & ok
-    from ..segments.runs import paint, runs
-
     keep = np.zeros(n, dtype=bool)
     # the runs longer than 2 e, less their e samples at each end (painted at once: a Python loop over the
     # runs took 37 ms per joint-hour)
@@ -293,107 +293,32 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
     torque is a small difference of large numbers, dominated by the error of the acceleration estimate).
     """
     fin_w = [np.isfinite(lg.w) for lg in logs]
-    w_fin = [lg.w if f.all() else lg.w[f] for lg, f in zip(logs, fin_w)]   # the finite velocities
-    allw = np.abs(np.concatenate(w_fin))
-    if not allw.size:
+    lim = _speed_limits(logs, fin_w)
+    if lim is None:
         return None
-    w0 = float(np.percentile(allw, 99.5))
-    del allw  # the function's large temporaries go as soon as they are used: its peak is the fit's
-    if w0 <= 0:
-        return None
-    from ..segments import noise_sigma
-    sig_w = max((noise_sigma(wf) for lg, wf in zip(logs, w_fin) if lg.n > 10), default=0.0)
-    v_min = max(V_MIN_FRACTION * w0, K_NOISE * sig_w)          # on constant-velocity plateaus
-    v_move = max(V_MOVE_FRACTION * w0, v_min)                    # elsewhere (accelerating through low speed)
+    w0, v_min, v_move = lim
     w_nan0 = [lg.w if f.all() else np.nan_to_num(lg.w) for lg, f in zip(logs, fin_w)]   # NaN as zero
     movF = np.concatenate([np.abs(lg.F[np.isfinite(lg.F) & (np.abs(w) > v_move)]) for lg, w in zip(logs, w_nan0)])
     F_level = float(np.median(movF)) if movF.size else np.inf
-    del movF
+    del movF  # the function's large temporaries go as soon as they are used: its peak is the fit's
     dts = [float(np.median(np.diff(lg.t))) if lg.n > 1 else 1.0 for lg in logs]   # sample periods [s]
-    # drift clock
-    starts = [lg.start for lg in logs]
-    real = all(s is not None for s in starts)
-    offs = []
-    acc = 0.0
-    for lg, s, dt in zip(logs, starts, dts):
-        if real:
-            offs.append(float(s))
-        else:
-            offs.append(acc - float(lg.t[0]))
-            acc += float(lg.t[-1] - lg.t[0]) + (dt if lg.n > 1 else 0.0)
-    clock_t0 = min(o + float(lg.t[0]) for o, lg in zip(offs, logs))
+    offs, clock_t0, real = _drift_clock(logs, dts)
     rows = [_sliding_rows(lg, w_nan0[i], fin_w[i], v_min, v_move, J, F_level,
                           edge if edge is not None else max(5, int(round(0.05 / dts[i]))))
             for i, lg in enumerate(logs)]   # per log: (indices, seg id per index)
     total = sum(r[0].size for r in rows)
     if total == 0:
         return None
-    # groups: (log, segment, chunk) with chunks of at most L seconds
-    sliding_time = sum(dt * r[0].size for lg, dt, r in zip(logs, dts, rows) if lg.n > 1)
-    L = max(sliding_time / MAX_GROUPS_TARGET, 1e-9)
-    parts = {k: [] for k in ("t", "k", "gkey")}
-    for i, (lg, (idx, sid)) in enumerate(zip(logs, rows)):
-        if not idx.size:
-            continue
-        # a new group starts at a segment change or a gap in the kept samples, and every L seconds
-        brk = np.ones(idx.size, dtype=bool)
-        brk[1:] = (np.diff(sid) != 0) | (np.diff(idx) > 1 + 2 * (edge or 1) + 10)
-        run_id = np.cumsum(brk) - 1
-        t = lg.t[idx]
-        run_t0 = t[brk][run_id]
-        chunk = np.floor((t - run_t0) / L).astype(np.int64)
-        gkey = run_id * 100000 + chunk
-        parts["t"].append(t)
-        parts["k"].append(idx)
-        parts["gkey"].append(gkey + i * LOG_KEY)
-    cat = {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in parts.items()}  # one log: no copy
-    # at most n_max samples: the same cap for every group (each segment weighs alike, a one-hour run does
-    # not drown a short sweep), groups below it kept whole, evenly spaced samples within a group
-    keys_u, ginv, gcount = np.unique(cat["gkey"], return_inverse=True, return_counts=True)
-    dec = 1
-    if total > n_max:
-        lo, hi = 1.0, float(gcount.max())
-        for _ in range(50):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if np.minimum(gcount, mid).sum() <= n_max else (lo, mid)
-        cap = max(int(lo), MIN_PER_GROUP)
-        rank = np.empty(ginv.size, dtype=np.int64)
-        order = np.argsort(ginv, kind="stable")
-        starts = np.concatenate([[0], np.cumsum(gcount)[:-1]])
-        rank[order] = np.arange(ginv.size) - np.repeat(starts, gcount)
-        step = np.maximum(gcount / cap, 1.0)[ginv]
-        keep = np.floor(rank / step) != np.floor((rank - 1) / step)
-        keep &= rank < np.ceil(gcount[ginv] / step) * step
-        cat = {k: v[keep] for k, v in cat.items()}
-        dec = int(math.ceil(total / max(int(keep.sum()), 1)))
+    cat = _group_keys(logs, rows, dts, edge)
+    cat, dec = _cap_groups(cat, total, n_max)
     # the log of each sample (its group key carries it) and its time on the drift clock [h], for the
     # samples kept only
     cat["li"] = cat["gkey"] // LOG_KEY
     cat["th"] = (cat["t"] + np.asarray(offs)[cat["li"]] - clock_t0) / 3600.0
-    _, group = np.unique(cat["gkey"], return_inverse=True)
-    ng = int(group.max()) + 1
-    # merge groups too small to matter (fewer than 5 samples) into their predecessor in time
-    counts = np.bincount(group, minlength=ng)
-    gt = np.full(ng, np.inf)
-    np.minimum.at(gt, group, cat["th"])
-    order = np.argsort(gt, kind="stable")
-    remap = np.arange(ng)
-    anchor = None
-    for g in order:
-        if counts[g] >= 5 or anchor is None:
-            anchor = g
-        else:
-            remap[g] = anchor
-    group = remap[group]
-    _, group = np.unique(group, return_inverse=True)
-    ng = int(group.max()) + 1
-    if ng < 2 * n_folds or group.size < max(MIN_SAMPLES, MIN_PER_GROUP * ng):
+    grouped = _groups(cat["gkey"], cat["th"], n_folds)
+    if grouped is None:
         return None
-    gt = np.full(ng, np.inf)
-    np.minimum.at(gt, group, cat["th"])
-    rank = np.empty(ng, dtype=np.int64)
-    rank[np.argsort(gt, kind="stable")] = np.arange(ng)
-    fold = rank[group] % n_folds
+    group, fold, gt = grouped
 
     def take(name, full=None):
         out = []
@@ -423,3 +348,112 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
     S._memo.update((("dt", i), dt) for i, dt in enumerate(dts))
     S._memo.update((("log_w", i), w) for i, w in enumerate(w_nan0))
     return S
+
+
+def _speed_limits(logs: list[DiagLog], fin_w: list[np.ndarray]) -> tuple[float, float, float] | None:
+    """w0 (99.5th percentile of |w|), the sliding speed on constant-velocity plateaus and elsewhere
+    (accelerating through low speed) [q/s]; None without motion. fin_w : where each log's w is finite."""
+    w_fin = [lg.w if f.all() else lg.w[f] for lg, f in zip(logs, fin_w)]   # the finite velocities
+    allw = np.abs(np.concatenate(w_fin))
+    if not allw.size:
+        return None
+    w0 = float(np.percentile(allw, 99.5))
+    del allw  # the function's large temporaries go as soon as they are used: its peak is the fit's
+    if w0 <= 0:
+        return None
+    sig_w = max((noise_sigma(wf) for lg, wf in zip(logs, w_fin) if lg.n > 10), default=0.0)
+    v_min = max(V_MIN_FRACTION * w0, K_NOISE * sig_w)          # on constant-velocity plateaus
+    v_move = max(V_MOVE_FRACTION * w0, v_min)                    # elsewhere (accelerating through low speed)
+    return w0, v_min, v_move
+
+
+def _drift_clock(logs: list[DiagLog], dts: list[float]) -> tuple[list[float], float, bool]:
+    """The drift clock: per log the offset of its times [s], the clock's origin [s], and whether the logs'
+    start times are real (else the logs are laid end to end)."""
+    starts = [lg.start for lg in logs]
+    real = all(s is not None for s in starts)
+    offs = []
+    acc = 0.0
+    for lg, s, dt in zip(logs, starts, dts):
+        if real:
+            offs.append(float(s))
+        else:
+            offs.append(acc - float(lg.t[0]))
+            acc += float(lg.t[-1] - lg.t[0]) + (dt if lg.n > 1 else 0.0)
+    clock_t0 = min(o + float(lg.t[0]) for o, lg in zip(offs, logs))
+    return offs, clock_t0, real
+
+
+def _group_keys(logs: list[DiagLog], rows: list, dts: list[float], edge: int | None) -> dict:
+    """The kept samples' times, indices and group keys: groups are (log, segment, chunk) with chunks of at
+    most L seconds (the sliding time over :data:`MAX_GROUPS_TARGET`)."""
+    sliding_time = sum(dt * r[0].size for lg, dt, r in zip(logs, dts, rows) if lg.n > 1)
+    L = max(sliding_time / MAX_GROUPS_TARGET, 1e-9)
+    parts = {k: [] for k in ("t", "k", "gkey")}
+    for i, (lg, (idx, sid)) in enumerate(zip(logs, rows)):
+        if not idx.size:
+            continue
+        # a new group starts at a segment change or a gap in the kept samples, and every L seconds
+        brk = np.ones(idx.size, dtype=bool)
+        brk[1:] = (np.diff(sid) != 0) | (np.diff(idx) > 1 + 2 * (edge or 1) + 10)
+        run_id = np.cumsum(brk) - 1
+        t = lg.t[idx]
+        run_t0 = t[brk][run_id]
+        chunk = np.floor((t - run_t0) / L).astype(np.int64)
+        gkey = run_id * 100000 + chunk
+        parts["t"].append(t)
+        parts["k"].append(idx)
+        parts["gkey"].append(gkey + i * LOG_KEY)
+    return {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in parts.items()}  # one log: no copy
+
+
+def _cap_groups(cat: dict, total: int, n_max: int) -> tuple[dict, int]:
+    """At most n_max samples: the same cap for every group (each segment weighs alike, a one-hour run does
+    not drown a short sweep), groups below it kept whole, evenly spaced samples within a group. Returns
+    the kept samples and the decimation factor."""
+    if total <= n_max:
+        return cat, 1
+    _, ginv, gcount = np.unique(cat["gkey"], return_inverse=True, return_counts=True)
+    lo, hi = 1.0, float(gcount.max())
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if np.minimum(gcount, mid).sum() <= n_max else (lo, mid)
+    cap = max(int(lo), MIN_PER_GROUP)
+    rank = np.empty(ginv.size, dtype=np.int64)
+    order = np.argsort(ginv, kind="stable")
+    starts = np.concatenate([[0], np.cumsum(gcount)[:-1]])
+    rank[order] = np.arange(ginv.size) - np.repeat(starts, gcount)
+    step = np.maximum(gcount / cap, 1.0)[ginv]
+    keep = np.floor(rank / step) != np.floor((rank - 1) / step)
+    keep &= rank < np.ceil(gcount[ginv] / step) * step
+    cat = {k: v[keep] for k, v in cat.items()}
+    return cat, int(math.ceil(total / max(int(keep.sum()), 1)))
+
+
+def _groups(gkey: np.ndarray, th: np.ndarray, n_folds: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Group index, fold and start time on the drift clock [h] per group, groups of fewer than 5 samples
+    merged into their predecessor in time and folds dealt by start time; None when there are fewer than
+    ``2 n_folds`` groups or too few samples."""
+    _, group = np.unique(gkey, return_inverse=True)
+    ng = int(group.max()) + 1
+    counts = np.bincount(group, minlength=ng)
+    gt = np.full(ng, np.inf)
+    np.minimum.at(gt, group, th)
+    order = np.argsort(gt, kind="stable")
+    remap = np.arange(ng)
+    anchor = None
+    for g in order:
+        if counts[g] >= 5 or anchor is None:
+            anchor = g
+        else:
+            remap[g] = anchor
+    group = remap[group]
+    _, group = np.unique(group, return_inverse=True)
+    ng = int(group.max()) + 1
+    if ng < 2 * n_folds or group.size < max(MIN_SAMPLES, MIN_PER_GROUP * ng):
+        return None
+    gt = np.full(ng, np.inf)
+    np.minimum.at(gt, group, th)
+    rank = np.empty(ng, dtype=np.int64)
+    rank[np.argsort(gt, kind="stable")] = np.arange(ng)
+    return group, rank[group] % n_folds, gt

@@ -30,7 +30,8 @@ import numpy as np
 from numba import njit
 from scipy.optimize import least_squares
 
-from frictid.models.lugre import _FM, dviscous_nb, level_slope_nb, lugre_core, viscous_nb
+from frictid.models.lugre import _FM, dviscous_nb, level_slope_nb, lugre_core, lugre_step, lugre_step_ref, viscous_nb
+from frictid.models.static import canonical_level, canonical_viscous
 
 #: Minimum presliding displacement, in encoder counts, for sigma0 to be identifiable.
 MIN_COUNTS = 20
@@ -137,6 +138,58 @@ class DynamicEstimate:
     details: dict = field(default_factory=dict)
 
 
+def _start_slope(ramps: list[tuple[np.ndarray, np.ndarray]], g0s: list[float], span: float) -> float:
+    """A data-derived start for sigma0 [F/q]: the median slope of F against displacement over the lower half
+    of each ramp (|F| below half its bristle limit); the limit over the span when no ramp gives one."""
+    slopes = []
+    for (q, F), g0 in zip(ramps, g0s):
+        x = q - q[0]
+        lim = 0.5 * g0
+        m = np.abs(F) < lim
+        if m.sum() > 5 and np.ptp(x[m]) > 0:
+            slopes.append(abs(np.polyfit(x[m], F[m], 1)[0]))
+    return float(np.median(slopes)) if slopes else max(g0s) / span
+
+
+class _RampForces:
+    """The least-squares problem of sigma0 on the ramps: all ramps in one compiled pass
+    (:func:`_ramp_forces_nb`), the residual and its analytic derivative in log(sigma0) together."""
+
+    def __init__(self, ramps: list[tuple[np.ndarray, np.ndarray]], g0s: list[float]):
+        self.qs = np.concatenate([np.asarray(q, dtype=float) for q, _ in ramps])
+        self.Fs = np.concatenate([np.asarray(F, dtype=float) for _, F in ramps])
+        self.bounds = np.cumsum([0] + [len(q) for q, _ in ramps]).astype(np.int64)
+        self.F0 = np.array([float(F[0]) for _, F in ramps])
+        self.gs = np.array(g0s, dtype=float)
+        self.y, self.dy = np.empty(self.qs.size), np.empty(self.qs.size)
+        self.at = None
+
+    def _eval(self, p):
+        if self.at != p[0]:
+            _ramp_forces_nb(self.qs, self.bounds, self.F0, self.gs, math.exp(p[0]), self.y, self.dy)
+            self.at = p[0]
+
+    def resid(self, p):
+        self._eval(p)
+        return self.y - self.Fs
+
+    def jac(self, p):
+        self._eval(p)
+        return self.dy.reshape(-1, 1).copy()
+
+    def fit(self, starts):
+        """The best Levenberg-Marquardt result in log(sigma0) over the starts [F/q], or None."""
+        best = None
+        for s_init in starts:
+            try:
+                r = least_squares(self.resid, [math.log(s_init)], jac=self.jac, method="lm", x_scale=1.0)
+            except ValueError:
+                continue
+            if best is None or r.cost < best.cost:
+                best = r
+        return best
+
+
 def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float = 0.0,
                starts: tuple[float, ...] | None = None) -> DynamicEstimate:
     """sigma0 [F/q] from ramp-presliding segments.
@@ -165,49 +218,11 @@ def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float
                                f"{span / resolution:.1f} counts of {resolution:.3g} (at least {MIN_COUNTS} needed)",
                                "ramps", len(ramps), details={"span_counts": span / resolution})
     if starts is None:
-        # data-derived start: slope of F against displacement over the lower half of each ramp
-        slopes = []
-        for (q, F), g0 in zip(ramps, g0s):
-            x = q - q[0]
-            lim = 0.5 * g0
-            m = np.abs(F) < lim
-            if m.sum() > 5 and np.ptp(x[m]) > 0:
-                slopes.append(abs(np.polyfit(x[m], F[m], 1)[0]))
-        s_start = float(np.median(slopes)) if slopes else max(g0s) / span
+        s_start = _start_slope(ramps, g0s, span)
         starts = (s_start, 0.3 * s_start, 3.0 * s_start)
     else:
         s_start = float(starts[0])
-
-    # all ramps in one compiled pass; the residual and its analytic derivative in log(sigma0) together
-    qs = np.concatenate([np.asarray(q, dtype=float) for q, _ in ramps])
-    Fs = np.concatenate([np.asarray(F, dtype=float) for _, F in ramps])
-    bounds = np.cumsum([0] + [len(q) for q, _ in ramps]).astype(np.int64)
-    F0 = np.array([float(F[0]) for _, F in ramps])
-    gs = np.array(g0s, dtype=float)
-    y, dy = np.empty(qs.size), np.empty(qs.size)
-    at = [None]
-
-    def _eval(p):
-        if at[0] != p[0]:
-            _ramp_forces_nb(qs, bounds, F0, gs, math.exp(p[0]), y, dy)
-            at[0] = p[0]
-
-    def resid(p):
-        _eval(p)
-        return y - Fs
-
-    def jac(p):
-        _eval(p)
-        return dy.reshape(-1, 1).copy()
-
-    best = None
-    for s_init in starts:
-        try:
-            r = least_squares(resid, [math.log(s_init)], jac=jac, method="lm", x_scale=1.0)
-        except ValueError:
-            continue
-        if best is None or r.cost < best.cost:
-            best = r
+    best = _RampForces(ramps, g0s).fit(starts)
     if best is None:
         return DynamicEstimate(None, None, False, "optimiser failed", "ramps", len(ramps))
     s0 = math.exp(best.x[0])
@@ -275,9 +290,6 @@ def simulate_step_ref(t, u, q0, w0, J, sigma0, sigma1, c_pos, c_neg, z0, substep
     """Plain-python twin of :func:`simulate_step` (for the tests): the map from
     :mod:`frictid.models.static`'s vectorised functions, the slopes of g and f by central differences,
     the step by :func:`frictid.models.lugre.lugre_step_ref` (scipy's matrix exponential)."""
-    from frictid.models.lugre import lugre_step_ref
-    from frictid.models.static import canonical_level, canonical_viscous
-
     def level(w):
         return float(canonical_level(w, c_pos if w >= 0 else c_neg))
 
@@ -290,7 +302,7 @@ def simulate_step_ref(t, u, q0, w0, J, sigma0, sigma1, c_pos, c_neg, z0, substep
 def _simulate_step_py(t, u, q0, w0, J, sigma0, sigma1, level, viscous, z0, substeps, step=None):
     """The step simulation as a python loop over scalar callables level(w) [F] and viscous(w) [F]."""
     if step is None:
-        from frictid.models.lugre import lugre_step as step
+        step = lugre_step
     n = t.shape[0]
     q = np.empty(n)
     q[0] = q0

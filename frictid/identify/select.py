@@ -12,6 +12,9 @@ not need the richer one. When no model is fully identifiable the same rule runs 
 warning. The held-out refits therefore run for the models the rule can take (:func:`heldout_for_choice`):
 a model whose parameters are not all identifiable gets no held-out error, and a note saying so, unless no
 identifiable model gets one.
+
+Shared with the diagnosis: :data:`BASE_MODELS` and :func:`base_model_name` (the base of its chain, by this
+rule). This module imports neither the fit's steps nor :mod:`frictid.diagnose`.
 """
 from __future__ import annotations
 
@@ -20,10 +23,14 @@ from typing import Callable
 
 import numpy as np
 
+from frictid.models import static as sm
+
 from .static import Plateaus, fit_static, predict, warm_start
 
 #: Held-out RMS within this fraction of the best counts as equally good.
 TOLERANCE = 0.05
+#: Velocity-only models (candidates for the choice), in the order they are reported.
+BASE_MODELS = tuple(sm.map_names()) + ("polynomial_ls",)
 
 
 def plateau_folds(w: np.ndarray, n_folds: int) -> np.ndarray:
@@ -130,3 +137,14 @@ def choose(models: dict, candidates: list[str] | None = None, tolerance: float =
     ranked.sort(key=lambda r: (r["rms_heldout"] is None, r["rms_heldout"] or 0.0))
     rec["ranking"] = ranked
     return best["model"], rec
+
+
+def base_model_name(jf) -> str | None:
+    """The base of the diagnosis' chain: the choice rule over a joint's symmetric velocity-only static maps
+    whose parameters are all known (``jf`` a :class:`frictid.result.JointFit`)."""
+    cands = [m for m in BASE_MODELS if not m.endswith("_asym") and m in jf.models
+             and all(v is not None for v in jf.models[m].values().values())]
+    if not cands:
+        return None
+    name, _ = choose(jf.models, cands)
+    return name

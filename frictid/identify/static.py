@@ -22,10 +22,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import block_diag
 from scipy.optimize import least_squares
 
 from frictid.models import static as sm
-from frictid.models.params import Param, data_scale, scaled_table, unit_of
+from frictid.models.params import Param, scaled_table, unit_of
 
 from frictid.result import ModelFit, ParamEstimate
 
@@ -234,6 +235,72 @@ def _weights(F_se, F0, n):
     return 1.0 / np.maximum(se, floor)
 
 
+@dataclass
+class _Branch:
+    """The least-squares problem of one symmetric map on one set of points: the free parameters (indices
+    into ``names``), their bounds and scales, the point weights and the data scales F0 [F], w0 [q/s]."""
+
+    smap: sm.StaticMap
+    names: list[str]
+    fixed: dict
+    free: list[int]
+    w: np.ndarray
+    F: np.ndarray
+    wts: np.ndarray
+    lo_f: np.ndarray
+    hi_f: np.ndarray
+    xs_f: np.ndarray
+    F0: float
+    w0: float
+
+    def full(self, xf):
+        x = np.array([self.fixed.get(nm, 0.0) for nm in self.names], dtype=float)
+        x[self.free] = xf
+        return x
+
+    def resid(self, xf):
+        x = self.full(xf)
+        return (self.smap.func(self.w, **dict(zip(self.names, x))) - self.F) * self.wts
+
+    def jac(self, xf):
+        x = self.full(xf)
+        return self.smap.jac(self.w, **dict(zip(self.names, x)))[:, self.free] * self.wts[:, None]
+
+    def solve(self, x0, budget):
+        try:
+            res = least_squares(self.resid, x0, jac=self.jac if self.smap.jac is not None else "2-point",
+                                bounds=(self.lo_f, self.hi_f), x_scale=self.xs_f, method="trf", max_nfev=budget)
+        except ValueError:  # e.g. non-finite residuals from a degenerate start
+            return None
+        return res if np.all(np.isfinite(res.fun)) else None
+
+    def search(self, tries: list[dict]):
+        """The best least-squares result over the starts ``tries`` (name -> value), or None.
+
+        Every start gets a short run (SCREEN_NFEV_PER_PARAM); the best one is then run to convergence. A warm
+        start (a held-out refit from the full-data optimum) runs to convergence too: stopped early, the refit
+        would stay near an optimum that saw the held-out points (a budget of 10 per parameter cut
+        stribeck_2exp_asym's held-out error by 2.6x on the direct drive: leakage, not skill)."""
+        p = len(self.free)
+        margin = 1e-9 * (self.hi_f - self.lo_f)
+        budget = MAX_NFEV_PER_PARAM * (p + 1)
+        screen = SCREEN_NFEV_PER_PARAM * (p + 1) if len(tries) > 1 else budget
+        best = None
+        for st in tries:
+            if self.w.shape[0] == 0:
+                break
+            x0 = np.clip(np.array([st[self.names[k]] for k in self.free], dtype=float),
+                         self.lo_f + margin, self.hi_f - margin)
+            res = self.solve(x0, screen)
+            if res is not None and (best is None or res.cost < best.cost):
+                best = res
+        if best is not None and best.status == 0 and screen < budget:  # stopped by the screening budget
+            res = self.solve(best.x, budget - screen)
+            if res is not None and res.cost <= best.cost:
+                best = res
+        return best
+
+
 def fit_branch(base: str, w, F, F_se=None, fixed: dict | None = None, n_refine: int = 3,
                scales: tuple[float, float] | None = None, start: dict | None = None,
                var_inflation: float = 1.0) -> BranchFit:
@@ -254,93 +321,65 @@ def fit_branch(base: str, w, F, F_se=None, fixed: dict | None = None, n_refine: 
     n = w.shape[0]
     F0, w0 = scales if scales else _scales(w, F)
     lo, hi, x0_tab, xs = scaled_table(table, F0, w0)
-    lo_d = dict(zip(names, lo))
-    hi_d = dict(zip(names, hi))
     free = [k for k, nm in enumerate(names) if nm not in fixed]
-    p = len(free)
-    wts = _weights(F_se, F0, n)
-
-    def full(xf):
-        x = np.array([fixed.get(nm, 0.0) for nm in names], dtype=float)
-        x[free] = xf
-        return x
-
-    def resid(xf):
-        x = full(xf)
-        return (smap.func(w, **dict(zip(names, x))) - F) * wts
-
-    def jac(xf):
-        x = full(xf)
-        return smap.jac(w, **dict(zip(names, x)))[:, free] * wts[:, None]
-
-    lo_f, hi_f, xs_f = lo[free], hi[free], xs[free]
-    margin = 1e-9 * (hi_f - lo_f)
+    pb = _Branch(smap, names, fixed, free, w, F, _weights(F_se, F0, n), lo[free], hi[free], xs[free], F0, w0)
     if start is not None and all(start.get(nm) is not None for nm in names):
         tries = [start]
     else:
-        starts = guess_starts(base, w, F, wts, lo_d, hi_d, fixed) if n > 0 else []
+        starts = guess_starts(base, w, F, pb.wts, dict(zip(names, lo)), dict(zip(names, hi)), fixed) if n > 0 else []
         tries = starts[:n_refine] + [dict(zip(names, x0_tab))]  # and the table's own start
-    def solve(x0, budget):
-        try:
-            res = least_squares(resid, x0, jac=jac if smap.jac is not None else "2-point",
-                                bounds=(lo_f, hi_f), x_scale=xs_f, method="trf", max_nfev=budget)
-        except ValueError:  # e.g. non-finite residuals from a degenerate start
-            return None
-        return res if np.all(np.isfinite(res.fun)) else None
-
-    # every start gets a short run (SCREEN_NFEV_PER_PARAM); the best one is then run to convergence. A warm
-    # start (a held-out refit from the full-data optimum) runs to convergence too: stopped early, the refit
-    # would stay near an optimum that saw the held-out points (a budget of 10 per parameter cut
-    # stribeck_2exp_asym's held-out error by 2.6x on the direct drive: leakage, not skill)
-    budget = MAX_NFEV_PER_PARAM * (p + 1)
-    screen = SCREEN_NFEV_PER_PARAM * (p + 1) if len(tries) > 1 else budget
-    best = None
-    for st in tries:
-        if n == 0:
-            break
-        x0 = np.clip(np.array([st[names[k]] for k in free], dtype=float), lo_f + margin, hi_f - margin)
-        res = solve(x0, screen)
-        if res is not None and (best is None or res.cost < best.cost):
-            best = res
-    if best is not None and best.status == 0 and screen < budget:  # stopped by the screening budget
-        res = solve(best.x, budget - screen)
-        if res is not None and res.cost <= best.cost:
-            best = res
+    best = pb.search(tries)
     if best is None:
         vals = {nm: None for nm in names}
         vals.update(fixed)
         why = "no data" if n == 0 else "optimiser failed"
         return BranchFit(vals, {nm: None for nm in names}, {nm: why for nm in names if nm not in fixed},
                          fixed, None, [names[k] for k in free], math.nan, False, why)
+    x = pb.full(best.x)
+    stderr, reasons, cov = _branch_errors(pb, best, var_inflation)
+    _bound_and_error_reasons(pb, best, x, table, stderr, reasons)
+    return BranchFit(dict(zip(names, (float(v) for v in x))), stderr, reasons, fixed, cov,
+                     [names[k] for k in free], float(best.cost), bool(best.success), str(best.message))
 
-    x = full(best.x)
-    values = dict(zip(names, (float(v) for v in x)))
+
+def _branch_errors(pb: _Branch, best, var_inflation: float) -> tuple[dict, dict, np.ndarray | None]:
+    """Standard errors of the free parameters from the Jacobian at the optimum (``cov = s^2 (J^T J)^-1``,
+    times ``var_inflation``), the parameters along the Jacobian's null space with their reason, and the
+    covariance (None without residual degrees of freedom)."""
+    names, free, xs_f = pb.names, pb.free, pb.xs_f
     stderr: dict = {nm: None for nm in names}
     reasons: dict = {}
-    cov = None
+    n, p = pb.w.shape[0], len(free)
     dof = n - p
     if dof <= 0:
         for k in free:
             reasons[names[k]] = (f"{n} points for {p} free parameters: no residual left to estimate "
                                  "the error")
-    else:
-        Jm = best.jac
-        s2 = 2.0 * best.cost / dof
-        Js = Jm * xs_f[None, :]
-        U, sv, Vt = np.linalg.svd(Js, full_matrices=False)
-        tol = sv.max() * 1e-9 if sv.size and sv.max() > 0 else 1.0
-        ok = sv > tol
-        inv = (Vt[ok].T / sv[ok] ** 2) @ Vt[ok]
-        cov = s2 * float(var_inflation) * inv * np.outer(xs_f, xs_f)
-        null = Vt[~ok]
-        for j, k in enumerate(free):
-            nm = names[k]
-            se = math.sqrt(max(cov[j, j], 0.0))
-            stderr[nm] = se
-            if null.size and np.max(np.abs(null[:, j])) > 0.1:
-                reasons[nm] = "not separable from other parameters (Jacobian rank-deficient)"
+        return stderr, reasons, None
+    Jm = best.jac
+    s2 = 2.0 * best.cost / dof
+    Js = Jm * xs_f[None, :]
+    U, sv, Vt = np.linalg.svd(Js, full_matrices=False)
+    tol = sv.max() * 1e-9 if sv.size and sv.max() > 0 else 1.0
+    ok = sv > tol
+    inv = (Vt[ok].T / sv[ok] ** 2) @ Vt[ok]
+    cov = s2 * float(var_inflation) * inv * np.outer(xs_f, xs_f)
+    null = Vt[~ok]
     for j, k in enumerate(free):
         nm = names[k]
+        se = math.sqrt(max(cov[j, j], 0.0))
+        stderr[nm] = se
+        if null.size and np.max(np.abs(null[:, j])) > 0.1:
+            reasons[nm] = "not separable from other parameters (Jacobian rank-deficient)"
+    return stderr, reasons, cov
+
+
+def _bound_and_error_reasons(pb: _Branch, best, x: np.ndarray, table, stderr: dict, reasons: dict) -> None:
+    """Add the reason of each free parameter at a bound, or whose relative error is above 100 % and whose
+    effect on the torque is not negligible."""
+    lo_f, hi_f = pb.lo_f, pb.hi_f
+    for j, k in enumerate(pb.free):
+        nm = pb.names[k]
         if nm in reasons:
             continue
         span = hi_f[j] - lo_f[j]
@@ -352,12 +391,10 @@ def fit_branch(base: str, w, F, F_se=None, fixed: dict | None = None, n_refine: 
         if se is not None and (x[k] == 0 or se > abs(x[k])):
             dim = table[k].dim
             powr = _IMPACT_POWER.get(dim)
-            impact = None if powr is None else se * w0**powr
-            if impact is None or impact > NEGLIGIBLE * F0:
+            impact = None if powr is None else se * pb.w0**powr
+            if impact is None or impact > NEGLIGIBLE * pb.F0:
                 rel = se / abs(x[k]) if x[k] != 0 else math.inf
                 reasons[nm] = f"relative error {100 * rel:.0f} % (above 100 %)"
-    return BranchFit(values, stderr, reasons, fixed, cov, [names[k] for k in free], float(best.cost),
-                     bool(best.success), str(best.message))
 
 
 def warm_start(full: ModelFit) -> dict:
@@ -448,7 +485,6 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
     F = np.asarray(F, dtype=float)
     F_se = None if F_se is None else np.asarray(F_se, dtype=float)
     smap, asym = sm.split_asym(name)
-    base = smap.name
     fixed = dict(fixed or {})
     F0, w0 = _scales(w, F)
     notes: list[str] = []
@@ -459,77 +495,103 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
         branches = [("_pos", w[pos], F[pos], None if F_se is None else F_se[pos], "positive"),
                     ("_neg", -w[neg], -F[neg], None if F_se is None else F_se[neg], "negative")]
     params: dict[str, ParamEstimate] = {}
-    shapeless: dict[str, str] = {}
     covs = []
     k_total = 0
     success = True
     for suf, bw, bF, bse, side in branches:
         bfixed = {n: fixed[n + suf] for n in smap.names if n + suf in fixed}
+        bfixed = _held_delta(smap.name, bfixed, delta, bw.shape[0], suf, notes)
         p_free = len(smap.names) - len(bfixed)
-        if base == "stribeck" and "delta" not in bfixed and delta != "free" and delta != "auto":
-            bfixed["delta"] = float(delta)
         n = bw.shape[0]
-        if base == "stribeck" and delta == "auto" and "delta" not in bfixed and n <= p_free:
-            bfixed["delta"] = 2.0
-            notes.append(f"delta{suf} fixed at 2 (000/003): {n} plateaus are too few to free it")
-        p_free = len(smap.names) - len(bfixed)
         if n < p_free:
             what = f"{side}-velocity plateaus" if side else "plateaus"
             why = f"no {what}" if n == 0 else f"only {n} {what} for {p_free} parameters"
-            for prm in smap.table:
-                unit = unit_of(prm.dim, axis)
-                if prm.name in bfixed:
-                    params[prm.name + suf] = ParamEstimate(prm.name + suf, bfixed[prm.name], None, unit,
-                                                           False, why, fixed=True)
-                else:
-                    params[prm.name + suf] = ParamEstimate(prm.name + suf, None, None, unit, False, why)
+            params.update(_missing_branch(smap, suf, bfixed, why, axis))
             success = False
             continue
-        bstart = None
-        if start is not None:
-            bstart = {n: start.get(n + suf) for n in smap.names}
-            for n in smap.names:
-                if (h := start.get(HELD + n + suf)) is not None:
-                    bfixed[n] = h[0]
-                    if h[1]:
-                        shapeless[n + suf] = h[1]
-        bf = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0), start=bstart, var_inflation=var_inflation)
-        held = {} if bf.cov is None else _shapeless(base, bf.values, bf.cov, bf.free)
-        if held:  # a drop the data cannot tell from none: its shape held where it came out, the rest refitted
-            bfixed.update({nm: bf.values[nm] for nm in held})
-            bf = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0), start=bstart,
-                            var_inflation=var_inflation)
-            shapeless.update({nm + suf: why for nm, why in held.items()})
-        if base == "stribeck" and delta == "auto" and "delta" in bf.reasons and "delta" not in bfixed:
-            why = bf.reasons["delta"]
-            bfixed["delta"] = 2.0
-            bf2 = fit_branch(base, bw, bF, bse, bfixed, scales=(F0, w0), start=bstart,
-                             var_inflation=var_inflation)
-            notes.append(f"delta{suf} fixed at 2 (000/003): free, it was not identifiable ({why})")
-            bf = bf2
+        bf, shapeless = _fit_one_branch(smap.name, bw, bF, bse, bfixed, suf, start, delta, (F0, w0),
+                                        var_inflation, notes)
         success = success and bf.success
         k_total += len(bf.free)
         if bf.cov is not None:
             covs.append(bf.cov)
-        for prm in smap.table:
-            nm = prm.name
-            unit = unit_of(prm.dim, axis)
-            if nm + suf in shapeless:
-                params[nm + suf] = ParamEstimate(nm + suf, bf.fixed[nm], None, unit, False,
-                                                 shapeless[nm + suf], fixed=True)
-            elif nm in bf.fixed:
-                params[nm + suf] = ParamEstimate(nm + suf, bf.fixed[nm], None, unit, True,
-                                                 "held fixed", fixed=True)
-            else:
-                r = bf.reasons.get(nm, "")
-                params[nm + suf] = ParamEstimate(nm + suf, bf.values[nm], bf.stderr[nm], unit, not r, r)
+        params.update(_branch_params(smap, suf, bf, shapeless, axis))
     values = {k: v.value for k, v in params.items()}
     met = metrics(name, values, w, F, k_total)
-    cov = None
-    if covs:
-        from scipy.linalg import block_diag
-        cov = block_diag(*covs)
+    cov = block_diag(*covs) if covs else None
     mf = ModelFit(name=name, map=name, params=params, metrics=met, notes=notes, success=success, cov=cov,
                   method="bounded nonlinear least squares on plateau points, multi-start"
                   if not smap.linear else "bounded least squares on plateau points")
     return mf
+
+
+def _held_delta(base: str, bfixed: dict, delta, n: int, suf: str, notes: list[str]) -> dict:
+    """A branch's held parameters with the Stribeck exponent held as ``delta`` asks: at a given number, or
+    at 2 (000/003) when "auto" and the branch has too few plateaus to free it (noted in ``notes``)."""
+    p_free = len(sm.STATIC_MAPS[base].names) - len(bfixed)
+    if base == "stribeck" and "delta" not in bfixed and delta != "free" and delta != "auto":
+        bfixed["delta"] = float(delta)
+    if base == "stribeck" and delta == "auto" and "delta" not in bfixed and n <= p_free:
+        bfixed["delta"] = 2.0
+        notes.append(f"delta{suf} fixed at 2 (000/003): {n} plateaus are too few to free it")
+    return bfixed
+
+
+def _missing_branch(smap, suf: str, bfixed: dict, why: str, axis: str) -> dict[str, ParamEstimate]:
+    """The parameters of a branch with too few points: none identifiable, held ones at their value."""
+    params = {}
+    for prm in smap.table:
+        unit = unit_of(prm.dim, axis)
+        if prm.name in bfixed:
+            params[prm.name + suf] = ParamEstimate(prm.name + suf, bfixed[prm.name], None, unit,
+                                                   False, why, fixed=True)
+        else:
+            params[prm.name + suf] = ParamEstimate(prm.name + suf, None, None, unit, False, why)
+    return params
+
+
+def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict | None, delta, scales,
+                    var_inflation: float, notes: list[str]) -> tuple[BranchFit, dict[str, str]]:
+    """Fit one branch: from the warm start (its held parameters held again), then with the shape of a drop
+    the data cannot tell from none held where it came out, then (delta "auto") with a Stribeck exponent
+    that is not identifiable held at 2. Returns the fit and the held shapes' reasons (suffixed names)."""
+    shapeless: dict[str, str] = {}
+    bstart = None
+    if start is not None:
+        bstart = {n: start.get(n + suf) for n in sm.STATIC_MAPS[base].names}
+        for n in sm.STATIC_MAPS[base].names:
+            if (h := start.get(HELD + n + suf)) is not None:
+                bfixed[n] = h[0]
+                if h[1]:
+                    shapeless[n + suf] = h[1]
+    bf = fit_branch(base, bw, bF, bse, bfixed, scales=scales, start=bstart, var_inflation=var_inflation)
+    held = {} if bf.cov is None else _shapeless(base, bf.values, bf.cov, bf.free)
+    if held:  # a drop the data cannot tell from none: its shape held where it came out, the rest refitted
+        bfixed.update({nm: bf.values[nm] for nm in held})
+        bf = fit_branch(base, bw, bF, bse, bfixed, scales=scales, start=bstart, var_inflation=var_inflation)
+        shapeless.update({nm + suf: why for nm, why in held.items()})
+    if base == "stribeck" and delta == "auto" and "delta" in bf.reasons and "delta" not in bfixed:
+        why = bf.reasons["delta"]
+        bfixed["delta"] = 2.0
+        bf = fit_branch(base, bw, bF, bse, bfixed, scales=scales, start=bstart, var_inflation=var_inflation)
+        notes.append(f"delta{suf} fixed at 2 (000/003): free, it was not identifiable ({why})")
+    return bf, shapeless
+
+
+def _branch_params(smap, suf: str, bf: BranchFit, shapeless: dict[str, str], axis: str
+                   ) -> dict[str, ParamEstimate]:
+    """The parameter estimates of a fitted branch (suffixed names)."""
+    params = {}
+    for prm in smap.table:
+        nm = prm.name
+        unit = unit_of(prm.dim, axis)
+        if nm + suf in shapeless:
+            params[nm + suf] = ParamEstimate(nm + suf, bf.fixed[nm], None, unit, False,
+                                             shapeless[nm + suf], fixed=True)
+        elif nm in bf.fixed:
+            params[nm + suf] = ParamEstimate(nm + suf, bf.fixed[nm], None, unit, True,
+                                             "held fixed", fixed=True)
+        else:
+            r = bf.reasons.get(nm, "")
+            params[nm + suf] = ParamEstimate(nm + suf, bf.values[nm], bf.stderr[nm], unit, not r, r)
+    return params

@@ -307,34 +307,14 @@ def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 
     c_ref = runs[0].cycle_c[0].copy()
     F_scale = max(float(np.sqrt(np.mean([np.sum((r.cycle_L[k].T @ r.cycle_c[k]) ** 2) / 4
                                          for r in runs for k in range(r.n_cycles)]))), 1e-12)
-    span = sum(float(r.bin_h.sum()) for r in runs) / len(runs)
-    if model == "thermal4":
-        names = ["alpha", "beta", "logC"]
-    elif model == "thermal6":
-        names = [f"c{i}" for i in range(4)] + [f"dc{i}" for i in range(4)] + ["logC"]
-    else:
-        raise KeyError(f"unknown thermal model {model!r}; known: {', '.join(THERMAL_MODELS)}")
-    if fit_K:
-        names.append("logK")
+    names = _thermal_names(model, fit_K)
     lay = _Layout(model, names, c_ref, fit_K)
     n_obs = sum(4 * int(m.sum()) for m in masks)
     if sum(int(m.sum()) for m in masks) < 3 or n_obs <= len(names):
         return None
+    span = sum(float(r.bin_h.sum()) for r in runs) / len(runs)
+    starts = _thermal_starts(start, span, n_starts, 1.0 if not fit_K else K_REF, c_ref)
     best = None
-    K0 = 1.0 if not fit_K else K_REF
-    if start is not None:
-        st = {k: v for k, v in start.items() if k not in ("C", "K")}
-        st["logC"] = math.log(start["C"])
-        st["logK"] = math.log(start.get("K", K0))
-        starts = [st]
-    else:
-        starts = []
-        for tau in np.geomspace(span / 30, span, n_starts):
-            st = {"alpha": 0.0, "beta": 1.0, "logC": math.log(K0 * tau), "logK": math.log(K0)}
-            for i in range(4):
-                st[f"c{i}"] = c_ref[i]
-                st[f"dc{i}"] = 0.0
-            starts.append(st)
     for st in starts:
         x0 = np.array([st[n] for n in names])
         try:
@@ -349,6 +329,69 @@ def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 
     if best is None:
         return None
     x = best.x
+    values, stderr, reasons, cov = _thermal_estimates(best, names)
+    c0, sa, sb, dc, C, K = _unpack(lay, x)
+    fixed = {}
+    if model == "thermal4":
+        for i in range(4):
+            fixed[f"c{i}"] = float(c_ref[i])
+    if not fit_K:
+        fixed["K"] = K_REF
+    tc, tc_se = _time_constant(lay, x, cov, runs)
+    rms = _pred_rms(lay, x, runs, T0, masks)
+    cycle_T = []
+    for r in runs:
+        Tb = simulate_temperature(r, c0, sa, sb, dc, C, K, T0)
+        cycle_T.append((r.cycle_W @ Tb).tolist())
+    _impact_reasons(values, stderr, reasons, runs, cycle_T, T0, F_scale)
+    notes = []
+    if not fit_K:
+        notes.append(f"joint temperature not measured: K held at {K_REF} W/K (it only sets the temperature "
+                     "scale; C/K and the slopes per watt are what the data identify)")
+    tf = ThermalFit(model, values, stderr, reasons, fixed, T0, tc, tc_se, rms,
+                    sum(int(m.sum()) for m in masks), len(names), float(best.cost), bool(best.success), cycle_T,
+                    notes)
+    tf._lay = lay  # for held-out evaluation
+    tf._x = x
+    return tf
+
+
+def _thermal_names(model: str, fit_K: bool) -> list[str]:
+    """The least-squares variables of a thermal law (C and K by their logarithms; K only when the joint
+    temperature is measured)."""
+    if model == "thermal4":
+        names = ["alpha", "beta", "logC"]
+    elif model == "thermal6":
+        names = [f"c{i}" for i in range(4)] + [f"dc{i}" for i in range(4)] + ["logC"]
+    else:
+        raise KeyError(f"unknown thermal model {model!r}; known: {', '.join(THERMAL_MODELS)}")
+    if fit_K:
+        names.append("logK")
+    return names
+
+
+def _thermal_starts(start: dict | None, span: float, n_starts: int, K0: float, c_ref) -> list[dict]:
+    """The given start, or a grid of ``n_starts`` time constants from span/30 to span [s] with no
+    temperature effect."""
+    if start is not None:
+        st = {k: v for k, v in start.items() if k not in ("C", "K")}
+        st["logC"] = math.log(start["C"])
+        st["logK"] = math.log(start.get("K", K0))
+        return [st]
+    starts = []
+    for tau in np.geomspace(span / 30, span, n_starts):
+        st = {"alpha": 0.0, "beta": 1.0, "logC": math.log(K0 * tau), "logK": math.log(K0)}
+        for i in range(4):
+            st[f"c{i}"] = c_ref[i]
+            st[f"dc{i}"] = 0.0
+        starts.append(st)
+    return starts
+
+
+def _thermal_estimates(best, names: list[str]) -> tuple[dict, dict, dict, np.ndarray]:
+    """Values, standard errors and reasons (rank-deficient, or a log-variable's error above 100 %) of the
+    least-squares optimum ``best``, and the covariance of its variables."""
+    x = best.x
     p = len(names)
     dof = best.fun.size - p
     s2 = 2 * best.cost / dof if dof > 0 else math.nan
@@ -358,7 +401,6 @@ def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 
     cov = s2 * (Vt[ok].T / sv[ok] ** 2) @ Vt[ok]
     se = np.sqrt(np.maximum(np.diag(cov), 0)) if np.isfinite(s2) else np.full(p, np.nan)
     weak = Vt[sv < 1e-7 * sv.max()] if sv.size else np.zeros((0, p))
-    c0, sa, sb, dc, C, K = _unpack(lay, x)
     values, stderr, reasons = {}, {}, {}
     for j, n in enumerate(names):
         if n.startswith("log"):
@@ -374,13 +416,12 @@ def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 
             reasons[key] = "not separable from other parameters (Jacobian rank-deficient)"
         elif n.startswith("log") and np.isfinite(se[j]) and se[j] > 1.0:
             reasons[key] = f"relative error {100 * math.expm1(min(se[j], 50.0)):.3g} % (above 100 %)"
-    fixed = {}
-    if model == "thermal4":
-        for i in range(4):
-            fixed[f"c{i}"] = float(c_ref[i])
-    if not fit_K:
-        fixed["K"] = K_REF
-    # time constant at the mean duty power: t_c = C / (K - dW/dT)
+    return values, stderr, reasons, cov
+
+
+def _time_constant(lay, x: np.ndarray, cov: np.ndarray, runs: list[ThermalRun]) -> tuple[float, float | None]:
+    """The time constant [s] at the mean duty power, ``t_c = C / (K - dW/dT)``, and its standard error by
+    the delta method (None when it or the covariance is not finite)."""
     P_mean = np.concatenate([r.bin_P for r in runs]).mean(axis=0)
 
     def tc_of(xx):
@@ -392,6 +433,7 @@ def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 
     tc = tc_of(x)
     tc_se = None
     if np.isfinite(tc) and np.all(np.isfinite(cov)):
+        p = x.size
         g = np.zeros(p)
         for j in range(p):
             hstep = 1e-6 * max(1.0, abs(x[j]))
@@ -399,13 +441,13 @@ def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 
             xp[j] += hstep
             g[j] = (tc_of(xp) - tc) / hstep
         tc_se = math.sqrt(max(float(g @ cov @ g), 0.0))
-    rms = _pred_rms(lay, x, runs, T0, masks)
-    cycle_T = []
-    for r in runs:
-        Tb = simulate_temperature(r, c0, sa, sb, dc, C, K, T0)
-        cycle_T.append((r.cycle_W @ Tb).tolist())
-    # relative error above 100 % where it matters: its friction over the cycles' temperature span exceeds
-    # NEGLIGIBLE of the friction scale (a slope that changes the friction by less is harmless)
+    return tc, tc_se
+
+
+def _impact_reasons(values: dict, stderr: dict, reasons: dict, runs: list[ThermalRun], cycle_T: list,
+                    T0: float, F_scale: float) -> None:
+    """Relative error above 100 % where it matters: its friction over the cycles' temperature span exceeds
+    NEGLIGIBLE of the friction scale (a slope that changes the friction by less is harmless)."""
     dT_span = max((abs(T - T0) for ct in cycle_T for T in ct), default=0.0)
     rms_basis = np.sqrt(np.mean([np.diag(r.cycle_L[k] @ r.cycle_L[k].T) for r in runs
                                  for k in range(r.n_cycles)], axis=0))
@@ -420,15 +462,6 @@ def fit_thermal(runs: list[ThermalRun], model: str, masks=None, n_starts: int = 
         if impact > NEGLIGIBLE * F_scale:
             reasons[n] = (f"relative error {100 * e / abs(v):.3g} % (above 100 %)" if v else
                           "relative error above 100 %")
-    notes = []
-    if not fit_K:
-        notes.append(f"joint temperature not measured: K held at {K_REF} W/K (it only sets the temperature "
-                     "scale; C/K and the slopes per watt are what the data identify)")
-    tf = ThermalFit(model, values, stderr, reasons, fixed, T0, tc, tc_se, rms,
-                    sum(int(m.sum()) for m in masks), p, float(best.cost), bool(best.success), cycle_T, notes)
-    tf._lay = lay  # for held-out evaluation
-    tf._x = x
-    return tf
 
 
 def heldout(runs: list[ThermalRun], model: str, n_folds: int = 3, full: ThermalFit | None = None

@@ -14,10 +14,8 @@ here uses an explicit step:
   Second order, stable for any bristle stiffness, and in fast sliding ``z`` lands on its quasi-steady
   value ``g(w) sgn(w) / sigma0`` (an earlier version froze ``a`` only; that put ``z`` at ``w / a(w0)``
   and cost 10-60 % friction error when the velocity changed within a step).
-- :func:`lugre_friction` (the replay kernel): the friction predicted along a *given* (measured) velocity
-  array. Over a step the velocity is held at the midpoint value, so ``dz/dt = w - a z`` is linear and
-  ``z_new = z_ss + (z - z_ss) exp(-a h)``. Optionally a joint temperature is carried along, driven by the
-  predicted friction power ``F w`` through the heat balance of :mod:`frictid.models.thermal`.
+- the friction along a *given* (measured) velocity is :mod:`frictid.models.replay_kernel`'s, which uses
+  the level, viscous and thermal helpers below.
 
 Per-sign stiffness and damping (001 Table 2 gives sigma0 per sign) are selected by the sign of the
 bristle deflection ``z``, so that ``sigma0 z`` stays continuous through ``z = 0``.
@@ -32,8 +30,6 @@ import math
 
 import numpy as np
 from numba import njit
-
-from .static import canonical_level, canonical_viscous
 
 #: fastmath flags for the kernels: reassociation and fused multiply-add, but NaN/inf kept IEEE.
 _FM = {"contract", "arcp", "afn", "reassoc", "nsz"}
@@ -305,138 +301,9 @@ def lugre_rhs(z, w, u, J, sigma0, sigma1, g, f):
     return zd, (u - F) / J
 
 
-# ---------------------------------------------------------------------------------------------------
-# (b) Replay: friction along a given velocity
-
-
-@njit(cache=True, error_model="numpy", fastmath=_FM)
-def _replay_kernel(t, w, c_pos, c_neg, s0p, s0n, s1p, s1n, z0,
-                   code, theta, dc_pos, dc_neg, C, K, Tenv, T_init):
-    n = w.shape[0]
-    F = np.empty(n)
-    z = np.empty(n)
-    T = np.empty(n)
-    cp = np.empty(9)
-    cn = np.empty(9)
-    zk = z0
-    Tk = T_init
-    thermal = code != 0
-    if not thermal:
-        for i in range(9):
-            cp[i] = c_pos[i]
-            cn[i] = c_neg[i]
-    for k in range(n):
-        if thermal:
-            thermal_canon_nb(c_pos, dc_pos, code, theta, Tk, cp)
-            thermal_canon_nb(c_neg, dc_neg, code, theta, Tk, cn)
-        wk = w[k]
-        if zk >= 0.0:
-            s0 = s0p
-            s1 = s1p
-        else:
-            s0 = s0n
-            s1 = s1n
-        c = cp if wk >= 0.0 else cn
-        g = level_nb(abs(wk), c)
-        zd = wk - s0 * abs(wk) / g * zk
-        Fk = s0 * zk + s1 * zd + viscous_nb(wk, c)
-        F[k] = Fk
-        z[k] = zk
-        T[k] = Tk
-        if k + 1 < n:
-            h = t[k + 1] - t[k]
-            wm = 0.5 * (wk + w[k + 1])
-            cm = cp if wm >= 0.0 else cn
-            if wm != 0.0:
-                a = s0 * abs(wm) / level_nb(abs(wm), cm)
-                zss = wm / a
-                zk = zss + (zk - zss) * math.exp(-a * h)
-            if thermal:
-                Tss = Tenv[k] + Fk * wk / K
-                Tk = Tss + (Tk - Tss) * math.exp(-K * h / C)
-    return F, z, T
-
-
-def _replay_ref(t, w, c_pos, c_neg, s0p, s0n, s1p, s1n, z0,
-                code, theta, dc_pos, dc_neg, C, K, Tenv, T_init):
-    """Pure python/numpy twin of the replay kernel (uses static.py's vectorised map functions)."""
-    from .thermal import canonical_at, heat_step
-
-    n = w.shape[0]
-    F, z, T = np.empty(n), np.empty(n), np.empty(n)
-    zk, Tk = float(z0), float(T_init)
-    for k in range(n):
-        if code:
-            cp = canonical_at(c_pos, Tk, code, theta, dc_pos)
-            cn = canonical_at(c_neg, Tk, code, theta, dc_neg)
-        else:
-            cp, cn = c_pos, c_neg
-        s0, s1 = (s0p, s1p) if zk >= 0 else (s0n, s1n)
-        wk = float(w[k])
-        c = cp if wk >= 0 else cn
-        g = float(canonical_level(wk, c))
-        zd = wk - s0 * abs(wk) / g * zk
-        F[k] = s0 * zk + s1 * zd + float(canonical_viscous(wk, c))
-        z[k], T[k] = zk, Tk
-        if k + 1 < n:
-            h = t[k + 1] - t[k]
-            wm = 0.5 * (wk + w[k + 1])
-            if wm != 0:
-                cm = cp if wm >= 0 else cn
-                a = s0 * abs(wm) / float(canonical_level(wm, cm))
-                zk = wm / a + (zk - wm / a) * np.exp(-a * h)
-            if code:
-                Tk = float(heat_step(Tk, F[k] * wk, Tenv[k], C, K, h))
-    return F, z, T
-
-
 def _pair(x):
     if np.ndim(x) == 0:
         return float(x), float(x)
     a, b = x
     return float(a), float(b)
 
-
-def lugre_friction(t, w, c_pos, c_neg=None, sigma0=1e4, sigma1=0.0, z0=0.0, thermal=None,
-                   reference=False):
-    """Friction predicted by LuGre along a measured velocity.
-
-    t : sample times [s] (increasing); w : velocity [q/s] at those times.
-    c_pos, c_neg : canonical static vectors for w >= 0 and w < 0 (c_neg defaults to c_pos).
-    sigma0 : stiffness [F/q], a number or (pos, neg) pair selected by the sign of z.
-    sigma1 : damping [F s/q], number or (pos, neg) pair.
-    z0 : initial bristle deflection [q].
-    thermal : None, or a dict with keys ``code, theta, dc_pos, dc_neg`` (see
-    :func:`frictid.models.thermal.thermal_code`), ``C`` [J/K], ``K`` [W/K], ``Tenv`` [degC, scalar or
-    per sample] and ``T_init`` [degC, default Tenv[0]]; the joint temperature then follows the heat
-    balance driven by the predicted friction power.
-    reference : use the pure-numpy twin instead of the compiled kernel (slow; for tests).
-
-    Returns ``(F, z, T)``: friction [F], bristle state [q], joint temperature [degC] (NaN without thermal).
-    """
-    t = np.ascontiguousarray(t, dtype=float)
-    w = np.ascontiguousarray(w, dtype=float)
-    if t.shape != w.shape or t.ndim != 1:
-        raise ValueError("t and w must be 1-D arrays of the same length")
-    c_pos = np.ascontiguousarray(c_pos, dtype=float)
-    c_neg = c_pos.copy() if c_neg is None else np.ascontiguousarray(c_neg, dtype=float)
-    s0p, s0n = _pair(sigma0)
-    s1p, s1n = _pair(sigma1)
-    if thermal:
-        code = int(thermal["code"])
-        theta = np.asarray(thermal["theta"], dtype=float)
-        dc_pos = np.asarray(thermal.get("dc_pos", np.zeros(9)), dtype=float)
-        dc_neg = np.asarray(thermal.get("dc_neg", dc_pos), dtype=float)
-        C, K = float(thermal["C"]), float(thermal["K"])
-        Tenv = np.ascontiguousarray(np.broadcast_to(np.asarray(thermal["Tenv"], float), w.shape))
-        T_init = float(thermal.get("T_init", Tenv[0] if w.size else 0.0))
-    else:
-        code, theta = 0, np.zeros(4)
-        dc_pos = dc_neg = np.zeros(9)
-        C = K = 1.0
-        Tenv = np.zeros(w.shape)
-        T_init = np.nan
-    fn = _replay_ref if reference else _replay_kernel
-    F, z, T = fn(t, w, c_pos, c_neg, s0p, s0n, s1p, s1n, float(z0),
-                 code, theta, dc_pos, dc_neg, C, K, Tenv, T_init)
-    return F, z, T

@@ -1,0 +1,134 @@
+"""The evidence sentence of each finding: the numbers behind it, in plain words."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..models.static import canonical_friction
+from .chain import Trial
+from .model import canonical_vectors
+from .samples import Samples
+
+
+def fmt(x: float) -> str:
+    if x == 0 or not math.isfinite(x):
+        return f"{x:.3g}"
+    return f"{x:.3g}" if 1e-3 <= abs(x) < 1e5 else f"{x:.2e}"
+
+
+def _duration(seconds: float) -> str:
+    if seconds >= 2 * 3600:
+        return f"{seconds / 3600:.1f} h"
+    if seconds >= 120:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds:.0f} s"
+
+
+def _corr(a, b) -> float:
+    if a.size < 3 or np.std(a) == 0 or np.std(b) == 0:
+        return 0.0
+    return float(np.corrcoef(a, b)[0, 1])
+
+
+def evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> str:
+    """One plain sentence with the numbers behind a finding (and the causes the data cannot tell from it)."""
+    text = _evidence(tr, S, step, units, rigid)
+    if tr.rivals:
+        alt = ", ".join(f"{c} ({e}, held-out RMS {fmt(r)})" for c, e, r in tr.rivals)
+        text += f"; the data cannot tell it from {alt}"
+    return text
+
+
+def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> str:
+    F_u, q_u = units["F"], units["q"]
+    rb = S.F - tr.pred_before
+    corr = tr.pred_after - tr.pred_before
+    r = _corr(rb, corr)
+    term = step["term"]
+    nl = term.settings
+    coef = step["coef"]
+    st = step["structure"]
+    i = len(st.terms) - 1
+    g = np.atleast_1d(coef.gamma.get(i, np.zeros(0)))
+    tail = (f"{term.ext} cuts held-out RMS from {fmt(tr.rms_before)} to {fmt(tr.rms_after)} {F_u} "
+            f"({100 * tr.gain:.0f} %)")
+    ext = tr.ext
+    if ext in ("thermal4", "thermal6"):
+        order = np.argsort(S.th)
+        n10 = max(1, S.n // 10)
+        sg = np.sign(S.w)
+        early = float(np.mean((corr * sg)[order[:n10]]))
+        late = float(np.mean((corr * sg)[order[-n10:]]))
+        span = float(np.ptp(S.th)) * 3600
+        dirn = "falls" if late < early else "rises"
+        what = ("the measured joint temperature" if nl.get("source") == "temp_joint" else
+                f"the estimated thermal state (time constant {_duration(nl['tau_c'])})")
+        E = _cum_energy(S)
+        rE = _corr(rb * sg, E)
+        return (f"friction {dirn} {fmt(abs(late - early))} {F_u} over {_duration(span)} of recording, "
+                f"tracking {what} (r = {r:.2f}; cumulative friction energy r = {rE:.2f}); {tail}")
+    if ext == "position_periodic":
+        amp = float(np.hypot(*g[:2]))
+        return (f"friction level varies by +/-{100 * amp:.1f} % with position, period {fmt(nl['period'])} "
+                f"{q_u} (r = {r:.2f}); a periodic position modulation: {tail}")
+    if ext == "position_smooth":
+        d = np.array([-1.0, 1.0])
+        f = 1 + g[0] * d + g[1] * d * d
+        return (f"friction level changes by {100 * (f[1] - f[0]):+.1f} % from one end of the "
+                f"{fmt(2 * nl['qs'])} {q_u} of travel to the other (r = {r:.2f}); {tail}")
+    if ext.startswith("load_"):
+        var = {"load_torque": "load torque |J a + G(q)|", "load_gravity": "gravity torque |G(q)|",
+               "load_payload": "payload"}[ext]
+        unit = "kg" if ext == "load_payload" else F_u
+        per = float(g[0]) / nl["scale"]
+        return (f"friction level grows {100 * per * nl['scale']:+.1f} % per {fmt(nl['scale'])} {unit} of "
+                f"{var} (r = {r:.2f}); a load-dependent level: {tail}")
+    if ext in ("asym", "asym_scale"):
+        v = np.abs(S.w)
+        cp, cn = canonical_vectors(st, coef)
+        Fp = np.abs(canonical_friction(v, cp, cp))
+        Fn = np.abs(canonical_friction(-v, cn, cn))
+        ratio = float(np.mean(Fn) / np.mean(Fp)) if np.mean(Fp) > 0 else float("nan")
+        return (f"friction for w < 0 is {100 * abs(ratio - 1):.1f} % {'above' if ratio > 1 else 'below'} "
+                f"that for w > 0 at the same speeds (r = {r:.2f}); "
+                f"{'per-sign parameters' if ext == 'asym' else 'the w < 0 branch scaled'}: {tail}")
+    if ext == "stribeck":
+        return (f"the residual concentrates at low speed, below about {fmt(3 * nl['vs'])} {q_u}/s "
+                f"(r = {r:.2f}); a Stribeck term with vs = {fmt(nl['vs'])} {q_u}/s: {tail}")
+    if ext == "inertia":
+        J0 = rigid.get("J", 0.0)
+        return (f"the residual tracks the acceleration (r = {r:.2f}): inertia {fmt(J0)} -> "
+                f"{fmt(J0 + float(g[0]))} {units['J']}; {tail}")
+    if ext == "gravity":
+        return (f"the residual tracks cos q and sin q (r = {r:.2f}): gravity Px {fmt(rigid.get('Px', 0.0))} -> "
+                f"{fmt(rigid.get('Px', 0.0) + float(g[0]))}, Py {fmt(rigid.get('Py', 0.0))} -> "
+                f"{fmt(rigid.get('Py', 0.0) + float(g[1]))} {F_u}; {tail}")
+    if ext == "offset":
+        return (f"the residual carries a constant {fmt(float(g[0]))} {F_u} at both velocity signs "
+                f"(r = {r:.2f}); a torque offset: {tail}")
+    if ext == "drift":
+        span_h = float(np.ptp(S.th))
+        return (f"friction changes {100 * float(g[0]):+.3g} % per hour ({100 * float(g[0]) * span_h:+.3g} % over "
+                f"the {_duration(span_h * 3600)} between the first and last recording; r = {r:.2f}); a drift "
+                f"term: {tail}")
+    return f"r = {r:.2f}; {tail}"
+
+
+def _cum_energy(S: Samples) -> np.ndarray:
+    """Cumulative friction energy [J] at the samples (per log, from its start, on the drift clock order)."""
+    out = np.empty(S.n)
+    base = 0.0
+    for i, lg in enumerate(S.logs):
+        # the energy P dt summed up in place in one array of the log's length (the periods, the products
+        # and two sums held three at once: 87 MB over the diagnosis' arrays on a joint-hour, its peak)
+        E = np.empty(lg.n)
+        E[:1] = 0.0
+        np.subtract(lg.t[1:], lg.t[:-1], out=E[1:])
+        E *= S.power(i)
+        np.cumsum(E, out=E)
+        E += base
+        sel = S.li == i
+        out[sel] = E[S.k[sel]]
+        base = float(E[-1]) if E.size else base
+    return out

@@ -1,0 +1,206 @@
+"""Steps 2-4 of a joint's fit: every static map on the friction torque's points, then the choice.
+
+Each map of :mod:`frictid.models.static` (and its per-sign variant) is fitted on the basis the rigid-body
+step chose (:class:`~.mechanics.Friction`): plateau points with a held-out error by plateau folds
+(:mod:`.static`, :mod:`.select`), or every moving sample held out by time blocks (:mod:`.samples`). The
+polynomial also comes from the stage-1 regression itself (``polynomial_ls``). The base model is then
+chosen by held-out error and AIC (:func:`frictid.identify.select.choose`).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from frictid.models import static as sm
+from frictid.result import ModelFit
+
+from . import regression as rg
+from . import samples as smp
+from . import select as sel
+from .mechanics import POLY_COEFS, Friction, RigidBody, reg_estimate
+from .prepare import JointData
+from .static import fit_static, metrics
+
+#: The polynomial_ls model's method, on either basis.
+POLY_LS_METHOD = "linear least squares on all moving samples with J, gravity and offset (002 eq 4-11)"
+
+
+def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n_folds: int) -> None:
+    """Fit the wanted static maps and ``polynomial_ls`` on the basis of ``fr`` and give the ones the choice
+    can take their held-out error; records the plateaus used and warns about the basis."""
+    jf = jd.jf
+    plat, keys = fr.plat, fr.keys
+    jd.used["constant_velocity"] = [[float(a), float(b), jd.preps[int(k[0])].index] for a, b, k in
+                                    zip(plat.t_start, plat.t_end, keys)]
+    _basis_warnings(jd, fr)
+    static_names = [m for m in wanted if m in sm.map_names()]
+    if fr.basis == "samples":
+        _sample_maps(jd, rb, fr, static_names, n_folds)
+    for name in static_names if fr.basis == "plateaus" else ():
+        if len(plat) == 0:
+            jf.not_identified.append({"what": name, "reason": "no constant-velocity plateaus"})
+            continue
+        jf.models[name] = fit_static(name, plat.w, plat.F, plat.F_se, axis=jd.axis)
+    if "polynomial_ls" in wanted:
+        if fr.basis == "samples":
+            mf = _polynomial_ls_samples(jd, rb, fr)
+        else:
+            mf = _polynomial_ls(jd, rb, fr, n_folds)
+        if mf is not None:
+            jf.models["polynomial_ls"] = mf
+        else:
+            jf.not_identified.append({"what": "polynomial_ls", "reason": rb.why or "no moving samples"})
+    # held-out errors of the maps the choice can take (the identifiable ones, unless none gets one)
+    fitted = [n for n in static_names if n in jf.models]
+    if fr.basis == "samples":
+        sel.heldout_for_choice(jf.models, fitted, lambda n: smp.heldout_map(n, fr.S, jf.models[n], jd.axis),
+                               others=["polynomial_ls"])
+    else:
+        sel.heldout_for_choice(jf.models, fitted, lambda n: sel.heldout_static(
+            n, plat, n_folds, axis=jd.axis, full=jf.models[n]), others=["polynomial_ls"])
+
+
+def _basis_warnings(jd: JointData, fr: Friction) -> None:
+    """Warn about a sample basis, missing plateaus, or one velocity sign only."""
+    jf, plat, S = jd.jf, fr.plat, fr.S
+    npos, nneg = int((plat.w > 0).sum()), int((plat.w < 0).sum())
+    if fr.basis == "samples":
+        jf.warnings.append(fr.why)
+        if S is not None and ((S.w > 0).sum() == 0 or (S.w < 0).sum() == 0):
+            side = "positive" if (S.w < 0).sum() == 0 else "negative"
+            jf.warnings.append(f"one velocity sign only ({side} velocities): symmetric maps assume the other "
+                               "sign mirrors it; per-sign parameters of the other sign are not identifiable")
+    elif len(plat) == 0:
+        jf.warnings.append("no usable constant-velocity plateaus: the static maps cannot be fitted")
+    elif nneg == 0 or npos == 0:
+        side = "positive" if nneg == 0 else "negative"
+        jf.warnings.append(f"one velocity sign only ({side}-velocity plateaus): symmetric maps assume the "
+                           "other sign mirrors it; per-sign parameters of the other sign are not identifiable")
+
+
+def _sample_maps(jd: JointData, rb: RigidBody, fr: Friction, names: list[str], n_folds: int) -> None:
+    """The static maps on every moving sample of the final mechanics' friction torque (``fr.S`` is
+    rebuilt), their variance inflated by the residual's correlation."""
+    fr.S = S = smp.build(jd.preps, jd.min_speed, n_folds, exclude=fr.excl)
+    reg_fit = rb.fit
+    if reg_fit is not None and all(c in reg_fit.names for c in POLY_COEFS):
+        S.inflation = smp.variance_factor(S.F - sm.polynomial(S.w, **{c: reg_fit.value(c) for c in POLY_COEFS}))
+    for name in names:
+        jd.jf.models[name] = smp.fit_map(name, S, jd.axis, heldout=False)
+
+
+def choose_base(jd: JointData, fr: Friction, n_folds: int) -> None:
+    """Choose among the velocity-only static models (:data:`frictid.identify.select.BASE_MODELS`): sets
+    ``selected`` and ``selection`` of the result."""
+    jf = jd.jf
+    cands = [m for m in sel.BASE_MODELS if m in jf.models]
+    selected, rec = sel.choose(jf.models, cands)
+    rec["basis"] = {"plateaus": "plateau points (held out by plateau folds)",
+                    "samples": f"moving samples (held out by {smp.BLOCKS_PER_FOLD * n_folds} time blocks in "
+                               f"{n_folds} folds)"}[fr.basis]
+    rec["basis_reason"] = fr.why
+    jf.selected, jf.selection = selected, rec
+
+
+def _rss(b, ne: rg.NormalEquations) -> float:
+    """Residual sum of squares of coefficients ``b`` on normal equations ``ne``."""
+    return max(float(ne.yty - 2 * b @ ne.Xty + b @ ne.XtX @ b), 0.0)
+
+
+def _sample_metrics(reg_fit, seg_ne, names, n_folds) -> dict:
+    """rms, held-out rms (segments in folds by order), aic and n of a regression on its moving samples."""
+    total = rg.NormalEquations.total(ne for *_, ne in seg_ne)
+    k = len(names)
+    r_all = _rss(reg_fit.coef, total)
+    n = total.n
+    met = {"rms": math.sqrt(r_all / n) if n else None, "n": int(n), "k": k,
+           "aic": (n * math.log(r_all / n) + 2 * k) if n and r_all > 0 else None, "rms_heldout": None}
+    blocks = [ne for *_, ne in seg_ne if ne.n > 0]
+    if len(blocks) >= 2:
+        nf = min(n_folds, len(blocks))
+        e2 = 0.0
+        nn = 0
+        for f in range(nf):
+            out = rg.NormalEquations.total(blocks[i] for i in range(len(blocks)) if i % nf == f)
+            fit_f = rg.solve(total - out, names)
+            e2 += _rss(fit_f.coef, out)
+            nn += out.n
+        met["rms_heldout"] = math.sqrt(e2 / nn) if nn else None
+    return met
+
+
+def _polynomial_ls(jd: JointData, rb: RigidBody, fr: Friction, n_folds: int) -> ModelFit | None:
+    """polynomial_ls on the plateau basis: the stage-1 regression's polynomial, its metrics on the plateau
+    points, held out by plateau folds (the regression refitted without each fold's segments)."""
+    reg_fit, seg_ne, free_names, plat = rb.fit, rb.seg_ne, rb.regs.free, fr.plat
+    if reg_fit is None or not all(c in free_names for c in POLY_COEFS):
+        return None
+    params = {c: reg_estimate(c, reg_fit, jd) for c in POLY_COEFS}
+    values = {c: params[c].value for c in params}
+    if not len(plat):
+        return ModelFit("polynomial_ls", "polynomial", params, _sample_metrics(reg_fit, seg_ne, free_names, n_folds),
+                        method=POLY_LS_METHOD + "; no plateaus: metrics on the moving samples, held out by segment",
+                        extra={"basis": "moving samples"})
+    met = metrics("polynomial", values, plat.w, plat.F, 4)
+    met["rms_heldout"] = None
+    if len(plat) >= 4:
+        nf = n_folds if len(plat) >= 2 * n_folds else max(2, len(plat) // 2)
+        folds = sel.plateau_folds(plat.w, nf)
+        total = rg.NormalEquations.total(ne for *_, ne in seg_ne)
+        pred = np.full(len(plat), np.nan)
+        lookup = {(pi, si): ne for pi, si, ne in seg_ne}
+        for f in range(nf):
+            out = rg.NormalEquations(total.p)
+            for (pi, si), fo in zip(fr.keys, folds):
+                if fo == f and (int(pi), int(si)) in lookup:
+                    out = out + lookup[(int(pi), int(si))]
+            fitf = rg.solve(total - out, free_names)
+            vals = {c: fitf.value(c) for c in POLY_COEFS}
+            pred[folds == f] = sm.polynomial(plat.w[folds == f], **vals)
+        r = pred - plat.F
+        if np.all(np.isfinite(r)):
+            met["rms_heldout"] = float(np.sqrt(np.mean(r**2)))
+    return ModelFit("polynomial_ls", "polynomial", params, met, method=POLY_LS_METHOD)
+
+
+def _fold_equations(jd: JointData, rb: RigidBody, fr: Friction) -> list[rg.NormalEquations]:
+    """Normal equations of the stage-1 regression per fold of the sample basis' time blocks."""
+    S, free_names = fr.S, rb.regs.free
+    blocks = smp.block_ranges([np.asarray(p.log.t, float) for p in jd.preps], S.n_folds)
+    per_fold = [rg.NormalEquations(len(free_names)) for _ in range(S.n_folds)]
+    for p, rr in zip(jd.preps, blocks):
+        allowed = [(s.i0, s.i1) for s in p.segments if s.kind not in fr.excl] or [(0, p.log.n)]
+        ranges, folds = [], []
+        for i0, i1, b in rr:
+            for a, c in allowed:
+                lo, hi = max(i0, a), min(i1, c)
+                if hi > lo:
+                    ranges.append((lo, hi))
+                    folds.append(b % S.n_folds)
+        nes = rg.accumulate(ranges, free_names, p.log.q, p.w, p.a, p.log.tau, p.log.channels.get("payload"),
+                            rb.regs.known_coef, jd.min_speed, jd.axis)
+        for f, ne in zip(folds, nes):
+            per_fold[f] = per_fold[f] + ne
+    return per_fold
+
+
+def _polynomial_ls_samples(jd: JointData, rb: RigidBody, fr: Friction) -> ModelFit | None:
+    """polynomial_ls on the sample basis: metrics on the moving samples, held out by the time blocks of
+    :mod:`.samples` (the regression refitted without each fold, from per-block normal equations)."""
+    reg_fit, S, free_names = rb.fit, fr.S, rb.regs.free
+    if reg_fit is None or S is None or not all(c in free_names for c in POLY_COEFS):
+        return None
+    params = {c: reg_estimate(c, reg_fit, jd) for c in POLY_COEFS}
+    per_fold = _fold_equations(jd, rb, fr)
+    total = rg.NormalEquations.total(per_fold)
+    held, nn = 0.0, 0
+    for ne in per_fold:
+        if ne.n == 0 or total.n - ne.n <= len(free_names):
+            continue
+        held += _rss(rg.solve(total - ne, free_names).coef, ne)
+        nn += ne.n
+    met = smp.sample_metrics(_rss(reg_fit.coef, total), total.n, 4, math.sqrt(held / nn) if nn else None, S)
+    return ModelFit("polynomial_ls", "polynomial", params, met,
+                    method=POLY_LS_METHOD + "; metrics on the moving samples, held out by time blocks",
+                    extra={"basis": "moving samples"})

@@ -1,0 +1,362 @@
+"""Step 1 of a joint's fit: inertia, gravity and torque offset, then the friction torque and its plateaus.
+
+Stage 1 regresses the torque on the rigid-body terms and a polynomial friction by chunked least squares on
+the moving samples (002 eq 4-11, :mod:`.regression`), unless the log metadata gives them
+(:func:`known_from_meta`). The friction torque ``F = tau - J a - G(q) - offset`` then gives one averaged
+point per constant-velocity plateau, and the basis of the static maps is chosen (plateau points, or every
+moving sample: :mod:`.samples`). Stage 2 regresses the rigid-body terms again with the best per-sign map of
+the plateaus as the friction (the polynomial cannot follow a Stribeck drop, which then leaks into J; see
+``docs/fit.md``).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from frictid.models.params import unit_of
+from frictid.result import JointFit, ParamEstimate
+
+from . import regression as rg
+from . import samples as smp
+from .prepare import JointData, Prep, regression_exclude
+from .static import NEGLIGIBLE, Plateaus, fit_static, plateau_points, predict
+
+#: Maps tried for the stage-2 friction (no held-out split: only the best in-sample curve is needed).
+STAGE2_MAPS = ("stribeck_asym", "stribeck_2exp_asym", "polynomial_asym")
+#: The polynomial friction's coefficients in the regression.
+POLY_COEFS = ("c0", "c1", "c2", "c3")
+
+
+@dataclass
+class Regressors:
+    """The terms of the rigid-body regression: every name, those given by the log metadata (name ->
+    (value, stderr or None)) and whether the logs have a position channel."""
+
+    names: list[str]
+    known: dict[str, tuple[float, float | None]]
+    has_q: bool
+
+    @property
+    def free(self) -> tuple[str, ...]:
+        return tuple(n for n in self.names if n not in self.known)
+
+    @property
+    def known_coef(self) -> dict[str, float]:
+        return {n: self.known[n][0] for n in self.names if n in self.known}
+
+
+@dataclass
+class RigidBody:
+    """The stage-1 regression (None when there are no moving samples, ``why`` then says so) and its
+    per-segment normal equations (prep index, segment index, equations)."""
+
+    regs: Regressors
+    fit: rg.LinearFit | None
+    seg_ne: list[tuple[int, int, rg.NormalEquations]]
+    why: str
+
+
+@dataclass
+class Friction:
+    """The friction torque's points the static maps are fitted on: the plateaus (``keys[i]`` = (prep index,
+    segment index) of plateau i), the moving samples ``S`` (None without a regression), the ``basis``
+    chosen between them (``plateaus`` or ``samples``, with the reason) and the segment kinds kept out of
+    the samples."""
+
+    plat: Plateaus
+    keys: np.ndarray
+    S: smp.SampleSet | None
+    basis: str
+    why: str
+    excl: tuple[str, ...]
+
+
+def _meta_value(meta: dict, *keys):
+    for k in keys:
+        if k in meta and meta[k] is not None:
+            v = meta[k]
+            if isinstance(v, dict):
+                return v.get("value"), v.get("stderr")
+            try:
+                return float(v), None
+            except (TypeError, ValueError):
+                continue
+    return None, None
+
+
+def known_from_meta(meta: dict) -> dict[str, tuple[float, float | None]]:
+    """Inertia, gravity and offset given by the log metadata: name -> (value, stderr or None).
+
+    Keys: ``inertia`` (or ``J``), ``gravity`` ({Px, Py} or [Px, Py]), ``offset`` (or ``tau_offset``); each a
+    number or a mapping with ``value`` (and ``stderr``).
+    """
+    out = {}
+    v, s = _meta_value(meta, "inertia", "J")
+    if v is not None:
+        out["J"] = (float(v), s)
+    g = meta.get("gravity")
+    if isinstance(g, dict):
+        for k in ("Px", "Py"):
+            if k in g:
+                gv, gs = _meta_value(g, k)
+                if gv is not None:
+                    out[k] = (float(gv), gs)
+    elif isinstance(g, (list, tuple)) and len(g) == 2:
+        out["Px"], out["Py"] = (float(g[0]), None), (float(g[1]), None)
+    v, s = _meta_value(meta, "offset", "tau_offset")
+    if v is not None:
+        out["offset"] = (float(v), s)
+    return out
+
+
+def regressors(jd: JointData) -> Regressors:
+    """The rigid-body regression's terms for a joint's logs (and those its metadata gives)."""
+    known = {}
+    for p in jd.preps:
+        known.update(known_from_meta(p.log.meta or {}))
+    has_q = all(p.log.q is not None for p in jd.preps)
+    has_payload = all("payload" in p.log.channels for p in jd.preps)
+    names = ["J", *POLY_COEFS]
+    if has_q and jd.axis == "rotary":
+        names += ["Px", "Py"]
+    if has_payload and has_q:
+        names += ["Mx"] + (["My"] if jd.axis == "rotary" else [])
+    names += ["offset"]
+    return Regressors(names, known, has_q)
+
+
+def _dims(name: str) -> str:
+    return {"J": "J", "c0": "F", "c1": "D", "c2": "D2", "c3": "D3", "Px": "F", "Py": "F", "Mx": "M",
+            "My": "M", "offset": "F"}[name]
+
+
+def _unit(dim: str, axis: str) -> str:
+    if dim == "J":
+        return "kg m^2" if axis == "rotary" else "kg"
+    if dim == "M":
+        return "N m/kg" if axis == "rotary" else "N/kg"
+    return unit_of(dim, axis)
+
+
+def _speed_power(dim: str) -> int | None:
+    return {"F": 0, "D": 1, "D2": 2, "D3": 3}.get(dim)
+
+
+def reg_estimate(name: str, fit_: rg.LinearFit | None, jd: JointData, why_none: str = "") -> ParamEstimate:
+    """The estimate of regression term ``name``: identifiable unless it is not separable from the other
+    terms or its relative error is above 100 % and its effect on the torque is not negligible."""
+    dim = _dims(name)
+    unit = _unit(dim, jd.axis)
+    if fit_ is None or name not in fit_.names:
+        return ParamEstimate(name, None, None, unit, False, why_none or "not estimated")
+    v = fit_.value(name)
+    se = fit_.stderr(name)
+    if fit_.n == 0:
+        return ParamEstimate(name, None, None, unit, False, why_none or "no moving samples")
+    if name in fit_.dependent:
+        why = {"J": "no acceleration in the moving samples that the other terms cannot explain",
+               "Px": "the joint does not move through enough of its range to separate gravity from the offset",
+               "Py": "the joint does not move through enough of its range to separate gravity from the offset",
+               "offset": "not separable from gravity or the Coulomb term (one velocity sign or a fixed angle)",
+               }.get(name, "not separable from other regressors")
+        return ParamEstimate(name, v, None, unit, False, why)
+    reason = ""
+    if se is None or not np.isfinite(se):
+        reason = "no error estimate (too few samples)"
+    elif se > abs(v):
+        if name == "J":
+            impact = se * jd.a0
+        elif dim == "M":
+            impact = None
+        else:
+            p = _speed_power(dim)
+            impact = se * jd.w0**p if p is not None else None
+        if impact is None or impact > NEGLIGIBLE * jd.F0:
+            reason = f"relative error {100 * se / abs(v):.0f} % (above 100 %)" if v else "relative error above 100 %"
+    if name == "J" and v <= 0 and not reason:
+        reason = "not positive: the data do not determine the inertia"
+    return ParamEstimate(name, v, se, unit, not reason, reason)
+
+
+def set_mechanics(jd: JointData, reg_fit: rg.LinearFit | None, regs: Regressors, why_reg: str,
+                  source: str) -> None:
+    """Inertia, gravity and offset estimates of a joint from a regression (or the metadata)."""
+    jf, axis = jd.jf, jd.axis
+
+    def est(name):
+        if name in regs.known:
+            v, s = regs.known[name]
+            return ParamEstimate(name, v, s, _unit(_dims(name), axis), True, "", source="log metadata")
+        pe = reg_estimate(name, reg_fit, jd, why_reg)
+        pe.source = source
+        return pe
+
+    jf.inertia = est("J")
+    jf.gravity = {}
+    if axis == "rotary":
+        if regs.has_q:
+            jf.gravity = {n: est(n) for n in ("Px", "Py")}
+            _gravity_amplitude(jf)
+        else:
+            jf.gravity = {n: ParamEstimate(n, None, None, _unit("F", axis), False, "no position channel")
+                          for n in ("Px", "Py")}
+    elif "linear axis: a constant gravity force is part of the offset" not in jf.warnings:
+        jf.warnings.append("linear axis: a constant gravity force is part of the offset")
+    for n in ("Mx", "My"):
+        if n in regs.names:
+            jf.gravity[n] = est(n)
+    jf.offset = est("offset")
+
+
+def _gravity_amplitude(jf: JointFit) -> None:
+    px, py = jf.gravity["Px"], jf.gravity["Py"]
+    if px.value is not None and py.value is not None:
+        amp = math.hypot(px.value, py.value)
+        se = None
+        if px.stderr is not None and py.stderr is not None and amp > 0:
+            se = math.hypot(px.value * px.stderr, py.value * py.stderr) / amp
+        ok = px.identifiable and py.identifiable
+        jf.gravity["amplitude"] = ParamEstimate("amplitude", amp, se, _unit("F", jf.axis), ok,
+                                                "" if ok else "Px or Py not identifiable")
+
+
+def mechanics_not_identified(jf: JointFit) -> None:
+    """List the inertia, offset and gravity terms that are not identifiable."""
+    for n, pe in [("J", jf.inertia), ("offset", jf.offset), *jf.gravity.items()]:
+        if not pe.identifiable:
+            jf.not_identified.append({"what": n, "reason": pe.reason})
+
+
+def regress(preps: list[Prep], names, known_coef, min_speed, axis, friction=None):
+    """Chunked least squares over the moving samples of every log; per-segment normal equations."""
+    seg_ne: list[tuple[int, int, rg.NormalEquations]] = []
+    excl = regression_exclude(preps)
+    for pi, p in enumerate(preps):
+        ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in excl]
+        seg_ids = [si for si, s in enumerate(p.segments) if s.kind not in excl]
+        if not p.segments:  # no segmentation: every sample is a candidate
+            ranges, seg_ids = [(0, p.log.n)], [-1]
+        nes = rg.accumulate(ranges, names, p.log.q, p.w, p.a, p.log.tau, p.log.channels.get("payload"),
+                            known_coef, min_speed, axis, friction=friction)
+        seg_ne += [(pi, si, ne) for si, ne in zip(seg_ids, nes)]
+    if not seg_ne or not names:
+        return None, seg_ne
+    total = rg.NormalEquations.total(ne for *_, ne in seg_ne)
+    if total.n <= len(names):
+        return None, seg_ne
+    fit_ = rg.solve(total, names)
+    rho = 0.0
+    for p in preps:
+        ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in excl] or [(0, p.log.n)]
+        rho = max(rho, rg.residual_autocorrelation(fit_, ranges, p.log.q, p.w, p.a, p.log.tau,
+                                                   p.log.channels.get("payload"), known_coef, min_speed, axis,
+                                                   friction=friction))
+    fit_ = rg.solve(total, names, rho=rho)
+    fit_.cov = rg.robust_stderr(fit_.cov, rg.cluster_covariance(fit_, [ne for *_, ne in seg_ne]))
+    return fit_, seg_ne
+
+
+def rigid_body(jd: JointData, regs: Regressors, n_folds: int) -> tuple[RigidBody, Friction]:
+    """Inertia, gravity and offset of a joint (stage 1, then stage 2 when the plateaus allow it), and the
+    friction torque's points for the static maps. Sets ``inertia``, ``gravity`` and ``offset`` of the
+    result and lists those not identifiable."""
+    reg_fit, seg_ne = regress(jd.preps, regs.free, regs.known_coef, jd.min_speed, jd.axis)
+    rb = RigidBody(regs, reg_fit, seg_ne, "no moving samples" if reg_fit is None else "")
+    set_mechanics(jd, reg_fit, regs, rb.why, "")
+    plat, keys = plateaus(jd)
+    # the basis of the static maps: plateau points, or every moving sample when the plateaus give too few
+    # distinct speeds (an excitation run; see samples.py)
+    excl = regression_exclude(jd.preps)
+    S = smp.build(jd.preps, jd.min_speed, n_folds, exclude=excl) if reg_fit is not None else None
+    basis, why_basis = smp.choose_basis(plat.w, S.n_moving if S is not None else 0)
+    fr = Friction(plat, keys, S, basis, why_basis, excl)
+    _stage2(jd, rb, fr)
+    for p in jd.preps:  # the mechanics are final: cos q and sin q are not needed again (58 MB per joint-hour)
+        p._trig = None
+    mechanics_not_identified(jd.jf)
+    return rb, fr
+
+
+def _stage2(jd: JointData, rb: RigidBody, fr: Friction) -> None:
+    """With a static map from the plateaus, J / gravity / offset again with that map as the friction (the
+    polynomial cannot follow a Stribeck drop, which then leaks into J; see docs/fit.md); the plateaus of
+    the new friction torque replace ``fr``'s."""
+    mech = tuple(n for n in rb.regs.free if n not in POLY_COEFS)
+    fmap = _stage2_map(fr.plat) if mech and rb.fit is not None and fr.basis == "plateaus" else None
+    if fmap is None:
+        return
+    name2, friction, v_low = fmap
+    v_low = min(max(jd.min_speed, v_low), 0.5 * jd.w0)
+    reg2, _ = regress(jd.preps, mech, rb.regs.known_coef, v_low, jd.axis, friction=friction)
+    if reg2 is not None:
+        set_mechanics(jd, reg2, rb.regs, rb.why,
+                      f"least squares with the plateau map {name2} as the friction, |w| > {v_low:.3g}")
+        fr.plat, fr.keys = plateaus(jd)
+
+
+def plateaus(jd: JointData) -> tuple[Plateaus, np.ndarray]:
+    """Friction torque per sample (stored on each prep, with the gravity torque) and the plateau points of
+    all logs; keys[i] = (prep index, segment index) of plateau i."""
+    jf, axis = jd.jf, jd.axis
+    coef = {n: (pe.value if pe.value is not None else 0.0) for n, pe in
+            [("J", jf.inertia), ("offset", jf.offset), *jf.gravity.items()] if n != "amplitude"}
+    pls = []
+    for pi_, p in enumerate(jd.preps):
+        p.G = _gravity_torque(p, coef, axis)
+        F = coef.get("J", 0.0) * np.nan_to_num(p.a)
+        np.subtract(p.log.tau, F, out=F)
+        F -= p.G
+        p.F = F
+        pls.append((pi_, plateau_points(p.log.t, p.w, p.F, p.segments)))
+    cat = [(pi_, pl) for pi_, pl in pls if len(pl)]
+    if cat:
+        keys = np.array([(pi_, si) for pi_, pl in cat for si in pl.seg], dtype=int).reshape(-1, 2)
+        plat = Plateaus(*(np.concatenate([getattr(c, f) for _, c in cat]) for f in
+                          ("w", "F", "F_se", "w_se", "n", "t_start", "t_end", "seg")))
+    else:
+        keys = np.zeros((0, 2), int)
+        z = np.zeros(0)
+        plat = Plateaus(z, z, z, z, z.astype(int), z, z, z.astype(int))
+    return plat, keys
+
+
+def _gravity_torque(p: Prep, coef: dict, axis: str) -> np.ndarray:
+    """Gravity (and payload) torque plus the offset along a log [F]."""
+    q = p.log.q
+    G = np.zeros(p.log.n)
+    if q is not None and axis == "rotary":
+        cos_q, sin_q = p.trig()
+        G = coef.get("Px", 0.0) * cos_q
+        G += coef.get("Py", 0.0) * sin_q
+    if "payload" in p.log.channels and q is not None:
+        pl_ = p.log.channels["payload"]
+        G += coef.get("Mx", 0.0) * pl_ * (p.trig()[0] if axis == "rotary" else 1.0)
+        if axis == "rotary":
+            G += coef.get("My", 0.0) * pl_ * p.trig()[1]
+    G += coef.get("offset", 0.0)
+    return G
+
+
+def _stage2_map(plat):
+    """The best-fitting per-sign static map on the plateaus, as a callable w -> F, or None when the
+    plateaus do not cover both signs well enough."""
+    if (plat.w > 0).sum() < 6 or (plat.w < 0).sum() < 6:
+        return None
+    best = None
+    for name in STAGE2_MAPS:
+        mf = fit_static(name, plat.w, plat.F, plat.F_se)
+        vals = mf.values()
+        if any(v is None for v in vals.values()) or mf.metrics.get("rms") is None:
+            continue
+        if best is None or mf.metrics["rms"] < best[1]:
+            best = (name, mf.metrics["rms"], vals)
+    if best is None:
+        return None
+    name, _, vals = best
+    # below ~3 Stribeck velocities the friction is dominated by the Stribeck drop and presliding lag,
+    # which a static map does not follow through reversals: those samples do not enter stage 2
+    speeds = [v for k, v in vals.items() if k.split("_")[0] in ("vs", "ws1", "ws2")]
+    v_low = 3.0 * max(speeds) if speeds else 0.0
+    return name, (lambda w, _n=name, _v=vals: predict(_n, _v, w)), v_low
