@@ -18,7 +18,7 @@ from frictid import segments as seg
 from frictid.data import JointLog
 from frictid.diagnose import check_diagnosis, diagnose_fit
 from frictid.errors import FrictidInputError, LogFormatError, combined_log_error
-from frictid.identify import dynamics, maps, mechanics, prepare, thermal_fit
+from frictid.identify import dynamics, maps, mechanics, prepare, thermal_fit, validity
 from frictid.identify.pipeline import finish, nothing_identifiable, parse_models, thermal_names
 from frictid.result import FitResult, JointFit
 from frictid.io.logs import file_sha256, joint_row_blocks, read_logs
@@ -215,6 +215,7 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter:
     rb, fr = mechanics.rigid_body(jd, regs, n_folds)
     maps.static_maps(jd, rb, fr, wanted, n_folds)
     maps.choose_base(jd, fr, n_folds)
+    jd.jf.validity = validity.of_joint(jd.preps, fr, jd.min_speed)
     if "lugre" in wanted:
         dynamics.fit_lugre(jd, jd.jf.selected)
     th_wanted = thermal_names(wanted)

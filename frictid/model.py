@@ -359,8 +359,13 @@ class FrictionModel:
             warnings.warn(f"joint {self.joint}, model {self.name}: without {', '.join(missing)} its "
                           f"{'/'.join(missing)} extension is left at its neutral value", ValidityWarning,
                           stacklevel=3)
-        for key, x in (("speed", np.abs(w)), ("temperature", T), ("position", q)):
-            self._check_range(key, x, below=key != "speed")  # any speed down to rest is in a map's range
+        # the ranges of what the model depends on: any speed down to rest is in a map's range; position and
+        # temperature only where the model has a term for them
+        self._check_range("speed", np.abs(w), below=False)
+        if self.thermal:
+            self._check_range("temperature", T)
+        if needs["q"]:
+            self._check_range("position", q)
 
     def _check_range(self, key: str, x, below: bool = True) -> None:
         rng = self.validity.get(key)

@@ -159,7 +159,7 @@ def test_load_gives_the_model_and_params_reload(fitted, tmp_path):
     m = frictid.load(p)
     assert isinstance(m, FrictionModel) and m.name == res[log.joint].selected
     assert m.to_dict()["params"] == {k: v.to_dict() for k, v in res[log.joint].selected_fit.params.items()}
-    w = np.linspace(-1, 1, 41)
+    w = np.linspace(-0.9, 0.9, 41)
     assert np.array_equal(m.friction(w), res[log.joint].model.friction(w))
     with pytest.raises(frictid.errors.ConfigError, match="no joint"):
         frictid.load(p, joint="nope")

@@ -11,8 +11,6 @@ import frictid
 
 MAX_LINES = 80
 ROOT = Path(frictid.__file__).parent
-#: Packages still being split by their owners: checked, but not failing yet (remove the mark when done).
-UNDER_WAY = pytest.mark.xfail(strict=False, reason="functions of this package are still being split")
 
 
 def long_functions(package: str) -> list[str]:
@@ -30,8 +28,7 @@ def long_functions(package: str) -> list[str]:
     return out
 
 
-@pytest.mark.parametrize("package", ["segments", "report", pytest.param("identify", marks=UNDER_WAY),
-                                     pytest.param("diagnose", marks=UNDER_WAY)])
+@pytest.mark.parametrize("package", ["segments", "report", "identify", "diagnose"])
 def test_no_function_is_longer_than_80_lines(package):
     long = long_functions(package)
     assert not long, f"{len(long)} functions over {MAX_LINES} lines in frictid/{package}/:\n" + "\n".join(long)

@@ -46,3 +46,23 @@ def validity(basis_w: np.ndarray, moving_q: list[np.ndarray], moving_T: list[np.
         if rng is not None:
             out[key] = rng
     return out
+
+
+def of_joint(preps, friction, min_speed: float) -> dict:
+    """:func:`validity` of a joint's prepared logs (:class:`frictid.identify.prepare.Prep`) and the friction
+    points its static maps were fitted on (:class:`frictid.identify.mechanics.Friction`): the plateau speeds,
+    or the moving samples on the sample basis; positions and measured joint temperatures where
+    ``|w| > min_speed`` [q/s]."""
+    if friction.basis == "samples" and friction.S is not None:
+        basis_w = friction.S.w
+    else:
+        basis_w = friction.plat.w
+    qs, Ts = [], []
+    for p in preps:
+        moving = np.abs(np.nan_to_num(p.w)) > min_speed
+        if p.log.q is not None:
+            qs.append(np.asarray(p.log.q)[moving])
+        T = p.log.channels.get("temp_joint")
+        if T is not None:
+            Ts.append(np.asarray(T)[moving])
+    return validity(basis_w, qs, Ts)
