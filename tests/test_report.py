@@ -210,7 +210,7 @@ def test_every_section_is_present_for_a_log_that_supports_it(full_report, scenar
     jd = params["joints"][scenario["joint"]]
     # the summary names the chosen model, its parameters with errors and units, and the coverage
     summary = section_text(html, jid, "summary")
-    assert f"Chosen model: {jd['selected']}" in summary
+    assert f"Model: {jd['selected']}" in summary
     assert "±" in summary and "N m" in summary
     assert re.search(r"Velocity w &gt; 0: [0-9.]+ to [0-9.]+ rad/s over \d+ plateau points", summary)
     assert re.search(r"\d+ constant-velocity plateaus .*\d+ presliding ramps, \d+ steps, 6 duty cycles", summary)
@@ -233,7 +233,7 @@ def test_every_section_is_present_for_a_log_that_supports_it(full_report, scenar
     snippet = re.search(rf'<pre id="{jid}-yaml">(.*?)</pre>', html, re.S).group(1)
     import html as _html
     d = yaml.safe_load(_html.unescape(snippet))
-    assert d["joints"][scenario["joint"]]["model"] == jd["selected"]
+    assert d["joints"][scenario["joint"]]["model"]["name"] == jd["selected"]
 
 
 def test_plateau_points_are_the_fits(full_report, scenario):
