@@ -117,7 +117,8 @@ def param_rows(params: dict, base_params: dict | None = None, base_name: str = "
     for name, p in (params or {}).items():
         if not isinstance(p, dict):
             p = {"value": p}
-        status, reason = param_status(p, (base_params or {}).get(name), base_name)
+        base = base_params or {}
+        status, reason = param_status(p, base.get(name, base.get(re.sub(r"_(pos|neg)$", "", name))), base_name)
         se = p.get("stderr") if status == "identified" or status == "not identifiable" else None
         rows.append({"name": name, "value": fmt_pm(p.get("value"), se), "unit": p.get("unit", ""),
                      "status": status, "reason": reason, "source": p.get("source", "") or ""})
