@@ -462,10 +462,10 @@ def _validity_lines(j: _Joint) -> list[str]:
                          + (" (|w|; from rest up to the highest speed)" if key == "speed" else ""))
     if lines:
         return ["Recorded by the fit: " + "; ".join(lines) + "."]
-    spans = [f"{name} {fmt_num(j.cov[k][0], 3)} to {fmt_num(j.cov[k][1], 3)} {j.units['qd']}"
+    spans = [f"{name}: {fmt_num(j.cov[k][0], 3)} to {fmt_num(j.cov[k][1], 3)} {j.units['qd']}"
              for k, name in (("pos", "w > 0"), ("neg", "w < 0")) if j.cov.get(k)]
     if spans:
-        return ["Not recorded in the parameter file; the plateau points cover " + ", ".join(spans)
+        return ["Not recorded in the parameter file; the plateau points cover " + "; ".join(spans)
                 + ". Outside these speeds the model is extrapolated."]
     return ["Not recorded in the parameter file, and no plateau points to measure it on."]
 
@@ -863,6 +863,12 @@ def _selection_text(jd: dict) -> str:
         parts.append(f"LuGre: {rec['lugre']}.")
     if rec.get("reason"):
         parts.append(str(rec["reason"]))
+    check = rec.get("diagnosis_check") or {}
+    if isinstance(check, dict) and check.get("model") and check.get("fit_choice") != check.get("model"):
+        took = check.get("kept") in (None, check.get("model")) and jd.get("selected") == check.get("model")
+        parts.append(f"The diagnosis' model {check['model']} (held-out RMS {fmt_num(check.get('rms_heldout'))} on "
+                     f"plateau means, against {fmt_num(check.get('rms_heldout_fit_choice'))} for the fit's choice "
+                     f"{check.get('fit_choice')}) " + ("replaced that choice." if took else "was not adopted."))
     return " ".join(parts)
 
 
