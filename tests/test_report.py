@@ -975,7 +975,7 @@ def test_labels_agree_between_the_tables(offset_asym):
         if key in jd["models"][sel]["params"]:
             assert r["status"] == rows[key]["status"]
     offset_row = next(r for r in summary["rigid"] if r["name"] == "offset")
-    assert offset_row["value"] == "0" and offset_row["status"] == "held"
+    assert offset_row["value"] == "0" and offset_row["status"] == "held"  # its reason says why
     assert all(r["basis"] in ("plateau means", "sliding samples", "moving samples", "duty cycles")
                for r in model_rows.values())
     assert model_rows[sel]["basis"] == "sliding samples" and "on sliding samples" in summary["heldout"]

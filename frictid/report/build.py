@@ -93,8 +93,9 @@ def slug(s: str) -> str:
 def param_status(p: dict, base: dict | None = None, base_name: str = "") -> tuple[str, str]:
     """The verdict of a parameter entry and its reason, one of: ``identified`` (an estimate with its
     standard error), ``held`` (held at a stated value: ``fixed``, or an extended model's shape parameter
-    held at the value of its base model ``base``, or a value from elsewhere, ``source``), ``not
-    identifiable`` (with the fit's reason) and ``no s.e.`` (a value without a standard error)."""
+    held at the value of its base model ``base``), ``not
+    identifiable`` (with the fit's reason) and ``no s.e.`` (a value without a standard error, with where it
+    came from when the file says: the log metadata, another stage of the fit)."""
     v, se = ct.pvalue(p.get("value")), ct.pvalue(p.get("stderr"))
     if p.get("fixed"):
         return "held", str(p.get("reason") or "held fixed")
@@ -105,7 +106,7 @@ def param_status(p: dict, base: dict | None = None, base_name: str = "") -> tupl
         if bv is not None and abs(bv - v) <= 1e-9 * max(abs(v), 1e-300):
             return "held", f"at the value of the base model {base_name}" if base_name else "at the base model's value"
         if p.get("source") and se is None:
-            return "held", f"from {p['source']}"
+            return "no s.e.", f"from {p['source']}"
         return "no s.e.", "the parameter file gives no standard error"
     return "identified", ""
 
@@ -467,6 +468,12 @@ def _validity_lines(j: _Joint) -> list[str]:
     if spans:
         return ["Not recorded in the parameter file; the plateau points cover " + "; ".join(spans)
                 + ". Outside these speeds the model is extrapolated."]
+    w = np.concatenate([np.abs(d.w[np.isfinite(d.w)]) for d in j.datas]) if j.datas else np.zeros(0)
+    w = w[w > ct.min_speed(j.datas)] if w.size else w
+    if w.size:
+        return [f"Not recorded in the parameter file, and no plateau points; the moving samples reach |w| "
+                f"{fmt_num(np.percentile(w, 99.5), 3)} {j.units['qd']} (99.5th percentile). Beyond it the model "
+                "is extrapolated."]
     return ["Not recorded in the parameter file, and no plateau points to measure it on."]
 
 
@@ -491,8 +498,9 @@ def _found_lines(j: _Joint) -> list[str]:
             names = sorted({t["extension"] for t in tested})
             out.append(f"No finding: the diagnosis tested {len(names)} extensions ({', '.join(names)}); none "
                        "cut the held-out error significantly.")
-        elif "diagnosis" in (j.jd.get("selection") or {}):
-            out.append("No finding.")
+        elif isinstance((j.jd.get("selection") or {}).get("diagnosis"), dict):
+            skipped = j.jd["selection"]["diagnosis"].get("skipped")
+            out.append(f"Nothing tested: {skipped}." if skipped else "No finding.")
         else:
             out.append("The diagnosis has not run on this identification (frictid fit --no-diagnose?).")
     return out
@@ -727,8 +735,10 @@ def _diagnosis(j: _Joint, vmin: float) -> Section:
                        "references and controller. The headline is the median absolute residual: the RMS "
                        "is dominated by the short spikes at velocity reversals, where no static map holds.")
     if not findings:
+        skipped = ((j.jd.get("selection") or {}).get("diagnosis") or {}).get("skipped")
         s.notes.insert(0, "No finding." + (" Every extension tested is listed above with its held-out gain; none "
                                            "was significant." if s.data["tested"] else
+                                           f" Nothing was tested: {skipped}." if skipped else
                                            " The parameter file records no diagnosis test: the diagnosis has "
                                            "not run on this identification (frictid fit --no-diagnose)."))
     if j.datas and not replays:
