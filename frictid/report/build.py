@@ -173,13 +173,21 @@ def heldout_basis(jd: dict, name: str) -> str:
     """What a model's held-out RMS was computed on, in words: the plateau means (the static maps and
     whatever the fit ranked with them), the sliding samples (the diagnosis' models), the duty cycles
     (thermal laws)."""
-    md = (jd.get("models") or {}).get(name) or {}
-    if "+" in name or "base" in md or str(md.get("method", "")).startswith("diagnosis"):
-        return "sliding samples"
+    models = jd.get("models") or {}
+    md = models.get(name) or {}
+    basis = str((jd.get("selection") or {}).get("basis") or "plateau points")
+    ranked = "moving samples" if basis.startswith(("moving", "samples")) else "plateau means"
+    if md.get("basis") == "moving samples":
+        return "moving samples"
     if name in ct.THERMAL_LAWS:
         return "duty cycles"
-    basis = str((jd.get("selection") or {}).get("basis") or "plateau points")
-    return "moving samples" if basis.startswith(("moving", "samples")) else "plateau means"
+    if "+" in name or "base" in md or str(md.get("method", "")).startswith("diagnosis"):
+        # an extended model fitted on the sliding samples; one whose metrics are its base map's (a LuGre
+        # extension keeps the plateau fit) has the ranked models' point count
+        n = (md.get("metrics") or {}).get("n")
+        base_n = ((models.get(md.get("base")) or {}).get("metrics") or {}).get("n")
+        return ranked if n is not None and n == base_n and "sliding" not in str(md.get("method", "")) else "sliding samples"
+    return ranked
 
 
 def _aic_why(met: dict, basis: str) -> str:

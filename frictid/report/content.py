@@ -23,9 +23,10 @@ from frictid.result import JointFit
 
 #: Moving samples: |w| above this fraction of the 99.5th percentile of |w| (as the fit).
 MIN_SPEED_FRACTION = 0.02
-#: Most ramps and steps drawn per joint (the fit uses them all; the figure would only get crowded).
-MAX_RAMPS_DRAWN = 8
-MAX_STEPS_DRAWN = 6
+#: Most ramps and steps drawn per joint (the fit uses them all): at most 5 measured curves per panel, each
+#: in its own colour and marker (a step also has its simulated curve, dashed in the same colour).
+MAX_RAMPS_DRAWN = 5
+MAX_STEPS_DRAWN = 3
 #: Samples drawn per ramp / step transient at most (stride decimation of the drawn curve only).
 MAX_CURVE_POINTS = 600
 
