@@ -788,10 +788,10 @@ def _replay_figure(j: _Joint, d: ct.LogData, k: int, r: ct.Replay) -> fg.Rendere
     absolute value (robust to the spikes at reversals), its 95th percentile and its RMS."""
     st = ct.residual_stats(r.residual(d))
     u = j.units["tau"]
-    title = (f"Replay of {r.model} along {d.label or 'the log'}: median |residual| {fmt_num(st['median_abs'], 3)} {u}"
+    title = (f"Replay of {r.model}: median |residual| {fmt_num(st['median_abs'], 3)} {u}"
              f" (95 % below {fmt_num(st['p95_abs'], 3)}, RMS {fmt_num(st['rms'], 3)})")
     return fg.replay(d.log.t, d.log.tau, r.tau_model, j.units, title, j.salt("replay", k),
-                     q=d.log.q, q_model=r.q_model)
+                     q=d.log.q, q_model=r.q_model, source=d.label or "the log")
 
 
 def _finding_row(f: dict, prev) -> dict:

@@ -611,9 +611,10 @@ def diagnosis(finding: dict, res: dict, units: dict, salt: str) -> Rendered:
 
 
 @_gc_paused
-def replay(t, tau, tau_model, units: dict, title: str, salt: str, q=None, q_model=None) -> Rendered:
+def replay(t, tau, tau_model, units: dict, title: str, salt: str, q=None, q_model=None, source: str = "") -> Rendered:
     """Measured torque and the model's replay along the log and their difference; with a closed-loop
-    re-simulation, the measured and simulated position and their difference too."""
+    re-simulation, the measured and simulated position and their difference too. ``source``: the log's
+    name, for the caption (the title stays short enough for the figure's width)."""
     t = np.asarray(t, float)
     lo, hi = float(t[0]), float(t[-1])
     div, tlabel = time_axis(hi - lo)
@@ -646,6 +647,7 @@ def replay(t, tau, tau_model, units: dict, title: str, salt: str, q=None, q_mode
         axes[-1].set_xlabel(tlabel)
         axes[0].set_xlim(lo / div, hi / div)
         axes[0].set_title(title, loc="left")
-        alt = (f"{title}: measured and model torque against time and their difference"
+        alt = (f"{title}{' along ' + source if source else ''}: measured and model torque against time and their "
+               "difference"
                + ("; measured and simulated position in closed loop" if closed else ""))
         return render(fig, alt, salt, points)
