@@ -1,8 +1,11 @@
 """The report in a real browser: headless Chromium (Debian's ``chromium``, which ``.ci/run`` installs)
-loads it from a file, and through the DevTools protocol the test checks that no console error or exception
-appears, every image has loaded, every figure has a size, nothing overflows a 1280 px wide window, and
-saves a full-page screenshot (in the test's temporary folder; ``FRICTID_REPORT_ARTIFACTS=DIR`` also copies
-the report and the screenshot to DIR).
+loads it from a file, at a desktop width (1280 px) and a phone's (390 px), and through the DevTools protocol
+the test checks that no console error or exception appears, every image has loaded, every figure has a
+size, no two texts overlap (the boxes of the page's text and of the figures' SVG text: tick labels, legends,
+titles), nothing is wider than the window outside a scrollable container, no table header breaks inside a
+word, and saves a full-page screenshot per width (in the test's temporary folder;
+``FRICTID_REPORT_ARTIFACTS=DIR`` also copies the report and the screenshots to DIR), which it compares: not
+blank, a sane page height, the phone's page taller than the desktop's.
 
 The DevTools websocket is spoken by :class:`DevTools`, a small client on the standard library (text
 frames, masking, fragmented and long messages), so the test needs no extra package. It skips, saying why,
@@ -26,6 +29,7 @@ import pytest
 
 BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 WIDTH = 1280
+PHONE = 390
 
 
 def find_browser() -> str | None:
@@ -193,23 +197,69 @@ CHECKS = """(() => {
   const figs = Array.from(document.querySelectorAll('svg.fig, figure img'));
   const empty = figs.filter(f => { const r = f.getBoundingClientRect(); return !(r.width > 50 && r.height > 50); })
                     .map(f => f.getAttribute('aria-label') || f.alt);
+  // inside a container that scrolls sideways, content wider than the window is reachable
+  const scrolls = el => { for (let p = el.parentElement; p && p !== document.body; p = p.parentElement) {
+      const o = getComputedStyle(p).overflowX; if (o === 'auto' || o === 'scroll') return true; } return false; };
   const over = [];
   for (const el of document.body.querySelectorAll('*')) {
+    if (el.closest('svg') && el.tagName.toLowerCase() !== 'svg') continue;
     const r = el.getBoundingClientRect();
-    if (r.width > 0 && (r.right > W + 0.5 || r.left < -0.5)) {
+    if (r.width > 0 && (r.right > W + 0.5 || r.left < -0.5) && !scrolls(el)) {
       over.push(el.tagName.toLowerCase() + (el.id ? '#' + el.id : '') + ' ' + Math.round(r.left) + '..' + Math.round(r.right));
       if (over.length > 10) break;
     }
   }
+  // text boxes: every line of every HTML text node, every SVG <text>
+  const boxes = [];
+  const walk = document.createTreeWalker(document.body, NodeFilter.SHOW_TEXT);
+  for (let n = walk.nextNode(); n; n = walk.nextNode()) {
+    if (!n.textContent.trim() || n.parentElement.closest('svg, script, style')) continue;
+    const cs = getComputedStyle(n.parentElement);
+    if (cs.visibility === 'hidden' || cs.display === 'none') continue;
+    const rg = document.createRange(); rg.selectNodeContents(n);
+    for (const r of rg.getClientRects()) if (r.width > 1 && r.height > 1)
+      boxes.push({r: r, id: boxes.length, node: n, what: n.textContent.trim().slice(0, 40)});
+  }
+  for (const t of document.querySelectorAll('svg text')) {
+    const r = t.getBoundingClientRect();
+    if (r.width > 1 && r.height > 1 && t.textContent.trim()) boxes.push({r: r, node: t, what: 'svg: ' + t.textContent.trim().slice(0, 40)});
+  }
+  const tol = 1.0, overlaps = [];
+  boxes.sort((a, b) => a.r.top - b.r.top);
+  for (let i = 0; i < boxes.length && overlaps.length < 12; i++) {
+    const a = boxes[i].r;
+    for (let k = i + 1; k < boxes.length && boxes[k].r.top < a.bottom - tol; k++) {
+      const b = boxes[k].r;
+      if (boxes[k].node === boxes[i].node) continue;
+      if (b.left < a.right - tol && a.left < b.right - tol && b.top < a.bottom - tol && a.top < b.bottom - tol) {
+        overlaps.push(boxes[i].what + ' | ' + boxes[k].what); if (overlaps.length >= 12) break;
+      }
+    }
+  }
+  // table headers broken inside a word: a word whose characters lie on more than one line
+  const midword = [];
+  for (const th of document.querySelectorAll('th')) {
+    const tw = document.createTreeWalker(th, NodeFilter.SHOW_TEXT);
+    for (let n = tw.nextNode(); n; n = tw.nextNode()) {
+      const re = /\\S+/g; let m;
+      while ((m = re.exec(n.textContent)) !== null) {
+        const rg = document.createRange(); rg.setStart(n, m.index); rg.setEnd(n, m.index + m[0].length);
+        const tops = new Set(Array.from(rg.getClientRects()).filter(r => r.width > 0).map(r => Math.round(r.top)));
+        if (tops.size > 1) midword.push(th.textContent.trim().slice(0, 40));
+      }
+    }
+  }
   return {width: W, scrollWidth: document.documentElement.scrollWidth, height: document.documentElement.scrollHeight,
           images: imgs.length, broken: broken, figures: figs.length, empty: empty, overflow: over,
+          texts: boxes.length, overlaps: overlaps, midword: midword,
           sections: document.querySelectorAll('section.part').length,
           absent: document.querySelectorAll('section.part.absent').length};
 })()"""
 
 
-def load_report(exe: str, html_path: Path, screenshot: Path | None = None) -> dict:
-    """Load a report file and return the checks, console errors, load time and screenshot path."""
+def load_report(exe: str, html_path: Path, screenshot: Path | None = None, width: int = WIDTH) -> dict:
+    """Load a report file in a window ``width`` px wide (a phone's, with its viewport, below 600 px) and
+    return the checks, console errors, load time and screenshot path."""
     b = Browser(exe)
     try:
         dt = b.page()
@@ -217,7 +267,7 @@ def load_report(exe: str, html_path: Path, screenshot: Path | None = None) -> di
             for dom in ("Page", "Runtime", "Log"):
                 dt.call(f"{dom}.enable")
             dt.call("Emulation.setDeviceMetricsOverride",
-                    {"width": WIDTH, "height": 900, "deviceScaleFactor": 1, "mobile": False})
+                    {"width": width, "height": 900, "deviceScaleFactor": 1, "mobile": width < 600})
             t0 = time.monotonic()
             nav = dt.call("Page.navigate", {"url": html_path.resolve().as_uri()})
             assert not nav.get("errorText"), nav
@@ -229,7 +279,7 @@ def load_report(exe: str, html_path: Path, screenshot: Path | None = None) -> di
             if screenshot is not None:
                 h = min(int(checks["height"]), 16000)
                 shot = dt.call("Page.captureScreenshot", {"format": "png", "captureBeyondViewport": True,
-                                                          "clip": {"x": 0, "y": 0, "width": WIDTH, "height": h,
+                                                          "clip": {"x": 0, "y": 0, "width": width, "height": h,
                                                                    "scale": 1}}, timeout=120)
                 screenshot.write_bytes(base64.b64decode(shot["data"]))
             errors = []
@@ -258,7 +308,27 @@ def browser():
     return exe
 
 
-def test_report_loads_cleanly_in_chromium(browser, tmp_path_factory, tmp_path):
+def screenshot_stats(path: Path) -> dict:
+    """Size, share of non-white pixels and the number of distinct grey levels of a screenshot (Pillow comes
+    with matplotlib)."""
+    from PIL import Image
+
+    with Image.open(path) as im:
+        g = im.convert("L")
+        small = g.resize((max(1, g.width // 4), max(1, g.height // 4)))
+        px = list(small.tobytes())
+    return {"width": g.width, "height": g.height, "ink": sum(1 for v in px if v < 240) / max(len(px), 1),
+            "levels": len(set(px))}
+
+
+_PAGE: dict = {}
+
+
+def report_page(tmp_path_factory) -> Path:
+    """The scenario's report with a second joint without logs (the index and the "absent" explanations
+    are rendered too), written once."""
+    if _PAGE:
+        return _PAGE["path"]
     from test_report import build_scenario, truth_segments
 
     from frictid.io.logs import read_many
@@ -267,29 +337,45 @@ def test_report_loads_cleanly_in_chromium(browser, tmp_path_factory, tmp_path):
 
     sc = build_scenario(tmp_path_factory)
     params = load_params_dict(sc["params"])
-    # a second joint without logs, so that the index and the "absent" explanations are rendered too
     params["joints"]["second"] = dict(params["joints"][sc["joint"]], diagnosis=[])
-    out = tmp_path / "report.html"
+    out = tmp_path_factory.mktemp("browser") / "report.html"
     write_report(str(out), params, read_many([sc["log"]]), params_path=sc["params"],
                  command="frictid report (browser test)", segmenter=truth_segments)
-    shot = tmp_path / "report.png"
-    r = load_report(browser, out, shot)
+    _PAGE["path"] = out
+    return out
+
+
+@pytest.mark.parametrize("width", [WIDTH, PHONE])
+def test_report_loads_cleanly_in_chromium(browser, tmp_path_factory, tmp_path, width):
+    out = report_page(tmp_path_factory)
+    shot = out.parent / f"report-{width}.png"
+    r = load_report(browser, out, shot, width=width)
     c = r["checks"]
-    print(f"report {out} ({out.stat().st_size / 1e6:.2f} MB) loaded in {r['load_s']:.2f} s; "
-          f"screenshot {shot}; {c['figures']} figures, {c['images']} images")
+    print(f"{width} px: report {out} ({out.stat().st_size / 1e6:.2f} MB) loaded in {r['load_s']:.2f} s; "
+          f"screenshot {shot}; {c['figures']} figures, {c['images']} images, {c['texts']} text boxes, "
+          f"page {c['height']} px high")
     assert not r["errors"], r["errors"]
-    assert c["width"] == WIDTH
+    assert c["width"] == width
     assert c["sections"] == 16 and c["absent"] >= 3
     assert c["figures"] >= 7 and not c["empty"], c["empty"]
     assert not c["broken"], c["broken"]
-    assert c["scrollWidth"] <= WIDTH and not c["overflow"], c["overflow"]
+    assert c["scrollWidth"] <= width and not c["overflow"], c["overflow"]
+    assert not c["overlaps"], c["overlaps"]
+    assert not c["midword"], c["midword"]
+    assert c["texts"] > 500  # the check saw the page's text and the figures'
     assert r["load_s"] < 10.0
-    assert shot.stat().st_size > 50_000 and shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    st = screenshot_stats(shot)
+    assert st["width"] == width and st["height"] == min(c["height"], 16000)
+    assert st["ink"] > 0.02 and st["levels"] > 20, st  # not blank
+    assert 3 * 900 < c["height"] < 60 * 900, c["height"]  # a sane page: several screens, not endless
+    _PAGE[width] = c["height"]
+    if WIDTH in _PAGE and PHONE in _PAGE:
+        assert _PAGE[PHONE] > _PAGE[WIDTH]  # the narrow page stacks what the wide one lays side by side
     keep = os.environ.get("FRICTID_REPORT_ARTIFACTS")  # e.g. a CI artifact folder
     if keep:
         Path(keep).mkdir(parents=True, exist_ok=True)
         shutil.copy(out, Path(keep) / "report.html")
-        shutil.copy(shot, Path(keep) / "report.png")
+        shutil.copy(shot, Path(keep) / shot.name)
 
 
 def test_a_png_figure_loads_as_an_image(browser, tmp_path):
@@ -316,3 +402,22 @@ def test_a_png_figure_loads_as_an_image(browser, tmp_path):
     res = load_report(browser, page)
     assert not res["errors"], res["errors"]
     assert res["checks"]["images"] == 1 and not res["checks"]["broken"]
+
+
+def test_the_checks_catch_overlap_overflow_and_broken_headers(browser, tmp_path):
+    """The layout checks fail where they should: two SVG labels on top of each other, a header cell
+    broken inside its word, a block wider than the window (and not when it sits in a scrolling box)."""
+    page = tmp_path / "bad.html"
+    page.write_text(
+        "<!DOCTYPE html><html><head><meta charset='utf-8'><meta name='viewport' content='width=device-width'>"
+        "<title>bad</title></head><body style='margin:0'>"
+        "<svg width='300' height='60'><text x='10' y='30' font-size='14'>0.05</text>"
+        "<text x='22' y='32' font-size='14'>0.1</text></svg>"
+        "<table style='width:40px'><tr><th style='overflow-wrap:anywhere'>extension</th></tr></table>"
+        "<div style='overflow-x:auto'><div style='width:2000px'>scrolls</div></div>"
+        "<div id='wide' style='width:2000px'>too wide</div></body></html>")
+    for width in (WIDTH, PHONE):
+        c = load_report(browser, page, width=width)["checks"]
+        assert any("0.05" in o and "0.1" in o for o in c["overlaps"]), c["overlaps"]
+        assert c["midword"] == ["extension"], c["midword"]
+        assert [o.split(" ")[0] for o in c["overflow"]] == ["div#wide"], c["overflow"]

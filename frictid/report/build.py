@@ -46,7 +46,7 @@ SECTIONS = (
     ("thermal", "Thermal"),
     ("models", "Model comparison"),
     ("diagnosis", "Diagnosis"),
-    ("provenance", "Provenance"),
+    ("provenance", "The model as YAML, and the logs drawn"),
 )
 
 
@@ -90,101 +90,181 @@ def slug(s: str) -> str:
     return re.sub(r"[^A-Za-z0-9_-]+", "-", str(s)).strip("-") or "joint"
 
 
-def param_rows(params: dict) -> list[dict]:
-    """Table rows of a ``params`` mapping: name, value ± stderr, unit, identifiable, reason, fixed."""
+def param_status(p: dict, base: dict | None = None, base_name: str = "") -> tuple[str, str]:
+    """The verdict of a parameter entry and its reason, one of: ``identified`` (an estimate with its
+    standard error), ``held`` (held at a stated value: ``fixed``, or an extended model's shape parameter
+    held at the value of its base model ``base``), ``not
+    identifiable`` (with the fit's reason) and ``no s.e.`` (a value without a standard error, with where it
+    came from when the file says: the log metadata, another stage of the fit)."""
+    v, se = ct.pvalue(p.get("value")), ct.pvalue(p.get("stderr"))
+    if p.get("fixed"):
+        return "held", str(p.get("reason") or "held fixed")
+    if not p.get("identifiable", True):
+        return "not identifiable", str(p.get("reason") or "the data cannot pin it down")
+    if v is not None and (se is None or se <= 1e-9 * abs(v)):
+        bv = ct.pvalue((base or {}).get("value")) if isinstance(base, dict) else None
+        if bv is not None and abs(bv - v) <= 1e-9 * max(abs(v), 1e-300):
+            return "held", f"at the value of the base model {base_name}" if base_name else "at the base model's value"
+        if p.get("source") and se is None:
+            return "no s.e.", f"from {p['source']}"
+        return "no s.e.", "the parameter file gives no standard error"
+    return "identified", ""
+
+
+def param_rows(params: dict, base_params: dict | None = None, base_name: str = "") -> list[dict]:
+    """Table rows of a ``params`` mapping: name, value ± stderr, unit, status (:func:`param_status`) and
+    reason. ``base_params``: the parameters of the base model of an extended model."""
     rows = []
     for name, p in (params or {}).items():
         if not isinstance(p, dict):
             p = {"value": p}
-        rows.append({"name": name, "value": fmt_pm(p.get("value"), p.get("stderr")), "unit": p.get("unit", ""),
-                     "identifiable": bool(p.get("identifiable", True)), "fixed": bool(p.get("fixed", False)),
-                     "reason": p.get("reason", "") or "", "source": p.get("source", "") or ""})
+        base = base_params or {}
+        status, reason = param_status(p, base.get(name, base.get(re.sub(r"_(pos|neg)$", "", name))), base_name)
+        se = p.get("stderr") if status == "identified" or status == "not identifiable" else None
+        rows.append({"name": name, "value": fmt_pm(p.get("value"), se), "unit": p.get("unit", ""),
+                     "status": status, "reason": reason, "source": p.get("source", "") or ""})
     return rows
 
 
-def rigid_rows(jd: dict) -> list[dict]:
-    """Inertia, gravity and offset rows."""
-    params = {}
-    if isinstance(jd.get("inertia"), dict):
-        params["J (inertia)"] = jd["inertia"]
-    for k, p in (jd.get("gravity") or {}).items():
-        if isinstance(p, dict):
-            params[f"{k} (gravity)"] = p
-    if isinstance(jd.get("offset"), dict):
-        params["offset"] = jd["offset"]
-    return param_rows(params)
+def model_param_rows(jd: dict, name: str | None) -> list[dict]:
+    """:func:`param_rows` of model ``name`` of a joint entry, judged against its base model."""
+    models = jd.get("models") or {}
+    md = models.get(name) or {}
+    base = md.get("base")
+    bmd = models.get(base) if isinstance(base, str) else None
+    return param_rows(md.get("params") or {}, (bmd or {}).get("params") or {}, base or "")
 
 
-def _compact_params(params: dict) -> str:
-    parts = []
-    for name, p in (params or {}).items():
-        if not isinstance(p, dict):
+def rigid_rows(jd: dict, m=None) -> list[dict]:
+    """The rigid-body terms the chosen model ``m`` (:class:`FrictionModel`) is used with: its inertia,
+    gravity and offset, each with the status of the entry it comes from (the model's own parameter when
+    it re-estimated the term, else the joint's). Without a model, the joint's entries."""
+    own = ((jd.get("models") or {}).get(jd.get("selected")) or {}).get("params") or {}
+    joint = {"J": jd.get("inertia"), "offset": jd.get("offset"), **(jd.get("gravity") or {})}
+    names = {"J": "J (inertia)", "Px": "Px (gravity)", "Py": "Py (gravity)", "Mx": "Mx (payload gravity)",
+             "My": "My (payload gravity)", "offset": "offset"}
+    rows = []
+    for k, label in names.items():
+        entry = own.get(k) if isinstance(own.get(k), dict) else joint.get(k)
+        if not isinstance(entry, dict):
             continue
-        flag = "" if p.get("identifiable", True) or p.get("fixed") else " (not identifiable)"
-        fixed = " (fixed)" if p.get("fixed") else ""
-        unit = "" if p.get("unit") in ("1", None) else p.get("unit")
-        parts.append(f"{name} = {fmt_pm(p.get('value'), p.get('stderr'))} {unit}".strip() + fixed + flag)
+        if m is not None and k == "offset" and m.offset == 0.0 and ct.pvalue(entry.get("value")):
+            tau_off = "tau_offset" in (own or {})
+            entry = {"value": 0.0, "unit": entry.get("unit", ""), "fixed": True,
+                     "reason": ("0 in this model: its offset is tau_offset, inside F" if tau_off else
+                                "0 in this model: its per-sign or extended friction carries the constant torque "
+                                f"(the fit's offset estimate {fmt_num(entry.get('value'))} is evidence, not a term "
+                                "to add)")}
+        rows.extend(dict(r, name=label) for r in param_rows({k: entry}))
+    return rows
+
+
+def _compact_params(params: dict, rows: list[dict] | None = None) -> str:
+    """Parameters as one line: ``name = value ± s.e. unit`` with the status when not ``identified``."""
+    parts = []
+    for r in rows if rows is not None else param_rows(params):
+        unit = "" if r["unit"] in ("1", None) else r["unit"]
+        flag = "" if r["status"] == "identified" else f" ({r['status']})"
+        parts.append(f"{r['name']} = {r['value']} {unit}".strip() + flag)
     return "; ".join(parts)
 
 
+def heldout_basis(jd: dict, name: str) -> str:
+    """What a model's held-out RMS was computed on, in words: the plateau means (the static maps and
+    whatever the fit ranked with them), the sliding samples (the diagnosis' models), the duty cycles
+    (thermal laws)."""
+    models = jd.get("models") or {}
+    md = models.get(name) or {}
+    basis = str((jd.get("selection") or {}).get("basis") or "plateau points")
+    ranked = "moving samples" if basis.startswith(("moving", "samples")) else "plateau means"
+    if md.get("basis") == "moving samples":
+        return "moving samples"
+    if name in ct.THERMAL_LAWS:
+        return "duty cycles"
+    if "+" in name or "base" in md or str(md.get("method", "")).startswith("diagnosis"):
+        # an extended model fitted on the sliding samples; one whose metrics are its base map's (a LuGre
+        # extension keeps the plateau fit) has the ranked models' point count
+        n = (md.get("metrics") or {}).get("n")
+        base_n = ((models.get(md.get("base")) or {}).get("metrics") or {}).get("n")
+        return ranked if n is not None and n == base_n and "sliding" not in str(md.get("method", "")) else "sliding samples"
+    return ranked
+
+
+def _aic_why(met: dict, basis: str) -> str:
+    """Why a model has no AIC: the criterion needs n > k + 1; the diagnosis' models have none."""
+    n, k = met.get("n"), met.get("k")
+    if isinstance(n, (int, float)) and isinstance(k, (int, float)) and n <= k + 1:
+        return "n ≤ k + 1"
+    return f"not computed on {basis}"
+
+
 def model_rows(jd: dict) -> list[dict]:
-    """Model comparison rows, in the order of the fit's ranking, then the others."""
+    """Model comparison rows, in the order of the fit's ranking, then the others. Each held-out RMS says
+    what it was computed on (``basis``): numbers on different bases are not compared."""
     models = jd.get("models") or {}
     ranking = [r.get("model") for r in ((jd.get("selection") or {}).get("ranking") or []) if isinstance(r, dict)]
     order = [m for m in ranking if m in models] + [m for m in models if m not in ranking]
+    check = (jd.get("selection") or {}).get("diagnosis_check") or {}
     rows = []
     for name in order:
         md = models[name]
         if not isinstance(md, dict):
             continue
         met = md.get("metrics") or {}
-        extras = []
-        for k in ("rms_presliding", "rms_presliding_static", "rms_presliding_heldout", "heldout_gain"):
-            if met.get(k) is not None:
-                extras.append(f"{k} = {fmt_num(met[k])}")
+        extras = [f"{k} = {fmt_num(met[k])}" for k in ("rms_presliding", "rms_presliding_static",
+                                                        "rms_presliding_heldout", "heldout_gain")
+                  if met.get(k) is not None]
         tc = md.get("time_constant")
         if isinstance(tc, dict) and tc.get("value") is not None:
             extras.append(f"time constant = {fmt_pm(tc.get('value'), tc.get('stderr'))} {tc.get('unit', 's')}")
-        params = md.get("params") or {}
-        ident = all(p.get("identifiable", True) or p.get("fixed") for p in params.values() if isinstance(p, dict))
-        basis = ("sliding samples (diagnosis; held-out by segment groups)" if "+" in name or "base" in md
-                 or str(md.get("method", "")).startswith("diagnosis") else
-                 "duty cycles" if name.startswith("thermal") else
-                 "all moving samples" if name == "polynomial_ls" else "plateau points")
+        prows = model_param_rows(jd, name)
+        basis = heldout_basis(jd, name)
+        other = ""
+        if check.get("model") == name and ct.pvalue(check.get("rms_heldout")) is not None:
+            other = (f"{fmt_num(check['rms_heldout'])} on plateau means (the check against "
+                     f"{check.get('fit_choice')}: {fmt_num(check.get('rms_heldout_fit_choice'))})")
         rows.append({"name": name, "selected": name == jd.get("selected"), "map": md.get("map", ""),
                      "method": md.get("method", ""), "rms": fmt_num(met.get("rms")),
-                     "rms_heldout": fmt_num(met.get("rms_heldout")), "aic": fmt_num(met.get("aic"), 5),
-                     "n": met.get("n", "—"), "k": met.get("k", len(params)), "params": _compact_params(params),
-                     "identifiable": ident, "extras": "; ".join(extras), "basis": basis,
-                     "notes": list(md.get("notes") or [])})
+                     "rms_heldout": fmt_num(met.get("rms_heldout")), "basis": basis, "heldout_other": other,
+                     "aic": fmt_num(met.get("aic"), 5),
+                     "aic_why": "" if met.get("aic") is not None else _aic_why(met, basis),
+                     "n": met.get("n", "—"), "k": met.get("k", len(prows)), "params": _compact_params({}, prows),
+                     "not_identifiable": [r["name"] for r in prows if r["status"] == "not identifiable"],
+                     "extras": "; ".join(extras), "notes": list(md.get("notes") or [])})
     return rows
 
 
-def _round(v, digits: int = 7):
-    return None if v is None else float(f"{v:.{digits}g}")
+def _rounded(x, digits: int = 7):
+    """Plain data with every float rounded to ``digits`` significant digits (for reading, not for storing)."""
+    if isinstance(x, dict):
+        return {k: _rounded(v, digits) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_rounded(v, digits) for v in x]
+    if isinstance(x, float):
+        return float(f"{x:.{digits}g}") if math.isfinite(x) else None
+    if isinstance(x, np.generic):
+        return _rounded(x.item(), digits)
+    return x
 
 
-def yaml_snippet(jname: str, jd: dict) -> str:
-    """A copyable YAML block of the chosen model: values with units, and the rigid-body terms."""
-    sel = jd.get("selected")
-    md = (jd.get("models") or {}).get(sel) or {}
-    body: dict[str, Any] = {"model": sel, "map": md.get("map", sel)}
-    if md.get("static_model"):
-        body["static_model"] = md["static_model"]
-    body["params"] = {n: _round(ct.pvalue(p)) for n, p in (md.get("params") or {}).items()}
-    body["units"] = {n: p.get("unit", "") for n, p in (md.get("params") or {}).items() if isinstance(p, dict)}
-    rig = {}
-    if ct.pvalue(jd.get("inertia")) is not None:
-        rig["J"] = _round(ct.pvalue(jd["inertia"]))
-    for k, p in (jd.get("gravity") or {}).items():
-        if k != "amplitude" and ct.pvalue(p) is not None:
-            rig[k] = _round(ct.pvalue(p))
-    if ct.pvalue(jd.get("offset")) is not None:
-        rig["offset"] = _round(ct.pvalue(jd["offset"]))
-    if rig:
-        body["rigid_body"] = rig
-    return yaml.safe_dump({"joints": {str(jname): body}}, sort_keys=False, default_flow_style=False, width=100,
-                          allow_unicode=True)
+def model_head(jd: dict, m=None) -> dict | None:
+    """The chosen model's head as the parameter file writes it (:meth:`FrictionModel.head`: name, formula,
+    parameters, the one-line torque with exactly the rigid-body terms and offset it is used with, validity),
+    or the file's own ``model:`` when the model cannot be built; None without a chosen model."""
+    m = m if m is not None else ct.chosen_model(jd)
+    if m is not None:
+        return m.head()
+    return jd.get("model") if isinstance(jd.get("model"), dict) else None
+
+
+def yaml_snippet(jname: str, jd: dict, m=None) -> str:
+    """A copyable YAML block of the chosen model: the joint's ``model:`` head of the parameter file
+    (:func:`model_head`), values to 7 significant digits."""
+    head = model_head(jd, m)
+    if head is None:
+        return ""
+    return yaml.safe_dump({"joints": {str(jname): {"model": _rounded(head)}}}, sort_keys=False,
+                          default_flow_style=None, width=110, allow_unicode=True)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -276,6 +356,8 @@ class _Joint:
     selmd: dict | None
     pl: ct.PlateauSet
     cov: dict
+    #: the chosen model (:class:`frictid.model.FrictionModel`), None when there is none or it is incomplete
+    model: Any = None
 
     def salt(self, part: str, i: int = 0) -> str:
         """The prefix that makes a figure's SVG ids unique in the page."""
@@ -283,13 +365,15 @@ class _Joint:
 
 
 def _gather(jname: str, jd: dict, datas: list[ct.LogData]) -> _Joint:
-    """The joint's data every section draws on, with its plateau points and coverage."""
+    """The joint's data every section draws on, with its plateau points (in the chosen model's offset
+    convention, the one its curve is drawn in) and coverage."""
     models = jd.get("models") or {}
     sel = jd.get("selected")
-    pl = ct.plateaus(datas) if datas else ct.plateaus([])
+    model = ct.chosen_model(jd)
+    pl = ct.plateaus(datas, model) if datas else ct.plateaus([])
     return _Joint(name=jname, jd=jd, datas=datas, id="j-" + slug(jname), units=_units(jd, datas),
                   models=models, sel=sel, selmd=models.get(sel) if sel else None, pl=pl,
-                  cov=ct.coverage(datas, pl, jd))
+                  cov=ct.coverage(datas, pl, jd), model=model)
 
 
 def _section(key: str) -> Section:
@@ -323,29 +407,111 @@ def joint_report(jname: str, jd: dict, datas: list[ct.LogData], timings: dict | 
 def _joint_context(j: _Joint, secs: dict[str, Section]) -> dict:
     """The template context of the joint from its sections (keyed as in :data:`SECTIONS`)."""
     summary = secs["summary"].data
+    findings = secs["diagnosis"].data["findings"]
     return {"name": j.name, "id": j.id, "units": j.units, "sections": [secs[k] for k, _ in SECTIONS],
             "section": secs, "selected": j.sel, "key": s_summary_key(summary["key_params"]),
-            "n_findings": len(secs["diagnosis"].data["findings"]),
+            "n_findings": sum(1 for f in findings if f["adopted"]),
             "n_not_identified": len(summary["not_identified"]),
-            "rms_heldout": fmt_num(((j.selmd or {}).get("metrics") or {}).get("rms_heldout"))}
+            "rms_heldout": summary["heldout"]}
+
+
+#: Rigid-body terms: listed with the rigid body, not among the friction parameters.
+RIGID_NAMES = ("J", "Px", "Py", "Mx", "My")
 
 
 def _summary(j: _Joint) -> Section:
-    """The summary section: the chosen model, its parameters and notes, the rigid-body terms, what the
-    logs cover, what could not be identified, and the warnings."""
+    """The summary section, one screen per joint: the chosen model (name, formula in words and symbols,
+    the one-line torque), how sure (parameters with standard errors and verdicts), what the diagnosis
+    found and gained (or what it tested), where the model is valid; then the rigid-body terms, what the
+    logs cover, what could not be identified and the warnings."""
     s = _section("summary")
     selmd = j.selmd or {}
+    head = model_head(j.jd, j.model) or {}
+    rows = [r for r in model_param_rows(j.jd, j.sel) if r["name"] not in RIGID_NAMES]
+    n_find = len([f for f in (j.jd.get("diagnosis") or [])])
     s.data = {
         "selected": j.sel, "method": selmd.get("method", ""), "map": selmd.get("map", ""),
-        "selection": _selection_text(j.jd), "key_params": param_rows(selmd.get("params") or {}),
-        "rigid": rigid_rows(j.jd), "coverage": _coverage_lines(j.cov, j.units),
-        "not_identified": _not_identified(j.jd), "warnings": [str(w) for w in (j.jd.get("warnings") or [])],
+        "words": head.get("words", ""), "friction": list(head.get("friction") or []), "torque": head.get("torque", ""),
+        "selection": _selection_text(j.jd), "key_params": rows, "heldout": _heldout_line(j),
+        "rigid": rigid_rows(j.jd, j.model), "coverage": _coverage_lines(j.cov, j.units),
+        "validity": _validity_lines(j), "found": _found_lines(j),
+        "not_identified": _not_identified(j.jd),
+        "warnings": ct.clean_warnings(j.name, j.jd.get("warnings") or [], n_find, j.cov.get("cycles", 0)),
         "notes": list(selmd.get("notes") or []),
     }
     if j.sel is None:
         reason = (j.jd.get("selection") or {}).get("reason")
         s.notes.append("No model was chosen for this joint" + (f": {reason}" if reason else "."))
     return s
+
+
+def _heldout_line(j: _Joint) -> str:
+    """The chosen model's held-out RMS with what it was computed on (and, for a diagnosis model, its
+    check on the plateau means)."""
+    if not j.sel:
+        return "—"
+    met = (j.selmd or {}).get("metrics") or {}
+    text = f"{fmt_num(met.get('rms_heldout'))} {j.units['tau']} on {heldout_basis(j.jd, j.sel)}"
+    check = (j.jd.get("selection") or {}).get("diagnosis_check") or {}
+    if check.get("model") == j.sel and ct.pvalue(check.get("rms_heldout")) is not None:
+        text += f"; {fmt_num(check['rms_heldout'])} {j.units['tau']} on plateau means"
+    return text
+
+
+def _validity_lines(j: _Joint) -> list[str]:
+    """Where the model is valid: the ranges the file records (:attr:`FrictionModel.validity`, the joint's
+    ``validity``), else the speed range of the plateau points the report measured."""
+    rec = (j.model.validity if j.model is not None else None) or j.jd.get("validity") or {}
+    units = {"speed": j.units["qd"], "position": j.units["q"], "temperature": "degC"}
+    lines = []
+    for key in ("speed", "position", "temperature"):
+        r = rec.get(key) if isinstance(rec, dict) else None
+        if isinstance(r, (list, tuple)) and len(r) == 2 and None not in r:
+            lines.append(f"{key} {fmt_num(r[0], 3)} to {fmt_num(r[1], 3)} {units[key]}"
+                         + (" (|w|; from rest up to the highest speed)" if key == "speed" else ""))
+    if lines:
+        return ["Recorded by the fit: " + "; ".join(lines) + "."]
+    spans = [f"{name}: {fmt_num(j.cov[k][0], 3)} to {fmt_num(j.cov[k][1], 3)} {j.units['qd']}"
+             for k, name in (("pos", "w > 0"), ("neg", "w < 0")) if j.cov.get(k)]
+    if spans:
+        return ["Not recorded in the parameter file; the plateau points cover " + "; ".join(spans)
+                + ". Outside these speeds the model is extrapolated."]
+    w = np.concatenate([np.abs(d.w[np.isfinite(d.w)]) for d in j.datas]) if j.datas else np.zeros(0)
+    w = w[w > ct.min_speed(j.datas)] if w.size else w
+    if w.size:
+        return [f"Not recorded in the parameter file, and no plateau points; the moving samples reach |w| "
+                f"{fmt_num(np.percentile(w, 99.5), 3)} {j.units['qd']} (99.5th percentile). Beyond it the model "
+                "is extrapolated."]
+    return ["Not recorded in the parameter file, and no plateau points to measure it on."]
+
+
+def _found_lines(j: _Joint) -> list[str]:
+    """What the diagnosis found and gained, in one or two sentences (or that it found nothing, with what
+    it tested)."""
+    findings = [f for f in (j.jd.get("diagnosis") or []) if isinstance(f, dict)]
+    adopted, why = ct.diagnosis_adoption(j.jd)
+    tested = ct.diagnosis_tested(j.jd)
+    out = []
+    used = [f for f, a in zip(findings, adopted) if a]
+    for f in used:
+        out.append(f"Found {f.get('cause')}: {f.get('extension') if isinstance(f.get('extension'), str) else 'extension'}"
+                   f" cuts the held-out RMS from {fmt_num(f.get('rms_before'))} to {fmt_num(f.get('rms_after'))} "
+                   f"{j.units['tau']} ({_fmt_gain(f.get('gain'))}); in the chosen model.")
+    left = len(findings) - len(used)
+    if left:
+        out.append(f"{left} finding{'s' if left > 1 else ''} not adopted" + (f": {why}" if why else "")
+                   + " (listed under Diagnosis, marked so).")
+    if not findings:
+        if tested:
+            names = sorted({t["extension"] for t in tested})
+            out.append(f"No finding: the diagnosis tested {len(names)} extensions ({', '.join(names)}); none "
+                       "cut the held-out error significantly.")
+        elif isinstance((j.jd.get("selection") or {}).get("diagnosis"), dict):
+            skipped = j.jd["selection"]["diagnosis"].get("skipped")
+            out.append(f"Nothing tested: {skipped}." if skipped else "No finding.")
+        else:
+            out.append("The diagnosis has not run on this identification (frictid fit --no-diagnose?).")
+    return out
 
 
 def _timeline(j: _Joint) -> Section:
@@ -371,8 +537,9 @@ def _timeline(j: _Joint) -> Section:
 
 
 def _friction_map(j: _Joint) -> Section:
-    """The friction-velocity map section: the plateau points and the curve of every static model, with
-    notes on what is not drawn; absent with neither plateaus nor a static model."""
+    """The friction-velocity map section: the plateau points and the curves of the chosen model and the
+    best alternatives (at most :data:`content.MAX_CURVES`), in one offset convention (the chosen model's),
+    with notes on what is not drawn; absent with neither plateaus nor a static model."""
     s = _section("friction-map")
     grids = ct.velocity_grids(j.pl, j.datas)
     if not j.datas and not ct.static_models(j.jd):
@@ -380,27 +547,48 @@ def _friction_map(j: _Joint) -> Section:
                                    "needs constant-velocity plateaus at several velocities of both signs "
                                    "(recipes/constant_velocity_sweep.yaml).")
         return s
-    curves = ct.model_curves(j.jd, grids)
+    curves, left = ct.model_curves(j.jd, grids)
     if not curves and not len(j.pl):
         s.present, s.why = False, ("No constant-velocity plateau in the logs and no static model in the "
                                    "parameter file: the map needs plateaus at several constant velocities "
                                    "of both signs (recipes/constant_velocity_sweep.yaml).")
         return s
     s.figures.append(fg.friction_map(j.pl, curves, grids, j.units, j.salt("map")))
-    if not j.datas:
-        s.notes.append("No log given: the plateau points are not drawn, and the velocity axis spans "
-                       f"±{fmt_num(grids['lin'][-1], 3)} {j.units['qd']} by default.")
-    elif not len(j.pl):
-        s.notes.append("No usable constant-velocity plateau in the logs: only the model curves are drawn.")
-    if not curves:
-        s.notes.append("No static model could be evaluated: only the plateau points are drawn.")
-    for side, name in (("pos", "positive"), ("neg", "negative")):
-        if j.datas and len(j.pl) and j.cov.get(side) is None:
-            s.notes.append(f"No {name}-velocity plateau: the {name} branch of every model is an "
-                           "extrapolation.")
+    s.notes.extend(_map_notes(j, curves, left, grids))
     s.data["n_points"] = len(j.pl)
     s.data["n_models"] = len(curves)
     return s
+
+
+def _map_notes(j: _Joint, curves: list[dict], left: list[str], grids: dict) -> list[str]:
+    """How to read the friction map: the offset convention its points and curves share, what is not
+    drawn and why."""
+    notes = []
+    if j.model is not None:
+        m = j.model
+        off = ("the offset stays in F (tau_offset)" if "tau_offset" in m.ext else
+               f"offset {fmt_num(m.offset)} {j.units['tau']} removed" if m.offset else "no offset removed")
+        notes.append(f"Points and curves in the chosen model's convention: F = tau - J a - G(q) with its J, "
+                     f"gravity and offset ({off}): the chosen curve is what {m.name} predicts for the points.")
+        moved = [f"{c['name']} ({'+' if c['shift'] > 0 else ''}{fmt_num(c['shift'], 3)})" for c in curves
+                 if c.get("shift")]
+        if moved:
+            notes.append("Models identified with another offset are shifted by the difference [" + j.units["tau"]
+                         + "]: " + ", ".join(moved) + ".")
+    if left:
+        notes.append(f"{len(curves)} of {len(curves) + len(left)} static models drawn (the chosen one and the best "
+                     "alternatives by held-out RMS); not drawn, see the model comparison: " + ", ".join(left) + ".")
+    if not j.datas:
+        notes.append("No log given: the plateau points are not drawn, and the velocity axis spans "
+                     f"±{fmt_num(grids['lin'][-1], 3)} {j.units['qd']} by default.")
+    elif not len(j.pl):
+        notes.append("No usable constant-velocity plateau in the logs: only the model curves are drawn.")
+    if not curves:
+        notes.append("No static model could be evaluated: only the plateau points are drawn.")
+    for side, name in (("pos", "positive"), ("neg", "negative")):
+        if j.datas and len(j.pl) and j.cov.get(side) is None:
+            notes.append(f"No {name}-velocity plateau: the {name} branch of every model is an extrapolation.")
+    return notes
 
 
 def _presliding(j: _Joint) -> Section:
@@ -529,28 +717,41 @@ def _findings(jd: dict) -> _Findings:
 
 
 def _diagnosis(j: _Joint, vmin: float) -> Section:
-    """The diagnosis section: the replays of the chosen model along the logs, and a row per finding of
-    the parameter file with its residual figure; absent with neither. ``vmin``: the speed below which a
-    sample is at rest [unit of qd]."""
+    """The diagnosis section: what the diagnosis tested, a row per finding of the parameter file with its
+    residual figure (findings the chosen model does not carry marked as not adopted), and the replays of
+    the chosen model along the logs; absent with neither findings, tests nor replays. ``vmin``: the speed
+    below which a sample is at rest [unit of qd]."""
     s = _section("diagnosis")
     fi = _findings(j.jd)
     replays, replayed = _replays(j, fi, vmin, s.notes)
     ct.drop_reference_channels(j.datas)  # the closed loops have run
-    findings = [_finding(j, fi, i, vmin) for i in range(len(fi.entries))]
+    adopted, why = ct.diagnosis_adoption(j.jd)
+    findings = [dict(_finding(j, fi, i, vmin), adopted=adopted[i]) for i in range(len(fi.entries))]
     fi.cache.clear()
     s.data["findings"] = findings
+    s.data["not_adopted_why"] = why
+    s.data["tested"] = [dict(t, gain=_fmt_gain(t["gain"]), rms_before=fmt_num(t["rms_before"]),
+                             rms_after=fmt_num(t["rms_after"]), p=fmt_num(t["p"], 2), t=fmt_num(t["t"], 3))
+                        for t in ct.diagnosis_tested(j.jd)]
+    s.data["rule"] = str(((j.jd.get("selection") or {}).get("diagnosis") or {}).get("rule") or "")
+    s.data["base"] = str(((j.jd.get("selection") or {}).get("diagnosis") or {}).get("base") or "")
     s.figures = replays
     if replays and replayed:
         s.notes.append("Replay: the chosen model run along the measured motion by frictid.replay "
                        "(tau_model = J a + G(q) + offset + F_model, with the LuGre and thermal states and "
                        "Karnopp's stick law at rest); in closed loop, the position simulated with the log's "
-                       "references and controller.")
+                       "references and controller. The headline is the median absolute residual: the RMS "
+                       "is dominated by the short spikes at velocity reversals, where no static map holds.")
     if not findings:
-        s.notes.append("The parameter file has no diagnosis entries: the diagnosis step has not run on this "
-                       "identification, or found nothing to add.")
+        skipped = ((j.jd.get("selection") or {}).get("diagnosis") or {}).get("skipped")
+        s.notes.insert(0, "No finding." + (" Every extension tested is listed above with its held-out gain; none "
+                                           "was significant." if s.data["tested"] else
+                                           f" Nothing was tested: {skipped}." if skipped else
+                                           " The parameter file records no diagnosis test: the diagnosis has "
+                                           "not run on this identification (frictid fit --no-diagnose)."))
     if j.datas and not replays:
         s.notes.append("No replay: the chosen model cannot be run along the log.")
-    if not findings and not replays:
+    if not findings and not replays and not s.data["tested"]:
         s.present = False
         s.why = " ".join(s.notes) + ("" if j.datas else " " + NO_LOGS)
         s.notes = []
@@ -583,14 +784,14 @@ def _replays(j: _Joint, fi: _Findings, vmin: float, notes: list[str]) -> tuple[l
 
 
 def _replay_figure(j: _Joint, d: ct.LogData, k: int, r: ct.Replay) -> fg.Rendered:
-    """The figure of replay ``r`` along log ``d`` (the joint's ``k``-th), titled with its residual RMS."""
-    res_ = r.residual(d)
-    rms = float(np.sqrt(np.nanmean(res_ ** 2)))
-    del res_
-    title = (f"Replay of {r.model} along {d.label or 'the log'}: torque residual RMS {fmt_num(rms, 3)} "
-             f"{j.units['tau']}")
+    """The figure of replay ``r`` along log ``d`` (the joint's ``k``-th), titled with the residual's median
+    absolute value (robust to the spikes at reversals), its 95th percentile and its RMS."""
+    st = ct.residual_stats(r.residual(d))
+    u = j.units["tau"]
+    title = (f"Replay of {r.model}: median |residual| {fmt_num(st['median_abs'], 3)} {u}"
+             f" (95 % below {fmt_num(st['p95_abs'], 3)}, RMS {fmt_num(st['rms'], 3)})")
     return fg.replay(d.log.t, d.log.tau, r.tau_model, j.units, title, j.salt("replay", k),
-                     q=d.log.q, q_model=r.q_model)
+                     q=d.log.q, q_model=r.q_model, source=d.label or "the log")
 
 
 def _finding_row(f: dict, prev) -> dict:
@@ -639,7 +840,7 @@ def _provenance(j: _Joint) -> Section:
     """The joint's part of the provenance: the YAML snippet of the chosen model and the logs drawn."""
     s = _section("provenance")
     if j.sel:
-        s.data["yaml"] = yaml_snippet(j.name, j.jd)
+        s.data["yaml"] = yaml_snippet(j.name, j.jd, j.model)
     else:
         s.data["yaml"] = ""
         s.notes.append("No model was chosen: there is no snippet to copy.")
@@ -680,6 +881,12 @@ def _selection_text(jd: dict) -> str:
         parts.append(f"LuGre: {rec['lugre']}.")
     if rec.get("reason"):
         parts.append(str(rec["reason"]))
+    check = rec.get("diagnosis_check") or {}
+    if isinstance(check, dict) and check.get("model") and check.get("fit_choice") != check.get("model"):
+        took = check.get("kept") in (None, check.get("model")) and jd.get("selected") == check.get("model")
+        parts.append(f"The diagnosis' model {check['model']} (held-out RMS {fmt_num(check.get('rms_heldout'))} on "
+                     f"plateau means, against {fmt_num(check.get('rms_heldout_fit_choice'))} for the fit's choice "
+                     f"{check.get('fit_choice')}) " + ("replaced that choice." if took else "was not adopted."))
     return " ".join(parts)
 
 

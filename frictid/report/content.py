@@ -23,9 +23,10 @@ from frictid.result import JointFit
 
 #: Moving samples: |w| above this fraction of the 99.5th percentile of |w| (as the fit).
 MIN_SPEED_FRACTION = 0.02
-#: Most ramps and steps drawn per joint (the fit uses them all; the figure would only get crowded).
-MAX_RAMPS_DRAWN = 8
-MAX_STEPS_DRAWN = 6
+#: Most ramps and steps drawn per joint (the fit uses them all): at most 5 measured curves per panel, each
+#: in its own colour and marker (a step also has its simulated curve, dashed in the same colour).
+MAX_RAMPS_DRAWN = 5
+MAX_STEPS_DRAWN = 3
 #: Samples drawn per ramp / step transient at most (stride decimation of the drawn curve only).
 MAX_CURVE_POINTS = 600
 
@@ -311,13 +312,16 @@ class PlateauSet:
         return int(self.w.shape[0])
 
 
-def plateaus(datas: list[LogData]) -> PlateauSet:
-    """One averaged (w, F) point per constant-velocity segment of every log (as the fit computes it)."""
+def plateaus(datas: list[LogData], model: FrictionModel | None = None) -> PlateauSet:
+    """One averaged (w, F) point per constant-velocity segment of every log (as the fit computes it). With
+    ``model``, the friction is in that model's convention (:func:`model_friction`: its inertia, gravity and
+    offset), the one its curve is drawn in; else the joint's (``LogData.F``)."""
     from frictid.identify.static import plateau_points
 
     parts = []
     for k, d in enumerate(datas):
-        p = plateau_points(d.log.t, d.w, d.F, d.segments)
+        F = d.F if model is None else model_friction(d, model)
+        p = plateau_points(d.log.t, d.w, F, d.segments)
         if len(p):
             parts.append((p, np.full(len(p), k)))
     if not parts:
@@ -345,16 +349,66 @@ def velocity_grids(pl: PlateauSet, datas: list[LogData]) -> dict[str, np.ndarray
     return {"lin": np.concatenate([-lin[::-1], lin]), "log": logg}
 
 
-def model_curves(jd: dict, grids: dict[str, np.ndarray]) -> list[dict]:
-    """Each static model's steady state (:meth:`FrictionModel.steady_state`) on the grids: name, selected,
-    lin (F on the linear grid), pos, neg (|F| on the log grid for w > 0 and w < 0)."""
+#: Most model curves on one friction map: the chosen model and the best alternatives (the rest are listed).
+MAX_CURVES = 5
+
+
+def chosen_model(jd: dict) -> FrictionModel | None:
+    """The selected model of a joint entry as the :class:`FrictionModel` that evaluates it (None when there
+    is none or its values are incomplete)."""
+    sel = jd.get("selected")
+    return friction_model(jd, sel) if sel in (jd.get("models") or {}) else None
+
+
+def model_friction(d: "LogData", m: FrictionModel) -> "PerSample":
+    """The friction torque along a log in model ``m``'s own convention: ``tau - m.J a - m.gravity(q)`` (its
+    inertia, gravity and offset; for a model the diagnosis extended with ``tau_offset`` the offset stays in
+    the friction, as :meth:`FrictionModel.friction` has it)."""
+    log = d.log
+
+    def friction(i0: int, i1: int) -> np.ndarray:
+        pay = log.channels["payload"][i0:i1] if "payload" in log.channels else None
+        G = m.gravity(None if log.q is None else np.asarray(log.q[i0:i1], float), pay)
+        return np.asarray(log.tau[i0:i1], float) - m.J * np.nan_to_num(d.a[i0:i1]) - G
+
+    return PerSample(log.n, friction)
+
+
+def map_order(jd: dict, names: list[str]) -> list[str]:
+    """``names`` in the order a reader compares them: the chosen model, then the fit's ranking (identifiable
+    models by held-out RMS), then the others."""
+    sel = jd.get("selected")
+    ranking = [r.get("model") for r in ((jd.get("selection") or {}).get("ranking") or [])
+               if isinstance(r, dict) and r.get("identifiable", True)]
+    first = [n for n in [sel] + ranking if n in names]
+    return list(dict.fromkeys(first + [n for n in names if n not in first]))
+
+
+def model_curves(jd: dict, grids: dict[str, np.ndarray], most: int = MAX_CURVES) -> tuple[list[dict], list[str]]:
+    """The friction of the chosen model and of the best alternatives (at most ``most`` models) on the grids,
+    in the chosen model's offset convention: each model's :meth:`FrictionModel.friction` plus its offset
+    (``m.offset``) less the chosen model's, so that every curve predicts the same quantity as the plateau
+    points (:func:`plateaus` with the chosen model). Returns (curves: name, label, selected, lin, pos, neg
+    (|F| on the log grid for w > 0 and w < 0)), and the names of the static models left out."""
+    import warnings
+
+    models = {m["name"]: m for m in static_models(jd)}
+    order = map_order(jd, list(models))
+    chosen = chosen_model(jd)
+    ref = chosen.offset if chosen is not None else None
     out = []
-    for m in static_models(jd):
-        ss = m["model"].steady_state
-        out.append({"name": m["name"], "label": m["label"], "selected": m["selected"], "lin": ss(grids["lin"]),
-                    "pos": ss(grids["log"]), "neg": -ss(-grids["log"])})
-    out.sort(key=lambda c: (not c["selected"], c["name"]))
-    return out
+    for name in order[:most]:
+        m = models[name]["model"]
+        shift = 0.0 if ref is None else m.offset - ref
+
+        def F(w, m=m, shift=shift):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # a map drawn past its data, or without q: neutral, as said
+                return m.friction(w) + shift
+
+        out.append({"name": name, "label": models[name]["label"], "selected": models[name]["selected"],
+                    "lin": F(grids["lin"]), "pos": F(grids["log"]), "neg": -F(-grids["log"]), "shift": shift})
+    return out, order[most:]
 
 
 def coverage(datas: list[LogData], pl: PlateauSet, jd: dict) -> dict:
@@ -914,3 +968,80 @@ def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dic
         except (TypeError, ValueError):
             pass
     return out
+
+
+# ---------------------------------------------------------------------------------------------------
+# what the diagnosis found, tested and whether its model was adopted
+
+
+def diagnosis_adoption(jd: dict) -> tuple[list[bool], str]:
+    """For each diagnosis entry, whether the chosen model carries it (its ``model`` is the chosen model or
+    one the chosen model extends), and when the diagnosis' model was not adopted, why (from
+    ``selection.diagnosis_check``), else ""."""
+    findings = [f if isinstance(f, dict) else {} for f in (jd.get("diagnosis") or [])]
+    sel = str(jd.get("selected") or "")
+    check = (jd.get("selection") or {}).get("diagnosis_check") or {}
+    why = ""
+    if isinstance(check, dict) and check.get("kept") and check.get("kept") != check.get("model"):
+        why = (f"the diagnosis' model {check.get('model')} predicts the held-out torque worse (RMS "
+               f"{_num(check.get('rms_heldout'))}) than {check.get('kept')} "
+               f"({_num(check.get('rms_heldout_fit_choice'))}), which stays selected")
+    out = []
+    for f in findings:
+        m = f.get("model")
+        if isinstance(m, str) and m:
+            out.append(sel == m or sel.startswith(m + "+"))
+        else:
+            out.append(not why)
+    return out, why
+
+
+def _num(v) -> str:
+    v = pvalue(v)
+    return "—" if v is None else f"{v:.4g}"
+
+
+def diagnosis_tested(jd: dict) -> list[dict]:
+    """Every candidate the diagnosis tested, per step (``selection.diagnosis.steps``): step, extension,
+    rms_before, rms_after, gain, t, p, chosen (bool)."""
+    diag = (jd.get("selection") or {}).get("diagnosis")
+    rows = []
+    for k, step in enumerate((diag or {}).get("steps") or [] if isinstance(diag, dict) else []):
+        if not isinstance(step, dict):
+            continue
+        for c in step.get("tested") or []:
+            if isinstance(c, dict):
+                rows.append({"step": k + 1, "extension": str(c.get("extension", "")),
+                             "rms_before": pvalue(c.get("rms_before")), "rms_after": pvalue(c.get("rms_after")),
+                             "gain": pvalue(c.get("gain")), "t": pvalue(c.get("t")), "p": pvalue(c.get("p")),
+                             "chosen": c.get("extension") == step.get("chosen")})
+    return rows
+
+
+def clean_warnings(jname: str, warnings: list, n_findings: int, n_cycles: int) -> list[str]:
+    """The fit's warnings of a joint as the report lists them under that joint: without a ``joint <name>:``
+    prefix (the report says which joint), without the diagnosis' "findings are kept as evidence" when
+    there are no findings, and without "duty cycles included" when the data have none."""
+    out = []
+    for w in warnings or []:
+        w = str(w)
+        for pre in (f"joint {jname}: ", f"log joint {jname}: "):
+            while w.startswith(pre) or w.startswith("log " + pre):
+                w = ("log " if w.startswith("log ") and pre.startswith("joint") else "") + w[w.index(pre) + len(pre):]
+        if n_findings == 0 and "findings are kept as evidence" in w:
+            continue
+        if n_cycles == 0:
+            w = w.replace(" (duty cycles included)", "")
+        out.append(w)
+    return out
+
+
+def residual_stats(r: np.ndarray) -> dict:
+    """Robust statistics of a residual [F]: median absolute, 95th percentile of the absolute value, RMS and
+    the count of finite samples (the RMS alone is dominated by the spikes at reversals)."""
+    a = np.abs(np.asarray(r, float))
+    a = a[np.isfinite(a)]
+    if not a.size:
+        return {"median_abs": math.nan, "p95_abs": math.nan, "rms": math.nan, "n": 0}
+    return {"median_abs": float(np.median(a)), "p95_abs": float(np.percentile(a, 95)),
+            "rms": float(np.sqrt(np.mean(a * a))), "n": int(a.size)}

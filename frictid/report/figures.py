@@ -137,14 +137,38 @@ TIGHT_GAP_IN, TITLED_GAP_IN, SIDE_GAP_IN = 0.12, 0.85, 0.95
 
 
 def place(fig, rows: int = 1, cols: int = 1, *, left: float = LEFT_IN, bottom: float = BOTTOM_IN,
-          top: float = TOP_IN, hgap: float = TIGHT_GAP_IN, wgap: float = SIDE_GAP_IN) -> dict:
+          top: float = TOP_IN, hgap: float = TIGHT_GAP_IN, wgap: float = SIDE_GAP_IN, right: float = RIGHT_IN) -> dict:
     """``subplots_adjust`` arguments of a fixed layout given in inches: margins and the gaps between
     ``rows`` x ``cols`` axes (matplotlib takes the gaps as fractions of the mean axes size)."""
     w, h = fig.get_size_inches()
     ah = max((h - top - bottom - (rows - 1) * hgap) / rows, 0.1)
-    aw = max((w - left - RIGHT_IN - (cols - 1) * wgap) / cols, 0.1)
-    return {"left": left / w, "right": 1 - RIGHT_IN / w, "top": 1 - top / h, "bottom": bottom / h,
+    aw = max((w - left - right - (cols - 1) * wgap) / cols, 0.1)
+    return {"left": left / w, "right": 1 - right / w, "top": 1 - top / h, "bottom": bottom / h,
             "hspace": hgap / ah, "wspace": wgap / aw}
+
+
+#: Height [in] of one row of a legend drawn under the axes (outside the data).
+LEGEND_ROW_IN = 0.2
+
+
+def legend_below(fig, handles, ncol: int) -> None:
+    """The figure's legend in its bottom margin, centred, outside every axes (the caller leaves
+    ``LEGEND_ROW_IN`` per row of room under the x label)."""
+    if handles:
+        fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncol=max(1, ncol),
+                   frameon=False)
+
+
+def log_ticks(axis, lo: float, hi: float) -> None:
+    """Readable ticks on a logarithmic axis from ``lo`` to ``hi``: labelled at 1, 2, 5 per decade over
+    less than two decades, at the decades otherwise, as plain numbers; minor ticks unlabelled (matplotlib
+    labels them on short ranges, where they overlap)."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    decades = math.log10(hi / lo) if lo > 0 and hi > lo else 1.0
+    axis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0) if decades < 2 else (1.0,), numticks=12))
+    axis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    axis.set_minor_formatter(NullFormatter())
 
 
 def rc_context(salt: str = "frictid"):
@@ -360,8 +384,8 @@ def timeline(t, q, w, tau, segments, units: dict, title: str, salt: str) -> Rend
     rows = [("position", q, units["q"]), ("velocity", w, units["qd"]), ("torque", tau, units["tau"])]
     rows = [r for r in rows if r[1] is not None]
     with rc_context(salt):
-        fig = new_figure(1.2 + 1.75 * len(rows))
-        gs = fig.add_gridspec(len(rows) + 1, 1, height_ratios=[0.9] + [2.0] * len(rows),
+        fig = new_figure(1.7 + 1.75 * len(rows))
+        gs = fig.add_gridspec(len(rows) + 1, 1, height_ratios=[1.6] + [2.0] * len(rows),
                               **place(fig, len(rows) + 1, left=1.45))
         rib = fig.add_subplot(gs[0])
         axes = [fig.add_subplot(gs[i + 1], sharex=rib) for i in range(len(rows))]
@@ -407,7 +431,7 @@ def friction_map(pl, curves: list[dict], grids: dict, units: dict, salt: str) ->
     F_u, w_u = units["tau"], units["qd"]
     with rc_context(salt):
         n_handles = sum(1 for c in curves if c["lin"] is not None) + (1 if len(pl) else 0)
-        legend_rows = math.ceil(n_handles / 4)
+        legend_rows = math.ceil(n_handles / 3)
         fig = new_figure(7.6 + 0.22 * legend_rows)
         gs = fig.add_gridspec(2, 2, height_ratios=[1.25, 1.0],
                               **place(fig, 2, 2, bottom=BOTTOM_IN + 0.1 + 0.22 * legend_rows, hgap=TITLED_GAP_IN))
@@ -459,12 +483,11 @@ def friction_map(pl, curves: list[dict], grids: dict, units: dict, salt: str) ->
         for axs, side in ((axp, "w > 0"), (axn, "w < 0")):
             axs.set_xscale("log")
             axs.set_xlim(grids["log"][0], grids["log"][-1])
+            log_ticks(axs.xaxis, grids["log"][0], grids["log"][-1])
             axs.set_xlabel(f"|w| [{w_u}], log scale")
             axs.set_ylabel(f"|F| [{F_u}]")
             axs.set_title(f"Stribeck region, {side}", loc="left")
-        if handles:
-            fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncol=min(4, len(handles)),
-                       frameon=False)
+        legend_below(fig, handles, min(3, len(handles)))
         alt = (f"Friction against velocity: {len(pl)} plateau points and {len(curves)} static models; "
                "log-velocity views of both signs")
         npts = len(pl) * 2 * ERRORBAR_POINTS + sum(len(grids["lin"]) + 2 * len(grids["log"]) for _ in curves)
@@ -480,8 +503,9 @@ def presliding(ramps: list[dict], steps: list[dict], units: dict, sigma0_label: 
 
     panels = [p for p in (("ramps", ramps), ("steps", steps)) if p[1]]
     with rc_context(salt):
-        fig = new_figure(3.9)
-        axes = fig.subplots(1, len(panels), squeeze=False, gridspec_kw=place(fig, 1, len(panels)))[0]
+        fig = new_figure(4.4)
+        axes = fig.subplots(1, len(panels), squeeze=False,
+                            gridspec_kw=place(fig, 1, len(panels), bottom=BOTTOM_IN + 2 * LEGEND_ROW_IN + 0.1))[0]
         points = 0
         for ax, (kind, items) in zip(axes, panels):
             if kind == "ramps":
@@ -500,7 +524,7 @@ def presliding(ramps: list[dict], steps: list[dict], units: dict, sigma0_label: 
                 hs = [Line2D([], [], color=GREY, lw=1.1, marker="o", ms=3, label="measured (one colour per ramp)")]
                 if any(r["model"] is not None for r in items):
                     hs.append(Line2D([], [], color=BLACK, lw=1.4, ls=(0, (4, 2)), label=sigma0_label))
-                ax.legend(handles=hs, loc="best", frameon=False)
+                ax.legend(handles=hs, loc="upper left", bbox_to_anchor=(0.0, -0.13), frameon=False)
             else:
                 f, xu = si_scale(np.concatenate([s["x"] for s in items]), units["q"])
                 for i, s in enumerate(items):
@@ -519,7 +543,7 @@ def presliding(ramps: list[dict], steps: list[dict], units: dict, sigma0_label: 
                 if any(s["model"] is not None for s in items):
                     hs.append(Line2D([], [], color=GREY, lw=1.5, ls=(0, (4, 2)), marker="o", mfc="white", ms=4,
                                      label=sigma1_label + " (dashed, same colour)"))
-                ax.legend(handles=hs, loc="best", frameon=False)
+                ax.legend(handles=hs, loc="upper left", bbox_to_anchor=(0.0, -0.13), frameon=False)
         alt = f"Presliding: {len(ramps)} ramps (torque against displacement) and {len(steps)} step transients"
         return render(fig, alt, salt, points)
 
@@ -532,7 +556,7 @@ def thermal(cycles: list[dict], models: list[dict], units: dict, salt: str) -> R
     div, tlabel = time_axis(float(t.max() - t.min()) if t.size else 0.0)
     with rc_context(salt):
         fig = new_figure(6.0)
-        ax, axT = fig.subplots(2, 1, sharex=True, gridspec_kw=place(fig, 2, 1, hgap=0.2))
+        ax, axT = fig.subplots(2, 1, sharex=True, gridspec_kw=place(fig, 2, 1, hgap=0.2, right=2.6))
         ax.plot(t / div, [c["F_rms"] for c in cycles], "o", ms=5, mfc="white", mec=BLACK, ls="none",
                 label="measured (RMS over the cycle)", zorder=6)
         for i, m in enumerate(models):
@@ -550,10 +574,10 @@ def thermal(cycles: list[dict], models: list[dict], units: dict, salt: str) -> R
             axT.plot(t / div, tj, "s", ms=4, mfc=BLACK, mec=BLACK, ls="none", label="measured (temp_joint)")
         ax.set_ylabel(f"friction per cycle, RMS [{units['tau']}]")
         ax.set_title("Thermal: friction per duty cycle and the thermal models", loc="left")
-        ax.legend(loc="best", frameon=False)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
         axT.set_ylabel("joint temperature [degC]")
         axT.set_xlabel(tlabel + " (cycle midpoint)")
-        axT.legend(loc="best", frameon=False)
+        axT.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
         alt = f"Thermal: friction of {len(cycles)} duty cycles against time with {len(models)} thermal models"
         return render(fig, alt, salt, len(cycles) * (2 + 2 * len(models)))
 
@@ -567,8 +591,8 @@ def diagnosis(finding: dict, res: dict, units: dict, salt: str) -> Rendered:
     if xl.startswith("time ["):
         xdiv, xl = time_axis(float(np.ptp(b["x"])) if b["x"].size else 0.0)
     with rc_context(salt):
-        fig = new_figure(3.4)
-        ax = fig.subplots(gridspec_kw=place(fig))
+        fig = new_figure(3.4 + LEGEND_ROW_IN)
+        ax = fig.subplots(gridspec_kw=place(fig, bottom=BOTTOM_IN + LEGEND_ROW_IN + 0.1))
         ax.axhline(0, color=GREY, lw=0.8)
         ax.errorbar(b["x"] / xdiv, b["mean"], yerr=b["se"], fmt="o-", ms=4, mfc="white", mec=BLACK,
                     color=BLACK, lw=1.0, ecolor=BLACK, label=f"before: {res.get('before_model') or 'chosen model'}")
@@ -581,23 +605,25 @@ def diagnosis(finding: dict, res: dict, units: dict, salt: str) -> Rendered:
         ax.set_xlabel(xl)
         ax.set_ylabel(f"torque residual [{units['tau']}]")
         ax.set_title(f"Residual against {xl.split(' [')[0]}: {finding.get('cause', 'finding')}", loc="left")
-        ax.legend(loc="best", frameon=False)
+        legend_below(fig, ax.get_legend_handles_labels()[0], 2)
         alt = f"Diagnosis {finding.get('cause', '')}: residual against {xl}"
         return render(fig, alt, salt, int(b["x"].size * 2))
 
 
 @_gc_paused
-def replay(t, tau, tau_model, units: dict, title: str, salt: str, q=None, q_model=None) -> Rendered:
+def replay(t, tau, tau_model, units: dict, title: str, salt: str, q=None, q_model=None, source: str = "") -> Rendered:
     """Measured torque and the model's replay along the log and their difference; with a closed-loop
-    re-simulation, the measured and simulated position and their difference too."""
+    re-simulation, the measured and simulated position and their difference too. ``source``: the log's
+    name, for the caption (the title stays short enough for the figure's width)."""
     t = np.asarray(t, float)
     lo, hi = float(t[0]), float(t[-1])
     div, tlabel = time_axis(hi - lo)
     closed = q is not None and q_model is not None
     with rc_context(salt):
-        fig = new_figure(7.6 if closed else 4.6)
+        fig = new_figure((7.6 if closed else 4.6) + LEGEND_ROW_IN)
         ratios = [2.0, 1.2] + ([2.0, 1.2] if closed else [])
-        axes = fig.subplots(len(ratios), 1, sharex=True, height_ratios=ratios, gridspec_kw=place(fig, len(ratios)))
+        axes = fig.subplots(len(ratios), 1, sharex=True, height_ratios=ratios,
+                            gridspec_kw=place(fig, len(ratios), bottom=BOTTOM_IN + LEGEND_ROW_IN + 0.1))
         pairs = [(axes[0], axes[1], tau, tau_model, "torque", units["tau"])]
         if closed:
             pairs.append((axes[2], axes[3], q, q_model, "position", units["q"]))
@@ -616,10 +642,12 @@ def replay(t, tau, tau_model, units: dict, title: str, salt: str, q=None, q_mode
             axr.axhline(0, color=GREY, lw=0.6)
             ax.set_ylabel(f"{name} [{unit}]")
             axr.set_ylabel(f"difference [{unit}]")
-            ax.legend(loc="upper right", frameon=False, ncol=2)
+        handles = axes[0].get_legend_handles_labels()[0] + (axes[2].get_legend_handles_labels()[0][1:] if closed else [])
+        legend_below(fig, handles, len(handles))
         axes[-1].set_xlabel(tlabel)
         axes[0].set_xlim(lo / div, hi / div)
         axes[0].set_title(title, loc="left")
-        alt = (f"{title}: measured and model torque against time and their difference"
+        alt = (f"{title}{' along ' + source if source else ''}: measured and model torque against time and their "
+               "difference"
                + ("; measured and simulated position in closed loop" if closed else ""))
         return render(fig, alt, salt, points)
