@@ -411,6 +411,10 @@ class FrictionModel:
         for n, p in self.params.items():
             d = p.to_dict() if hasattr(p, "to_dict") else dict(p)
             params[n] = {k: d.get(k) for k in ("value", "unit", "stderr", "identifiable")}
+            if d.get("fixed"):  # held at a value (delta at 2, a drop the data cannot see): said so, with why
+                params[n]["fixed"] = True
+            if d.get("reason") and (d.get("fixed") or not d.get("identifiable", True)):
+                params[n]["reason"] = d["reason"]
         d = self.to_dict()
         return {"name": self.name, **self.formula(), "params": params, "rigid_body": d["rigid_body"],
                 "validity": d["validity"]}
