@@ -120,7 +120,7 @@ def _outcomes_dask(todo, options, scheduler: str | None, workers: int):
             client = stack.enter_context(Client(scheduler))
         else:
             cluster = stack.enter_context(LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                                       dashboard_address=None))
+                                                       dashboard_address=":0"))
             client = stack.enter_context(Client(cluster))
         futures = client.map(fit_partition, [p for p, _ in todo], [d for _, d in todo], options=options,
                              key=[f"frictid-fit-{d}-{i}" for i, (_, d) in enumerate(todo)], pure=False)
