@@ -93,7 +93,7 @@ class TrendStore:
         files = sorted(self.table_dir.glob("part-*.parquet")) if self.exists() else []
         if not files:
             return pd.DataFrame(columns=list(COLUMNS))
-        return pd.concat([pq.read_table(f).to_pandas() for f in files], ignore_index=True)
+        return typed(pd.concat([pq.read_table(f).to_pandas() for f in files], ignore_index=True))
 
     def latest(self) -> pd.DataFrame:
         """The rows of each partition's latest fit."""
@@ -120,13 +120,29 @@ class TrendStore:
                 params_file = f"params/{safe_name(out.partition.id)}.yaml"
                 write_params(out.result, self.path / params_file)
             rows += outcome_rows(out, params_file, meta, now)
-        df = pd.DataFrame(rows)
-        for c in _NUM:
-            df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
+        df = typed(pd.DataFrame(rows))
         path = self.table_dir / f"part-{now}-{os.getpid()}.parquet"
         with atomic_path(path) as tmp:
             pq.write_table(pa.Table.from_pandas(df, preserve_index=False), tmp)
         return path
+
+
+def typed(df: pd.DataFrame) -> pd.DataFrame:
+    """Every column of :data:`COLUMNS`, with the same types in every part of the table (a part of failed
+    partitions only has no values, yet its columns must not turn into nulls of another type)."""
+    for c in COLUMNS:
+        if c not in df:
+            df[c] = None
+    for c in df.columns:
+        if c in _NUM:
+            df[c] = pd.to_numeric(df[c], errors="coerce").astype("float64")
+        elif c in ("n_samples", "written"):
+            df[c] = pd.to_numeric(df[c], errors="coerce").astype("Int64")
+        elif c == "identifiable":
+            df[c] = df[c].astype("boolean")
+        else:
+            df[c] = df[c].map(lambda v: None if v is None or (isinstance(v, float) and np.isnan(v)) else str(v))
+    return df
 
 
 def _joint_rows(jd: dict, stats: dict) -> list[dict]:
