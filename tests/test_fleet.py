@@ -12,6 +12,7 @@ import io
 import json
 import re
 import shlex
+import subprocess
 import sys
 from pathlib import Path
 
@@ -178,3 +179,36 @@ def test_parse_limits():
     assert lim[0].crossed(10.0, 7.0) is None and lim[1].crossed(10.0, 8.0) == pytest.approx(-0.2)
     with pytest.raises(ValueError, match="--limit"):
         parse_limits("Fc=lots")
+
+
+#: The sizes the documented commands run with here (the page shows the full sizes).
+SMALL = {"--robots 20": "--robots 1", "--joints 6": "--joints 2", "--days 30": "--days 8",
+         "--partitions 8": "--partitions 2", "--seconds 60": "--seconds 10"}
+
+
+def doc_commands() -> list[str]:
+    text = (ROOT / "docs" / "fleet.md").read_text()
+    return [ln.strip() for block in re.findall(r"```bash\n(.*?)```", text, re.S)
+            for ln in block.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+
+
+def test_every_command_in_docs_fleet_runs(tmp_path):
+    cmds = doc_commands()
+    assert len(cmds) >= 8 and any("--scheduler" in c for c in cmds)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
+        for cmd in cmds:
+            for a, b in SMALL.items():
+                cmd = cmd.replace(a, b)
+            cmd = cmd.replace("tcp://127.0.0.1:8786", cluster.scheduler_address)
+            argv = shlex.split(cmd)
+            if argv[0] == "python":
+                argv = [sys.executable, str(ROOT / argv[1]), *argv[2:]]
+            else:
+                assert argv[0] == "frictid", cmd
+                argv = [sys.executable, "-m", "frictid", *argv[1:]]
+            p = subprocess.run(argv, cwd=tmp_path, capture_output=True, text=True, timeout=900)
+            allowed = {0, 3} if "--limit" in cmd else {0, 1} if "scorecard" in cmd else {0}
+            assert p.returncode in allowed and "Traceback" not in p.stderr, (cmd, p.returncode, p.stderr[-3000:])
+            if "scorecard" in cmd:
+                assert "false alarms:" in p.stdout
+    assert (tmp_path / "demo" / "trend.html").read_text().count("<svg") == 4

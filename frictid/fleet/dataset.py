@@ -74,10 +74,10 @@ def find_partitions(sources: list[str]) -> list[Partition]:
                 raise FrictidInputError(f"{p}: no .parquet or .csv log below this folder")
             for f in files:
                 keys = hive_keys(f, p) or (("file", str(f.relative_to(p))),)
-                groups.setdefault(keys, []).append(str(f))
+                groups.setdefault(keys, []).append(str(f.resolve()))  # workers may run elsewhere
         elif p.is_file():
             keys = hive_keys(p.resolve(), Path(p.resolve().anchor)) or (("file", str(p)),)
-            groups.setdefault(keys, []).append(str(p))
+            groups.setdefault(keys, []).append(str(p.resolve()))
         else:
             raise FrictidInputError(f"{src}: no such file or folder")
     names = {tuple(k for k, _ in keys) for keys in groups}
