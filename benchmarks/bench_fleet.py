@@ -40,6 +40,11 @@ def warm(path: str) -> None:
     fit_partition(Partition((("file", path),), (path,)), "warm-up", OPTIONS)
 
 
+def busy_seconds(store: Path) -> float:
+    """The time the partitions' fits took inside their tasks (read and fit) [s]."""
+    return float(TrendStore(store).latest().drop_duplicates("partition")["fit_seconds"].sum())
+
+
 def run_dask(data: Path, store: Path, workers: int, first: str) -> tuple[float, float, list[float]]:
     """(start-up and warm-up time, fit time, each worker's peak RSS [MB])."""
     t0 = time.perf_counter()
@@ -66,7 +71,8 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         plan = plan_fleet(1, 1, a.partitions, seed=a.seed, kinds=["noise"])
-        files = write_fleet(tmp / "data", plan, a.partitions, seed=a.seed, plateau=plateau)
+        files = write_fleet(tmp / "data", plan, a.partitions, seed=a.seed, plateau=plateau,
+                            velocities=5 if a.seconds < 30 else 10)
         log = read_logs(str(files[0]))[0]
         log_mb = sum(x.nbytes for x in (log.t, log.q, log.qd, log.tau, *log.channels.values())) / 2**20
         warm(str(files[0]))  # the serial run's process warmed up as the workers are
@@ -74,16 +80,20 @@ def main(argv=None) -> int:
         serial = run_fleet([str(tmp / "data")], str(tmp / "s0"), engine="serial", options=OPTIONS)
         t_serial = time.perf_counter() - t0
         per = t_serial / a.partitions
-        fit_mean = TrendStore(tmp / "s0").latest().drop_duplicates("partition")["fit_seconds"].mean()
+        fit_mean = busy_seconds(tmp / "s0") / a.partitions
         print(f"{a.partitions} partitions of {log.t[-1]:.0f} s at {1 / log.dt:.0f} Hz ({log.n} samples, "
               f"{log_mb:.1f} MB in memory); mean fit {fit_mean:.2f} s")
-        print(f"serial: {t_serial:.1f} s ({per:.2f} s per partition, store writes included); failed {len(serial.failed)}")
+        print(f"serial: {t_serial:.1f} s ({per:.2f} s per partition, store writes included; outside the fits "
+              f"{(t_serial - busy_seconds(tmp / 's0')) / a.partitions:.3f} s per partition); failed {len(serial.failed)}")
         for w in (1, 2):
             start, t, rss = run_dask(tmp / "data", tmp / f"d{w}", w, str(files[0]))
             over = (t - t_serial) / a.partitions
+            busy = busy_seconds(tmp / f"d{w}")
+            inside = (t * w - busy) / a.partitions  # worker time not spent fitting, per partition
             print(f"dask {w} worker{'s' if w > 1 else ''}: start-up and warm-up {start:.1f} s, fit {t:.1f} s, speed-up "
-                  f"{t_serial / t:.2f}x; overhead {over:+.3f} s per partition = {over / fit_mean:+.1%} of a fit"
-                  f"{' (target < 10 %)' if w == 1 else ''}; worker peak RSS "
+                  f"{t_serial / t:.2f}x; against serial {over:+.3f} s per partition = {over / fit_mean:+.1%} of a "
+                  f"fit; worker time outside the fits {inside:.3f} s per partition = {inside / (busy / a.partitions):.1%}"
+                  f" of a fit{' (target < 10 %)' if w == 1 else ''}; worker peak RSS "
                   + ", ".join(f"{r:.0f} MB" for r in rss))
     return 0
 
