@@ -23,6 +23,7 @@ from distributed import LocalCluster
 
 from conftest import ROOT
 from fleet_synth import plan_fleet, write_fleet
+from test_json import documented_keys
 from frictid.cli import main
 from frictid.fleet.store import TrendStore
 from frictid.fleet.trend import SeriesTrend, explain, parse_limits, trend_fleet
@@ -85,6 +86,7 @@ def test_rerun_skips_unchanged_partitions(fitted):
     _, _, _, again, _ = fitted
     code, out, err = again
     doc = json.loads(out)
+    assert set(doc) == documented_keys()["fit:dask"]
     assert code == 2 and doc["ok"] is False
     assert (doc["partitions"], doc["skipped"], doc["fitted"]) == (49, 48, 0)
     assert [f["partition"] for f in doc["failed"]] == ["robot=r02/joint=j2/date=2026-03-20"]
@@ -131,6 +133,7 @@ def test_trend_cli_limits_json_and_page(fitted, tmp_path):
     page = tmp_path / "trend.html"
     code, out, err = run_cli("trend", root / "store", "--limit", "F_ref=+10%", "--report", page, "--json")
     doc = json.loads(out)
+    assert set(doc) == documented_keys()["trend"]
     wear = next(p for p in plan if p.kind == "wear")
     assert code == 3, err
     assert [c["joint"] for j in doc["joints"] for c in [dict(x, joint=j["joint"]) for x in j["crossings"]]] \

@@ -51,7 +51,7 @@ def run_fleet(logs: List[str], output: Optional[str], *, engine: str, scheduler:
         emit_json("fit", {"engine": engine, "store": output, "partitions": res.total, "fitted": res.fitted,
                           "skipped": res.skipped, "seconds": res.seconds,
                           "failed": [{"partition": o.partition.id, "kind": o.kind, "reason": o.reason}
-                                     for o in res.failed]}, ok=not res.failed)
+                                     for o in res.failed], "warnings": con.warnings}, ok=not res.failed)
     if res.internal:
         raise RuntimeError(f"{len(res.internal)} of {res.total} partitions failed for an internal reason "
                            f"(listed above and in the store); the others were fitted")
@@ -93,7 +93,7 @@ def trend(
         write_page(ft, report)
         con.info(f"frictid: wrote {report}")
     if as_json:
-        emit_json("trend", ft.to_dict())
+        emit_json("trend", {**ft.to_dict(), "warnings": con.warnings})
     if ft.crossings:
         raise QualityGateError(f"{len({c['joint'] for c in ft.crossings})} joint(s) crossed a limit: "
                                + "; ".join(f"{c['joint']} {c['quantity']} {c['limit']}" for c in ft.crossings))
