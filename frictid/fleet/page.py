@@ -28,8 +28,9 @@ def _figure(jt: JointTrend):
     fig = new_figure(1.6 + 1.5 * len(series))
     axes = fig.subplots(len(series), 1, sharex=True, squeeze=False)[:, 0]
     fig.subplots_adjust(**place(fig, rows=len(series)))
+    dates = sorted({d for s in series for d in s.dates})  # a parameter may lack some runs: same x for all
     for ax, s in zip(axes, series):
-        x = np.arange(len(s.dates))
+        x = np.array([dates.index(d) for d in s.dates])
         band = np.where(np.isfinite(s.stderr), 2 * s.stderr, 2 * s.sigma if np.isfinite(s.sigma) else 0.0)
         y = s.y_norm if len(s.y_norm) else s.y
         ax.fill_between(x, y - band, y + band, color="#9ecae1", alpha=0.5, lw=0)
@@ -38,11 +39,11 @@ def _figure(jt: JointTrend):
             ax.plot(x, s.y, ".", ms=2, color="#999999", label="as fitted")
         ax.plot(x, s.fitted, "-", color="#b00020", lw=1.2, label=s.kind)
         if s.index is not None:
-            ax.axvline(s.index, color="#b35900", ls="--", lw=0.8)
+            ax.axvline(x[s.index], color="#b35900", ls="--", lw=0.8)
         ax.set_ylabel(f"{s.quantity} [{s.unit}]" if s.unit else s.quantity)
         ax.legend(loc="best", fontsize=7, frameon=False)
-    ticks = np.unique(np.linspace(0, len(series[0].dates) - 1, min(6, len(series[0].dates))).astype(int))
-    axes[-1].set_xticks(ticks, [series[0].dates[i] for i in ticks])
+    ticks = np.unique(np.linspace(0, len(dates) - 1, min(6, len(dates))).astype(int))
+    axes[-1].set_xticks(ticks, [dates[i] for i in ticks])
     axes[-1].set_xlabel("run")
     return fig
 

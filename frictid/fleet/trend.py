@@ -276,7 +276,7 @@ def _param_series(rows: pd.DataFrame, tk: str) -> dict[str, SeriesTrend]:
     for name, g in rows[rows["model"] == model].groupby("param", sort=True):
         g = g[g["identifiable"].astype(bool) & np.isfinite(g["value"].to_numpy(float))]
         g = g.sort_values(tk, key=_sort_key)
-        if len(g) >= MIN_RUNS:
+        if len(g) >= MIN_RUNS and np.ptp(g["value"].to_numpy(float)) > 0:  # a fixed parameter has no trend
             out[str(name)] = SeriesTrend(str(name), str(g["unit"].iloc[0]), g[tk].astype(str).tolist(),
                                          g["value"].to_numpy(float), g["stderr"].to_numpy(float),
                                          g["temp_mean"].to_numpy(float))
