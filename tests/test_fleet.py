@@ -82,6 +82,16 @@ def test_bad_partition_is_reported_and_the_others_complete(fitted):
     assert len(list((root / "store" / "params").glob("*.yaml"))) == 48
 
 
+def test_bad_usage_is_refused_before_any_work(fleet):
+    root = fleet[0]
+    code, _, err = run_cli("fit", root / "fleet", "--engine", "dask", "-o", root / "fleet" / "store")
+    assert code == 2 and "inside the dataset" in err and not (root / "fleet" / "store").exists()
+    code, _, err = run_cli("fit", root / "fleet", "--engine", "serial", "--scheduler", "tcp://x:1", "-o", root / "s")
+    assert code == 2 and "--scheduler is for --engine dask" in err
+    code, _, err = run_cli("trend", root / "nothing")
+    assert code == 2 and "not a trend store" in err
+
+
 def test_rerun_skips_unchanged_partitions(fitted):
     _, _, _, again, _ = fitted
     code, out, err = again

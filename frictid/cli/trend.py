@@ -34,6 +34,8 @@ def run_fleet(logs: List[str], output: Optional[str], *, engine: str, scheduler:
     if not logs or not output or output == "-":
         raise FrictidInputError("fit --engine dask: give a dataset (folder or log files) and the store folder "
                                 "(frictid fit DATASET --engine dask -o STORE)")
+    if scheduler and engine != "dask":
+        raise FrictidInputError(f"fit: --scheduler is for --engine dask, not {engine}")
     if report or joint:
         raise FrictidInputError("fit --engine dask: --report and --joint are for one parameter file; "
                                 "use frictid trend STORE --report PAGE.html")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -139,6 +140,12 @@ def run_fleet(sources: list[str], store: str, *, engine: str = "dask", scheduler
     """Fit every partition of a dataset whose inputs changed since the store last saw them; write their
     parameter files and rows into the store. ``engine``: "dask" or "serial" (same numbers)."""
     t0 = time.perf_counter()
+    if engine not in ("dask", "serial"):
+        raise FrictidInputError(f"--engine {engine}: use dask (a cluster) or serial")
+    for src in sources:
+        if Path(src).is_dir() and Path(store).resolve().is_relative_to(Path(src).resolve()):
+            raise FrictidInputError(f"-o {store}: the store is inside the dataset {src}; its tables would be read "
+                                    "as logs on the next run: put it beside the dataset")
     parts = find_partitions(sources)
     st = TrendStore(store)
     done = st.fitted_digests()
@@ -150,8 +157,6 @@ def run_fleet(sources: list[str], store: str, *, engine: str = "dask", scheduler
             run.skipped += 1
         else:
             todo.append((p, digest))
-    if engine not in ("dask", "serial"):
-        raise FrictidInputError(f"--engine {engine}: use dask (a cluster) or serial")
     outcomes = (_outcomes_serial(todo, options) if engine == "serial" or not todo
                 else _outcomes_dask(todo, options, scheduler, workers))
     batch, meta = [], {"engine": engine, "frictid_version": __version__, "options": salt}
