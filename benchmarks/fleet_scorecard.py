@@ -40,8 +40,9 @@ def run_cli(*args) -> int:
     return 0
 
 
-def score(plan, ft) -> dict:
-    got = {j.joint: j for j in ft.joints}
+def score(plan, ft, days: int) -> dict:
+    got = {j.joint: j for j in ft.joints if j.level is not None and len(j.level.dates) == days}
+    plan = [p for p in plan if f"robot={p.robot}/joint={p.joint}" in got]  # joints with every day fitted
     rows, found, planted, alarms = [], 0, 0, 0
     for p in plan:
         jt = got.get(f"robot={p.robot}/joint={p.joint}")
@@ -67,23 +68,27 @@ def main_(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=9000)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--keep", help="folder to keep the fleet and the store in")
+    ap.add_argument("--score-only", action="store_true",
+                    help="score the store kept in --keep as it is (a run stopped early: the joints with every day fitted)")
     a = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(a.keep or tmp)
         plan = plan_fleet(a.robots, a.joints, a.days, seed=a.seed)
         t0 = time.perf_counter()
-        write_fleet(root / "fleet", plan, a.days, seed=a.seed)
+        if not a.score_only:
+            write_fleet(root / "fleet", plan, a.days, seed=a.seed)
         t1 = time.perf_counter()
-        code = run_cli("fit", root / "fleet", "--engine", "dask", "--jobs", a.workers, "--models", "stribeck",
-                       "--no-diagnose", "-o", root / "store", "--quiet")
+        code = 0 if a.score_only else run_cli("fit", root / "fleet", "--engine", "dask", "--jobs", a.workers,
+                                              "--models", "stribeck", "--no-diagnose", "-o", root / "store", "--quiet")
         t2 = time.perf_counter()
         ft = trend_fleet(str(root / "store"))
-        s = score(plan, ft)
+        s = score(plan, ft, a.days)
     n = a.robots * a.joints * a.days
     kinds = {k: sum(p.kind == k for p in plan) for k in ("wear", "step", "temperature", "noise")}
     print(f"fleet scorecard: {a.robots} robots x {a.joints} joints x {a.days} days = {n} partitions, seed {a.seed}; "
           f"planted {kinds}")
-    print(f"simulate {t1 - t0:.0f} s, fit on {a.workers} workers {t2 - t1:.0f} s (exit code {code})")
+    print(f"simulate {t1 - t0:.0f} s, fit on {a.workers} workers {t2 - t1:.0f} s (exit code {code}); "
+          f"scored: {s['joints']} joints with all {a.days} days fitted")
     print("\n".join(s["rows"]))
     share = s["alarms"] / max(s["joints"], 1)
     print(f"wear and steps found with their date within 2 runs: {s['found']}/{s['planted']}")

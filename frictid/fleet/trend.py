@@ -9,7 +9,8 @@ speed (half the median speed the logs reached) evaluated by each run's :class:`f
   warm day is not wear. Where it has none, the day-to-day differences of a quantity are regressed on those
   of the run's mean temperature (robust, soft-L1, with an intercept that absorbs steady wear and a loss
   that ignores the one difference a step makes); a slope more than 3 standard errors from zero is removed.
-- **Noise level.** sigma = max(robust scatter of the day-to-day differences / sqrt 2, median stderr).
+- **Noise level.** sigma = max(robust scatter of the day-to-day differences / sqrt 2, median stderr, the
+  residual scatter of the best change model, sqrt(RSS / (n - 3))).
 - **Change points.** Three explanations are scored by chi^2 / sigma^2 + 2 p ln n (p parameters): steady
   (one level, p = 1), a step (two levels, the break found by ``ruptures.Dynp`` with an l2 cost, p = 3) and
   wear (a level, then a linear drift from an onset run, every onset tried, p = 3). The lowest score wins.
@@ -181,10 +182,12 @@ def explain(st: SeriesTrend) -> SeriesTrend:
             st.normalised = "regression"
             y = y - st.temp_coeff * (st.temp - np.nanmedian(st.temp))
     st.y_norm = y
-    st.sigma = sigma = noise_level(y, st.stderr)
     n = len(y)
     pen = 2.0 * math.log(n)
     fits = {"steady": (None, np.full(n, y.mean()), 1), "step": (*_step(y), 3), "wear": (*_wear(y), 3)}
+    # the noise: from the differences and the stderr, and no less than what the best change model leaves
+    rss = min(float(np.sum((y - f) ** 2)) for k, (_, f, _) in fits.items() if k != "steady")
+    st.sigma = sigma = max(noise_level(y, st.stderr), math.sqrt(rss / (n - 3)))
     scores = {k: float(np.sum((y - f) ** 2) / sigma**2 + pen * p) for k, (_, f, p) in fits.items()}
     st.kind = min(scores, key=scores.get)
     st.index, st.fitted, _ = fits[st.kind]
