@@ -225,3 +225,13 @@ def test_every_command_in_docs_fleet_runs(tmp_path):
             if "scorecard" in cmd:
                 assert "false alarms:" in p.stdout
     assert (tmp_path / "demo" / "trend.html").read_text().count("<svg") == 4
+
+
+def test_store_reads_in_duckdb(fitted):
+    duckdb = pytest.importorskip("duckdb")  # not a dependency of frictid: the store is plain Parquet
+    root = fitted[0]
+    glob = str(root / "store" / "table" / "*.parquet")
+    n = duckdb.sql(f"SELECT count(DISTINCT partition) FROM read_parquet('{glob}', union_by_name=true)").fetchone()[0]
+    rows = duckdb.sql(f"SELECT robot, joint, count(*) FROM read_parquet('{glob}', union_by_name=true) "
+                      "WHERE param = 'Fc' AND status = 'ok' GROUP BY robot, joint").fetchall()
+    assert n == 49 and sorted(r[2] for r in rows) == [11, 12, 12, 12]
