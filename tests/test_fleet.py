@@ -234,4 +234,6 @@ def test_store_reads_in_duckdb(fitted):
     n = duckdb.sql(f"SELECT count(DISTINCT partition) FROM read_parquet('{glob}', union_by_name=true)").fetchone()[0]
     rows = duckdb.sql(f"SELECT robot, joint, count(*) FROM read_parquet('{glob}', union_by_name=true) "
                       "WHERE param = 'Fc' AND status = 'ok' GROUP BY robot, joint").fetchall()
-    assert n == 49 and sorted(r[2] for r in rows) == [11, 12, 12, 12]
+    df = TrendStore(root / "store").latest().query("param == 'Fc' and status == 'ok'")
+    assert n == 49 and dict(((r, j), c) for r, j, c in rows) == df.groupby(["robot", "joint"]).size().to_dict()
+    assert sum(c for *_, c in rows) == 48
