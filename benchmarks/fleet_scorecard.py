@@ -71,6 +71,8 @@ def main_(argv=None) -> int:
     ap.add_argument("--score-only", action="store_true",
                     help="score the store kept in --keep as it is (a run stopped early: the joints with every day fitted)")
     a = ap.parse_args(argv)
+    if a.score_only and not (a.keep and (Path(a.keep) / "store").is_dir()):
+        ap.error("--score-only needs --keep FOLDER holding the store of an earlier run")
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(a.keep or tmp)
         plan = plan_fleet(a.robots, a.joints, a.days, seed=a.seed)
