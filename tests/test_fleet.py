@@ -231,7 +231,7 @@ def test_store_reads_in_duckdb(fitted):
     duckdb = pytest.importorskip("duckdb")  # not a dependency of frictid: the store is plain Parquet
     root = fitted[0]
     glob = str(root / "store" / "table" / "*.parquet")
-    n = duckdb.sql(f"SELECT count(DISTINCT partition) FROM read_parquet('{glob}', union_by_name=true)").fetchone()[0]
+    n = duckdb.sql(f"SELECT count(DISTINCT partition) FROM read_parquet('{glob}', union_by_name=true)").fetchall()[0][0]
     rows = duckdb.sql(f"SELECT robot, joint, count(*) FROM read_parquet('{glob}', union_by_name=true) "
                       "WHERE param = 'Fc' AND status = 'ok' GROUP BY robot, joint").fetchall()
     df = TrendStore(root / "store").latest().query("param == 'Fc' and status == 'ok'")
