@@ -29,6 +29,13 @@ def fit(
     jobs: Annotated[int, typer.Option(
         "--jobs", min=0, help="Joints fitted at once, each in its own process (0: one per available core; "
                               "1: one after another). The result does not depend on it.")] = 0,
+    engine: Annotated[str, typer.Option(
+        "--engine", help="local: fit the logs together into one parameter file; dask: LOGS is a dataset (a "
+                         "hive-partitioned folder or files), one task per partition into the trend store "
+                         "-o STORE (docs/fleet.md); serial: the same one after another.")] = "local",
+    scheduler: Annotated[Optional[str], typer.Option(
+        "--scheduler", help="With --engine dask: the cluster's scheduler (tcp://HOST:PORT); default a local "
+                            "cluster of --jobs worker processes.")] = None,
 ) -> None:
     """Find the segments, identify every model the data support, choose one, write the parameter file."""
     from ..errors import FrictidInputError
@@ -36,6 +43,11 @@ def fit(
     from ..io.atomic import check_output_path
     from ..io.params import write_params
 
+    if engine != "local":
+        from .trend import run_fleet
+        return run_fleet(logs, output, engine=engine, scheduler=scheduler, jobs=jobs, models=models,
+                         diagnose=not no_diagnose, mapping=mapping, units=units, quiet=quiet, as_json=as_json,
+                         report=report, joint=joint)
     con = Console(quiet)
     if not logs:
         raise FrictidInputError("fit: give at least one log (e.g. frictid fit run.csv -o params.yaml)")
