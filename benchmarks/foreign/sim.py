@@ -288,7 +288,7 @@ def write_log(path: Path, df: pd.DataFrame, sensors: Sensors, axis: str, truth: 
     ``<log>.truth.json`` (which frictid never reads). Returns the log's path."""
     path = Path(path).with_suffix("." + ("csv" if sensors.fmt == "csv" else "parquet"))
     if sensors.fmt == "csv":
-        df.to_csv(path, index=False, float_format="%.10g")
+        df.to_csv(path, index=False, float_format="%.15g")
     else:
         df.to_parquet(path, index=False)
     meta = {}
