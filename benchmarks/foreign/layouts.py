@@ -191,7 +191,8 @@ def issue19_ramps(pr, sc, rng) -> dict:
 
 def steps(pr, sc, rng) -> dict:
     """Open-loop torque steps to 20..80 % of Fs and back to zero (1..3 levels, one or both signs), held
-    0.5..3 s, released 0.5..3 s; labels as docs/segments.md (a step lasts until the next input)."""
+    0.5..3 s, released 0.5..3 s; labels as docs/segments.md (a step lasts until the next input; the
+    loop's bumpless take-over of the still joint afterwards is no input)."""
     k = int(rng.integers(1, 4))
     levels = rng.uniform(0.2, 0.8, k) * sc.plant.Fs
     signs = [1.0, -1.0] if rng.random() < 0.7 else [float(rng.choice([1.0, -1.0]))]
@@ -202,7 +203,9 @@ def steps(pr, sc, rng) -> dict:
         for P in levels:
             open_loop(pr, np.full(pr.ns(t_hold), s * P), "step", pr.next_index("step"))
             open_loop(pr, np.zeros(pr.ns(t_rel)), "step", pr.next_index("step"))
-    dwell(pr, rng.uniform(1.0, 3.0))   # the loop takes the still joint back (bumpless)
+    # the loop takes the still joint back bumplessly: nothing in the data marks it, so the last step's
+    # still tail goes on (a step lasts until the next input)
+    dwell(pr, rng.uniform(1.0, 3.0), label="step", index=pr.counters["step"])
     return {"levels": (levels).tolist(), "signs": signs, "hold": t_hold, "release": t_rel}
 
 
