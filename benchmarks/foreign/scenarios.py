@@ -150,10 +150,11 @@ def refine_labels(out: dict) -> tuple[np.ndarray, int]:
     """The program's labels made physical: a constant-velocity piece starts where the true velocity has
     settled for good within 5 % of its reference (the samples before are ``other``: the loop still
     settling); a piece that has not settled by its middle (a slow transient, stick-slip, a ripple) is
-    ``other`` altogether. A ``rest`` after a move starts where the true speed falls below 1 % of the top
-    reference speed for good. Returns (labels, plateaus demoted)."""
+    ``other`` altogether. A ``rest`` right after a step is the step's still tail (nothing in the data
+    marks where one ends: a step lasts until the next input). A ``rest`` after a move starts where the
+    true speed falls below 1 % of the top reference speed for good. Returns (labels, plateaus demoted)."""
     lab = out["label"].copy()
-    idx = out["index"]
+    idx = out["index"]                       # changed in place: a rest after a step joins the step
     w, wr = out["w"], out["wr"]
     top = max(float(np.max(np.abs(wr))), 1e-12)
     change = np.flatnonzero((lab[1:] != lab[:-1]) | (idx[1:] != idx[:-1])) + 1
@@ -168,6 +169,9 @@ def refine_labels(out: dict) -> tuple[np.ndarray, int]:
                 s = b - a
                 demoted += 1
             lab[a:a + s] = sim.CODE["other"]
+        elif lab[a] == sim.CODE["rest"] and a > 0 and lab[a - 1] == sim.CODE["step"]:
+            idx[a:b] = idx[a - 1]        # a still joint after a step: the step lasts until the next input
+            lab[a:b] = sim.CODE["step"]
         elif lab[a] == sim.CODE["rest"] and a > 0 and lab[a - 1] == sim.CODE["other"]:
             bad = np.flatnonzero(np.abs(w[a:b]) >= 0.01 * top)
             lab[a:a + (int(bad[-1]) + 1 if bad.size else 0)] = sim.CODE["other"]

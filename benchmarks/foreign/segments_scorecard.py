@@ -122,6 +122,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seed-base", type=int, default=100000)
     ap.add_argument("--family", choices=scenarios.FAMILIES, default=None, help="only this layout family")
     ap.add_argument("--examples", type=int, default=4, help="draws listed per failure class")
+    ap.add_argument("--minutes", type=float, default=None, help="stop starting draws after this many minutes")
     args = ap.parse_args(argv)
     if args.seed_base < 100000 and args.draws > 1:
         print("note: seeds below 100000 may be seeds the tests use", file=sys.stderr)
@@ -129,6 +130,9 @@ def main(argv=None) -> int:
     t_start = time.time()
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(args.draws):
+            if args.minutes is not None and time.time() - t_start > 60 * args.minutes:
+                print(f"stopped after {i} draws ({args.minutes} min)", file=sys.stderr)
+                break
             seed = args.seed_base + i
             try:
                 d = run_draw(seed, args.family, Path(tmp))
@@ -150,7 +154,8 @@ def main(argv=None) -> int:
 
 def report(args, total, fams, rows, errors, ptp_fp, wall):
     """Print the card: overall, per family, ptp false positives, failure classes, errors."""
-    print(f"\nforeign segments scorecard: {len(rows)} draws (seeds {args.seed_base}..{args.seed_base + args.draws - 1}"
+    n = len(rows) + len(errors)
+    print(f"\nforeign segments scorecard: {len(rows)} draws (seeds {args.seed_base}..{args.seed_base + n - 1}"
           f"{', family ' + args.family if args.family else ''}), IoU >= {IOU}, {wall:.0f} s wall")
     print(total.table())
     n_ptp = sum(1 for d, _ in rows if d["family"] == "ptp")
