@@ -139,7 +139,8 @@ def describe(d: dict) -> str:
 def report(args, rows, errors, wall):
     """Print the card: per parameter, per family, coverage, failure classes, errors."""
     n = len(rows)
-    print(f"\nforeign fit scorecard: {n} draws (seeds {args.seed_base}..{args.seed_base + n - 1}"
+    last = args.seed_base + n + len(errors) - 1
+    print(f"\nforeign fit scorecard: {n} draws (seeds {args.seed_base}..{last}"
           f"{', family ' + args.family if args.family else ''}), diagnose={args.diagnose}, {wall:.0f} s wall")
     print(f"{'parameter':<19} {'tol':>4} {'on target':>9} {'not ident.':>10} {'WRONG+ident.':>12} "
           f"{'absent':>6} {'coverage (2 se)':>16}")
