@@ -1,0 +1,178 @@
+"""Random scenarios for the foreign scorecards: a plant, a controller, sensors and an experiment layout,
+all drawn from one seed (``np.random.default_rng(seed)``; the same seed gives the same log, byte for byte).
+
+    from scenarios import make_log
+    path, truth = make_log(123, "issue19_sweep", "/tmp/out")
+
+Families (``FAMILIES``) are layouts a lab or a machine produces; ``issue19_sweep`` and ``issue19_ramps`` are
+the two named failure layouts of issue 19. Seeds: the tests use seeds < 1000, the scorecards >= 100000.
+The ranges drawn are listed in ``docs/scorecards.md``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+try:
+    from . import sim
+    from .layouts import BUILDERS
+except ImportError:  # run as a script from this folder
+    import sim
+    from layouts import BUILDERS
+
+#: Every layout family, for the segments scorecard.
+FAMILIES = ("sweep", "issue19_sweep", "ramps", "issue19_ramps", "steps", "duty", "ptp", "session")
+#: Identification layouts, for the fit scorecard.
+FIT_FAMILIES = ("sweep", "issue19_sweep", "sweep_ramps_steps", "issue19_ramps_sweep", "ptp_excitation")
+#: Families that need a rotary joint (their speeds are given in rad/s).
+ROTARY_ONLY = ("issue19_sweep", "issue19_ramps", "issue19_ramps_sweep")
+
+
+@dataclass
+class Scenario:
+    """One draw: seed, family, plant, controller, sensors, top speed w_top [q/s], creep speed [q/s]."""
+
+    seed: int
+    family: str
+    plant: sim.Plant
+    ctl: sim.Controller
+    sensors: sim.Sensors
+    w_top: float
+    creep: float = 0.0
+
+
+def loguniform(rng, lo: float, hi: float) -> float:
+    """One value log-uniform on [lo, hi]."""
+    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def draw_plant(rng, axis: str, w_top: float) -> sim.Plant:
+    """A random joint: inertia 1e-3..10 kg m^2 (0.1..50 kg), Coulomb 0.02..500 N m (N) with Fc/J in
+    0.5..500 [1/s^2], Fs/Fc 1..1.6, vs 0.005..0.3 w_top, delta 0.5..2.5, viscous share 5..60 % of the
+    friction at w_top [q/s], presliding deflection Fc/sigma0 2e-5..2e-3 rad (1e-6..1e-4 m), damping
+    ratio 0.3..1 (sigma1 = 2 zeta sqrt(sigma0 J) - sigma2, at least a tenth of its first term), gravity
+    (rotary, half the draws) 0.5..20 Fc at a random phase."""
+    lin = axis == "linear"
+    for _ in range(1000):
+        J = loguniform(rng, 0.1, 50.0) if lin else loguniform(rng, 1e-3, 10.0)
+        Fc = loguniform(rng, 0.02, 500.0)
+        if 0.5 <= Fc / J <= 500.0:
+            break
+    Fs = Fc * rng.uniform(1.0, 1.6)
+    vs = w_top * loguniform(rng, 0.005, 0.3)
+    delta = rng.uniform(0.5, 2.5)
+    share = rng.uniform(0.05, 0.6)
+    sigma2 = share / (1.0 - share) * Fc / w_top
+    zc = loguniform(rng, 1e-6, 1e-4) if lin else loguniform(rng, 2e-5, 2e-3)
+    sigma0 = Fc / zc
+    crit = 2.0 * rng.uniform(0.3, 1.0) * math.sqrt(sigma0 * J)
+    sigma1 = max(crit - sigma2, 0.1 * crit)
+    Px = Py = 0.0
+    if not lin and rng.random() < 0.5:
+        A, phi = Fc * loguniform(rng, 0.5, 20.0), rng.uniform(-math.pi, math.pi)
+        Px, Py = A * math.cos(phi), A * math.sin(phi)
+    return sim.Plant(J=J, Fc=Fc, Fs=Fs, vs=vs, delta=delta, sigma2=sigma2, sigma0=sigma0, sigma1=sigma1,
+                     Px=Px, Py=Py, axis=axis)
+
+
+def draw_controller(rng, plant: sim.Plant, kind: str | None = None) -> sim.Controller:
+    """A PID / PD position loop or a PI velocity loop: bandwidth 15..60 rad/s, stiff enough that the
+    Coulomb level deflects it by at most 1e-3..1e-2 rad (1e-5..1e-4 m); damping 0.7..1; integrator at a
+    fifth of the bandwidth; gravity feed-forward with 0..10 % error (a quarter of the draws: none)."""
+    kind = kind or str(rng.choice(sim.CONTROLLERS))
+    wb = loguniform(rng, 15.0, 60.0)
+    e_max = loguniform(rng, 1e-5, 1e-4) if plant.axis == "linear" else loguniform(rng, 1e-3, 1e-2)
+    Kp = max(plant.J * wb ** 2, plant.Fc / e_max)
+    wn = math.sqrt(Kp / plant.J)
+    Kd = 2.0 * rng.uniform(0.7, 1.0) * plant.J * wn
+    ff = -1.0 if rng.random() < 0.25 else rng.uniform(-0.1, 0.1)
+    if kind == "pi_velocity":
+        Kv = max(plant.J * wb * 4.0, plant.Fc / (e_max * wb))
+        return sim.Controller(kind, Kp=0.0, Kd=Kv, Ki=Kv * wb, ff_err=ff)
+    return sim.Controller(kind, Kp=Kp, Kd=Kd, Ki=Kp * wn / 5.0 if kind == "pid" else 0.0, ff_err=ff)
+
+
+def draw_sensors(rng, plant: sim.Plant, temp: bool = False) -> sim.Sensors:
+    """Log rate 100 Hz..10 kHz (log-uniform), encoder 12..24 bits per revolution (a linear axis: a screw
+    lead of 5..20 mm per revolution), torque noise 0.1..5 % of Fc, a bias of up to 2 % of Fc in half the
+    draws, qd exact / backward difference / absent, CSV or Parquet, temp_env in 30 % of the draws."""
+    fs = float(round(loguniform(rng, 100.0, 10000.0)))
+    bits = int(rng.integers(12, 25))
+    lead = rng.uniform(0.005, 0.02) if plant.axis == "linear" else 0.0
+    noise = plant.Fc * loguniform(rng, 1e-3, 5e-2)
+    bias = plant.Fc * rng.uniform(-0.02, 0.02) if rng.random() < 0.5 else 0.0
+    qd_mode = str(rng.choice(["exact", "diff", "none"]))
+    fmt = str(rng.choice(["csv", "parquet"]))
+    t_env = rng.uniform(18.0, 28.0) if (temp or rng.random() < 0.3) else None
+    return sim.Sensors(fs=fs, bits=bits, tau_noise=noise, tau_bias=bias, qd_mode=qd_mode, fmt=fmt,
+                       lead=lead, temp_env=t_env, meta_encoder=bool(rng.random() < 0.3))
+
+
+def draw(seed: int, family: str | None = None, families=FAMILIES) -> Scenario:
+    """The scenario of ``seed``: its family (drawn from ``families`` unless given), plant, controller and
+    sensors. Issue-19 families get a rotary joint with a 2 rad/s top speed, the creep 0.2..0.6 mrad/s."""
+    rng = np.random.default_rng(seed)
+    drawn = str(rng.choice(list(families)))   # always drawn: a given family keeps the seed's other draws
+    family = family or drawn
+    issue19 = family in ROTARY_ONLY
+    axis = "rotary" if issue19 or rng.random() < 0.8 else "linear"
+    w_top = 2.0 if issue19 else (loguniform(rng, 0.05, 1.0) if axis == "linear" else loguniform(rng, 0.5, 4.0))
+    plant = draw_plant(rng, axis, w_top)
+    ctl = draw_controller(rng, plant)
+    sensors = draw_sensors(rng, plant, temp=family == "duty")
+    creep = rng.uniform(2e-4, 6e-4) if family in ("issue19_ramps", "issue19_ramps_sweep") else 0.0
+    return Scenario(seed, family, plant, ctl, sensors, w_top, creep)
+
+
+def make_log(seed: int, family: str | None = None, outdir=".", families=FAMILIES) -> tuple[Path, dict]:
+    """Draw, build the layout, simulate, measure and write one log (``<outdir>/foreign_<seed>``) with its
+    truth sidecar. Returns (log path, truth)."""
+    sc = draw(seed, family, families)
+    rng = np.random.default_rng([seed, 1])
+    prog = sim.Program(fs=sc.sensors.fs)
+    info = BUILDERS[sc.family](prog, sc, rng)
+    if sc.creep > 0:
+        sc.plant.c_cr = sc.creep
+    out = sim.simulate(sc.plant, sc.ctl, prog)
+    labels, demoted = refine_labels(out)
+    df = sim.measure(out, sc.sensors, np.random.default_rng([seed, 2]))
+    truth = sim.truth_record(sc.plant, sc.ctl, sc.sensors, labels, out["index"],
+                             {"seed": seed, "family": sc.family, "w_top": sc.w_top, "creep": sc.creep,
+                              "plateaus_demoted": demoted, "layout": info})
+    path = sim.write_log(Path(outdir) / f"foreign_{seed}", df, sc.sensors, sc.plant.axis, truth)
+    return path, truth
+
+
+def refine_labels(out: dict) -> tuple[np.ndarray, int]:
+    """The program's labels made physical: a constant-velocity piece starts where the true velocity has
+    settled for good within 5 % of its reference (the samples before are ``other``: the loop still
+    settling); a piece that has not settled by its middle (a slow transient, stick-slip, a ripple) is
+    ``other`` altogether. A ``rest`` right after a step is the step's still tail (nothing in the data
+    marks where one ends: a step lasts until the next input). A ``rest`` after a move starts where the
+    true speed falls below 1 % of the top reference speed for good. Returns (labels, plateaus demoted)."""
+    lab = out["label"].copy()
+    idx = out["index"]                       # changed in place: a rest after a step joins the step
+    w, wr = out["w"], out["wr"]
+    top = max(float(np.max(np.abs(wr))), 1e-12)
+    change = np.flatnonzero((lab[1:] != lab[:-1]) | (idx[1:] != idx[:-1])) + 1
+    starts = np.concatenate(([0], change))
+    ends = np.concatenate((change, [lab.size]))
+    demoted = 0
+    for a, b in zip(starts, ends):
+        if lab[a] == sim.CODE["constant_velocity"]:
+            bad = np.flatnonzero(np.abs(w[a:b] - wr[a:b]) > 0.05 * np.abs(wr[a:b]))
+            s = int(bad[-1]) + 1 if bad.size else 0
+            if s > (b - a) // 2:
+                s = b - a
+                demoted += 1
+            lab[a:a + s] = sim.CODE["other"]
+        elif lab[a] == sim.CODE["rest"] and a > 0 and lab[a - 1] == sim.CODE["step"]:
+            idx[a:b] = idx[a - 1]        # a still joint after a step: the step lasts until the next input
+            lab[a:b] = sim.CODE["step"]
+        elif lab[a] == sim.CODE["rest"] and a > 0 and lab[a - 1] == sim.CODE["other"]:
+            bad = np.flatnonzero(np.abs(w[a:b]) >= 0.01 * top)
+            lab[a:a + (int(bad[-1]) + 1 if bad.size else 0)] = sim.CODE["other"]
+    return lab, demoted

@@ -1,0 +1,201 @@
+"""Scorecard of ``frictid.segments.find_segments`` on logs of an independent simulator (issue 19).
+
+    python benchmarks/foreign/segments_scorecard.py                     # 300 draws, seeds 100000..100299
+    python benchmarks/foreign/segments_scorecard.py --draws 1 --seed-base 100042   # reproduce one draw
+
+Each draw (``scenarios.make_log``: plant, controller, sensors and layout from one seed) is written as a
+joint log, read back with ``frictid.io.logs.read_logs`` and segmented. A found segment is a true positive
+when a truth segment of the same kind (from the simulator's sidecar, which frictid never reads) overlaps
+it with intersection-over-union >= 0.8. Prints per kind precision / recall / F1, overall and per layout
+family, the ramp / step / duty-cycle segments reported on pure random point-to-point draws (must be 0),
+and the draws behind each failure class with the command that reproduces them.
+
+Seeds: scorecards use seeds >= 100000; the tests use seeds < 1000, so nothing here was seen by a test.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+import scenarios  # noqa: E402
+import sim  # noqa: E402
+
+from frictid.io.logs import read_logs  # noqa: E402
+from frictid.segments import find_segments  # noqa: E402
+
+IOU = 0.8
+KINDS = sim.KINDS
+#: Kinds an experiment-free log must never show.
+EXPERIMENT_KINDS = ("ramp_presliding", "step", "duty_cycle")
+
+
+def best_iou(segs, others) -> np.ndarray:
+    """Best IoU of each (i0, i1) of ``segs`` against ``others`` (sample indices, i1 exclusive)."""
+    best = np.zeros(len(segs))
+    if not segs or not others:
+        return best
+    o = np.array(sorted(others), dtype=np.int64)
+    for k, (a0, a1) in enumerate(segs):
+        j0 = int(np.searchsorted(o[:, 1], a0, side="right"))
+        j1 = int(np.searchsorted(o[:, 0], a1, side="left"))
+        for b0, b1 in o[j0:j1]:
+            inter = min(a1, b1) - max(a0, b0)
+            if inter > 0:
+                best[k] = max(best[k], inter / (max(a1, b1) - min(a0, b0)))
+    return best
+
+
+class Tally:
+    """Per kind: truth segments, found segments, matched truth and matched found (IoU >= 0.8)."""
+
+    def __init__(self):
+        self.c = {k: np.zeros(4, dtype=np.int64) for k in KINDS}
+
+    def add(self, truth, found) -> dict:
+        """Add one log; ``truth`` and ``found`` are lists of (kind, i0, i1). Returns this log's counts."""
+        one = {}
+        for k in KINDS:
+            tr = [(a, b) for kk, a, b in truth if kk == k]
+            fo = [(a, b) for kk, a, b in found if kk == k]
+            row = np.array([len(tr), len(fo), int(np.sum(best_iou(tr, fo) >= IOU)),
+                            int(np.sum(best_iou(fo, tr) >= IOU))])
+            self.c[k] += row
+            one[k] = row
+        return one
+
+    def prf(self, k):
+        """Precision, recall, F1 of kind k (nan where undefined)."""
+        n_t, n_f, tp_t, tp_f = self.c[k]
+        p = tp_f / n_f if n_f else float("nan")
+        r = tp_t / n_t if n_t else float("nan")
+        f1 = 2 * p * r / (p + r) if n_f and n_t and (p + r) > 0 else (0.0 if n_f or n_t else float("nan"))
+        return p, r, f1
+
+    def table(self, indent="") -> str:
+        lines = [f"{indent}{'kind':<18} {'truth':>6} {'found':>6} {'precision':>9} {'recall':>7} {'F1':>6}"]
+        for k in KINDS:
+            p, r, f1 = self.prf(k)
+            lines.append(f"{indent}{k:<18} {self.c[k][0]:>6d} {self.c[k][1]:>6d} {p:>9.3f} {r:>7.3f} {f1:>6.3f}")
+        return "\n".join(lines)
+
+
+def run_draw(seed: int, family: str | None, tmp: Path) -> dict:
+    """Make, read and segment one draw. Returns family, per-kind counts, found experiment kinds, timing."""
+    t0 = time.perf_counter()
+    path, truth = scenarios.make_log(seed, family, tmp)
+    t1 = time.perf_counter()
+    log = read_logs(str(path))[0]
+    segs = find_segments(log)
+    t2 = time.perf_counter()
+    tr = [(k, a, b) for k, a, b, _ in truth["segments"]]
+    found = [(s.kind, s.i0, s.i1) for s in segs]
+    for p in tmp.glob(path.name + "*"):
+        p.unlink()
+    return {"seed": seed, "family": truth["family"], "truth": tr, "found": found, "n": truth["n"],
+            "sim_s": t1 - t0, "seg_s": t2 - t1, "sensors": truth["sensors"], "controller": truth["controller"]}
+
+
+def describe(d: dict, row: dict) -> str:
+    """One line about a draw: seed, family, sensors and per-kind misses."""
+    s = d["sensors"]
+    bad = []
+    for k in KINDS:
+        n_t, n_f, tp_t, tp_f = row[k]
+        if n_t - tp_t or n_f - tp_f:
+            bad.append(f"{k}: {tp_t}/{n_t} found, {n_f - tp_f} spurious of {n_f}")
+    return (f"seed {d['seed']} {d['family']} fs {s['fs']:.0f} Hz, {s['bits']} bits, qd {s['qd_mode']}, "
+            f"{d['controller']['kind']}: " + ("; ".join(bad) or "all matched"))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--draws", type=int, default=300)
+    ap.add_argument("--seed-base", type=int, default=100000)
+    ap.add_argument("--family", choices=scenarios.FAMILIES, default=None, help="only this layout family")
+    ap.add_argument("--examples", type=int, default=4, help="draws listed per failure class")
+    ap.add_argument("--minutes", type=float, default=None, help="stop starting draws after this many minutes")
+    args = ap.parse_args(argv)
+    if args.seed_base < 100000 and args.draws > 1:
+        print("note: seeds below 100000 may be seeds the tests use", file=sys.stderr)
+    total, fams, rows, errors, ptp_fp = Tally(), {}, [], [], 0
+    t_start = time.time()
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(args.draws):
+            if args.minutes is not None and time.time() - t_start > 60 * args.minutes:
+                print(f"stopped after {i} draws ({args.minutes} min)", file=sys.stderr)
+                break
+            seed = args.seed_base + i
+            try:
+                d = run_draw(seed, args.family, Path(tmp))
+            except Exception as exc:  # a crash is a finding, not the end of the card
+                errors.append((seed, f"{type(exc).__name__}: {exc}".splitlines()[0][:200]))
+                traceback.print_exc(limit=2, file=sys.stderr)
+                continue
+            row = total.add(d["truth"], d["found"])
+            fams.setdefault(d["family"], Tally()).add(d["truth"], d["found"])
+            if d["family"] == "ptp":
+                ptp_fp += sum(1 for k, _, _ in d["found"] if k in EXPERIMENT_KINDS)
+            rows.append((d, row))
+            if args.draws <= 5:
+                print(describe(d, row))
+                print(f"  sim {d['sim_s']:.1f} s, segments {d['seg_s']:.1f} s, {d['n']} samples")
+    report(args, total, fams, rows, errors, ptp_fp, time.time() - t_start)
+    return 0
+
+
+def report(args, total, fams, rows, errors, ptp_fp, wall):
+    """Print the card: overall, per family, ptp false positives, failure classes, errors."""
+    n = len(rows) + len(errors)
+    print(f"\nforeign segments scorecard: {len(rows)} draws (seeds {args.seed_base}..{args.seed_base + n - 1}"
+          f"{', family ' + args.family if args.family else ''}), IoU >= {IOU}, {wall:.0f} s wall")
+    print(total.table())
+    n_ptp = sum(1 for d, _ in rows if d["family"] == "ptp")
+    print(f"\nramp/step/duty-cycle segments reported on {n_ptp} pure point-to-point draws: {ptp_fp} (must be 0)")
+    print("\nper layout family (F1 per kind; truth/found counts in brackets)")
+    print(f"{'family':<16} {'draws':>5}  " + "  ".join(f"{k[:12]:>18}" for k in KINDS))
+    for fam in scenarios.FAMILIES:
+        if fam not in fams:
+            continue
+        t = fams[fam]
+        nd = sum(1 for d, _ in rows if d["family"] == fam)
+        cells = []
+        for k in KINDS:
+            f1 = t.prf(k)[2]
+            cells.append(f"{'-' if np.isnan(f1) else f'{f1:.2f}':>5} ({t.c[k][0]:>4}/{t.c[k][1]:>4})")
+        print(f"{fam:<16} {nd:>5}  " + "  ".join(f"{c:>18}" for c in cells))
+    failure_classes(args, rows)
+    if errors:
+        print(f"\nerrors ({len(errors)} draws):")
+        for seed, msg in errors:
+            print(f"  seed {seed}: {msg}")
+
+
+def failure_classes(args, rows):
+    """Per (family, kind): draws with a missed or spurious segment, the worst listed with a command."""
+    print("\nfailure classes: (family, kind) -> draws with a miss or a spurious segment; worst first")
+    classes = {}
+    for d, row in rows:
+        for k in KINDS:
+            n_t, n_f, tp_t, tp_f = row[k]
+            miss = (n_t - tp_t) + (n_f - tp_f)
+            if miss:
+                classes.setdefault((d["family"], k), []).append((miss / max(n_t + n_f, 1), d, row))
+    for (fam, k), items in sorted(classes.items(), key=lambda kv: -len(kv[1])):
+        n_fam = sum(1 for d, _ in rows if d["family"] == fam)
+        print(f"- {fam} / {k}: {len(items)} of {n_fam} draws")
+        for _, d, row in sorted(items, key=lambda x: -x[0])[:args.examples]:
+            print(f"    {describe(d, {k: row[k] for k in KINDS})}")
+            print(f"    python benchmarks/foreign/segments_scorecard.py --draws 1 --seed-base {d['seed']}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
