@@ -25,9 +25,11 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parents[1] / "tests"))
 
 import scenarios  # noqa: E402
 import sim  # noqa: E402
+from segscore import _iou_best as best_iou  # noqa: E402 (the plant scorecard's matching rule)
 
 from frictid.io.logs import read_logs  # noqa: E402
 from frictid.segments import find_segments  # noqa: E402
@@ -36,22 +38,6 @@ IOU = 0.8
 KINDS = sim.KINDS
 #: Kinds an experiment-free log must never show.
 EXPERIMENT_KINDS = ("ramp_presliding", "step", "duty_cycle")
-
-
-def best_iou(segs, others) -> np.ndarray:
-    """Best IoU of each (i0, i1) of ``segs`` against ``others`` (sample indices, i1 exclusive)."""
-    best = np.zeros(len(segs))
-    if not segs or not others:
-        return best
-    o = np.array(sorted(others), dtype=np.int64)
-    for k, (a0, a1) in enumerate(segs):
-        j0 = int(np.searchsorted(o[:, 1], a0, side="right"))
-        j1 = int(np.searchsorted(o[:, 0], a1, side="left"))
-        for b0, b1 in o[j0:j1]:
-            inter = min(a1, b1) - max(a0, b0)
-            if inter > 0:
-                best[k] = max(best[k], inter / (max(a1, b1) - min(a0, b0)))
-    return best
 
 
 class Tally:
