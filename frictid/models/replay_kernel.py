@@ -1,6 +1,6 @@
 """Replay kernel: the friction an identified model predicts along a *measured* motion.
 
-This generalises :func:`frictid.models.lugre.lugre_friction` to every model the parameter file can hold
+It evaluates every model the parameter file can hold
 (the base static maps, LuGre, the thermal laws and the extensions the diagnosis adds), with one
 compiled loop:
 
@@ -10,7 +10,7 @@ compiled loop:
   payload, elapsed time), so they are computed once, vectorised, before the loop;
 - either the static law ``F = g sgn(w) + f`` (``dynamic = False``) or LuGre
   (``dz/dt = w - sigma0 |w| z / g``, ``F = sigma0 z + sigma1 dz/dt + f``), the bristle state advanced
-  exactly for the velocity held at the step's midpoint, as in :func:`frictid.models.lugre._replay_kernel`;
+  exactly for the velocity held at the step's midpoint (as the plant's kernel does);
 - a thermal law (code of :data:`frictid.models.thermal.THERMAL_CODES`): the map at joint temperature
   ``T`` is ``c0 s(T) + dc (T - T0)``; ``T`` is either given per sample (a measured joint temperature)
   or follows the heat balance ``C dT/dt = F w - K (T - Tenv)`` driven by the *predicted* friction power,
