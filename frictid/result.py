@@ -48,6 +48,8 @@ class ParamEstimate:
     reason: str = ""
     fixed: bool = False
     source: str = ""
+    #: (lower, upper) the optimiser kept the value within [unit], where the fit had bounds (static maps)
+    bounds: tuple[float, float] | None = None
 
     def to_dict(self) -> dict:
         d: dict[str, Any] = {"value": _num(self.value), "stderr": _num(self.stderr), "unit": self.unit,
@@ -58,13 +60,16 @@ class ParamEstimate:
             d["fixed"] = True
         if self.source:
             d["source"] = self.source
+        if self.bounds is not None:
+            d["bounds"] = [_num(self.bounds[0]), _num(self.bounds[1])]
         return d
 
     @classmethod
     def from_dict(cls, name: str, d: dict) -> "ParamEstimate":
         return cls(name=name, value=d.get("value"), stderr=d.get("stderr"), unit=d.get("unit", ""),
                    identifiable=bool(d.get("identifiable", True)), reason=d.get("reason", ""),
-                   fixed=bool(d.get("fixed", False)), source=d.get("source", ""))
+                   fixed=bool(d.get("fixed", False)), source=d.get("source", ""),
+                   bounds=tuple(d["bounds"]) if d.get("bounds") else None)
 
     @property
     def rel_err(self) -> float:

@@ -159,6 +159,7 @@ def test_load_gives_the_model_and_params_reload(fitted, tmp_path):
     m = frictid.load(p)
     assert isinstance(m, FrictionModel) and m.name == res[log.joint].selected
     assert m.to_dict()["params"] == {k: v.to_dict() for k, v in res[log.joint].selected_fit.params.items()}
+    assert all(m.params[k].bounds == p.bounds for k, p in res[log.joint].selected_fit.params.items())
     w = np.linspace(-0.9, 0.9, 41)
     assert np.array_equal(m.friction(w), res[log.joint].model.friction(w))
     with pytest.raises(frictid.errors.ConfigError, match="no joint"):
@@ -185,3 +186,16 @@ def test_the_examples_of_docs_model_md_run(tmp_path, monkeypatch):
     F = tau_ff - m.J * ns["qdd_ref"] - m.gravity(ns["q_ref"])
     moving = np.abs(ns["qd_ref"]) > 0.05
     assert np.all(np.sign(F[moving]) == np.sign(ns["qd_ref"][moving]))
+
+
+def test_params_carry_the_fits_bounds(fitted):
+    """lmfit-like parameters: every static-map parameter of the chosen model has the optimiser's bounds,
+    the value lies within them, and they survive the parameter file."""
+    log, res = fitted[0]
+    m = res[log.joint].model
+    for name, p in m.params.items():
+        if p.value is None:
+            continue
+        assert p.bounds is not None, name
+        lo, hi = p.bounds
+        assert lo <= p.value <= hi, (name, p.value, p.bounds)

@@ -515,7 +515,7 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
         k_total += len(bf.free)
         if bf.cov is not None:
             covs.append(bf.cov)
-        params.update(_branch_params(smap, suf, bf, shapeless, axis))
+        params.update(_branch_params(smap, suf, bf, shapeless, axis, (F0, w0)))
     values = {k: v.value for k, v in params.items()}
     met = metrics(name, values, w, F, k_total)
     cov = block_diag(*covs) if covs else None
@@ -578,11 +578,13 @@ def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict 
     return bf, shapeless
 
 
-def _branch_params(smap, suf: str, bf: BranchFit, shapeless: dict[str, str], axis: str
+def _branch_params(smap, suf: str, bf: BranchFit, shapeless: dict[str, str], axis: str, scales
                    ) -> dict[str, ParamEstimate]:
-    """The parameter estimates of a fitted branch (suffixed names)."""
+    """The parameter estimates of a fitted branch (suffixed names), each with the bounds the optimiser
+    had (the map's table scaled to the data, ``scales`` = (F0, w0))."""
     params = {}
-    for prm in smap.table:
+    lo, hi, _, _ = scaled_table(smap.table, *scales)
+    for k, prm in enumerate(smap.table):
         nm = prm.name
         unit = unit_of(prm.dim, axis)
         if nm + suf in shapeless:
@@ -594,4 +596,5 @@ def _branch_params(smap, suf: str, bf: BranchFit, shapeless: dict[str, str], axi
         else:
             r = bf.reasons.get(nm, "")
             params[nm + suf] = ParamEstimate(nm + suf, bf.values[nm], bf.stderr[nm], unit, not r, r)
+        params[nm + suf].bounds = (float(lo[k]), float(hi[k]))
     return params

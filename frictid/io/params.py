@@ -32,7 +32,8 @@ class _Closed(BaseModel):
 
 class ParamEntry(_Closed):
     """One number: value and standard error in ``unit``; identifiable false with a reason when the data
-    could not pin it down; fixed when held at a stated value; source when it did not come from a fit."""
+    could not pin it down; fixed when held at a stated value; source when it did not come from a fit;
+    bounds [lower, upper] the optimiser kept it within."""
 
     value: Number
     stderr: Number = None
@@ -41,6 +42,7 @@ class ParamEntry(_Closed):
     reason: Optional[str] = None
     fixed: Optional[bool] = None
     source: Optional[str] = None
+    bounds: Optional[list[Number]] = None
 
 
 class ModelEntry(_Open):
