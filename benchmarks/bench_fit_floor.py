@@ -1,0 +1,81 @@
+"""The fit against its floor: what any identification of these logs has to do at least.
+
+The floor of one joint log is: read it (``frictid.io.logs.read_logs``), differentiate it
+(``frictid.segments.derivatives``, the Savitzky-Golay velocity and acceleration) and solve one linear
+least-squares problem over every sample (Coulomb, viscous, inertia, gravity and offset columns,
+``np.linalg.lstsq``). The fit (``frictid.fit``, one joint at a time, ``jobs=1``) is timed without and
+with the diagnosis; runs alternate with the floor's, and the ratios are of medians in the same run.
+
+    python benchmarks/bench_fit_floor.py                  # 2 joints x 15 min at 1 kHz, 3 rounds
+    python benchmarks/bench_fit_floor.py --minutes 5 --joints 1 --rounds 2
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+import frictid  # noqa: E402
+from bench_fit import build_log  # noqa: E402
+from frictid.io.logs import read_logs  # noqa: E402
+from frictid.segments import derivatives  # noqa: E402
+
+#: The issue's target: the fit within this multiple of the floor.
+TARGET = 3.0
+
+
+def floor(path: str) -> float:
+    """Seconds for the floor of every joint of the file (see the module docstring)."""
+    t0 = time.perf_counter()
+    for lg in read_logs(path):
+        w, a = derivatives(lg)
+        ok = np.isfinite(w) & np.isfinite(a)
+        X = np.column_stack([np.sign(w[ok]), w[ok], a[ok], np.cos(lg.q[ok]), np.sin(lg.q[ok]), np.ones(ok.sum())])
+        np.linalg.lstsq(X, lg.tau[ok], rcond=None)
+    return time.perf_counter() - t0
+
+
+def fit(path: str, diagnose: bool) -> float:
+    t0 = time.perf_counter()
+    frictid.fit(path, jobs=1, diagnose=diagnose)
+    return time.perf_counter() - t0
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--minutes", type=float, default=15.0, help="minutes of log per joint (1 kHz)")
+    ap.add_argument("--joints", type=int, default=2)
+    ap.add_argument("--rounds", type=int, default=3)
+    a = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = str(Path(tmp) / "long.parquet")
+        rows = build_log(path, a.minutes / 60.0, a.joints)
+        fit(path, False)  # warm: compilation caches and imports are not the fit's
+        times = {"floor": [], "fit": [], "fit+diagnosis": []}
+        for _ in range(a.rounds):
+            times["floor"].append(floor(path))
+            times["fit"].append(fit(path, False))
+            times["floor"].append(floor(path))
+            times["fit+diagnosis"].append(fit(path, True))
+    med = {k: statistics.median(v) for k, v in times.items()}
+    print(f"fit against its floor: {a.joints} joints x {a.minutes:g} min at 1 kHz ({rows} rows), "
+          f"{a.rounds} rounds, medians")
+    print(f"floor (read + derivatives + least squares): {med['floor']:.2f} s "
+          f"({', '.join(f'{x:.2f}' for x in times['floor'])})")
+    for k in ("fit", "fit+diagnosis"):
+        r = med[k] / med["floor"]
+        print(f"{k:<14} {med[k]:6.2f} s  = {r:4.1f}x the floor  (target <= {TARGET:g}x: "
+              f"{'met' if r <= TARGET else 'not met'}; runs {', '.join(f'{x:.2f}' for x in times[k])})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
