@@ -50,6 +50,16 @@ def cli(capsysbinary):
     return run
 
 
+def default_signals() -> None:
+    """``preexec_fn`` of a child that a test interrupts: Ctrl-C and SIGTERM at their defaults, as in a
+    terminal. A shell without job control starts background commands (a CI runner's) with SIGINT
+    ignored, and Python then leaves it ignored in every child: the interrupt tests would test nothing."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def run_process(args, input_bytes=None, cwd=None, timeout=300) -> subprocess.CompletedProcess:
     """Run ``python -m frictid ARGS`` in a real process."""
     env = dict(os.environ)

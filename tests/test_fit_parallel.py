@@ -166,7 +166,7 @@ def test_interrupt_stops_the_workers_and_writes_nothing(tmp_path, sig, code, wor
     import subprocess
     import sys
 
-    from conftest import ROOT
+    from conftest import ROOT, default_signals
 
     path = tmp_path / "two.parquet"
     # long enough (seconds of fitting per joint) that the signal lands while the workers fit
@@ -174,7 +174,8 @@ def test_interrupt_stops_the_workers_and_writes_nothing(tmp_path, sig, code, wor
                "parquet")
     out = tmp_path / "p.yaml"
     proc = subprocess.Popen([sys.executable, "-m", "frictid", "fit", str(path), "-o", str(out), "--jobs", "2"],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True,
+                            preexec_fn=default_signals)
     kids: list[str] = []
     deadline = time.monotonic() + 120
     while len(kids) < 2 and proc.poll() is None and time.monotonic() < deadline:

@@ -8,7 +8,7 @@ import sys
 
 import yaml
 
-from conftest import ROOT, run_process
+from conftest import ROOT, default_signals, run_process
 
 
 def frictid_cmd() -> str:
@@ -81,7 +81,7 @@ def _interrupt_during_fit(tmp_path, sig):
     out = tmp_path / "params.yaml"
     out.write_text("previous: result\n")
     proc = subprocess.Popen([sys.executable, "-m", "frictid", "fit", *logs, "-o", str(out)], cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=default_signals)
     first = b""
     while b"fitting" not in first:  # the fit has started: reading, segmenting and fitting take seconds
         line = proc.stderr.readline()
