@@ -437,3 +437,14 @@ def test_hidden_effect_is_found(cause, plant, size, noise):
 def test_nothing_hidden_gives_no_finding(plant, size, noise):
     jf, _, _ = ds.run_case(plant, "none", 0.0, size, seed=11, noise=noise)
     assert not [f for f in jf.diagnosis if f["gain"] > GAIN_NULL], jf.diagnosis
+
+
+def test_no_evidence_warning_without_findings():
+    """The hydraulic sample: the diagnosis finds nothing and its base model loses the check to the fit's
+    per-sign choice; the record says so, and no warning speaks of findings kept as evidence."""
+    import frictid
+    from conftest import ROOT
+
+    jf = frictid.fit(str(ROOT / "sample_logs" / "hydraulic_sweep.csv"))["j1"]
+    assert jf.diagnosis == [] and jf.selection["diagnosis_check"]["kept"] == jf.selected
+    assert not [w for w in jf.warnings if "evidence" in w or "duty cycles included" in w], jf.warnings

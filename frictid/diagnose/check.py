@@ -134,7 +134,8 @@ def check_diagnosis(jf: JointFit, preps: list[Prep], choice: str, basis: str, mi
         return
     # duty cycles stay out of the fit's basis (their friction drifts with temperature) but are where a
     # temperature finding shows: with duty cycles the check runs on every moving sample of the logs
-    if any(s.kind == "duty_cycle" for p in preps for s in p.segments):
+    has_duty = any(s.kind == "duty_cycle" for p in preps for s in p.segments)
+    if has_duty:
         basis, excl = "samples", REGRESSION_EXCLUDE
     try:
         e_diag, mf_diag, pl_diag = _heldout_on_basis(jf, preps, jf.selected, basis, min_speed, excl, n_folds)
@@ -142,16 +143,17 @@ def check_diagnosis(jf: JointFit, preps: list[Prep], choice: str, basis: str, mi
     except (ConfigError, FrictidInputError, KeyError, ValueError):
         return
     what = ("plateau means" if basis == "plateaus" else
-            "moving samples" + (" (duty cycles included)" if "duty_cycle" not in excl else ""))
+            "moving samples" + (" (duty cycles included)" if has_duty and "duty_cycle" not in excl else ""))
     rec = {"model": jf.selected, "rms_heldout": e_diag, "fit_choice": choice, "rms_heldout_fit_choice": e_fit,
            "rule": f"the diagnosis' model is selected when its held-out torque RMS on {what} is at most "
                    f"{DIAGNOSIS_TOLERANCE:g} x that of the fit's choice (each model's static map refitted "
                    "without the held-out fold, its other terms replayed)"}
     if math.isfinite(e_diag) and math.isfinite(e_fit) and e_diag > DIAGNOSIS_TOLERANCE * e_fit:
         rec["kept"] = choice
-        jf.warnings.append(f"the diagnosis' model {jf.selected} predicts the torque of held-out {what} worse "
-                           f"(RMS {e_diag:.4g}) than the fit's choice {choice} ({e_fit:.4g}): {choice} stays "
-                           "selected; the findings are kept as evidence")
+        if jf.diagnosis:  # without findings there is nothing kept as evidence: the record says it all
+            jf.warnings.append(f"the diagnosis' model {jf.selected} predicts the torque of held-out {what} worse "
+                               f"(RMS {e_diag:.4g}) than the fit's choice {choice} ({e_fit:.4g}): {choice} stays "
+                               "selected; the findings are kept as evidence")
         jf.selected = choice
     elif basis == "plateaus" and pl_diag is not None and len(pl_diag):
         ext = set((jf.models[jf.selected].extra or {}).get("extensions") or ())
