@@ -285,9 +285,13 @@ class FrictionModel:
         w = np.asarray(w, dtype=float)
         return self._static(w.reshape(-1), np.ones(1), np.ones(1), None).reshape(w.shape)
 
+    def _at(self, T):
+        """The joint temperature a steady-state evaluation uses: T, or the thermal law's reference T0."""
+        return self.thermal["T0"] if T is None and self.thermal else T
+
     def _static(self, w, gmul, fmul, T) -> np.ndarray:
         F, _, _ = replay_friction(np.arange(w.shape[0], dtype=float), w, self.c_pos, self.c_neg,
-                                  gmul=gmul, fmul=fmul, thermal=self._thermal_given(w.shape[0], T))
+                                  gmul=gmul, fmul=fmul, thermal=self.thermal_input(w.shape[0], T=self._at(T)))
         return F
 
     def simulate(self, t, w, *, z0: float = 0.0, T=None, Tenv=None, T_init=None, q=None, load=None,
@@ -305,8 +309,7 @@ class FrictionModel:
         n = w.shape[0]
         gmul, fmul = self.multipliers(t if self.ext.get("drift_per_hour") else None, q, None, payload,
                                       load=load if load is not None else 0.0)
-        th = self._thermal_given(n, T) if T is not None or not self.thermal else self._heat_balance(n, Tenv,
-                                                                                                     T_init)
+        th = self.thermal_input(n, T=T, Tenv=Tenv, T_init=T_init)
         F, z, T_out = replay_friction(t, w, self.c_pos, self.c_neg, gmul=gmul, fmul=fmul, sigma0=self.sigma0,
                                       sigma1=self.sigma1, z0=z0, thermal=th)
         return F + self.ext.get("tau_offset", 0.0), z, T_out
@@ -330,20 +333,25 @@ class FrictionModel:
         code, theta, dc9 = thermal_code(th["law"], th["alpha"], th["beta"], th["lam"], th["T0"], th["dc"])
         return {"code": code, "theta": theta, "dc_pos": dc9, "dc_neg": dc9}
 
-    def _thermal_given(self, n: int, T) -> dict | None:
+    def thermal_input(self, n: int, T=None, Tenv=None, T_init=None) -> dict | None:
+        """The thermal law as the replay kernel takes it over n samples, or None without one: at the joint
+        temperature T [degC] (scalar or per sample) when given; else along the heat balance from the
+        ambient Tenv [degC] (scalar or per sample; default T0), starting at T_init (default the first
+        ambient value, or T0 for no samples)."""
         law = self.thermal_law()
-        if law is not None:
-            law["T"] = np.full(n, self.thermal["T0"]) if T is None else np.broadcast_to(T, (n,))
-        return law
-
-    def _heat_balance(self, n: int, Tenv, T_init) -> dict:
-        law = self.thermal_law()
-        if self.thermal.get("C") is None or self.thermal.get("K") is None:
+        if law is None:
+            return None
+        th = self.thermal
+        if T is not None:
+            law["T"] = np.broadcast_to(np.asarray(T, dtype=float), (n,))
+            return law
+        if th.get("C") is None or th.get("K") is None:
             raise ConfigError(f"joint {self.joint}, model {self.name}: the thermal law reads a measured joint "
                               "temperature; pass T")
-        Tenv = np.full(n, self.thermal["T0"]) if Tenv is None else np.broadcast_to(np.asarray(Tenv, float), (n,))
-        law.update(C=self.thermal["C"], K=self.thermal["K"], Tenv=Tenv,
-                   T_init=float(Tenv[0]) if T_init is None and n else float(T_init or 0.0))
+        Tenv = np.full(n, th["T0"]) if Tenv is None else np.broadcast_to(np.asarray(Tenv, dtype=float), (n,))
+        if T_init is None:
+            T_init = Tenv[0] if n else th["T0"]
+        law.update(C=th["C"], K=th["K"], Tenv=Tenv, T_init=float(T_init))
         return law
 
     # ---- honesty about the inputs

@@ -40,7 +40,7 @@ REFERENCE_CHANNELS = ("q_ref", "qd_ref", "tau_ref")
 ReplayModel = FrictionModel
 
 __all__ = ["FrictionModel", "ReplayModel", "ReplayResult", "joint_model", "replay", "closed_loop", "replay_logs",
-           "controller_from_meta", "log_start_time", "multipliers", "thermal_input", "rigid_torque",
+           "controller_from_meta", "log_start_time", "thermal_input", "rigid_torque",
            "position_factor", "load_factor", "drift_factor", "EXTENSION_PARAMS", "REFERENCE_CHANNELS"]
 
 
@@ -111,27 +111,18 @@ class ReplayResult:
         return float(np.sqrt(np.mean(r * r))) if r.size else math.nan
 
 
-def multipliers(model: FrictionModel, t_abs, q, a, payload, G=None) -> tuple[np.ndarray, np.ndarray]:
-    """Level and viscous multipliers (gmul, fmul) [1] per sample: :meth:`FrictionModel.multipliers`."""
-    return model.multipliers(t_abs, q, a, payload, G)
-
-
 def thermal_input(model: FrictionModel, log: JointLog, n: int) -> dict | None:
-    """The thermal dict of :func:`frictid.models.replay_kernel.replay_friction` for a log, or None."""
-    out = model.thermal_law()
-    if out is None:
+    """The thermal dict of :func:`frictid.models.replay_kernel.replay_friction` for a log, or None: the log's
+    ``temp_joint`` for a law identified on it, else the heat balance from its ``temp_env``
+    (:meth:`FrictionModel.thermal_input`)."""
+    if not model.thermal:
         return None
-    th = model.thermal
-    if th.get("source") == "temp_joint":
+    if model.thermal.get("source") == "temp_joint":
         if "temp_joint" not in log.channels:
             raise FrictidInputError(f"{log.source or 'log'}: joint {log.joint}: model {model.name} reads the "
                                     "joint temperature, but the log has no temp_joint column")
-        out["T"] = np.asarray(log.channels["temp_joint"], dtype=float)
-        return out
-    Tenv = log.channels.get("temp_env")
-    Tenv = np.full(n, th["T0"]) if Tenv is None else np.asarray(Tenv, dtype=float)
-    out.update(C=th["C"], K=th["K"], Tenv=Tenv, T_init=float(Tenv[0]) if n else th["T0"])
-    return out
+        return model.thermal_input(n, T=log.channels["temp_joint"])
+    return model.thermal_input(n, Tenv=log.channels.get("temp_env"))
 
 
 def replay(log: JointLog, model: FrictionModel, w=None, a=None, t_offset: float | None = None,
@@ -170,7 +161,7 @@ def replay(log: JointLog, model: FrictionModel, w=None, a=None, t_offset: float 
     G_ext = None
     if q is not None and (model.ext.get("load_torque") or model.ext.get("load_gravity")):
         G_ext = G - model.offset
-    gmul, fmul = multipliers(model, t_abs, q, af, payload, G_ext)
+    gmul, fmul = model.multipliers(t_abs, q, af, payload, G_ext)
     th = thermal_input(model, log, n)
     sig0 = model.sigma0
     off = model.ext.get("tau_offset", 0.0)
@@ -297,7 +288,7 @@ def closed_loop(log: JointLog, model: FrictionModel, gains: dict, rigid_stiffnes
     a_meas = np.asarray(a, dtype=float)
     t_abs = log.t + t_off if ext.get("drift_per_hour") else None  # the drift clock, only when it acts
     gmul, fmul = (np.ascontiguousarray(m, dtype=float)  # length 1 when the same for every sample
-                  for m in multipliers(side, t_abs, q_meas, a_meas, pay_in, G_meas))
+                  for m in side.multipliers(t_abs, q_meas, a_meas, pay_in, G_meas))
     th = thermal_input(model, log, n)
     if th is not None:
         if "T" in th:
