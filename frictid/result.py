@@ -265,7 +265,6 @@ class FitResult:
     @classmethod
     def from_dict(cls, d: dict) -> "FitResult":
         if not isinstance(d, dict) or d.get("schema") != SCHEMA_VERSION:
-            from frictid.errors import ConfigError
             got = d.get("schema") if isinstance(d, dict) else type(d).__name__
             raise ConfigError(f"parameter file: schema {got!r} is not supported (expected {SCHEMA_VERSION})")
         return cls(joints={str(j): JointFit.from_dict(str(j), jd) for j, jd in (d.get("joints") or {}).items()},

@@ -16,7 +16,8 @@ from typing import Any, Callable
 import numpy as np
 
 from frictid.data import JointLog, Segment
-from frictid.errors import ConfigError
+from frictid import replay as rp
+from frictid.errors import ConfigError, FrictidInputError
 from frictid.model import FrictionModel
 from frictid.models import static as sm
 from frictid.result import JointFit
@@ -69,11 +70,12 @@ def model_values(md: dict) -> dict[str, float | None]:
     return {n: pvalue(p) for n, p in (md.get("params") or {}).items()}
 
 
-def friction_model(jd: dict, name: str) -> FrictionModel | None:
+def friction_model(jd: dict, name: str, jf: JointFit | None = None) -> FrictionModel | None:
     """Model ``name`` of a joint entry as the :class:`~frictid.model.FrictionModel` that evaluates it, or
-    None when the file does not hold all its values (the report then leaves its curve out)."""
+    None when the file does not hold all its values (the report then leaves its curve out). jf : the entry
+    already read into a :class:`JointFit`, when the caller evaluates several of its models."""
     try:
-        return JointFit.from_dict("", jd).friction_model(name)
+        return (jf or JointFit.from_dict("", jd)).friction_model(name)
     except (ConfigError, KeyError, TypeError, ValueError):
         return None
 
@@ -87,13 +89,17 @@ def static_models(jd: dict) -> list[dict]:
     """
     models = jd.get("models") or {}
     sel = jd.get("selected")
+    try:
+        jf = JointFit.from_dict("", jd)
+    except (KeyError, TypeError, ValueError):  # an entry the file's reader would refuse: no curves
+        return []
     out = []
     for name, md in models.items():
         if not isinstance(md, dict) or name.startswith("thermal") or name == "exponential":
             continue
         if name == "lugre" and md.get("static_model") in models and sel != "lugre":
             continue
-        m = friction_model(jd, name)
+        m = friction_model(jd, name, jf)
         if m is None:
             continue
         label = name + (" (chosen)" if name == sel else "")
@@ -725,18 +731,10 @@ def replay_log(d: LogData, jname: str, jd: dict, model: str | None = None, close
     state, thermal state, Karnopp stick at rest, diagnosis extensions); the closed loop is re-simulated
     when the log has ``q_ref`` and its metadata the controller gains. Falls back on the static map alone
     (:func:`static_replay`) when the replay cannot build the model. None when neither can."""
-    from frictid.errors import FrictidInputError
-    from frictid.result import JointFit
-
-    try:
-        from frictid import replay as rp
-    except ImportError:  # pragma: no cover - replay not available
-        rp = None
     name = model or jd.get("selected")
-    if rp is not None and name:
+    if name:
         try:
-            jf = JointFit.from_dict(jname, jd)
-            m = rp.joint_model(jf, name)
+            m = JointFit.from_dict(jname, jd).friction_model(name)
             G = model_gravity(d, m)
             with np.errstate(all="ignore"):
                 r = rp.replay(d.log, m, w=d.w, a=d.a, scales=d.scales, G=G)
