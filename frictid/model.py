@@ -415,17 +415,16 @@ class FrictionModel:
     def head(self) -> dict:
         """What a feed-forward user needs of this model, for the top of a joint in the parameter file: name,
         formula, parameters (value, unit, stderr, identifiable), rigid-body terms and validity."""
+        whole = self.to_dict()
         params = {}
-        for n, p in self.params.items():
-            d = p.to_dict() if hasattr(p, "to_dict") else dict(p)
+        for n, d in whole["params"].items():
             params[n] = {k: d.get(k) for k in ("value", "unit", "stderr", "identifiable")}
             if d.get("fixed"):  # held at a value (delta at 2, a drop the data cannot see): said so, with why
                 params[n]["fixed"] = True
             if d.get("reason") and (d.get("fixed") or not d.get("identifiable", True)):
                 params[n]["reason"] = d["reason"]
-        d = self.to_dict()
-        return {"name": self.name, **self.formula(), "params": params, "rigid_body": d["rigid_body"],
-                "validity": d["validity"]}
+        return {"name": self.name, **self.formula(), "params": params, "rigid_body": whole["rigid_body"],
+                "validity": whole["validity"]}
 
     def to_dict(self) -> dict:
         """The model as plain data: name, map, axis, parameters (value, unit, stderr, verdict), the rigid-body
