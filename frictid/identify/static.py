@@ -412,11 +412,13 @@ def _shapeless(base: str, values: dict, cov: np.ndarray, free: list[str]) -> dic
     :data:`SHAPE_Z` standard errors of zero, with the reason: a drop that the data cannot tell from none
     has no speed at which it decays (one plateau speed, or a map without a Stribeck effect)."""
     out = {}
-    for shape, contrast, what in SHAPES.get(base, ()):
+    shapes = SHAPES.get(base, ())
+    precision = np.linalg.pinv(cov) if shapes else None
+    for shape, contrast, what in shapes:
         # the amplitude's error with its shape held where it is: a drop whose speed trades with the other
         # terms still counts when, at that speed, it stands clear of zero
         keep = [j for j, nm in enumerate(free) if nm not in shape]
-        cond = np.linalg.pinv(np.linalg.pinv(cov)[np.ix_(keep, keep)])
+        cond = np.linalg.pinv(precision[np.ix_(keep, keep)])
         c = np.array([contrast.get(free[j], 0.0) for j in keep])
         amp = sum(coef * values[nm] for nm, coef in contrast.items())
         se = math.sqrt(max(float(c @ cond @ c), 0.0))
