@@ -245,3 +245,24 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path):
         assert r.returncode == 2, (fmt, r.stderr)
         assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
         assert not out.exists()
+
+
+def test_using_the_model_page_runs(tmp_path):
+    """Every block of docs/using-the-model.md, in order, from a folder holding a copy of sample_logs/."""
+    import os
+    import re
+    import shutil
+
+    from conftest import ROOT
+
+    shutil.copytree(ROOT / "sample_logs", tmp_path / "sample_logs")
+    env = dict(os.environ, PATH=f"{os.path.dirname(sys.executable)}{os.pathsep}{os.environ.get('PATH', '')}")
+    text = (ROOT / "docs" / "using-the-model.md").read_text()
+    blocks = re.findall(r"```(bash|python)\n(.*?)```", text, re.S)
+    assert [k for k, _ in blocks].count("bash") >= 3 and [k for k, _ in blocks].count("python") == 2
+    for kind, code in blocks:
+        cmd = ["bash", "-e", "-c", code] if kind == "bash" else [sys.executable, "-c", code]
+        r = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True)
+        assert r.returncode == 0, (code, r.stdout[-2000:], r.stderr[-2000:])
+    assert (tmp_path / "joint.xml").exists() and (tmp_path / "friction.json").exists()
+    assert "friction" in r.stdout  # the C program's output
