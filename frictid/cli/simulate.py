@@ -36,7 +36,12 @@ def simulate(
         "--replay", help="Measured log to replay the model along (with --params); writes tau_model, "
                          "residual and, with a known controller, q_model.")] = None,
     model: Annotated[Optional[str], typer.Option(
-        "--model", help="With --replay: the model to run (default: each joint's selected model).")] = None,
+        "--model", help="With --replay or --compensate: the model to run (default: each joint's selected "
+                        "model).")] = None,
+    compensate: Annotated[Optional[str], typer.Option(
+        "--compensate", help="Parameter YAML from frictid fit: run the recipe in closed loop without friction "
+                             "compensation, with the model as feed-forward and with the plant's true friction; "
+                             "-o gets the runs (Parquet or CSV).")] = None,
     mapping: MapOpt = None,
     units: UnitsOpt = None,
     quiet: QuietOpt = False,
@@ -51,6 +56,12 @@ def simulate(
 
     con = Console(quiet)
     refuse_json_with_stdout("simulate", as_json, output)
+    if compensate is not None:
+        if params is not None or replay_log is not None or recipe is None:
+            raise FrictidInputError("simulate: --compensate takes a recipe and no --params/--replay "
+                                    "(frictid simulate --compensate PARAMS.yaml RECIPE -o RUNS.parquet)")
+        _compensate(compensate, recipe, output, plant, model, fmt, seed, con, as_json)
+        return
     if params is not None or replay_log is not None:
         if params is None or replay_log is None:
             raise FrictidInputError("simulate: --params and --replay go together "
@@ -60,7 +71,7 @@ def simulate(
         _replay(params, replay_log, output, plant, model, fmt, mapping, units, con, as_json)
         return
     if model is not None or mapping is not None or units is not None:
-        raise FrictidInputError("simulate: --model, --map and --units apply to --replay only")
+        raise FrictidInputError("simulate: --model, --map and --units apply to --replay and --compensate only")
     if recipe is None:
         raise FrictidInputError("simulate: give a recipe (e.g. recipes/constant_velocity_sweep.yaml)")
     fmt = output_format(output, fmt)
@@ -108,3 +119,34 @@ def _replay(params, log_path, output, plant, model, fmt, mapping, units, con, as
     if as_json:
         emit_json("simulate", {"mode": "replay", "output": output, "format": fmt, "params": str(params),
                                "log": str(log_path), "rows": rows, "joints": info, "warnings": con.warnings})
+
+
+def _compensate(params, recipe, output, plant, model, fmt, seed, con, as_json=False) -> None:
+    from ..compensate import compensation_runs
+    from ..io.atomic import check_output_path
+    from ..io.logs import output_format
+    from ..io.params import read_params
+    from ..io.replay_out import write_runs
+
+    fmt = output_format(output, fmt)
+    recipe_path = resolve_recipe(recipe)
+    plant_path = resolve_recipe(plant, "recipes/plants") if plant else None
+    check_output_path(output, [params, recipe_path, plant_path], sidecar=fmt == "csv")
+    res = read_params(params)
+    models = {j: res[j].friction_model(model) for j in res.joints}
+    runs = compensation_runs(models, recipe_path, plant_path, seed=seed)
+    info = {j: {"model": models[j].name, "runs": {k: r.metrics.to_dict() for k, r in by.items()}}
+            for j, by in runs.items()}
+    write_runs(runs, output, fmt, {"params": str(params), "recipe": recipe_path, "joints": info})
+    for j, rec in info.items():
+        m = rec["runs"]
+        base = m["none"]["rms_error"]
+        parts = [f"{k} {v['rms_error']:.3g} (x{base / v['rms_error']:.3g}), {v['stick_slip_episodes']} stick"
+                 for k, v in m.items() if v["rms_error"] > 0]
+        con.info(f"frictid: joint {j} ({rec['model']}): tracking error RMS " + "; ".join(parts))
+    con.info(f"frictid: wrote the runs to {output}")
+    if as_json:
+        emit_json("simulate", {"mode": "compensate", "output": output, "params": str(params),
+                               "recipe": recipe_path, "seed": seed,
+                               "joints": {j: {"model": rec["model"], "runs": rec["runs"]} for j, rec in info.items()},
+                               "warnings": con.warnings})

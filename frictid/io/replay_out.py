@@ -36,3 +36,23 @@ def write_replay(logs, results, path: str, fmt: str | None = None, info: dict | 
     meta = logs_metadata(logs)
     meta["replay"] = info or {}
     write_table(table, path, fmt, meta)
+
+
+#: Columns of ``frictid simulate --compensate``'s runs file, one row per sample of each run of each joint.
+RUN_COLUMNS = ("joint", "run", "t", "q_ref", "q", "qd", "tau", "tau_comp")
+
+
+def write_runs(runs: dict, path: str, fmt: str | None = None, info: dict | None = None) -> None:
+    """Write compensation runs (joint -> run name -> :class:`frictid.compensate.Run`) atomically, long
+    format: joint, run, t [s], q_ref and q [q], qd [q/s], tau (the controller's torque) and tau_comp (the
+    friction feed-forward in it) [F]; ``info`` (the metrics) in the metadata under ``compensate``."""
+    fmt = output_format(path, fmt)
+    parts = {c: [] for c in RUN_COLUMNS}
+    for joint, by_name in runs.items():
+        for name, r in by_name.items():
+            n = r.t.shape[0]
+            for c, v in zip(RUN_COLUMNS, (np.full(n, str(joint), dtype=object), np.full(n, name, dtype=object),
+                                          r.t, r.q_ref, r.q, r.w, r.u, r.ff)):
+                parts[c].append(v)
+    table = pa.table({c: pa.array(np.concatenate(parts[c])) if parts[c] else pa.array([]) for c in RUN_COLUMNS})
+    write_table(table, path, fmt, {"compensate": info or {}})

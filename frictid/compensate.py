@@ -1,0 +1,152 @@
+"""Compensation what-if: the plant's closed loop on a tracking recipe, with and without friction
+feed-forward, judged as the papers judge a friction model (tracking error, stick-slip).
+
+Runs, per joint (:data:`RUNS`):
+
+- ``none``: the plant's own controller, no friction compensation;
+- ``model``: the identified model as feed-forward, ``FrictionModel.simulate`` along the reference velocity
+  (its bristle state, its thermal law driven by the ambient temperature, its position/load/drift terms
+  along the reference); a thermal law that reads a measured joint temperature gets the joint
+  temperature of the ``none`` run;
+- ``true``: the plant's true friction along the reference, the same feed-forward with perfect knowledge
+  (the ideal this structure of compensation can reach).
+
+The feed-forward enters only where the recipe runs the loop closed; torque-mode stretches are left as
+they are. Every run uses the same sensor noise (the same seed), so the differences are the compensation's.
+
+Metrics (:class:`RunMetrics`) over the closed-loop samples, on the true position: RMS and peak tracking
+error, the RMS error where the reference moves at constant velocity (the steady state of a ramp), and
+stick episodes: stretches of at least :data:`STICK_MIN_S` seconds (and five samples) where the
+reference moves but the joint stands (``|w| < STICK_FRACTION |qd_ref|``).
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .errors import FrictidInputError
+from .model import FrictionModel
+from .models.replay_kernel import replay_friction
+from .plant.config import load_plant, load_recipe, resolve_plant_path
+from .plant.kernel import MODE_TORQUE, P_C, P_K, P_PAMP, P_PPER, P_PPH, P_S0N, P_S0P, P_S1N, P_S1P
+from .plant.simulate import kernel_inputs, prepare_joint, simulate_joint
+
+RUNS = ("none", "model", "true")
+STICK_FRACTION = 0.1
+STICK_MIN_S = 0.02
+
+
+@dataclass
+class RunMetrics:
+    """Tracking of one run [q]: rms_error, peak_error, steady_error (RMS on constant-velocity reference
+    stretches, None without any), stick_slip_episodes (count), stick_seconds (their total duration)."""
+
+    rms_error: float
+    peak_error: float
+    steady_error: float | None
+    stick_slip_episodes: int
+    stick_seconds: float
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class Run:
+    """One closed-loop run: the samples and their metrics."""
+
+    name: str
+    t: np.ndarray
+    q_ref: np.ndarray
+    q: np.ndarray
+    w: np.ndarray
+    u: np.ndarray
+    ff: np.ndarray
+    metrics: RunMetrics
+
+
+def stick_episodes(t, w, qd_ref, closed) -> tuple[int, float]:
+    """Count and total duration [s] of the stretches where the reference moves and the joint stands."""
+    moving = closed & (np.abs(qd_ref) > 1e-3 * max(float(np.max(np.abs(qd_ref))), 1e-300))
+    stuck = (moving & (np.abs(w) < STICK_FRACTION * np.abs(qd_ref))).astype(np.int8)
+    edges = np.flatnonzero(np.diff(np.r_[0, stuck, 0]))
+    h = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    n_min = max(5, int(np.ceil(STICK_MIN_S / h))) if h > 0 else 5
+    lengths = [i1 - i0 for i0, i1 in zip(edges[::2], edges[1::2]) if i1 - i0 >= n_min]
+    return len(lengths), float(sum(lengths) * h)
+
+
+def run_metrics(t, q_ref, qd_ref, q, w, closed) -> RunMetrics:
+    e = (q_ref - q)[closed]
+    qdd = np.gradient(qd_ref, t)
+    ramp = closed & (np.abs(qd_ref) > 0) & (np.abs(qdd) <= 1e-9 * max(float(np.max(np.abs(qdd))), 1e-300))
+    count, seconds = stick_episodes(t, w, qd_ref, closed)
+    return RunMetrics(rms_error=float(np.sqrt(np.mean(e**2))) if e.size else 0.0,
+                      peak_error=float(np.max(np.abs(e))) if e.size else 0.0,
+                      steady_error=float(np.sqrt(np.mean((q_ref - q)[ramp] ** 2))) if ramp.any() else None,
+                      stick_slip_episodes=count, stick_seconds=seconds)
+
+
+def model_feedforward(m: FrictionModel, t, prog, T_joint=None) -> np.ndarray:
+    """The identified model's friction along the reference (q_ref, qd_ref) of a compiled program."""
+    q_ref, qd_ref = prog["q_ref"], prog["qd_ref"]
+    qdd = np.gradient(qd_ref, t)
+    payload = prog["payload"] if np.any(prog["payload"] != 0) else None
+    load = np.abs(m.J * qdd + m.gravity(q_ref, payload) - m.offset)
+    thermal = m.thermal or {}
+    if thermal and (thermal.get("C") is None or thermal.get("K") is None):
+        F, _, _ = m.simulate(t, qd_ref, T=T_joint, q=q_ref, load=load, payload=payload)
+    else:
+        F, _, _ = m.simulate(t, qd_ref, Tenv=prog["temp_env"], q=q_ref, load=load, payload=payload)
+    return F
+
+
+def true_feedforward(plant, joint, t, prog, args) -> np.ndarray:
+    """The plant's true friction along the reference: its canonical map, bristles, thermal law (heat
+    balance from the ambient) and position effect, as the replay kernel evaluates them."""
+    p, c_pos, c_neg, dc9, code, theta, _, _ = kernel_inputs(plant, joint)
+    gmul = np.broadcast_to(args["gmul"], t.shape).astype(float)
+    if p[P_PAMP]:
+        gmul = gmul * (1.0 + p[P_PAMP] * np.sin(2 * np.pi / p[P_PPER] * prog["q_ref"] + p[P_PPH]))
+    thermal = None
+    if code:
+        thermal = {"code": code, "theta": theta, "dc_pos": dc9, "dc_neg": dc9, "C": p[P_C], "K": p[P_K],
+                   "Tenv": prog["temp_env"], "T_init": float(prog["temp_env"][0])}
+    F, _, _ = replay_friction(t, prog["qd_ref"], c_pos, c_neg, gmul=gmul, fmul=args["fmul"],
+                              sigma0=(p[P_S0P], p[P_S0N]), sigma1=(p[P_S1P], p[P_S1N]), thermal=thermal)
+    return F
+
+
+def _run(name, args, t, prog, ff, closed) -> Run:
+    a = dict(args, tau_ff=np.where(closed, prog["tau_ff"] + ff, prog["tau_ff"]))
+    q, w, _, _, _, u, _, _ = simulate_joint(**a)
+    return Run(name, t, prog["q_ref"], q, w, u, ff, run_metrics(t, prog["q_ref"], prog["qd_ref"], q, w, closed))
+
+
+def compensation_runs(models: dict[str, FrictionModel], recipe, plant=None, seed: int = 0,
+                      duration_scale: float = 1.0) -> dict[str, dict[str, Run]]:
+    """The runs of :data:`RUNS` for each joint of ``models`` (joint name -> identified model) on the
+    recipe's plant (or ``plant``)."""
+    rec, base = load_recipe(recipe)
+    pl = load_plant(plant if plant is not None else resolve_plant_path(rec.default_plant, base))
+    names = {j.name for j in pl.joints}
+    missing = [j for j in models if j not in names]
+    if missing:
+        raise FrictidInputError(f"plant {pl.name}: no joint {', '.join(missing)} (its joints: "
+                                f"{', '.join(sorted(names))}); compensate the plant the parameters were "
+                                "identified on, or give it with --plant")
+    seeds = np.random.SeedSequence(seed).spawn(len(pl.joints))
+    out = {}
+    for joint, ss in zip(pl.joints, seeds):
+        if joint.name not in models:
+            continue
+        prog, args, ex = prepare_joint(pl, joint, rec, ss, duration_scale)
+        t = ex["t"]
+        closed = np.broadcast_to(prog["mode"] != MODE_TORQUE, t.shape)
+        runs = {"none": _run("none", args, t, prog, np.zeros_like(t), closed)}
+        T_none = simulate_joint(**dict(args, outputs=("T",)))[4]
+        runs["model"] = _run("model", args, t, prog, model_feedforward(models[joint.name], t, prog, T_none), closed)
+        runs["true"] = _run("true", args, t, prog, true_feedforward(pl, joint, t, prog, args), closed)
+        out[joint.name] = runs
+    return out
