@@ -118,6 +118,19 @@ def true_feedforward(plant, joint, t, prog, args) -> np.ndarray:
     return F
 
 
+def plant_friction_model(plant, joint) -> FrictionModel:
+    """A plant joint's own friction (its canonical map, bristles and thermal law; hidden effects left out)
+    as a :class:`~frictid.model.FrictionModel`: what a perfect identification would return."""
+    p, c_pos, c_neg, dc9, code, theta, _, _ = kernel_inputs(plant, joint)
+    m = FrictionModel(name="plant", map="stribeck_2exp_asym", c_pos=c_pos, c_neg=c_neg, J=joint.J,
+                      joint=joint.name, sigma0=(p[P_S0P], p[P_S0N]), sigma1=(p[P_S1P], p[P_S1N]))
+    if code:
+        law = {1: "thermal4", 2: "thermal6", 3: "exponential"}[code]
+        m.thermal = {"law": law, "alpha": theta[0], "beta": theta[1], "lam": theta[2], "T0": theta[3],
+                     "dc": [dc9[i] for i in (0, 6, 7, 8)], "C": p[P_C], "K": p[P_K]}
+    return m
+
+
 def _run(name, args, t, prog, ff, closed) -> Run:
     a = dict(args, tau_ff=np.where(closed, prog["tau_ff"] + ff, prog["tau_ff"]))
     q, w, _, _, _, u, _, _ = simulate_joint(**a)

@@ -16,11 +16,9 @@ import sys
 import numpy as np
 import pytest
 
-from frictid.compensate import compensation_runs, stick_episodes
+from frictid.compensate import compensation_runs, plant_friction_model, stick_episodes
 from frictid.model import FrictionModel
 from frictid.plant.config import load_plant
-from frictid.plant.kernel import P_C, P_K, P_S0N, P_S0P, P_S1N, P_S1P
-from frictid.plant.simulate import kernel_inputs
 
 from conftest import ROOT
 
@@ -29,17 +27,8 @@ PLANTS = ROOT / "recipes" / "plants"
 
 
 def true_model(plant: str, joint: str) -> FrictionModel:
-    """The plant's own friction as a FrictionModel (no hidden effects on the shipped plants' joints used)."""
     pl = load_plant(str(PLANTS / f"{plant}.yaml"))
-    j = pl.joint(joint)
-    p, c_pos, c_neg, dc9, code, theta, _, _ = kernel_inputs(pl, j)
-    m = FrictionModel(name="truth", map="stribeck_2exp_asym", c_pos=c_pos, c_neg=c_neg, J=j.J, joint=joint,
-                      sigma0=(p[P_S0P], p[P_S0N]), sigma1=(p[P_S1P], p[P_S1N]))
-    if code:
-        law = {1: "thermal4", 2: "thermal6", 3: "exponential"}[code]
-        m.thermal = {"law": law, "alpha": theta[0], "beta": theta[1], "lam": theta[2], "T0": theta[3],
-                     "dc": [dc9[i] for i in (0, 6, 7, 8)], "C": p[P_C], "K": p[P_K]}
-    return m
+    return plant_friction_model(pl, pl.joint(joint))
 
 
 def test_the_true_friction_as_model_gives_the_true_run():
