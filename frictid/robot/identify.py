@@ -1,0 +1,250 @@
+"""Rigid-body base parameters and each joint's friction, identified jointly from multi-joint motion.
+
+``tau_j = Y_base(q, qd, qdd)_j beta + fv_j qd_j + fc_j sgn(qd_j) + fo_j`` for every joint j, by weighted
+least squares (Gaz et al. 2019, "classical" identification; Gautier's base parameters):
+
+1. the joints' logs on one time base (a non-uniform one resampled to its median period);
+2. position and velocity low-passed, zero phase, with the cut-off from the data: ten times the frequency
+   below which 99 % of the velocity's spectral energy lies (at most 0.4 of the sample rate); acceleration
+   is the derivative of the filtered velocity;
+3. the regressor built at every sample, then *parallel filtering* (Gautier): every regressor column and the
+   measured torque pass the same low-pass filter and are decimated to five samples per cut-off period, so
+   the torque and the model stay comparable across the friction's sign changes;
+4. ordinary least squares, then rows weighted by each joint's residual standard deviation, and solved
+   again; standard errors from the weighted fit, widened by the residuals' correlation in time (each
+   joint's lag-one autocorrelation rho: factor ``(1 + rho) / (1 - rho)`` on the variance, the effective
+   number of independent samples);
+5. the condition number of the weighted regressor with its columns scaled to unit norm, and the relative
+   torque error ``||tau - Y pi|| / ||tau||``, on the samples used and, when asked, on a held-out tail.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import butter, sosfiltfilt
+
+from ..errors import ConfigError
+from ..result import ParamEstimate
+from .description import Robot
+from .regressor import BaseParameters, base_parameters, full_regressor
+
+FRICTION = ("fv", "fc", "fo")
+
+
+@dataclass
+class RobotData:
+    """The joints' signals on one uniform time base: t [s], q, qd, qdd (filtered), tau (as measured),
+    (n, nv); cutoff [Hz] of the filter; step: the decimation after parallel filtering."""
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    tau: np.ndarray
+    cutoff: float
+    step: int = 1
+    #: per joint, the speed [rad/s] below which the joint counts as standing still (velocity noise)
+    still: np.ndarray | None = None
+
+    def moving(self) -> np.ndarray:
+        """(n, nv) True where a joint moves: its friction has a sign."""
+        return np.abs(self.qd) > (0.0 if self.still is None else self.still)
+
+
+@dataclass
+class RobotFit:
+    base_names: list[str]
+    base: list[ParamEstimate]
+    friction: dict[str, dict[str, ParamEstimate]]
+    condition: float
+    rel_error: float
+    rms_per_joint: dict[str, float]
+    cutoff_hz: float
+    n_samples: int
+    heldout: dict[str, float] = field(default_factory=dict)
+    #: the estimate vector [base | fv fc fo per joint] and the base parameters' definition (for predict)
+    x: np.ndarray | None = None
+    bp: BaseParameters | None = None
+
+
+def align(robot: Robot, logs) -> tuple[np.ndarray, list]:
+    """The logs in the robot's joint order on the first log's time base (others interpolated)."""
+    by = {str(lg.joint): lg for lg in logs}
+    missing = [j for j in robot.joints if j not in by]
+    if missing:
+        raise ConfigError(f"robot {robot.name}: no log for joint {', '.join(missing)} (logs: {', '.join(by)}); "
+                          "name the log's joints as the robot's")
+    return by[robot.joints[0]].t, [by[j] for j in robot.joints]
+
+
+def _cutoff(qd: np.ndarray, fs: float) -> float:
+    """Ten times the frequency holding 99 % of the velocity's spectral energy, at most 0.4 fs [Hz]."""
+    f99 = 0.0
+    for col in qd.T:
+        p = np.abs(np.fft.rfft(col - col.mean())) ** 2
+        f = np.fft.rfftfreq(col.size, 1.0 / fs)
+        c = np.cumsum(p)
+        if c[-1] > 0:
+            f99 = max(f99, float(f[np.searchsorted(c, 0.99 * c[-1])]))
+    return float(min(max(10.0 * f99, 1e-3 * fs), 0.4 * fs))
+
+
+def prepare(robot: Robot, logs) -> RobotData:
+    t0, ordered = align(robot, logs)
+    dt = np.diff(t0)
+    h = float(np.median(dt))
+    t = np.arange(t0[0], t0[-1], h)
+
+    def col(name):
+        return np.column_stack([np.interp(t, lg.t, getattr(lg, name)) for lg in ordered])
+    q, tau = col("q"), col("tau")
+    qd = col("qd") if all(lg.qd is not None for lg in ordered) else np.gradient(q, h, axis=0)
+    fc = _cutoff(qd, 1.0 / h)
+    sos = butter(4, fc, fs=1.0 / h, output="sos")
+    raw = qd
+    q, qd = (sosfiltfilt(sos, x, axis=0) for x in (q, qd))
+    qdd = np.gradient(qd, h, axis=0)
+    # standing still: within five noise levels of zero (the noise: what the filter removed, robust scale)
+    noise = 1.4826 * np.median(np.abs(raw - qd), axis=0)
+    still = np.maximum(5.0 * noise, 1e-9)
+    return RobotData(t, q, qd, qdd, tau, fc, max(1, int((1.0 / h) / (5.0 * fc))), still)
+
+
+def parallel_filter(d: RobotData, A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The design matrix and torque low-passed alike (zero phase, the data's cut-off) and decimated; rows
+    of a joint standing still are left out (its friction there is whatever holds it: not a law of the
+    velocity), so the fit sees moving joints only. Returns (A, y, joint index of each row)."""
+    n, nv = d.q.shape
+    fs = 1.0 / float(np.median(np.diff(d.t)))
+    sos = butter(4, d.cutoff, fs=fs, output="sos")
+    A3 = sosfiltfilt(sos, A.reshape(n, nv, -1), axis=0)[::d.step]
+    y2 = sosfiltfilt(sos, y.reshape(n, nv), axis=0)[::d.step]
+    keep = d.moving()[::d.step].reshape(-1)
+    jid = np.tile(np.arange(nv), y2.shape[0])
+    return A3.reshape(-1, A.shape[1])[keep], y2.reshape(-1)[keep], jid[keep]
+
+
+def design(robot: Robot, bp: BaseParameters, d: RobotData) -> np.ndarray:
+    """[Y_base | friction columns]: (n nv, n_base + 3 nv), rows sample-major (joint fastest)."""
+    n, nv = d.q.shape
+    Y = full_regressor(robot, d.q, d.qd, d.qdd, robot.armature)[:, bp.columns]
+    F = np.zeros((n * nv, 3 * nv))
+    for j in range(nv):
+        rows = np.arange(n) * nv + j
+        F[rows, 3 * j] = d.qd[:, j]
+        F[rows, 3 * j + 1] = np.sign(d.qd[:, j]) * d.moving()[:, j]  # at rest the friction has no sign
+        F[rows, 3 * j + 2] = 1.0
+    return np.hstack([Y, F])
+
+
+def _lag1(r: np.ndarray) -> float:
+    r = r - r.mean()
+    den = float(r @ r)
+    return float(np.clip((r[1:] @ r[:-1]) / den, 0.0, 0.95)) if den > 0 else 0.0
+
+
+def solve(A: np.ndarray, y: np.ndarray, jid: np.ndarray, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """WLS with per-joint weights (jid: each row's joint); returns (x, standard errors, residuals,
+    condition number)."""
+    x = np.linalg.lstsq(A, y, rcond=None)[0]
+    r = y - A @ x
+    sd = np.array([r[jid == j].std() if np.any(jid == j) else 1.0 for j in range(nv)])
+    sd = np.maximum(sd, 1e-12 * np.max(np.abs(y)))
+    w = 1.0 / sd[jid]
+    Aw, yw = A * w[:, None], y * w
+    scale = np.maximum(np.linalg.norm(Aw, axis=0), 1e-300)
+    xs, *_ = np.linalg.lstsq(Aw / scale, yw, rcond=None)
+    x = xs / scale
+    rw = yw - Aw @ x
+    infl = np.ones(nv)
+    for j in range(nv):
+        if np.sum(jid == j) > 2:
+            rho = _lag1(rw[jid == j])
+            infl[j] = (1 + rho) / (1 - rho)
+    dof = max(y.size - A.shape[1], 1)
+    s2 = float(np.sum((rw**2) * infl[jid])) / dof
+    sv = np.linalg.svd(Aw / scale, compute_uv=False)
+    cov = s2 * np.linalg.pinv((Aw / scale).T @ (Aw / scale)) / np.outer(scale, scale)
+    return x, np.sqrt(np.maximum(np.diag(cov), 0.0)), y - A @ x, float(sv[0] / sv[-1])
+
+
+def _split(d: RobotData, heldout: float) -> tuple[RobotData, RobotData | None]:
+    if heldout <= 0:
+        return d, None
+    k = int(round((1.0 - heldout) * d.t.size))
+
+    def part(sl):
+        return RobotData(d.t[sl], d.q[sl], d.qd[sl], d.qdd[sl], d.tau[sl], d.cutoff, d.step, d.still)
+    return part(slice(0, k)), part(slice(k, None))
+
+
+def _errors(robot: Robot, A: np.ndarray, y: np.ndarray, x: np.ndarray, jid) -> tuple[float, dict[str, float]]:
+    r = y - A @ x
+    rel = float(np.linalg.norm(r) / max(np.linalg.norm(y), 1e-300))
+    return rel, {j: float(np.sqrt(np.mean(r[jid == i] ** 2))) if np.any(jid == i) else float("nan")
+                 for i, j in enumerate(robot.joints)}
+
+
+def identify_robot(robot: Robot, logs, heldout: float = 0.0) -> RobotFit:
+    """Base parameters and per-joint Coulomb, viscous and offset friction from the joints' logs; the last
+    ``heldout`` fraction of the time is kept out of the fit and predicted."""
+    data = prepare(robot, logs)
+    fit_d, test_d = _split(data, heldout)
+    bp = base_parameters(robot, robot.armature)
+    A, y, jid = parallel_filter(fit_d, design(robot, bp, fit_d), fit_d.tau.reshape(-1))
+    x, se, _, cond = solve(A, y, jid, robot.nv)
+    nb = bp.n
+    names = bp.names(robot)
+    base = [ParamEstimate(n, float(v), float(s), "") for n, v, s in zip(names, x[:nb], se[:nb])]
+    units = {"fv": "N m s/rad", "fc": "N m", "fo": "N m"}
+    friction = {}
+    for i, j in enumerate(robot.joints):
+        friction[j] = {k: ParamEstimate(k, float(x[nb + 3 * i + m]), float(se[nb + 3 * i + m]), units[k])
+                       for m, k in enumerate(FRICTION)}
+    rel, rms = _errors(robot, A, y, x, jid)
+    out = RobotFit(names, base, friction, cond, rel, rms, data.cutoff, int(y.size), x=x, bp=bp)
+    if test_d is not None:
+        At, yt, jt = parallel_filter(test_d, design(robot, bp, test_d), test_d.tau.reshape(-1))
+        rel_t, rms_t = _errors(robot, At, yt, x, jt)
+        out.heldout = {"rel_error": rel_t, **{f"rms_{j}": v for j, v in rms_t.items()}}
+    return out
+
+
+def predict(robot: Robot, fit: RobotFit, logs) -> RobotData:
+    """The identified model's torque along the joints' logs (their positions and velocities filtered as for
+    the fit): a :class:`RobotData` whose ``tau`` is the prediction, on the logs' uniform time base."""
+    d = prepare(robot, logs)
+    tau = (design(robot, fit.bp, d) @ fit.x).reshape(d.q.shape)
+    return RobotData(d.t, d.q, d.qd, d.qdd, tau, d.cutoff, d.step, d.still)
+
+
+def heldout_errors(robot: Robot, logs, fraction: float = 0.3, smooth_hz: float | None = None) -> dict:
+    """Identify on the first ``1 - fraction`` of the joints' logs and predict the rest: per joint the RMS of
+    (measured - predicted) torque over the whole held-out part and over its moving samples, against the
+    measured torque as logged or low-passed at ``smooth_hz`` (zero phase). Returns {'fit', 'whole',
+    'moving'}."""
+    import copy
+
+    n = min(lg.n for lg in logs)
+    k = int(round((1.0 - fraction) * n))
+
+    def cut(lg, sl):
+        out = copy.copy(lg)
+        out.t, out.q, out.tau = lg.t[sl], lg.q[sl], lg.tau[sl]
+        out.qd = None if lg.qd is None else lg.qd[sl]
+        return out
+    fit = identify_robot(robot, [cut(lg, slice(0, k)) for lg in logs])
+    test = [cut(lg, slice(k, None)) for lg in logs]
+    p = predict(robot, fit, test)
+    _, ordered = align(robot, test)
+    tau = np.column_stack([np.interp(p.t, lg.t, lg.tau) for lg in ordered])
+    if smooth_hz is not None:
+        fs = 1.0 / float(np.median(np.diff(p.t)))
+        if smooth_hz < 0.5 * fs:
+            tau = sosfiltfilt(butter(4, smooth_hz, fs=fs, output="sos"), tau, axis=0)
+    r = tau - p.tau
+    mov = p.moving()
+    whole = {j: float(np.sqrt(np.mean(r[:, i] ** 2))) for i, j in enumerate(robot.joints)}
+    moving = {j: float(np.sqrt(np.mean(r[mov[:, i], i] ** 2))) for i, j in enumerate(robot.joints)}
+    return {"fit": fit, "whole": whole, "moving": moving}

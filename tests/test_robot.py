@@ -1,0 +1,140 @@
+"""Whole robots (issue 24): the kinematic tree from DH tables, base parameters, and the joint identification
+of rigid-body base parameters with each joint's Coulomb, viscous and offset friction.
+
+- DH (standard and modified) give the forward kinematics of the textbook products of transforms.
+- A random 4-joint arm with random inertias and known friction, driven by a Fourier trajectory and logged
+  at 500 Hz with torque noise: friction recovered (Coulomb 3 %, viscous 10 %, offsets within a few noise
+  levels), the torque fitted to the noise, and the truth within the standard errors.
+- The Franka Panda excitation run (Gaz et al. 2019): relative torque error below the published 1.41 %, a
+  well-conditioned regressor, Coulomb levels near Table III.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from frictid.data import JointLog
+from frictid.robot import identify_robot, load_robot
+from frictid.robot.description import DHJoint, DHRobot, robot_from_dh
+
+from conftest import REALDATA, ROOT
+
+pin = pytest.importorskip("pinocchio")
+
+
+def dh_matrix(a, d, alpha, theta, modified: bool) -> np.ndarray:
+    ca, sa, ct, st = math.cos(alpha), math.sin(alpha), math.cos(theta), math.sin(theta)
+    if modified:  # RotX(alpha) TransX(a) RotZ(theta) TransZ(d)
+        return np.array([[ct, -st, 0, a], [st * ca, ct * ca, -sa, -sa * d], [st * sa, ct * sa, ca, ca * d], [0, 0, 0, 1]])
+    return np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st], [0, sa, ca, d], [0, 0, 0, 1]])
+
+
+@pytest.mark.parametrize("convention", ["standard", "modified"])
+def test_dh_forward_kinematics(convention):
+    rng = np.random.default_rng(240)
+    joints = [DHJoint(name=str(i), a=rng.uniform(-0.5, 0.5), d=rng.uniform(-0.3, 0.3), alpha=rng.uniform(-3, 3),
+                      offset=rng.uniform(-1, 1)) for i in range(5)]
+    robot = robot_from_dh(DHRobot(name="r", convention=convention, joints=joints))
+    data = robot.model.createData()
+    for _ in range(5):
+        q = rng.uniform(-3, 3, 5)
+        pin.forwardKinematics(robot.model, data, q)
+        T = np.eye(4)
+        for j, qi in zip(joints, q):
+            T = T @ dh_matrix(j.a, j.d, j.alpha, qi + j.offset, convention == "modified")
+        M = data.oMi[5].homogeneous
+        if convention == "modified":
+            np.testing.assert_allclose(M, T, atol=1e-12)
+        else:  # the last joint's frame: its rotation, before its own fixed transform
+            last = dh_matrix(joints[-1].a, joints[-1].d, joints[-1].alpha, q[-1] + joints[-1].offset, False)
+            rot = dh_matrix(0, 0, 0, q[-1] + joints[-1].offset, False)
+            np.testing.assert_allclose(M, T @ np.linalg.inv(last) @ rot, atol=1e-12)
+
+
+def random_arm(rng, n: int = 4):
+    """A DH arm with random link inertias (physically valid) and its friction per joint."""
+    joints = [DHJoint(name=str(i + 1), a=rng.uniform(0.1, 0.4) * (i > 0), d=rng.uniform(0.0, 0.3),
+                      alpha=float(rng.choice([0.0, math.pi / 2, -math.pi / 2]))) for i in range(n)]
+    robot = robot_from_dh(DHRobot(name="arm", joints=joints))
+    for i in range(1, n + 1):
+        m = rng.uniform(1, 8)
+        L = np.diag(rng.uniform(0.01, 0.2, 3))
+        robot.model.inertias[i] = pin.Inertia(m, rng.uniform(-0.1, 0.1, 3), L)
+    friction = {j.name: (rng.uniform(0.5, 5), rng.uniform(0.5, 8), rng.uniform(-1, 1)) for j in joints}
+    return robot, friction
+
+
+def simulate_excitation(robot, friction, rng, fs=500.0, duration=40.0, noise=0.05):
+    """Joint logs of a 5-harmonic Fourier trajectory (0.1 Hz base) with the rigid-body and friction torque."""
+    t = np.arange(0, duration, 1 / fs)
+    nv = robot.nv
+    wf = 2 * np.pi * 0.1
+    a = rng.normal(0, 0.4, (nv, 5))
+    b = rng.normal(0, 0.4, (nv, 5))
+    ks = np.arange(1, 6)
+    q = np.stack([sum(a[j, k - 1] / (k * wf) * np.sin(k * wf * t) - b[j, k - 1] / (k * wf) * np.cos(k * wf * t)
+                      for k in ks) for j in range(nv)], axis=1)
+    qd = np.stack([sum(a[j, k - 1] * np.cos(k * wf * t) + b[j, k - 1] * np.sin(k * wf * t) for k in ks)
+                   for j in range(nv)], axis=1)
+    qdd = np.stack([sum(-a[j, k - 1] * k * wf * np.sin(k * wf * t) + b[j, k - 1] * k * wf * np.cos(k * wf * t)
+                        for k in ks) for j in range(nv)], axis=1)
+    data = robot.model.createData()
+    tau = np.stack([pin.rnea(robot.model, data, q[k], qd[k], qdd[k]) for k in range(t.size)])
+    for i, j in enumerate(robot.joints):
+        fv, fc, fo = friction[j]
+        tau[:, i] += fv * qd[:, i] + fc * np.sign(qd[:, i]) + fo
+    tau += rng.normal(0, noise, tau.shape)
+    return [JointLog(joint=j, t=t, tau=tau[:, i], q=q[:, i], qd=qd[:, i]) for i, j in enumerate(robot.joints)]
+
+
+def test_friction_recovered_jointly_with_the_rigid_body_on_a_random_arm():
+    rng = np.random.default_rng(241)
+    robot, friction = random_arm(rng)
+    logs = simulate_excitation(robot, friction, rng)
+    fit = identify_robot(robot, logs)
+    assert fit.condition < 1e4 and fit.rel_error < 0.02
+    for j, (fv, fc, fo) in friction.items():
+        got = fit.friction[j]
+        assert got["fc"].value == pytest.approx(fc, rel=0.03), (j, got["fc"], fc)
+        assert got["fv"].value == pytest.approx(fv, rel=0.10), (j, got["fv"], fv)
+        assert abs(got["fo"].value - fo) < 0.1, (j, got["fo"], fo)
+        for k, true in zip(("fv", "fc", "fo"), (fv, fc, fo)):
+            assert abs(got[k].value - true) < 4 * got[k].stderr + 0.01 * abs(true), (j, k, got[k], true)
+
+
+def test_a_log_missing_a_joint_is_refused():
+    rng = np.random.default_rng(242)
+    robot, friction = random_arm(rng, 3)
+    logs = simulate_excitation(robot, friction, rng, duration=5.0)
+    from frictid.errors import ConfigError
+    with pytest.raises(ConfigError, match="no log for joint 3"):
+        identify_robot(robot, logs[:2])
+
+
+def test_franka_panda_against_gaz_2019():
+    from frictid.io.logs import read_logs
+
+    logs = read_logs(str(REALDATA / "franka_panda_gaz2019"), str(ROOT / "recipes/realdata/franka_panda.yaml"))
+    fit = identify_robot(load_robot(ROOT / "recipes/robots/panda.yaml"), logs)
+    table3_fc = {"1": 0.2450, "2": 0.1523, "3": 0.1827, "4": 0.3591, "5": 0.2669, "6": 0.1658, "7": 0.2109}
+    assert fit.rel_error < 0.0141 and fit.condition < 122  # Gaz: 1.41 %, condition 121.88
+    for j, fc in table3_fc.items():
+        assert fit.friction[j]["fc"].value == pytest.approx(fc, rel=0.35), j  # docs/robots.md: 2-31 % today
+
+
+#: AURT's held-out torque error on the UR10e harmonic run (issue 24), per joint [N m RMS], against the drive
+#: gain x current low-passed at 20 Hz (last 30 % of the run held out).
+AURT_20HZ = {"1": 3.33, "2": 6.18, "3": 2.23, "4": 0.65, "5": 1.19, "6": 0.80}
+
+
+def test_ur10e_harmonic_run_predicted_better_than_aurt():
+    from frictid.io.logs import read_logs
+    from frictid.robot.identify import heldout_errors
+
+    run = REALDATA / "ur10e_mamedov2020/identification_data/ur-20_02_19_15harm50sec.csv"
+    logs = [read_logs(str(run), str(ROOT / f"recipes/realdata/ur10e_joint{k}.yaml"))[0] for k in range(1, 7)]
+    e = heldout_errors(load_robot(ROOT / "recipes/robots/ur10e.yaml"), logs, 0.3, smooth_hz=20.0)
+    for j, aurt in AURT_20HZ.items():
+        assert e["whole"][j] < aurt, (j, e["whole"][j], aurt)
