@@ -138,3 +138,19 @@ def test_ur10e_harmonic_run_predicted_better_than_aurt():
     e = heldout_errors(load_robot(ROOT / "recipes/robots/ur10e.yaml"), logs, 0.3, smooth_hz=20.0)
     for j, aurt in AURT_20HZ.items():
         assert e["whole"][j] < aurt, (j, e["whole"][j], aurt)
+
+
+def test_robots_page_example_runs():
+    import os
+    import re
+    import subprocess
+    import sys
+
+    text = (ROOT / "docs" / "robots.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    assert blocks
+    for code in blocks:
+        r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                           env=dict(os.environ))
+        assert r.returncode == 0, r.stderr[-2000:]
+        assert "base parameters" in r.stdout
