@@ -529,6 +529,12 @@ def read_logs(path: str, mapping: str | LogSpec | None = None, units: str | None
         raise FrictidInputError(f"{label}: reading a range of rows needs a Parquet file")
     side_spec, side_meta = _sidecar_spec(str(path))
     spec_for_read = side_spec.merged(spec)
+    from .rosbag import bag_folder, read_rosbag
+
+    if bag_folder(str(path)) is not None:  # a ROS 2 bag: sensor_msgs/JointState (docs/log-format.md)
+        eff = LogSpec(units=spec_for_read.units, axis=spec_for_read.axis, meta=spec_for_read.meta,
+                      joint_meta=spec_for_read.joint_meta)
+        return _validate_and_split(read_rosbag(str(path)), label, eff, side_meta, has_header=True)
     if Path(str(path)).is_dir():
         if not spec_for_read.files:
             raise LogFormatError(label, ["is a folder; a folder log needs a mapping file with `files:` "
