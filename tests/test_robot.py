@@ -154,3 +154,43 @@ def test_robots_page_example_runs():
                            env=dict(os.environ))
         assert r.returncode == 0, r.stderr[-2000:]
         assert "base parameters" in r.stdout
+
+
+def test_designed_excitation_respects_limits_and_identifies_the_arm(tmp_path):
+    """A designed trajectory: inside every limit, from rest, better conditioned than random starts; the
+    arm driven along it (3 periods, 500 Hz, torque noise) gives back its friction."""
+    from frictid.robot.design import Limits, design_excitation
+
+    rng = np.random.default_rng(243)
+    robot, friction = random_arm(rng, 3)
+    lim = Limits(lo=np.full(3, -1.5), hi=np.full(3, 1.0), velocity=np.full(3, 1.5), acceleration=np.full(3, 4.0))
+    tr = design_excitation(robot, lim, period=8.0, harmonics=4, starts=4, iterations=60, rate=500.0)
+    assert np.all(tr.q >= lim.lo - 1e-12) and np.all(tr.q <= lim.hi + 1e-12)
+    assert np.all(np.abs(tr.qd) <= lim.velocity) and np.all(np.abs(tr.qdd) <= lim.acceleration)
+    assert np.max(np.abs(tr.qd[0])) < 1e-12 and np.max(np.abs(tr.qdd[0])) < 1e-12
+    assert tr.condition < tr.condition_start
+    t = np.concatenate([tr.t + k * tr.period for k in range(3)])
+    q, qd, qdd = (np.tile(x, (3, 1)) for x in (tr.q, tr.qd, tr.qdd))
+    data = robot.model.createData()
+    tau = np.stack([pin.rnea(robot.model, data, q[k], qd[k], qdd[k]) for k in range(t.size)])
+    for i, j in enumerate(robot.joints):
+        fv, fc, fo = friction[j]
+        tau[:, i] += fv * qd[:, i] + fc * np.sign(qd[:, i]) + fo
+    tau += rng.normal(0, 0.05, tau.shape)
+    logs = [JointLog(joint=j, t=t, tau=tau[:, i], q=q[:, i], qd=qd[:, i]) for i, j in enumerate(robot.joints)]
+    fit = identify_robot(robot, logs)
+    for j, (fv, fc, fo) in friction.items():
+        assert fit.friction[j]["fc"].value == pytest.approx(fc, rel=0.05), j
+        assert fit.friction[j]["fv"].value == pytest.approx(fv, rel=0.15), j
+
+
+def test_design_command_refuses_a_robot_without_limits(tmp_path):
+    import subprocess
+    import sys
+
+    bare = tmp_path / "arm.yaml"
+    bare.write_text('name: arm\njoints:\n  - {name: "1", d: 0.3}\n  - {name: "2", a: 0.4}\n')
+    r = subprocess.run([sys.executable, "-m", "frictid", "design", str(bare), "-o", str(tmp_path / "x.csv")],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "no limit 1.position" in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "x.csv").exists()

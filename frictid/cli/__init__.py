@@ -22,7 +22,7 @@ except ImportError:  # pragma: no cover - older typer on click
     from click import ClickException
 
 
-COMMANDS = ("simulate", "segments", "fit", "report", "compare", "trend", "export")
+COMMANDS = ("simulate", "segments", "fit", "report", "compare", "trend", "export", "design")
 for _name in COMMANDS:  # each command module registers itself on `app`
     try:
         importlib.import_module(f"{__name__}.{_name}")

@@ -34,6 +34,10 @@ class DHJoint(BaseModel):
     d: float = 0.0
     alpha: float = 0.0
     offset: float = 0.0
+    #: limits for a designed excitation (frictid design): range [rad], speed [rad/s], acceleration [rad/s^2]
+    position: tuple[float, float] | None = None
+    velocity: float | None = Field(None, gt=0)
+    acceleration: float | None = Field(None, gt=0)
 
 
 class DHRobot(BaseModel):
@@ -56,6 +60,8 @@ class Robot:
     model: object   # pinocchio.Model
     joints: list[str]
     armature: bool = False
+    #: per joint name: position (lo, hi), velocity, acceleration, where the description gives them
+    limits: dict | None = None
 
     @property
     def nv(self) -> int:
@@ -112,7 +118,9 @@ def robot_from_dh(dh: DHRobot) -> Robot:
         # a small placeholder body: the identification estimates every link's inertial parameters
         model.appendBodyToJoint(parent, pin.Inertia(1.0, np.zeros(3), np.eye(3) * 1e-2), pin.SE3.Identity())
     model.gravity.linear = np.asarray(dh.gravity, dtype=float)
-    return Robot(dh.name, model, [j.name for j in dh.joints], dh.armature)
+    limits = {j.name: {"position": j.position, "velocity": j.velocity, "acceleration": j.acceleration}
+              for j in dh.joints}
+    return Robot(dh.name, model, [j.name for j in dh.joints], dh.armature, limits)
 
 
 def robot_from_urdf(path: Path, joints: list[str] | None = None) -> Robot:
@@ -128,7 +136,13 @@ def robot_from_urdf(path: Path, joints: list[str] | None = None) -> Robot:
             raise ConfigError(f"{path}: {len(names)} movable joints ({', '.join(names)}), but {len(joints)} "
                               "joint names were given")
         names = list(joints)
-    return Robot(model.name or Path(path).stem, model, names)
+    limits = {}
+    for i, name in enumerate(names):  # one configuration and velocity entry per revolute/prismatic joint
+        lo, hi = float(model.lowerPositionLimit[i]), float(model.upperPositionLimit[i])
+        v = float(model.velocityLimit[i])
+        limits[name] = {"position": (lo, hi) if np.isfinite([lo, hi]).all() and hi > lo else None,
+                        "velocity": v if v > 0 else None, "acceleration": None}
+    return Robot(model.name or Path(path).stem, model, names, False, limits)
 
 
 def load_robot(path) -> Robot:
