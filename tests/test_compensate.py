@@ -98,3 +98,14 @@ def test_cli_writes_the_runs_and_json(tmp_path):
                           RECIPE, "--plant", "hydraulic", "-o", str(tmp_path / "x.parquet")],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and "no joint j9" in bad.stderr and not (tmp_path / "x.parquet").exists()
+    # the report draws the runs: one section with the overlay and a row per run
+    rep = subprocess.run([sys.executable, "-m", "frictid", "report", str(tmp_path / "p.yaml"), "--compensation",
+                          str(out), "-o", str(tmp_path / "r.html")], capture_output=True, text=True)
+    assert rep.returncode == 0, rep.stderr
+    html = (tmp_path / "r.html").read_text()
+    part = html[html.index('data-section="compensation"'):]
+    part = part[:part.index("</section>")]
+    assert part.count("<tr><td>") == 3 and "<svg" in part and "no compensation" in part
+    wrong = subprocess.run([sys.executable, "-m", "frictid", "report", str(tmp_path / "p.yaml"), "--compensation",
+                            str(tmp_path / "p.yaml"), "-o", str(tmp_path / "r2.html")], capture_output=True, text=True)
+    assert wrong.returncode == 2 and "not a runs file" in wrong.stderr and not (tmp_path / "r2.html").exists()

@@ -35,6 +35,8 @@ def report(
     units: UnitsOpt = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
+    compensation: Annotated[Optional[str], typer.Option(
+        "--compensation", help="Runs file of frictid simulate --compensate: its runs are drawn per joint.")] = None,
     jobs: Annotated[int, typer.Option(
         "--jobs", min=0, help="Joints built at once, each in its own process (0: one per available core; "
                               "1: one after another). The report does not depend on it.")] = 0,
@@ -64,19 +66,25 @@ def report(
     if sum(1 for p in logs if p == "-") > 1:
         raise FrictidInputError("report: standard input (-) can be given only once")
     refuse_json_with_stdout("report", as_json, output)
-    check_output_path(output, [params, *logs], mapping)
+    check_output_path(output, [params, *logs] + ([compensation] if compensation else []), mapping)
     t0 = time.perf_counter()
     pre = Prefetch(logs)  # the files' hashes and the figures' imports, while the logs are planned
     try:
         pd = load_params_dict(params)
+        runs = None
+        if compensation:
+            from ..io.replay_out import read_runs
+
+            runs = read_runs(compensation)
         joint_logs = plan_report_logs(logs, mapping, units) if logs else []
     finally:
         hashes = pre.hashes()
     cmd = command_line("report", [params, *logs], [("-o", output), ("--map", mapping), ("--units", units),
+                                                    ("--compensation", compensation),
                                                     ("--jobs", str(jobs) if jobs else None)])
     warned: list[str] = []
     nbytes = write_report(output, pd, joint_logs, params_path=params, command=cmd, jobs=jobs, hashes=hashes,
-                          log_warnings_out=warned)
+                          log_warnings_out=warned, compensation=runs)
     for w in warned:
         con.warn(w)
     n = len(pd.get("joints") or {})

@@ -56,3 +56,31 @@ def write_runs(runs: dict, path: str, fmt: str | None = None, info: dict | None 
                 parts[c].append(v)
     table = pa.table({c: pa.array(np.concatenate(parts[c])) if parts[c] else pa.array([]) for c in RUN_COLUMNS})
     write_table(table, path, fmt, {"compensate": info or {}})
+
+
+def read_runs(path: str) -> dict:
+    """A runs file of ``frictid simulate --compensate``: joint -> run -> {t, q_ref, q, metrics}, and the
+    recorded information under ``"_info"``. FrictidInputError when the file is not one."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    from ..errors import FrictidInputError
+    from .logs import META_KEY
+
+    try:
+        table = pq.read_table(path)
+        info = json.loads((table.schema.metadata or {}).get(META_KEY.encode(), b"{}")).get("compensate")
+    except Exception as exc:  # noqa: BLE001 - unreadable for any reason: one message
+        raise FrictidInputError(f"{path}: not a runs file of frictid simulate --compensate ({exc.__class__.__name__}); "
+                                "write it with -o RUNS.parquet") from None
+    if not info or not set(RUN_COLUMNS) <= set(table.column_names):
+        raise FrictidInputError(f"{path}: not a runs file of frictid simulate --compensate (Parquet with "
+                                f"columns {', '.join(RUN_COLUMNS)})")
+    df = table.to_pandas()
+    out: dict = {"_info": info}
+    for (joint, run), g in df.groupby(["joint", "run"], sort=False):
+        metrics = (info.get("joints", {}).get(joint, {}).get("runs", {}).get(run)) or {}
+        out.setdefault(str(joint), {})[str(run)] = {"t": g["t"].to_numpy(), "q_ref": g["q_ref"].to_numpy(),
+                                                     "q": g["q"].to_numpy(), "metrics": metrics}
+    return out

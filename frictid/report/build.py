@@ -1008,7 +1008,8 @@ class Prefetch(_Prefetch):
 def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params_path: str = "",
                  command: str = "", segmenter: Callable | None = None, differentiate: Callable | None = None,
                  generated: str | None = None, timings: dict | None = None, jobs: int = 0,
-                 hashes: dict[str, str | None] | None = None, log_warnings_out: list[str] | None = None) -> str:
+                 hashes: dict[str, str | None] | None = None, log_warnings_out: list[str] | None = None,
+                 compensation: dict | None = None) -> str:
     """The report as one HTML string.
 
     params : the parameter file as a dictionary (schema 1). logs : the joint logs to draw (any joints; logs
@@ -1025,7 +1026,8 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     forked worker processes (0: one per available core; 1: one after another in this process); each
     joint's arrays are freed before the worker takes the next. The HTML does not depend on it. hashes :
     the SHA-256 of log files already computed (path -> hash, e.g. :meth:`Prefetch.hashes`); the others
-    are computed here.
+    are computed here. compensation : runs of ``frictid simulate --compensate``
+    (:func:`frictid.io.replay_out.read_runs`), drawn in a section of each joint they hold.
     """
     timings = timings if timings is not None else {}
     logs = list(logs or [])
@@ -1056,6 +1058,9 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     if bad is not None:
         raise bad
     jctx = [r.ctx for r in results]
+    for ctx in jctx:
+        if compensation and ctx["name"] in compensation:
+            _add_compensation(ctx, compensation[ctx["name"]])
     _add_up(results, timings, log_warnings_out)
     inputs = _inputs(logs, _given_logs(names, results, by_joint), hashes)
     notes += _unmatched_inputs(inputs, joints, sources)
@@ -1069,6 +1074,32 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
         has_logs=bool(logs))
     timings["html"] = time.process_time() - t0
     return html
+
+
+#: The compensation runs' names as the report shows them.
+RUN_LABELS = {"none": "no compensation", "model": "the identified model as feed-forward",
+              "true": "the plant's true friction as feed-forward (ideal)"}
+
+
+def _add_compensation(ctx: dict, runs: dict) -> None:
+    """The compensation section of a joint's context: the runs' tracking errors overlaid and their metrics."""
+    s = Section("compensation", "Compensation what-if")
+    base = (runs.get("none") or {}).get("metrics", {}).get("rms_error")
+    rows = []
+    for name, r in runs.items():
+        m = r["metrics"]
+        r["label"] = RUN_LABELS.get(name, name)
+        red = base / m["rms_error"] if base and m.get("rms_error") else None
+        rows.append({"run": r["label"], "rms": fmt_num(m.get("rms_error")), "peak": fmt_num(m.get("peak_error")),
+                     "steady": fmt_num(m.get("steady_error")), "stick": m.get("stick_slip_episodes", "-"),
+                     "stick_s": fmt_num(m.get("stick_seconds"), 3), "reduction": "-" if red is None else f"{red:.3g}x"})
+    s.data["rows"] = rows
+    s.figures.append(fg.compensation(runs, ctx["units"], f"{ctx['id']}-compensation-0"))
+    s.notes.append("The same recipe and sensor noise in every run; the feed-forward is computed along the "
+                   "reference velocity and enters where the loop is closed. Stick episodes: 20 ms or more with "
+                   "the reference moving and |w| < 0.1 |qd_ref|.")
+    ctx["section"]["compensation"] = s
+    ctx["sections"].insert(len(ctx["sections"]) - 1, s)  # before the provenance
 
 
 def _logs_by_joint(logs: list, joints: dict, hashes: dict[str, str | None]) -> dict[str, list]:

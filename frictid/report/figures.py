@@ -651,3 +651,27 @@ def replay(t, tau, tau_model, units: dict, title: str, salt: str, q=None, q_mode
                "difference"
                + ("; measured and simulated position in closed loop" if closed else ""))
         return render(fig, alt, salt, points)
+
+
+@_gc_paused
+def compensation(runs: dict, units: dict, salt: str) -> Rendered:
+    """Tracking error against time of each compensation run (none, model, true), overlaid."""
+    styles = {"none": (BLACK, "-"), "model": (VERMILLION, (0, (6, 2))), "true": (BLUE, (0, (1, 1.5)))}
+    t_all = np.concatenate([np.asarray(r["t"], float) for r in runs.values()])
+    div, tlabel = time_axis(float(np.ptp(t_all)) if t_all.size else 0.0)
+    with rc_context(salt):
+        fig = new_figure(3.6 + LEGEND_ROW_IN)
+        ax = fig.subplots(gridspec_kw=place(fig, bottom=BOTTOM_IN + LEGEND_ROW_IN + 0.1))
+        ax.axhline(0, color=GREY, lw=0.6)
+        points = 0
+        for name, r in runs.items():
+            colour, ls = styles.get(name, (GREEN, (0, (3, 1.5))))
+            x, y = minmax_decimate(np.asarray(r["t"], float), np.asarray(r["q_ref"], float) - np.asarray(r["q"], float))
+            points += x.size
+            ax.plot(x / div, y, color=colour, ls=ls, lw=0.9, label=r.get("label", name))
+        ax.set_xlabel(tlabel)
+        ax.set_ylabel(f"tracking error q_ref - q [{units.get('q', 'rad')}]")
+        ax.set_title("Compensation what-if: tracking error of each run", loc="left")
+        legend_below(fig, ax.get_legend_handles_labels()[0], len(runs))
+        alt = "Tracking error against time with " + ", ".join(r.get("label", n) for n, r in runs.items())
+        return render(fig, alt, salt, points)
