@@ -248,7 +248,8 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path):
 
 
 def test_using_the_model_page_runs(tmp_path):
-    """Every block of docs/using-the-model.md, in order, from a folder holding a copy of sample_logs/."""
+    """Every block of docs/using-the-model.md, in order, from a folder holding copies of sample_logs/,
+    recipes/ and docs/examples/."""
     import os
     import re
     import shutil
@@ -256,10 +257,12 @@ def test_using_the_model_page_runs(tmp_path):
     from conftest import ROOT
 
     shutil.copytree(ROOT / "sample_logs", tmp_path / "sample_logs")
+    shutil.copytree(ROOT / "docs" / "examples", tmp_path / "docs" / "examples")
+    shutil.copytree(ROOT / "recipes", tmp_path / "recipes")
     env = dict(os.environ, PATH=f"{os.path.dirname(sys.executable)}{os.pathsep}{os.environ.get('PATH', '')}")
     text = (ROOT / "docs" / "using-the-model.md").read_text()
     blocks = re.findall(r"```(bash|python)\n(.*?)```", text, re.S)
-    assert [k for k, _ in blocks].count("bash") >= 3 and [k for k, _ in blocks].count("python") == 2
+    assert [k for k, _ in blocks].count("bash") >= 4 and [k for k, _ in blocks].count("python") == 2
     for kind, code in blocks:
         cmd = ["bash", "-e", "-c", code] if kind == "bash" else [sys.executable, "-c", code]
         r = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True)
