@@ -2,7 +2,8 @@
 
     python benchmarks/robot_scorecard.py [--arms 20] [--seed-base 400000]
 
-1. Random simulated arms (tests/test_robot.py's generator: 4 DH joints, random inertias, Coulomb 0.5-8,
+1. Random simulated arms (tests/test_robot.py's generator: 4 DH joints, and 6-axis arms with the UR10e's
+   kinematics, random inertias, Coulomb 0.5-8,
    viscous 0.5-5, offsets +-1 N m, a 5-harmonic Fourier excitation logged at 500 Hz with 0.05 N m torque
    noise): per parameter, the share of joints within tolerance (Coulomb 3 %, viscous 10 %, offset 0.1 N m)
    and the share whose truth lies within 2 standard errors.
@@ -40,12 +41,25 @@ TABLE3 = {"1": (0.0665, 0.2450, -0.1073), "2": (0.1987, 0.1523, -0.1566), "3": (
 TOL = {"fc": ("rel", 0.03), "fv": ("rel", 0.10), "fo": ("abs", 0.1)}
 
 
-def arms(n: int, base: int) -> None:
+def ur10e_arm(rng):
+    """The UR10e's kinematics with random link inertias (2-15 kg) and random friction per joint."""
+    import pinocchio as pin
+
+    robot = load_robot(ROOT / "recipes/robots/ur10e.yaml")
+    robot.armature = False  # simulated link-side torques
+    for i in range(1, robot.nv + 1):
+        robot.model.inertias[i] = pin.Inertia(rng.uniform(2, 15), rng.uniform(-0.1, 0.1, 3),
+                                              np.diag(rng.uniform(0.01, 0.3, 3)))
+    friction = {j: (rng.uniform(0.5, 5), rng.uniform(0.5, 8), rng.uniform(-1, 1)) for j in robot.joints}
+    return robot, friction
+
+
+def arms(n: int, base: int, make=random_arm, label: str = "random arms, 4 DH joints each") -> None:
     hits = {k: [0, 0, 0] for k in TOL}   # within tolerance, within 2 se, count
     rel = []
     for s in range(base, base + n):
         rng = np.random.default_rng(s)
-        robot, friction = random_arm(rng)
+        robot, friction = make(rng)
         fit = identify_robot(robot, simulate_excitation(robot, friction, rng))
         rel.append(fit.rel_error)
         for j, truth in friction.items():
@@ -56,7 +70,7 @@ def arms(n: int, base: int) -> None:
                 hits[k][0] += err <= tol
                 hits[k][1] += abs(got.value - true) <= 2 * got.stderr
                 hits[k][2] += 1
-    print(f"random arms: {n} (seeds {base}..{base + n - 1}), 4 joints each; relative torque error median "
+    print(f"{label}: {n} (seeds {base}..{base + n - 1}); relative torque error median "
           f"{100 * np.median(rel):.2f} %")
     for k, (ok, cov, cnt) in hits.items():
         kind, tol = TOL[k]
@@ -99,11 +113,13 @@ def franka() -> None:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--arms", type=int, default=20)
+    ap.add_argument("--ur-arms", type=int, default=5, help="6-axis arms with the UR10e's kinematics")
     ap.add_argument("--seed-base", type=int, default=400000)
     args = ap.parse_args(argv)
     if os.environ.get("FRICTID_SMOKE"):
-        args.arms = 2
+        args.arms, args.ur_arms = 2, 1
     arms(args.arms, args.seed_base)
+    arms(args.ur_arms, args.seed_base + 1000, ur10e_arm, "UR10e kinematics, random inertias (6-axis, 500 Hz)")
     ur10e()
     franka()
     return 0

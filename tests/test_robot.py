@@ -194,3 +194,20 @@ def test_design_command_refuses_a_robot_without_limits(tmp_path):
                        capture_output=True, text=True)
     assert r.returncode == 2 and "no limit 1.position" in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_poor_excitation_and_negative_friction_are_marked():
+    """One joint barely moving: the condition number exceeds the limit and nothing is trusted; a negative
+    Coulomb level in the truth comes back marked, not as a friction."""
+    rng = np.random.default_rng(244)
+    robot, friction = random_arm(rng, 2)
+    friction["2"] = (1.0, -2.0, 0.0)
+    logs = simulate_excitation(robot, friction, rng, duration=20.0)
+    fit = identify_robot(robot, logs)
+    assert not fit.friction["2"]["fc"].identifiable and "not a dissipative" in fit.friction["2"]["fc"].reason
+    assert fit.friction["1"]["fc"].identifiable
+    logs[1].q = np.full_like(logs[1].q, 0.3) + 1e-4 * np.sin(logs[1].t)
+    logs[1].qd = 1e-4 * np.cos(logs[1].t)
+    poor = identify_robot(robot, logs)
+    assert poor.condition > 1000 and not any(p.identifiable for p in poor.base)
+    assert any("poorly conditioned" in n for n in poor.notes)

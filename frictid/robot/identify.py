@@ -30,6 +30,9 @@ from .description import Robot
 from .regressor import BaseParameters, base_parameters, full_regressor
 
 FRICTION = ("fv", "fc", "fo")
+#: Above this condition number (columns scaled to unit norm) the excitation does not separate the
+#: parameters: every estimate is marked not identifiable.
+COND_LIMIT = 1000.0
 
 
 @dataclass
@@ -66,6 +69,8 @@ class RobotFit:
     #: the estimate vector [base | fv fc fo per joint] and the base parameters' definition (for predict)
     x: np.ndarray | None = None
     bp: BaseParameters | None = None
+    #: what the checks found (excitation, friction signs, physical feasibility), one sentence each
+    notes: list[str] = field(default_factory=list)
 
 
 def align(robot: Robot, logs) -> tuple[np.ndarray, list]:
@@ -204,11 +209,40 @@ def identify_robot(robot: Robot, logs, heldout: float = 0.0) -> RobotFit:
                        for m, k in enumerate(FRICTION)}
     rel, rms = _errors(robot, A, y, x, jid)
     out = RobotFit(names, base, friction, cond, rel, rms, data.cutoff, int(y.size), x=x, bp=bp)
+    out.notes = check(out, bp, robot)
     if test_d is not None:
         At, yt, jt = parallel_filter(test_d, design(robot, bp, test_d), test_d.tau.reshape(-1))
         rel_t, rms_t = _errors(robot, At, yt, x, jt)
         out.heldout = {"rel_error": rel_t, **{f"rms_{j}": v for j, v in rms_t.items()}}
     return out
+
+
+def check(fit: RobotFit, bp: BaseParameters, robot: Robot) -> list[str]:
+    """Mark what the data cannot support and say so: every estimate when the excitation is too poorly
+    conditioned; a base parameter with a relative standard error over 100 %; a Coulomb level or viscous
+    coefficient negative by more than two standard errors (not a dissipative friction). Feasibility of the
+    link inertias is reported as not checkable unless every link parameter is identified."""
+    notes = []
+    every = fit.base + [p for f in fit.friction.values() for p in f.values()]
+    if fit.condition > COND_LIMIT:
+        why = f"the excitation is too poorly conditioned (condition number {fit.condition:.3g} > {COND_LIMIT:g})"
+        for p in every:
+            p.identifiable, p.reason = False, why
+        notes.append(why + ": every estimate is marked not identifiable; excite with frictid design")
+    for p in fit.base:
+        if p.identifiable and p.stderr is not None and abs(p.value) < p.stderr:
+            p.identifiable, p.reason = False, "relative standard error over 100 %"
+    for j, f in fit.friction.items():
+        for k in ("fc", "fv"):
+            p = f[k]
+            if p.identifiable and p.value < -2.0 * p.stderr:
+                p.identifiable = False
+                p.reason = f"negative ({p.value:.3g} +- {p.stderr:.2g}): not a dissipative friction"
+                notes.append(f"joint {j}: {k} {p.reason}")
+    if bp.n < bp.n_full:
+        notes.append(f"physical feasibility of the link inertias not checked: the {bp.n} base parameters are "
+                     f"combinations of the {bp.n_full} link parameters")
+    return notes
 
 
 def predict(robot: Robot, fit: RobotFit, logs) -> RobotData:
