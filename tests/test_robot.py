@@ -211,3 +211,26 @@ def test_poor_excitation_and_negative_friction_are_marked():
     poor = identify_robot(robot, logs)
     assert poor.condition > 1000 and not any(p.identifiable for p in poor.base)
     assert any("poorly conditioned" in n for n in poor.notes)
+
+
+def test_fit_robot_command_writes_a_parameter_file_and_refuses_a_mismatch(tmp_path):
+    import subprocess
+    import sys
+
+    import frictid
+
+    data, mapping = str(REALDATA / "franka_panda_gaz2019"), str(ROOT / "recipes/realdata/franka_panda.yaml")
+    out = tmp_path / "panda.yaml"
+    r = subprocess.run([sys.executable, "-m", "frictid", "fit", data, "--map", mapping, "--robot",
+                        str(ROOT / "recipes/robots/panda.yaml"), "-o", str(out)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    res = frictid.read_params(out)
+    assert sorted(res.joints) == [str(i) for i in range(1, 8)]
+    assert all(res[j].selected == "coulomb_viscous" for j in res.joints)
+    assert res.settings["robot"]["condition_number"] < 122 and len(res.settings["robot"]["base_parameters"]) == 43
+    m = res["5"].model
+    assert m.friction(0.5) == pytest.approx(m.params["Fc"].value + 0.5 * m.params["sigma2"].value)
+    bad = subprocess.run([sys.executable, "-m", "frictid", "fit", data, "--map", mapping, "--robot",
+                          str(ROOT / "recipes/robots/ur10e.yaml"), "-o", str(tmp_path / "x.yaml")],
+                         capture_output=True, text=True)
+    assert bad.returncode == 2 and "joint 7" in bad.stderr and not (tmp_path / "x.yaml").exists()

@@ -71,6 +71,8 @@ class RobotFit:
     bp: BaseParameters | None = None
     #: what the checks found (excitation, friction signs, physical feasibility), one sentence each
     notes: list[str] = field(default_factory=list)
+    #: per joint, the speeds [rad/s] and positions [rad] the moving samples covered ([lo, hi] each)
+    validity: dict[str, dict[str, list[float]]] = field(default_factory=dict)
 
 
 def align(robot: Robot, logs) -> tuple[np.ndarray, list]:
@@ -80,6 +82,11 @@ def align(robot: Robot, logs) -> tuple[np.ndarray, list]:
     if missing:
         raise ConfigError(f"robot {robot.name}: no log for joint {', '.join(missing)} (logs: {', '.join(by)}); "
                           "name the log's joints as the robot's")
+    extra = [j for j in by if j not in robot.joints]
+    if extra:
+        raise ConfigError(f"robot {robot.name}: the logs hold joint {', '.join(extra)}, which the robot does not "
+                          f"have (its joints: {', '.join(robot.joints)}); the torque of a joint left out would "
+                          "be missing from the model")
     return by[robot.joints[0]].t, [by[j] for j in robot.joints]
 
 
@@ -210,6 +217,12 @@ def identify_robot(robot: Robot, logs, heldout: float = 0.0) -> RobotFit:
     rel, rms = _errors(robot, A, y, x, jid)
     out = RobotFit(names, base, friction, cond, rel, rms, data.cutoff, int(y.size), x=x, bp=bp)
     out.notes = check(out, bp, robot)
+    mov = fit_d.moving()
+    for i, j in enumerate(robot.joints):
+        v, q = np.abs(fit_d.qd[mov[:, i], i]), fit_d.q[mov[:, i], i]
+        if v.size:
+            out.validity[j] = {"speed": [float(np.quantile(v, 0.005)), float(np.quantile(v, 0.995))],
+                               "position": [float(q.min()), float(q.max())]}
     if test_d is not None:
         At, yt, jt = parallel_filter(test_d, design(robot, bp, test_d), test_d.tau.reshape(-1))
         rel_t, rms_t = _errors(robot, At, yt, x, jt)
