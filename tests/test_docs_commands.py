@@ -4,7 +4,8 @@ Each page's commands run in order, as a user would type them (bash, ``set -o pip
 a fresh copy of the repository (so nothing in the repository is written; ``../shared`` is linked beside
 the copy when it exists, as on CI), with this Python's folder first on PATH and ``FRICTID_SMOKE=1``: every
 script under ``benchmarks/`` then shrinks its work to seconds (one draw, a tiny log, one repetition)
-along the same code path and writes no docs. Exceptions, each said here:
+along the same code path and writes no docs. Pages run side by side, one per core. Exceptions, each said
+here:
 
 - README.md's two install commands (a new venv, ``pip install``) are run by ``.ci/run`` exactly as printed;
 - docs/fleet.md's blocks are run by ``tests/test_fleet.py::test_every_command_in_docs_fleet_runs`` (it
@@ -19,6 +20,8 @@ import re
 import shutil
 import subprocess
 import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -59,36 +62,52 @@ def test_pages_hold_commands_and_every_block_is_bash_or_marked():
     for page in PAGES:
         for lang, body in re.findall(r"^```(\w*)\n(.*?)^```", (ROOT / page).read_text(), re.S | re.M):
             first = body.lstrip().split("\n", 1)[0]
-            if lang not in ("bash", "text") and re.match(r"(frictid|python) ", first):
+            if lang not in ("bash", "text") and re.match(r"(frictid (simulate|segments|fit|report|compare|trend)|python (-m|-c|\S+\.py)) .* -", first):
                 pytest.fail(f"{page}: a command in a ```{lang or '(no language)'} block: {first!r}")
 
 
-@pytest.fixture
-def repo_copy(tmp_path):
-    """A copy of the repository to run in, with ../shared linked beside it when it exists."""
-    dst = tmp_path / "repo"
-    shutil.copytree(ROOT, dst, ignore=COPY_IGNORE, symlinks=True)
-    if REALDATA.is_dir():
-        (tmp_path / "shared").symlink_to(REALDATA.parent, target_is_directory=True)
-    return dst
-
-
-@pytest.mark.parametrize("page", [p for p in PAGES if p not in ELSEWHERE])
-def test_documented_commands_run(page, repo_copy):
+def run_page(page: str, base: Path) -> tuple[str, str | None]:
+    """Run a page's commands in order in a fresh copy of the repository below ``base``: ("ok", None),
+    ("skip", why) or ("fail", what failed)."""
     cmds = [(c, runnable(page, c)) for c in commands(page)]
     if not cmds:
-        pytest.skip(f"{page} prints no ```bash command")
+        return "skip", f"{page} prints no ```bash command"
     if any("shared/realdata" in c for c, _ in cmds) and not REALDATA.is_dir():
-        pytest.skip(f"{page} runs on {REALDATA}, absent here (CI requires it)")
+        return "skip", f"{page} runs on {REALDATA}, absent here (CI requires it)"
+    repo = base / "repo"
+    shutil.copytree(ROOT, repo, ignore=COPY_IGNORE, symlinks=True)
+    if REALDATA.is_dir():
+        (base / "shared").symlink_to(REALDATA.parent, target_is_directory=True)
     env = dict(os.environ, FRICTID_SMOKE="1", PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
     env.pop("FRICTID_DEBUG", None)
-    docs_before = {p: p.read_bytes() for p in (repo_copy / "docs").glob("*.md")}
+    docs_before = {p: p.read_bytes() for p in (repo / "docs").glob("*.md")}
+    t0 = time.perf_counter()
     for shown, cmd in cmds:
         if cmd is None:
             continue
-        p = subprocess.run(["bash", "-o", "pipefail", "-c", cmd], cwd=repo_copy, env=env, capture_output=True,
-                           text=True, timeout=600)
-        assert p.returncode == 0 and "Traceback" not in p.stderr, \
-            f"{page}: `{shown}` exited {p.returncode}\n{p.stderr[-3000:]}\n{p.stdout[-1500:]}"
-    changed = [str(p.name) for p, b in docs_before.items() if p.read_bytes() != b]
-    assert not changed, f"{page}: commands in smoke mode wrote into docs: {changed}"
+        p = subprocess.run(["bash", "-o", "pipefail", "-c", cmd], cwd=repo, env=env, capture_output=True,
+                           text=True, timeout=900)
+        if p.returncode or "Traceback" in p.stderr:
+            return "fail", f"{page}: `{shown}` exited {p.returncode}\n{p.stderr[-3000:]}\n{p.stdout[-1500:]}"
+    changed = [p.name for p, b in docs_before.items() if p.read_bytes() != b]
+    if changed:
+        return "fail", f"{page}: commands in smoke mode wrote into docs: {changed}"
+    return "ok", f"{time.perf_counter() - t0:.0f} s"
+
+
+@pytest.fixture(scope="module")
+def page_results(tmp_path_factory):
+    """Every page run at once, one page per core (each page's commands in order, in its own copy)."""
+    pages = [p for p in PAGES if p not in ELSEWHERE]
+    pages.sort(key=lambda p: -len(commands(p)))  # the longest first
+    with ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 1)) as ex:
+        futs = {p: ex.submit(run_page, p, tmp_path_factory.mktemp(Path(p).stem)) for p in pages}
+        return {p: f.result() for p, f in futs.items()}
+
+
+@pytest.mark.parametrize("page", [p for p in PAGES if p not in ELSEWHERE])
+def test_documented_commands_run(page, page_results):
+    status, what = page_results[page]
+    if status == "skip":
+        pytest.skip(what)
+    assert status == "ok", what
