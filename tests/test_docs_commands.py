@@ -34,6 +34,10 @@ ELSEWHERE = {"docs/fleet.md": "tests/test_fleet.py::test_every_command_in_docs_f
 COPY_IGNORE = shutil.ignore_patterns(".git", ".venv*", "__pycache__", "*.egg-info", ".pytest_cache", "build")
 
 
+#: The first line of a fenced block that is a command (with an option), not output that names one.
+LOOKS_LIKE_A_COMMAND = r"(frictid (simulate|segments|fit|report|compare|trend)|python (-m|-c|\S+\.py)) .* -"
+
+
 def commands(page: str) -> list[str]:
     """The commands of a page's ```bash blocks, in order: continuation lines joined, comment lines dropped."""
     text = (ROOT / page).read_text()
@@ -56,13 +60,15 @@ def test_pages_hold_commands_and_every_block_is_bash_or_marked():
     """Each page with a bash block is run here or by the test named in ELSEWHERE; a fenced block that looks
     like a command without being ```bash would escape this test."""
     assert sum(len(commands(p)) for p in PAGES) >= 40
+    assert [runnable("README.md", c) for c in commands("README.md")][:2] == [None, None]  # the installs
+    assert sum(runnable(p, c) is None for p in PAGES for c in commands(p)) == 2  # and only they
     for page, test in ELSEWHERE.items():
         path, name = test.split("::")
         assert f"def {name}(" in (ROOT / path).read_text(), (page, test)
     for page in PAGES:
         for lang, body in re.findall(r"^```(\w*)\n(.*?)^```", (ROOT / page).read_text(), re.S | re.M):
             first = body.lstrip().split("\n", 1)[0]
-            if lang not in ("bash", "text") and re.match(r"(frictid (simulate|segments|fit|report|compare|trend)|python (-m|-c|\S+\.py)) .* -", first):
+            if lang not in ("bash", "text") and re.match(LOOKS_LIKE_A_COMMAND, first):
                 pytest.fail(f"{page}: a command in a ```{lang or '(no language)'} block: {first!r}")
 
 
