@@ -10,6 +10,9 @@ here:
 - README.md's two install commands (a new venv, ``pip install``) are run by ``.ci/run`` exactly as printed;
 - docs/fleet.md's blocks are run by ``tests/test_fleet.py::test_every_command_in_docs_fleet_runs`` (it
   starts the dask cluster its ``--scheduler`` command needs);
+- docs/report.md's first block stands for a user's own files (``params.yaml`` fitted from ``run.parquet``,
+  a vendor log ``raw.csv``, as ``tests/test_report.py::test_docs_examples_run`` also reads it): SETUP makes
+  them from a shipped sample log before the page runs;
 - a documented ``python -m pytest ...`` is collected (``--collect-only``), not run: the suite runs those
   tests itself, and running them from here would run them twice.
 """
@@ -31,6 +34,12 @@ from conftest import REALDATA, ROOT
 PAGES = ["README.md", *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").glob("*.md")),
          "sample_logs/README.md"]
 ELSEWHERE = {"docs/fleet.md": "tests/test_fleet.py::test_every_command_in_docs_fleet_runs"}
+#: Commands run before a page's own, making the files its commands stand for.
+SETUP = {"docs/report.md": [
+    "python -c \"import numpy as np, pandas as pd; d = pd.read_csv('sample_logs/hydraulic_sweep.csv'); "
+    "d.to_parquet('run.parquet'); pd.DataFrame({'t': d.t, 'joint': d.joint, 'position': np.degrees(d.q), "
+    "'torque': d.tau}).to_csv('raw.csv', index=False)\"",
+    "frictid fit run.parquet -o params.yaml"]}
 COPY_IGNORE = shutil.ignore_patterns(".git", ".venv*", "__pycache__", "*.egg-info", ".pytest_cache", "build")
 
 
@@ -78,6 +87,7 @@ def run_page(page: str, base: Path) -> tuple[str, str | None]:
     cmds = [(c, runnable(page, c)) for c in commands(page)]
     if not cmds:
         return "skip", f"{page} prints no ```bash command"
+    cmds = [(f"(setup) {c}", c) for c in SETUP.get(page, [])] + cmds
     if any("shared/realdata" in c for c, _ in cmds) and not REALDATA.is_dir():
         return "skip", f"{page} runs on {REALDATA}, absent here (CI requires it)"
     repo = base / "repo"
