@@ -66,6 +66,8 @@ def main(argv=None):
     ap.add_argument("--keep", default=None, help="keep (or reuse) the generated log at this path")
     ap.add_argument("--report", action="store_true", help="also time frictid report on the fit and the log")
     args = ap.parse_args(argv)
+    if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
+        args.hours, args.joints = 0.02, 1
     import pyarrow.parquet as pq
 
     sys.path.insert(0, str(ROOT / "benchmarks"))

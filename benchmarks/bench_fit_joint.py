@@ -12,6 +12,7 @@ its own static-map fits; the total is the whole fit).
 from __future__ import annotations
 
 import argparse
+import os
 import collections
 import functools
 import sys
@@ -71,6 +72,8 @@ def main(argv=None) -> int:
     ap.add_argument("--log", help="a Parquet log with joint j1 as one block of rows (default: build one)")
     ap.add_argument("--repeat", type=int, default=3)
     a = ap.parse_args(argv)
+    if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
+        a.repeat = 1
     api.preload()
     log = joint_log(a.log)
     frictid.fit([log])  # warm: compilation caches, lazy imports, the allocator's heap

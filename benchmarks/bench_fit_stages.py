@@ -11,6 +11,7 @@ worktree) to compare them; the simulated inputs are built once per run (seed 0).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -66,6 +67,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args(argv)
+    if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
+        args.repeat = 1
     sets = plateau_sets()
     duty = simulate_recipe(str(ROOT / "recipes/duty_cycle.yaml"),
                            plant=str(ROOT / "recipes/plants/geared_industrial.yaml"), seed=0, duration_scale=0.25)

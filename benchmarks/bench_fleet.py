@@ -11,6 +11,7 @@ target < 10 %), and each worker's peak resident memory against the memory of one
 from __future__ import annotations
 
 import argparse
+import os
 import resource
 import sys
 import tempfile
@@ -66,6 +67,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seconds", type=float, default=60.0, help="approximate log length [s]")
     ap.add_argument("--seed", type=int, default=7000)
     a = ap.parse_args(argv)
+    if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
+        a.partitions, a.seconds = 2, 10.0
     # 5 speeds x 2 signs, 0.6 s plateaus: ~15 s; the plateau length scales the log
     plateau = max(0.6 * a.seconds / 15.0, 0.4)
     with tempfile.TemporaryDirectory() as tmp:

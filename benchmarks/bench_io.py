@@ -9,6 +9,7 @@ frictid's. Medians of repeated runs; peak memory of the process via ``resource``
 from __future__ import annotations
 
 import argparse
+import os
 import resource
 import statistics
 import tempfile
@@ -54,6 +55,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--csv-minutes", type=float, default=10.0, help="CSV is slower to write; a shorter log")
     args = ap.parse_args()
+    if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
+        args.minutes, args.joints, args.repeat, args.csv_minutes = 0.2, 2, 1, 0.1
     with tempfile.TemporaryDirectory() as tmp:
         table = make_table(args.minutes, args.joints)
         rows = table.num_rows

@@ -43,6 +43,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args(argv)
+    if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
+        args.repeat = 1
     print(f"load average {os.getloadavg()[0]:.1f}, {time.strftime('%Y-%m-%d %H:%M')}, "
           f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
     c_pos, c_neg = canonical_pair("polynomial", dict(c0=45.0, c1=30.0, c2=-4.0, c3=1.5))

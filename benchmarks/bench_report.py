@@ -115,6 +115,8 @@ def main(argv=None) -> int:
                     help="do not record the fit's segments: the report segments every log again")
     ap.add_argument("--jobs", type=int, default=0, help="joints built at once (0: one per core)")
     a = ap.parse_args(argv)
+    if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
+        a.joints, a.minutes, a.quick = 1, 0.5, False
     if a.quick:
         a.joints, a.minutes = 2, 5.0
     work = Path(a.keep) if a.keep else Path(tempfile.mkdtemp(prefix="bench-report-"))

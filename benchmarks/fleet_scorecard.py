@@ -13,6 +13,7 @@ runs; false alarms (a temperature-only or noise-only joint called wear or step) 
 from __future__ import annotations
 
 import argparse
+import os
 import contextlib
 import io
 import sys
@@ -71,6 +72,8 @@ def main_(argv=None) -> int:
     ap.add_argument("--score-only", action="store_true",
                     help="score the store kept in --keep as it is (a run stopped early: the joints with every day fitted)")
     a = ap.parse_args(argv)
+    if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
+        a.robots, a.joints, a.days = 1, 2, 8
     if a.score_only and not (a.keep and (Path(a.keep) / "store").is_dir()):
         ap.error("--score-only needs --keep FOLDER holding the store of an earlier run")
     with tempfile.TemporaryDirectory() as tmp:

@@ -14,6 +14,7 @@ timing, reference points); frictid never sees them.
 from __future__ import annotations
 
 import argparse
+import os
 import glob
 import math
 import subprocess
@@ -205,7 +206,7 @@ def emps(data: Path, tmp: str) -> list[str]:
     sel = chosen(j)
     rows = [
         "### EMPS (prismatic ball-screw axis, 1 kHz, closed loop)", "",
-        f"`frictid fit DATA_EMPS.mat --map recipes/realdata/emps.yaml` ({P['_seconds']:.0f} s): basis "
+        f"`frictid fit DATA_EMPS.mat --map recipes/realdata/emps.yaml -o params.yaml` ({P['_seconds']:.0f} s): basis "
         f"{(j.get('selection') or {}).get('basis', '?')}; chosen model **{sel}**; diagnosis: {findings(j)}", "",
         "| parameter | frictid `coulomb_viscous` (same structure) | published (IDIM-LS) | difference | target | |",
         "| --- | --- | --- | --- | --- | --- |",
@@ -277,7 +278,8 @@ def emps(data: Path, tmp: str) -> list[str]:
         f"lag, not friction) cuts the pulses-run error from {100 * errs['frictid', 'pulses', 'lp']:.2f} % to "
         f"{100 * lag_err:.2f} % (on the identification run: {1000 * ki[0] / M:.2f} ms, "
         f"{100 * errs['frictid', 'ident', 'lp']:.2f} % to {100 * lag_err_i:.2f} %).",
-        f"The diagnosis run on the pulses run itself (`frictid fit DATA_EMPS_PULSES.mat`): chosen "
+        "The diagnosis run on the pulses run itself (`frictid fit DATA_EMPS_PULSES.mat --map "
+        f"recipes/realdata/emps.yaml -o params.yaml`): chosen "
         f"{chosen(jp)}; findings {findings(jp)}.",
         "",
         "Published: 4.08 % (identification, on decimated data) and 5.98 % (pulses); the ratios above compare "
@@ -434,7 +436,8 @@ def kuka(data: Path, tmp: str) -> list[str]:
     P = fit(recs, mp, Path(tmp) / "kuka_ABC.yaml")
     rows = ["### KUKA KR300 R2500 ultra (three 10 s recordings, 250 Hz; link side)", "",
             f"Parameters: `frictid fit recording_FF_A.mat recording_FF_B.mat recording_FF_C.mat --map "
-            f"recipes/realdata/kuka_kr300.yaml` ({P['_seconds']:.0f} s; the three recordings of each axis fitted "
+            f"recipes/realdata/kuka_kr300.yaml -o params.yaml` ({P['_seconds']:.0f} s; the three recordings of "
+            "each axis fitted "
             f"together). Held out: recording A fitted alone ({PA['_seconds']:.0f} s), its chosen model replayed "
             "along B and C (relative torque error). Nominal: the controller's feed-forward friction `f_asym + f_vis dq "
             "+ f_coul tanh(s dq) + f_a tanh(f_b dq)`; its Coulomb-like level at speed is f_coul + f_a.", "",
@@ -459,7 +462,8 @@ def franka(data: Path, tmp: str) -> list[str]:
     P = fit(data / "franka_panda_gaz2019", MAPS / "franka_panda.yaml", Path(tmp) / "franka.yaml")
     rows = ["### Franka Panda (Fourier excitation, 1 kHz, 21 s; reference: Gaz et al. 2019 Table III, identified "
             "with the full rigid-body model)", "",
-            f"`frictid fit franka_panda_gaz2019 --map recipes/realdata/franka_panda.yaml` ({P['_seconds']:.0f} s); "
+            "`frictid fit franka_panda_gaz2019 --map recipes/realdata/franka_panda.yaml -o params.yaml` "
+            f"({P['_seconds']:.0f} s); "
             "each joint alone (inertia, gravity of its own angle, offset, friction).", "",
             "| joint | chosen | Fc frictid / published | diff | Fv frictid / published | diff | J [kg m^2] | "
             "held-out RMS [N m] | held-out RMS / published friction at 1 rad/s | diagnosis |",
@@ -484,6 +488,8 @@ def main() -> None:
     ap.add_argument("--out", help="also write the tables to this Markdown file")
     ap.add_argument("--only", help="comma list: emps,ur10e,screw,kuka,franka")
     args = ap.parse_args()
+    if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
+        args.only = "emps"
     data = Path(args.data)
     if not data.is_dir():
         sys.exit(f"realdata: {data} not found; pass --data")

@@ -74,6 +74,16 @@ class Timing:
     result: object = None
 
 
+#: FRICTID_SMOKE=1 (the docs test, tests/test_docs_commands.py): every figure on a tiny case, one run
+#: each, the same code path; nothing written into docs.
+SMOKE = os.environ.get("FRICTID_SMOKE") == "1"
+
+
+def size(quick: bool, full, small, smoke):
+    """A figure's size: ``full``, ``small`` with --quick, ``smoke`` under FRICTID_SMOKE=1."""
+    return smoke if SMOKE else small if quick else full
+
+
 def timed(fn, repeat: int, warm: bool = False) -> Timing:
     """Median wall and CPU time of ``fn()`` over ``repeat`` runs (one extra unmeasured run if warm)."""
     out = fn() if warm else None
@@ -398,11 +408,11 @@ def ivp_replay(t, w, Tenv, model: dict, z0: float = 0.0, T0: float | None = None
 def fig_replay(quick: bool, repeat: int) -> list[Row]:
     from frictid.models.replay_kernel import replay_friction
 
-    lg, model = _plant_log("validation_ptp", 0.1 if quick else 1.0)
+    lg, model = _plant_log("validation_ptp", size(quick, 1.0, 0.1, 0.005))
     h = lg.dt
     w_meas = np.asarray(lg.qd, dtype=float)
     Tenv_log = np.asarray(lg.channels["temp_env"], dtype=float)
-    n = 1_000_000 if quick else 10_000_000
+    n = size(quick, 10_000_000, 1_000_000, 20_000)
     t = np.arange(n) * h
     w = np.resize(w_meas, n)            # the measured log repeated to n samples
     Tenv = np.resize(Tenv_log, n)
@@ -419,7 +429,7 @@ def fig_replay(quick: bool, repeat: int) -> list[Row]:
     tk = timed(kernel, repeat, warm=True)
     # the straightforward solve_ivp on stretches spread evenly over the same log (its mix of motion and
     # rest: at rest the measured velocity is noise and the bristle equation is not stiff, in motion it is)
-    n_str, per = (6, 500) if quick else (10, 2000)
+    n_str, per = size(quick, (10, 2000), (6, 500), (2, 50))
     nb = n_str * per
     starts = np.linspace(0, len(w_meas) - per, n_str).astype(int)
 
@@ -455,7 +465,7 @@ def fig_replay(quick: bool, repeat: int) -> list[Row]:
 
         kernel2()
         tk2 = timed(kernel2, repeat)
-        secs = 2.0 if quick else 10.0
+        secs = size(quick, 10.0, 2.0, 0.2)
         tb2 = timed(lambda: br.ivp_friction(t2, w2, secs), 1)
         m2 = tb2.result[2]
         rk2, rb2 = n / tk2.cpu, m2 / tb2.cpu
@@ -466,7 +476,7 @@ def fig_replay(quick: bool, repeat: int) -> list[Row]:
                         ">= 1000x and >= 20 M/s", rk2 / rb2 >= 1000 and rk2 >= 20e6, tk2.load,
                         "bench_replay's velocity, model and baseline (rtol 1e-6, max_step one sample)"))
     # accuracy against the tight reference on a window centred on a velocity reversal at speed
-    nr = 400 if quick else 3000
+    nr = size(quick, 3000, 400, 40)
     fast = np.convolve(np.abs(w_meas) > 0.1 * np.abs(w_meas).max(), np.ones(201), mode="same") > 0
     rev = np.flatnonzero((np.sign(w_meas[:-1]) * np.sign(w_meas[1:]) < 0) & fast[:-1])
     j0 = int(np.clip(rev[len(rev) // 2] - nr // 2, 0, len(w_meas) - nr)) if rev.size else 0
@@ -494,7 +504,7 @@ def fig_replay_e2e(quick: bool, repeat: int) -> list[Row]:
         from frictid.replay import ReplayModel, replay
     except ImportError as exc:  # pragma: no cover
         return [Row("replay(): whole log", f"n/a ({exc})")]
-    lg, model = _plant_log("validation_ptp", 0.1 if quick else 1.0)
+    lg, model = _plant_log("validation_ptp", size(quick, 1.0, 0.1, 0.005))
     tp = lg.truth["params"]
     rm = ReplayModel(name="lugre", map=tp["map"], c_pos=np.asarray(model["c_pos"]),
                      c_neg=np.asarray(model["c_neg"]), sigma0=model["sigma0"], sigma1=model["sigma1"],
@@ -530,8 +540,8 @@ def fig_plant(quick: bool, repeat: int) -> list[Row]:
     from frictid.plant.simulate import prepare_joint
 
     rec, _ = load_recipe("validation_ptp")
-    scale = 0.1 if quick else 1.0
-    nwin = 400 if quick else 2000
+    scale = size(quick, 1.0, 0.1, 0.005)
+    nwin = size(quick, 2000, 400, 40)
     rows = []
     for name in PLANTS:
         plant = load_plant(name)
@@ -562,7 +572,7 @@ def fig_read(quick: bool, repeat: int) -> list[Row]:
 
     from frictid.io.logs import read_logs
 
-    minutes, csv_minutes = (10.0, 2.0) if quick else (60.0, 10.0)
+    minutes, csv_minutes = size(quick, (60.0, 10.0), (10.0, 2.0), (0.2, 0.1))
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         table = make_table(minutes, 6)
@@ -634,7 +644,7 @@ def fig_read(quick: bool, repeat: int) -> list[Row]:
 def fig_normal_equations(quick: bool, repeat: int) -> list[Row]:
     from frictid.identify.regression import accumulate, column, solve
 
-    n = 1_000_000 if quick else 10_000_000
+    n = size(quick, 10_000_000, 1_000_000, 20_000)
     names = ("J", "c0", "c1", "c2", "c3", "Px", "Py")
     rng = np.random.default_rng(0)
     t = np.arange(n) * 1e-3
@@ -727,7 +737,7 @@ def build_log(path: str, passes: int, joints: int, scale: float = 1.0) -> int:
 def fig_fit_report(quick: bool, repeat: int, keep: str | None = None) -> list[Row]:
     import pyarrow.parquet as pq
 
-    joints, scale = (2, 0.25) if quick else (6, 1.0)
+    joints, scale = size(quick, (6, 1.0), (2, 0.25), (1, 0.02))
     work = Path(keep) if keep else Path(tempfile.mkdtemp(prefix="frictid-runall-"))
     work.mkdir(parents=True, exist_ok=True)
     logs = {}
@@ -798,11 +808,11 @@ def fig_fit_report(quick: bool, repeat: int, keep: str | None = None) -> list[Ro
         runs = [run_child(cmd, interval=None) for _ in range(max(1, repeat))]  # timed without sampling
         rr = sorted(runs, key=lambda x: x.wall)[len(runs) // 2]  # the median run by wall time
         rr.peak = run_child(cmd).peak  # the peak memory from one more run, sampled every 0.1 s
-        size = html.stat().st_size if html.exists() else 0
+        html_bytes = html.stat().st_size if html.exists() else 0
         ok = all(x.returncode == 0 for x in runs)
         rows.append(Row(f"report: {joints} joints x {hours:.2f} h", f"{rr.wall:.1f} s (CPU {rr.cpu:.0f} s), "
-                        f"{size / 1e6:.2f} MB, peak {gb(rr.peak)}, exit {rr.returncode}", "-", "-",
-                        "< 10 s, < 5 MB", ok and rr.wall < 10 and size < 5e6, rr.load,
+                        f"{html_bytes / 1e6:.2f} MB, peak {gb(rr.peak)}, exit {rr.returncode}", "-", "-",
+                        "< 10 s, < 5 MB", ok and rr.wall < 10 and html_bytes < 5e6, rr.load,
                         "`frictid report PARAMS LOG -o REPORT.html` in a fresh process, joints built in "
                         "parallel (one worker per core): judged on the median wall time of "
                         f"{len(runs)} runs (" + ", ".join(f"{x.wall:.1f}" for x in runs) + " s) timed without "
@@ -850,7 +860,8 @@ def main(argv=None) -> int:
     ap.add_argument("--write-docs", action="store_true", help=f"replace the table in {DOCS.relative_to(ROOT)}")
     ap.add_argument("--json", help="also write the rows as JSON to this file")
     a = ap.parse_args(argv)
-    repeat = a.repeat or 3
+    repeat = 1 if SMOKE else a.repeat or 3
+    a.keep = os.path.abspath(a.keep) if a.keep else None  # the timed children run in the repository's root
     names = [s.strip() for s in a.only.split(",")] if a.only else list(FIGURES)
     unknown = set(names) - set(FIGURES)
     if unknown:
@@ -867,7 +878,9 @@ def main(argv=None) -> int:
         print(f"   ({time.perf_counter() - t1:.0f} s)", file=sys.stderr, flush=True)
     text = header(machine(), a.quick, time.perf_counter() - t0) + "\n\n" + table(rows)
     print(text)
-    if a.write_docs:
+    if a.write_docs and SMOKE:
+        print(f"(FRICTID_SMOKE=1: {DOCS.relative_to(ROOT)} left as it is)", file=sys.stderr)
+    elif a.write_docs:
         write_docs(text)
     if a.json:
         Path(a.json).write_text(json.dumps([r.__dict__ for r in rows], indent=1, default=str))

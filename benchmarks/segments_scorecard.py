@@ -21,6 +21,7 @@ The plant's truth labels are read here and in the tests only, never by ``frictid
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from dataclasses import replace
@@ -77,6 +78,8 @@ def main(argv=None) -> int:
     ap.add_argument("--no-timing", action="store_true")
     ap.add_argument("--timing-only", action="store_true", help="only the timing (section 5)")
     args = ap.parse_args(argv)
+    if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
+        args.quick, args.noise, args.duty_scale = True, "1", 0.02
     if args.timing_only:
         timing(args.seed, args.quick, print)
         return 0

@@ -96,13 +96,17 @@ def joint_summary(jd: dict) -> dict:
     """The ``--json`` summary of one joint of a parameter file (schema 1, as a dictionary): the chosen
     model with its parameters, inertia and offset, what could not be identified, the diagnosis' findings
     and the warnings."""
+    from ..report.build import heldout_basis
+
     sel = jd.get("selected")
     model = (jd.get("models") or {}).get(sel) or {} if sel else {}
     metrics = model.get("metrics") or {}
+    rms = metrics.get("rms_heldout")
     return {
         "selected": sel,
         "map": model.get("map"),
-        "rms_heldout": metrics.get("rms_heldout"),
+        "rms_heldout": rms,
+        "rms_heldout_basis": heldout_basis(jd, sel) if sel and rms is not None else None,
         "units": jd.get("units") or {},
         "params": {n: _entry(e) for n, e in (model.get("params") or {}).items()},
         "inertia": _entry(jd.get("inertia")),

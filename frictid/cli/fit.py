@@ -82,7 +82,8 @@ def fit(
         js = summary[j] = joint_summary(jd)
         rms = js["rms_heldout"]
         con.info(f"frictid: joint {j}: {js['selected'] or 'no model'}"
-                 + (f" (held-out RMS {rms:.4g} {js['units'].get('tau', '')})" if rms else "")
+                 + (f" (held-out RMS {rms:.4g} {js['units'].get('tau', '')} on {js['rms_heldout_basis']})"
+                    if rms else "")
                  + (f", {len(js['not_identified'])} item(s) not identifiable" if js["not_identified"] else ""))
         for w in js["warnings"]:
             con.warn(f"joint {j}: {w}")

@@ -807,6 +807,8 @@ def _check_joint(a: dict[str, np.ndarray], rows, jid: str, door: _Door
     _time_checks(a["t"], rows, where, door.row, jprob, jwarn)
     if not jprob and "q" in a and "q" not in door.spec.units and door.axis == "rotary":
         msg = _degrees_check(a["t"], a["q"], a.get("qd"))
+        if msg is None and "qd" in a and "qd" not in door.spec.units:
+            msg = _both_degrees_check(a["q"], a["qd"])
         if msg:
             jprob.append(where + msg)
     return a, rows, jprob, jwarn
@@ -984,6 +986,29 @@ def _degrees_check(t: np.ndarray, q: np.ndarray, qd: np.ndarray | None) -> str |
         return (f"column 'q' spans {span:.0f} rad at up to {vmax:.0f} rad/s, which suggests degrees given as "
                 "radians; declare --units q=deg (or --units q=rad if it really is radians)")
     return None
+
+
+#: One revolution [rad]: a rotary joint with end stops spans less; read as degrees, 360 of them.
+REVOLUTION = 2 * math.pi
+
+
+def _both_degrees_check(q: np.ndarray, qd: np.ndarray) -> str | None:
+    """A message when q and qd, consistent with each other and undeclared, are both plausibly degrees.
+
+    Read as radians the joint turns more than one revolution (span of q > 2 pi rad) at a top speed
+    (99th percentile of |qd|) above one revolution per second; read as degrees it stays within one
+    revolution (span <= 360). A joint that turns several revolutions slower than 1 rev/s, or a motor shaft
+    spanning more than 360 rad, is taken as radians (docs/log-format.md)."""
+    span = float(np.max(q) - np.min(q))
+    if not REVOLUTION < span <= 360.0:
+        return None
+    top = float(np.percentile(np.abs(qd[:: max(1, qd.size // DEGREES_SAMPLES)]), 99))  # a spread sample
+    if top <= REVOLUTION:
+        return None
+    return (f"columns 'q' and 'qd' look like degrees: as radians the joint would turn {span / REVOLUTION:.1f} "
+            f"revolutions at up to {top / REVOLUTION:.1f} rev/s, as degrees it moves {span:.0f} deg at up to "
+            f"{top:.0f} deg/s; declare --units q=deg,qd=deg/s (or --units q=rad,qd=rad/s if they really are "
+            "radians)")
 
 
 def read_many(paths, mapping=None, units=None, read=None) -> list[JointLog]:
