@@ -9,7 +9,8 @@ here:
 
 - README.md's two install commands (a new venv, ``pip install``) are run by ``.ci/run`` exactly as printed;
 - docs/fleet.md's blocks are run by ``tests/test_fleet.py::test_every_command_in_docs_fleet_runs`` (it
-  starts the dask cluster its ``--scheduler`` command needs);
+  starts the dask cluster its ``--scheduler`` command needs), and docs/using-the-model.md's (bash and
+  python, in order) by ``tests/test_export.py::test_using_the_model_page_runs``;
 - docs/report.md's first block stands for a user's own files (``params.yaml`` fitted from ``run.parquet``,
   a vendor log ``raw.csv``, as ``tests/test_report.py::test_docs_examples_run`` also reads it): SETUP makes
   them from a shipped sample log before the page runs;
@@ -33,7 +34,8 @@ from conftest import REALDATA, ROOT
 
 PAGES = ["README.md", *sorted(str(p.relative_to(ROOT)) for p in (ROOT / "docs").glob("*.md")),
          "sample_logs/README.md"]
-ELSEWHERE = {"docs/fleet.md": "tests/test_fleet.py::test_every_command_in_docs_fleet_runs"}
+ELSEWHERE = {"docs/fleet.md": "tests/test_fleet.py::test_every_command_in_docs_fleet_runs",
+             "docs/using-the-model.md": "tests/test_export.py::test_using_the_model_page_runs"}
 #: Commands run before a page's own, making the files its commands stand for.
 SETUP = {"docs/report.md": [
     "python -c \"import numpy as np, pandas as pd; d = pd.read_csv('sample_logs/hydraulic_sweep.csv'); "
