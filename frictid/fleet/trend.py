@@ -27,12 +27,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import ruptures
 from scipy.optimize import least_squares
 
 from ..io.params import load_model
 from ..compare import parse_tolerances
 from ..errors import FrictidInputError
+from .changes import changes_of, segment
 from .dataset import time_key
 from .store import COLUMNS, TrendStore
 
@@ -103,6 +103,8 @@ class SeriesTrend:
     scores: dict = field(default_factory=dict)
     #: the values after the temperature regression (equal to ``y`` when none was needed)
     y_norm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: every change found, in order: kind (step | wear), index and date of its run, size [unit]
+    changes: list = field(default_factory=list)
 
     @property
     def date(self) -> str | None:
@@ -121,6 +123,7 @@ class SeriesTrend:
         return {"quantity": self.quantity, "unit": self.unit, "kind": self.kind, "date": self.date,
                 "change": self.change, "change_rel": self.change_rel, "sigma": self.sigma,
                 "normalised": self.normalised, "temp_coeff": self.temp_coeff, "scores": self.scores,
+                "changes": self.changes,
                 "runs": [{"date": d, "value": v, "normalised": n, "stderr": s, "temp": t, "fitted": f}
                          for d, v, n, s, t, f in zip(self.dates, self.y, self.y_norm, self.stderr, self.temp,
                                                      self.fitted)]}
@@ -141,37 +144,9 @@ def temperature_slope(y: np.ndarray, temp: np.ndarray) -> float:
     return float(fit.x[1]) if abs(fit.x[1]) > 3 * se else 0.0
 
 
-def noise_level(z: np.ndarray, stderr: np.ndarray) -> float:
-    """max(robust scatter of the differences / sqrt 2, median stderr)."""
-    d = np.diff(z)
-    scatter = 1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2)
-    se = np.nanmedian(stderr) if np.isfinite(stderr).any() else 0.0
-    return float(max(scatter, se, 1e-12 * max(np.max(np.abs(z)), 1e-300)))
-
-
-def _step(z: np.ndarray) -> tuple[int, np.ndarray]:
-    bk = ruptures.Dynp(model="l2", min_size=2, jump=1).fit(z.reshape(-1, 1)).predict(n_bkps=1)[0]
-    f = np.empty_like(z)
-    f[:bk], f[bk:] = z[:bk].mean(), z[bk:].mean()
-    return bk, f
-
-
-def _wear(z: np.ndarray) -> tuple[int, np.ndarray]:
-    """Level, then a linear drift from onset run k (every k from the first to the third-last)."""
-    x = np.arange(len(z), dtype=float)
-    best = (math.inf, 0, z)
-    for k in range(len(z) - 2):
-        X = np.column_stack([np.ones_like(x), np.maximum(x - k, 0.0)])
-        coef, *_ = np.linalg.lstsq(X, z, rcond=None)
-        f = X @ coef
-        r = float(np.sum((z - f) ** 2))
-        if r < best[0]:
-            best = (r, k, f)
-    return best[1], best[2]
-
-
 def explain(st: SeriesTrend) -> SeriesTrend:
-    """Normalise (when the model did not), estimate the noise, choose steady, step or wear."""
+    """Normalise (when the model did not), then find the series' changes (:mod:`.changes`): none
+    (steady), or steps and wear episodes, each dated; ``kind`` names them in order (``wear+step``)."""
     y = st.y.astype(float)
     if len(y) < MIN_RUNS:
         st.kind, st.fitted, st.y_norm = "too few runs", np.full(len(y), np.nanmean(y) if len(y) else np.nan), y
@@ -182,16 +157,18 @@ def explain(st: SeriesTrend) -> SeriesTrend:
             st.normalised = "regression"
             y = y - st.temp_coeff * (st.temp - np.nanmedian(st.temp))
     st.y_norm = y
-    n = len(y)
-    pen = 2.0 * math.log(n)
-    fits = {"steady": (None, np.full(n, y.mean()), 1), "step": (*_step(y), 3), "wear": (*_wear(y), 3)}
-    # the noise: from the differences and the stderr, and no less than what the best change model leaves
-    rss = min(float(np.sum((y - f) ** 2)) for k, (_, f, _) in fits.items() if k != "steady")
-    st.sigma = sigma = max(noise_level(y, st.stderr), math.sqrt(rss / (n - 3)))
-    scores = {k: float(np.sum((y - f) ** 2) / sigma**2 + pen * p) for k, (_, f, p) in fits.items()}
-    st.kind = min(scores, key=scores.get)
-    st.index, st.fitted, _ = fits[st.kind]
-    st.scores = scores
+    seg, s, steady = segment(y, st.stderr)
+    st.sigma = float(np.median(s))
+    st.fitted = seg.fitted
+    st.changes = changes_of(seg)
+    for c in st.changes:
+        c["date"] = st.dates[c["index"]]
+    st.scores = {"steady": steady.score, "chosen": seg.score}
+    if st.changes:
+        st.kind = "+".join(c["kind"] for c in st.changes)
+        st.index = max(st.changes, key=lambda c: abs(c["size"]))["index"]
+    else:
+        st.kind, st.index = "steady", None
     return st
 
 
