@@ -30,15 +30,16 @@ from frictid.fleet.trend import trend_fleet  # noqa: E402
 
 
 def run_cli(*args) -> int:
-    err = io.StringIO()
+    """``frictid ARGS`` in this process; its stderr is shown only when it fails."""
+    err, code = io.StringIO(), 0
     with contextlib.redirect_stderr(err):
         try:
             main([str(a) for a in args])
         except SystemExit as exc:
-            if exc.code:
-                print(err.getvalue()[-3000:], file=sys.stderr)
-            return exc.code if isinstance(exc.code, int) else 1
-    return 0
+            code = exc.code if isinstance(exc.code, int) else 1
+    if code:
+        print(err.getvalue()[-3000:], file=sys.stderr)
+    return code
 
 
 def found_changes(jt) -> list[tuple[str, int]]:

@@ -96,8 +96,11 @@ def candidates(y: np.ndarray, s: np.ndarray) -> list[tuple[int, ...]]:
     return out
 
 
-def fit_one(y: np.ndarray, s: np.ndarray, breaks, drifts, jumps, pen: float) -> Segmentation:
+def fit_one(y: np.ndarray, s: np.ndarray, breaks, drifts, jumps, pen: float, Z=None) -> Segmentation:
+    """Weighted least squares of one explanation (``Z``: covariates every explanation carries, last)."""
     X = design(len(y), breaks, drifts, jumps)
+    if Z is not None:
+        X = np.column_stack([X, Z])
     coef, *_ = np.linalg.lstsq(X / s[:, None], y / s, rcond=None)
     f = X @ coef
     chi2 = float(np.sum(((y - f) / s) ** 2))
@@ -118,7 +121,7 @@ def structures(k: int, n: int):
                 yield drifts, jumps
 
 
-def refine(y: np.ndarray, s: np.ndarray, seg: Segmentation, pen: float) -> Segmentation:
+def refine(y: np.ndarray, s: np.ndarray, seg: Segmentation, pen: float, Z=None) -> Segmentation:
     """Move each change point of an explanation to its best run between its neighbours (a continuous
     change of slope sits where the segments' lines cross, not where a line per segment would break)."""
     n, best = len(y), seg
@@ -131,7 +134,7 @@ def refine(y: np.ndarray, s: np.ndarray, seg: Segmentation, pen: float) -> Segme
                 if b == best.breaks[i]:
                     continue
                 breaks = best.breaks[:i] + (b,) + best.breaks[i + 1:]
-                trial = fit_one(y, s, breaks, best.drifts, best.jumps, pen)
+                trial = fit_one(y, s, breaks, best.drifts, best.jumps, pen, Z)
                 if trial.score < best.score - 1e-9:
                     best, moved = trial, True
         if not moved:
@@ -139,28 +142,37 @@ def refine(y: np.ndarray, s: np.ndarray, seg: Segmentation, pen: float) -> Segme
     return best
 
 
-def choose(y: np.ndarray, s: np.ndarray, cands, pen: float, keep: int = 6) -> list[Segmentation]:
+def choose(y: np.ndarray, s: np.ndarray, cands, pen: float, Z=None, keep: int = 6) -> list[Segmentation]:
     """The explanations, best first: every structure on every candidate set of change points is scored,
     the best ``keep`` have their change points refined (:func:`refine`)."""
-    scored = [fit_one(y, s, breaks, d, j, pen) for breaks in cands for d, j in structures(len(breaks), len(y))]
+    scored = [fit_one(y, s, breaks, d, j, pen, Z) for breaks in cands for d, j in structures(len(breaks), len(y))]
     scored.sort(key=lambda g: g.score)
-    return sorted((refine(y, s, g, pen) if g.breaks else g for g in scored[:keep]), key=lambda g: g.score)
+    return sorted((refine(y, s, g, pen, Z) if g.breaks else g for g in scored[:keep]), key=lambda g: g.score)
 
 
-def segment(y: np.ndarray, stderr: np.ndarray) -> tuple[Segmentation, np.ndarray, Segmentation]:
-    """(the chosen explanation, the per-run noise it was chosen with, the best with no change)."""
+def segment(y: np.ndarray, stderr: np.ndarray, tc: np.ndarray | None = None,
+            slope0: float = 0.0) -> tuple[Segmentation, np.ndarray, Segmentation]:
+    """(the chosen explanation, the per-run noise it was chosen with, the best with no change).
+
+    tc : the runs' temperature about their median [K] when the quantity is not normalised by a thermal
+    law: every explanation then carries a term ``c tc`` (its coefficient last in ``coef``), so that the
+    temperature is fitted together with the changes, not mistaken for them; ``slope0``, a first estimate
+    of ``c`` (from the day-to-day differences), takes it out before the candidates are sought and the
+    scatter is measured.
+    """
     n = len(y)
     pen = 2.0 * math.log(n)
-    s = run_noise(y, stderr)
-    cands = candidates(y, s)
-    tops = choose(y, s, cands, pen)
+    Z = None if tc is None else tc.reshape(-1, 1)
+    y0 = y if tc is None else y - slope0 * tc
+    s = run_noise(y0, stderr)
+    cands = candidates(y0, s)
+    tops = choose(y, s, cands, pen, Z)
     # the noise is no less than what the best-fitting of the leading explanations leaves
     inflate = min(g.chi2 / max(n - g.p, 1) for g in tops)
     if inflate > 1.0:
         s = s * math.sqrt(inflate)
-        tops = choose(y, s, cands, pen)
-    best = tops[0]
-    return best, s, fit_one(y, s, (), (False,), (), pen)
+        tops = choose(y, s, cands, pen, Z)
+    return tops[0], s, fit_one(y, s, (), (False,), (), pen, Z)
 
 
 def changes_of(seg: Segmentation) -> list[dict]:

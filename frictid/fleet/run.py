@@ -20,7 +20,7 @@ from ..errors import FrictidInputError
 from ..io.logs import read_logs
 from ..result import FitResult
 from ..version import __version__
-from .dataset import Partition, find_partitions
+from .dataset import KeySpec, Partition, find_partitions
 from .level import covariance_from_json, covariance_json, level_with_stderr
 from .store import TrendStore
 
@@ -154,10 +154,11 @@ def _outcomes_dask(todo, options, scheduler: str | None, workers: int):
 
 
 def run_fleet(sources: list[str], store: str, *, engine: str = "dask", scheduler: str | None = None,
-              workers: int = 2, options: FitOptions = FitOptions(),
+              workers: int = 2, options: FitOptions = FitOptions(), keys: KeySpec | None = None,
               progress: Callable[[int, int, Outcome], None] | None = None) -> FleetRun:
     """Fit every partition of a dataset whose inputs changed since the store last saw them; write their
-    parameter files and rows into the store. ``engine``: "dask" or "serial" (same numbers)."""
+    parameter files and rows into the store. ``engine``: "dask" or "serial" (same numbers). ``keys``: the
+    keys that make a partition (joint keys and the time key; default every ``name=value`` level)."""
     t0 = time.perf_counter()
     if engine not in ("dask", "serial"):
         raise FrictidInputError(f"--engine {engine}: use dask (a cluster) or serial")
@@ -165,7 +166,7 @@ def run_fleet(sources: list[str], store: str, *, engine: str = "dask", scheduler
         if Path(src).is_dir() and Path(store).resolve().is_relative_to(Path(src).resolve()):
             raise FrictidInputError(f"-o {store}: the store is inside the dataset {src}; its tables would be read "
                                     "as logs on the next run: put it beside the dataset")
-    parts = find_partitions(sources)
+    parts = find_partitions(sources, keys)
     st = TrendStore(store)
     done = st.fitted_digests()
     salt = options.salt()
