@@ -1,14 +1,15 @@
 """Scorecard of the fleet trend on a simulated fleet (docs/fleet.md).
 
-Simulates ROBOTS x JOINTS x DAYS daily logs from the plant (tests/fleet_synth.py: planted wear on about
-10 % of the joints, a re-lubrication step on about 5 %, day-to-day ambient swings of +-8 K on about 35 %,
-noise only on the rest), fits them on a distributed.LocalCluster (``frictid fit DATASET --engine dask``)
-and runs ``frictid trend``. Scores: every planted wear and step found as such with its date within two
-runs; false alarms (a temperature-only or noise-only joint called wear or step) as a share of all joints
-(target <= 2 %). Seeds from 9000 up: the tests use others.
+Simulates ROBOTS x JOINTS x DAYS daily logs from the plant (tests/fleet_synth.py; per joint, drawn:
+wear 8 %, a re-lubrication step 5 %, wear then a repair 4 %, two steps 4 %, a fault then its repair 4 %,
+day-to-day ambient swings of +-8 K 30 %, noise only 45 %), fits them on a distributed.LocalCluster
+(``frictid fit DATASET --engine dask``) and runs the trend. Scores: every planted change found with its
+kind and its date within two runs (and the dating error), extra changes on changed joints, false alarms
+(a temperature-only or noise-only joint with any change) as a share of all joints (target <= 2 %).
+Seeds from 100000 up (the tests use seeds below 1000). With FRICTID_SMOKE=1: 1 joint x 6 days.
 
-    python benchmarks/fleet_scorecard.py                       # the full size: 20 x 6 x 30
-    python benchmarks/fleet_scorecard.py --robots 2 --joints 2 --days 10   # a quick look
+    python benchmarks/fleet_scorecard.py                       # 4 robots x 6 joints x 30 days
+    python benchmarks/fleet_scorecard.py --robots 1 --joints 2 --days 10   # a quick look
 """
 from __future__ import annotations
 
