@@ -8,7 +8,7 @@ kind and its date within two runs (and the dating error), extra changes on chang
 (a temperature-only or noise-only joint with any change) as a share of all joints (target <= 2 %).
 Seeds from 100000 up (the tests use seeds below 1000). With FRICTID_SMOKE=1: 1 joint x 6 days.
 
-    python benchmarks/fleet_scorecard.py                       # 4 robots x 6 joints x 30 days
+    python benchmarks/fleet_scorecard.py                       # 6 robots x 6 joints x 30 days
     python benchmarks/fleet_scorecard.py --robots 1 --joints 2 --days 10   # a quick look
 """
 from __future__ import annotations
@@ -116,7 +116,7 @@ def report(a, plan, s: dict, t_sim: float, t_fit: float, code: int) -> bool:
 
 def arguments(argv):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robots", type=int, default=4)
+    ap.add_argument("--robots", type=int, default=6)
     ap.add_argument("--joints", type=int, default=6)
     ap.add_argument("--days", type=int, default=30)
     ap.add_argument("--seed", type=int, default=100000)
