@@ -14,8 +14,9 @@ and at each change point the level jumps (a step: a repair, a re-lubrication, a 
    chi^2 more than a constant). A change point that changes nothing (flat to flat, no jump) is not a model.
 3. **Noise**: ``s_i = sqrt(tau^2 + se_i^2)`` with ``tau^2`` the scatter the runs' standard errors do not
    explain (robust: 1.4826 MAD of the day-to-day differences / sqrt 2, so a step, one difference, and
-   wear, a constant offset of the differences, hardly move it). When the chosen model's residuals say
-   the noise is larger (chi^2 / (n - p) > 1), every ``s_i`` is scaled up by that and the choice made again.
+   wear, a constant offset of the differences, hardly move it). When the chosen explanation's residuals
+   say the noise is larger (chi^2 / (n - p) > 1), every ``s_i`` is scaled up by that and the choice made
+   again.
 
 Changes reported: a **step** at each jump (its date: the first run at the new level) and **wear** at the
 start of each drifting segment (its date: the last run before the drift; the first run when the series
@@ -162,17 +163,25 @@ def segment(y: np.ndarray, stderr: np.ndarray, tc: np.ndarray | None = None,
     """
     n = len(y)
     pen = 2.0 * math.log(n)
-    Z = None if tc is None else tc.reshape(-1, 1)
     y0 = y if tc is None else y - slope0 * tc
+    # thermal laws multiply friction: a joint whose level stepped up by 30 % is 30 % more sensitive to
+    # temperature, so the term is c tc times the level (the first-corrected values over their median)
+    Z = None if tc is None else (tc * y0 / np.median(y0)).reshape(-1, 1)
     s = run_noise(y0, stderr)
     cands = candidates(y0, s)
-    tops = choose(y, s, cands, pen, Z)
-    # the noise is no less than what the best-fitting of the leading explanations leaves
-    inflate = min(g.chi2 / max(n - g.p, 1) for g in tops)
+    best = choose(y, s, cands, pen, Z)[0]
+    # the noise is no less than what the chosen explanation leaves (chi^2 per degree of freedom)
+    inflate = best.chi2 / max(n - best.p, 1)
     if inflate > 1.0:
         s = s * math.sqrt(inflate)
-        tops = choose(y, s, cands, pen, Z)
-    return tops[0], s, fit_one(y, s, (), (False,), (), pen, Z)
+        best = choose(y, s, cands, pen, Z)[0]
+    return best, s, fit_one(y, s, (), (False,), (), pen, Z)
+
+
+def design_fit(seg: Segmentation) -> np.ndarray:
+    """The explanation without its temperature term (the level and its changes)."""
+    X = design(len(seg.fitted), seg.breaks, seg.drifts, seg.jumps)
+    return X @ seg.coef[:X.shape[1]]
 
 
 def changes_of(seg: Segmentation) -> list[dict]:
@@ -185,9 +194,9 @@ def changes_of(seg: Segmentation) -> list[dict]:
     out = []
     for i, b in enumerate(seg.breaks):
         if seg.jumps[i]:
-            out.append({"kind": "step", "index": b, "size": float(next(coef))})
+            out.append({"kind": "step", "index": int(b), "size": float(next(coef))})
     for s, (a, b) in enumerate(zip(starts, ends)):
         if seg.drifts[s]:
             onset = a if s == 0 else a - 1
-            out.append({"kind": "wear", "index": onset, "size": float(slopes[s] * (b - 1 - onset))})
+            out.append({"kind": "wear", "index": int(onset), "size": float(slopes[s] * (b - 1 - onset))})
     return sorted(out, key=lambda c: (c["index"], c["kind"]))

@@ -31,7 +31,7 @@ from scipy.optimize import least_squares
 from ..io.params import read_params
 from ..compare import parse_tolerances
 from ..errors import FrictidInputError
-from .changes import changes_of, segment
+from .changes import changes_of, design_fit, segment
 from .level import covariance_from_json, level_with_stderr
 from .dataset import KeySpec, check_keys, time_key
 from .store import COLUMNS, TrendStore
@@ -154,10 +154,11 @@ def explain(st: SeriesTrend) -> SeriesTrend:
     if st.normalised != "model" and np.isfinite(st.temp).all() and np.ptp(st.temp) > 0:
         tc = st.temp - np.median(st.temp)
     seg, s, steady = segment(y, st.stderr, tc, temperature_slope(y, st.temp) if tc is not None else 0.0)
-    if tc is not None:
+    if tc is not None:  # the term is c tc times the level: its effect at the median level is c tc
         st.normalised, st.temp_coeff = "regression", float(seg.coef[-1])
-    st.y_norm = y - st.temp_coeff * tc if tc is not None else y
-    st.fitted = seg.fitted - st.temp_coeff * tc if tc is not None else seg.fitted
+        effect = seg.fitted - design_fit(seg)
+    st.y_norm = y - effect if tc is not None else y
+    st.fitted = seg.fitted - effect if tc is not None else seg.fitted
     st.sigma = float(np.median(s))
     st.changes = changes_of(seg)
     for c in st.changes:
