@@ -40,6 +40,10 @@ def fit(
     scheduler: Annotated[Optional[str], typer.Option(
         "--scheduler", help="With --engine dask: the cluster's scheduler (tcp://HOST:PORT); default a local "
                             "cluster of --jobs worker processes.")] = None,
+    keys: Annotated[Optional[str], typer.Option(
+        "--keys", help="With --engine dask|serial: the dataset keys that name a joint and, after a colon, the "
+                       "key that orders its runs (robot,joint:date); a partition is one value of these, its "
+                       "files below any other keys fitted together. Default: every name=value level.")] = None,
 ) -> None:
     """Find the segments, identify every model the data support, choose one, write the parameter file."""
     from ..errors import FrictidInputError
@@ -51,7 +55,9 @@ def fit(
         from .trend import run_fleet
         return run_fleet(logs, output, engine=engine, scheduler=scheduler, jobs=jobs, models=models,
                          diagnose=not no_diagnose, mapping=mapping, units=units, quiet=quiet, as_json=as_json,
-                         report=report, joint=joint)
+                         report=report, joint=joint, keys=keys)
+    if keys is not None:
+        raise FrictidInputError("fit: --keys is for a dataset (--engine dask or serial)")
     con = Console(quiet)
     if not logs:
         raise FrictidInputError("fit: give at least one log (e.g. frictid fit run.csv -o params.yaml)")

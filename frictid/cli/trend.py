@@ -23,11 +23,13 @@ def _progress(con: Console):
 
 def run_fleet(logs: List[str], output: Optional[str], *, engine: str, scheduler: Optional[str], jobs: int,
               models: Optional[str], diagnose: bool, mapping: Optional[str], units: Optional[str],
-              quiet: bool, as_json: bool, report: Optional[str] = None, joint: Optional[str] = None) -> None:
+              quiet: bool, as_json: bool, report: Optional[str] = None, joint: Optional[str] = None,
+              keys: Optional[str] = None) -> None:
     """``frictid fit DATASET --engine dask [--scheduler tcp://HOST:PORT] -o STORE``: one task per
     partition; exit code 0 when every partition was fitted, 2 when some had bad input, 1 when some
     failed for an internal reason."""
     from ..errors import FrictidInputError
+    from ..fleet.dataset import parse_keys
     from ..fleet.run import FitOptions, run_fleet as run
     from ..identify.pipeline import parse_models
 
@@ -40,13 +42,14 @@ def run_fleet(logs: List[str], output: Optional[str], *, engine: str, scheduler:
         raise FrictidInputError("fit --engine dask: --report and --joint are for one parameter file; "
                                 "use frictid trend STORE --report PAGE.html")
     parse_models(models)
+    spec = parse_keys(keys)
     con = Console(quiet)
     workers = jobs or len(os.sched_getaffinity(0))
     where = scheduler or f"a local cluster of {workers} worker process(es)"
     con.info(f"frictid: fitting the partitions of {', '.join(logs)} on {where} into {output} ...")
     res = run(logs, output, engine=engine, scheduler=scheduler, workers=workers,
               options=FitOptions(models=models, diagnose=diagnose, mapping=mapping, units=units),
-              progress=_progress(con))
+              progress=_progress(con), keys=spec)
     con.info(f"frictid: {res.total} partition(s): {res.fitted} fitted, {res.skipped} unchanged (skipped), "
              f"{len(res.failed)} failed, in {res.seconds:.1f} s; store {output}")
     if as_json:
@@ -62,6 +65,21 @@ def run_fleet(logs: List[str], output: Optional[str], *, engine: str, scheduler:
                                 f"and in the store); the other {res.total - len(res.bad_input)} are in {output}")
 
 
+def _joint_line(jt) -> str:
+    """``robot=r01/joint=j1: wear at 2026-03-05 (+6.1 N m), step at 2026-03-21 (-6.3 N m); level -0.4 %
+    first to last; crossed ...``"""
+    lv = jt.level
+    changes = lv.changes if lv is not None else []
+    text = ", ".join(f"{c['kind']} at {c['date']} ({c['size']:+.3g}{' ' + lv.unit if lv.unit else ''})"
+                     for c in changes) or jt.kind
+    if changes and lv.fitted[0]:
+        text += f"; level {lv.change_rel * 100:+.1f} % first to last"
+    return (f"frictid: {jt.joint}: {text}"
+            + "".join(f"; crossed {c['quantity']} {c['limit']} ({c['change'] * 100:+.1f} %)"
+                      if "%" in c["limit"] else f"; crossed {c['quantity']} {c['limit']} ({c['change']:+.4g})"
+                      for c in jt.crossings))
+
+
 @app.command()
 def trend(
     store: Annotated[str, typer.Argument(help="The trend store (frictid fit DATASET --engine dask -o STORE).")],
@@ -71,24 +89,23 @@ def trend(
                         "quantity. Exit code 3 when a joint crosses one.")] = None,
     report: Annotated[Optional[str], typer.Option(
         "--report", "-o", help="Write the trend page (self-contained HTML).")] = None,
+    keys: Annotated[Optional[str], typer.Option(
+        "--keys", help="The store's dataset keys that name a joint and, after a colon, the key that orders its "
+                       "runs (robot,joint:date). Default: date, day, run or time (else the last key) orders the "
+                       "runs, the other keys name the joint.")] = None,
     quiet: QuietOpt = False,
     as_json: JsonOpt = False,
 ) -> None:
-    """Per joint, each parameter over time: normalised, steady / step / wear with its date, limits."""
+    """Per joint, each parameter over time: normalised; its steps and wear, each dated; limits."""
     from ..errors import QualityGateError
     from ..fleet.page import write_page
+    from ..fleet.dataset import parse_keys
     from ..fleet.trend import parse_limits, trend_fleet
 
     con = Console(quiet)
-    ft = trend_fleet(store, parse_limits(limit))
+    ft = trend_fleet(store, parse_limits(limit), parse_keys(keys))
     for jt in ft.joints:
-        lv = jt.level
-        change = f", level {lv.change_rel * 100:+.1f} %" if lv is not None and lv.kind in ("step", "wear") else ""
-        when = f" at {lv.date}" if lv is not None and lv.date else ""
-        con.info(f"frictid: {jt.joint}: {jt.kind}{when}{change}"
-                 + "".join(f"; crossed {c['quantity']} {c['limit']} ({c['change'] * 100:+.1f} %)"
-                           if "%" in c["limit"] else f"; crossed {c['quantity']} {c['limit']} ({c['change']:+.4g})"
-                           for c in jt.crossings))
+        con.info(_joint_line(jt))
     for f in ft.failed:
         con.warn(f"partition {f['partition']} failed ({f['kind']}): {f['reason']}")
     if report:

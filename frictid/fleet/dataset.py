@@ -58,10 +58,51 @@ def hive_keys(path: Path, root: Path) -> tuple[tuple[str, str], ...]:
     return tuple(out)
 
 
-def find_partitions(sources: list[str]) -> list[Partition]:
+@dataclass(frozen=True)
+class KeySpec:
+    """Which dataset keys name a joint (``joint``, in order) and which one orders its runs (``time``):
+    ``--keys robot,joint:date``."""
+
+    joint: tuple[str, ...]
+    time: str
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return (*self.joint, self.time)
+
+    def __str__(self) -> str:
+        return f"{','.join(self.joint)}:{self.time}"
+
+
+def parse_keys(text: str | None) -> KeySpec | None:
+    """``"robot,joint:date"`` -> KeySpec (None for None). Raises FrictidInputError on a malformed text."""
+    if text is None:
+        return None
+    hint = "give the keys that name a joint, then after a colon the key that orders its runs (--keys robot,joint:date)"
+    joint, sep, time_ = text.partition(":")
+    names = [k.strip() for k in joint.split(",") if k.strip()]
+    bad = [k for k in [*names, time_.strip()] if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", k)]
+    if not sep or not time_.strip() or bad:
+        raise FrictidInputError(f"--keys {text!r}: " + (f"{bad[0]!r} is not a key name; " if bad and bad[0] else "")
+                                + hint)
+    if len(set(names)) < len(names) or time_.strip() in names:
+        raise FrictidInputError(f"--keys {text!r}: a key is named twice; {hint}")
+    return KeySpec(tuple(names), time_.strip())
+
+
+def check_keys(spec: KeySpec | None, available, where: str) -> None:
+    """Refuse keys the dataset or store does not have, naming those it has."""
+    missing = [k for k in (spec.names if spec else ()) if k not in available]
+    if missing:
+        raise FrictidInputError(f"--keys {spec}: {where} has no key {missing[0]!r}; its keys are "
+                                + (", ".join(available) or "none (no name=value folders)"))
+
+
+def find_partitions(sources: list[str], spec: KeySpec | None = None) -> list[Partition]:
     """Partitions of a dataset: one folder (hive-partitioned) or a list of files (one partition each,
-    keyed by its ``name=value`` folders, else by its path). Raises FrictidInputError naming what is
-    missing or inconsistent."""
+    keyed by its ``name=value`` folders, else by its path). With ``spec`` (``--keys``), a partition is one value of
+    those keys (the files below it, across any other keys, are fitted together). Raises
+    FrictidInputError naming what is missing or inconsistent."""
     if not sources:
         raise FrictidInputError("fit --engine dask: give a dataset folder or log files")
     groups: dict[tuple, list[str]] = {}
@@ -80,16 +121,24 @@ def find_partitions(sources: list[str]) -> list[Partition]:
             groups.setdefault(keys, []).append(str(p.resolve()))
         else:
             raise FrictidInputError(f"{src}: no such file or folder")
-    names = {tuple(k for k, _ in keys) for keys in groups}
+    names = {tuple(k for k, _ in kv) for kv in groups}
     if len(names) > 1:
         raise FrictidInputError("the dataset's partitions have different keys: "
                                 + "; ".join("/".join(n) for n in sorted(names))
                                 + " (every log must sit under the same name=value folders)")
-    return [Partition(keys, tuple(sorted(files))) for keys, files in sorted(groups.items())]
+    if spec is not None:
+        check_keys(spec, [k for k in next(iter(names)) if k != "file"], "the dataset")
+        merged: dict[tuple, list[str]] = {}
+        for kv, files in groups.items():
+            d = dict(kv)
+            merged.setdefault(tuple((k, d[k]) for k in spec.names), []).extend(files)
+        groups = merged
+    return [Partition(kv, tuple(sorted(files))) for kv, files in sorted(groups.items())]
 
 
 def time_key(names) -> str | None:
-    """The key that orders a joint's partitions in time: date, day, run or time, else the last key."""
+    """The key that orders a joint's partitions in time (the default of ``--keys``): date, day, run or
+    time, else the last key."""
     names = list(names)
     for k in TIME_KEYS:
         if k in names:

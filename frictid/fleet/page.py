@@ -2,7 +2,7 @@
 verdict, the date, the change of its friction level, limits crossed) and per joint its quantities over
 time (matplotlib SVG inline, as the report draws them): the values after normalisation with a band of
 +-2 standard errors (or +-2 sigma of the scatter where a run has none), the chosen explanation, the date of
-a step or the onset of wear."""
+each step and each onset of wear."""
 from __future__ import annotations
 
 import html
@@ -38,8 +38,8 @@ def _figure(jt: JointTrend):
         if s.normalised == "regression":
             ax.plot(x, s.y, ".", ms=2, color="#999999", label="as fitted")
         ax.plot(x, s.fitted, "-", color="#b00020", lw=1.2, label=s.kind)
-        if s.index is not None:
-            ax.axvline(x[s.index], color="#b35900", ls="--", lw=0.8)
+        for c in s.changes:  # every change: a step dashed, the onset of wear dotted
+            ax.axvline(x[c["index"]], color="#b35900", ls="--" if c["kind"] == "step" else ":", lw=0.8)
         ax.set_ylabel(f"{s.quantity} [{s.unit}]" if s.unit else s.quantity)
         ax.legend(loc="best", fontsize=7, frameon=False)
     ticks = np.unique(np.linspace(0, len(dates) - 1, min(6, len(dates))).astype(int))
@@ -59,7 +59,7 @@ def _row(jt: JointTrend) -> str:
     rel = f"{lv.change_rel * 100:+.1f} %" if lv is not None and np.isfinite(lv.change_rel) else ""
     cross = ", ".join(f"{c['quantity']} {c['limit']}" for c in jt.crossings)
     return (f"<tr><td><a href='#{html.escape(jt.joint)}'>{html.escape(jt.joint)}</a></td>"
-            f"<td class='{jt.kind}'>{jt.kind}</td><td>{html.escape(str(lv.date or '')) if lv else ''}</td>"
+            f"<td class='{jt.kind.split('+')[0]}'>{jt.kind}</td><td>{html.escape(str(lv.date or '')) if lv else ''}</td>"
             f"<td>{rel}</td><td>{jt.score:.1f}</td><td class='cross'>{html.escape(cross)}</td>"
             f"<td>{len(jt.failed)}</td></tr>")
 
@@ -74,7 +74,7 @@ def build_page(ft: FleetTrend) -> str:
              f"{d['crossings']} limit crossing(s) ({html.escape(', '.join(map(str, ft.limits)) or 'no limits')}); "
              f"{d['failed_partitions']} failed partition(s). frictid {__version__}.</p>",
              "<h2>Fleet overview</h2><table><tr><th>joint</th><th>verdict</th><th>date</th><th>level change</th>"
-             "<th>change / sigma</th><th>limits crossed</th><th>failed runs</th></tr>",
+             "<th>largest departure / sigma</th><th>limits crossed</th><th>failed runs</th></tr>",
              *(_row(j) for j in ft.joints), "</table>"]
     if ft.failed:
         parts.append("<h2>Failed partitions</h2><table><tr><th>partition</th><th>kind</th><th>reason</th></tr>"

@@ -20,7 +20,8 @@ from ..errors import FrictidInputError
 from ..io.logs import read_logs
 from ..result import FitResult
 from ..version import __version__
-from .dataset import Partition, find_partitions
+from .dataset import KeySpec, Partition, find_partitions
+from .level import covariance_from_json, covariance_json, level_with_stderr
 from .store import TrendStore
 
 #: Outcomes written to the store at a time (an interrupted run keeps what was written).
@@ -71,6 +72,22 @@ def log_stats(log) -> dict:
             "temp_mean": float(np.mean(temp)), "temp_lo": float(np.min(temp)), "temp_hi": float(np.max(temp))}
 
 
+def run_level(jf, speed_hi: float) -> dict:
+    """The run's own ``F_ref`` (at half its highest speed, the thermal law's reference temperature) with its
+    standard error, and the selected model's covariance, as the store keeps them (:mod:`.level`)."""
+    mf = jf.models.get(jf.selected) if jf.selected else None
+    out = {"F_ref": np.nan, "F_ref_stderr": np.nan, "F_ref_speed": np.nan, "F_ref_temp": np.nan,
+           "F_ref_reason": "no model selected" if mf is None else "", "cov": covariance_json(mf)}
+    if mf is None or not np.isfinite(speed_hi) or speed_hi <= 0:
+        out["F_ref_reason"] = out["F_ref_reason"] or "the log reached no speed"
+        return out
+    lv = level_with_stderr(jf, jf.selected, 0.5 * speed_hi, None, covariance_from_json(out["cov"]))
+    m = jf.friction_model(jf.selected)
+    out.update(F_ref=lv["value"], F_ref_stderr=lv["stderr"], F_ref_speed=0.5 * speed_hi, F_ref_reason=lv["reason"],
+               F_ref_temp=m.thermal["T0"] if m.thermal else np.nan)
+    return out
+
+
 def fit_partition(part: Partition, digest: str, options: FitOptions) -> Outcome:
     """Read a partition's logs and fit them (one process: ``jobs=1``). Never raises: a failure is the
     outcome's ``kind`` and ``reason``."""
@@ -81,6 +98,8 @@ def fit_partition(part: Partition, digest: str, options: FitOptions) -> Outcome:
         out.stats = {lg.joint: log_stats(lg) for lg in logs}
         out.result = frictid_fit(logs, models=options.models, mapping=options.mapping, units=options.units,
                                  diagnose=options.diagnose, jobs=1)
+        for j, jf in out.result.joints.items():
+            out.stats.setdefault(j, {}).update(run_level(jf, out.stats.get(j, {}).get("speed_hi", np.nan)))
     except FrictidInputError as exc:
         out.kind, out.reason = "input", str(exc)
     except Exception as exc:  # noqa: BLE001 - one partition's bug must not stop the fleet; it is reported
@@ -135,10 +154,11 @@ def _outcomes_dask(todo, options, scheduler: str | None, workers: int):
 
 
 def run_fleet(sources: list[str], store: str, *, engine: str = "dask", scheduler: str | None = None,
-              workers: int = 2, options: FitOptions = FitOptions(),
+              workers: int = 2, options: FitOptions = FitOptions(), keys: KeySpec | None = None,
               progress: Callable[[int, int, Outcome], None] | None = None) -> FleetRun:
     """Fit every partition of a dataset whose inputs changed since the store last saw them; write their
-    parameter files and rows into the store. ``engine``: "dask" or "serial" (same numbers)."""
+    parameter files and rows into the store. ``engine``: "dask" or "serial" (same numbers). ``keys``: the
+    keys that make a partition (joint keys and the time key; default every ``name=value`` level)."""
     t0 = time.perf_counter()
     if engine not in ("dask", "serial"):
         raise FrictidInputError(f"--engine {engine}: use dask (a cluster) or serial")
@@ -146,7 +166,7 @@ def run_fleet(sources: list[str], store: str, *, engine: str = "dask", scheduler
         if Path(src).is_dir() and Path(store).resolve().is_relative_to(Path(src).resolve()):
             raise FrictidInputError(f"-o {store}: the store is inside the dataset {src}; its tables would be read "
                                     "as logs on the next run: put it beside the dataset")
-    parts = find_partitions(sources)
+    parts = find_partitions(sources, keys)
     st = TrendStore(store)
     done = st.fitted_digests()
     salt = options.salt()

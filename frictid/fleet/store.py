@@ -50,6 +50,12 @@ COLUMNS = {
     "temp_lo": "lowest temperature [degC]",
     "temp_hi": "highest temperature [degC]",
     "n_samples": "samples of the joint's log",
+    "F_ref": "the run's friction level at F_ref_speed (its selected model; docs/fleet.md) [unit of tau]",
+    "F_ref_stderr": "its standard error by the delta method from the model's covariance [unit of tau] (NaN: see F_ref_reason)",
+    "F_ref_speed": "the speed F_ref is taken at: half the log's speed_hi [q/s]",
+    "F_ref_temp": "the temperature F_ref is taken at: the thermal law's reference T0 [degC] (NaN: no thermal law)",
+    "F_ref_reason": "why F_ref or its standard error is missing",
+    "cov": "the selected model's parameter covariance, JSON {names, cov} (empty when it has none)",
     "duration": "duration of the joint's log [s]",
     "findings": "the diagnosis' findings (JSON list of cause, extension, model, gain)",
     "params_file": "the parameter file, relative to the store",
@@ -61,7 +67,8 @@ COLUMNS = {
     "written": "when the row was written [ns since 1970, UTC]; the latest per partition counts",
     "created": "the same as ISO 8601 text",
 }
-_NUM = ("value", "stderr", "speed_hi", "temp_mean", "temp_lo", "temp_hi", "duration", "fit_seconds")
+_NUM = ("value", "stderr", "speed_hi", "temp_mean", "temp_lo", "temp_hi", "duration", "fit_seconds", "F_ref",
+        "F_ref_stderr", "F_ref_speed", "F_ref_temp")
 
 
 def safe_name(partition_id: str) -> str:

@@ -9,11 +9,11 @@ speed (half the median speed the logs reached) evaluated by each run's :class:`f
   warm day is not wear. Where it has none, the day-to-day differences of a quantity are regressed on those
   of the run's mean temperature (robust, soft-L1, with an intercept that absorbs steady wear and a loss
   that ignores the one difference a step makes); a slope more than 3 standard errors from zero is removed.
-- **Noise level.** sigma = max(robust scatter of the day-to-day differences / sqrt 2, median stderr, the
-  residual scatter of the best change model, sqrt(RSS / (n - 3))).
-- **Change points.** Three explanations are scored by chi^2 / sigma^2 + 2 p ln n (p parameters): steady
-  (one level, p = 1), a step (two levels, the break found by ``ruptures.Dynp`` with an l2 cost, p = 3) and
-  wear (a level, then a linear drift from an onset run, every onset tried, p = 3). The lowest score wins.
+- **Uncertainty.** Each run's ``F_ref`` carries its standard error (delta method from the selected model's
+  covariance, which the store keeps: :mod:`.level`); parameters carry theirs from the fit.
+- **Changes.** Any number of steps and wear episodes, dated (:mod:`.changes`): penalised segmentation
+  (``ruptures.Dynp``, the choice between explanations by chi^2 + 2 p ln n) with each run weighted by its
+  standard error combined with the series' own scatter.
 - **Limits.** ``Fc=+20%`` (rise only), ``Fc=-10%`` (fall only), ``F_ref=15%`` (either way), ``sigma2=0.5``
   (in its unit): the fitted change from the first run to the last is compared with the limit.
 """
@@ -21,19 +21,19 @@ from __future__ import annotations
 
 import math
 import re
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import ruptures
 from scipy.optimize import least_squares
 
-from ..io.params import load_model
+from ..io.params import read_params
 from ..compare import parse_tolerances
 from ..errors import FrictidInputError
-from .dataset import time_key
+from .changes import changes_of, design_fit, segment
+from .level import covariance_from_json, level_with_stderr
+from .dataset import KeySpec, check_keys, time_key
 from .store import COLUMNS, TrendStore
 
 #: The quantity the joint's verdict is taken from.
@@ -103,6 +103,8 @@ class SeriesTrend:
     scores: dict = field(default_factory=dict)
     #: the values after the temperature regression (equal to ``y`` when none was needed)
     y_norm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: every change found, in order: kind (step | wear), index and date of its run, size [unit]
+    changes: list = field(default_factory=list)
 
     @property
     def date(self) -> str | None:
@@ -121,77 +123,52 @@ class SeriesTrend:
         return {"quantity": self.quantity, "unit": self.unit, "kind": self.kind, "date": self.date,
                 "change": self.change, "change_rel": self.change_rel, "sigma": self.sigma,
                 "normalised": self.normalised, "temp_coeff": self.temp_coeff, "scores": self.scores,
+                "changes": self.changes,
                 "runs": [{"date": d, "value": v, "normalised": n, "stderr": s, "temp": t, "fitted": f}
                          for d, v, n, s, t, f in zip(self.dates, self.y, self.y_norm, self.stderr, self.temp,
                                                      self.fitted)]}
 
 
 def temperature_slope(y: np.ndarray, temp: np.ndarray) -> float:
-    """d y / d T from day-to-day differences (robust, with an intercept); 0 unless 3 stderr from zero."""
+    """A first estimate of d y / d T from the day-to-day differences (robust, soft-L1, with an intercept
+    that takes up steady wear; the one difference a step makes hardly bends it); 0 with fewer than 5."""
     dy, dT = np.diff(y), np.diff(temp)
     ok = np.isfinite(dy) & np.isfinite(dT)
     dy, dT = dy[ok], dT[ok]
-    if len(dy) < 5 or np.std(dT) < 0.5:
+    if len(dy) < 5 or not np.ptp(dT):
         return 0.0
     scale = 1.4826 * np.median(np.abs(dy - np.median(dy))) or np.std(dy) or 1.0
     fit = least_squares(lambda p: p[0] + p[1] * dT - dy, [np.median(dy), 0.0], loss="soft_l1", f_scale=scale)
-    r = fit.fun
-    s = 1.4826 * np.median(np.abs(r - np.median(r)))
-    se = s / math.sqrt(max(np.sum((dT - dT.mean()) ** 2), 1e-300))
-    return float(fit.x[1]) if abs(fit.x[1]) > 3 * se else 0.0
-
-
-def noise_level(z: np.ndarray, stderr: np.ndarray) -> float:
-    """max(robust scatter of the differences / sqrt 2, median stderr)."""
-    d = np.diff(z)
-    scatter = 1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2)
-    se = np.nanmedian(stderr) if np.isfinite(stderr).any() else 0.0
-    return float(max(scatter, se, 1e-12 * max(np.max(np.abs(z)), 1e-300)))
-
-
-def _step(z: np.ndarray) -> tuple[int, np.ndarray]:
-    bk = ruptures.Dynp(model="l2", min_size=2, jump=1).fit(z.reshape(-1, 1)).predict(n_bkps=1)[0]
-    f = np.empty_like(z)
-    f[:bk], f[bk:] = z[:bk].mean(), z[bk:].mean()
-    return bk, f
-
-
-def _wear(z: np.ndarray) -> tuple[int, np.ndarray]:
-    """Level, then a linear drift from onset run k (every k from the first to the third-last)."""
-    x = np.arange(len(z), dtype=float)
-    best = (math.inf, 0, z)
-    for k in range(len(z) - 2):
-        X = np.column_stack([np.ones_like(x), np.maximum(x - k, 0.0)])
-        coef, *_ = np.linalg.lstsq(X, z, rcond=None)
-        f = X @ coef
-        r = float(np.sum((z - f) ** 2))
-        if r < best[0]:
-            best = (r, k, f)
-    return best[1], best[2]
+    return float(fit.x[1])
 
 
 def explain(st: SeriesTrend) -> SeriesTrend:
-    """Normalise (when the model did not), estimate the noise, choose steady, step or wear."""
+    """Find the series' changes (:mod:`.changes`), with its temperature term fitted alongside when the
+    model did not normalise it: none (steady), or steps and wear episodes, each dated; ``kind`` names
+    them in order (``wear+step``)."""
     y = st.y.astype(float)
     if len(y) < MIN_RUNS:
         st.kind, st.fitted, st.y_norm = "too few runs", np.full(len(y), np.nanmean(y) if len(y) else np.nan), y
         return st
-    if st.normalised != "model":
-        st.temp_coeff = temperature_slope(y, st.temp)
-        if st.temp_coeff:
-            st.normalised = "regression"
-            y = y - st.temp_coeff * (st.temp - np.nanmedian(st.temp))
-    st.y_norm = y
-    n = len(y)
-    pen = 2.0 * math.log(n)
-    fits = {"steady": (None, np.full(n, y.mean()), 1), "step": (*_step(y), 3), "wear": (*_wear(y), 3)}
-    # the noise: from the differences and the stderr, and no less than what the best change model leaves
-    rss = min(float(np.sum((y - f) ** 2)) for k, (_, f, _) in fits.items() if k != "steady")
-    st.sigma = sigma = max(noise_level(y, st.stderr), math.sqrt(rss / (n - 3)))
-    scores = {k: float(np.sum((y - f) ** 2) / sigma**2 + pen * p) for k, (_, f, p) in fits.items()}
-    st.kind = min(scores, key=scores.get)
-    st.index, st.fitted, _ = fits[st.kind]
-    st.scores = scores
+    tc = None
+    if st.normalised != "model" and np.isfinite(st.temp).all() and np.ptp(st.temp) > 0:
+        tc = st.temp - np.median(st.temp)
+    seg, s, steady = segment(y, st.stderr, tc, temperature_slope(y, st.temp) if tc is not None else 0.0)
+    if tc is not None:  # the term is c tc times the level: its effect at the median level is c tc
+        st.normalised, st.temp_coeff = "regression", float(seg.coef[-1])
+        effect = seg.fitted - design_fit(seg)
+    st.y_norm = y - effect if tc is not None else y
+    st.fitted = seg.fitted - effect if tc is not None else seg.fitted
+    st.sigma = float(np.median(s))
+    st.changes = changes_of(seg)
+    for c in st.changes:
+        c["date"] = st.dates[c["index"]]
+    st.scores = {"steady": steady.score, "chosen": seg.score}
+    if st.changes:
+        st.kind = "+".join(c["kind"] for c in st.changes)
+        st.index = max(st.changes, key=lambda c: abs(c["size"]))["index"]
+    else:
+        st.kind, st.index = "steady", None
     return st
 
 
@@ -213,9 +190,12 @@ class JointTrend:
 
     @property
     def score(self) -> float:
-        """How much the joint changed: the level's change in its noise units."""
+        """How much the joint changed: the level's largest departure from its first run, in noise units
+        (a fault that maintenance undid counts too)."""
         lv = self.level
-        return abs(lv.change) / lv.sigma if lv and lv.sigma and np.isfinite(lv.sigma) else 0.0
+        if not lv or not lv.sigma or not np.isfinite(lv.sigma) or not len(lv.fitted):
+            return 0.0
+        return float(np.max(np.abs(lv.fitted - lv.fitted[0]))) / lv.sigma
 
     def to_dict(self) -> dict:
         lv = self.level
@@ -224,14 +204,12 @@ class JointTrend:
                 "failed_runs": self.failed, "quantities": {q: s.to_dict() for q, s in self.series.items()}}
 
 
-def reference_level(path: Path, joint: str, w_ref: float, T_ref: float) -> tuple[float, bool]:
-    """Friction at +-w_ref (mean of the magnitudes) of a parameter file's selected model, at T_ref where
-    the model has a thermal law, load and position neutral. Returns (level, normalised by the model)."""
-    m = load_model(path, joint=joint)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        F = m.friction(np.array([w_ref, -w_ref]), T=T_ref if m.thermal else None)
-    return float((F[0] - F[1]) / 2), bool(m.thermal)
+def reference_level(path: Path, joint: str, w_ref: float, T_ref: float, cov_json) -> dict:
+    """F_ref of a parameter file's selected model at +-w_ref (mean of the magnitudes), at T_ref where the
+    model has a thermal law, load and position neutral, with its standard error from the covariance the
+    store kept (:func:`.level.level_with_stderr`)."""
+    jf = read_params(path).joints[str(joint)]
+    return level_with_stderr(jf, jf.selected, w_ref, T_ref, covariance_from_json(cov_json))
 
 
 @dataclass
@@ -266,10 +244,10 @@ def _sort_key(s: pd.Series) -> pd.Series:
 def _level_series(runs: pd.DataFrame, root: Path, joint: str, tk: str, unit: str) -> SeriesTrend:
     w_ref = 0.5 * float(np.nanmedian(runs["speed_hi"]))
     T_ref = float(np.nanmedian(runs["temp_mean"])) if runs["temp_mean"].notna().any() else 25.0
-    levels = [reference_level(root / f, joint, w_ref, T_ref) for f in runs["params_file"]]
-    by_model = bool(levels) and all(th for _, th in levels)
-    return SeriesTrend(LEVEL, unit, runs[tk].astype(str).tolist(), np.array([v for v, _ in levels]),
-                       np.full(len(levels), np.nan), runs["temp_mean"].to_numpy(float),
+    levels = [reference_level(root / f, joint, w_ref, T_ref, c) for f, c in zip(runs["params_file"], runs["cov"])]
+    by_model = bool(levels) and all(lv["thermal"] for lv in levels)
+    return SeriesTrend(LEVEL, unit, runs[tk].astype(str).tolist(), np.array([lv["value"] for lv in levels]),
+                       np.array([lv["stderr"] for lv in levels]), runs["temp_mean"].to_numpy(float),
                        normalised="model" if by_model else "none")
 
 
@@ -305,8 +283,10 @@ def joint_trend(rows: pd.DataFrame, root: Path, tk: str, keys: dict, limits: lis
     return jt
 
 
-def trend_fleet(store: str, limits: list[Limit] = ()) -> FleetTrend:
-    """Every joint's trend in a store (``frictid trend STORE``)."""
+def trend_fleet(store: str, limits: list[Limit] = (), keys: KeySpec | None = None) -> FleetTrend:
+    """Every joint's trend in a store (``frictid trend STORE``). ``keys``: which of the store's dataset
+    keys name a joint and which orders its runs (default: the time key by :func:`time_key`, the other keys
+    name the joint)."""
     st = TrendStore(store)
     if not st.exists():
         raise FrictidInputError(f"{store}: not a trend store (make one with frictid fit DATASET --engine dask -o {store})")
@@ -314,17 +294,23 @@ def trend_fleet(store: str, limits: list[Limit] = ()) -> FleetTrend:
     if df.empty:
         raise FrictidInputError(f"{store}: the trend store has no rows")
     key_names = [c for c in df.columns if c not in COLUMNS]
-    tk = time_key(key_names) or "partition"
-    ident = [k for k in key_names if k != tk]
+    check_keys(keys, key_names, f"the store {store}")
+    tk = keys.time if keys else time_key(key_names) or "partition"
+    ident = list(keys.joint) if keys else [k for k in key_names if k != tk]
     bad = df[df["status"] != "ok"]
     failed = [{"partition": p, "kind": k, "reason": r}
               for p, k, r in zip(bad["partition"], bad["error_kind"], bad["reason"])]
     ok = df[df["status"] == "ok"]
     joints = []
     for vals, rows in ok.groupby(ident + ["log_joint"], sort=True, dropna=False):
-        keys = dict(zip(ident, vals if isinstance(vals, tuple) else (vals,)))
-        jt = joint_trend(rows, st.path, tk, keys, list(limits))
-        mine = bad[np.logical_and.reduce([bad[k] == v for k, v in keys.items()])] if keys else bad
+        kv = dict(zip(ident, vals if isinstance(vals, tuple) else (vals,)))
+        twice = rows.drop_duplicates("partition")[tk].duplicated()
+        if twice.any():
+            raise FrictidInputError(f"joint {'/'.join(f'{k}={v}' for k, v in kv.items())} ({vals[-1]}) has more than "
+                                    f"one run at {tk}={rows.drop_duplicates('partition')[tk][twice].iloc[0]}: name the "
+                                    f"keys that tell its joints apart with --keys (the store's keys: {', '.join(key_names)})")
+        jt = joint_trend(rows, st.path, tk, kv, list(limits))
+        mine = bad[np.logical_and.reduce([bad[k] == v for k, v in kv.items()])] if kv else bad
         jt.failed = [{"partition": p, "reason": r} for p, r in zip(mine["partition"], mine["reason"])]
         joints.append(jt)
     joints.sort(key=lambda j: -j.score)
