@@ -284,7 +284,7 @@ def _sliding_rows(lg: DiagLog, w: np.ndarray, fin_w: np.ndarray, v_min: float, v
 
 
 def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None,
-                  n_max: int = N_MAX, axis: str = "rotary", J: float = 0.0) -> Samples | None:
+                  n_max: int | None = None, axis: str = "rotary", J: float = 0.0) -> Samples | None:
     """The :class:`Samples` of a joint's logs, or None when fewer than ``2 n_folds`` groups slide (or fewer
     than :data:`MIN_SAMPLES` samples, :data:`MIN_PER_GROUP` per group on average).
 
@@ -310,7 +310,7 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
     if total == 0:
         return None
     cat = _group_keys(logs, rows, dts, edge)
-    cat, dec = _cap_groups(cat, total, n_max)
+    cat, dec = _cap_groups(cat, total, n_max) if n_max is not None else (cat, 1)
     # the log of each sample (its group key carries it) and its time on the drift clock [h], for the
     # samples kept only
     cat["li"] = cat["gkey"] // LOG_KEY
