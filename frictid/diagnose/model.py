@@ -28,6 +28,7 @@ import numpy as np
 
 from ..identify.regression import NormalEquations, solve
 from ..models import static as sm
+from . import moments as mo
 from .samples import Samples
 
 #: Canonical slots: level (a0, a1, a2) and viscous (b1, b2, b3).
@@ -108,6 +109,10 @@ class Coef:
     excluded: list = field(default_factory=list)
 
 
+#: Samples per block of the streamed sums of products (:meth:`Context.fold_products`): 4 MB per 8 columns.
+BLOCK_ROWS = 1 << 16
+
+
 class Context:
     """Column cache for one :class:`Samples` (columns of the base map and of each term)."""
 
@@ -143,39 +148,84 @@ class Context:
             return int(miss[0])
         return False
 
-    def _pair(self, ka, a, kb, b) -> np.ndarray:
-        """Per-fold sums of a * b (the normal equations of every fold are sums of these)."""
-        key = ("pair", ka, kb)
-        out = self._cache.get(key)
-        if out is None:
-            out = self._cache.get(("pair", kb, ka))
-        if out is None:
-            out = np.bincount(self.S.fold, weights=a * b, minlength=self.S.n_folds)
-            self._cache[key] = out
+    def _cached_pair(self, ka, kb):
+        out = self._cache.get(("pair", ka, kb))
+        return self._cache.get(("pair", kb, ka)) if out is None else out
+
+    def _fold_order(self):
+        """The samples sorted by fold (stably: in time within a fold) and each fold's bounds in that order."""
+        if "fold_order" not in self._cache:
+            perm = np.argsort(self.S.fold, kind="stable")
+            counts = np.bincount(self.S.fold, minlength=self.S.n_folds)
+            self._cache["fold_order"] = (perm, np.concatenate([[0], np.cumsum(counts)]))
+        return self._cache["fold_order"]
+
+    def fold_products(self, vecs: list) -> np.ndarray:
+        """Per-fold sums of the products of every pair of vectors, ``out[f, i, j] = sum_f v_i v_j``: streamed
+        over blocks of :data:`BLOCK_ROWS` samples of one fold (the block's columns gathered, one matrix
+        product per block), so the memory is one block whatever the log's length."""
+        perm, bounds = self._fold_order()
+        m = len(vecs)
+        out = np.zeros((self.S.n_folds, m, m))
+        V = np.empty((m, min(BLOCK_ROWS, max(self.S.n, 1))))   # one gathered column per (contiguous) row
+        for f in range(self.S.n_folds):
+            for s in range(bounds[f], bounds[f + 1], BLOCK_ROWS):
+                rows = perm[s:min(s + BLOCK_ROWS, bounds[f + 1])]
+                B = V[:, :rows.size]
+                for j, v in enumerate(vecs):
+                    np.take(v, rows, out=B[j])
+                out[f] += B @ B.T
         return out
+
+    def _fill_pairs(self, items) -> None:
+        """Cache the per-fold sums of every pair of items (list of (key, vector or callable)) not cached yet:
+        the items of a missing pair are accumulated together (:meth:`fold_products`)."""
+        p = len(items)
+        need = sorted({x for i in range(p) for j in range(i, p)
+                       if self._cached_pair(items[i][0], items[j][0]) is None for x in (i, j)})
+        if not need:
+            return
+        vecs = [items[i][1]() if callable(items[i][1]) else items[i][1] for i in need]
+        P = self.fold_products(vecs)
+        for a, i in enumerate(need):
+            for b, j in enumerate(need[a:], start=a):
+                self._cache[("pair", items[i][0], items[j][0])] = P[:, a, b].copy()
 
     def normal_equations(self, items, fold: int | None):
         """:class:`frictid.identify.regression.NormalEquations` of the columns ``items`` (list of (key, vector))
-        against the friction torque, over all samples (fold None) or outside fold ``fold``.
+        against the friction torque, over all samples (fold None) or outside fold ``fold``. A vector may be
+        given as a callable returning it: it is computed only when one of its sums is not cached.
 
         Accumulated once per fold and column pair and cached: a candidate's system is the current one
         bordered by its own columns, and only the border is new."""
         S = self.S
         sel = (lambda v: v.sum()) if fold is None else (lambda v: v.sum() - v[fold])
+        self._fill_pairs(list(items) + [(("y",), S.F)])
         p = len(items)
         XtX = np.empty((p, p))
         Xty = np.empty(p)
-        for i, (ka, a) in enumerate(items):
-            Xty[i] = sel(self._pair(ka, a, ("y",), S.F))
+        for i, (ka, _) in enumerate(items):
+            Xty[i] = sel(self._cached_pair(ka, ("y",)))
             for j in range(i, p):
-                kb, b = items[j]
-                XtX[i, j] = XtX[j, i] = sel(self._pair(ka, a, kb, b))
-        yty = float(sel(self._pair(("y",), S.F, ("y",), S.F)))
+                XtX[i, j] = XtX[j, i] = sel(self._cached_pair(ka, items[j][0]))
+        yty = float(sel(self._cached_pair(("y",), ("y",))))
         full = self._cache.get("fold_counts")
         if full is None:
             full = self._cache["fold_counts"] = np.bincount(S.fold, minlength=S.n_folds)
         n = int(full.sum() - (0 if fold is None else full[fold]))
         return NormalEquations(p, XtX, Xty, yty, n)
+
+    def y_scale(self, idx, fold) -> float:
+        """The largest |F| [F] on samples idx (cached for a fold's training set or all samples)."""
+        def compute():
+            y = self.S.F[idx]
+            return float(np.max(np.abs(y))) if y.size else 1.0
+        if fold is False:
+            return compute()
+        key = ("y_scale", fold)
+        if key not in self._cache:
+            self._cache[key] = compute()
+        return self._cache[key]
 
     def signed(self, key, col, positive: bool) -> np.ndarray:
         """col on the samples of one velocity sign (w >= 0 or w < 0), zero elsewhere (cached)."""
@@ -535,6 +585,86 @@ class Evaluator:
             else:
                 c.gamma[a][b] += v
 
+    def _moment_problem(self, c: Coef):
+        """The monomials of this structure (:mod:`.moments`), each with its key and a callable returning
+        its column, the items' amplitudes in c, the factors' coefficients, the free items and factor
+        coefficients, and the keys of the free coefficients (in the order of the Jacobian's columns)."""
+        items, held = self._linear_items()
+        factors = self.lf + self.af
+        n_lf = len(self.lf)
+        entries = [(k, v, ck) for k, v, ck in items] + [(k, v, None) for k, v, _ in held]
+        amp, applies = [], []
+        for k, v, ck in entries:
+            if ck is None:                       # a held base column: its value is fixed
+                level = k[1] in LEVEL_SLOTS
+                amp.append(float(self.st.shapes[k[1]]))
+            elif ck[0] in ("b", "p", "n"):
+                level = ck[1] in LEVEL_SLOTS
+                amp.append((c.base_neg if ck[0] == "n" else c.base_pos).get(ck[1], 0.0))
+            elif ck[0] == "dc":
+                level = ck[1] == 0
+                amp.append(float(c.dc[ck[1]]))
+            else:                                # additive: no factor multiplies it
+                amp.append(float(np.atleast_1d(c.gamma[ck[1]])[ck[2]]))
+                applies.append(())
+                continue
+            applies.append(tuple(range(len(factors))) if level else tuple(range(n_lf, len(factors))))
+        sizes = [X.shape[1] for _, _, X in factors]
+        monos = mo.monomials(len(entries), applies, sizes)
+        fkeys = [("term", t.ext, t.nl) for _, t, _ in factors]
+
+        def column(m):
+            def make():
+                out = entries[m.item][1]
+                for f, j in zip(m.factors, m.choice):
+                    if j >= 0:
+                        out = out * self.vec[factors[f][0]][j]
+                return out
+            key = (entries[m.item][0], tuple(sorted((fkeys[f], j) for f, j in zip(m.factors, m.choice) if j >= 0)))
+            return key, make
+
+        gam = [np.atleast_1d(c.gamma[i]).astype(float) for i, _, _ in factors]
+        free_items = [n for n, e in enumerate(entries) if e[2] is not None]
+        free_gamma = [(f, j) for f, (i, _, X) in enumerate(factors) for j in range(X.shape[1])
+                      if ("g", i, j) not in self._excl]
+        keys = [entries[n][2] for n in free_items] + [("g", factors[f][0], j) for f, j in free_gamma]
+        return monos, [column(m) for m in monos], np.array(amp), gam, free_items, free_gamma, keys
+
+    def _gauss_newton_moments(self, c: Coef, fold, max_iter: int, tol: float) -> tuple[float, int]:
+        """Gauss-Newton of the factor terms from the per-fold moments (:mod:`.moments`), from c (updated in
+        place); the same iterates as :meth:`_gauss_newton` on the samples. Returns (RSS at the end, n)."""
+        monos, cols, *_ = self._moment_problem(c)
+        ne = self.ctx.normal_equations(cols, fold)
+        G, b, yty, n = ne.XtX, ne.Xty, ne.yty, ne.n
+        prev = np.inf
+        for _ in range(max_iter):
+            _, _, amp, gam, free_items, free_gamma, keys = self._moment_problem(c)
+            cv, C = mo.coefficients(monos, amp, gam, free_items, free_gamma)
+            step, cost = mo.gauss_newton_step(G, b, yty, n, cv, C)
+            self._apply(c, keys, step)
+            if abs(prev - cost) <= tol * max(cost, 1e-300):
+                break
+            prev = cost
+        return self._moment_rss(c, (monos, G, b, yty)), n
+
+    def _moment_rss(self, c: Coef, problem) -> float:
+        monos, G, b, yty = problem
+        _, _, amp, gam, free_items, free_gamma, _ = self._moment_problem(c)
+        cv, _ = mo.coefficients(monos, amp, gam, free_items, free_gamma)
+        return mo.rss(G, b, yty, cv)
+
+    def _gauss_newton(self, c: Coef, rows: _At, y: np.ndarray, max_iter: int, tol: float) -> None:
+        """Gauss-Newton of the factor terms on the samples of rows, from c (updated in place)."""
+        prev = np.inf
+        for _ in range(max_iter):
+            pred, cols, keys = self._jacobian(c, rows)
+            r = y - pred
+            cost = float(np.einsum("i,i->", r, r))
+            self._apply(c, keys, _lstsq(cols, r))
+            if abs(prev - cost) <= tol * max(cost, 1e-300):
+                break
+            prev = cost
+
     def fit(self, idx=None, start: Coef | None = None, max_iter: int = 12, tol: float = 1e-9) -> Coef:
         """Least-squares coefficients on samples idx (default all).
 
@@ -544,8 +674,9 @@ class Evaluator:
         """
         S = self.ctx.S
         idx = np.arange(S.n) if idx is None else np.asarray(idx)
-        y = S.F[idx]
-        y_scale = float(np.max(np.abs(y))) if y.size else 1.0
+        fold = self.ctx.fold_of(idx) if self.ctx.use_normal_equations else False
+        y = S.F[idx] if fold is False else None   # fits from the normal equations and moments never need it
+        y_scale = self.ctx.y_scale(idx, fold)
         self._excl = set()
         # a Stribeck term the training samples do not reach (all far above its velocity) keeps the base
         # fit's amplitude: refitted there it would rest on nothing and blow up at low speed
@@ -553,10 +684,9 @@ class Evaluator:
         if 1 in self.base_cols and 1 in MAP_SLOTS[self.st.map] and idx.size:
             if float(np.max(np.abs(self.base_cols[1][idx]))) < EXCITE:
                 self._held.add(1)
-        fold = self.ctx.fold_of(idx) if self.ctx.use_normal_equations else False
         linear = not (self.lf or self.af)
-        # the columns at idx, gathered once (not needed by a linear fit from the normal equations)
-        rows = _At(self, idx) if (fold is False or not linear) else None
+        # the columns at idx, gathered once (not needed by fits from the normal equations and moments)
+        rows = _At(self, idx) if fold is False else None
         rss = None
         for _ in range(4):
             c = Coef({}, {}, np.zeros(4), {})
@@ -564,18 +694,12 @@ class Evaluator:
                 c.gamma[i] = np.zeros(X.shape[1])
             if fold is not False:
                 rss, n_ne = self._linear_block_ne(c, fold)
+                if not linear:
+                    rss, n_ne = self._gauss_newton_moments(c, fold, max_iter, tol)
             else:
                 self._linear_block(c, rows, y)
-            if self.lf or self.af:
-                prev = np.inf
-                for _ in range(max_iter):
-                    pred, cols, keys = self._jacobian(c, rows)
-                    r = y - pred
-                    cost = float(np.einsum("i,i->", r, r))
-                    self._apply(c, keys, _lstsq(cols, r))
-                    if abs(prev - cost) <= tol * max(cost, 1e-300):
-                        break
-                    prev = cost
+                if not linear:
+                    self._gauss_newton(c, rows, y, max_iter, tol)
             bad = self._unsupported(c, y_scale)
             if not bad:
                 break
@@ -592,7 +716,7 @@ class Evaluator:
                 if kind == "g":
                     c.gamma[a][b] = 0.0
         c.excluded = sorted(self._excl)
-        if linear and fold is not False and not bad and rss is not None:
+        if fold is not False and not bad and rss is not None:
             c.rms = float(np.sqrt(rss / n_ne)) if n_ne else float("nan")
         else:
             r = y - self._predict(c, rows if rows is not None else _At(self, idx))
