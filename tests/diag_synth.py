@@ -230,16 +230,20 @@ def pick_place_recipe(minutes: float, cycle_time: float = 7.0, size: str = "smal
     return rec
 
 
-def warm_up_plant(plant: dict, drop: float, dT: float, span_s: float) -> dict:
-    """A copy of a null plant whose friction falls by ``drop`` (thermal4) as the joint warms by about ``dT``
-    kelvin over a log of ``span_s`` seconds (heat-balance time constant a third of it)."""
+def warm_up_plant(plant: dict, drop: float, dT: float, recipe: dict, seed: int) -> dict:
+    """A copy of a null plant whose friction falls by ``drop`` (thermal4) as the joint warms by ``dT`` kelvin
+    over the recipe: the heat balance's time constant a third of the recipe's length, its conductance set
+    so that the mean friction power of the recipe (measured on the null plant) would heat it by ``dT`` in
+    the steady state (it reaches about 95 % of that)."""
+    from frictid.plant import simulate_recipe
+
+    lg = simulate_recipe(recipe, plant, seed=seed)[0]
+    P = float(np.mean(lg.truth["friction"] * lg.truth["velocity"]))   # mean friction power [W]
+    span = float(lg.t[-1] - lg.t[0])
     pl = copy.deepcopy(plant)
-    j = pl["joints"][0]
-    Fs = friction_scale(plant)
-    P = 0.5 * Fs * 0.4 * j["limits"]["velocity"]   # mean friction power [W], rough
     K = P / dT
-    j["thermal"].update(law="thermal4", K=K, C=K * span_s / 3.0, T0=25.0, Tenv=25.0, beta=1.0,
-                        alpha=-drop / dT)
+    pl["joints"][0]["thermal"].update(law="thermal4", K=K, C=K * span / 3.0, T0=25.0, Tenv=25.0, beta=1.0,
+                                      alpha=-drop / dT)
     return pl
 
 

@@ -220,7 +220,7 @@ def test_gauss_newton_from_moments_agrees_with_the_samples(terms):
     # two implementations: the factor terms' Gauss-Newton on the cached moments (every fold's training set
     # and all samples) against the same iterations on the samples themselves
     eff = lambda t, q, w, F: F * (1 + 0.1 * np.sin(2 * np.pi * q / 0.9)) * (1 - 0.002 * t) + 0.05
-    S = build_samples([plateau_log(eff, seed=4), plateau_log(eff, seed=5, t0=200.0)], 5)
+    S = build_samples([plateau_log(eff, seed=4, dt=5e-3), plateau_log(eff, seed=5, t0=200.0, dt=5e-3)], 5)
     cp, _ = sm.canonical_pair("stribeck", TRUE)
     st = Structure("stribeck", cp, tuple(Term(*x) for x in terms))
     for f in (None, 1):
@@ -479,3 +479,48 @@ def test_no_evidence_warning_without_findings():
     jf = frictid.fit(str(ROOT / "sample_logs" / "hydraulic_sweep.csv"))["j1"]
     assert jf.diagnosis == [] and jf.selection["diagnosis_check"]["kept"] == jf.selected
     assert not [w for w in jf.warnings if "evidence" in w or "duty cycles included" in w], jf.warnings
+
+
+# ---------------------------------------------------------------------------------------------------
+# whole logs (issue 20): every sliding sample, however many segments
+
+
+def test_every_sliding_sample_of_many_short_segments_is_diagnosed():
+    """1,080 plateaus of 0.3 s at 500 Hz with a warm-up and the joint temperature logged: a cap of 20,000
+    samples kept 20 per segment and then refused the log (fewer than 20 per segment), silently. Every
+    sliding sample enters now, and the measured temperature is found."""
+    def T_of(t):
+        return 25.0 + 35.0 * (1 - np.exp(-(t - t[0]) / 300.0))
+
+    def warm(t, q, w, F):
+        return F * (1 - 0.3 / 35.0 * (T_of(t) - 25.0))
+
+    lg = plateau_log(warm, reps=45, hold=0.3, move=0.1, dt=2e-3, seed=21)
+    lg.channels["temp_joint"] = T_of(lg.t)
+    S = build_samples([lg], 5)
+    assert S is not None and S.decimation == 1 and S.n_groups > 1000
+    assert S.n > 4 * 20000 and np.unique(S.k).size == S.n
+    # every plateau sample at least 50 ms (the edge) from a reversal or the plateau's ends is in
+    cv = np.zeros(lg.n, bool)
+    for s in lg.segments:
+        if s.kind == "constant_velocity":
+            cv[s.i0 + 30:s.i1 - 30] = True
+    assert np.isin(np.flatnonzero(cv), S.k).all()
+    jf, findings = _run([lg])
+    assert "skipped" not in jf.selection["diagnosis"]
+    assert jf.selection["diagnosis"]["samples"] == S.n
+    f = findings[0]
+    assert f["cause"] == "temperature" and "measured joint temperature" in f["evidence"], findings
+
+
+def test_a_log_that_cannot_be_diagnosed_says_so_in_its_warnings():
+    # four stretches of 0.2 s of sliding (the friction torque unknown elsewhere): too few to hold any out
+    lg = plateau_log(reps=1)
+    keep = np.zeros(lg.n, bool)
+    for s in [s for s in lg.segments if s.kind == "constant_velocity"][:4]:
+        keep[s.i0:s.i0 + 100] = True
+    lg.F = np.where(keep, lg.F, np.nan)
+    jf, findings = _run([lg])
+    assert not findings
+    msg = jf.selection["diagnosis"]["skipped"]
+    assert "sliding samples" in msg and any(w.startswith("not diagnosed:") and msg in w for w in jf.warnings)

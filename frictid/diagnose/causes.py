@@ -206,6 +206,7 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
             term = Term(cause, ext, role, (("source", src), ("tau_c", float(tc))))
             return _fit_rms(ctx, st.plus(term), idx), term
 
+        per_source = {}
         for src in sources:
             if src == "temp_joint":
                 cand = [trial(src, 1.0)]
@@ -218,10 +219,9 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
                 step = 10.0 ** (1.0 / TAU_PER_DECADE)
                 cand += [trial(src, grid[k] * step ** f) for f in (-1 / 3, 1 / 3)
                          if grid[0] <= grid[k] * step ** f <= grid[-1]]
-            for c in cand:
-                if best is None or c[0] < best[0]:
-                    best = c
-        return best[1] if best else None
+            per_source[src] = min(cand, key=lambda c: c[0])
+        return _thermal_source(per_source, S, idx)
+
     if ext == "position_periodic":
         P = best_period(S.q[idx], resid, level, _period_range(S))
         return None if P is None else Term(cause, ext, role, (("period", float(P)),))
@@ -243,6 +243,22 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
                     best = (r, term)
         return best[1]
     return Term(cause, ext, role, ())
+
+
+def _thermal_source(per_source: dict, S: Samples, idx: np.ndarray) -> Term | None:
+    """The thermal term of the better source: the logged joint temperature, unless the heat balance
+    (which has a time constant chosen on the same data) is better by Akaike's criterion with the training
+    groups as the independent units, ``G ln(RSS_measured / RSS_balance) > 2``: a measurement is preferred to
+    a model of it that explains the residual no better."""
+    if not per_source:
+        return None
+    hb, tj = per_source.get("heat_balance"), per_source.get("temp_joint")
+    if hb is None or tj is None:
+        return (hb or tj)[1]
+    G = int(np.unique(S.group[idx]).size)
+    if hb[0] > 0 and tj[0] > 0 and 2.0 * G * math.log(tj[0] / hb[0]) > 2.0:   # RMS ratio squared
+        return hb[1]
+    return tj[1]
 
 
 def best_period(q, resid, level, prange, n_keep: int = 3) -> float | None:

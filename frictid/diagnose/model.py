@@ -22,6 +22,7 @@ the factors at one and solves the coupled (bilinear) problem by Gauss-Newton.
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -123,6 +124,8 @@ class Context:
         #: the samples, as before; kept for benchmarks/diagnosis_scorecard.py --bench, which compares both)
         self.use_normal_equations = use_normal_equations
         self.sgn = np.sign(S.w)
+        self.pos = S.w >= 0
+        self._fold_memo: dict = {}
         self.v = np.abs(S.w)
         # the largest speed and acceleration of the logs (not only of the sliding samples)
         self.w_top = max(float(np.max(np.abs(S.log_w(i)))) for i in range(len(S.logs)))
@@ -142,11 +145,17 @@ class Context:
         full = self._cache["fold_counts"]
         if idx.size == S.n:
             return None
+        # the chain passes the same training arrays again and again: remembered while they live
+        memo = self._fold_memo.get(id(idx))
+        if memo is not None and memo[0]() is idx:
+            return memo[1]
         cnt = np.bincount(S.fold[idx], minlength=S.n_folds)
         miss = np.flatnonzero(cnt == 0)
+        out = False
         if miss.size == 1 and np.array_equal(np.delete(cnt, miss), np.delete(full, miss)):
-            return int(miss[0])
-        return False
+            out = int(miss[0])
+        self._fold_memo[id(idx)] = (weakref.ref(idx), out)
+        return out
 
     def _cached_pair(self, ka, kb):
         out = self._cache.get(("pair", ka, kb))
@@ -214,6 +223,18 @@ class Context:
             full = self._cache["fold_counts"] = np.bincount(S.fold, minlength=S.n_folds)
         n = int(full.sum() - (0 if fold is None else full[fold]))
         return NormalEquations(p, XtX, Xty, yty, n)
+
+    def extremes(self, term: Term, cols=None) -> np.ndarray:
+        """Rows of the term's columns (``cols`` of them, default all) among which every linear function of
+        them reaches its largest and smallest value over the samples: the smallest and largest value of
+        one column (cached); all rows for more columns (the hull of points along a curve, as sin and cos
+        of the position or q and q^2 are, holds nearly all of them)."""
+        key = ("extremes", term.ext, term.nl, cols)
+        if key not in self._cache:
+            X = self.term_columns(term)
+            X = X if cols is None else X[:, list(cols)]
+            self._cache[key] = np.vstack([X.min(axis=0), X.max(axis=0)]) if X.shape[1] == 1 and X.size else X
+        return self._cache[key]
 
     def y_scale(self, idx, fold) -> float:
         """The largest |F| [F] on samples idx (cached for a fold's training set or all samples)."""
@@ -373,7 +394,7 @@ class Evaluator:
             bkeys[sl] = ctx.base_key(sl, st.shapes, nl)
         self.base_cols = cols
         self.base_keys = bkeys
-        self.pos = S.w >= 0
+        self.pos = ctx.pos
         self.lf = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "level_factor"]
         self.af = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "whole_factor"]
         self.add = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "additive"]
@@ -555,18 +576,18 @@ class Evaluator:
                 if key not in self._excl and abs(amp) * m > BOUND * y_scale:
                     bad.append(key)
         if self.t6 is not None:
-            x_top = float(np.max(np.abs(self.t6[2][:, 0])))
+            x_top = float(np.max(np.abs(self.ctx.extremes(self.t6[1], (0,)))))
             for j in range(4):
                 m = x_top * (1.0 if j == 0 else wt ** j)
                 if ("dc", j, 0) not in self._excl and abs(c.dc[j]) * m > BOUND * y_scale:
                     bad.append(("dc", j, 0))
         for i, t, X in self.add:
             for j in range(X.shape[1]):
-                m = self.ctx.a_top if t.ext == "inertia" else float(np.max(np.abs(X[:, j])))
+                m = self.ctx.a_top if t.ext == "inertia" else float(np.max(np.abs(self.ctx.extremes(t, (j,)))))
                 if ("g", i, j) not in self._excl and abs(c.gamma[i][j]) * m > BOUND * y_scale:
                     bad.append(("g", i, j))
         for i, t, X in self.lf + self.af:
-            if np.max(np.abs(X @ np.atleast_1d(c.gamma[i]))) > FACTOR_BOUND:
+            if np.max(np.abs(self.ctx.extremes(t) @ np.atleast_1d(c.gamma[i]))) > FACTOR_BOUND:
                 bad += [("g", i, j) for j in range(X.shape[1]) if ("g", i, j) not in self._excl]
         return bad
 
