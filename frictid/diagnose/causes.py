@@ -128,17 +128,25 @@ def _acceleration_share(S: Samples) -> float:
     return min(1.0, float(np.sum(S.a ** 2)) * max(S.decimation, 1) / tot)
 
 
-def velocity_r2(S: Samples, x: np.ndarray, Q: np.ndarray | None = None) -> float:
+def velocity_r2(S: Samples, x: np.ndarray, basis=None) -> float:
     """Fraction of the variance of x that the current velocity explains (least squares on 1, sgn w, w,
-    |w|, w|w|, w^3 and |w|^(1/2)); Q : an orthonormal basis of those columns (computed when None)."""
-    if Q is None:
-        w = S.w
-        v = np.abs(w)
-        X = np.column_stack([np.ones_like(w), np.sign(w), w, v, w * v, w ** 3, np.sqrt(v)])
-        Q, _ = np.linalg.qr(X / np.maximum(np.sqrt(np.einsum("ij,ij->j", X, X)), 1e-300))
-    r = x - Q @ (Q.T @ x)
+    |w|, w|w|, w^3 and |w|^(1/2)); basis : :func:`velocity_basis` (computed when None)."""
+    cols, Ginv = velocity_basis(S) if basis is None else basis
+    Xx = np.array([c @ x for c in cols])
     var = float(np.sum((x - x.mean()) ** 2))
-    return 1.0 - float(np.sum(r * r)) / var if var > 0 else 1.0
+    rss = float(x @ x - Xx @ Ginv @ Xx)
+    return 1.0 - max(rss, 0.0) / var if var > 0 else 1.0
+
+
+def velocity_basis(S: Samples):
+    """The columns of :func:`velocity_r2` (scaled to unit norm) and the pseudo-inverse of their Gram matrix:
+    the projection of any x needs only the seven sums ``X'x`` (no n x 7 factorisation)."""
+    w = S.w
+    v = np.abs(w)
+    cols = [np.ones_like(w), np.sign(w), w, v, w * v, w ** 3, np.sqrt(v)]
+    cols = [c / max(float(np.sqrt(c @ c)), 1e-300) for c in cols]
+    G = np.array([[a @ b for b in cols] for a in cols])
+    return cols, np.linalg.pinv(G, rcond=1e-12, hermitian=True)
 
 
 def run_time(S: Samples) -> float:
@@ -177,11 +185,8 @@ def tau_grid(S: Samples, ctx: Context | None = None) -> np.ndarray:
     else:
         n = max(3, int(round(TAU_PER_DECADE * math.log10(hi / lo))) + 1)
         grid = np.geomspace(lo, hi, n)
-        w = S.w
-        v = np.abs(w)
-        X = np.column_stack([np.ones_like(w), np.sign(w), w, v, w * v, w ** 3, np.sqrt(v)])
-        Q, _ = np.linalg.qr(X / np.maximum(np.sqrt(np.einsum("ij,ij->j", X, X)), 1e-300))
-        grid = np.array([tc for tc in grid if velocity_r2(S, ctx.thermal(tc), Q) <= THERMAL_R2_MAX])
+        basis = velocity_basis(S)
+        grid = np.array([tc for tc in grid if velocity_r2(S, ctx.thermal(tc), basis) <= THERMAL_R2_MAX])
     ctx._cache[key] = grid
     return grid
 

@@ -110,6 +110,18 @@ class Coef:
     excluded: list = field(default_factory=list)
 
 
+def _block(out: np.ndarray, vecs: list, s: int, e: int) -> np.ndarray:
+    """Rows ``vecs[j][s:e]`` of out (a tuple of vectors: their product), in place."""
+    for j, v in enumerate(vecs):
+        if isinstance(v, tuple):
+            np.multiply(v[0][s:e], v[1][s:e], out=out[j])
+            for x in v[2:]:
+                out[j] *= x[s:e]
+        else:
+            out[j] = v[s:e]
+    return out
+
+
 #: Samples per block of the streamed sums of products (:meth:`Context.fold_products`): 4 MB per 8 columns.
 BLOCK_ROWS = 1 << 16
 
@@ -161,49 +173,59 @@ class Context:
         out = self._cache.get(("pair", ka, kb))
         return self._cache.get(("pair", kb, ka)) if out is None else out
 
-    def _fold_order(self):
-        """The samples sorted by fold (stably: in time within a fold) and each fold's bounds in that order."""
-        if "fold_order" not in self._cache:
-            perm = np.argsort(self.S.fold, kind="stable")
-            counts = np.bincount(self.S.fold, minlength=self.S.n_folds)
-            self._cache["fold_order"] = (perm, np.concatenate([[0], np.cumsum(counts)]))
-        return self._cache["fold_order"]
+    def _fold_bounds(self) -> np.ndarray:
+        """Each fold's bounds in the samples' order (the samples are in folds, :func:`.samples._fold_major`)."""
+        if "fold_bounds" not in self._cache:
+            fold = self.S.fold
+            if fold.size and np.any(np.diff(fold) < 0):
+                raise ValueError("the diagnosis' samples must be ordered by fold")
+            counts = np.bincount(fold, minlength=self.S.n_folds)
+            self._cache["fold_bounds"] = np.concatenate([[0], np.cumsum(counts)])
+        return self._cache["fold_bounds"]
 
-    def fold_products(self, vecs: list) -> np.ndarray:
-        """Per-fold sums of the products of every pair of vectors, ``out[f, i, j] = sum_f v_i v_j``: streamed
-        over blocks of :data:`BLOCK_ROWS` samples of one fold (the block's columns gathered, one matrix
-        product per block), so the memory is one block whatever the log's length."""
-        perm, bounds = self._fold_order()
-        m = len(vecs)
-        out = np.zeros((self.S.n_folds, m, m))
-        V = np.empty((m, min(BLOCK_ROWS, max(self.S.n, 1))))   # one gathered column per (contiguous) row
+    def fold_products(self, vecs: list, others: list | None = None) -> np.ndarray:
+        """Per-fold sums of the products of every vector with every other, ``out[f, i, j] = sum_f v_i o_j``
+        (others default: vecs; a tuple of vectors stands for their product): streamed over blocks of :data:`BLOCK_ROWS` consecutive samples of one fold
+        (the block's columns copied side by side, one matrix product per block), so the memory is one block
+        whatever the log's length."""
+        bounds = self._fold_bounds()
+        same = others is None
+        others = vecs if same else others
+        m, k = len(vecs), len(others)
+        out = np.zeros((self.S.n_folds, m, k))
+        rows = min(BLOCK_ROWS, max(self.S.n, 1))
+        V, W = np.empty((m, rows)), (None if same else np.empty((k, rows)))
         for f in range(self.S.n_folds):
             for s in range(bounds[f], bounds[f + 1], BLOCK_ROWS):
-                rows = perm[s:min(s + BLOCK_ROWS, bounds[f + 1])]
-                B = V[:, :rows.size]
-                for j, v in enumerate(vecs):
-                    np.take(v, rows, out=B[j])
-                out[f] += B @ B.T
+                e = min(s + BLOCK_ROWS, bounds[f + 1])
+                A = _block(V[:, :e - s], vecs, s, e)
+                B = A if same else _block(W[:, :e - s], others, s, e)
+                out[f] += A @ B.T
         return out
 
     def _fill_pairs(self, items) -> None:
-        """Cache the per-fold sums of every pair of items (list of (key, vector or callable)) not cached yet:
-        the items of a missing pair are accumulated together (:meth:`fold_products`)."""
+        """Cache the per-fold sums of every pair of items (list of (key, vector or callable)) not cached yet.
+        A candidate's system is the current one bordered by new columns: only the border is accumulated
+        (the products of the items of missing pairs with the new ones, :meth:`fold_products`)."""
         p = len(items)
-        need = sorted({x for i in range(p) for j in range(i, p)
-                       if self._cached_pair(items[i][0], items[j][0]) is None for x in (i, j)})
-        if not need:
+        missing = [(i, j) for i in range(p) for j in range(i, p)
+                   if self._cached_pair(items[i][0], items[j][0]) is None]
+        if not missing:
             return
-        vecs = [items[i][1]() if callable(items[i][1]) else items[i][1] for i in need]
-        P = self.fold_products(vecs)
-        for a, i in enumerate(need):
-            for b, j in enumerate(need[a:], start=a):
+        rows = sorted({x for ij in missing for x in ij})
+        new = [i for i in rows if (i, i) in missing]
+        # every missing pair has a new item, or (a pair of old columns never met) all of them are new
+        cols = new if new and all(i in new or j in new for i, j in missing) else rows
+        vec = {i: items[i][1] for i in rows}
+        P = self.fold_products([vec[i] for i in rows], [vec[j] for j in cols])
+        for a, i in enumerate(rows):
+            for b, j in enumerate(cols):
                 self._cache[("pair", items[i][0], items[j][0])] = P[:, a, b].copy()
 
     def normal_equations(self, items, fold: int | None):
         """:class:`frictid.identify.regression.NormalEquations` of the columns ``items`` (list of (key, vector))
         against the friction torque, over all samples (fold None) or outside fold ``fold``. A vector may be
-        given as a callable returning it: it is computed only when one of its sums is not cached.
+        given as a tuple of vectors (their product, formed block by block only when a sum is not cached).
 
         Accumulated once per fold and column pair and cached: a candidate's system is the current one
         bordered by its own columns, and only the border is new."""
@@ -283,10 +305,10 @@ class Context:
         S, nl = self.S, term.settings
         if term.ext == "position_periodic":
             ph = 2 * np.pi * S.q / nl["period"]
-            c = np.column_stack([np.sin(ph), np.cos(ph)])
+            c = np.array([np.sin(ph), np.cos(ph)]).T
         elif term.ext == "position_smooth":
             d = (S.q - nl["q0"]) / nl["qs"]
-            c = np.column_stack([d, d * d])
+            c = np.array([d, d * d]).T
         elif term.ext.startswith("load_"):
             var = {"load_torque": S.load, "load_gravity": np.abs(S.G), "load_payload": S.payload}[term.ext]
             c = (var / nl["scale"])[:, None]
@@ -300,23 +322,29 @@ class Context:
                 c = x[:, None]
             else:
                 w, v = S.w, self.v
-                c = np.column_stack([self.sgn * x, w * x, w * v * x, w ** 3 * x])
+                c = np.empty((4, S.n))      # rows filled in place: the columns of the F-ordered c.T
+                np.multiply(self.sgn, x, out=c[0])
+                np.multiply(w, x, out=c[1])
+                np.multiply(c[1], v, out=c[2])
+                np.multiply(c[1], w * w, out=c[3])
+                c = c.T
         elif term.ext == "offset":
             c = np.ones((S.n, 1))
         elif term.ext == "inertia":
             c = S.a[:, None]
         elif term.ext == "gravity":
-            c = np.column_stack([np.cos(S.q), np.sin(S.q)])
+            c = np.array([np.cos(S.q), np.sin(S.q)]).T
         else:
             raise KeyError(term.ext)
-        self._cache[key] = c
-        return c
+        # columns stored contiguously (Fortran order, np.array(...).T): the fits use them one by one
+        self._cache[key] = c if c.shape[1] == 1 else np.asfortranarray(c)
+        return self._cache[key]
 
     def term_vectors(self, term: Term) -> list:
         """The columns of :meth:`term_columns` as contiguous vectors (cached)."""
         key = ("term_vectors", term.ext, term.nl)
         if key not in self._cache:
-            self._cache[key] = [np.ascontiguousarray(x) for x in self.term_columns(term).T]
+            self._cache[key] = [np.ascontiguousarray(x) for x in self.term_columns(term).T]   # views when F-ordered
         return self._cache[key]
 
     def thermal(self, tau_c: float, source: str = "heat_balance") -> np.ndarray:
@@ -369,8 +397,10 @@ class _At:
     for a whole fit or prediction. base : {slot: column}; vec : {term index: columns}; pos : w >= 0."""
 
     def __init__(self, ev: "Evaluator", idx):
+        if idx is not None and idx.size and idx[-1] - idx[0] + 1 == idx.size and np.all(np.diff(idx) == 1):
+            idx = slice(int(idx[0]), int(idx[-1]) + 1)   # a fold's samples are consecutive: views, no gather
         take = (lambda x: x) if idx is None else (lambda x: x[idx])
-        self.n = ev.ctx.S.n if idx is None else int(idx.size)
+        self.n = ev.ctx.S.n if idx is None else (idx.stop - idx.start if isinstance(idx, slice) else int(idx.size))
         self.pos = take(ev.pos)
         self.base = {sl: take(col) for sl, col in ev.base_cols.items()}
         self.vec = {i: [take(x) for x in cols] for i, cols in ev.vec.items()}
@@ -635,14 +665,12 @@ class Evaluator:
         fkeys = [("term", t.ext, t.nl) for _, t, _ in factors]
 
         def column(m):
-            def make():
-                out = entries[m.item][1]
-                for f, j in zip(m.factors, m.choice):
-                    if j >= 0:
-                        out = out * self.vec[factors[f][0]][j]
-                return out
+            # the monomial as the tuple of vectors whose product it is (multiplied block by block when its
+            # sums are accumulated: Context.fold_products)
+            vecs = (entries[m.item][1],) + tuple(self.vec[factors[f][0]][j]
+                                                 for f, j in zip(m.factors, m.choice) if j >= 0)
             key = (entries[m.item][0], tuple(sorted((fkeys[f], j) for f, j in zip(m.factors, m.choice) if j >= 0)))
-            return key, make
+            return key, (vecs[0] if len(vecs) == 1 else vecs)
 
         gam = [np.atleast_1d(c.gamma[i]).astype(float) for i, _, _ in factors]
         free_items = [n for n, e in enumerate(entries) if e[2] is not None]
