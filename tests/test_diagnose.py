@@ -524,3 +524,50 @@ def test_a_log_that_cannot_be_diagnosed_says_so_in_its_warnings():
     assert not findings
     msg = jf.selection["diagnosis"]["skipped"]
     assert "sliding samples" in msg and any(w.startswith("not diagnosed:") and msg in w for w in jf.warnings)
+
+
+def _pick_place(seed: int, minutes: float, drop: float, effects=(), temp_logged: bool = False):
+    """A pick-and-place log (tests/diag_synth.py) on the hydraulic joint (500 Hz) warming from cold, its
+    friction falling by ``drop`` over 35 K, with hidden ``effects``; fitted with the diagnosis."""
+    import frictid
+    from frictid.plant import simulate_recipe
+
+    base = ds.null_plant("hydraulic")
+    rec = ds.pick_place_recipe(minutes)
+    pl = ds.warm_up_plant(base, drop, 35.0, rec, seed)
+    pl["joints"][0]["effects"] = list(effects)
+    logs = simulate_recipe(rec, pl, seed=seed)
+    if temp_logged:
+        ds.log_joint_temperature(logs, seed)
+    ds.declare_horizontal(logs, base)
+    return frictid.fit(logs, models=ds.FIT_MODELS)[logs[0].joint]
+
+
+def test_long_pick_and_place_finds_the_logged_joint_temperature():
+    """Issue 20's first long log, shorter: 12 min of 7 s pick-and-place cycles between two sweeps (385,000
+    samples, about 135,000 sliding in about 700 segments), friction -30 % from 25 to 60 degC, temp_joint
+    logged. Every sliding sample enters, and the temperature is named from the logged temperature (the
+    heat balance, with its time constant fitted, must not win against the measurement)."""
+    jf = _pick_place(31, 12.0, 0.3, temp_logged=True)
+    rec = jf.selection["diagnosis"]
+    assert "skipped" not in rec and rec["samples"] > 100000 and rec["groups"] > 500
+    f = jf.diagnosis[0]
+    assert f["cause"] == "temperature", jf.diagnosis
+    assert jf.models[f["model"]].extra["temperature"] == "temp_joint"
+    assert f["gain"] >= GAIN_FOUND_PLANT
+
+
+def test_warm_up_and_a_short_position_ripple_are_both_found():
+    """Issue 20's second long log, shorter: a warm-up (-25 %, no temperature logged) and a position ripple
+    of +-10 % with a period of 0.2 rad (5 cycles/rad) together. Decimating to a cap raised the shortest
+    period searched to about 0.5 rad and lost the ripple; on every sample both are found, the ripple with
+    its period."""
+    jf = _pick_place(32, 12.0, 0.25, effects=[{"kind": "position", "amplitude": 0.1, "period": 0.2,
+                                               "phase": 0.4}])
+    causes = [f["cause"] for f in jf.diagnosis]
+    assert "temperature" in causes and "position" in causes, jf.diagnosis
+    pos = next(f for f in jf.diagnosis if f["cause"] == "position")
+    vals = jf.models[pos["model"]].values()
+    assert pos["extension"] == "position_periodic"
+    assert vals["pos_period"] == pytest.approx(0.2, rel=0.03)
+    assert vals["pos_amp"] == pytest.approx(0.1, rel=0.3)
