@@ -18,7 +18,7 @@ import pytest
 
 from frictid.data import Segment
 from frictid.diagnose import DiagLog, diagnose_joint
-from frictid.diagnose.causes import best_period
+from frictid.diagnose.causes import _period_range, best_period
 from frictid.diagnose.chain import paired_t
 from frictid.diagnose.model import Context, Evaluator, Structure, Term
 from frictid.diagnose.samples import _rise, build_samples, heat_balance_rise
@@ -506,6 +506,9 @@ def test_every_sliding_sample_of_many_short_segments_is_diagnosed():
         if s.kind == "constant_velocity":
             cv[s.i0 + 30:s.i1 - 30] = True
     assert np.isin(np.flatnonzero(cv), S.k).all()
+    # the shortest position period searched is set by the travel between two samples, not by a decimation
+    # (the cap raised it by the decimation factor: to about 0.5 rad on issue 20's 40-minute log)
+    assert _period_range(S)[0] == pytest.approx(max(10 * np.median(np.abs(S.w)) * S.dt(0), np.ptp(S.q) / 2000))
     jf, findings = _run([lg])
     assert "skipped" not in jf.selection["diagnosis"]
     assert jf.selection["diagnosis"]["samples"] == S.n
@@ -560,8 +563,10 @@ def test_long_pick_and_place_finds_the_logged_joint_temperature():
 def test_warm_up_and_a_short_position_ripple_are_both_found():
     """Issue 20's second long log, shorter: a warm-up (-25 %, no temperature logged) and a position ripple
     of +-10 % with a period of 0.2 rad (5 cycles/rad) together. Decimating to a cap raised the shortest
-    period searched to about 0.5 rad and lost the ripple; on every sample both are found, the ripple with
-    its period."""
+    period searched to about 0.5 rad on the 40-minute log and lost the ripple (at this length the cap's
+    decimation is smaller and would not: the shortest period is checked by
+    test_every_sliding_sample_of_many_short_segments_is_diagnosed); both are found, the ripple with its
+    period."""
     jf = _pick_place(32, 12.0, 0.25, effects=[{"kind": "position", "amplitude": 0.1, "period": 0.2,
                                                "phase": 0.4}])
     causes = [f["cause"] for f in jf.diagnosis]
