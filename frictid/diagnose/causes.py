@@ -260,10 +260,15 @@ def _thermal_source(per_source: dict, S: Samples, idx: np.ndarray) -> Term | Non
     hb, tj = per_source.get("heat_balance"), per_source.get("temp_joint")
     if hb is None or tj is None:
         return (hb or tj)[1]
-    G = int(np.unique(S.group[idx]).size)
+    G = _training_groups(S, idx)
     if hb[0] > 0 and tj[0] > 0 and 2.0 * G * math.log(tj[0] / hb[0]) > 2.0:   # RMS ratio squared
         return hb[1]
     return tj[1]
+
+
+def _training_groups(S: Samples, idx: np.ndarray) -> int:
+    """The number of groups with samples in idx."""
+    return int(np.count_nonzero(np.bincount(S.group[idx], minlength=S.n_groups)))
 
 
 def best_period(q, resid, level, prange, n_keep: int = 3) -> float | None:

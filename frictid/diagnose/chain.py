@@ -143,9 +143,9 @@ class Chain:
         rms_a = float(np.sqrt(np.mean(ra * ra)))
         gain = 1.0 - rms_a / rms_b if rms_b > 0 else 0.0
         expl = math.sqrt(max(rms_b ** 2 - rms_a ** 2, 0.0))
-        return Trial(ext, EXTENSIONS[ext][0], self.pred.copy(), after, terms, coefs, rms_b, rms_a, gain, t, p,
-                     int(np.count_nonzero(np.bincount(S.group, minlength=S.n_groups))), expl,
-                     n_coef(ext, self.st), d)
+        # self.pred is replaced, never changed in place, when the model is extended: shared, not copied
+        return Trial(ext, EXTENSIONS[ext][0], self.pred, after, terms, coefs, rms_b, rms_a, gain, t, p,
+                     S.n_groups, expl, n_coef(ext, self.st), d)
 
     def significant(self, tr: Trial, m: int) -> bool:
         return tr.p < ALPHA / max(m, 1)
