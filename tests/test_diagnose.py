@@ -576,3 +576,21 @@ def test_warm_up_and_a_short_position_ripple_are_both_found():
     assert pos["extension"] == "position_periodic"
     assert vals["pos_period"] == pytest.approx(0.2, rel=0.03)
     assert vals["pos_amp"] == pytest.approx(0.1, rel=0.3)
+
+
+def test_a_degenerate_extended_model_is_no_finding():
+    """Issue 20 (EMPS): a Stribeck finding whose model on all samples had str_amp = 0, or whose base map lost
+    its viscous part, was reported with a gain measured against a model it no longer contained."""
+    from frictid.diagnose.chain import degenerate
+    from frictid.diagnose.model import Coef
+
+    cp, _ = sm.canonical_pair("coulomb_viscous", {"Fc": 2.0, "sigma2": 1.2})
+    before = Coef({0: 2.0, 6: 1.2}, {0: 2.0, 6: 1.2})
+    st = Structure("coulomb_viscous", cp, (Term("stribeck", "stribeck", "stribeck", (("vs", 0.1), ("delta", 2.0))),))
+    assert degenerate(before, st, Coef({0: 2.0, 1: 0.0, 6: 1.2}, {0: 2.0, 1: 0.0, 6: 1.2})) is not None
+    why = degenerate(before, st, Coef({0: 2.0, 1: 0.8, 6: 0.0}, {0: 2.0, 1: 0.8, 6: 0.0}))
+    assert why is not None and "viscous" in why
+    assert degenerate(before, st, Coef({0: 2.0, 1: 0.8, 6: 1.1}, {0: 2.0, 1: 0.8, 6: 1.1})) is None
+    off = Structure("coulomb_viscous", cp, (Term("offset", "offset", "additive", ()),))
+    assert "collapses" in degenerate(before, off, Coef({0: 2.0, 6: 1.2}, {0: 2.0, 6: 1.2}, gamma={0: np.zeros(1)}))
+    assert degenerate(before, off, Coef({0: 2.0, 6: 1.2}, {0: 2.0, 6: 1.2}, gamma={0: np.array([0.3])})) is None

@@ -101,6 +101,8 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
     for step in steps:
         rec["steps"].append({"tested": step["tested"], "candidates": step["m"],
                              "chosen": step["chosen"].ext if step.get("chosen") else None})
+        if step.get("rejected"):   # degenerate extended models, never reported as findings
+            rec["steps"][-1]["rejected"] = step["rejected"]
         tr: Trial | None = step.get("chosen")
         if tr is None:
             continue
