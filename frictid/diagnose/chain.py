@@ -129,12 +129,14 @@ class Chain:
         for f, (tr, te, res, lev, _) in enumerate(self.train_info):
             term = propose(ext, self.ctx, self.st, tr, res, lev)
             if term is None:
+                self.ctx.release(self.st)
                 return None
             ev = Evaluator(self.st.plus(term), self.ctx)
             c = ev.fit(tr)
             after[te] = ev.predict(c, te)
             terms.append(term)
             coefs.append(c)
+        self.ctx.release(self.st)   # the candidate's columns (its sums of products stay cached)
         rb = S.F - self.pred
         ra = S.F - after
         d = group_d(S, rb, ra)

@@ -258,6 +258,31 @@ class Context:
             self._cache[key] = np.vstack([X.min(axis=0), X.max(axis=0)]) if X.shape[1] == 1 and X.size else X
         return self._cache[key]
 
+    def release(self, st: Structure) -> None:
+        """Drop the cached columns that no term of st uses: those of a candidate's settings (time constants,
+        Stribeck velocities, periods) once it is judged. Their sums of products stay cached (small); a
+        column needed again is computed again. Keeps the diagnosis' memory to the current model's columns
+        plus one candidate's (on a one-hour log, 1.1 GB above the fit without it before)."""
+        terms = {(t.ext, t.nl) for t in st.terms}
+        strib = {(t.settings["vs"], t.settings["delta"]) for t in st.terms if t.role == "stribeck"}
+        thermal = {(round(float(t.settings["tau_c"]), 9), t.settings.get("source", "heat_balance"))
+                   for t in st.terms if t.ext in ("thermal4", "thermal6")}
+
+        def stale(k) -> bool:
+            kind = k[0]
+            if kind in ("term", "term_vectors", "extremes"):
+                return (k[1], k[2]) not in terms
+            if kind == "base":
+                return k[3] is not None and k[3] not in strib
+            if kind == "signed":
+                return stale(k[1])
+            if kind == "thermal":
+                return (k[1], k[2]) not in thermal
+            return False
+
+        for k in [k for k in self._cache if isinstance(k, tuple) and k and stale(k)]:
+            del self._cache[k]
+
     def y_scale(self, idx, fold) -> float:
         """The largest |F| [F] on samples idx (cached for a fold's training set or all samples)."""
         def compute():
