@@ -594,18 +594,3 @@ def test_a_degenerate_extended_model_is_no_finding():
     off = Structure("coulomb_viscous", cp, (Term("offset", "offset", "additive", ()),))
     assert "collapses" in degenerate(before, off, Coef({0: 2.0, 6: 1.2}, {0: 2.0, 6: 1.2}, gamma={0: np.zeros(1)}))
     assert degenerate(before, off, Coef({0: 2.0, 6: 1.2}, {0: 2.0, 6: 1.2}, gamma={0: np.array([0.3])})) is None
-
-
-def test_position_is_not_named_where_it_stands_in_for_speed():
-    """EMPS's confound (issue 20): each speed is run over one stretch of travel only (here the position is
-    set by the speed's logarithm, plus a small back-and-forth), and the friction deviates from the base
-    map with speed (a wiggle in log speed the Stribeck map cannot follow). Position explains it as well as
-    speed does, since it orders the plateaus (without the check position_smooth is named, gain 0.63); it
-    must not be named."""
-    def trend(t, q, w, F):
-        return F * (1 + 0.15 * np.sin(2.5 * np.log(np.abs(w) + 1e-3)))
-
-    lg = plateau_log(trend, reps=2, seed=41)
-    lg.q = 0.5 * np.log(np.abs(lg.w) + 1e-3) + 0.02 * np.sin(2 * np.pi * lg.t / 0.7)
-    jf, findings = _run([lg])
-    assert all(f["cause"] != "position" for f in findings), findings

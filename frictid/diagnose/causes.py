@@ -49,8 +49,6 @@ TAU_MIN_RUNS = 5.0
 #: ... and the recording spans at least this many of the shortest resolvable time constant (a warm-up
 #: must show its curvature, not only a trend): 15 half-cycles of motion at least.
 SPAN_MIN_TAUS = 3.0
-#: Speed classes (quantiles of the signed velocity) of the check that a position term is no proxy for speed.
-SPEED_BINS = 64
 #: The inertia cause is tested only when the sliding samples carry at least this share of the acceleration
 #: excitation (sum of a^2) of the moving samples: the fit's inertia rests on all of them, and a subset with
 #: little acceleration cannot overrule it (on a pulses run it turns transients into a 56 % inertia change).
@@ -193,36 +191,6 @@ def tau_grid(S: Samples, ctx: Context | None = None) -> np.ndarray:
     return grid
 
 
-def speed_bins(S: Samples) -> tuple[np.ndarray, int]:
-    """A speed class per sample: :data:`SPEED_BINS` quantiles of the signed velocity (a plateau's samples
-    share one class when the log is made of plateaus), and the number of classes (cached)."""
-    def compute():
-        edges = np.unique(np.quantile(S.w, np.linspace(0.0, 1.0, SPEED_BINS + 1)[1:-1]))
-        b = np.searchsorted(edges, S.w)
-        return b, int(edges.size) + 1
-    return S.cached("speed_bins", compute)
-
-
-def speed_proxy(ctx: Context, term: Term, idx: np.ndarray) -> bool:
-    """Whether a position term stands in for speed on the samples idx: the speed class (:func:`speed_bins`)
-    explains more than :data:`THERMAL_R2_MAX` of the variance of one of its columns, as when each speed is
-    run over one stretch of travel only (EMPS: its plateaus, in the order of their speeds). Its level
-    change with position is then the map's error at that speed."""
-    b, nb = speed_bins(ctx.S)
-    bi = b[idx]
-    cnt = np.maximum(np.bincount(bi, minlength=nb), 1)
-    for x in ctx.term_vectors(term):
-        xi = x[idx]
-        var = float(np.var(xi)) * xi.size
-        if var <= 0:
-            continue
-        means = np.bincount(bi, weights=xi, minlength=nb) / cnt
-        r = xi - means[bi]
-        if 1.0 - float(r @ r) / var > THERMAL_R2_MAX:
-            return True
-    return False
-
-
 def _fit_rms(ctx: Context, st: Structure, idx) -> float:
     return Evaluator(st, ctx).fit(idx).rms
 
@@ -261,13 +229,11 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
 
     if ext == "position_periodic":
         P = best_period(S.q[idx], resid, level, _period_range(S))
-        term = None if P is None else Term(cause, ext, role, (("period", float(P)),))
-        return term if term is None or not speed_proxy(ctx, term, idx) else None
+        return None if P is None else Term(cause, ext, role, (("period", float(P)),))
     if ext == "position_smooth":
         q0 = float(0.5 * (S.q.max() + S.q.min()))
         qs = float(0.5 * np.ptp(S.q)) or 1.0
-        term = Term(cause, ext, role, (("q0", q0), ("qs", qs)))
-        return term if not speed_proxy(ctx, term, idx) else None
+        return Term(cause, ext, role, (("q0", q0), ("qs", qs)))
     if ext.startswith("load_"):
         var = {"load_torque": S.load, "load_gravity": np.abs(S.G), "load_payload": S.payload}[ext]
         sc = float(np.sqrt(np.mean(var * var))) or 1.0
