@@ -212,3 +212,45 @@ def run_case(plant_name: str, cause: str, s: float, size: str = "small", seed: i
         else:
             es = effect_size(simulate(base, size, seed, payloads)[0], logs[0])
     return res[logs[0].joint], es, logs
+
+
+# ---------------------------------------------------------------------------------------------------
+# Long logs (issue 20): a pick-and-place program of many short cycles between two sweeps
+
+
+def pick_place_recipe(minutes: float, cycle_time: float = 7.0, size: str = "small") -> dict:
+    """A sweep, ``minutes`` of pick-and-place cycles (``cycle_time`` seconds: moving half of it between 10 and
+    90 % of the travel at three speeds, at rest the other half), and the sweep again; cold start."""
+    rec = session_recipe(size)
+    ptp = {"kind": "duty_cycle", "duty": 0.5, "slots": 2, "cycle_time": cycle_time,
+           "cycles": max(1, int(round(60.0 * minutes / cycle_time))), "speeds": [0.3, 0.6, 0.95],
+           "relative_positions": True, "positions_deg": [0.1, 0.9], "rest": 0.5}
+    rec["experiments"][1] = ptp
+    rec["name"] = f"pick_place_{minutes:g}min"
+    return rec
+
+
+def warm_up_plant(plant: dict, drop: float, dT: float, recipe: dict, seed: int) -> dict:
+    """A copy of a null plant whose friction falls by ``drop`` (thermal4) as the joint warms by ``dT`` kelvin
+    over the recipe: the heat balance's time constant a third of the recipe's length, its conductance set
+    so that the mean friction power of the recipe (measured on the null plant) would heat it by ``dT`` in
+    the steady state (it reaches about 95 % of that)."""
+    from frictid.plant import simulate_recipe
+
+    lg = simulate_recipe(recipe, plant, seed=seed)[0]
+    P = float(np.mean(lg.truth["friction"] * lg.truth["velocity"]))   # mean friction power [W]
+    span = float(lg.t[-1] - lg.t[0])
+    pl = copy.deepcopy(plant)
+    K = P / dT
+    pl["joints"][0]["thermal"].update(law="thermal4", K=K, C=K * span / 3.0, T0=25.0, Tenv=25.0, beta=1.0,
+                                      alpha=-drop / dT)
+    return pl
+
+
+def log_joint_temperature(logs, seed: int, sigma: float = 0.05, step: float = 0.1) -> None:
+    """Write the true joint temperature as a logged ``temp_joint`` channel, as a sensor would: with noise
+    ``sigma`` [K] and quantised to ``step`` [K]."""
+    rng = np.random.default_rng(seed)
+    for lg in logs:
+        T = lg.truth["temp_joint"] + sigma * rng.standard_normal(lg.n)
+        lg.channels["temp_joint"] = np.round(T / step) * step

@@ -30,7 +30,7 @@ import numpy as np
 from scipy.special import stdtr
 
 from .causes import EXTENSIONS, candidates, n_coef, propose
-from .model import Coef, Context, Evaluator, Structure, Term
+from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure, Term
 from .samples import Samples
 
 #: Family-wise false-finding level of one step of the chain (split over its candidates).
@@ -129,12 +129,14 @@ class Chain:
         for f, (tr, te, res, lev, _) in enumerate(self.train_info):
             term = propose(ext, self.ctx, self.st, tr, res, lev)
             if term is None:
+                self.ctx.release(self.st)
                 return None
             ev = Evaluator(self.st.plus(term), self.ctx)
             c = ev.fit(tr)
             after[te] = ev.predict(c, te)
             terms.append(term)
             coefs.append(c)
+        self.ctx.release(self.st)   # the candidate's columns (its sums of products stay cached)
         rb = S.F - self.pred
         ra = S.F - after
         d = group_d(S, rb, ra)
@@ -143,9 +145,9 @@ class Chain:
         rms_a = float(np.sqrt(np.mean(ra * ra)))
         gain = 1.0 - rms_a / rms_b if rms_b > 0 else 0.0
         expl = math.sqrt(max(rms_b ** 2 - rms_a ** 2, 0.0))
-        return Trial(ext, EXTENSIONS[ext][0], self.pred.copy(), after, terms, coefs, rms_b, rms_a, gain, t, p,
-                     int(np.count_nonzero(np.bincount(S.group, minlength=S.n_groups))), expl,
-                     n_coef(ext, self.st), d)
+        # self.pred is replaced, never changed in place, when the model is extended: shared, not copied
+        return Trial(ext, EXTENSIONS[ext][0], self.pred, after, terms, coefs, rms_b, rms_a, gain, t, p,
+                     S.n_groups, expl, n_coef(ext, self.st), d)
 
     def significant(self, tr: Trial, m: int) -> bool:
         return tr.p < ALPHA / max(m, 1)
@@ -184,19 +186,60 @@ class Chain:
                 break
             m = len(exts)
             trials = [t for t in (self.evaluate(e, m) for e in exts) if t is not None]
-            best = self.choose(trials, m)
             step = {"tested": [t.record() for t in trials], "m": m}
+            best, term, st_new = self._choose_sound(trials, m, step)
             if best is None:
                 step["chosen"] = None
                 self.steps.append(step)
                 break
-            res = self.S.F - self.pred
-            ev0 = Evaluator(self.st, self.ctx)
-            term = propose(best.ext, self.ctx, self.st, self.idx_all, res, ev0.level(self.coef, self.idx_all))
-            st_new = self.st.plus(term)
             step.update(chosen=best, term=term, structure=st_new, before=self.st, coef_before=self.coef)
             self.steps.append(step)
             self.st = st_new
             self._before(st_new)
             step["coef"] = self.coef
         return self.steps
+
+    def _choose_sound(self, trials: list[Trial], m: int, step: dict):
+        """The chosen candidate, its term on all samples and the extended structure, skipping candidates
+        whose extended model is degenerate on all samples (:func:`degenerate`; recorded in
+        ``step['rejected']``). (None, None, None) when none is left."""
+        left = list(trials)
+        while True:
+            best = self.choose(left, m)
+            if best is None:
+                return None, None, None
+            res = self.S.F - self.pred
+            ev0 = Evaluator(self.st, self.ctx)
+            term = propose(best.ext, self.ctx, self.st, self.idx_all, res, ev0.level(self.coef, self.idx_all))
+            st_new = self.st.plus(term)
+            why = degenerate(self.coef, st_new, Evaluator(st_new, self.ctx).fit(self.idx_all))
+            if why is None:
+                return best, term, st_new
+            step.setdefault("rejected", []).append({"extension": best.ext, "reason": why})
+            left = [t for t in left if t is not best]
+
+
+def degenerate(before: Coef, st: Structure, after: Coef) -> str | None:
+    """Why the extended model (structure st, its last term new, coefficients ``after`` on all samples) is
+    degenerate, or None: the new term collapses to zero (its coefficients held at zero as unsupported, or
+    zero), or an amplitude of the base map that the model before it had collapses to zero (a level with no
+    viscous part). Such a model is never reported: its gain compares against a model it no longer contains."""
+    i = len(st.terms) - 1
+    t = st.terms[i]
+    if t.role == "thermal6":
+        vals = after.dc
+    elif t.role == "stribeck":
+        vals = np.array([after.base_pos.get(1, 0.0), after.base_neg.get(1, 0.0)])
+    elif t.role == "asym":
+        vals = None
+    else:
+        vals = np.atleast_1d(after.gamma.get(i, np.zeros(0)))
+    if vals is not None and vals.size and not np.any(vals != 0):
+        return f"{t.ext} collapses to zero on all samples"
+    for sl in sorted(set(before.base_pos) | set(before.base_neg)):
+        had = before.base_pos.get(sl, 0.0) != 0 or before.base_neg.get(sl, 0.0) != 0
+        has = after.base_pos.get(sl, 0.0) != 0 or after.base_neg.get(sl, 0.0) != 0
+        if had and not has:
+            part = "level" if sl in LEVEL_SLOTS else "viscous"
+            return f"with {t.ext} the base map's {part} amplitude (canonical slot {sl}) collapses to zero"
+    return None

@@ -66,10 +66,11 @@ def diagnose_joint(jf: JointFit, logs: list[DiagLog], n_folds: int = N_FOLDS) ->
         return []
     rec["base"] = base
     J = jf.inertia.value if jf.inertia is not None and jf.inertia.value is not None else 0.0
-    S = build_samples(logs, n_folds, axis=jf.axis, J=max(J, 0.0))
+    why: dict = {}
+    S = build_samples(logs, n_folds, axis=jf.axis, J=max(J, 0.0), why=why)
     if S is None:
-        rec["skipped"] = (f"fewer than {2 * n_folds} sliding segments or too few sliding samples: nothing "
-                          "can be held out; the fit's own choice stands")
+        rec["skipped"] = f"{why.get('reason', 'too few sliding samples')}: the fit's own choice stands"
+        jf.warnings.append(f"not diagnosed: {rec['skipped']}")
         jf.diagnosis = []
         return []
     chain = Chain(S, _base_structure(jf, base, S))
@@ -100,6 +101,8 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
     for step in steps:
         rec["steps"].append({"tested": step["tested"], "candidates": step["m"],
                              "chosen": step["chosen"].ext if step.get("chosen") else None})
+        if step.get("rejected"):   # degenerate extended models, never reported as findings
+            rec["steps"][-1]["rejected"] = step["rejected"]
         tr: Trial | None = step.get("chosen")
         if tr is None:
             continue

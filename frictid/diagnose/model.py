@@ -22,12 +22,14 @@ the factors at one and solves the coupled (bilinear) problem by Gauss-Newton.
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..identify.regression import NormalEquations, solve
 from ..models import static as sm
+from . import moments as mo
 from .samples import Samples
 
 #: Canonical slots: level (a0, a1, a2) and viscous (b1, b2, b3).
@@ -108,6 +110,22 @@ class Coef:
     excluded: list = field(default_factory=list)
 
 
+def _block(out: np.ndarray, vecs: list, s: int, e: int) -> np.ndarray:
+    """Rows ``vecs[j][s:e]`` of out (a tuple of vectors: their product), in place."""
+    for j, v in enumerate(vecs):
+        if isinstance(v, tuple):
+            np.multiply(v[0][s:e], v[1][s:e], out=out[j])
+            for x in v[2:]:
+                out[j] *= x[s:e]
+        else:
+            out[j] = v[s:e]
+    return out
+
+
+#: Samples per block of the streamed sums of products (:meth:`Context.fold_products`): 4 MB per 8 columns.
+BLOCK_ROWS = 1 << 16
+
+
 class Context:
     """Column cache for one :class:`Samples` (columns of the base map and of each term)."""
 
@@ -118,6 +136,8 @@ class Context:
         #: the samples, as before; kept for benchmarks/diagnosis_scorecard.py --bench, which compares both)
         self.use_normal_equations = use_normal_equations
         self.sgn = np.sign(S.w)
+        self.pos = S.w >= 0
+        self._fold_memo: dict = {}
         self.v = np.abs(S.w)
         # the largest speed and acceleration of the logs (not only of the sliding samples)
         self.w_top = max(float(np.max(np.abs(S.log_w(i)))) for i in range(len(S.logs)))
@@ -137,45 +157,143 @@ class Context:
         full = self._cache["fold_counts"]
         if idx.size == S.n:
             return None
+        # the chain passes the same training arrays again and again: remembered while they live
+        memo = self._fold_memo.get(id(idx))
+        if memo is not None and memo[0]() is idx:
+            return memo[1]
         cnt = np.bincount(S.fold[idx], minlength=S.n_folds)
         miss = np.flatnonzero(cnt == 0)
+        out = False
         if miss.size == 1 and np.array_equal(np.delete(cnt, miss), np.delete(full, miss)):
-            return int(miss[0])
-        return False
-
-    def _pair(self, ka, a, kb, b) -> np.ndarray:
-        """Per-fold sums of a * b (the normal equations of every fold are sums of these)."""
-        key = ("pair", ka, kb)
-        out = self._cache.get(key)
-        if out is None:
-            out = self._cache.get(("pair", kb, ka))
-        if out is None:
-            out = np.bincount(self.S.fold, weights=a * b, minlength=self.S.n_folds)
-            self._cache[key] = out
+            out = int(miss[0])
+        self._fold_memo[id(idx)] = (weakref.ref(idx), out)
         return out
+
+    def _cached_pair(self, ka, kb):
+        out = self._cache.get(("pair", ka, kb))
+        return self._cache.get(("pair", kb, ka)) if out is None else out
+
+    def _fold_bounds(self) -> np.ndarray:
+        """Each fold's bounds in the samples' order (the samples are in folds, :func:`.samples._fold_major`)."""
+        if "fold_bounds" not in self._cache:
+            fold = self.S.fold
+            if fold.size and np.any(np.diff(fold) < 0):
+                raise ValueError("the diagnosis' samples must be ordered by fold")
+            counts = np.bincount(fold, minlength=self.S.n_folds)
+            self._cache["fold_bounds"] = np.concatenate([[0], np.cumsum(counts)])
+        return self._cache["fold_bounds"]
+
+    def fold_products(self, vecs: list, others: list | None = None) -> np.ndarray:
+        """Per-fold sums of the products of every vector with every other, ``out[f, i, j] = sum_f v_i o_j``
+        (others default: vecs; a tuple of vectors stands for their product): streamed over blocks of :data:`BLOCK_ROWS` consecutive samples of one fold
+        (the block's columns copied side by side, one matrix product per block), so the memory is one block
+        whatever the log's length."""
+        bounds = self._fold_bounds()
+        same = others is None
+        others = vecs if same else others
+        m, k = len(vecs), len(others)
+        out = np.zeros((self.S.n_folds, m, k))
+        rows = min(BLOCK_ROWS, max(self.S.n, 1))
+        V, W = np.empty((m, rows)), (None if same else np.empty((k, rows)))
+        for f in range(self.S.n_folds):
+            for s in range(bounds[f], bounds[f + 1], BLOCK_ROWS):
+                e = min(s + BLOCK_ROWS, bounds[f + 1])
+                A = _block(V[:, :e - s], vecs, s, e)
+                B = A if same else _block(W[:, :e - s], others, s, e)
+                out[f] += A @ B.T
+        return out
+
+    def _fill_pairs(self, items) -> None:
+        """Cache the per-fold sums of every pair of items (list of (key, vector or callable)) not cached yet.
+        A candidate's system is the current one bordered by new columns: only the border is accumulated
+        (the products of the items of missing pairs with the new ones, :meth:`fold_products`)."""
+        p = len(items)
+        missing = [(i, j) for i in range(p) for j in range(i, p)
+                   if self._cached_pair(items[i][0], items[j][0]) is None]
+        if not missing:
+            return
+        rows = sorted({x for ij in missing for x in ij})
+        new = [i for i in rows if (i, i) in missing]
+        # every missing pair has a new item, or (a pair of old columns never met) all of them are new
+        cols = new if new and all(i in new or j in new for i, j in missing) else rows
+        vec = {i: items[i][1] for i in rows}
+        P = self.fold_products([vec[i] for i in rows], [vec[j] for j in cols])
+        for a, i in enumerate(rows):
+            for b, j in enumerate(cols):
+                self._cache[("pair", items[i][0], items[j][0])] = P[:, a, b].copy()
 
     def normal_equations(self, items, fold: int | None):
         """:class:`frictid.identify.regression.NormalEquations` of the columns ``items`` (list of (key, vector))
-        against the friction torque, over all samples (fold None) or outside fold ``fold``.
+        against the friction torque, over all samples (fold None) or outside fold ``fold``. A vector may be
+        given as a tuple of vectors (their product, formed block by block only when a sum is not cached).
 
         Accumulated once per fold and column pair and cached: a candidate's system is the current one
         bordered by its own columns, and only the border is new."""
         S = self.S
         sel = (lambda v: v.sum()) if fold is None else (lambda v: v.sum() - v[fold])
+        self._fill_pairs(list(items) + [(("y",), S.F)])
         p = len(items)
         XtX = np.empty((p, p))
         Xty = np.empty(p)
-        for i, (ka, a) in enumerate(items):
-            Xty[i] = sel(self._pair(ka, a, ("y",), S.F))
+        for i, (ka, _) in enumerate(items):
+            Xty[i] = sel(self._cached_pair(ka, ("y",)))
             for j in range(i, p):
-                kb, b = items[j]
-                XtX[i, j] = XtX[j, i] = sel(self._pair(ka, a, kb, b))
-        yty = float(sel(self._pair(("y",), S.F, ("y",), S.F)))
+                XtX[i, j] = XtX[j, i] = sel(self._cached_pair(ka, items[j][0]))
+        yty = float(sel(self._cached_pair(("y",), ("y",))))
         full = self._cache.get("fold_counts")
         if full is None:
             full = self._cache["fold_counts"] = np.bincount(S.fold, minlength=S.n_folds)
         n = int(full.sum() - (0 if fold is None else full[fold]))
         return NormalEquations(p, XtX, Xty, yty, n)
+
+    def extremes(self, term: Term, cols=None) -> np.ndarray:
+        """Rows of the term's columns (``cols`` of them, default all) among which every linear function of
+        them reaches its largest and smallest value over the samples: the smallest and largest value of
+        one column (cached); all rows for more columns (the hull of points along a curve, as sin and cos
+        of the position or q and q^2 are, holds nearly all of them)."""
+        key = ("extremes", term.ext, term.nl, cols)
+        if key not in self._cache:
+            X = self.term_columns(term)
+            X = X if cols is None else X[:, list(cols)]
+            self._cache[key] = np.vstack([X.min(axis=0), X.max(axis=0)]) if X.shape[1] == 1 and X.size else X
+        return self._cache[key]
+
+    def release(self, st: Structure) -> None:
+        """Drop the cached columns that no term of st uses: those of a candidate's settings (time constants,
+        Stribeck velocities, periods) once it is judged. Their sums of products stay cached (small); a
+        column needed again is computed again. Keeps the diagnosis' memory to the current model's columns
+        plus one candidate's (on a one-hour log, 1.1 GB above the fit without it before)."""
+        terms = {(t.ext, t.nl) for t in st.terms}
+        strib = {(t.settings["vs"], t.settings["delta"]) for t in st.terms if t.role == "stribeck"}
+        thermal = {(round(float(t.settings["tau_c"]), 9), t.settings.get("source", "heat_balance"))
+                   for t in st.terms if t.ext in ("thermal4", "thermal6")}
+
+        def stale(k) -> bool:
+            kind = k[0]
+            if kind in ("term", "term_vectors", "extremes"):
+                return (k[1], k[2]) not in terms
+            if kind == "base":
+                return k[3] is not None and k[3] not in strib
+            if kind == "signed":
+                return stale(k[1])
+            if kind == "thermal":
+                return (k[1], k[2]) not in thermal
+            return False
+
+        for k in [k for k in self._cache if isinstance(k, tuple) and k and stale(k)]:
+            del self._cache[k]
+
+    def y_scale(self, idx, fold) -> float:
+        """The largest |F| [F] on samples idx (cached for a fold's training set or all samples)."""
+        def compute():
+            y = self.S.F[idx]
+            return float(np.max(np.abs(y))) if y.size else 1.0
+        if fold is False:
+            return compute()
+        key = ("y_scale", fold)
+        if key not in self._cache:
+            self._cache[key] = compute()
+        return self._cache[key]
 
     def signed(self, key, col, positive: bool) -> np.ndarray:
         """col on the samples of one velocity sign (w >= 0 or w < 0), zero elsewhere (cached)."""
@@ -212,10 +330,10 @@ class Context:
         S, nl = self.S, term.settings
         if term.ext == "position_periodic":
             ph = 2 * np.pi * S.q / nl["period"]
-            c = np.column_stack([np.sin(ph), np.cos(ph)])
+            c = np.array([np.sin(ph), np.cos(ph)]).T
         elif term.ext == "position_smooth":
             d = (S.q - nl["q0"]) / nl["qs"]
-            c = np.column_stack([d, d * d])
+            c = np.array([d, d * d]).T
         elif term.ext.startswith("load_"):
             var = {"load_torque": S.load, "load_gravity": np.abs(S.G), "load_payload": S.payload}[term.ext]
             c = (var / nl["scale"])[:, None]
@@ -229,23 +347,29 @@ class Context:
                 c = x[:, None]
             else:
                 w, v = S.w, self.v
-                c = np.column_stack([self.sgn * x, w * x, w * v * x, w ** 3 * x])
+                c = np.empty((4, S.n))      # rows filled in place: the columns of the F-ordered c.T
+                np.multiply(self.sgn, x, out=c[0])
+                np.multiply(w, x, out=c[1])
+                np.multiply(c[1], v, out=c[2])
+                np.multiply(c[1], w * w, out=c[3])
+                c = c.T
         elif term.ext == "offset":
             c = np.ones((S.n, 1))
         elif term.ext == "inertia":
             c = S.a[:, None]
         elif term.ext == "gravity":
-            c = np.column_stack([np.cos(S.q), np.sin(S.q)])
+            c = np.array([np.cos(S.q), np.sin(S.q)]).T
         else:
             raise KeyError(term.ext)
-        self._cache[key] = c
-        return c
+        # columns stored contiguously (Fortran order, np.array(...).T): the fits use them one by one
+        self._cache[key] = c if c.shape[1] == 1 else np.asfortranarray(c)
+        return self._cache[key]
 
     def term_vectors(self, term: Term) -> list:
         """The columns of :meth:`term_columns` as contiguous vectors (cached)."""
         key = ("term_vectors", term.ext, term.nl)
         if key not in self._cache:
-            self._cache[key] = [np.ascontiguousarray(x) for x in self.term_columns(term).T]
+            self._cache[key] = [np.ascontiguousarray(x) for x in self.term_columns(term).T]   # views when F-ordered
         return self._cache[key]
 
     def thermal(self, tau_c: float, source: str = "heat_balance") -> np.ndarray:
@@ -298,8 +422,10 @@ class _At:
     for a whole fit or prediction. base : {slot: column}; vec : {term index: columns}; pos : w >= 0."""
 
     def __init__(self, ev: "Evaluator", idx):
+        if idx is not None and idx.size and idx[-1] - idx[0] + 1 == idx.size and np.all(np.diff(idx) == 1):
+            idx = slice(int(idx[0]), int(idx[-1]) + 1)   # a fold's samples are consecutive: views, no gather
         take = (lambda x: x) if idx is None else (lambda x: x[idx])
-        self.n = ev.ctx.S.n if idx is None else int(idx.size)
+        self.n = ev.ctx.S.n if idx is None else (idx.stop - idx.start if isinstance(idx, slice) else int(idx.size))
         self.pos = take(ev.pos)
         self.base = {sl: take(col) for sl, col in ev.base_cols.items()}
         self.vec = {i: [take(x) for x in cols] for i, cols in ev.vec.items()}
@@ -323,7 +449,7 @@ class Evaluator:
             bkeys[sl] = ctx.base_key(sl, st.shapes, nl)
         self.base_cols = cols
         self.base_keys = bkeys
-        self.pos = S.w >= 0
+        self.pos = ctx.pos
         self.lf = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "level_factor"]
         self.af = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "whole_factor"]
         self.add = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "additive"]
@@ -505,18 +631,18 @@ class Evaluator:
                 if key not in self._excl and abs(amp) * m > BOUND * y_scale:
                     bad.append(key)
         if self.t6 is not None:
-            x_top = float(np.max(np.abs(self.t6[2][:, 0])))
+            x_top = float(np.max(np.abs(self.ctx.extremes(self.t6[1], (0,)))))
             for j in range(4):
                 m = x_top * (1.0 if j == 0 else wt ** j)
                 if ("dc", j, 0) not in self._excl and abs(c.dc[j]) * m > BOUND * y_scale:
                     bad.append(("dc", j, 0))
         for i, t, X in self.add:
             for j in range(X.shape[1]):
-                m = self.ctx.a_top if t.ext == "inertia" else float(np.max(np.abs(X[:, j])))
+                m = self.ctx.a_top if t.ext == "inertia" else float(np.max(np.abs(self.ctx.extremes(t, (j,)))))
                 if ("g", i, j) not in self._excl and abs(c.gamma[i][j]) * m > BOUND * y_scale:
                     bad.append(("g", i, j))
         for i, t, X in self.lf + self.af:
-            if np.max(np.abs(X @ np.atleast_1d(c.gamma[i]))) > FACTOR_BOUND:
+            if np.max(np.abs(self.ctx.extremes(t) @ np.atleast_1d(c.gamma[i]))) > FACTOR_BOUND:
                 bad += [("g", i, j) for j in range(X.shape[1]) if ("g", i, j) not in self._excl]
         return bad
 
@@ -535,6 +661,84 @@ class Evaluator:
             else:
                 c.gamma[a][b] += v
 
+    def _moment_problem(self, c: Coef):
+        """The monomials of this structure (:mod:`.moments`), each with its key and a callable returning
+        its column, the items' amplitudes in c, the factors' coefficients, the free items and factor
+        coefficients, and the keys of the free coefficients (in the order of the Jacobian's columns)."""
+        items, held = self._linear_items()
+        factors = self.lf + self.af
+        n_lf = len(self.lf)
+        entries = [(k, v, ck) for k, v, ck in items] + [(k, v, None) for k, v, _ in held]
+        amp, applies = [], []
+        for k, v, ck in entries:
+            if ck is None:                       # a held base column: its value is fixed
+                level = k[1] in LEVEL_SLOTS
+                amp.append(float(self.st.shapes[k[1]]))
+            elif ck[0] in ("b", "p", "n"):
+                level = ck[1] in LEVEL_SLOTS
+                amp.append((c.base_neg if ck[0] == "n" else c.base_pos).get(ck[1], 0.0))
+            elif ck[0] == "dc":
+                level = ck[1] == 0
+                amp.append(float(c.dc[ck[1]]))
+            else:                                # additive: no factor multiplies it
+                amp.append(float(np.atleast_1d(c.gamma[ck[1]])[ck[2]]))
+                applies.append(())
+                continue
+            applies.append(tuple(range(len(factors))) if level else tuple(range(n_lf, len(factors))))
+        sizes = [X.shape[1] for _, _, X in factors]
+        monos = mo.monomials(len(entries), applies, sizes)
+        fkeys = [("term", t.ext, t.nl) for _, t, _ in factors]
+
+        def column(m):
+            # the monomial as the tuple of vectors whose product it is (multiplied block by block when its
+            # sums are accumulated: Context.fold_products)
+            vecs = (entries[m.item][1],) + tuple(self.vec[factors[f][0]][j]
+                                                 for f, j in zip(m.factors, m.choice) if j >= 0)
+            key = (entries[m.item][0], tuple(sorted((fkeys[f], j) for f, j in zip(m.factors, m.choice) if j >= 0)))
+            return key, (vecs[0] if len(vecs) == 1 else vecs)
+
+        gam = [np.atleast_1d(c.gamma[i]).astype(float) for i, _, _ in factors]
+        free_items = [n for n, e in enumerate(entries) if e[2] is not None]
+        free_gamma = [(f, j) for f, (i, _, X) in enumerate(factors) for j in range(X.shape[1])
+                      if ("g", i, j) not in self._excl]
+        keys = [entries[n][2] for n in free_items] + [("g", factors[f][0], j) for f, j in free_gamma]
+        return monos, [column(m) for m in monos], np.array(amp), gam, free_items, free_gamma, keys
+
+    def _gauss_newton_moments(self, c: Coef, fold, max_iter: int, tol: float) -> tuple[float, int]:
+        """Gauss-Newton of the factor terms from the per-fold moments (:mod:`.moments`), from c (updated in
+        place); the same iterates as :meth:`_gauss_newton` on the samples. Returns (RSS at the end, n)."""
+        monos, cols, *_ = self._moment_problem(c)
+        ne = self.ctx.normal_equations(cols, fold)
+        G, b, yty, n = ne.XtX, ne.Xty, ne.yty, ne.n
+        prev = np.inf
+        for _ in range(max_iter):
+            _, _, amp, gam, free_items, free_gamma, keys = self._moment_problem(c)
+            cv, C = mo.coefficients(monos, amp, gam, free_items, free_gamma)
+            step, cost = mo.gauss_newton_step(G, b, yty, n, cv, C)
+            self._apply(c, keys, step)
+            if abs(prev - cost) <= tol * max(cost, 1e-300):
+                break
+            prev = cost
+        return self._moment_rss(c, (monos, G, b, yty)), n
+
+    def _moment_rss(self, c: Coef, problem) -> float:
+        monos, G, b, yty = problem
+        _, _, amp, gam, free_items, free_gamma, _ = self._moment_problem(c)
+        cv, _ = mo.coefficients(monos, amp, gam, free_items, free_gamma)
+        return mo.rss(G, b, yty, cv)
+
+    def _gauss_newton(self, c: Coef, rows: _At, y: np.ndarray, max_iter: int, tol: float) -> None:
+        """Gauss-Newton of the factor terms on the samples of rows, from c (updated in place)."""
+        prev = np.inf
+        for _ in range(max_iter):
+            pred, cols, keys = self._jacobian(c, rows)
+            r = y - pred
+            cost = float(np.einsum("i,i->", r, r))
+            self._apply(c, keys, _lstsq(cols, r))
+            if abs(prev - cost) <= tol * max(cost, 1e-300):
+                break
+            prev = cost
+
     def fit(self, idx=None, start: Coef | None = None, max_iter: int = 12, tol: float = 1e-9) -> Coef:
         """Least-squares coefficients on samples idx (default all).
 
@@ -544,8 +748,9 @@ class Evaluator:
         """
         S = self.ctx.S
         idx = np.arange(S.n) if idx is None else np.asarray(idx)
-        y = S.F[idx]
-        y_scale = float(np.max(np.abs(y))) if y.size else 1.0
+        fold = self.ctx.fold_of(idx) if self.ctx.use_normal_equations else False
+        y = S.F[idx] if fold is False else None   # fits from the normal equations and moments never need it
+        y_scale = self.ctx.y_scale(idx, fold)
         self._excl = set()
         # a Stribeck term the training samples do not reach (all far above its velocity) keeps the base
         # fit's amplitude: refitted there it would rest on nothing and blow up at low speed
@@ -553,10 +758,9 @@ class Evaluator:
         if 1 in self.base_cols and 1 in MAP_SLOTS[self.st.map] and idx.size:
             if float(np.max(np.abs(self.base_cols[1][idx]))) < EXCITE:
                 self._held.add(1)
-        fold = self.ctx.fold_of(idx) if self.ctx.use_normal_equations else False
         linear = not (self.lf or self.af)
-        # the columns at idx, gathered once (not needed by a linear fit from the normal equations)
-        rows = _At(self, idx) if (fold is False or not linear) else None
+        # the columns at idx, gathered once (not needed by fits from the normal equations and moments)
+        rows = _At(self, idx) if fold is False else None
         rss = None
         for _ in range(4):
             c = Coef({}, {}, np.zeros(4), {})
@@ -564,18 +768,12 @@ class Evaluator:
                 c.gamma[i] = np.zeros(X.shape[1])
             if fold is not False:
                 rss, n_ne = self._linear_block_ne(c, fold)
+                if not linear:
+                    rss, n_ne = self._gauss_newton_moments(c, fold, max_iter, tol)
             else:
                 self._linear_block(c, rows, y)
-            if self.lf or self.af:
-                prev = np.inf
-                for _ in range(max_iter):
-                    pred, cols, keys = self._jacobian(c, rows)
-                    r = y - pred
-                    cost = float(np.einsum("i,i->", r, r))
-                    self._apply(c, keys, _lstsq(cols, r))
-                    if abs(prev - cost) <= tol * max(cost, 1e-300):
-                        break
-                    prev = cost
+                if not linear:
+                    self._gauss_newton(c, rows, y, max_iter, tol)
             bad = self._unsupported(c, y_scale)
             if not bad:
                 break
@@ -592,7 +790,7 @@ class Evaluator:
                 if kind == "g":
                     c.gamma[a][b] = 0.0
         c.excluded = sorted(self._excl)
-        if linear and fold is not False and not bad and rss is not None:
+        if fold is not False and not bad and rss is not None:
             c.rms = float(np.sqrt(rss / n_ne)) if n_ne else float("nan")
         else:
             r = y - self._predict(c, rows if rows is not None else _At(self, idx))

@@ -47,8 +47,6 @@ V_MOVE_FRACTION = 0.02
 INERTIA_RATIO = 1.0
 #: Fewest sliding samples, in all and per group on average, for a diagnosis.
 MIN_SAMPLES, MIN_PER_GROUP = 500, 20
-#: At most this many samples enter the fits (evenly decimated beyond).
-N_MAX = 20000
 #: Group keys are ``log index * LOG_KEY + run * 100000 + chunk``.
 LOG_KEY = 10 ** 12
 
@@ -284,17 +282,24 @@ def _sliding_rows(lg: DiagLog, w: np.ndarray, fin_w: np.ndarray, v_min: float, v
 
 
 def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None,
-                  n_max: int = N_MAX, axis: str = "rotary", J: float = 0.0) -> Samples | None:
+                  n_max: int | None = None, axis: str = "rotary", J: float = 0.0,
+                  why: dict | None = None) -> Samples | None:
     """The :class:`Samples` of a joint's logs, or None when fewer than ``2 n_folds`` groups slide (or fewer
-    than :data:`MIN_SAMPLES` samples, :data:`MIN_PER_GROUP` per group on average).
+    than :data:`MIN_SAMPLES` samples, :data:`MIN_PER_GROUP` per group on average); then ``why['reason']``
+    says which, with the numbers.
+
+    n_max : at most this many samples (evenly decimated within groups, for experiments only); the default,
+    None, keeps every sliding sample: the fits cost time linear in the samples and memory of one block.
 
     J [kg m^2 | kg] : the inertia the friction torque was computed with; samples whose inertial torque
     ``|J a|`` exceeds :data:`INERTIA_RATIO` times the typical friction are left out (there the friction
     torque is a small difference of large numbers, dominated by the error of the acceleration estimate).
     """
     fin_w = [np.isfinite(lg.w) for lg in logs]
+    why = {} if why is None else why
     lim = _speed_limits(logs, fin_w)
     if lim is None:
+        why["reason"] = "no motion in the logs"
         return None
     w0, v_min, v_move = lim
     w_nan0 = [lg.w if f.all() else np.nan_to_num(lg.w) for lg, f in zip(logs, fin_w)]   # NaN as zero
@@ -308,15 +313,19 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
             for i, lg in enumerate(logs)]   # per log: (indices, seg id per index)
     total = sum(r[0].size for r in rows)
     if total == 0:
+        why["reason"] = "no sliding samples (moving outside ramps, steps and rests, away from reversals)"
         return None
     cat = _group_keys(logs, rows, dts, edge)
-    cat, dec = _cap_groups(cat, total, n_max)
+    cat, dec = _cap_groups(cat, total, n_max) if n_max is not None else (cat, 1)
     # the log of each sample (its group key carries it) and its time on the drift clock [h], for the
     # samples kept only
     cat["li"] = cat["gkey"] // LOG_KEY
     cat["th"] = (cat["t"] + np.asarray(offs)[cat["li"]] - clock_t0) / 3600.0
     grouped = _groups(cat["gkey"], cat["th"], n_folds)
     if grouped is None:
+        why["reason"] = (f"{cat['gkey'].size} sliding samples in {np.unique(cat['gkey']).size} segments: "
+                         f"at least {2 * n_folds} segments of {MIN_PER_GROUP} samples on average "
+                         f"({MIN_SAMPLES} in all) are needed to hold some out")
         return None
     group, fold, gt = grouped
 
@@ -347,7 +356,25 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
         group_t=gt, decimation=dec, axis=axis)
     S._memo.update((("dt", i), dt) for i, dt in enumerate(dts))
     S._memo.update((("log_w", i), w) for i, w in enumerate(w_nan0))
+    _fold_major(S)
     return S
+
+
+#: The per-sample arrays of :class:`Samples`.
+PER_SAMPLE = ("t", "th", "q", "w", "a", "tau", "F", "G", "payload", "temp_env", "temp_joint", "li", "k", "group",
+              "fold")
+
+
+def _fold_major(S: Samples) -> None:
+    """Order the samples by fold (in time within a fold, stably), in place: every fold's samples are then
+    one contiguous block, so the per-fold sums of the fits (:meth:`frictid.diagnose.model.Context.
+    fold_products`) stream over slices, not gathers. Nothing else depends on the order (the thermal state
+    and the groups are looked up by each sample's log, index and group)."""
+    order = np.argsort(S.fold, kind="stable")
+    for name in PER_SAMPLE:
+        x = getattr(S, name)
+        if x is not None:
+            setattr(S, name, x[order])
 
 
 def _speed_limits(logs: list[DiagLog], fin_w: list[np.ndarray]) -> tuple[float, float, float] | None:
