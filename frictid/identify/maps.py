@@ -51,14 +51,53 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
             jf.models["polynomial_ls"] = mf
         else:
             jf.not_identified.append({"what": "polynomial_ls", "reason": rb.why or "no moving samples"})
-    # held-out errors of the maps the choice can take (the identifiable ones, unless none gets one)
     fitted = [n for n in static_names if n in jf.models]
+    for n in fitted:
+        physical_shape(jf.models[n])
+    # held-out errors of the maps the choice can take (the identifiable ones, unless none gets one)
     if fr.basis == "samples":
         sel.heldout_for_choice(jf.models, fitted, lambda n: smp.heldout_map(n, fr.S, jf.models[n], jd.axis),
                                others=["polynomial_ls"])
     else:
         sel.heldout_for_choice(jf.models, fitted, lambda n: sel.heldout_static(
             n, plat, n_folds, axis=jd.axis, full=jf.models[n]), others=["polynomial_ls"])
+
+
+#: Per map: (break-away level, level it drops to, the drop's shape parameters) of a Stribeck drop; the drop
+#: must be downwards (003: Fs >= Fc), else the model's name and its shape parameters describe nothing.
+DROPS = {"stribeck": ("Fs", "Fc", ("Fs", "vs", "delta")), "stribeck_2exp": ("alpha1", None, ("alpha1", "ws1"))}
+#: Per map: its viscous coefficient (dissipative only when >= 0).
+VISCOUS = {"coulomb_viscous": "sigma2", "stribeck": "sigma2", "stribeck_2exp": "alpha3"}
+
+
+def _not_physical(pe, why: str) -> None:
+    if pe is not None and pe.identifiable and not pe.fixed:
+        pe.identifiable = False
+        pe.reason = why
+
+
+def physical_shape(mf) -> None:
+    """Names and signs that tell the truth (issue 19): a Stribeck map whose break-away level is below its
+    Coulomb level (a drop amplitude below zero) on a branch, and a negative viscous coefficient, are marked
+    not identifiable with the reason, so the choice takes a model whose shape says what the data do (the
+    polynomial follows a friction that rises from zero speed) and no green badge is given to them."""
+    base = mf.name[:-5] if mf.name.endswith("_asym") else mf.name
+    sufs = ("_pos", "_neg") if mf.name.endswith("_asym") else ("",)
+    for suf in sufs:
+        p = {k[:len(k) - len(suf)] if suf else k: v for k, v in mf.params.items() if k.endswith(suf)}
+        if base in DROPS:
+            hi, lo, shape = DROPS[base]
+            vh = p[hi].value if hi in p else None
+            vl = p[lo].value if lo is not None and lo in p else 0.0
+            if vh is not None and vl is not None and vh < vl:
+                why = (f"{hi}{suf} {vh:.4g} below {lo}{suf} {vl:.4g}" if lo else f"{hi}{suf} {vh:.4g} below zero")
+                for n in shape:
+                    _not_physical(p.get(n), why + ": the friction rises from zero speed instead of dropping, "
+                                  "which a Stribeck drop cannot describe (the polynomial map follows it)")
+        v = p.get(VISCOUS.get(base, ""))
+        if v is not None and v.value is not None and v.value < 0:
+            _not_physical(v, f"negative viscous coefficient ({v.value:.4g}): the friction falls with speed "
+                             "over the measured range, which a viscous term cannot be")
 
 
 def _basis_warnings(jd: JointData, fr: Friction) -> None:

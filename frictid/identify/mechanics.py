@@ -196,17 +196,19 @@ BANDWIDTH_MATERIAL = 0.10
 def _inertia_checked(v: float, se: float | None, bw: dict | None) -> tuple[float | None, str]:
     """The inertia's standard error with the bandwidth check (:func:`_bandwidth_check`) and the reason it
     is not identifiable ("" when it is). A significant, material change of J between the bandwidths: not
-    identifiable; a smaller one enters the standard error as a systematic term (added in quadrature)."""
+    identifiable; a smaller one enters the standard error as a systematic term (its part beyond the two
+    fits' own scatter, added in quadrature)."""
     if bw is None or se is None or not np.isfinite(se):
         return se, ""
     d = abs(bw["J"] - v)
     se2 = bw["se"] if bw["se"] is not None and np.isfinite(bw["se"]) else se
+    sys_ = math.sqrt(max(d * d - se * se - se2 * se2, 0.0))  # the change beyond both fits' scatter
     if d > BANDWIDTH_Z * math.hypot(se, se2) and d > BANDWIDTH_MATERIAL * abs(v):
-        return math.hypot(se, d), (
+        return math.hypot(se, sys_), (
             f"changes from {v:.4g} to {bw['J']:.4g} when the torque and the regressors are low-pass filtered "
             f"alike over {bw['window']} samples: the torque is not resolved at the log rate (a loop faster "
             "than the log), or the joint is not rigid")
-    return math.hypot(se, d), ""
+    return math.hypot(se, sys_), ""
 
 
 def set_mechanics(jd: JointData, reg_fit: rg.LinearFit | None, regs: Regressors, why_reg: str,

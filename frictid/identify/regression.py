@@ -254,14 +254,17 @@ def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = N
 def _add_filtered(ne: NormalEquations, names, q, w, a, tau, payload, known, min_speed, axis, friction,
                   a0: int, a1: int, smooth: int) -> None:
     """Add the parallel-filtered equations of samples a0..a1 to ``ne``: every column and the torque are
-    evaluated per sample, averaged over ``smooth`` samples, and the moving samples whose whole window is
-    finite enter."""
+    evaluated per sample, averaged over ``smooth`` samples, and the samples whose whole window is finite
+    and moving enter."""
     from scipy.ndimage import uniform_filter1d
 
     ww, aa = w[a0:a1], a[a0:a1]
     fin = np.isfinite(ww) & np.isfinite(aa) & np.isfinite(tau[a0:a1])
     if q is not None:
         fin &= np.isfinite(q[a0:a1])
+    # only windows of moving samples: one reaching into a reversal would bring the friction's
+    # near-zero-speed dynamics (presliding, the Stribeck lag), which the raw fit leaves out, into the sum
+    fin &= np.abs(np.where(np.isfinite(ww), ww, 0.0)) > min_speed
     if fin.sum() <= smooth:
         return
     ww, aa = np.where(fin, ww, 0.0), np.where(fin, aa, 0.0)
@@ -278,8 +281,7 @@ def _add_filtered(ne: NormalEquations, names, q, w, a, tau, payload, known, min_
     X[:, -2] = y
     X[:, -1] = fin
     X = uniform_filter1d(X, smooth, axis=0, mode="nearest")
-    m = (X[:, -1] > 1 - 1e-9) & (np.abs(uniform_filter1d(ww, smooth, mode="nearest")) > min_speed) \
-        & (np.abs(ww) > min_speed)
+    m = X[:, -1] > 1 - 1e-9
     if m.any():
         ne.add(X[m, :-2], X[m, -2])
 
