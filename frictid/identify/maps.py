@@ -41,7 +41,7 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
         if len(plat) == 0:
             jf.not_identified.append({"what": name, "reason": "no constant-velocity plateaus"})
             continue
-        jf.models[name] = fit_static(name, plat.w, plat.F, plat.F_se, axis=jd.axis)
+        _guarded(jf, name, lambda n=name: fit_static(n, plat.w, plat.F, plat.F_se, axis=jd.axis))
     if "polynomial_ls" in wanted:
         if fr.basis == "samples":
             mf = _polynomial_ls_samples(jd, rb, fr)
@@ -126,7 +126,20 @@ def _sample_maps(jd: JointData, rb: RigidBody, fr: Friction, names: list[str], n
     if reg_fit is not None and all(c in reg_fit.names for c in POLY_COEFS):
         S.inflation = smp.variance_factor(S.F - sm.polynomial(S.w, **{c: reg_fit.value(c) for c in POLY_COEFS}))
     for name in names:
-        jd.jf.models[name] = smp.fit_map(name, S, jd.axis, heldout=False)
+        _guarded(jd.jf, name, lambda n=name: smp.fit_map(n, S, jd.axis, heldout=False))
+
+
+#: Numerical failures of one map's fit (LAPACK not converging on a degenerate Jacobian, a floating-point
+#: trap): that map is not identified, with the reason; the other maps stand.
+NUMERICAL_FAILURES = (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError)
+
+
+def _guarded(jf, name: str, fit) -> None:
+    """``jf.models[name] = fit()``, or ``name`` listed as not identified when its numerics fail."""
+    try:
+        jf.models[name] = fit()
+    except NUMERICAL_FAILURES as exc:
+        jf.not_identified.append({"what": name, "reason": f"the least-squares fit failed numerically ({exc})"})
 
 
 def choose_base(jd: JointData, fr: Friction, n_folds: int) -> None:
