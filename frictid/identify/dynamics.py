@@ -103,7 +103,11 @@ def _hold_drift(p, s) -> dict | None:
     seg = F[s.i0:s.i1]
     if seg.size < 10:
         return None
-    noise = 1.4826 * float(np.median(np.abs(np.diff(seg) - np.median(np.diff(seg))))) / math.sqrt(2) + 1e-300
+    # the noise of the friction torque: the scatter about the ramp's line in time (a torque ramp is linear;
+    # sample differences would miss the correlated noise the acceleration estimate brings in through J a)
+    tt = p.log.t[s.i0:s.i1] - p.log.t[s.i0]
+    r = seg - np.polyval(np.polyfit(tt, seg, 1), tt)
+    noise = 1.4826 * float(np.median(np.abs(r - np.median(r)))) + 1e-300
     # the held load is the ramp's larger end: after a loading ramp, before an unloading one
     end = s.i1 - 1 if abs(np.median(seg[-5:])) >= abs(np.median(seg[:5])) else s.i0
     F_end = float(np.median(F[max(s.i0, end - 4):end + 5]))
