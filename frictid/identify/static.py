@@ -518,6 +518,7 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
         if bf.cov is not None:
             covs.append(bf.cov)
         params.update(_branch_params(smap, suf, bf, shapeless, axis, (F0, w0)))
+        _drop_in_view(smap.name, bw, params, suf)
     values = {k: v.value for k, v in params.items()}
     met = metrics(name, values, w, F, k_total)
     cov = block_diag(*covs) if covs else None
@@ -525,6 +526,57 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
                   method="bounded nonlinear least squares on plateau points, multi-start"
                   if not smap.linear else "bounded least squares on plateau points")
     return mf
+
+
+#: A Stribeck drop's level at zero speed (break-away) counts as measured when the slowest point still
+#: holds this share of the drop (a quarter of the drop seen; below, the standard error of an extrapolation
+#: assumes the map's shape holds where no point is); its end level when the fastest point holds less than
+#: DROP_ENDED (the drop half over by the top speed).
+DROP_SEEN = 0.25
+DROP_ENDED = 0.5
+
+
+def _drop_in_view(base: str, bw: np.ndarray, params: dict, suf: str) -> None:
+    """A drop the branch's speeds do not see is extrapolated, not measured: when the slowest point holds
+    less than :data:`DROP_SEEN` of the fitted drop, the break-away level and the drop's speed and shape are
+    not identifiable (the drop lies below the data: a sweep whose slow plateaus were lost); when the
+    fastest holds more, the level it drops to and the speed are not (the drop has not ended by the top
+    speed). The Jacobian's rank does not show it: with a few points on the drop's tail the amplitude and
+    its speed trade off within 100 % errors."""
+    v = np.abs(np.asarray(bw, float))
+    v = v[np.isfinite(v) & (v > 0)]
+    if v.size == 0:
+        return
+    g = lambda n: params.get(n + suf)  # noqa: E731
+    if base == "stribeck":
+        vs, dl = g("vs"), g("delta")
+        if vs is None or dl is None or not vs.value or vs.value <= 0 or dl.value is None:
+            return
+        share = lambda x: math.exp(-((x / vs.value) ** dl.value))  # noqa: E731
+        low, high = ("Fs", "vs", "delta"), ("Fc", "vs", "delta")
+    elif base == "stribeck_2exp":
+        ws1 = g("ws1")
+        if ws1 is None or not ws1.value or ws1.value <= 0:
+            return
+        share = lambda x: math.exp(-x / ws1.value)  # noqa: E731
+        low, high = ("alpha1", "ws1"), ()
+    else:
+        return
+    s_lo, s_hi = share(float(v.min())), share(float(v.max()))
+    if s_lo < DROP_SEEN:
+        why = (f"the slowest point ({v.min():.3g}) holds {100 * s_lo:.0f} % of the fitted drop: the break-away "
+               "level and the drop's speed are extrapolated below the data")
+        names = low
+    elif s_hi > DROP_ENDED:
+        why = (f"the fastest point ({v.max():.3g}) still holds {100 * s_hi:.0f} % of the fitted drop: the level "
+               "it drops to and its speed are extrapolated above the data")
+        names = high
+    else:
+        return
+    for n in names:
+        pe = g(n)
+        if pe is not None and pe.identifiable and not pe.fixed:
+            pe.identifiable, pe.reason = False, why
 
 
 def _held_delta(base: str, bfixed: dict, delta, n: int, suf: str, notes: list[str]) -> dict:
