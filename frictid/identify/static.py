@@ -629,7 +629,46 @@ def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict 
         bfixed["delta"] = 2.0
         bf = fit_branch(base, bw, bF, bse, bfixed, scales=scales, start=bstart, var_inflation=var_inflation)
         notes.append(f"delta{suf} fixed at 2 (000/003): free, it was not identifiable ({why})")
+    if base == "stribeck" and delta == "auto" and "delta" in bfixed and start is None and bf.cov is not None:
+        _delta_profile(bw, bF, bse, bfixed, scales, var_inflation, bf)
     return bf, shapeless
+
+
+#: Stribeck exponents tried when the data do not pin delta down (000/003 hold it at 2; measured joints show
+#: 0.5 to 3), and the profile's threshold: fits within this chi-square of the held fit are as good.
+DELTA_GRID = (0.5, 1.0, 1.5, 3.0)
+DELTA_CHI2 = 4.0
+
+
+def _delta_profile(bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: BranchFit) -> None:
+    """With delta held at 2 because the data cannot pin it, the other parameters are conditional on that
+    choice: refitted at each exponent of :data:`DELTA_GRID`, those fits whose chi-square is within
+    :data:`DELTA_CHI2` of the held one are as consistent with the data, and the largest change of each
+    parameter among them enters its standard error (added in quadrature); one whose error so exceeds its
+    value is not identifiable. ``bf`` is changed in place."""
+    dof = max(len(bw) - len(bf.free), 1)
+    s2 = 2.0 * bf.cost / dof
+    if not (s2 > 0 and math.isfinite(s2)):
+        return
+    spread: dict[str, float] = {n: 0.0 for n in bf.free}
+    for d in DELTA_GRID:
+        fx = dict(bfixed, delta=d)
+        alt = fit_branch("stribeck", bw, bF, bse, fx, scales=scales, start=dict(bf.values, delta=d),
+                         var_inflation=var_inflation)
+        if not math.isfinite(alt.cost) or 2.0 * (alt.cost - bf.cost) / s2 > DELTA_CHI2:
+            continue
+        for n in bf.free:
+            if alt.values.get(n) is not None and bf.values.get(n) is not None:
+                spread[n] = max(spread[n], abs(alt.values[n] - bf.values[n]))
+    for n, sp in spread.items():
+        se = bf.stderr.get(n)
+        if sp <= 0 or se is None:
+            continue
+        bf.stderr[n] = math.hypot(se, sp)
+        v = bf.values[n]
+        if n not in bf.reasons and bf.stderr[n] > abs(v):
+            bf.reasons[n] = (f"depends on the Stribeck exponent, which the data do not pin down (held at 2): it "
+                             f"moves by {sp:.3g} over exponents {DELTA_GRID[0]}-{DELTA_GRID[-1]} that fit as well")
 
 
 def _branch_params(smap, suf: str, bf: BranchFit, shapeless: dict[str, str], axis: str, scales
