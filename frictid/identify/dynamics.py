@@ -95,6 +95,22 @@ CREEP_PROFILE = 0.5
 CREEP_SHARE = 0.25
 
 
+def _drift_rate(t: np.ndarray, q: np.ndarray, dF: np.ndarray) -> tuple[float, float]:
+    """The drift of the position at constant load [q/s] and its standard error: q against time and the
+    load's deviation together (within the hold's band the load still moves a little, and the bristles
+    follow it; that is not drift)."""
+    if t.size < 6:
+        return 0.0, math.inf
+    X = np.column_stack([np.ones(t.size), t - t[0], dF])
+    coef, *_ = np.linalg.lstsq(X, np.asarray(q, float), rcond=None)
+    r = np.asarray(q, float) - X @ coef
+    try:
+        cov = float(r @ r) / max(t.size - 3, 1) * np.linalg.inv(X.T @ X)
+    except np.linalg.LinAlgError:
+        return float(coef[1]), math.inf
+    return float(coef[1]), math.sqrt(max(float(cov[1, 1]), 0.0))
+
+
 def _hold_drift(p, s) -> dict | None:
     """The drift of the position while the load a ramp reached is held (the samples around the ramp's end
     whose friction torque stays within HOLD_BAND noise levels of its last value, the segmenter's ramp end
@@ -119,12 +135,13 @@ def _hold_drift(p, s) -> dict | None:
         b += 1
     if b - a + 1 < HOLD_MIN_SAMPLES or not np.all(np.isfinite(p.log.q[a:b + 1])):
         return None
-    t, q = p.log.t[a:b + 1], np.asarray(p.log.q[a:b + 1], float)
-    coef, res, *_ = np.polyfit(t - t[0], q, 1, full=True)
-    rate = float(coef[0])
-    resid_sd = math.sqrt(float(res[0]) / max(t.size - 2, 1)) if len(res) else 0.0
-    se_rate = resid_sd / (float(np.std(t)) * math.sqrt(t.size)) if np.std(t) > 0 else math.inf
-    if abs(rate) <= CREEP_Z * se_rate:  # no drift the hold can tell from noise
+    t = p.log.t[a:b + 1]
+    rate, se_rate = _drift_rate(t, p.log.q[a:b + 1], F[a:b + 1] - F_end)
+    mid = t.size // 2
+    late, se_late = _drift_rate(t[mid:], p.log.q[a + mid:b + 1], F[a + mid:b + 1] - F_end)
+    # creep runs on while the load is held; a drift that dies out within the hold is the bristles settling
+    # (LuGre drifts towards its steady deflection under a held load), and the ramp fit follows that itself
+    if abs(rate) <= CREEP_Z * se_rate or abs(late) <= CREEP_Z * se_late or np.sign(late) != np.sign(rate):
         rate = 0.0
     return {"rate": rate, "rate_se": CREEP_Z * se_rate, "loading": bool(end == s.i1 - 1), "duration": float(t[-1] - t[0]), "drift": rate * float(t[-1] - t[0]),
             "load_sign": float(np.sign(F_end))}

@@ -65,9 +65,13 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
 
 #: Per map: (break-away level, level it drops to, the drop's shape parameters) of a Stribeck drop; the drop
 #: must be downwards (003: Fs >= Fc), else the model's name and its shape parameters describe nothing.
-DROPS = {"stribeck": ("Fs", "Fc", ("Fs", "vs", "delta")), "stribeck_2exp": ("alpha1", None, ("alpha1", "ws1"))}
-#: Per map: its viscous coefficient (dissipative only when >= 0).
-VISCOUS = {"coulomb_viscous": "sigma2", "stribeck": "sigma2", "stribeck_2exp": "alpha3"}
+#: (``stribeck_2exp`` is 001's free two-exponential form, whose published fits rise as well as drop: it
+#: makes no such claim and is not checked.)
+DROPS = {"stribeck": ("Fs", "Fc", ("Fs", "vs", "delta"))}
+#: Per map: its viscous coefficient (dissipative only when >= 0), flagged when it is below zero by more
+#: than VISCOUS_Z standard errors (a slope the data cannot tell from zero is a well-determined zero).
+VISCOUS = {"coulomb_viscous": "sigma2", "stribeck": "sigma2"}
+VISCOUS_Z = 2.0
 
 
 def _not_physical(pe, why: str) -> None:
@@ -78,7 +82,7 @@ def _not_physical(pe, why: str) -> None:
 
 def physical_shape(mf) -> None:
     """Names and signs that tell the truth (issue 19): a Stribeck map whose break-away level is below its
-    Coulomb level (a drop amplitude below zero) on a branch, and a negative viscous coefficient, are marked
+    Coulomb level on a branch, and a viscous coefficient significantly below zero, are marked
     not identifiable with the reason, so the choice takes a model whose shape says what the data do (the
     polynomial follows a friction that rises from zero speed) and no green badge is given to them."""
     base = mf.name[:-5] if mf.name.endswith("_asym") else mf.name
@@ -88,14 +92,14 @@ def physical_shape(mf) -> None:
         if base in DROPS:
             hi, lo, shape = DROPS[base]
             vh = p[hi].value if hi in p else None
-            vl = p[lo].value if lo is not None and lo in p else 0.0
+            vl = p[lo].value if lo in p else None
             if vh is not None and vl is not None and vh < vl:
-                why = (f"{hi}{suf} {vh:.4g} below {lo}{suf} {vl:.4g}" if lo else f"{hi}{suf} {vh:.4g} below zero")
+                why = f"{hi}{suf} {vh:.4g} below {lo}{suf} {vl:.4g}"
                 for n in shape:
                     _not_physical(p.get(n), why + ": the friction rises from zero speed instead of dropping, "
                                   "which a Stribeck drop cannot describe (the polynomial map follows it)")
         v = p.get(VISCOUS.get(base, ""))
-        if v is not None and v.value is not None and v.value < 0:
+        if v is not None and v.value is not None and v.value < -VISCOUS_Z * (v.stderr or 0.0):
             _not_physical(v, f"negative viscous coefficient ({v.value:.4g}): the friction falls with speed "
                              "over the measured range, which a viscous term cannot be")
 
