@@ -634,9 +634,12 @@ def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict 
     return bf, shapeless
 
 
-#: Stribeck exponents tried when the data do not pin delta down (000/003 hold it at 2; measured joints show
-#: 0.5 to 3), and the profile's threshold: fits within this chi-square of the held fit are as good.
-DELTA_GRID = (0.5, 1.0, 1.5, 3.0)
+#: Stribeck exponents tried when the data do not pin delta down (000/003 hold it at 2; 1 is the exponential
+#: of 001/004), and the profile's threshold: fits within this chi-square of the held fit are as good. Below
+#: 1 the break-away level of a map with a cusp at zero speed runs off with any plateau set that is not near
+#: zero speed (on the hydraulic plant's few plateaus, 0.75 put Fs at 289 +- 372 and the diagnosis then
+#: found a Stribeck effect in a plain Stribeck plant); a truth below 1 is not covered.
+DELTA_GRID = (1.0, 1.5, 3.0)
 DELTA_CHI2 = 4.0
 
 
