@@ -14,6 +14,8 @@ import os
 from dataclasses import dataclass
 from typing import Callable
 
+import numpy as np
+
 from frictid import segments as seg
 from frictid.data import JointLog
 from frictid.diagnose import check_diagnosis, diagnose_fit
@@ -25,6 +27,10 @@ from frictid.io.logs import file_sha256, joint_row_blocks, read_logs
 from frictid.parallel import Prefetch, map_ordered, n_workers
 
 __all__ = ["fit", "fit_joint", "parse_models"]
+
+#: Numerical failures inside a fit step (LAPACK not converging, a floating-point trap): the step's models
+#: become not identifiable with the reason, never an internal error.
+NUMERICAL_FAILURES = (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError)
 
 #: Log channels the fit never reads (the references of the drive's controller): not read from files.
 UNUSED_CHANNELS = ("q_ref", "qd_ref", "tau_ref")
@@ -212,15 +218,20 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter:
     if poor is not None:  # nothing in these logs can pin a friction number down: say so, fit nothing
         nothing_identifiable(jd, regs, wanted, poor)
         return jd.jf
-    rb, fr = mechanics.rigid_body(jd, regs, n_folds)
-    maps.static_maps(jd, rb, fr, wanted, n_folds)
-    maps.choose_base(jd, fr, n_folds)
+    try:
+        rb, fr = mechanics.rigid_body(jd, regs, n_folds)
+        maps.static_maps(jd, rb, fr, wanted, n_folds)
+        maps.choose_base(jd, fr, n_folds)
+    except NUMERICAL_FAILURES as exc:  # a failure of the numerics is a verdict on the data, not a crash
+        jd.jf.models.clear()
+        nothing_identifiable(jd, regs, wanted, f"the least-squares fit failed numerically ({exc})")
+        return jd.jf
     jd.jf.validity = validity.of_joint(jd.preps, fr, jd.min_speed)
     if "lugre" in wanted:
-        dynamics.fit_lugre(jd, jd.jf.selected)
+        _optional_step(jd, ["lugre"], dynamics.fit_lugre, jd, jd.jf.selected)
     th_wanted = thermal_names(wanted)
     if th_wanted:
-        thermal_fit.fit_thermal_models(jd, th_wanted)
+        _optional_step(jd, th_wanted, thermal_fit.fit_thermal_models, jd, th_wanted)
     # the diagnosis: every extension beyond the base model enters through a finding (frictid.diagnose)
     if diagnose and jd.jf.selected is not None:
         choice = jd.jf.selected
@@ -228,3 +239,14 @@ def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter:
         check_diagnosis(jd.jf, jd.preps, choice, fr.basis, jd.min_speed, fr.excl)
     finish(jd)
     return jd.jf
+
+
+def _optional_step(jd, names: list[str], step: Callable, *args) -> None:
+    """Run a step that adds the models ``names`` (LuGre, thermal); when its numerics fail, those models are
+    dropped and listed as not identified with the reason."""
+    try:
+        step(*args)
+    except NUMERICAL_FAILURES as exc:
+        for m in names:
+            jd.jf.models.pop(m, None)
+            jd.jf.not_identified.append({"what": m, "reason": f"the fit failed numerically ({exc})"})

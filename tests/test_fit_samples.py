@@ -116,3 +116,28 @@ def test_a_set_with_the_same_samples_takes_the_other_sets_speed_order():
               build([prep(F2, w=w.copy())], 0.05, 5), build([prep(F2)], 0.05, 4)]
     for other in others:
         assert not other.share_order(key) and "_speed_order" not in other.__dict__
+
+
+def test_jackknife_errors_by_hand():
+    """Delete-a-fold jackknife: sqrt((G-1)/G sum (p_g - mean)^2); it only ever raises a standard error,
+    and one that so exceeds its value (with a torque effect) is not identifiable."""
+    import math
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from frictid.identify.samples import jackknife_errors
+    from frictid.result import ModelFit, ParamEstimate
+
+    mf = ModelFit("coulomb_viscous", "coulomb_viscous",
+                  {"Fc": ParamEstimate("Fc", 2.0, 0.01, "N m"), "sigma2": ParamEstimate("sigma2", 0.05, 0.2, "N m s/rad")},
+                  {})
+    refits = [{"Fc": 2.0 + d, "sigma2": 0.05 + 3 * d} for d in (-0.02, -0.01, 0.0, 0.01, 0.02)]
+    S = SimpleNamespace(n=3, F=np.array([2.0, -2.0, 3.0]), w=np.array([1.0, -1.0, 2.0]))
+    jackknife_errors(mf, refits, S)
+    want = math.sqrt(4 / 5 * sum(d * d for d in (0.02, 0.01, 0.0, 0.01, 0.02)))
+    assert mf.params["Fc"].stderr == pytest.approx(want) and mf.params["Fc"].identifiable
+    assert mf.params["sigma2"].stderr == pytest.approx(0.2)  # its own error was larger: kept
+    refits = [{"Fc": 2.0, "sigma2": 0.05 + d} for d in (-0.2, -0.1, 0.0, 0.1, 0.2)]
+    jackknife_errors(mf, refits, S)
+    assert not mf.params["sigma2"].identifiable and "jackknife" in mf.params["sigma2"].reason

@@ -31,6 +31,7 @@ class Presliding:
     ramp_w: list[np.ndarray] = field(default_factory=list)
     steps: list[tuple] = field(default_factory=list)
     resolution: float = 0.0
+    creep: list[dict] = field(default_factory=list)  # per ramp with a held load: its drift (see _creep)
 
 
 def _scalar_map(c_pos, c_neg):
@@ -76,7 +77,132 @@ def presliding_data(jd: JointData) -> Presliding:
     qcat = (np.concatenate([q for q, _ in out.ramps] + [st[1] for st in out.steps]) if (out.ramps or out.steps)
             else np.zeros(0))
     out.resolution = res_meta[0] if res_meta else (pre.encoder_resolution(qcat) if qcat.size else 0.0)
+    _without_creep(out, jd)
     return out
+
+
+#: A hold counts when its torque stays within this many noise levels of the ramp's last torque ...
+HOLD_BAND = 4.0
+#: ... for at least this many samples; its drift is creep when it exceeds this many encoder steps and
+#: CREEP_Z standard errors of its rate (consecutive samples are correlated: 5, not 2).
+HOLD_MIN_SAMPLES = 20
+CREEP_COUNTS = 3.0
+CREEP_Z = 5.0
+#: The creep runs at the held load's rate; below it, whether it runs at all is not known: this share of the
+#: ramp's creep is the uncertainty of its profile.
+CREEP_PROFILE = 0.5
+#: A creep-corrected ramp is kept when the uncertainty of its correction is below this share of what is left.
+CREEP_SHARE = 0.25
+
+
+def _drift_rate(t: np.ndarray, q: np.ndarray, dF: np.ndarray) -> tuple[float, float]:
+    """The drift of the position at constant load [q/s] and its standard error: q against time and the
+    load's deviation together (within the hold's band the load still moves a little, and the bristles
+    follow it; that is not drift)."""
+    if t.size < 6:
+        return 0.0, math.inf
+    X = np.column_stack([np.ones(t.size), t - t[0], dF])
+    coef, *_ = np.linalg.lstsq(X, np.asarray(q, float), rcond=None)
+    r = np.asarray(q, float) - X @ coef
+    try:
+        cov = float(r @ r) / max(t.size - 3, 1) * np.linalg.inv(X.T @ X)
+    except np.linalg.LinAlgError:
+        return float(coef[1]), math.inf
+    return float(coef[1]), math.sqrt(max(float(cov[1, 1]), 0.0))
+
+
+def _hold_drift(p, s) -> dict | None:
+    """The drift of the position while the load a ramp reached is held (the samples around the ramp's end
+    whose friction torque stays within HOLD_BAND noise levels of its last value, the segmenter's ramp end
+    or the rest after it): rate [q/s], duration [s], displacement [q]; None without such a hold."""
+    F = p.F
+    seg = F[s.i0:s.i1]
+    if seg.size < 10:
+        return None
+    # the noise of the friction torque: the scatter about the ramp's line in time (a torque ramp is linear;
+    # sample differences would miss the correlated noise the acceleration estimate brings in through J a)
+    tt = p.log.t[s.i0:s.i1] - p.log.t[s.i0]
+    r = seg - np.polyval(np.polyfit(tt, seg, 1), tt)
+    noise = 1.4826 * float(np.median(np.abs(r - np.median(r)))) + 1e-300
+    # the held load is the ramp's larger end: after a loading ramp, before an unloading one
+    end = s.i1 - 1 if abs(np.median(seg[-5:])) >= abs(np.median(seg[:5])) else s.i0
+    F_end = float(np.median(F[max(s.i0, end - 4):end + 5]))
+    band = HOLD_BAND * noise
+    a = b = end
+    while a > 0 and abs(F[a - 1] - F_end) < band:
+        a -= 1
+    while b + 1 < p.log.n and abs(F[b + 1] - F_end) < band:
+        b += 1
+    if b - a + 1 < HOLD_MIN_SAMPLES or not np.all(np.isfinite(p.log.q[a:b + 1])):
+        return None
+    t = p.log.t[a:b + 1]
+    rate, se_rate = _drift_rate(t, p.log.q[a:b + 1], F[a:b + 1] - F_end)
+    mid = t.size // 2
+    late, se_late = _drift_rate(t[mid:], p.log.q[a + mid:b + 1], F[a + mid:b + 1] - F_end)
+    # creep runs on while the load is held; a drift that dies out within the hold is the bristles settling
+    # (LuGre drifts towards its steady deflection under a held load), and the ramp fit follows that itself
+    if abs(rate) <= CREEP_Z * se_rate or abs(late) <= CREEP_Z * se_late or np.sign(late) != np.sign(rate):
+        rate = 0.0
+    return {"rate": rate, "rate_se": CREEP_Z * se_rate, "loading": bool(end == s.i1 - 1), "duration": float(t[-1] - t[0]), "drift": rate * float(t[-1] - t[0]),
+            "load_sign": float(np.sign(F_end))}
+
+
+def _without_creep(out: Presliding, jd: JointData) -> None:
+    """Creep (issue 19: the joint drifts while the load is held, the displacement grows at constant torque)
+    is not bristle deflection. Per ramp, the drift rate of its held load, when it moves the joint by more
+    than CREEP_COUNTS encoder steps in the load's direction, is taken out of the ramp's displacement
+    (``q - rate (t - t0)``: the creep of a loaded joint runs at about that rate through the ramp); a ramp
+    whose correction is uncertain by more than CREEP_SHARE of what is left (its rate's error times the
+    ramp's duration, CREEP_PROFILE of the creep for its unknown profile at lower loads, an encoder step)
+    is dropped; the kept ones' relative uncertainty enters sigma0's standard error (:func:`_creep_inflated`). ``out.creep`` records each."""
+    keep = []
+    k = 0
+    for p in jd.preps:
+        if p.log.q is None:
+            continue
+        for s in p.segments:
+            if not (s.kind == "ramp_presliding" and s.n >= 10):
+                continue
+            q, F = out.ramps[k]
+            k += 1
+            h = _hold_drift(p, s)
+            res = max(out.resolution, 1e-300)
+            if h is None or abs(h["drift"]) < CREEP_COUNTS * res or np.sign(h["rate"]) != h["load_sign"]:
+                keep.append(True)
+                continue
+            t = p.log.t[s.i0:s.i1]
+            if not h["loading"]:  # unloading: the creep decays with the load, no constant rate to take out
+                out.creep.append(dict(h, ramp_creep=float(abs(h["rate"]) * (t[-1] - t[0])), ramp_bristle=0.0,
+                                      correction_se=math.inf))
+                keep.append(False)
+                continue
+            creep = h["rate"] * (t - t[0])
+            qc = q - creep
+            h.update(ramp_creep=float(abs(creep[-1])), ramp_bristle=float(np.ptp(qc)),
+                     correction_se=float(h["rate_se"] * (t[-1] - t[0]) + CREEP_PROFILE * abs(creep[-1])) + res)
+            out.creep.append(h)
+            if h["correction_se"] > CREEP_SHARE * h["ramp_bristle"]:
+                h["kept"] = False
+                keep.append(False)
+                continue
+            h["kept"] = True
+            out.ramps[k - 1] = (qc, F)
+            keep.append(True)
+    out.ramps = [r for r, kp in zip(out.ramps, keep) if kp]
+    out.ramp_t = [r for r, kp in zip(out.ramp_t, keep) if kp]
+    out.ramp_w = [r for r, kp in zip(out.ramp_w, keep) if kp]
+
+
+def _creep_inflated(s0: pre.DynamicEstimate, pd: Presliding) -> pre.DynamicEstimate:
+    """sigma0's standard error with the uncertainty of the creep taken out of its ramps (relative: the
+    correction's error over the bristle displacement left, the largest of the kept ramps)."""
+    rel = [h["correction_se"] / h["ramp_bristle"] for h in pd.creep if h.get("kept") and h["ramp_bristle"] > 0]
+    if not rel or s0.value is None or s0.stderr is None:
+        return s0
+    se = math.hypot(s0.stderr, s0.value * max(rel))
+    reason = s0.reason or ("" if se <= s0.value else f"relative error {100 * se / s0.value:.0f} % (above 100 %)")
+    return pre.DynamicEstimate(s0.value, se, not reason, reason, s0.source + "; creep taken out of the ramps",
+                               s0.n_segments, s0.rms, s0.details)
 
 
 def fit_lugre(jd: JointData, selected: str | None) -> None:
@@ -97,6 +223,13 @@ def fit_lugre(jd: JointData, selected: str | None) -> None:
     pd = presliding_data(jd)
     g_of = [abs(level(1e-12 if np.mean(F) >= 0 else -1e-12)) for _, F in pd.ramps]
     s0 = pre.fit_sigma0(pd.ramps, g_of, pd.resolution)
+    if not pd.ramps and pd.creep:
+        c = max(pd.creep, key=lambda h: abs(h["rate"]))
+        s0 = pre.DynamicEstimate(None, None, False, (
+            f"the joint creeps under load: it drifts at {abs(c['rate']):.3g} per s while the load is held "
+            f"({c['ramp_creep']:.3g} over a ramp): the ramps' displacement is creep, not presliding deflection, "
+            "and what the creep leaves is not known well enough to carry sigma0"), "ramps", len(pd.creep))
+    s0 = _creep_inflated(s0, pd)
     s1 = _sigma1(jd, pd, s0, c_pos, c_neg)
     if pd.ramps:
         jd.used["ramp_presliding"] = pd.ramp_t

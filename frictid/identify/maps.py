@@ -41,7 +41,7 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
         if len(plat) == 0:
             jf.not_identified.append({"what": name, "reason": "no constant-velocity plateaus"})
             continue
-        jf.models[name] = fit_static(name, plat.w, plat.F, plat.F_se, axis=jd.axis)
+        _guarded(jf, name, lambda n=name: fit_static(n, plat.w, plat.F, plat.F_se, axis=jd.axis))
     if "polynomial_ls" in wanted:
         if fr.basis == "samples":
             mf = _polynomial_ls_samples(jd, rb, fr)
@@ -51,14 +51,57 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
             jf.models["polynomial_ls"] = mf
         else:
             jf.not_identified.append({"what": "polynomial_ls", "reason": rb.why or "no moving samples"})
-    # held-out errors of the maps the choice can take (the identifiable ones, unless none gets one)
     fitted = [n for n in static_names if n in jf.models]
+    for n in fitted:
+        physical_shape(jf.models[n])
+    # held-out errors of the maps the choice can take (the identifiable ones, unless none gets one)
     if fr.basis == "samples":
         sel.heldout_for_choice(jf.models, fitted, lambda n: smp.heldout_map(n, fr.S, jf.models[n], jd.axis),
                                others=["polynomial_ls"])
     else:
         sel.heldout_for_choice(jf.models, fitted, lambda n: sel.heldout_static(
             n, plat, n_folds, axis=jd.axis, full=jf.models[n]), others=["polynomial_ls"])
+
+
+#: Per map: (break-away level, level it drops to, the drop's shape parameters) of a Stribeck drop; the drop
+#: must be downwards (003: Fs >= Fc), else the model's name and its shape parameters describe nothing.
+#: (``stribeck_2exp`` is 001's free two-exponential form, whose published fits rise as well as drop: it
+#: makes no such claim and is not checked.)
+DROPS = {"stribeck": ("Fs", "Fc", ("Fs", "vs", "delta"))}
+#: Per map: its viscous coefficient (dissipative only when >= 0), flagged when it is below zero by more
+#: than VISCOUS_Z standard errors (a slope the data cannot tell from zero is a well-determined zero).
+VISCOUS = {"coulomb_viscous": "sigma2", "stribeck": "sigma2"}
+VISCOUS_Z = 2.0
+
+
+def _not_physical(pe, why: str) -> None:
+    if pe is not None and pe.identifiable and not pe.fixed:
+        pe.identifiable = False
+        pe.reason = why
+
+
+def physical_shape(mf) -> None:
+    """Names and signs that tell the truth (issue 19): a Stribeck map whose break-away level is below its
+    Coulomb level on a branch, and a viscous coefficient significantly below zero, are marked
+    not identifiable with the reason, so the choice takes a model whose shape says what the data do (the
+    polynomial follows a friction that rises from zero speed) and no green badge is given to them."""
+    base = mf.name[:-5] if mf.name.endswith("_asym") else mf.name
+    sufs = ("_pos", "_neg") if mf.name.endswith("_asym") else ("",)
+    for suf in sufs:
+        p = {k[:len(k) - len(suf)] if suf else k: v for k, v in mf.params.items() if k.endswith(suf)}
+        if base in DROPS:
+            hi, lo, shape = DROPS[base]
+            vh = p[hi].value if hi in p else None
+            vl = p[lo].value if lo in p else None
+            if vh is not None and vl is not None and vh < vl:
+                why = f"{hi}{suf} {vh:.4g} below {lo}{suf} {vl:.4g}"
+                for n in shape:
+                    _not_physical(p.get(n), why + ": the friction rises from zero speed instead of dropping, "
+                                  "which a Stribeck drop cannot describe (the polynomial map follows it)")
+        v = p.get(VISCOUS.get(base, ""))
+        if v is not None and v.value is not None and v.value < -VISCOUS_Z * (v.stderr or 0.0):
+            _not_physical(v, f"negative viscous coefficient ({v.value:.4g}): the friction falls with speed "
+                             "over the measured range, which a viscous term cannot be")
 
 
 def _basis_warnings(jd: JointData, fr: Friction) -> None:
@@ -87,7 +130,20 @@ def _sample_maps(jd: JointData, rb: RigidBody, fr: Friction, names: list[str], n
     if reg_fit is not None and all(c in reg_fit.names for c in POLY_COEFS):
         S.inflation = smp.variance_factor(S.F - sm.polynomial(S.w, **{c: reg_fit.value(c) for c in POLY_COEFS}))
     for name in names:
-        jd.jf.models[name] = smp.fit_map(name, S, jd.axis, heldout=False)
+        _guarded(jd.jf, name, lambda n=name: smp.fit_map(n, S, jd.axis, heldout=False))
+
+
+#: Numerical failures of one map's fit (LAPACK not converging on a degenerate Jacobian, a floating-point
+#: trap): that map is not identified, with the reason; the other maps stand.
+NUMERICAL_FAILURES = (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError)
+
+
+def _guarded(jf, name: str, fit) -> None:
+    """``jf.models[name] = fit()``, or ``name`` listed as not identified when its numerics fail."""
+    try:
+        jf.models[name] = fit()
+    except NUMERICAL_FAILURES as exc:
+        jf.not_identified.append({"what": name, "reason": f"the least-squares fit failed numerically ({exc})"})
 
 
 def choose_base(jd: JointData, fr: Friction, n_folds: int) -> None:

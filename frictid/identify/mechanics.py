@@ -163,21 +163,52 @@ def reg_estimate(name: str, fit_: rg.LinearFit | None, jd: JointData, why_none: 
                }.get(name, "not separable from other regressors")
         return ParamEstimate(name, v, None, unit, False, why)
     reason = ""
-    if se is None or not np.isfinite(se):
-        reason = "no error estimate (too few samples)"
-    elif se > abs(v):
-        if name == "J":
-            impact = se * jd.a0
-        elif dim == "M":
-            impact = None
-        else:
-            p = _speed_power(dim)
-            impact = se * jd.w0**p if p is not None else None
-        if impact is None or impact > NEGLIGIBLE * jd.F0:
-            reason = f"relative error {100 * se / abs(v):.0f} % (above 100 %)" if v else "relative error above 100 %"
+    if name == "J":
+        se, reason = _inertia_checked(v, se, fit_.bandwidth)
+    if not reason:
+        reason = _precision_reason(name, dim, v, se, jd)
     if name == "J" and v <= 0 and not reason:
         reason = "not positive: the data do not determine the inertia"
     return ParamEstimate(name, v, se, unit, not reason, reason)
+
+
+def _precision_reason(name: str, dim: str, v: float, se: float | None, jd: JointData) -> str:
+    """Why a regression term is not identifiable by its precision ("" when it is): no error estimate, or a
+    relative error above 100 % whose torque matters (a well-determined zero such as the gravity of a
+    horizontal arm stays identifiable; an inertia is never a well-determined zero)."""
+    if se is None or not np.isfinite(se):
+        return "no error estimate (too few samples)"
+    if se <= abs(v):
+        return ""
+    p = _speed_power(dim)
+    impact = se * jd.w0**p if p is not None else None
+    if name == "J" or impact is None or impact > NEGLIGIBLE * jd.F0:
+        return f"relative error {100 * se / abs(v):.0f} % (above 100 %)" if v else "relative error above 100 %"
+    return ""
+
+
+#: The inertia's change between the two bandwidths counts as significant beyond this many combined
+#: standard errors, and as material beyond this share of the inertia (the accuracy asked of J is 5 %).
+BANDWIDTH_Z = 3.0
+BANDWIDTH_MATERIAL = 0.10
+
+
+def _inertia_checked(v: float, se: float | None, bw: dict | None) -> tuple[float | None, str]:
+    """The inertia's standard error with the bandwidth check (:func:`_bandwidth_check`) and the reason it
+    is not identifiable ("" when it is). A significant, material change of J between the bandwidths: not
+    identifiable; a smaller one enters the standard error as a systematic term (its part beyond the two
+    fits' own scatter, added in quadrature)."""
+    if bw is None or se is None or not np.isfinite(se):
+        return se, ""
+    d = abs(bw["J"] - v)
+    se2 = bw["se"] if bw["se"] is not None and np.isfinite(bw["se"]) else se
+    sys_ = math.sqrt(max(d * d - se * se - se2 * se2, 0.0))  # the change beyond both fits' scatter
+    if d > BANDWIDTH_Z * math.hypot(se, se2) and d > BANDWIDTH_MATERIAL * abs(v):
+        return math.hypot(se, sys_), (
+            f"changes from {v:.4g} to {bw['J']:.4g} when the torque and the regressors are low-pass filtered "
+            f"alike over {bw['window']} samples: the torque is not resolved at the log rate (a loop faster "
+            "than the log), or the joint is not rigid")
+    return math.hypot(se, sys_), ""
 
 
 def set_mechanics(jd: JointData, reg_fit: rg.LinearFit | None, regs: Regressors, why_reg: str,
@@ -255,7 +286,37 @@ def regress(preps: list[Prep], names, known_coef, min_speed, axis, friction=None
                                                    friction=friction))
     fit_ = rg.solve(total, names, rho=rho)
     fit_.cov = rg.robust_stderr(fit_.cov, rg.cluster_covariance(fit_, [ne for *_, ne in seg_ne]))
+    fit_.bandwidth = _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl)
     return fit_, seg_ne
+
+
+#: The parallel filter of the bandwidth check spans this many acceleration windows.
+BANDWIDTH_WINDOWS = 3
+
+
+def _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl) -> dict | None:
+    """The regression again with the torque and every regressor low-pass filtered alike over
+    :data:`BANDWIDTH_WINDOWS` times the logs' acceleration window (parallel filtering: exact for a rigid
+    joint whose torque is resolved at the log rate). A rigid-body fit that the data support gives the same
+    inertia at both bandwidths; a torque sampled from a loop faster than the log, or a joint that is not
+    rigid, does not. None without the logs' scales (derivatives given by the caller) or an inertia term."""
+    wins = [getattr(p.scales, "window_a", None) for p in preps]
+    if "J" not in names or "J" in fit_.dependent or any(w is None for w in wins):
+        return None
+    win = int(BANDWIDTH_WINDOWS * max(wins)) | 1
+    parts = []
+    for p in preps:
+        ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in excl] or [(0, p.log.n)]
+        parts += rg.accumulate(ranges, names, p.log.q, p.w, p.a, p.log.tau, p.log.channels.get("payload"),
+                               known_coef, min_speed, axis, friction=friction, smooth=win)
+    parts = [ne for ne in parts if ne.n > 0]
+    if not parts or sum(ne.n for ne in parts) <= len(names):
+        return None
+    f2 = rg.solve(rg.NormalEquations.total(parts), names, rho=fit_.rho)
+    if "J" in f2.dependent:
+        return None
+    f2.cov = rg.robust_stderr(f2.cov, rg.cluster_covariance(f2, parts))
+    return {"window": win, "J": f2.value("J"), "se": f2.stderr("J")}
 
 
 def rigid_body(jd: JointData, regs: Regressors, n_folds: int) -> tuple[RigidBody, Friction]:

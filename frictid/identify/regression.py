@@ -108,6 +108,8 @@ class LinearFit:
     dof: int
     rho: float = 0.0
     dependent: list[str] = field(default_factory=list)
+    #: the inertia refitted on parallel-filtered equations: {"window": samples, "J": value, "se": stderr}
+    bandwidth: dict | None = None
 
     def value(self, name: str) -> float:
         return float(self.coef[self.names.index(name)])
@@ -207,18 +209,25 @@ def sample_mask(w, a, min_speed: float) -> np.ndarray:
 
 
 def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = None, min_speed: float = 0.0,
-               axis: str = "rotary", chunk: int = CHUNK, friction=None) -> list[NormalEquations]:
+               axis: str = "rotary", chunk: int = CHUNK, friction=None, smooth: int = 0) -> list[NormalEquations]:
     """Normal equations of ``tau - known terms = X(names) b``, one set per index range (i0, i1).
 
     q [q] (may be None if no gravity column is asked), w [q/s], a [q/s^2], tau [F], payload [kg] or None.
     known : regressor name -> known coefficient, moved to the left-hand side. friction : optional known
     friction map w -> F [F], also moved to the left-hand side. Only samples with |w| > min_speed enter.
+    smooth : when above 1, the torque and every regressor column are low-pass filtered alike (a moving
+    average of ``smooth`` samples, computed per sample and then averaged: the model is linear in its
+    coefficients, so the filtered equations hold exactly: Gautier's parallel filtering) before the
+    moving samples are taken (:func:`bandwidth_check`).
     """
     known = dict(known or {})
     out = []
     for i0, i1 in ranges:
         ne = NormalEquations(len(names))
         for a0, a1 in _chunks(i0, i1, chunk):
+            if smooth > 1:
+                _add_filtered(ne, names, q, w, a, tau, payload, known, min_speed, axis, friction, a0, a1, smooth)
+                continue
             ww = w[a0:a1]
             aa = a[a0:a1]
             m = sample_mask(ww, aa, min_speed) & np.isfinite(tau[a0:a1])
@@ -240,6 +249,41 @@ def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = N
             ne.add(X, y)
         out.append(ne)
     return out
+
+
+def _add_filtered(ne: NormalEquations, names, q, w, a, tau, payload, known, min_speed, axis, friction,
+                  a0: int, a1: int, smooth: int) -> None:
+    """Add the parallel-filtered equations of samples a0..a1 to ``ne``: every column and the torque are
+    evaluated per sample, averaged over ``smooth`` samples, and the samples whose whole window is finite
+    and moving enter."""
+    from scipy.ndimage import uniform_filter1d
+
+    ww, aa = w[a0:a1], a[a0:a1]
+    fin = np.isfinite(ww) & np.isfinite(aa) & np.isfinite(tau[a0:a1])
+    if q is not None:
+        fin &= np.isfinite(q[a0:a1])
+    # only windows of moving samples: one reaching into a reversal would bring the friction's
+    # near-zero-speed dynamics (presliding, the Stribeck lag), which the raw fit leaves out, into the sum
+    fin &= np.abs(np.where(np.isfinite(ww), ww, 0.0)) > min_speed
+    if fin.sum() <= smooth:
+        return
+    ww, aa = np.where(fin, ww, 0.0), np.where(fin, aa, 0.0)
+    qq = np.where(fin, q[a0:a1], 0.0) if q is not None else None
+    pl = payload[a0:a1] if payload is not None else None
+    y = np.where(fin, tau[a0:a1], 0.0).astype(float)
+    for nm, val in known.items():
+        y = y - val * column(nm, qq, ww, aa, pl, axis)
+    if friction is not None:
+        y = y - friction(ww)
+    X = np.empty((ww.shape[0], len(names) + 2))
+    for j, nm in enumerate(names):
+        X[:, j] = column(nm, qq, ww, aa, pl, axis)
+    X[:, -2] = y
+    X[:, -1] = fin
+    X = uniform_filter1d(X, smooth, axis=0, mode="nearest")
+    m = X[:, -1] > 1 - 1e-9
+    if m.any():
+        ne.add(X[m, :-2], X[m, -2])
 
 
 def residual_autocorrelation(fit: LinearFit, ranges, q, w, a, tau, payload=None, known: dict | None = None,

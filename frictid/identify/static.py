@@ -518,6 +518,7 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
         if bf.cov is not None:
             covs.append(bf.cov)
         params.update(_branch_params(smap, suf, bf, shapeless, axis, (F0, w0)))
+        _drop_in_view(smap.name, bw, params, suf)
     values = {k: v.value for k, v in params.items()}
     met = metrics(name, values, w, F, k_total)
     cov = block_diag(*covs) if covs else None
@@ -525,6 +526,57 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
                   method="bounded nonlinear least squares on plateau points, multi-start"
                   if not smap.linear else "bounded least squares on plateau points")
     return mf
+
+
+#: A Stribeck drop's level at zero speed (break-away) counts as measured when the slowest point still
+#: holds this share of the drop (a quarter of the drop seen; below, the standard error of an extrapolation
+#: assumes the map's shape holds where no point is); its end level when the fastest point holds less than
+#: DROP_ENDED (the drop half over by the top speed).
+DROP_SEEN = 0.25
+DROP_ENDED = 0.5
+
+
+def _drop_in_view(base: str, bw: np.ndarray, params: dict, suf: str) -> None:
+    """A drop the branch's speeds do not see is extrapolated, not measured: when the slowest point holds
+    less than :data:`DROP_SEEN` of the fitted drop, the break-away level and the drop's speed and shape are
+    not identifiable (the drop lies below the data: a sweep whose slow plateaus were lost); when the
+    fastest holds more, the level it drops to and the speed are not (the drop has not ended by the top
+    speed). The Jacobian's rank does not show it: with a few points on the drop's tail the amplitude and
+    its speed trade off within 100 % errors."""
+    v = np.abs(np.asarray(bw, float))
+    v = v[np.isfinite(v) & (v > 0)]
+    if v.size == 0:
+        return
+    g = lambda n: params.get(n + suf)  # noqa: E731
+    if base == "stribeck":
+        vs, dl = g("vs"), g("delta")
+        if vs is None or dl is None or not vs.value or vs.value <= 0 or dl.value is None:
+            return
+        share = lambda x: math.exp(-((x / vs.value) ** dl.value))  # noqa: E731
+        low, high = ("Fs", "vs", "delta"), ("Fc", "vs", "delta")
+    elif base == "stribeck_2exp":
+        ws1 = g("ws1")
+        if ws1 is None or not ws1.value or ws1.value <= 0:
+            return
+        share = lambda x: math.exp(-x / ws1.value)  # noqa: E731
+        low, high = ("alpha1", "ws1"), ()
+    else:
+        return
+    s_lo, s_hi = share(float(v.min())), share(float(v.max()))
+    if s_lo < DROP_SEEN:
+        why = (f"the slowest point ({v.min():.3g}) holds {100 * s_lo:.0f} % of the fitted drop: the break-away "
+               "level and the drop's speed are extrapolated below the data")
+        names = low
+    elif s_hi > DROP_ENDED:
+        why = (f"the fastest point ({v.max():.3g}) still holds {100 * s_hi:.0f} % of the fitted drop: the level "
+               "it drops to and its speed are extrapolated above the data")
+        names = high
+    else:
+        return
+    for n in names:
+        pe = g(n)
+        if pe is not None and pe.identifiable and not pe.fixed:
+            pe.identifiable, pe.reason = False, why
 
 
 def _held_delta(base: str, bfixed: dict, delta, n: int, suf: str, notes: list[str]) -> dict:
@@ -577,7 +629,49 @@ def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict 
         bfixed["delta"] = 2.0
         bf = fit_branch(base, bw, bF, bse, bfixed, scales=scales, start=bstart, var_inflation=var_inflation)
         notes.append(f"delta{suf} fixed at 2 (000/003): free, it was not identifiable ({why})")
+    if base == "stribeck" and delta == "auto" and "delta" in bfixed and start is None and bf.cov is not None:
+        _delta_profile(bw, bF, bse, bfixed, scales, var_inflation, bf)
     return bf, shapeless
+
+
+#: Stribeck exponents tried when the data do not pin delta down (000/003 hold it at 2; 1 is the exponential
+#: of 001/004), and the profile's threshold: fits within this chi-square of the held fit are as good. Below
+#: 1 the break-away level of a map with a cusp at zero speed runs off with any plateau set that is not near
+#: zero speed (on the hydraulic plant's few plateaus, 0.75 put Fs at 289 +- 372 and the diagnosis then
+#: found a Stribeck effect in a plain Stribeck plant); a truth below 1 is not covered.
+DELTA_GRID = (1.0, 1.5, 3.0)
+DELTA_CHI2 = 4.0
+
+
+def _delta_profile(bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: BranchFit) -> None:
+    """With delta held at 2 because the data cannot pin it, the other parameters are conditional on that
+    choice: refitted at each exponent of :data:`DELTA_GRID`, those fits whose chi-square is within
+    :data:`DELTA_CHI2` of the held one are as consistent with the data, and the largest change of each
+    parameter among them enters its standard error (added in quadrature); one whose error so exceeds its
+    value is not identifiable. ``bf`` is changed in place."""
+    dof = max(len(bw) - len(bf.free), 1)
+    s2 = 2.0 * bf.cost / dof
+    if not (s2 > 0 and math.isfinite(s2)):
+        return
+    spread: dict[str, float] = {n: 0.0 for n in bf.free}
+    for d in DELTA_GRID:
+        fx = dict(bfixed, delta=d)
+        alt = fit_branch("stribeck", bw, bF, bse, fx, scales=scales, start=dict(bf.values, delta=d),
+                         var_inflation=var_inflation)
+        if not math.isfinite(alt.cost) or 2.0 * (alt.cost - bf.cost) / s2 > DELTA_CHI2:
+            continue
+        for n in bf.free:
+            if alt.values.get(n) is not None and bf.values.get(n) is not None:
+                spread[n] = max(spread[n], abs(alt.values[n] - bf.values[n]))
+    for n, sp in spread.items():
+        se = bf.stderr.get(n)
+        if sp <= 0 or se is None:
+            continue
+        bf.stderr[n] = math.hypot(se, sp)
+        v = bf.values[n]
+        if n not in bf.reasons and bf.stderr[n] > abs(v):
+            bf.reasons[n] = (f"depends on the Stribeck exponent, which the data do not pin down (held at 2): it "
+                             f"moves by {sp:.3g} over exponents {DELTA_GRID[0]}-{DELTA_GRID[-1]} that fit as well")
 
 
 def _branch_params(smap, suf: str, bf: BranchFit, shapeless: dict[str, str], axis: str, scales

@@ -388,6 +388,37 @@ def _thermal_starts(start: dict | None, span: float, n_starts: int, K0: float, c
     return starts
 
 
+def _thermal_covariance(Jm: np.ndarray, s2: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Covariance ``s2 (J^T J)^+``, standard errors, the weak (near-null) directions and, per variable,
+    whether its Jacobian column is not finite (then it is left out and its error is NaN).
+
+    A heat balance whose temperature runs away between bins (a time constant collapsed towards zero, a
+    friction power that grows faster with temperature than the losses) has overflowing derivatives; an SVD
+    of such a Jacobian fails (LAPACK does not converge), so those columns are set aside and every variable
+    gets NaN errors when even the rest cannot be decomposed."""
+    p = Jm.shape[1]
+    broken = ~np.all(np.isfinite(Jm), axis=0)
+    keep = np.flatnonzero(~broken)
+    cov = np.full((p, p), np.nan)
+    se = np.full(p, np.nan)
+    weak = np.zeros((0, p))
+    try:
+        U, sv, Vt = np.linalg.svd(Jm[:, keep], full_matrices=False)
+    except np.linalg.LinAlgError:
+        return cov, se, np.eye(p), np.ones(p, bool)
+    if not sv.size or not sv.max() > 0:
+        return cov, se, np.eye(p), broken
+    ok = sv > 1e-10 * sv.max()
+    sub = s2 * (Vt[ok].T / sv[ok] ** 2) @ Vt[ok]
+    cov[np.ix_(keep, keep)] = sub
+    if np.isfinite(s2):
+        se[keep] = np.sqrt(np.maximum(np.diag(sub), 0))
+    w = Vt[sv < 1e-7 * sv.max()]
+    weak = np.zeros((w.shape[0], p))
+    weak[:, keep] = w
+    return cov, se, weak, broken
+
+
 def _thermal_estimates(best, names: list[str]) -> tuple[dict, dict, dict, np.ndarray]:
     """Values, standard errors and reasons (rank-deficient, or a log-variable's error above 100 %) of the
     least-squares optimum ``best``, and the covariance of its variables."""
@@ -395,12 +426,7 @@ def _thermal_estimates(best, names: list[str]) -> tuple[dict, dict, dict, np.nda
     p = len(names)
     dof = best.fun.size - p
     s2 = 2 * best.cost / dof if dof > 0 else math.nan
-    Jm = best.jac
-    U, sv, Vt = np.linalg.svd(Jm, full_matrices=False)
-    ok = sv > 1e-10 * sv.max() if sv.size else np.zeros(0, bool)
-    cov = s2 * (Vt[ok].T / sv[ok] ** 2) @ Vt[ok]
-    se = np.sqrt(np.maximum(np.diag(cov), 0)) if np.isfinite(s2) else np.full(p, np.nan)
-    weak = Vt[sv < 1e-7 * sv.max()] if sv.size else np.zeros((0, p))
+    cov, se, weak, broken = _thermal_covariance(np.asarray(best.jac, float), s2)
     values, stderr, reasons = {}, {}, {}
     for j, n in enumerate(names):
         if n.startswith("log"):
@@ -412,7 +438,10 @@ def _thermal_estimates(best, names: list[str]) -> tuple[dict, dict, dict, np.nda
             values[n] = float(x[j])
             stderr[n] = float(se[j]) if np.isfinite(se[j]) else None
             key = n
-        if weak.size and np.max(np.abs(weak[:, j])) > 0.1:
+        if broken[j]:
+            reasons[key] = ("no finite derivative at the optimum (the fitted heat balance runs away between "
+                            "bins) or the Jacobian cannot be decomposed: the cycles do not pin it down")
+        elif weak.size and np.max(np.abs(weak[:, j])) > 0.1:
             reasons[key] = "not separable from other parameters (Jacobian rank-deficient)"
         elif n.startswith("log") and np.isfinite(se[j]) and se[j] > 1.0:
             reasons[key] = f"relative error {100 * math.expm1(min(se[j], 50.0)):.3g} % (above 100 %)"
