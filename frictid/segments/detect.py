@@ -49,10 +49,18 @@ K_NOISE = 5.0
 T_MIN = 0.2
 #: Longest rise of a torque step [s] (a faster torque change is a step, a slower one a ramp).
 T_JUMP = 0.01
-#: A joint moving slower than this fraction of the log's top speed is still (when above the noise).
-R_STILL = 0.005
+#: A joint moving slower than this fraction of the speed of the motion around it (within ``T_SETTLE``)
+#: is still (when above the noise): the tail of a move settling.
+R_STILL = 0.01
+#: A joint moving slower than this fraction of the log's top speed does not slide (presliding, creep):
+#: "quiet" for the torque experiments (steps, ramps) and the rests of duty cycles.
+R_QUIET = 0.005
+#: The longest a loop takes to settle after a move [s].
+T_SETTLE = 1.0
 #: Fewest plateaus at distinct velocities that make a constant-velocity experiment (a static map).
 MIN_PLATEAUS = 3
+#: Plateaus looked at on each side for a plateau's mirror speed.
+MIRROR_REACH = 3
 #: Relative velocity tolerance of a constant-velocity plateau.
 R_STEADY = 0.02
 #: A still joint whose torque changes by more than this fraction of the log's torque range within
@@ -92,12 +100,23 @@ class Features:
     n_min: int
     still: np.ndarray
     still_fine: np.ndarray
+    quiet: np.ndarray
+    quiet_fine: np.ndarray
+    moving: np.ndarray
     steady: np.ndarray
     s: np.ndarray
     sigma_tau_loc: np.ndarray
     sigma_wc: float
     sigma_dv: float
     tau_c: np.ndarray | None = None  # prefix_sum(tau): every torque slope (box_slope) works from it
+
+
+def _local_top(w: np.ndarray, half: int) -> np.ndarray:
+    """The largest ``|w|`` within ``half`` samples each side of every sample [q/s]: the speed of the
+    motion around it."""
+    from scipy.ndimage import maximum_filter1d  # lazily, as scipy.signal in .scales
+
+    return maximum_filter1d(np.abs(w), 2 * half + 1, mode="nearest")
 
 
 def features(log: JointLog, sc: Scales | None = None) -> Features:
@@ -123,16 +142,31 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
         sigma_wc = sc.sigma_q * math.sqrt(2.0) / (2 * h * dt)
         sigma_dv = 2.0 * sc.sigma_q / (h * dt)
     sigma_wc = max(sigma_wc, sc.sigma_w / math.sqrt(max(1.0, 2 * h / sc.window_w)))
+    # a speed that moves the logged position by less than its resolution over 2h is still to the
+    # encoder, however clean a logged qd: the floor of every still test
+    sigma_enc = sc.sigma_q * math.sqrt(2.0) / (2 * h * dt) if log.q is not None else sigma_wc
+    sigma_wc = max(sigma_wc, sigma_enc)
     sigma_dv = max(sigma_dv, sc.sigma_w * math.sqrt(2.0 / max(1.0, h / sc.window_w)))
     dv = box_slope(w, h, dt)
     dv *= h * dt
-    floor = R_STILL * sc.w_scale
+    # still: slower than the noise, or than R_STILL of the motion around (a tail after a move), never
+    # relative to the log's top speed: a slow plateau next to slow moves is motion
+    floor = _local_top(w, max(1, int(round(T_SETTLE / dt))))
+    floor *= R_STILL
     # wc and dv serve only the masks: |wc| then the steady band in wc's memory, |dv| in dv's (keeping the
     # two for the whole segmentation was 58 MB of its peak on a joint-hour)
     band = np.abs(wc, out=wc)
     del wc
-    still = band < max(K_NOISE * sigma_wc, floor)
-    still_fine = fill_short(np.abs(w) < max(K_NOISE * sc.sigma_w, floor), sc.window_w, False)
+    moving = band >= K_NOISE * sigma_wc
+    still = band < np.maximum(floor, K_NOISE * sigma_wc)
+    aw = np.abs(w)
+    still_fine = fill_short(aw < np.maximum(floor, K_NOISE * max(sc.sigma_w, sigma_enc)), sc.window_w, False)
+    # quiet: also below R_STILL of the log's top speed, the scale on which a torque experiment's joint
+    # (presliding, creep) does not slide; steps, ramps and duty cycles read it
+    top = R_QUIET * sc.w_scale
+    quiet = still | (band < top)
+    quiet_fine = still_fine | fill_short(aw < top, sc.window_w, False)
+    del floor, aw
     band *= R_STEADY
     steady = np.abs(dv, out=dv) < np.maximum(band, K_NOISE * sigma_dv, out=band)
     del band, dv
@@ -142,7 +176,7 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
     sigma_tau_loc = local_noise(tau, n_min)
     np.maximum(sigma_tau_loc, floor, out=sigma_tau_loc)
     return Features(sc=sc, t=np.asarray(log.t, dtype=float), q=q, tau=tau, w=w, h=h, n_min=n_min,
-                    still=still, still_fine=still_fine, steady=steady, s=s, sigma_tau_loc=sigma_tau_loc,
+                    still=still, still_fine=still_fine, quiet=quiet, quiet_fine=quiet_fine, moving=moving, steady=steady, s=s, sigma_tau_loc=sigma_tau_loc,
                     sigma_wc=sigma_wc, sigma_dv=sigma_dv, tau_c=tau_c)
 
 
@@ -230,14 +264,14 @@ def _step(f: Features, j: int, hj: int, events: np.ndarray, code: np.ndarray) ->
     i0 = j - hj // 2
     if i0 < f.h:  # nothing before the jump to judge it by
         return None
-    before = f.still_fine[i0 - f.h: i0]
+    before = f.quiet_fine[i0 - f.h: i0]
     if before.size == 0 or before.mean() < 0.8:
         return None
     nxt = events[events > j + hj]
     end = int(nxt[0]) - hj // 2 if nxt.size else n
     # the transient is over where the joint is still (fine scale) for at least h samples; the step lasts
     # while it stays still
-    rs, re = runs(fill_short(f.still_fine[j + hj: end], f.sc.window_w, False))
+    rs, re = runs(fill_short(f.quiet_fine[j + hj: end], f.sc.window_w, False))
     long = np.flatnonzero((re - rs) >= min(f.h, end - j - hj))
     if long.size == 0:
         return None
@@ -411,15 +445,16 @@ def _constant_velocity(f: Features, code: np.ndarray, n_min: int) -> list[tuple[
     A static map needs plateaus at several speeds: none are kept unless they hold ``MIN_PLATEAUS``
     distinct speeds (one or two steady stretches are moves, not a sweep); in a sweep over both signs, a
     plateau next to neither of its mirror speeds is a repositioning move and is left out."""
-    cv = f.steady & ~f.still & (code < 0)
+    cv = f.steady & f.moving & ~f.still & (code < 0)
     plateaus = []
     for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), n_min)):
         i0, i1 = _extend_plateau(f, int(i0), int(i1), code)
         if i1 - i0 < n_min or not _same_sign(f.w[i0:i1]):
             continue
         plateaus.append((i0, i1, float(np.median(f.w[i0:i1]))))
+    # the mirror may lie beyond a steady stretch of another speed (a joint creeping in a dwell)
     paired = [p for k, p in enumerate(plateaus)
-              if (k > 0 and _mirror(p, plateaus[k - 1])) or (k + 1 < len(plateaus) and _mirror(p, plateaus[k + 1]))]
+              if any(_mirror(p, o) for o in plateaus[max(0, k - MIRROR_REACH):k + MIRROR_REACH + 1] if o is not p)]
     if _distinct_speeds([p[2] for p in paired]) >= MIN_PLATEAUS:
         plateaus = paired
     if _distinct_speeds([p[2] for p in plateaus]) < MIN_PLATEAUS:
@@ -533,7 +568,7 @@ def _rest(f: Features, code: np.ndarray, loading: np.ndarray, n_min: int) -> np.
     hf = _fine_width(f)
     free = code < 0
     calm = fill_short(~loading, 2 * hf + 2, False)
-    rest = grow(f.still & calm & free, f.still_fine & calm & free)
+    rest = grow(f.quiet & calm & free, f.quiet_fine & calm & free)
     rest = fill_short(rest, 2 * hf, False) & free
     return drop_short(rest, n_min)
 
@@ -586,7 +621,7 @@ def _ramp_ok(f: Features, i0: int, i1: int, sign: int, tau_b: np.ndarray, code: 
         return False
     if not _straight(f.t[i0:i1], f.tau[i0:i1], sigma, abs(dtau)):
         return False
-    return bool(np.mean(f.steady[i0:i1] | f.still[i0:i1]) >= 0.98)
+    return bool(np.mean(f.steady[i0:i1] | f.quiet[i0:i1]) >= 0.98)
 
 
 def _ramp_list(f: Features, code: np.ndarray, jumps: np.ndarray) -> list[tuple[int, int, int]]:
@@ -669,7 +704,7 @@ def _ramps(f: Features, ok: list[tuple[int, int, int]]) -> list[tuple[int, int]]
 
 def _hold_level(f: Features, a: int, b: int) -> float | None:
     """Torque level over ``[a, b)`` if the joint is still there under a flat torque, else None."""
-    if b - a < max(2, f.n_min // 2) or f.still[a:b].mean() <= 0.8 or not _flat(f, a, b):
+    if b - a < max(2, f.n_min // 2) or f.quiet[a:b].mean() <= 0.8 or not _flat(f, a, b):
         return None
     return float(np.mean(f.tau[a:b]))
 
@@ -679,7 +714,7 @@ def _connected(f: Features, e0: int, s1: int) -> bool:
     if s1 <= e0:
         return True
     gap = slice(e0, s1)
-    return bool(np.all(f.steady[gap] | f.still[gap]))
+    return bool(np.all(f.steady[gap] | f.quiet[gap]))
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -690,7 +725,7 @@ def find_duty_cycles(f: Features) -> list[tuple[int, int, int]]:
     """(start, end, cycle index) of each duty cycle (see :mod:`.duty`)."""
     gap_min = max(3, f.sc.window_w // 2)
     tol = max(2 * f.sc.window_w, int(round(2 * T_JUMP / f.sc.dt)))
-    return duty_cycles(f.w, ~f.still_fine, gap_min, f.n_min, tol, f.sc.sigma_w)
+    return duty_cycles(f.w, ~f.quiet_fine, gap_min, f.n_min, tol, f.sc.sigma_w)
 
 
 def _segment(f: Features, kind: str, i0: int, i1: int, cycle: int | None = None) -> Segment:
