@@ -7,7 +7,10 @@ step, the torque range, the top speed and the sample period. The features are me
 step), each compared with its own noise level:
 
 - ``wc`` : mean velocity over ``2h`` samples; *still* where ``|wc| < max(K_NOISE sigma(wc), R_STILL
-  w_scale)``; ``still_fine`` the same test on the Savitzky-Golay velocity (precise edges);
+  w_local)`` (``sigma(wc)`` floored by the encoder resolution, ``w_local`` the top speed within
+  ``T_SETTLE``), *moving* where ``|wc| >= K_NOISE sigma(wc)``, *quiet* where still or below ``R_QUIET``
+  of the log's top speed; ``still_fine``, ``quiet_fine`` the same tests on the Savitzky-Golay velocity
+  (precise edges);
 - ``dv`` : velocity change across a sample (mean over the ``h`` samples after minus before); *steady*
   where ``|dv| < max(K_NOISE sigma(dv), R_STEADY |wc|)``;
 - ``s`` : torque slope at scale ``h`` (and ``4h`` for slow ramps in noisy torque); jumps of ``tau`` that
@@ -80,6 +83,14 @@ R_ABSDIFF = 0.91
 R_LINE = 1.5
 #: ... and no significant bend larger than this fraction of its torque change.
 R_BEND = 0.02
+#: A joint under a presliding ramp speeds up by less than this factor over its median speed (creep and
+#: the presliding spring speed up a few times; a break-away runs away by orders of magnitude).
+R_SLIDE = 10.0
+#: The farthest a joint moves under one presliding ramp, bristle deflection and creep together [rad, m]:
+#: joints deflect 1e-5..1e-3 rad (1e-6..1e-4 m) before break-away, a creep of 0.6 mrad/s adds a few mrad
+#: over a ramp of seconds. A physical bound, not a threshold on the data: it only separates a creeping
+#: joint from a sliding one when the log has no sliding motion to compare with (no gross motion).
+D_PRESLIDE = (1e-2, 1e-3)
 #: A group of ramps returns to its starting torque within this fraction of its largest excursion.
 R_RETURN = 0.1
 
@@ -109,6 +120,7 @@ class Features:
     sigma_wc: float
     sigma_dv: float
     tau_c: np.ndarray | None = None  # prefix_sum(tau): every torque slope (box_slope) works from it
+    d_preslide: float = 0.0  # D_PRESLIDE of the log's axis [q]
 
 
 def _local_top(w: np.ndarray, half: int) -> np.ndarray:
@@ -177,7 +189,8 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
     np.maximum(sigma_tau_loc, floor, out=sigma_tau_loc)
     return Features(sc=sc, t=np.asarray(log.t, dtype=float), q=q, tau=tau, w=w, h=h, n_min=n_min,
                     still=still, still_fine=still_fine, quiet=quiet, quiet_fine=quiet_fine, moving=moving, steady=steady, s=s, sigma_tau_loc=sigma_tau_loc,
-                    sigma_wc=sigma_wc, sigma_dv=sigma_dv, tau_c=tau_c)
+                    sigma_wc=sigma_wc, sigma_dv=sigma_dv, tau_c=tau_c,
+                    d_preslide=D_PRESLIDE[log.axis == "linear"])
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -422,8 +435,11 @@ def classify(log: JointLog, scales: Scales | None = None) -> tuple[np.ndarray, l
     hj = max(1, int(round(T_JUMP / sc.dt)))
     for i0, i1 in _steps(f, lab.code, jumps, ramps, hj):
         lab.mark("step", i0, i1)
-    for i0, i1 in _ramps(f, ramps):
+    ramp_segs, holds = _ramps(f, ramps)
+    for i0, i1 in ramp_segs:
         lab.mark("ramp_presliding", i0, i1)
+    for i0, i1 in holds:
+        lab.mark("rest", i0, i1)
     for i0, i1 in _constant_velocity(f, lab.code, n_min):
         lab.mark("constant_velocity", i0, i1)
     for i0, i1 in zip(*runs(_rest(f, lab.code, _loading(f, jumps, hj), n_min))):
@@ -448,10 +464,11 @@ def _constant_velocity(f: Features, code: np.ndarray, n_min: int) -> list[tuple[
     cv = f.steady & f.moving & ~f.still & (code < 0)
     plateaus = []
     for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), n_min)):
-        i0, i1 = _extend_plateau(f, int(i0), int(i1), code)
-        if i1 - i0 < n_min or not _same_sign(f.w[i0:i1]):
+        w, off = _plateau_velocity(f, int(i0), int(i1))
+        i0, i1 = _extend_plateau(f, int(i0), int(i1), code, w, off)
+        if i1 - i0 < n_min or not _same_sign(w[i0 - off:i1 - off]):
             continue
-        plateaus.append((i0, i1, float(np.median(f.w[i0:i1]))))
+        plateaus.append((i0, i1, float(np.median(w[i0 - off:i1 - off]))))
     # the mirror may lie beyond a steady stretch of another speed (a joint creeping in a dwell)
     paired = [p for k, p in enumerate(plateaus)
               if any(_mirror(p, o) for o in plateaus[max(0, k - MIRROR_REACH):k + MIRROR_REACH + 1] if o is not p)]
@@ -483,25 +500,41 @@ def _same_sign(w: np.ndarray) -> bool:
     return m != 0 and float(np.mean(np.sign(w) == np.sign(m))) > 0.95
 
 
-def _extend_plateau(f: Features, i0: int, i1: int, code: np.ndarray) -> tuple[int, int]:
-    """Grow a steady run into its edges while the smoothed velocity stays within the plateau's band."""
-    w = f.w
-    core = w[i0:i1]
+def _plateau_velocity(f: Features, i0: int, i1: int) -> tuple[np.ndarray, int]:
+    """The velocity [q/s] around the steady run ``[i0, i1)`` (``2 h`` samples each side) and the index of
+    its first sample. On a coarse encoder a slow plateau's derivative is a staircase (the position moves
+    one step now and then): it is averaged over the time of two encoder steps at the run's speed."""
+    n, dt = f.t.size, f.sc.dt
+    lo, hi = max(0, i0 - 2 * f.h), min(n, i1 + 2 * f.h)
+    w = f.w[lo:hi]
+    speed = abs(float(f.q[i1 - 1] - f.q[i0])) / (max(1, i1 - 1 - i0) * dt)
+    if f.sc.q_step > 0 and speed > 0:
+        k = int(min(f.h, math.ceil(2.0 * f.sc.q_step / (speed * dt))))
+        if k > f.sc.window_w:
+            w = box_mean(w, k)
+    return w, lo
+
+
+def _extend_plateau(f: Features, i0: int, i1: int, code: np.ndarray, w: np.ndarray, off: int
+                    ) -> tuple[int, int]:
+    """Grow a steady run into its edges while the velocity ``w`` (from sample ``off`` on, reaching
+    ``2 h`` beyond the run) stays within the plateau's band."""
+    core = w[i0 - off:i1 - off]
     wm = float(np.median(core))
     tol = max(K_NOISE * f.sc.sigma_w, R_STEADY * abs(wm))
     lim = 2 * f.h
-    lo = max(0, i0 - lim)
-    left = w[lo:i0][::-1]
+    lo = max(off, i0 - lim)
+    left = w[lo - off:i0 - off][::-1]
     bad = (np.abs(left - wm) > tol) | (code[lo:i0][::-1] >= 0)
     k = int(np.argmax(bad)) if bad.any() else left.size
     i0n = i0 - k
-    hi = min(w.size, i1 + lim)
-    right = w[i1:hi]
+    hi = min(off + w.size, i1 + lim)
+    right = w[i1 - off:hi - off]
     bad = (np.abs(right - wm) > tol) | (code[i1:hi] >= 0)
     k = int(np.argmax(bad)) if bad.any() else right.size
     i1n = i1 + k
     # trim inward while the ends are outside the band (the steady mask is wider than the plateau)
-    inner = np.flatnonzero(np.abs(w[i0n:i1n] - wm) <= tol)
+    inner = np.flatnonzero(np.abs(w[i0n - off:i1n - off] - wm) <= tol)
     if inner.size:
         i0n, i1n = i0n + int(inner[0]), i0n + int(inner[-1]) + 1
     return i0n, i1n
@@ -621,7 +654,21 @@ def _ramp_ok(f: Features, i0: int, i1: int, sign: int, tau_b: np.ndarray, code: 
         return False
     if not _straight(f.t[i0:i1], f.tau[i0:i1], sigma, abs(dtau)):
         return False
-    return bool(np.mean(f.steady[i0:i1] | f.quiet[i0:i1]) >= 0.98)
+    return _no_break_away(f, i0, i1)
+
+
+def _no_break_away(f: Features, i0: int, i1: int) -> bool:
+    """The joint does not break away over ``[i0, i1)``: it is quiet or steadily creeping throughout, or
+    its speed never grows beyond ``R_SLIDE`` times its median there (presliding and creep speed up
+    smoothly as the load grows, by at most a few times; a joint breaking away under an open-loop ramp
+    runs away by orders of magnitude), and it moves no farther than a presliding displacement can
+    (``D_PRESLIDE``)."""
+    if np.mean(f.steady[i0:i1] | f.quiet[i0:i1]) >= 0.98:
+        return True
+    if abs(float(f.q[i1 - 1] - f.q[i0])) > f.d_preslide:  # beyond any bristle deflection: sliding
+        return False
+    aw = np.abs(f.w[i0:i1])
+    return bool(np.max(aw) <= R_SLIDE * max(float(np.median(aw)), K_NOISE * f.sigma_wc))
 
 
 def _ramp_list(f: Features, code: np.ndarray, jumps: np.ndarray) -> list[tuple[int, int, int]]:
@@ -667,12 +714,14 @@ def _straight(t: np.ndarray, y: np.ndarray, sigma: float, dtau: float) -> bool:
     return not (abs(coef[0]) > K_NOISE * se and bend > R_BEND * dtau)
 
 
-def _ramps(f: Features, ok: list[tuple[int, int, int]]) -> list[tuple[int, int]]:
+def _ramps(f: Features, ok: list[tuple[int, int, int]]) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
     """The ramps that belong to groups that load and unload the joint: the group starts at a hold (a
     still joint under a flat torque) and its connected ramps bring the torque back to that hold's level
     at a hold. A controller unwinding its integrator on a stuck joint after a move makes a one-way ramp
-    between two different levels."""
+    between two different levels. Returns the ramps and the holds between the ramps of a group (the
+    joint under a constant load below break-away: a rest, even if it creeps)."""
     out: list[tuple[int, int]] = []
+    holds: list[tuple[int, int]] = []
     gap = f.sc.window_w + f.h // 4
     n = f.t.size
     k = 0
@@ -691,30 +740,45 @@ def _ramps(f: Features, ok: list[tuple[int, int, int]]) -> list[tuple[int, int]]
                 sig = float(np.median(f.sigma_tau_loc[i0:i1]))
                 both = len({sg for _, _, sg in ok[k: j + 1]}) == 2
                 if both and level is not None and abs(level - level0) <= max(
-                        K_NOISE * sig / math.sqrt(f.n_min), R_RETURN * peak):
+                        K_NOISE * sig / math.sqrt(f.n_min), R_RETURN * peak) and _holds_slow(
+                        f, ok[k:j + 1], (max(0, s0 - gap - f.n_min), max(0, s0 - gap)),
+                        (min(n, i1 + gap), min(n, i1 + gap + f.n_min)),
+                        *((b, a) for (_, b, _), (a, _, _) in zip(ok[k:j], ok[k + 1:j + 1]))):
                     out.extend((a, b) for a, b, _ in ok[k: j + 1])
+                    holds.extend((b, a) for (_, b, _), (a, _, _) in zip(ok[k:j], ok[k + 1:j + 1]) if a - b >= f.n_min)
                     done = j + 1
                     break
                 if j + 1 >= len(ok) or not _connected(f, ok[j][1], ok[j + 1][0]):
                     break
                 j += 1
         k = done
-    return out
+    return out, holds
+
+
+def _holds_slow(f: Features, ramps: list[tuple[int, int, int]], *holds: tuple[int, int]) -> bool:
+    """The holds around a group of ramps are no faster (median speed) than the joint at its fastest under
+    the ramps: a creeping joint creeps on, but a plateau on each side of a stuck joint whose controller
+    winds up (or of a move) is no loading and unloading."""
+    speed = max(max(float(np.max(np.abs(f.w[a:b]))) for a, b, _ in ramps), K_NOISE * f.sigma_wc)
+    return all(float(np.median(np.abs(f.w[a:b]))) <= speed for a, b in holds if b > a)
 
 
 def _hold_level(f: Features, a: int, b: int) -> float | None:
-    """Torque level over ``[a, b)`` if the joint is still there under a flat torque, else None."""
-    if b - a < max(2, f.n_min // 2) or f.quiet[a:b].mean() <= 0.8 or not _flat(f, a, b):
+    """Torque level over ``[a, b)`` if the joint holds there (quiet, creeping steadily or not breaking
+    away) under a flat torque, else None."""
+    if b - a < max(2, f.n_min // 2) or not _flat(f, a, b):
+        return None
+    if (f.quiet[a:b] | f.steady[a:b]).mean() <= 0.8 and not _no_break_away(f, a, b):
         return None
     return float(np.mean(f.tau[a:b]))
 
 
 def _connected(f: Features, e0: int, s1: int) -> bool:
-    """Two ramps belong to one chain when the joint does not slide between them."""
+    """Two ramps belong to one chain when the joint does not slide (break away) between them."""
     if s1 <= e0:
         return True
     gap = slice(e0, s1)
-    return bool(np.all(f.steady[gap] | f.quiet[gap]))
+    return bool(np.all(f.steady[gap] | f.quiet[gap])) or _no_break_away(f, e0, s1)
 
 
 # ---------------------------------------------------------------------------------------------------
