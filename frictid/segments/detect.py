@@ -560,7 +560,7 @@ def _loading(f: Features, jumps: np.ndarray, hj: int) -> np.ndarray:
     core, loading = _torque_changing(f, hf)
     ls, le = runs(loading)
     core_c = count_prefix(core)
-    moving_c = count_prefix(~f.still_fine)
+    moving_c = count_prefix(~f.quiet_fine)
     moves_after = moving_c[np.minimum(le + hf, n)] - moving_c[np.minimum(le, n)] > 0
     moved_before = moving_c[ls] - moving_c[np.maximum(ls - f.h, 0)] > 0
     all_jumps = np.sort(jumps)
@@ -789,7 +789,10 @@ def find_duty_cycles(f: Features) -> list[tuple[int, int, int]]:
     """(start, end, cycle index) of each duty cycle (see :mod:`.duty`)."""
     gap_min = max(3, f.sc.window_w // 2)
     tol = max(2 * f.sc.window_w, int(round(2 * T_JUMP / f.sc.dt)))
-    return duty_cycles(f.w, ~f.quiet_fine, gap_min, f.n_min, tol, f.sc.sigma_w)
+    # motion as the log's own scales see it (noise, R_QUIET of the top speed): a duty cycle's rests and
+    # moves are judged against the whole log, not against the motion around them
+    rest = fill_short(np.abs(f.w) < max(K_NOISE * f.sc.sigma_w, R_QUIET * f.sc.w_scale), f.sc.window_w, False)
+    return duty_cycles(f.w, ~rest, gap_min, f.n_min, tol, f.sc.sigma_w)
 
 
 def _segment(f: Features, kind: str, i0: int, i1: int, cycle: int | None = None) -> Segment:
