@@ -464,11 +464,9 @@ def _constant_velocity(f: Features, code: np.ndarray, n_min: int) -> list[tuple[
     cv = f.steady & f.moving & ~f.still & (code < 0)
     plateaus = []
     for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), n_min)):
-        w, off = _plateau_velocity(f, int(i0), int(i1))
-        i0, i1 = _extend_plateau(f, int(i0), int(i1), code, w, off)
-        if i1 - i0 < n_min or not _same_sign(w[i0 - off:i1 - off]):
-            continue
-        plateaus.append((i0, i1, float(np.median(w[i0 - off:i1 - off]))))
+        got = _plateau(f, int(i0), int(i1), code, n_min)
+        if got is not None:
+            plateaus.append(got)
     # the mirror may lie beyond a steady stretch of another speed (a joint creeping in a dwell)
     paired = [p for k, p in enumerate(plateaus)
               if any(_mirror(p, o) for o in plateaus[max(0, k - MIRROR_REACH):k + MIRROR_REACH + 1] if o is not p)]
@@ -498,6 +496,18 @@ def _distinct_speeds(w: list[float]) -> int:
 def _same_sign(w: np.ndarray) -> bool:
     m = float(np.mean(w))
     return m != 0 and float(np.mean(np.sign(w) == np.sign(m))) > 0.95
+
+
+def _plateau(f: Features, i0: int, i1: int, code: np.ndarray, n_min: int) -> tuple[int, int, float] | None:
+    """(start, end, velocity) of the plateau grown from the steady run ``[i0, i1)``, or None when it is
+    too short or changes sign. Edged on the velocity as it is; on a coarse encoder, whose slow plateau
+    fails that, on the velocity averaged over two encoder steps (:func:`_plateau_velocity`)."""
+    lo = max(0, i0 - 2 * f.h)
+    for w, off in ((f.w[lo:min(f.t.size, i1 + 2 * f.h)], lo), _plateau_velocity(f, i0, i1)):
+        a, b = _extend_plateau(f, i0, i1, code, w, off)
+        if b - a >= n_min and _same_sign(w[a - off:b - off]):
+            return a, b, float(np.median(w[a - off:b - off]))
+    return None
 
 
 def _plateau_velocity(f: Features, i0: int, i1: int) -> tuple[np.ndarray, int]:
