@@ -7,7 +7,10 @@ step, the torque range, the top speed and the sample period. The features are me
 step), each compared with its own noise level:
 
 - ``wc`` : mean velocity over ``2h`` samples; *still* where ``|wc| < max(K_NOISE sigma(wc), R_STILL
-  w_scale)``; ``still_fine`` the same test on the Savitzky-Golay velocity (precise edges);
+  w_local)`` (``sigma(wc)`` floored by the encoder resolution, ``w_local`` the top speed within
+  ``T_SETTLE``), *moving* where ``|wc| >= K_NOISE sigma(wc)``, *quiet* where still or below ``R_QUIET``
+  of the log's top speed; ``still_fine``, ``quiet_fine`` the same tests on the Savitzky-Golay velocity
+  (precise edges);
 - ``dv`` : velocity change across a sample (mean over the ``h`` samples after minus before); *steady*
   where ``|dv| < max(K_NOISE sigma(dv), R_STEADY |wc|)``;
 - ``s`` : torque slope at scale ``h`` (and ``4h`` for slow ramps in noisy torque); jumps of ``tau`` that
@@ -49,10 +52,18 @@ K_NOISE = 5.0
 T_MIN = 0.2
 #: Longest rise of a torque step [s] (a faster torque change is a step, a slower one a ramp).
 T_JUMP = 0.01
-#: A joint moving slower than this fraction of the log's top speed is still (when above the noise).
-R_STILL = 0.005
+#: A joint moving slower than this fraction of the speed of the motion around it (within ``T_SETTLE``)
+#: is still (when above the noise): the tail of a move settling.
+R_STILL = 0.01
+#: A joint moving slower than this fraction of the log's top speed does not slide (presliding, creep):
+#: "quiet" for the torque experiments (steps, ramps) and the rests of duty cycles.
+R_QUIET = 0.005
+#: The longest a loop takes to settle after a move [s].
+T_SETTLE = 1.0
 #: Fewest plateaus at distinct velocities that make a constant-velocity experiment (a static map).
 MIN_PLATEAUS = 3
+#: Plateaus looked at on each side for a plateau's mirror speed.
+MIRROR_REACH = 3
 #: Relative velocity tolerance of a constant-velocity plateau.
 R_STEADY = 0.02
 #: A still joint whose torque changes by more than this fraction of the log's torque range within
@@ -72,6 +83,14 @@ R_ABSDIFF = 0.91
 R_LINE = 1.5
 #: ... and no significant bend larger than this fraction of its torque change.
 R_BEND = 0.02
+#: A joint under a presliding ramp speeds up by less than this factor over its median speed (creep and
+#: the presliding spring speed up a few times; a break-away runs away by orders of magnitude).
+R_SLIDE = 10.0
+#: The farthest a joint moves under one presliding ramp, bristle deflection and creep together [rad, m]:
+#: joints deflect 1e-5..1e-3 rad (1e-6..1e-4 m) before break-away, a creep of 0.6 mrad/s adds a few mrad
+#: over a ramp of seconds. A physical bound, not a threshold on the data: it only separates a creeping
+#: joint from a sliding one when the log has no sliding motion to compare with (no gross motion).
+D_PRESLIDE = (1e-2, 1e-3)
 #: A group of ramps returns to its starting torque within this fraction of its largest excursion.
 R_RETURN = 0.1
 
@@ -92,12 +111,24 @@ class Features:
     n_min: int
     still: np.ndarray
     still_fine: np.ndarray
+    quiet: np.ndarray
+    quiet_fine: np.ndarray
+    moving: np.ndarray
     steady: np.ndarray
     s: np.ndarray
     sigma_tau_loc: np.ndarray
     sigma_wc: float
     sigma_dv: float
     tau_c: np.ndarray | None = None  # prefix_sum(tau): every torque slope (box_slope) works from it
+    d_preslide: float = 0.0  # D_PRESLIDE of the log's axis [q]
+
+
+def _local_top(w: np.ndarray, half: int) -> np.ndarray:
+    """The largest ``|w|`` within ``half`` samples each side of every sample [q/s]: the speed of the
+    motion around it."""
+    from scipy.ndimage import maximum_filter1d  # lazily, as scipy.signal in .scales
+
+    return maximum_filter1d(np.abs(w), 2 * half + 1, mode="nearest")
 
 
 def features(log: JointLog, sc: Scales | None = None) -> Features:
@@ -123,16 +154,31 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
         sigma_wc = sc.sigma_q * math.sqrt(2.0) / (2 * h * dt)
         sigma_dv = 2.0 * sc.sigma_q / (h * dt)
     sigma_wc = max(sigma_wc, sc.sigma_w / math.sqrt(max(1.0, 2 * h / sc.window_w)))
+    # a speed that moves the logged position by less than its resolution over 2h is still to the
+    # encoder, however clean a logged qd: the floor of every still test
+    sigma_enc = sc.sigma_q * math.sqrt(2.0) / (2 * h * dt) if log.q is not None else sigma_wc
+    sigma_wc = max(sigma_wc, sigma_enc)
     sigma_dv = max(sigma_dv, sc.sigma_w * math.sqrt(2.0 / max(1.0, h / sc.window_w)))
     dv = box_slope(w, h, dt)
     dv *= h * dt
-    floor = R_STILL * sc.w_scale
+    # still: slower than the noise, or than R_STILL of the motion around (a tail after a move), never
+    # relative to the log's top speed: a slow plateau next to slow moves is motion
+    floor = _local_top(w, max(1, int(round(T_SETTLE / dt))))
+    floor *= R_STILL
     # wc and dv serve only the masks: |wc| then the steady band in wc's memory, |dv| in dv's (keeping the
     # two for the whole segmentation was 58 MB of its peak on a joint-hour)
     band = np.abs(wc, out=wc)
     del wc
-    still = band < max(K_NOISE * sigma_wc, floor)
-    still_fine = fill_short(np.abs(w) < max(K_NOISE * sc.sigma_w, floor), sc.window_w, False)
+    moving = band >= K_NOISE * sigma_wc
+    still = band < np.maximum(floor, K_NOISE * sigma_wc)
+    aw = np.abs(w)
+    still_fine = fill_short(aw < np.maximum(floor, K_NOISE * max(sc.sigma_w, sigma_enc)), sc.window_w, False)
+    # quiet: also below R_STILL of the log's top speed, the scale on which a torque experiment's joint
+    # (presliding, creep) does not slide; steps, ramps and duty cycles read it
+    top = R_QUIET * sc.w_scale
+    quiet = still | (band < top)
+    quiet_fine = still_fine | fill_short(aw < top, sc.window_w, False)
+    del floor, aw
     band *= R_STEADY
     steady = np.abs(dv, out=dv) < np.maximum(band, K_NOISE * sigma_dv, out=band)
     del band, dv
@@ -142,8 +188,9 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
     sigma_tau_loc = local_noise(tau, n_min)
     np.maximum(sigma_tau_loc, floor, out=sigma_tau_loc)
     return Features(sc=sc, t=np.asarray(log.t, dtype=float), q=q, tau=tau, w=w, h=h, n_min=n_min,
-                    still=still, still_fine=still_fine, steady=steady, s=s, sigma_tau_loc=sigma_tau_loc,
-                    sigma_wc=sigma_wc, sigma_dv=sigma_dv, tau_c=tau_c)
+                    still=still, still_fine=still_fine, quiet=quiet, quiet_fine=quiet_fine, moving=moving, steady=steady, s=s, sigma_tau_loc=sigma_tau_loc,
+                    sigma_wc=sigma_wc, sigma_dv=sigma_dv, tau_c=tau_c,
+                    d_preslide=D_PRESLIDE[log.axis == "linear"])
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -230,14 +277,14 @@ def _step(f: Features, j: int, hj: int, events: np.ndarray, code: np.ndarray) ->
     i0 = j - hj // 2
     if i0 < f.h:  # nothing before the jump to judge it by
         return None
-    before = f.still_fine[i0 - f.h: i0]
+    before = f.quiet_fine[i0 - f.h: i0]
     if before.size == 0 or before.mean() < 0.8:
         return None
     nxt = events[events > j + hj]
     end = int(nxt[0]) - hj // 2 if nxt.size else n
     # the transient is over where the joint is still (fine scale) for at least h samples; the step lasts
     # while it stays still
-    rs, re = runs(fill_short(f.still_fine[j + hj: end], f.sc.window_w, False))
+    rs, re = runs(fill_short(f.quiet_fine[j + hj: end], f.sc.window_w, False))
     long = np.flatnonzero((re - rs) >= min(f.h, end - j - hj))
     if long.size == 0:
         return None
@@ -388,8 +435,11 @@ def classify(log: JointLog, scales: Scales | None = None) -> tuple[np.ndarray, l
     hj = max(1, int(round(T_JUMP / sc.dt)))
     for i0, i1 in _steps(f, lab.code, jumps, ramps, hj):
         lab.mark("step", i0, i1)
-    for i0, i1 in _ramps(f, ramps):
+    ramp_segs, holds = _ramps(f, ramps)
+    for i0, i1 in ramp_segs:
         lab.mark("ramp_presliding", i0, i1)
+    for i0, i1 in holds:
+        lab.mark("rest", i0, i1)
     for i0, i1 in _constant_velocity(f, lab.code, n_min):
         lab.mark("constant_velocity", i0, i1)
     for i0, i1 in zip(*runs(_rest(f, lab.code, _loading(f, jumps, hj), n_min))):
@@ -411,15 +461,15 @@ def _constant_velocity(f: Features, code: np.ndarray, n_min: int) -> list[tuple[
     A static map needs plateaus at several speeds: none are kept unless they hold ``MIN_PLATEAUS``
     distinct speeds (one or two steady stretches are moves, not a sweep); in a sweep over both signs, a
     plateau next to neither of its mirror speeds is a repositioning move and is left out."""
-    cv = f.steady & ~f.still & (code < 0)
+    cv = f.steady & f.moving & ~f.still & (code < 0)
     plateaus = []
     for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), n_min)):
-        i0, i1 = _extend_plateau(f, int(i0), int(i1), code)
-        if i1 - i0 < n_min or not _same_sign(f.w[i0:i1]):
-            continue
-        plateaus.append((i0, i1, float(np.median(f.w[i0:i1]))))
+        got = _plateau(f, int(i0), int(i1), code, n_min)
+        if got is not None:
+            plateaus.append(got)
+    # the mirror may lie beyond a steady stretch of another speed (a joint creeping in a dwell)
     paired = [p for k, p in enumerate(plateaus)
-              if (k > 0 and _mirror(p, plateaus[k - 1])) or (k + 1 < len(plateaus) and _mirror(p, plateaus[k + 1]))]
+              if any(_mirror(p, o) for o in plateaus[max(0, k - MIRROR_REACH):k + MIRROR_REACH + 1] if o is not p)]
     if _distinct_speeds([p[2] for p in paired]) >= MIN_PLATEAUS:
         plateaus = paired
     if _distinct_speeds([p[2] for p in plateaus]) < MIN_PLATEAUS:
@@ -448,25 +498,53 @@ def _same_sign(w: np.ndarray) -> bool:
     return m != 0 and float(np.mean(np.sign(w) == np.sign(m))) > 0.95
 
 
-def _extend_plateau(f: Features, i0: int, i1: int, code: np.ndarray) -> tuple[int, int]:
-    """Grow a steady run into its edges while the smoothed velocity stays within the plateau's band."""
-    w = f.w
-    core = w[i0:i1]
+def _plateau(f: Features, i0: int, i1: int, code: np.ndarray, n_min: int) -> tuple[int, int, float] | None:
+    """(start, end, velocity) of the plateau grown from the steady run ``[i0, i1)``, or None when it is
+    too short or changes sign. Edged on the velocity as it is; on a coarse encoder, whose slow plateau
+    fails that, on the velocity averaged over two encoder steps (:func:`_plateau_velocity`)."""
+    lo = max(0, i0 - 2 * f.h)
+    for w, off in ((f.w[lo:min(f.t.size, i1 + 2 * f.h)], lo), _plateau_velocity(f, i0, i1)):
+        a, b = _extend_plateau(f, i0, i1, code, w, off)
+        if b - a >= n_min and _same_sign(w[a - off:b - off]):
+            return a, b, float(np.median(w[a - off:b - off]))
+    return None
+
+
+def _plateau_velocity(f: Features, i0: int, i1: int) -> tuple[np.ndarray, int]:
+    """The velocity [q/s] around the steady run ``[i0, i1)`` (``2 h`` samples each side) and the index of
+    its first sample. On a coarse encoder a slow plateau's derivative is a staircase (the position moves
+    one step now and then): it is averaged over the time of two encoder steps at the run's speed."""
+    n, dt = f.t.size, f.sc.dt
+    lo, hi = max(0, i0 - 2 * f.h), min(n, i1 + 2 * f.h)
+    w = f.w[lo:hi]
+    speed = abs(float(f.q[i1 - 1] - f.q[i0])) / (max(1, i1 - 1 - i0) * dt)
+    if f.sc.q_step > 0 and speed > 0:
+        k = int(min(f.h, math.ceil(2.0 * f.sc.q_step / (speed * dt))))
+        if k > f.sc.window_w:
+            w = box_mean(w, k)
+    return w, lo
+
+
+def _extend_plateau(f: Features, i0: int, i1: int, code: np.ndarray, w: np.ndarray, off: int
+                    ) -> tuple[int, int]:
+    """Grow a steady run into its edges while the velocity ``w`` (from sample ``off`` on, reaching
+    ``2 h`` beyond the run) stays within the plateau's band."""
+    core = w[i0 - off:i1 - off]
     wm = float(np.median(core))
     tol = max(K_NOISE * f.sc.sigma_w, R_STEADY * abs(wm))
     lim = 2 * f.h
-    lo = max(0, i0 - lim)
-    left = w[lo:i0][::-1]
+    lo = max(off, i0 - lim)
+    left = w[lo - off:i0 - off][::-1]
     bad = (np.abs(left - wm) > tol) | (code[lo:i0][::-1] >= 0)
     k = int(np.argmax(bad)) if bad.any() else left.size
     i0n = i0 - k
-    hi = min(w.size, i1 + lim)
-    right = w[i1:hi]
+    hi = min(off + w.size, i1 + lim)
+    right = w[i1 - off:hi - off]
     bad = (np.abs(right - wm) > tol) | (code[i1:hi] >= 0)
     k = int(np.argmax(bad)) if bad.any() else right.size
     i1n = i1 + k
     # trim inward while the ends are outside the band (the steady mask is wider than the plateau)
-    inner = np.flatnonzero(np.abs(w[i0n:i1n] - wm) <= tol)
+    inner = np.flatnonzero(np.abs(w[i0n - off:i1n - off] - wm) <= tol)
     if inner.size:
         i0n, i1n = i0n + int(inner[0]), i0n + int(inner[-1]) + 1
     return i0n, i1n
@@ -492,7 +570,7 @@ def _loading(f: Features, jumps: np.ndarray, hj: int) -> np.ndarray:
     core, loading = _torque_changing(f, hf)
     ls, le = runs(loading)
     core_c = count_prefix(core)
-    moving_c = count_prefix(~f.still_fine)
+    moving_c = count_prefix(~f.quiet_fine)
     moves_after = moving_c[np.minimum(le + hf, n)] - moving_c[np.minimum(le, n)] > 0
     moved_before = moving_c[ls] - moving_c[np.maximum(ls - f.h, 0)] > 0
     all_jumps = np.sort(jumps)
@@ -533,7 +611,7 @@ def _rest(f: Features, code: np.ndarray, loading: np.ndarray, n_min: int) -> np.
     hf = _fine_width(f)
     free = code < 0
     calm = fill_short(~loading, 2 * hf + 2, False)
-    rest = grow(f.still & calm & free, f.still_fine & calm & free)
+    rest = grow(f.quiet & calm & free, f.quiet_fine & calm & free)
     rest = fill_short(rest, 2 * hf, False) & free
     return drop_short(rest, n_min)
 
@@ -586,7 +664,21 @@ def _ramp_ok(f: Features, i0: int, i1: int, sign: int, tau_b: np.ndarray, code: 
         return False
     if not _straight(f.t[i0:i1], f.tau[i0:i1], sigma, abs(dtau)):
         return False
-    return bool(np.mean(f.steady[i0:i1] | f.still[i0:i1]) >= 0.98)
+    return _no_break_away(f, i0, i1)
+
+
+def _no_break_away(f: Features, i0: int, i1: int) -> bool:
+    """The joint does not break away over ``[i0, i1)``: it is quiet or steadily creeping throughout, or
+    its speed never grows beyond ``R_SLIDE`` times its median there (presliding and creep speed up
+    smoothly as the load grows, by at most a few times; a joint breaking away under an open-loop ramp
+    runs away by orders of magnitude), and it moves no farther than a presliding displacement can
+    (``D_PRESLIDE``)."""
+    if np.mean(f.steady[i0:i1] | f.quiet[i0:i1]) >= 0.98:
+        return True
+    if abs(float(f.q[i1 - 1] - f.q[i0])) > f.d_preslide:  # beyond any bristle deflection: sliding
+        return False
+    aw = np.abs(f.w[i0:i1])
+    return bool(np.max(aw) <= R_SLIDE * max(float(np.median(aw)), K_NOISE * f.sigma_wc))
 
 
 def _ramp_list(f: Features, code: np.ndarray, jumps: np.ndarray) -> list[tuple[int, int, int]]:
@@ -632,12 +724,14 @@ def _straight(t: np.ndarray, y: np.ndarray, sigma: float, dtau: float) -> bool:
     return not (abs(coef[0]) > K_NOISE * se and bend > R_BEND * dtau)
 
 
-def _ramps(f: Features, ok: list[tuple[int, int, int]]) -> list[tuple[int, int]]:
+def _ramps(f: Features, ok: list[tuple[int, int, int]]) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
     """The ramps that belong to groups that load and unload the joint: the group starts at a hold (a
     still joint under a flat torque) and its connected ramps bring the torque back to that hold's level
     at a hold. A controller unwinding its integrator on a stuck joint after a move makes a one-way ramp
-    between two different levels."""
+    between two different levels. Returns the ramps and the holds between the ramps of a group (the
+    joint under a constant load below break-away: a rest, even if it creeps)."""
     out: list[tuple[int, int]] = []
+    holds: list[tuple[int, int]] = []
     gap = f.sc.window_w + f.h // 4
     n = f.t.size
     k = 0
@@ -656,30 +750,45 @@ def _ramps(f: Features, ok: list[tuple[int, int, int]]) -> list[tuple[int, int]]
                 sig = float(np.median(f.sigma_tau_loc[i0:i1]))
                 both = len({sg for _, _, sg in ok[k: j + 1]}) == 2
                 if both and level is not None and abs(level - level0) <= max(
-                        K_NOISE * sig / math.sqrt(f.n_min), R_RETURN * peak):
+                        K_NOISE * sig / math.sqrt(f.n_min), R_RETURN * peak) and _holds_slow(
+                        f, ok[k:j + 1], (max(0, s0 - gap - f.n_min), max(0, s0 - gap)),
+                        (min(n, i1 + gap), min(n, i1 + gap + f.n_min)),
+                        *((b, a) for (_, b, _), (a, _, _) in zip(ok[k:j], ok[k + 1:j + 1]))):
                     out.extend((a, b) for a, b, _ in ok[k: j + 1])
+                    holds.extend((b, a) for (_, b, _), (a, _, _) in zip(ok[k:j], ok[k + 1:j + 1]) if a - b >= f.n_min)
                     done = j + 1
                     break
                 if j + 1 >= len(ok) or not _connected(f, ok[j][1], ok[j + 1][0]):
                     break
                 j += 1
         k = done
-    return out
+    return out, holds
+
+
+def _holds_slow(f: Features, ramps: list[tuple[int, int, int]], *holds: tuple[int, int]) -> bool:
+    """The holds around a group of ramps are no faster (median speed) than the joint at its fastest under
+    the ramps: a creeping joint creeps on, but a plateau on each side of a stuck joint whose controller
+    winds up (or of a move) is no loading and unloading."""
+    speed = max(max(float(np.max(np.abs(f.w[a:b]))) for a, b, _ in ramps), K_NOISE * f.sigma_wc)
+    return all(float(np.median(np.abs(f.w[a:b]))) <= speed for a, b in holds if b > a)
 
 
 def _hold_level(f: Features, a: int, b: int) -> float | None:
-    """Torque level over ``[a, b)`` if the joint is still there under a flat torque, else None."""
-    if b - a < max(2, f.n_min // 2) or f.still[a:b].mean() <= 0.8 or not _flat(f, a, b):
+    """Torque level over ``[a, b)`` if the joint holds there (quiet, creeping steadily or not breaking
+    away) under a flat torque, else None."""
+    if b - a < max(2, f.n_min // 2) or not _flat(f, a, b):
+        return None
+    if (f.quiet[a:b] | f.steady[a:b]).mean() <= 0.8 and not _no_break_away(f, a, b):
         return None
     return float(np.mean(f.tau[a:b]))
 
 
 def _connected(f: Features, e0: int, s1: int) -> bool:
-    """Two ramps belong to one chain when the joint does not slide between them."""
+    """Two ramps belong to one chain when the joint does not slide (break away) between them."""
     if s1 <= e0:
         return True
     gap = slice(e0, s1)
-    return bool(np.all(f.steady[gap] | f.still[gap]))
+    return bool(np.all(f.steady[gap] | f.quiet[gap])) or _no_break_away(f, e0, s1)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -690,7 +799,10 @@ def find_duty_cycles(f: Features) -> list[tuple[int, int, int]]:
     """(start, end, cycle index) of each duty cycle (see :mod:`.duty`)."""
     gap_min = max(3, f.sc.window_w // 2)
     tol = max(2 * f.sc.window_w, int(round(2 * T_JUMP / f.sc.dt)))
-    return duty_cycles(f.w, ~f.still_fine, gap_min, f.n_min, tol, f.sc.sigma_w)
+    # motion as the log's own scales see it (noise, R_QUIET of the top speed): a duty cycle's rests and
+    # moves are judged against the whole log, not against the motion around them
+    rest = fill_short(np.abs(f.w) < max(K_NOISE * f.sc.sigma_w, R_QUIET * f.sc.w_scale), f.sc.window_w, False)
+    return duty_cycles(f.w, ~rest, gap_min, f.n_min, tol, f.sc.sigma_w)
 
 
 def _segment(f: Features, kind: str, i0: int, i1: int, cycle: int | None = None) -> Segment:

@@ -49,7 +49,7 @@ def segment_stats(f, kind: str, i0: int, i1: int, cycle: int | None = None) -> d
     if kind == "step":
         return _step_stats(f, i0, i1)
     if kind == "duty_cycle":
-        moving = ~f.still[i0:i1]
+        moving = ~f.quiet[i0:i1]
         return {"period": float(f.t[i1 - 1] - f.t[i0] + f.sc.dt), "moving_fraction": float(moving.mean()),
                 "w_rms": float(np.sqrt(np.mean(w * w))), "tau_rms": float(np.sqrt(np.mean(tau * tau))),
                 "power": float(np.mean(tau * w))}
