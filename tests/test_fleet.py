@@ -256,9 +256,13 @@ def test_level_stderr_by_hand_and_by_sampling():
     draws = np.random.default_rng(5).multivariate_normal([12.0, 4.0], cov, 4000)
     sampled = [level(hand_joint_at(cov, *d), "coulomb_viscous", 0.5, None)[0] for d in draws[:400]]
     assert np.std(sampled) == pytest.approx(lv["stderr"], rel=0.1)
-    # a covariance that does not match the standard errors is not used
+    # standard errors wider than the covariance's (the fit widens some): the correlation is kept, the
+    # diagonal follows the standard errors
     jf.models["coulomb_viscous"].params["Fc"].stderr = 0.3
-    assert param_covariance(jf.models["coulomb_viscous"]) is None
+    names, c2 = param_covariance(jf.models["coulomb_viscous"])
+    cov0 = np.asarray(jf.models["coulomb_viscous"].cov, float)
+    assert c2[0, 0] == pytest.approx(0.09) and c2[1, 1] == pytest.approx(cov0[1, 1])
+    assert c2[0, 1] / np.sqrt(c2[0, 0] * c2[1, 1]) == pytest.approx(cov0[0, 1] / np.sqrt(cov0[0, 0] * cov0[1, 1]))
 
 
 def hand_joint_at(cov, Fc, sigma2) -> JointFit:

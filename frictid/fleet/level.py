@@ -9,9 +9,9 @@ parameter's standard error: the level is smooth there, and a linearisation over 
 is exact to far below the standard error itself). Sampling the covariance would give the same for these
 near-linear levels at 100x the evaluations.
 
-The covariance (``ModelFit.cov``) is used only when its diagonal equals the squares of the free parameters'
-standard errors in table order (the order the identification writes it in); otherwise, or when it is
-missing, the standard error is NaN with the reason, and the trend falls back to the series' scatter.
+The covariance (``ModelFit.cov``, free parameters in table order) gives the correlations; the diagonal
+is the parameters' standard errors (:func:`param_covariance`). Without one, the standard error is NaN with
+the reason, and the trend falls back to the series' scatter.
 """
 from __future__ import annotations
 
@@ -27,8 +27,11 @@ STEP = 1e-3
 
 
 def param_covariance(mf) -> tuple[list[str], np.ndarray] | None:
-    """(names, covariance) of a fitted model's free parameters, or None when the covariance is missing or
-    its diagonal does not match the parameters' standard errors."""
+    """(names, covariance) of a fitted model's free parameters, or None when the covariance is missing.
+
+    The parameters' standard errors are authoritative: the fit widens some of them beyond its least-squares
+    covariance (a held shape exponent's profile, the jackknife over time blocks, the bandwidth check), so
+    the covariance returned keeps the fit's correlations and takes its diagonal from the standard errors."""
     if mf is None or mf.cov is None:
         return None
     cov = np.asarray(mf.cov, dtype=float)
@@ -36,9 +39,11 @@ def param_covariance(mf) -> tuple[list[str], np.ndarray] | None:
     if cov.shape != (len(names), len(names)) or not np.isfinite(cov).all():
         return None
     se = np.array([np.nan if mf.params[n].stderr is None else mf.params[n].stderr for n in names], dtype=float)
-    if not np.allclose(np.sqrt(np.clip(np.diag(cov), 0.0, None)), se, rtol=1e-6, atol=1e-300):
+    d = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    if not np.all(np.isfinite(se)) or np.any(d <= 0):
         return None
-    return names, cov
+    corr = np.clip(cov / np.outer(d, d), -1.0, 1.0)
+    return names, corr * np.outer(se, se)
 
 
 def covariance_json(mf) -> str:
