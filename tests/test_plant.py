@@ -55,7 +55,7 @@ def test_every_recipe_runs_on_every_plant(recipe, plant):
     assert [lg.joint for lg in logs] == [j.name for j in pl.joints]
     want = {"constant_velocity_sweep": "constant_velocity", "ramp_presliding": "ramp_presliding",
             "torque_steps": "step", "duty_cycle": "duty_cycle", "validation_ptp": "duty_cycle",
-            "multisine": "other", "random_ptp": "other"}[recipe]
+            "multisine": "other", "random_ptp": "other", "tracking_slow": "other"}[recipe]
     for lg in logs:
         seg, cyc = lg.truth["segment"], lg.truth["cycle"]
         assert seg.shape == (lg.n,) and cyc.shape == (lg.n,)
