@@ -54,7 +54,7 @@ class RunMetrics:
 
 @dataclass
 class Run:
-    """One closed-loop run: the samples and their metrics."""
+    """One closed-loop run: the samples (T: the joint temperature [degC]) and their metrics."""
 
     name: str
     t: np.ndarray
@@ -63,6 +63,7 @@ class Run:
     w: np.ndarray
     u: np.ndarray
     ff: np.ndarray
+    T: np.ndarray
     metrics: RunMetrics
 
 
@@ -133,8 +134,8 @@ def plant_friction_model(plant, joint) -> FrictionModel:
 
 def _run(name, args, t, prog, ff, closed) -> Run:
     a = dict(args, tau_ff=np.where(closed, prog["tau_ff"] + ff, prog["tau_ff"]))
-    q, w, _, _, _, u, _, _ = simulate_joint(**a)
-    return Run(name, t, prog["q_ref"], q, w, u, ff, run_metrics(t, prog["q_ref"], prog["qd_ref"], q, w, closed))
+    q, w, _, _, T, u, _, _ = simulate_joint(**a)
+    return Run(name, t, prog["q_ref"], q, w, u, ff, T, run_metrics(t, prog["q_ref"], prog["qd_ref"], q, w, closed))
 
 
 def compensation_runs(models: dict[str, FrictionModel], recipe, plant=None, seed: int = 0,
@@ -158,8 +159,8 @@ def compensation_runs(models: dict[str, FrictionModel], recipe, plant=None, seed
         t = ex["t"]
         closed = np.broadcast_to(prog["mode"] != MODE_TORQUE, t.shape)
         runs = {"none": _run("none", args, t, prog, np.zeros_like(t), closed)}
-        T_none = simulate_joint(**dict(args, outputs=("T",)))[4]
-        runs["model"] = _run("model", args, t, prog, model_feedforward(models[joint.name], t, prog, T_none), closed)
+        runs["model"] = _run("model", args, t, prog, model_feedforward(models[joint.name], t, prog, runs["none"].T),
+                             closed)
         runs["true"] = _run("true", args, t, prog, true_feedforward(pl, joint, t, prog, args), closed)
         out[joint.name] = runs
     return out

@@ -18,7 +18,8 @@ import numpy as np
 from scipy.optimize import minimize
 
 from .description import Robot
-from .regressor import base_parameters, full_regressor
+from .identify import RobotData, design
+from .regressor import base_parameters
 
 MARGIN = 0.95
 N_EVAL = 120   # samples per period where the condition number is evaluated
@@ -80,14 +81,9 @@ def _scaled(coef, lim: Limits, wf, t) -> np.ndarray:
 
 
 def _condition(robot: Robot, bp, coef, lim: Limits, wf, t) -> float:
+    """Condition number (columns scaled to unit norm) of the identification's design matrix along the motion."""
     q, qd, qdd = fourier(coef, 0.5 * (lim.lo + lim.hi), wf, t)
-    Y = full_regressor(robot, q, qd, qdd, robot.armature)[:, bp.columns]
-    n, nv = q.shape
-    F = np.zeros((n * nv, 3 * nv))
-    for j in range(nv):
-        rows = np.arange(n) * nv + j
-        F[rows, 3 * j], F[rows, 3 * j + 1], F[rows, 3 * j + 2] = qd[:, j], np.sign(qd[:, j]), 1.0
-    A = np.hstack([Y, F])
+    A = design(robot, bp, RobotData(t, q, qd, qdd, np.zeros_like(q), 0.0))
     A = A / np.maximum(np.linalg.norm(A, axis=0), 1e-300)
     sv = np.linalg.svd(A, compute_uv=False)
     return float(sv[0] / max(sv[-1], 1e-300))

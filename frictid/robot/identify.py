@@ -15,7 +15,8 @@ least squares (Gaz et al. 2019, "classical" identification; Gautier's base param
    joint's lag-one autocorrelation rho: factor ``(1 + rho) / (1 - rho)`` on the variance, the effective
    number of independent samples);
 5. the condition number of the weighted regressor with its columns scaled to unit norm, and the relative
-   torque error ``||tau - Y pi|| / ||tau||``, on the samples used and, when asked, on a held-out tail.
+   torque error ``||tau - Y pi|| / ||tau||`` on the samples used; :func:`heldout_errors` predicts a
+   held-out tail.
 """
 from __future__ import annotations
 
@@ -65,7 +66,6 @@ class RobotFit:
     rms_per_joint: dict[str, float]
     cutoff_hz: float
     n_samples: int
-    heldout: dict[str, float] = field(default_factory=dict)
     #: the estimate vector [base | fv fc fo per joint] and the base parameters' definition (for predict)
     x: np.ndarray | None = None
     bp: BaseParameters | None = None
@@ -181,16 +181,6 @@ def solve(A: np.ndarray, y: np.ndarray, jid: np.ndarray, nv: int) -> tuple[np.nd
     return x, np.sqrt(np.maximum(np.diag(cov), 0.0)), y - A @ x, float(sv[0] / sv[-1])
 
 
-def _split(d: RobotData, heldout: float) -> tuple[RobotData, RobotData | None]:
-    if heldout <= 0:
-        return d, None
-    k = int(round((1.0 - heldout) * d.t.size))
-
-    def part(sl):
-        return RobotData(d.t[sl], d.q[sl], d.qd[sl], d.qdd[sl], d.tau[sl], d.cutoff, d.step, d.still)
-    return part(slice(0, k)), part(slice(k, None))
-
-
 def _errors(robot: Robot, A: np.ndarray, y: np.ndarray, x: np.ndarray, jid) -> tuple[float, dict[str, float]]:
     r = y - A @ x
     rel = float(np.linalg.norm(r) / max(np.linalg.norm(y), 1e-300))
@@ -198,11 +188,10 @@ def _errors(robot: Robot, A: np.ndarray, y: np.ndarray, x: np.ndarray, jid) -> t
                  for i, j in enumerate(robot.joints)}
 
 
-def identify_robot(robot: Robot, logs, heldout: float = 0.0) -> RobotFit:
-    """Base parameters and per-joint Coulomb, viscous and offset friction from the joints' logs; the last
-    ``heldout`` fraction of the time is kept out of the fit and predicted."""
-    data = prepare(robot, logs)
-    fit_d, test_d = _split(data, heldout)
+def identify_robot(robot: Robot, logs) -> RobotFit:
+    """Base parameters and per-joint Coulomb, viscous and offset friction from the joints' logs (a held-out
+    prediction: :func:`heldout_errors`)."""
+    fit_d = prepare(robot, logs)
     bp = base_parameters(robot, robot.armature)
     A, y, jid = parallel_filter(fit_d, design(robot, bp, fit_d), fit_d.tau.reshape(-1))
     x, se, _, cond = solve(A, y, jid, robot.nv)
@@ -215,7 +204,7 @@ def identify_robot(robot: Robot, logs, heldout: float = 0.0) -> RobotFit:
         friction[j] = {k: ParamEstimate(k, float(x[nb + 3 * i + m]), float(se[nb + 3 * i + m]), units[k])
                        for m, k in enumerate(FRICTION)}
     rel, rms = _errors(robot, A, y, x, jid)
-    out = RobotFit(names, base, friction, cond, rel, rms, data.cutoff, int(y.size), x=x, bp=bp)
+    out = RobotFit(names, base, friction, cond, rel, rms, fit_d.cutoff, int(y.size), x=x, bp=bp)
     out.notes = check(out, bp, robot)
     mov = fit_d.moving()
     for i, j in enumerate(robot.joints):
@@ -223,10 +212,6 @@ def identify_robot(robot: Robot, logs, heldout: float = 0.0) -> RobotFit:
         if v.size:
             out.validity[j] = {"speed": [float(np.quantile(v, 0.005)), float(np.quantile(v, 0.995))],
                                "position": [float(q.min()), float(q.max())]}
-    if test_d is not None:
-        At, yt, jt = parallel_filter(test_d, design(robot, bp, test_d), test_d.tau.reshape(-1))
-        rel_t, rms_t = _errors(robot, At, yt, x, jt)
-        out.heldout = {"rel_error": rel_t, **{f"rms_{j}": v for j, v in rms_t.items()}}
     return out
 
 
