@@ -80,7 +80,7 @@ def arms(n: int, base: int, make=random_arm, label: str = "random arms, 4 DH joi
 
 def ur10e() -> None:
     run = ROOT.parent / "shared/realdata/ur10e_mamedov2020/identification_data/ur-20_02_19_15harm50sec.csv"
-    logs = [read_logs(str(run), str(ROOT / f"recipes/realdata/ur10e_joint{k}.yaml"))[0] for k in range(1, 7)]
+    logs = read_logs(str(run), str(ROOT / "recipes/realdata/ur10e_harmonic.yaml"))
     robot = load_robot(ROOT / "recipes/robots/ur10e.yaml")
     t0 = time.time()
     raw, smooth = heldout_errors(robot, logs, 0.3), heldout_errors(robot, logs, 0.3, smooth_hz=20.0)

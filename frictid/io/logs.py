@@ -17,7 +17,7 @@ import json
 import math
 import os
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
@@ -31,6 +31,7 @@ from ..data import OPTIONAL_CHANNELS, TRUTH_COLUMNS, JointLog
 from ..errors import ConfigError, FrictidInputError, LogFormatError
 from .atomic import atomic_path, is_stdio
 from .units import conversion, parse_units
+from .wide import wide_sources, wide_to_long
 
 CORE = ("t", "q", "qd", "tau")
 KNOWN = CORE + ("joint",) + OPTIONAL_CHANNELS + TRUTH_COLUMNS
@@ -63,6 +64,9 @@ class LogSpec:
     bad_rows: str = "error"
     files: dict[str, str] = field(default_factory=dict)
     joint_meta: dict[str, dict] = field(default_factory=dict)
+    #: a wide log (one row per instant, columns per joint): joint -> its own renames / scale factors
+    joint_maps: dict[str, dict[str, str]] = field(default_factory=dict)
+    joint_scale: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def merged(self, other: "LogSpec") -> "LogSpec":
         return LogSpec(
@@ -81,6 +85,8 @@ class LogSpec:
             files={**self.files, **other.files},
             joint_meta={j: {**self.joint_meta.get(j, {}), **other.joint_meta.get(j, {})}
                         for j in {**self.joint_meta, **other.joint_meta}},
+            joint_maps=other.joint_maps or self.joint_maps,
+            joint_scale=other.joint_scale or self.joint_scale,
         )
 
 
@@ -114,17 +120,9 @@ def spec_from_dict(d: dict, where: str) -> LogSpec:
         raise ConfigError(f"{where}: variables: expected a mapping COLUMN: VARIABLE (e.g. q: rec.pos)")
     joints = d.get("joints")
     joint_names = [str(j) for j in joints] if isinstance(joints, list) else None
-    joint_meta: dict[str, dict] = {}
-    if isinstance(joints, dict):  # {name: {meta: {...}}}: names in row order, each with its own metadata
+    joint_meta, joint_maps, joint_scale = _joint_entries(joints, where)
+    if isinstance(joints, dict):  # {name: {meta, map, scale}}: names in row order, each with its own
         joint_names = [str(j) for j in joints]
-        for j, v in joints.items():
-            if v is not None and not isinstance(v, dict):
-                raise ConfigError(f"{where}: joints.{j}: expected a mapping (e.g. meta: {{gravity: [0, 0]}})")
-            jm = (v or {}).get("meta") or {}
-            if not isinstance(jm, dict):
-                raise ConfigError(f"{where}: joints.{j}.meta: expected a mapping")
-            if jm:
-                joint_meta[str(j)] = dict(jm)
     delim = d.get("delimiter")
     if delim is not None and (not isinstance(delim, str) or len(delim) != 1):
         raise ConfigError(f"{where}: delimiter: must be one character, e.g. ';'")
@@ -149,7 +147,35 @@ def spec_from_dict(d: dict, where: str) -> LogSpec:
     return LogSpec({str(k): str(v) for k, v in rename.items()}, {str(k): str(v) for k, v in units.items()},
                    dict(scale), cols, axis, dict(d.get("meta") or {}), {str(k): str(v) for k, v in variables.items()},
                    joint_names, delim, skip, skip_to, bad_rows, {str(k): str(v) for k, v in files.items()},
-                   joint_meta)
+                   joint_meta, joint_maps, joint_scale)
+
+
+def _joint_entries(joints, where: str) -> tuple[dict, dict, dict]:
+    """A mapping file's ``joints: {NAME: {meta, map, scale}}``: each joint's metadata, and for a wide log
+    (a joint's columns side by side) its own renames and scale factors."""
+    meta: dict[str, dict] = {}
+    maps: dict[str, dict[str, str]] = {}
+    scale: dict[str, dict[str, float]] = {}
+    if not isinstance(joints, dict):
+        return meta, maps, scale
+    for j, v in joints.items():
+        if v is not None and not isinstance(v, dict):
+            raise ConfigError(f"{where}: joints.{j}: expected a mapping (e.g. meta: {{gravity: [0, 0]}})")
+        v = v or {}
+        unknown = set(v) - {"meta", "map", "scale"}
+        if unknown:
+            raise ConfigError(f"{where}: joints.{j}: unknown key(s) {', '.join(sorted(map(str, unknown)))}; "
+                              "known: meta, map, scale")
+        for key, out in (("meta", meta), ("map", maps), ("scale", scale)):
+            val = v.get(key) or {}
+            if not isinstance(val, dict):
+                raise ConfigError(f"{where}: joints.{j}.{key}: expected a mapping")
+            if key == "scale" and any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in val.values()):
+                raise ConfigError(f"{where}: joints.{j}.scale: each factor must be a number")
+            if val:
+                out[str(j)] = ({str(a): str(b) for a, b in val.items()} if key == "map"
+                               else {str(a): b for a, b in val.items()} if key == "scale" else dict(val))
+    return meta, maps, scale
 
 
 def parse_mapping(text: str | None) -> LogSpec:
@@ -288,7 +314,7 @@ def _read_table(src, label: str, is_parquet: bool, spec: LogSpec, skip: tuple[st
             raise LogFormatError(label, [f"cannot be read as Parquet ({exc}); is the file complete?"]) from None
         file_meta, eff = _parquet_spec(pf, label, spec)
         names = pf.schema_arrow.names
-        cols = [c for c in names if eff.rename.get(c, c) in wanted_targets]
+        cols = [c for c in names if eff.rename.get(c, c) in wanted_targets or c in wide_sources(eff)]
         labels = {c for c in cols if eff.rename.get(c, c) in ("joint", "segment")}
         text_joint = [c for c in cols if eff.rename.get(c, c) == "joint"
                       and (pa.types.is_string(pf.schema_arrow.field(c).type)
@@ -301,7 +327,7 @@ def _read_table(src, label: str, is_parquet: bool, spec: LogSpec, skip: tuple[st
             raise LogFormatError(label, [f"cannot be read as Parquet ({exc}); is the file complete?"]) from None
     spec = _skip_to(src, label, spec)
     names, has_header = _csv_header(src, label, spec)
-    cols = [c for c in names if spec.rename.get(c, c) in wanted_targets]
+    cols = [c for c in names if spec.rename.get(c, c) in wanted_targets or c in wide_sources(spec)]
     if len(names) == 1 and spec.delimiter is None and any(ch in names[0] for ch in ";\t| "):
         sep = next(ch for ch in ";\t| " if ch in names[0])
         raise LogFormatError(label, [f"the header has one column {names[0]!r}: the file looks "
@@ -556,6 +582,9 @@ def read_logs(path: str, mapping: str | LogSpec | None = None, units: str | None
     file_spec = spec_from_dict({k: v for k, v in file_meta.items() if k in _SPEC_KEYS}, f"{label} metadata")
     eff = file_spec.merged(side_spec).merged(spec)
     meta_all = {**file_meta, **side_meta}
+    if eff.joint_maps:  # a wide log: each joint's columns side by side, made one block per joint
+        table = wide_to_long(table, label, eff)
+        eff = replace(eff, rename={}, joint_maps={}, joint_scale={})
     return _validate_and_split(table, label, eff, meta_all, has_header=eff.columns is None or is_parquet,
                                row_offset=rows[0] if rows else 0)
 
