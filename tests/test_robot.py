@@ -58,6 +58,7 @@ def random_arm(rng, n: int = 4):
     joints = [DHJoint(name=str(i + 1), a=rng.uniform(0.1, 0.4) * (i > 0), d=rng.uniform(0.0, 0.3),
                       alpha=float(rng.choice([0.0, math.pi / 2, -math.pi / 2]))) for i in range(n)]
     robot = robot_from_dh(DHRobot(name="arm", joints=joints))
+    robot.dh_joints = joints  # the kinematics, for a robot file a command reads
     for i in range(1, n + 1):
         m = rng.uniform(1, 8)
         L = np.diag(rng.uniform(0.01, 0.2, 3))
@@ -134,7 +135,7 @@ def test_ur10e_harmonic_run_predicted_better_than_aurt():
     from frictid.robot.identify import heldout_errors
 
     run = REALDATA / "ur10e_mamedov2020/identification_data/ur-20_02_19_15harm50sec.csv"
-    logs = [read_logs(str(run), str(ROOT / f"recipes/realdata/ur10e_joint{k}.yaml"))[0] for k in range(1, 7)]
+    logs = read_logs(str(run), str(ROOT / "recipes/realdata/ur10e_harmonic.yaml"))
     e = heldout_errors(load_robot(ROOT / "recipes/robots/ur10e.yaml"), logs, 0.3, smooth_hz=20.0)
     for j, aurt in AURT_20HZ.items():
         assert e["whole"][j] < aurt, (j, e["whole"][j], aurt)
@@ -234,3 +235,44 @@ def test_fit_robot_command_writes_a_parameter_file_and_refuses_a_mismatch(tmp_pa
                           str(ROOT / "recipes/robots/ur10e.yaml"), "-o", str(tmp_path / "x.yaml")],
                          capture_output=True, text=True)
     assert bad.returncode == 2 and "joint 7" in bad.stderr and not (tmp_path / "x.yaml").exists()
+
+
+def test_simulate_replays_a_robot_identification_on_a_held_out_log(tmp_path, cli):
+    """frictid fit --robot on one log, frictid simulate --params --replay --robot on another: every joint's
+    torque predicted to the sensor noise, at the log's own samples; mismatches refused with exit 2."""
+    import yaml
+
+    from frictid.io.logs import read_logs, write_logs
+
+    rng = np.random.default_rng(243)
+    robot, friction = random_arm(rng, 3)
+    dh = {"name": "arm", "convention": "standard", "gravity": [0, 0, -9.81],
+          "joints": [{"name": j.name, "a": float(j.a), "d": float(j.d), "alpha": float(j.alpha)}
+                     for j in robot.dh_joints]}
+    (tmp_path / "arm.yaml").write_text(yaml.safe_dump(dh))
+    write_logs(simulate_excitation(robot, friction, rng, duration=20.0), str(tmp_path / "a.parquet"))
+    held = simulate_excitation(robot, friction, rng, duration=10.0, noise=0.0)
+    for lg in held:
+        lg.tau = lg.tau + rng.normal(0, 0.05, lg.n)
+    write_logs(held, str(tmp_path / "b.parquet"))
+    r = cli("fit", tmp_path / "a.parquet", "--robot", tmp_path / "arm.yaml", "-o", tmp_path / "p.yaml", "-q")
+    assert r.code == 0, r.err
+    r = cli("simulate", "--params", tmp_path / "p.yaml", "--replay", tmp_path / "b.parquet", "--robot",
+            tmp_path / "arm.yaml", "-o", tmp_path / "r.parquet", "-q")
+    assert r.code == 0, r.err
+    import pandas as pd
+    out = pd.read_parquet(tmp_path / "r.parquet")
+    assert len(out) == sum(lg.n for lg in held)
+    for j in robot.joints:
+        part = out[out["joint"] == j]
+        assert np.sqrt(np.mean(part["residual"] ** 2)) < 0.1, j  # noise 0.05 N m
+    single = tmp_path / "single.yaml"
+    assert cli("fit", ROOT / "sample_logs/hydraulic_sweep.csv", "-o", single, "-q").code == 0
+    r = cli("simulate", "--params", single, "--replay", tmp_path / "b.parquet", "--robot", tmp_path / "arm.yaml",
+            "-o", tmp_path / "x.parquet")
+    assert r.code == 2 and "settings.robot" in r.err and not (tmp_path / "x.parquet").exists()
+    dh["joints"] = dh["joints"][:2]
+    (tmp_path / "arm2.yaml").write_text(yaml.safe_dump(dh))
+    r = cli("simulate", "--params", tmp_path / "p.yaml", "--replay", tmp_path / "b.parquet", "--robot",
+            tmp_path / "arm2.yaml", "-o", tmp_path / "x.parquet")
+    assert r.code == 2 and "joints" in r.err and "Traceback" not in r.err and not (tmp_path / "x.parquet").exists()

@@ -42,6 +42,9 @@ def simulate(
         "--compensate", help="Parameter YAML from frictid fit: run the recipe in closed loop without friction "
                              "compensation, with the model as feed-forward and with the plant's true friction; "
                              "-o gets the runs (Parquet or CSV).")] = None,
+    robot: Annotated[Optional[str], typer.Option(
+        "--robot", help="With --params (from frictid fit --robot) and --replay: the robot (DH YAML or URDF); "
+                        "predicts every joint's torque, rigid body and friction (docs/robots.md).")] = None,
     mapping: MapOpt = None,
     units: UnitsOpt = None,
     quiet: QuietOpt = False,
@@ -68,8 +71,11 @@ def simulate(
                                     "(frictid simulate --params PARAMS.yaml --replay LOG -o OUT)")
         if recipe is not None:
             raise FrictidInputError("simulate: give either a recipe or --params/--replay, not both")
-        _replay(params, replay_log, output, plant, model, fmt, mapping, units, con, as_json)
+        _replay(params, replay_log, output, plant, model, fmt, mapping, units, con, as_json, robot)
         return
+    if robot is not None:
+        raise FrictidInputError("simulate: --robot applies to --params/--replay only "
+                                "(frictid simulate --params PARAMS.yaml --replay LOG --robot ROBOT -o OUT)")
     if model is not None or mapping is not None or units is not None:
         raise FrictidInputError("simulate: --model, --map and --units apply to --replay and --compensate only")
     if recipe is None:
@@ -91,8 +97,9 @@ def simulate(
                                "warnings": con.warnings})
 
 
-def _replay(params, log_path, output, plant, model, fmt, mapping, units, con, as_json=False) -> None:
+def _replay(params, log_path, output, plant, model, fmt, mapping, units, con, as_json=False, robot=None) -> None:
     from ..data import log_warnings
+    from ..errors import FrictidInputError
     from ..io.atomic import check_output_path
     from ..io.logs import output_format, read_logs
     from ..io.params import read_params
@@ -106,7 +113,15 @@ def _replay(params, log_path, output, plant, model, fmt, mapping, units, con, as
     logs = read_logs(log_path, mapping, units)
     for w in log_warnings(logs):
         con.warn(w)
-    results, info = replay_logs(logs, res, model=model, plant=plant_path)
+    if robot is not None:
+        if plant is not None or model is not None:
+            raise FrictidInputError("simulate: --robot replays the whole-robot model; it takes no --plant or --model")
+        from ..robot import load_robot
+        from ..robot.replay import replay_robot
+
+        results, info = replay_robot(load_robot(robot), res, logs)
+    else:
+        results, info = replay_logs(logs, res, model=model, plant=plant_path)
     write_replay(logs, results, output, fmt, {"params": str(params), "log": str(log_path), "joints": info,
                                               "warnings": con.warnings})
     for j, rec in info.items():

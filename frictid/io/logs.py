@@ -162,7 +162,7 @@ def _joint_entries(joints, where: str) -> tuple[dict, dict, dict]:
         if v is not None and not isinstance(v, dict):
             raise ConfigError(f"{where}: joints.{j}: expected a mapping (e.g. meta: {{gravity: [0, 0]}})")
         v = v or {}
-        unknown = set(v) - {"meta", "map", "scale"}
+        unknown = set(v) - {"meta", "map", "scale", "axis", "units"}  # axis, units: frictid's own writer
         if unknown:
             raise ConfigError(f"{where}: joints.{j}: unknown key(s) {', '.join(sorted(map(str, unknown)))}; "
                               "known: meta, map, scale")

@@ -243,19 +243,43 @@ def check(fit: RobotFit, bp: BaseParameters, robot: Robot) -> list[str]:
     return notes
 
 
-def predict(robot: Robot, fit: RobotFit, logs) -> RobotData:
-    """The identified model's torque along the joints' logs (their positions and velocities filtered as for
-    the fit): a :class:`RobotData` whose ``tau`` is the prediction, on the logs' uniform time base."""
+@dataclass
+class Prediction:
+    """The identified model along logs, at each log's own samples, per robot joint: tau (the whole torque),
+    F (the friction and offset part), qd, qdd (the filtered velocity and acceleration the model used) and
+    moving (True where the joint's friction has a sign)."""
+
+    tau: dict[str, np.ndarray]
+    F: dict[str, np.ndarray]
+    qd: dict[str, np.ndarray]
+    qdd: dict[str, np.ndarray]
+    moving: dict[str, np.ndarray]
+
+
+def predict(robot: Robot, fit: RobotFit, logs) -> Prediction:
+    """The identified model's torque along the joints' logs: positions and velocities filtered as for the
+    fit on a uniform time base, the model evaluated there and read back at each log's own instants (the
+    measured torque is never resampled: a prediction is judged against the torque as logged)."""
     d = prepare(robot, logs)
-    tau = (design(robot, fit.bp, d) @ fit.x).reshape(d.q.shape)
-    return RobotData(d.t, d.q, d.qd, d.qdd, tau, d.cutoff, d.step, d.still)
+    A = design(robot, fit.bp, d)
+    nb, nv = fit.bp.n, robot.nv
+    tau = (A @ fit.x).reshape(-1, nv)
+    F = (A[:, nb:] @ fit.x[nb:]).reshape(-1, nv)
+    mov = d.moving().astype(float)
+    _, ordered = align(robot, logs)
+    out = Prediction({}, {}, {}, {}, {})
+    for i, (j, lg) in enumerate(zip(robot.joints, ordered)):
+        for name, y in (("tau", tau), ("F", F), ("qd", d.qd), ("qdd", d.qdd)):
+            getattr(out, name)[j] = np.interp(lg.t, d.t, y[:, i])
+        out.moving[j] = np.interp(lg.t, d.t, mov[:, i]) > 0.5
+    return out
 
 
 def heldout_errors(robot: Robot, logs, fraction: float = 0.3, smooth_hz: float | None = None) -> dict:
     """Identify on the first ``1 - fraction`` of the joints' logs and predict the rest: per joint the RMS of
-    (measured - predicted) torque over the whole held-out part and over its moving samples, against the
-    measured torque as logged or low-passed at ``smooth_hz`` (zero phase). Returns {'fit', 'whole',
-    'moving'}."""
+    (measured - predicted) torque at the log's own samples over the whole held-out part and over its moving
+    samples, against the measured torque as logged or low-passed at ``smooth_hz`` (zero phase, at the
+    log's median rate). Returns {'fit', 'whole', 'moving'}."""
     import copy
 
     n = min(lg.n for lg in logs)
@@ -270,13 +294,14 @@ def heldout_errors(robot: Robot, logs, fraction: float = 0.3, smooth_hz: float |
     test = [cut(lg, slice(k, None)) for lg in logs]
     p = predict(robot, fit, test)
     _, ordered = align(robot, test)
-    tau = np.column_stack([np.interp(p.t, lg.t, lg.tau) for lg in ordered])
-    if smooth_hz is not None:
-        fs = 1.0 / float(np.median(np.diff(p.t)))
-        if smooth_hz < 0.5 * fs:
-            tau = sosfiltfilt(butter(4, smooth_hz, fs=fs, output="sos"), tau, axis=0)
-    r = tau - p.tau
-    mov = p.moving()
-    whole = {j: float(np.sqrt(np.mean(r[:, i] ** 2))) for i, j in enumerate(robot.joints)}
-    moving = {j: float(np.sqrt(np.mean(r[mov[:, i], i] ** 2))) for i, j in enumerate(robot.joints)}
+    whole, moving = {}, {}
+    for j, lg in zip(robot.joints, ordered):
+        tau = np.asarray(lg.tau, float)
+        if smooth_hz is not None:
+            fs = 1.0 / float(np.median(np.diff(lg.t)))
+            if smooth_hz < 0.5 * fs:
+                tau = sosfiltfilt(butter(4, smooth_hz, fs=fs, output="sos"), tau)
+        r = tau - p.tau[j]
+        whole[j] = float(np.sqrt(np.mean(r ** 2)))
+        moving[j] = float(np.sqrt(np.mean(r[p.moving[j]] ** 2)))
     return {"fit": fit, "whole": whole, "moving": moving}

@@ -38,6 +38,8 @@ def fit_result(robot: Robot, fit: RobotFit, sources: list[dict], robot_file: str
     settings = {"robot": {"name": robot.name, "file": robot_file, "joints": list(robot.joints),
                           "armature": robot.armature, "condition_number": fit.condition,
                           "relative_torque_error": fit.rel_error, "cutoff_hz": fit.cutoff_hz,
-                          "samples": fit.n_samples, "base_parameters": base, "notes": list(fit.notes)}}
+                          "samples": fit.n_samples, "base_parameters": base,
+                          "base_columns": fit.bp.columns.tolist() if fit.bp is not None else None,
+                          "notes": list(fit.notes)}}
     return FitResult(joints={j: joint_fit(j, fit) for j in robot.joints}, sources=sources, version=__version__,
                      settings=settings)

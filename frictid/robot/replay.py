@@ -1,0 +1,66 @@
+"""Replay a whole-robot identification along a measured log: every joint's predicted torque (the rigid-body
+torque of the identified base parameters plus the joint's friction), as ``frictid simulate --params P
+--replay LOG --robot ROBOT`` writes it.
+
+The parameter file holds what the prediction needs (``settings.robot``: the base parameters, which columns
+of the full regressor they start from, the rotor-inertia flag; per joint the Coulomb, viscous and offset
+friction). The robot file gives the kinematics; a robot whose base parameters differ from the file's (a
+different robot, or a changed description) is refused rather than predicted wrongly.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import FrictidInputError
+from ..replay import ReplayResult
+from .description import Robot
+from .identify import RobotFit, predict
+from .regressor import base_parameters
+
+
+def fit_from_params(robot: Robot, res) -> RobotFit:
+    """The :class:`RobotFit` a parameter file of ``frictid fit --robot`` describes, for ``robot``."""
+    rs = (res.settings or {}).get("robot")
+    if not rs or "base_parameters" not in rs:
+        raise FrictidInputError("the parameter file holds no whole-robot identification (settings.robot); "
+                                "make one with frictid fit LOG --robot ROBOT")
+    if list(rs.get("joints", [])) != list(robot.joints):
+        raise FrictidInputError(f"the parameter file was identified on joints {', '.join(map(str, rs.get('joints', [])))}"
+                                f" but robot {robot.name} has {', '.join(robot.joints)}; give the robot it was "
+                                "identified with")
+    if bool(rs.get("armature")) != bool(robot.armature):
+        raise FrictidInputError(f"robot {robot.name}: armature is {robot.armature} but the parameter file was "
+                                f"identified with armature {rs.get('armature')}")
+    bp = base_parameters(robot, robot.armature)
+    names = [p["name"] for p in rs["base_parameters"]]
+    cols = rs.get("base_columns")
+    if names != bp.names(robot) or (cols is not None and list(cols) != bp.columns.tolist()):
+        raise FrictidInputError(f"robot {robot.name}: its base parameters ({bp.n}) are not those of the parameter "
+                                f"file ({len(names)}); give the robot description it was identified with")
+    x = [float(p["value"]) for p in rs["base_parameters"]]
+    for j in robot.joints:
+        cv = res[j].models.get("coulomb_viscous")
+        if cv is None:
+            raise FrictidInputError(f"joint {j}: the parameter file has no coulomb_viscous model")
+        off = res[j].offset.value if res[j].offset is not None else 0.0
+        x += [cv.params["sigma2"].value, cv.params["Fc"].value, off]
+    return RobotFit(names, [], {}, float(rs.get("condition_number", np.nan)),
+                    float(rs.get("relative_torque_error", np.nan)), {}, float(rs.get("cutoff_hz", np.nan)),
+                    0, x=np.array(x), bp=bp)
+
+
+def replay_robot(robot: Robot, res, logs) -> tuple[list[ReplayResult], dict]:
+    """Every joint's predicted torque along ``logs`` (one log per robot joint), at each log's own samples:
+    (results in the order of ``logs``, per joint the residual RMS)."""
+    fit = fit_from_params(robot, res)
+    p = predict(robot, fit, logs)
+    out, info = [], {}
+    for lg in logs:
+        j = str(lg.joint)
+        r = ReplayResult(F_model=p.F[j], tau_model=p.tau[j], tau=np.asarray(lg.tau, float), z=np.zeros(lg.n),
+                         T=np.full(lg.n, np.nan), w=p.qd[j], a=p.qdd[j])
+        r.notes.append(f"whole-robot model of {robot.name} ({fit.bp.n} base parameters, coulomb_viscous friction)")
+        out.append(r)
+        info[j] = {"model": f"robot:{robot.name}", "rms_residual": float(np.sqrt(np.mean(r.residual ** 2))),
+                   "closed_loop": False}
+    return out, info
