@@ -242,7 +242,7 @@ def test_simulate_replays_a_robot_identification_on_a_held_out_log(tmp_path, cli
     torque predicted to the sensor noise, at the log's own samples; mismatches refused with exit 2."""
     import yaml
 
-    from frictid.io.logs import read_logs, write_logs
+    from frictid.io.logs import write_logs
 
     rng = np.random.default_rng(243)
     robot, friction = random_arm(rng, 3)
