@@ -237,42 +237,72 @@ def test_fit_robot_command_writes_a_parameter_file_and_refuses_a_mismatch(tmp_pa
     assert bad.returncode == 2 and "joint 7" in bad.stderr and not (tmp_path / "x.yaml").exists()
 
 
-def test_simulate_replays_a_robot_identification_on_a_held_out_log(tmp_path, cli):
-    """frictid fit --robot on one log, frictid simulate --params --replay --robot on another: every joint's
-    torque predicted to the sensor noise, at the log's own samples; mismatches refused with exit 2."""
+@pytest.fixture(scope="module")
+def arm_files(tmp_path_factory):
+    """A random 3-joint arm as a user has it: its DH file, an excitation log, a held-out log (noise 0.05
+    N m) and the parameter file of frictid fit --robot on the first."""
     import yaml
 
+    from frictid.cli import main
     from frictid.io.logs import write_logs
 
+    tmp = tmp_path_factory.mktemp("arm")
     rng = np.random.default_rng(243)
     robot, friction = random_arm(rng, 3)
     dh = {"name": "arm", "convention": "standard", "gravity": [0, 0, -9.81],
           "joints": [{"name": j.name, "a": float(j.a), "d": float(j.d), "alpha": float(j.alpha)}
                      for j in robot.dh_joints]}
-    (tmp_path / "arm.yaml").write_text(yaml.safe_dump(dh))
-    write_logs(simulate_excitation(robot, friction, rng, duration=20.0), str(tmp_path / "a.parquet"))
-    held = simulate_excitation(robot, friction, rng, duration=10.0, noise=0.0)
-    for lg in held:
-        lg.tau = lg.tau + rng.normal(0, 0.05, lg.n)
-    write_logs(held, str(tmp_path / "b.parquet"))
-    r = cli("fit", tmp_path / "a.parquet", "--robot", tmp_path / "arm.yaml", "-o", tmp_path / "p.yaml", "-q")
-    assert r.code == 0, r.err
-    r = cli("simulate", "--params", tmp_path / "p.yaml", "--replay", tmp_path / "b.parquet", "--robot",
-            tmp_path / "arm.yaml", "-o", tmp_path / "r.parquet", "-q")
-    assert r.code == 0, r.err
+    (tmp / "arm.yaml").write_text(yaml.safe_dump(dh))
+    write_logs(simulate_excitation(robot, friction, rng, duration=20.0), str(tmp / "a.parquet"))
+    write_logs(simulate_excitation(robot, friction, rng, duration=10.0), str(tmp / "b.parquet"))
+    with pytest.raises(SystemExit) as ex:
+        main(["fit", str(tmp / "a.parquet"), "--robot", str(tmp / "arm.yaml"), "-o", str(tmp / "p.yaml"), "-q"])
+    assert ex.value.code in (0, None)
+    return tmp, robot, dh
+
+
+def test_simulate_replays_a_robot_identification_on_a_held_out_log(arm_files, cli):
+    """frictid simulate --params --replay --robot on a log the fit did not see: every joint's torque
+    predicted to the sensor noise, at the log's own samples; mismatches refused with exit 2."""
     import pandas as pd
-    out = pd.read_parquet(tmp_path / "r.parquet")
-    assert len(out) == sum(lg.n for lg in held)
+    import yaml
+
+    tmp, robot, dh = arm_files
+    r = cli("simulate", "--params", tmp / "p.yaml", "--replay", tmp / "b.parquet", "--robot", tmp / "arm.yaml",
+            "-o", tmp / "r.parquet", "-q")
+    assert r.code == 0, r.err
+    out = pd.read_parquet(tmp / "r.parquet")
     for j in robot.joints:
         part = out[out["joint"] == j]
-        assert np.sqrt(np.mean(part["residual"] ** 2)) < 0.1, j  # noise 0.05 N m
-    single = tmp_path / "single.yaml"
+        assert len(part) == 5000 and np.sqrt(np.mean(part["residual"] ** 2)) < 0.1, j  # noise 0.05 N m
+    single = tmp / "single.yaml"
     assert cli("fit", ROOT / "sample_logs/hydraulic_sweep.csv", "-o", single, "-q").code == 0
-    r = cli("simulate", "--params", single, "--replay", tmp_path / "b.parquet", "--robot", tmp_path / "arm.yaml",
-            "-o", tmp_path / "x.parquet")
-    assert r.code == 2 and "settings.robot" in r.err and not (tmp_path / "x.parquet").exists()
-    dh["joints"] = dh["joints"][:2]
-    (tmp_path / "arm2.yaml").write_text(yaml.safe_dump(dh))
-    r = cli("simulate", "--params", tmp_path / "p.yaml", "--replay", tmp_path / "b.parquet", "--robot",
-            tmp_path / "arm2.yaml", "-o", tmp_path / "x.parquet")
-    assert r.code == 2 and "joints" in r.err and "Traceback" not in r.err and not (tmp_path / "x.parquet").exists()
+    r = cli("simulate", "--params", single, "--replay", tmp / "b.parquet", "--robot", tmp / "arm.yaml",
+            "-o", tmp / "x.parquet")
+    assert r.code == 2 and "settings.robot" in r.err and not (tmp / "x.parquet").exists()
+    (tmp / "arm2.yaml").write_text(yaml.safe_dump(dict(dh, joints=dh["joints"][:2])))
+    r = cli("simulate", "--params", tmp / "p.yaml", "--replay", tmp / "b.parquet", "--robot", tmp / "arm2.yaml",
+            "-o", tmp / "x.parquet")
+    assert r.code == 2 and "joints" in r.err and "Traceback" not in r.err and not (tmp / "x.parquet").exists()
+
+
+def test_the_report_of_a_robot_has_its_page_and_draws_friction_torques(arm_files, cli):
+    """The robot page: the identification's facts, the torque fit per joint (residual at the noise), the base
+    parameters; the joints' sections draw the friction torque (the measured torque less the rigid body)."""
+    import re
+
+    tmp, robot, _ = arm_files
+    r = cli("report", tmp / "p.yaml", tmp / "b.parquet", "-o", tmp / "r.html", "-q", "--jobs", "1")
+    assert r.code == 0, r.err
+    html = (tmp / "r.html").read_text()
+    assert "<h2>Robot: arm</h2>" in html and "Torque fit along the logs" in html
+    rows = re.findall(r"<tr><td>(\d)</td><td class=\"num\">([-\d.e]+)</td><td class=\"num\">([-\d.e]+)</td>", html)
+    assert [j for j, _, _ in rows] == robot.joints
+    assert all(float(res) < 0.1 for _, _, res in rows), rows  # the torque fit at the noise (0.05 N m)
+    assert html.count("measured and robot model torque") >= 3 and "Base parameters" in html
+    moved = tmp / "elsewhere.yaml"
+    text = (tmp / "p.yaml").read_text().replace(str(tmp / "arm.yaml"), str(tmp / "gone.yaml"))
+    moved.write_text(text)
+    r = cli("report", moved, tmp / "b.parquet", "-o", tmp / "r2.html", "-q", "--jobs", "1")
+    assert r.code == 0, r.err
+    assert "is not found from here" in (tmp / "r2.html").read_text()

@@ -37,6 +37,9 @@ def report(
     as_json: JsonOpt = False,
     compensation: Annotated[Optional[str], typer.Option(
         "--compensation", help="Runs file of frictid simulate --compensate: its runs are drawn per joint.")] = None,
+    robot: Annotated[Optional[str], typer.Option(
+        "--robot", help="For a parameter file of frictid fit --robot: the robot (DH YAML or URDF), when the file "
+                        "it names is not found from here.")] = None,
     jobs: Annotated[int, typer.Option(
         "--jobs", min=0, help="Joints built at once, each in its own process (0: one per available core; "
                               "1: one after another). The report does not depend on it.")] = 0,
@@ -80,11 +83,11 @@ def report(
     finally:
         hashes = pre.hashes()
     cmd = command_line("report", [params, *logs], [("-o", output), ("--map", mapping), ("--units", units),
-                                                    ("--compensation", compensation),
+                                                    ("--compensation", compensation), ("--robot", robot),
                                                     ("--jobs", str(jobs) if jobs else None)])
     warned: list[str] = []
     nbytes = write_report(output, pd, joint_logs, params_path=params, command=cmd, jobs=jobs, hashes=hashes,
-                          log_warnings_out=warned, compensation=runs)
+                          log_warnings_out=warned, compensation=runs, robot_file=robot)
     for w in warned:
         con.warn(w)
     n = len(pd.get("joints") or {})

@@ -31,6 +31,7 @@ from frictid.parallel import Prefetch as _Prefetch, map_ordered, n_workers
 
 from . import content as ct
 from . import figures as fg  # matplotlib itself is imported by the figure functions only
+from .robot import robot_page
 
 #: Most logs drawn as separate timelines per joint (all logs still feed the other figures).
 MAX_TIMELINES = 4
@@ -1009,7 +1010,7 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
                  command: str = "", segmenter: Callable | None = None, differentiate: Callable | None = None,
                  generated: str | None = None, timings: dict | None = None, jobs: int = 0,
                  hashes: dict[str, str | None] | None = None, log_warnings_out: list[str] | None = None,
-                 compensation: dict | None = None) -> str:
+                 compensation: dict | None = None, robot_file: str | None = None) -> str:
     """The report as one HTML string.
 
     params : the parameter file as a dictionary (schema 1). logs : the joint logs to draw (any joints; logs
@@ -1027,10 +1028,17 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
     joint's arrays are freed before the worker takes the next. The HTML does not depend on it. hashes :
     the SHA-256 of log files already computed (path -> hash, e.g. :meth:`Prefetch.hashes`); the others
     are computed here. compensation : runs of ``frictid simulate --compensate``
-    (:func:`frictid.io.replay_out.read_runs`), drawn in a section of each joint they hold.
+    (:func:`frictid.io.replay_out.read_runs`), drawn in a section of each joint they hold. robot_file : for
+    a whole-robot parameter file, the robot (default: the file ``settings.robot`` names): the page then
+    gains the robot's part, and the joints' sections draw each joint's friction torque
+    (:mod:`frictid.report.robot`).
     """
     timings = timings if timings is not None else {}
     logs = list(logs or [])
+    robot = None
+    if isinstance((params.get("settings") or {}).get("robot"), dict):
+        logs = [x for lg in logs for x in (lg.load() if isinstance(lg, DeferredLogs) else [lg])]
+        robot, logs = robot_page(params, logs, robot_file, fmt_pm, fmt_num)
     if logs and (segmenter is None or differentiate is None):
         segmenter = segmenter or _seg.find_segments
         differentiate = differentiate or _seg.derivatives
@@ -1071,7 +1079,7 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
         inputs=inputs, notes=notes, file_version=str(params.get("frictid", "")), version=__version__,
         schema=params.get("schema"), settings=params.get("settings") or {}, command=command,
         generated=generated or _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-        has_logs=bool(logs))
+        has_logs=bool(logs), robot=robot)
     timings["html"] = time.process_time() - t0
     return html
 
