@@ -30,6 +30,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from frictid.io.logs import read_logs  # noqa: E402
 from frictid.robot import identify_robot, load_robot  # noqa: E402
+from frictid.robotfit import heldout_models  # noqa: E402
 from frictid.robot.identify import heldout_errors  # noqa: E402
 from test_robot import AURT_20HZ, random_arm, simulate_excitation  # noqa: E402
 
@@ -93,6 +94,14 @@ def ur10e() -> None:
         f = fit.friction[j]
         print(f"  {j:<5} {raw['whole'][j]:6.2f} {AURT_RAW[j]:6.2f} {raw['moving'][j]:7.2f}   {smooth['whole'][j]:10.2f} "
               f"{AURT_20HZ[j]:6.2f} {smooth['moving'][j]:7.2f}   {f['fv'].value:.2f} {f['fc'].value:.2f} {f['fo'].value:.2f}")
+    t0 = time.time()
+    both = heldout_models(robot, logs, 0.3)
+    print(f"  stage 2 (frictid's velocity models on each joint's friction torque, rigid body held), same split, "
+          f"as logged, {time.time() - t0:.1f} s:")
+    print(f"  {'joint':<5} {'linear':>7} {'models':>7}   {'moving: linear':>14} {'models':>7}")
+    for j in robot.joints:
+        a, b = both["linear"], both["models"]
+        print(f"  {j:<5} {a['whole'][j]:7.2f} {b['whole'][j]:7.2f}   {a['moving'][j]:14.2f} {b['moving'][j]:7.2f}")
 
 
 def franka() -> None:

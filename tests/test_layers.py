@@ -22,7 +22,7 @@ LAYERS = {
     "io": 2, "report": 2, "api": 2,
     # 3: the command line and the package's public surface
     "cli": 3, "__main__": 3, "__init__": 3,
-    "fleet": 2, "export": 2, "compensate": 1, "robot": 1,
+    "fleet": 2, "export": 2, "compensate": 1, "robot": 1, "robotfit": 2,
 }
 
 

@@ -223,7 +223,8 @@ def test_fit_robot_command_writes_a_parameter_file_and_refuses_a_mismatch(tmp_pa
     data, mapping = str(REALDATA / "franka_panda_gaz2019"), str(ROOT / "recipes/realdata/franka_panda.yaml")
     out = tmp_path / "panda.yaml"
     r = subprocess.run([sys.executable, "-m", "frictid", "fit", data, "--map", mapping, "--robot",
-                        str(ROOT / "recipes/robots/panda.yaml"), "-o", str(out)], capture_output=True, text=True)
+                        str(ROOT / "recipes/robots/panda.yaml"), "--robot-friction", "linear", "-o", str(out)],
+                       capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     res = frictid.read_params(out)
     assert sorted(res.joints) == [str(i) for i in range(1, 8)]
@@ -249,6 +250,7 @@ def arm_files(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("arm")
     rng = np.random.default_rng(243)
     robot, friction = random_arm(rng, 3)
+    robot.friction_truth = friction
     dh = {"name": "arm", "convention": "standard", "gravity": [0, 0, -9.81],
           "joints": [{"name": j.name, "a": float(j.a), "d": float(j.d), "alpha": float(j.alpha)}
                      for j in robot.dh_joints]}
@@ -259,6 +261,24 @@ def arm_files(tmp_path_factory):
         main(["fit", str(tmp / "a.parquet"), "--robot", str(tmp / "arm.yaml"), "-o", str(tmp / "p.yaml"), "-q"])
     assert ex.value.code in (0, None)
     return tmp, robot, dh
+
+
+def test_the_friction_models_are_fitted_on_each_joints_friction_torque(arm_files):
+    """The second stage: every model of frictid on each joint's friction torque (the rigid body held), with
+    inertia and gravity given as zero; the truth is a Coulomb-viscous law plus an offset."""
+    import frictid
+
+    tmp, robot, _ = arm_files
+    res = frictid.read_params(tmp / "p.yaml")
+    rs = res.settings["robot"]
+    assert rs["friction_stage"] == "models" and set(rs["friction"]) == set(robot.joints)
+    for j in robot.joints:
+        jf = res[j]
+        assert jf.selected and jf.inertia.value == 0.0
+        m = jf.model
+        fv, fc, _ = robot.friction_truth[j]
+        for w in (0.3, 0.8):  # inside the speeds the excitation covers
+            assert abs(m.friction(w) - (fc + fv * w)) < 0.05 * (fc + fv * w) + 0.1, (j, w)
 
 
 def test_simulate_replays_a_robot_identification_on_a_held_out_log(arm_files, cli):
@@ -306,3 +326,59 @@ def test_the_report_of_a_robot_has_its_page_and_draws_friction_torques(arm_files
     r = cli("report", moved, tmp / "b.parquet", "-o", tmp / "r2.html", "-q", "--jobs", "1")
     assert r.code == 0, r.err
     assert "is not found from here" in (tmp / "r2.html").read_text()
+
+
+def test_designed_sweep_gives_each_joint_plateaus_the_single_joint_fit_reads():
+    """frictid design --experiment sweep: inside the limits; played on a random arm (perfect tracking, the
+    rigid body and a Coulomb-viscous friction per joint, torque noise), one joint's part is a log whose
+    plateaus the segmentation finds and whose friction the single-joint fit recovers."""
+    import frictid
+    from frictid.robot.design import Limits
+    from frictid.robot.experiments import sweep_experiment
+
+    rng = np.random.default_rng(244)
+    robot, friction = random_arm(rng, 3)
+    lim = Limits(lo=np.full(3, -2.0), hi=np.full(3, 2.0), velocity=np.full(3, 1.5), acceleration=np.full(3, 4.0))
+    ex = sweep_experiment(robot, lim, speeds=8, plateau_s=1.5, rate=200.0)
+    assert np.all(ex.q >= -2.0) and np.all(ex.q <= 2.0)
+    assert np.max(np.abs(ex.qd)) <= 1.5 + 1e-9 and np.max(np.abs(ex.qdd)) <= 4.0 + 1e-9
+    np.testing.assert_allclose(np.gradient(ex.q, ex.t, axis=0), ex.qd, atol=0.03)
+    data = robot.model.createData()
+    i, j = 1, robot.joints[1]
+    sel = ex.active == i
+    q, qd, qdd = ex.q[sel], ex.qd[sel], ex.qdd[sel]
+    tau = np.array([pin.rnea(robot.model, data, q[k], qd[k], qdd[k])[i] for k in range(q.shape[0])])
+    fv, fc, fo = friction[j]
+    tau += fv * qd[:, i] + fc * np.sign(qd[:, i]) + fo + rng.normal(0, 0.02, tau.size)
+    log = JointLog(joint=j, t=ex.t[sel] - ex.t[sel][0], tau=tau, q=q[:, i], qd=qd[:, i])
+    res = frictid.fit(log, models="coulomb_viscous", diagnose=False)
+    kinds = list(res[j].segment_list[0]["kind"])
+    assert kinds.count("constant_velocity") >= 12, kinds  # 8 speeds x 2 signs
+    p = res[j].models["coulomb_viscous"].params
+    assert p["Fc"].value == pytest.approx(fc, rel=0.03) and p["sigma2"].value == pytest.approx(fv, rel=0.05)
+
+
+def test_designed_ramps_hold_the_arm_and_stay_below_each_joints_coulomb_level(arm_files, cli):
+    """frictid design --experiment ramps --params P: each joint's ramps on the torque that holds the arm at
+    the centre pose (the identified rigid body at rest plus the offset: the true gravity torque within a few
+    per cent of the friction), peaks at 85 % of the identified Coulomb level; refused without --params."""
+    import pandas as pd
+    import yaml
+
+    tmp, robot, dh = arm_files
+    lim = {"position": [-2.0, 2.0], "velocity": 1.5, "acceleration": 4.0}
+    (tmp / "arm_lim.yaml").write_text(yaml.safe_dump(dict(dh, joints=[dict(j, **lim) for j in dh["joints"]])))
+    r = cli("design", tmp / "arm_lim.yaml", "--experiment", "ramps", "--params", tmp / "p.yaml", "-o", tmp / "ramps.csv")
+    assert r.code == 0, r.err
+    out = pd.read_csv(tmp / "ramps.csv")
+    data = robot.model.createData()
+    q0 = np.zeros(robot.nv)
+    g = pin.rnea(robot.model, data, q0, q0, q0)
+    for i, j in enumerate(robot.joints):
+        fv, fc, fo = robot.friction_truth[j]
+        idle = out[out["active_joint"] != i + 1][f"tau_{j}"]
+        assert np.allclose(idle, idle.iloc[0]) and abs(idle.iloc[0] - (g[i] + fo)) < 0.05 * fc + 0.05, j
+        mine = out[out["active_joint"] == i + 1][f"tau_{j}"] - idle.iloc[0]
+        assert 0.8 * fc < mine.max() < 0.9 * fc and 0.8 * fc < -mine.min() < 0.9 * fc, (j, mine.max(), fc)
+    r = cli("design", tmp / "arm_lim.yaml", "--experiment", "ramps", "-o", tmp / "x.csv")
+    assert r.code == 2 and "--params" in r.err and not (tmp / "x.csv").exists()

@@ -20,6 +20,14 @@ def design(
     rate: Annotated[float, typer.Option("--rate", min=1.0, help="Sample rate of the CSV [Hz].")] = 100.0,
     iterations: Annotated[int, typer.Option("--iterations", min=1, help="Optimiser evaluations.")] = 300,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the random starts.")] = 0,
+    experiment: Annotated[str, typer.Option(
+        "--experiment", help="fourier (the excitation), sweep (each joint's constant-velocity plateaus, position "
+                             "mode) or ramps (each joint's presliding torque ramps, torque mode; needs --params).")] = "fourier",
+    params: Annotated[str, typer.Option(
+        "--params", help="With --experiment ramps: a parameter file of frictid fit --robot (the holding torque "
+                         "and each joint's Coulomb level).")] = None,
+    speeds: Annotated[int, typer.Option("--speeds", min=2, help="With --experiment sweep: speeds per joint.")] = 12,
+    plateau: Annotated[float, typer.Option("--plateau", min=0.5, help="With --experiment sweep: plateau length [s].")] = 2.0,
     as_json: JsonOpt = False,
     quiet: QuietOpt = False,
 ) -> None:
@@ -30,6 +38,7 @@ def design(
     import numpy as np
     import pyarrow as pa
 
+    from ..errors import FrictidInputError
     from ..io.atomic import check_output_path
     from ..io.logs import write_table
     from ..robot import load_robot
@@ -37,9 +46,16 @@ def design(
 
     con = Console(quiet)
     refuse_json_with_stdout("design", as_json, output)
-    check_output_path(output, [robot])
+    check_output_path(output, [robot] + ([params] if params else []))
+    if experiment not in ("fourier", "sweep", "ramps"):
+        raise FrictidInputError(f"design: --experiment must be fourier, sweep or ramps, not {experiment!r}")
+    if (experiment == "ramps") != (params is not None):
+        raise FrictidInputError("design: --params goes with --experiment ramps (the ramps' holding torque and "
+                                "levels come from a parameter file of frictid fit --robot)")
     rb = load_robot(robot)
     lim = robot_limits(rb, fraction)
+    if experiment != "fourier":
+        return _experiment(rb, lim, experiment, params, output, rate, speeds, plateau, con, as_json)
     tr = design_excitation(rb, lim, period=period, harmonics=harmonics, iterations=iterations, rate=rate, seed=seed)
     cols = {"t": tr.t}
     for i, j in enumerate(rb.joints):
@@ -56,3 +72,41 @@ def design(
                                             "peak_speed": float(np.abs(tr.qd[:, i]).max()),
                                             "peak_acceleration": float(np.abs(tr.qdd[:, i]).max())}
                                         for i, j in enumerate(rb.joints)}})
+
+
+def _experiment(rb, lim, kind, params, output, rate, speeds, plateau, con, as_json) -> None:
+    """``frictid design --experiment sweep|ramps``: each joint's single-joint experiment, as CSV."""
+    import numpy as np
+    import pyarrow as pa
+
+    from ..io.logs import write_table
+    from ..io.params import read_params
+    from ..robot.experiments import holding_torque, ramp_experiment, sweep_experiment
+    from ..robot.replay import fit_from_params
+
+    if kind == "sweep":
+        ex = sweep_experiment(rb, lim, speeds=speeds, plateau_s=plateau, rate=rate)
+    else:
+        res = read_params(params)
+        fit = fit_from_params(rb, res)
+        fr = res.settings["robot"].get("friction") or {j: {"fc": {"value": res[j].models["coulomb_viscous"].params["Fc"].value},
+                                                           "fo": {"value": res[j].offset.value}} for j in rb.joints}
+        levels = {j: abs(float(fr[j]["fc"]["value"])) for j in rb.joints}
+        offsets = np.array([float(fr[j]["fo"]["value"]) for j in rb.joints])
+        hold = holding_torque(rb, fit, 0.5 * (lim.lo + lim.hi), offsets)
+        ex = ramp_experiment(rb, lim, hold, levels, rate=rate)
+    cols = {"t": ex.t, "active_joint": ex.active + 1.0}
+    for i, j in enumerate(rb.joints):
+        if ex.tau is not None:
+            cols[f"q_{j}"], cols[f"tau_{j}"] = ex.q[:, i], ex.tau[:, i]
+        else:
+            cols[f"q_{j}"], cols[f"qd_{j}"], cols[f"qdd_{j}"] = ex.q[:, i], ex.qd[:, i], ex.qdd[:, i]
+    write_table(pa.table({k: pa.array(np.asarray(v, dtype=float)) for k, v in cols.items()}), output, "csv")
+    for n in ex.notes:
+        con.info(f"frictid: {n}")
+    con.info(f"frictid: {rb.name}: {kind}, {ex.t.size} samples over {ex.t[-1]:.1f} s")
+    if output != "-":
+        con.info(f"frictid: wrote {output}")
+    if as_json:
+        emit_json("design", {"output": output, "robot": rb.name, "experiment": kind, "samples": int(ex.t.size),
+                             "duration": float(ex.t[-1]), "notes": ex.notes})

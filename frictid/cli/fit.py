@@ -33,6 +33,10 @@ def fit(
         "--robot", help="A robot (DH YAML or URDF, e.g. recipes/robots/panda.yaml): identify the rigid-body base "
                         "parameters jointly with every joint's Coulomb, viscous and offset friction from "
                         "multi-joint motion (docs/robots.md).")] = None,
+    robot_friction: Annotated[str, typer.Option(
+        "--robot-friction", help="With --robot: models (then every model of frictid on each joint's friction "
+                                 "torque, the rigid body held) or linear (the joint estimate's Coulomb-viscous "
+                                 "friction only).")] = "models",
     engine: Annotated[str, typer.Option(
         "--engine", help="local: fit the logs together into one parameter file; dask: LOGS is a dataset (a "
                          "hive-partitioned folder or files), one task per partition into the trend store "
@@ -71,7 +75,7 @@ def fit(
         from .report import check_fit_report
         check_fit_report(report, output, logs, mapping)
     if robot:
-        return _fit_robot(logs, robot, output, mapping, units, con, as_json)
+        return _fit_robot(logs, robot, output, mapping, units, con, as_json, robot_friction, not no_diagnose, jobs)
     parse_models(models)  # refuse unknown names before reading anything
     con.info(f"frictid: fitting {len(logs)} log{'s' if len(logs) != 1 else ''} ...")
     res = run_fit(logs, joint=joint, models=models, mapping=mapping, units=units, diagnose=not no_diagnose,
@@ -99,38 +103,28 @@ def fit(
         emit_json("fit", {"output": output, "report": report, "joints": summary, "warnings": con.warnings})
 
 
-def _fit_robot(logs, robot, output, mapping, units, con, as_json) -> None:
+def _fit_robot(logs, robot, output, mapping, units, con, as_json, friction, diagnose, jobs) -> None:
     """``frictid fit LOG... --robot ROBOT``: the whole-robot identification into a parameter file."""
-    from ..io.logs import read_many
     from ..io.params import write_params
-    from ..robot import identify_robot, load_robot
-    from ..robot.result import fit_result
+    from ..robotfit import fit_robot
 
-    rb = load_robot(robot)
-    joint_logs = read_many(logs, mapping, units)
-    con.info(f"frictid: identifying {rb.name} ({len(rb.joints)} joints) from {len(logs)} log"
-             f"{'s' if len(logs) != 1 else ''} ...")
-    rf = identify_robot(rb, joint_logs)
-    from ..io.logs import file_sha256
-
-    rows = {}
-    for lg in joint_logs:
-        rows[lg.source] = max(rows.get(lg.source, 0), lg.n)
-    res = fit_result(rb, rf, [{"path": str(p), "sha256": file_sha256(p), "rows": rows.get(str(p), 0)}
-                              for p in logs], str(robot))
+    con.info(f"frictid: identifying the robot of {robot} from {len(logs)} log{'s' if len(logs) != 1 else ''} ...")
+    res = fit_robot(logs, robot, mapping, units, friction=friction, diagnose=diagnose, jobs=jobs,
+                    robot_file=str(robot))
     write_params(res, output)
-    con.info(f"frictid: {len(rf.base)} base parameters, condition number {rf.condition:.3g}, relative torque "
-             f"error {100 * rf.rel_error:.2f} %")
-    for note in rf.notes:  # what could not be checked is said; what was marked is warned
+    rs = res.settings["robot"]
+    con.info(f"frictid: {rs['name']}: {len(rs['base_parameters'])} base parameters, condition number "
+             f"{rs['condition_number']:.3g}, relative torque error {100 * rs['relative_torque_error']:.2f} %")
+    for note in rs["notes"]:  # what could not be checked is said; what was marked is warned
         (con.info if note.startswith("physical feasibility") else con.warn)(f"frictid: {note}" if
                                                                              note.startswith("physical") else note)
-    for j in rb.joints:
-        f = rf.friction[j]
-        con.info(f"frictid: joint {j}: Fc {f['fc'].value:.4g} +- {f['fc'].stderr:.2g}, sigma2 {f['fv'].value:.4g} "
-                 f"+- {f['fv'].stderr:.2g}, offset {f['fo'].value:.4g} N m")
+    summary = {j: joint_summary(jd) for j, jd in res.to_dict()["joints"].items()}
+    for j, f in rs["friction"].items():
+        sel = summary[j]["selected"] if friction == "models" else "coulomb_viscous"
+        con.info(f"frictid: joint {j}: Fc {f['fc']['value']:.4g} +- {f['fc']['stderr']:.2g}, sigma2 "
+                 f"{f['fv']['value']:.4g} +- {f['fv']['stderr']:.2g}, offset {f['fo']['value']:.4g} N m (joint "
+                 f"estimate); selected on the friction torque: {sel or 'no model'}")
     if output != "-":
         con.info(f"frictid: wrote {output}")
     if as_json:
-        emit_json("fit", {"output": output, "robot": res.settings["robot"],
-                          "joints": {j: joint_summary(jd) for j, jd in res.to_dict()["joints"].items()},
-                          "warnings": con.warnings})
+        emit_json("fit", {"output": output, "robot": rs, "joints": summary, "warnings": con.warnings})

@@ -38,7 +38,11 @@ def fit_from_params(robot: Robot, res) -> RobotFit:
         raise FrictidInputError(f"robot {robot.name}: its base parameters ({bp.n}) are not those of the parameter "
                                 f"file ({len(names)}); give the robot description it was identified with")
     x = [float(p["value"]) for p in rs["base_parameters"]]
+    fr = rs.get("friction") or {}
     for j in robot.joints:
+        if str(j) in fr:  # the joint estimate's own friction
+            x += [float(fr[str(j)][k]["value"]) for k in ("fv", "fc", "fo")]
+            continue
         cv = res[j].models.get("coulomb_viscous")
         if cv is None:
             raise FrictidInputError(f"joint {j}: the parameter file has no coulomb_viscous model")

@@ -40,6 +40,9 @@ def fit_result(robot: Robot, fit: RobotFit, sources: list[dict], robot_file: str
                           "relative_torque_error": fit.rel_error, "cutoff_hz": fit.cutoff_hz,
                           "samples": fit.n_samples, "base_parameters": base,
                           "base_columns": fit.bp.columns.tolist() if fit.bp is not None else None,
+                          # the joint estimate's friction (what the robot model's prediction uses)
+                          "friction": {j: {k: {"value": p.value, "stderr": p.stderr} for k, p in f.items()}
+                                       for j, f in fit.friction.items()},
                           "notes": list(fit.notes)}}
     return FitResult(joints={j: joint_fit(j, fit) for j in robot.joints}, sources=sources, version=__version__,
                      settings=settings)

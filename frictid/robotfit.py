@@ -1,0 +1,118 @@
+"""Whole-robot identification end to end: the rigid-body base parameters with each joint's Coulomb, viscous
+and offset friction (:mod:`frictid.robot`), then frictid's own single-joint identification on each joint's
+*friction torque* (the measured torque less the rigid-body torque of the base parameters, held): segments,
+static maps, Stribeck and polynomial models, selection, diagnosis, all as for one joint (docs/robots.md).
+
+``friction="linear"`` stops after the first stage (each joint's Coulomb-viscous model, as the joint
+estimate gives it); ``"models"`` (the default) runs the second.
+"""
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+from .api import fit as fit_joints
+from .data import JointLog
+from .errors import FrictidInputError
+from .io.logs import file_sha256, read_many
+from .result import FitResult
+from .robot import identify_robot, load_robot
+from .robot.identify import Prediction, predict
+from .robot.result import fit_result
+
+FRICTION_STAGES = ("models", "linear")
+
+
+def friction_logs(logs: list[JointLog], p: Prediction) -> list[JointLog]:
+    """Each joint's log with its torque replaced by the friction torque (measured less the rigid-body part
+    of the robot model's prediction ``p``), its inertia and gravity given as zero: what is left of the
+    torque is the joint's friction and offset."""
+    out = []
+    for lg in logs:
+        j = str(lg.joint)
+        fl = copy.copy(lg)
+        fl.tau = lg.tau - (p.tau[j] - p.F[j])
+        fl.meta = {**lg.meta, "inertia": 0.0, "gravity": [0.0, 0.0]}
+        fl.warnings = list(lg.warnings)
+        out.append(fl)
+    return out
+
+
+def fit_robot(paths_or_logs, robot, mapping=None, units=None, *, friction: str = "models",
+              diagnose: bool = True, jobs: int = 1, robot_file: str | None = None) -> FitResult:
+    """Identify a robot from multi-joint logs (paths or :class:`JointLog` objects, one log per robot joint,
+    on a common time base). robot : a :class:`~frictid.robot.description.Robot` or the path of a DH YAML or
+    URDF. friction : ``"models"`` or ``"linear"`` (see the module). Returns the parameter file's
+    :class:`FitResult`: the joints' models, and the robot's base parameters under ``settings.robot``."""
+    if friction not in FRICTION_STAGES:
+        raise FrictidInputError(f"fit: --robot-friction must be one of {', '.join(FRICTION_STAGES)}, not {friction!r}")
+    items = [paths_or_logs] if isinstance(paths_or_logs, (str, JointLog)) else list(paths_or_logs)
+    paths = [str(x) for x in items if not isinstance(x, JointLog)]
+    logs = [x for x in items if isinstance(x, JointLog)] + (read_many(paths, mapping, units) if paths else [])
+    rb = load_robot(robot) if isinstance(robot, (str, bytes)) or hasattr(robot, "__fspath__") else robot
+    rf = identify_robot(rb, logs)
+    rows: dict[str, int] = {}
+    for lg in logs:
+        rows[lg.source] = max(rows.get(lg.source, 0), lg.n)
+    sources = [{"path": p, "sha256": file_sha256(p), "rows": rows.get(p, 0)} for p in paths]
+    first = fit_result(rb, rf, sources, robot_file or str(robot if not hasattr(robot, "model") else rb.name))
+    if friction == "linear":
+        return first
+    res = fit_joints(friction_logs(logs, predict(rb, rf, logs)), diagnose=diagnose, jobs=jobs)
+    hashes = {s["path"]: s["sha256"] for s in sources}
+    for s in res.sources:
+        s["sha256"] = hashes.get(s["path"])
+    res.settings["robot"] = dict(first.settings["robot"], friction_stage="models")
+    return res
+
+
+def model_torque(res: FitResult, p: Prediction, logs: list[JointLog]) -> dict:
+    """Each joint's torque as the rigid body of the robot model's prediction ``p`` plus the joint's selected
+    friction model of ``res`` at the filtered velocity (its offset alone where the joint stands: at rest
+    the friction has no sign), at each log's own samples."""
+    out = {}
+    for lg in logs:
+        j = str(lg.joint)
+        jf = res[j]
+        off = jf.offset.value if jf.offset is not None and jf.offset.value is not None else 0.0
+        mov = p.moving[j]
+        F = np.full(lg.n, off)
+        F[mov] += jf.model.friction(p.qd[j][mov], q=None if lg.q is None else lg.q[mov])
+        out[j] = p.tau[j] - p.F[j] + F
+    return out
+
+
+def heldout_models(robot, logs: list[JointLog], fraction: float = 0.3, smooth_hz: float | None = None) -> dict:
+    """:func:`frictid.robot.identify.heldout_errors` for both stages: identify on the first ``1 - fraction``
+    of the logs, predict the rest with stage 1 (``linear``) and with the rigid body of stage 1 plus each
+    joint's selected velocity model of stage 2 (``models``, fitted without the diagnosis). Returns per
+    stage {'whole', 'moving'} RMS per joint [N m], at the logs' own samples."""
+    from scipy.signal import butter, sosfiltfilt
+
+    k = int(round((1.0 - fraction) * min(lg.n for lg in logs)))
+    head, tail = [_cut(lg, slice(0, k)) for lg in logs], [_cut(lg, slice(k, None)) for lg in logs]
+    rf = identify_robot(robot, head)
+    res = fit_joints(friction_logs(head, predict(robot, rf, head)), diagnose=False)
+    p = predict(robot, rf, tail)
+    preds = {"linear": p.tau, "models": model_torque(res, p, tail)}
+    out = {stage: {"whole": {}, "moving": {}} for stage in preds}
+    for lg in tail:
+        j = str(lg.joint)
+        tau = np.asarray(lg.tau, float)
+        fs = 1.0 / float(np.median(np.diff(lg.t)))
+        if smooth_hz is not None and smooth_hz < 0.5 * fs:
+            tau = sosfiltfilt(butter(4, smooth_hz, fs=fs, output="sos"), tau)
+        for stage, pr in preds.items():
+            r = tau - pr[j]
+            out[stage]["whole"][j] = float(np.sqrt(np.mean(r ** 2)))
+            out[stage]["moving"][j] = float(np.sqrt(np.mean(r[p.moving[j]] ** 2)))
+    return out
+
+
+def _cut(lg: JointLog, sl: slice) -> JointLog:
+    out = copy.copy(lg)
+    out.t, out.q, out.tau = lg.t[sl], None if lg.q is None else lg.q[sl], lg.tau[sl]
+    out.qd = None if lg.qd is None else lg.qd[sl]
+    out.channels = {k: v[sl] for k, v in lg.channels.items()}
+    return out
