@@ -254,10 +254,18 @@ class FitResult:
 
     def to_dict(self) -> dict:
         """The schema-1 parameter file as plain Python data."""
+        joints = {j: jf.to_dict() for j, jf in self.joints.items()}
+        robot = self.settings.get("robot")
+        if isinstance(robot, dict):  # a whole robot: the rigid-body torque is the robot model's, not a joint's
+            for jd in joints.values():
+                if isinstance(jd.get("model"), dict):
+                    jd["model"]["torque"] = (f"tau = the rigid-body torque of {robot.get('name', 'the robot')} "
+                                             "(settings.robot: its base parameters along all joints' q, qd, qdd) "
+                                             "+ offset + F(w)")
         return {
             "schema": SCHEMA_VERSION,
             "frictid": self.version or __version__,
-            "joints": {j: jf.to_dict() for j, jf in self.joints.items()},
+            "joints": joints,
             "sources": plain(self.sources),
             "settings": plain(self.settings),
         }

@@ -272,9 +272,11 @@ def test_the_friction_models_are_fitted_on_each_joints_friction_torque(arm_files
     res = frictid.read_params(tmp / "p.yaml")
     rs = res.settings["robot"]
     assert rs["friction_stage"] == "models" and set(rs["friction"]) == set(robot.joints)
+    heads = res.to_dict()["joints"]
     for j in robot.joints:
         jf = res[j]
         assert jf.selected and jf.inertia.value == 0.0
+        assert heads[j]["model"]["torque"].startswith("tau = the rigid-body torque of arm")
         m = jf.model
         fv, fc, _ = robot.friction_truth[j]
         for w in (0.3, 0.8):  # inside the speeds the excitation covers

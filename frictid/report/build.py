@@ -253,9 +253,13 @@ def model_head(jd: dict, m=None) -> dict | None:
     parameters, the one-line torque with exactly the rigid-body terms and offset it is used with, validity),
     or the file's own ``model:`` when the model cannot be built; None without a chosen model."""
     m = m if m is not None else ct.chosen_model(jd)
+    own = jd.get("model") if isinstance(jd.get("model"), dict) else None
     if m is not None:
-        return m.head()
-    return jd.get("model") if isinstance(jd.get("model"), dict) else None
+        head = m.head()
+        if own and own.get("torque", "").startswith("tau = the rigid-body torque of"):  # a whole robot's joint
+            head["torque"] = own["torque"]
+        return head
+    return own
 
 
 def yaml_snippet(jname: str, jd: dict, m=None) -> str:
