@@ -6,7 +6,8 @@ simulation from the models frictid identifies.
 For each plant (hydraulic: 000; direct_drive: 003) and seed: simulate the identification experiments
 (constant-velocity sweep and presliding ramps, noise from the seed), fit them with ``frictid.fit``, and
 run ``recipes/tracking_slow.yaml`` in closed loop without compensation, with the fitted joint's selected
-model as feed-forward, and with the plant's true friction (:mod:`frictid.compensate`). Printed per joint:
+model as feed-forward, with the LuGre friction observer of 000 on it (where sigma0 is identified), and
+with the plant's true friction (:mod:`frictid.compensate`). Printed per joint:
 the RMS tracking error of each run, the reduction (none / model), the ideal reduction (none / true), the
 share of the ideal reduction the model reaches ((none - model) / (none - true)), the share the plant's own
 friction reaches as a static map (column ``static``: the ceiling of a model without bristle dynamics),
@@ -70,6 +71,8 @@ def score(plant: str, seed: int, scale: float) -> list[dict]:
                    share=(n.rms_error - m.rms_error) / (n.rms_error - t.rms_error),
                    stick=(n.stick_slip_episodes, m.stick_slip_episodes, t.stick_slip_episodes),
                    static=static_share(plant, j, seed, recipe, plant_path))
+        o = by["observer"].metrics if "observer" in by else None
+        row["observer"] = None if o is None else (n.rms_error / o.rms_error, o.stick_slip_episodes)
         row["ok"] = (row["reduction"] >= target["reduction"] and row["share"] >= SHARE
                      and (not target["stick_free"] or m.stick_slip_episodes == 0))
         rows.append(row)
@@ -90,11 +93,14 @@ def main(argv=None) -> int:
     print(f"compensation scorecard: {len(rows)} joint runs, seeds {args.seed_base}..{args.seed_base + args.seeds - 1}, "
           f"identification scale {args.scale}, {time.time() - t0:.0f} s")
     print(f"{'plant':<13} {'seed':>6} {'joint':<5} {'model':<20} {'none':>9} {'model':>9} {'true':>9} "
-          f"{'reduct.':>7} {'ideal':>7} {'share':>6} {'static':>6}  stick none/model/true  target")
+          f"{'reduct.':>7} {'ideal':>7} {'share':>6} {'static':>6}  stick none/model/true  target   observer (stick)")
     for r in rows:
+        obs = "-" if r["observer"] is None else f"{r['observer'][0]:6.1f}x ({r['observer'][1]})"
         print(f"{r['plant']:<13} {r['seed']:>6} {r['joint']:<5} {r['model']:<20} {r['none']:9.3g} {r['with_model']:9.3g} "
               f"{r['true']:9.3g} {r['reduction']:6.1f}x {r['ideal']:6.1f}x {r['share']:6.2f} {r['static']:6.2f}  "
-              f"{'/'.join(map(str, r['stick'])):<20}  {'met' if r['ok'] else 'MISSED'}")
+              f"{'/'.join(map(str, r['stick'])):<20}  {'met' if r['ok'] else 'MISSED':<7}  {obs}")
+    print("observer: the LuGre friction observer (000 eq. 17) on the identified model, its reduction of the "
+          "error without compensation; '-' where the model has no identified presliding stiffness")
     met = sum(r["ok"] for r in rows)
     print(f"targets met: {met} of {len(rows)} (reduction >= 3x hydraulic, >= 8x direct drive and no stick episode "
           f"with the model there; share of the ideal reduction >= {SHARE:.0%})")

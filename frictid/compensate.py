@@ -8,6 +8,13 @@ Runs, per joint (:data:`RUNS`):
   (its bristle state, its thermal law driven by the ambient temperature, its position/load/drift terms
   along the reference); a thermal law that reads a measured joint temperature gets the joint
   temperature of the ``none`` run;
+- ``observer``: the LuGre friction observer of the seed 000 (Canudas de Wit et al. 1995, eq. 17) built on
+  the identified LuGre model, run at the controller rate on the measured velocity and the tracking error
+  (``dz/dt = w - sigma0 |w| z / g(w) - k e``, ``F = sigma0 z + sigma1 dz/dt + f(w)``, integrated exactly
+  per step), its estimate added to the controller's torque; the gain ``k`` is the loop's natural
+  frequency (``sqrt(kp / J)``, or ``kv / J`` for a velocity loop, J the identified inertia). Only for a
+  model with a presliding stiffness (``sigma0`` identified): otherwise the run is left out and
+  :func:`compensation_runs` says why;
 - ``true``: the plant's true friction along the reference, the same feed-forward with perfect knowledge
   (the ideal this structure of compensation can reach).
 
@@ -29,10 +36,11 @@ from .errors import FrictidInputError
 from .model import FrictionModel
 from .models.replay_kernel import replay_friction
 from .plant.config import load_plant, load_recipe, resolve_plant_path
-from .plant.kernel import MODE_TORQUE, P_C, P_K, P_PAMP, P_PPER, P_PPH, P_S0N, P_S0P, P_S1N, P_S1P
+from .plant.kernel import (MODE_TORQUE, P_C, P_J, P_K, P_KP, P_KV, P_PAMP, P_PPER, P_PPH, P_S0N, P_S0P, P_S1N,
+                           P_S1P)
 from .plant.simulate import kernel_inputs, prepare_joint, simulate_joint
 
-RUNS = ("none", "model", "true")
+RUNS = ("none", "model", "observer", "true")
 STICK_FRACTION = 0.1
 STICK_MIN_S = 0.02
 
@@ -132,9 +140,21 @@ def plant_friction_model(plant, joint) -> FrictionModel:
     return m
 
 
-def _run(name, args, t, prog, ff, closed) -> Run:
+def observer_of(m: FrictionModel, args) -> tuple | None:
+    """The friction observer's settings for the plant kernel (gain, sigma0, sigma1 and the map's canonical
+    vectors at the model's reference temperature), or None for a model without a presliding stiffness."""
+    if m.sigma0 is None or not all(np.isfinite(m.sigma0)) or min(m.sigma0) <= 0:
+        return None
+    p = args["p"]
+    J = m.J if m.J and m.J > 0 else p[P_J]
+    gain = float(np.sqrt(p[P_KP] / J)) if p[P_KP] > 0 else float(p[P_KV] / J)
+    cp, cn = m.canonical_at(m.thermal["T0"]) if m.thermal else (m.c_pos, m.c_neg)
+    return gain, tuple(m.sigma0), tuple(m.sigma1 or (0.0, 0.0)), cp, cn
+
+
+def _run(name, args, t, prog, ff, closed, observer=None) -> Run:
     a = dict(args, tau_ff=np.where(closed, prog["tau_ff"] + ff, prog["tau_ff"]))
-    q, w, _, _, T, u, _, _ = simulate_joint(**a)
+    q, w, _, _, T, u, _, _ = simulate_joint(**a, observer=observer)
     return Run(name, t, prog["q_ref"], q, w, u, ff, T, run_metrics(t, prog["q_ref"], prog["qd_ref"], q, w, closed))
 
 
@@ -159,8 +179,11 @@ def compensation_runs(models: dict[str, FrictionModel], recipe, plant=None, seed
         t = ex["t"]
         closed = np.broadcast_to(prog["mode"] != MODE_TORQUE, t.shape)
         runs = {"none": _run("none", args, t, prog, np.zeros_like(t), closed)}
-        runs["model"] = _run("model", args, t, prog, model_feedforward(models[joint.name], t, prog, runs["none"].T),
-                             closed)
+        m = models[joint.name]
+        runs["model"] = _run("model", args, t, prog, model_feedforward(m, t, prog, runs["none"].T), closed)
+        obs = observer_of(m, args)
+        if obs is not None:
+            runs["observer"] = _run("observer", args, t, prog, np.zeros_like(t), closed, obs)
         runs["true"] = _run("true", args, t, prog, true_feedforward(pl, joint, t, prog, args), closed)
         out[joint.name] = runs
     return out

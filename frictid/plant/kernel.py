@@ -213,12 +213,31 @@ def _refined(q, w, z, u, hs, cp, cn, dp, dn, s_th, dT, lmul, fm, amp, kper, ph, 
     return q, w, z
 
 
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+def _observer(w, e, zh, h, gain, ocp, ocn, odp, odn, s0p, s0n, s1p, s1n):
+    """The LuGre friction observer of Canudas de Wit et al. (1995; seed 000 eq. 17) at one controller step:
+    ``dz/dt = w - sigma0 |w| z / g(w) - gain e``, ``F = sigma0 z + sigma1 dz/dt + f(w)``, with the measured
+    velocity w and the tracking error e = q - q_ref. Returns (the friction estimate, z after the step h,
+    integrated exactly: the equation is linear in z over the step)."""
+    g, _, f, _ = _map_at(w, ocp, ocn, odp, odn, 1.0, 0.0)
+    s0 = s0p if w >= 0.0 else s0n
+    s1 = s1p if w >= 0.0 else s1n
+    a = w - gain * e
+    b = s0 * abs(w) / g if g > 0.0 else 0.0
+    F = s0 * zh + s1 * (a - b * zh) + f
+    if b * h > 1e-12:
+        zs = a / b
+        return F, zs + (zh - zs) * math.exp(-b * h)
+    return F, zh + a * h
+
+
 #: The outputs of :func:`simulate_joint`, in order.
 OUTPUTS = ("q", "w", "z", "F", "T", "u", "qm", "qdm")
 
 
 def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, gmul, fmul,
-                   nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0, outputs=OUTPUTS):
+                   nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0, outputs=OUTPUTS,
+                   observer=None):
     """Run the closed loop over n samples. Returns (q, w, z, F, T, u, qm, qdm), each of length n;
     ``outputs`` names those wanted, the others are None (the loop writes them into one scratch array:
     a caller that needs the position alone touches two arrays of n doubles instead of eight).
@@ -227,6 +246,9 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
     Tenv [degC]; payload [kg]; reset_T (bool) resets T to Tenv; gmul, fmul [1] level/viscous multipliers;
     nq [q], nqd [q/s] sensor noise; p parameters (see P_* indices); c_pos, c_neg canonical static vectors;
     dc_pos, dc_neg thermal6 slopes; th_code, theta thermal law; state0 = (q, w, z, T).
+
+    observer : None, or (gain, sigma0 (pos, neg), sigma1 (pos, neg), c_pos, c_neg) of an identified LuGre model:
+    its friction observer (:func:`_observer`) adds its estimate to the torque wherever the loop is closed.
 
     mode, Tenv, payload, reset_T, gmul, fmul, nq and nqd may be one value long, a constant for every
     sample (a replay's closed loop: no array of the log's length for what does not change); q_ref sets n.
@@ -242,14 +264,20 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
         raise ValueError(f"simulate_joint: unknown outputs {sorted(unknown)}; known: {OUTPUTS}")
     scratch = np.empty(n) if len(set(outputs)) < len(OUTPUTS) else None
     out = tuple(np.empty(n) if name in outputs else scratch for name in OUTPUTS)
+    if observer is None:
+        obs, oc_pos, oc_neg = np.zeros(0), np.zeros(9), np.zeros(9)
+    else:
+        gain, s0, s1, oc_pos, oc_neg = observer
+        obs = np.array([gain, s0[0], s0[1], s1[0], s1[1]], dtype=float)
+        oc_pos, oc_neg = np.asarray(oc_pos, dtype=float), np.asarray(oc_neg, dtype=float)
     _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, gmul, fmul,
-                 nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0, *out)
+                 nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0, obs, oc_pos, oc_neg, *out)
     return tuple(a if name in outputs else None for name, a in zip(OUTPUTS, out))
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM)
 def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, gmul, fmul,
-                 nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0,
+                 nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0, obs, oc_pos, oc_neg,
                  q_o, w_o, z_o, F_o, T_o, u_o, qm_o, qdm_o):
     """The loop of :func:`simulate_joint`, filling the output arrays q_o ... qdm_o (length n each).
 
@@ -303,6 +331,10 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
     hs = h / nsub
     integ = 0.0
     prev_mode = -1
+    obs_on = obs.shape[0] > 0
+    ocp, odp = _branch(oc_pos, oc_pos)  # the observer's map (its thermal slopes unused: dT = 0)
+    ocn, odn = _branch(oc_neg, oc_neg)
+    zh = 0.0
     T_used = -1e300
     trig = px != 0.0 or py != 0.0 or parm != 0.0
     qg = q
@@ -341,6 +373,9 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
             e = qd_ref[k] - qdm
             integ_new = integ + kvi * e * h
             u = tau_ff[k] + kv * e + integ_new
+        if obs_on and md != MODE_TORQUE:
+            Fh, zh = _observer(qdm, qm - q_ref[k], zh, h, obs[0], ocp, ocn, odp, odn, obs[1], obs[2], obs[3], obs[4])
+            u += Fh
         if u > tmax:
             u = tmax
         elif u < -tmax:
