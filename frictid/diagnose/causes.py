@@ -103,7 +103,12 @@ def _dt(S: Samples) -> float:
 
 
 def _period_range(S: Samples):
-    """(shortest, longest) period [q] a periodic position term may have, or None."""
+    """(shortest, longest) period [q] a periodic position term may have, or None (computed once per
+    samples: the median speed is a partition of every sample)."""
+    return S.cached("period_range", lambda: _period_range_of(S))
+
+
+def _period_range_of(S: Samples):
     rng = float(np.ptp(S.q))
     dq = float(np.median(np.abs(S.w))) * _dt(S) * max(S.decimation, 1)
     p_min = max(10 * dq, rng / 2000.0)
