@@ -137,9 +137,11 @@ def velocity_r2(S: Samples, x: np.ndarray, basis=None) -> float:
     """Fraction of the variance of x that the current velocity explains (least squares on 1, sgn w, w,
     |w|, w|w|, w^3 and |w|^(1/2)); basis : :func:`velocity_basis` (computed when None)."""
     cols, Ginv = velocity_basis(S) if basis is None else basis
-    Xx = np.array([c @ x for c in cols])
+    # einsum dot products of contiguous vectors: a threaded BLAS ddot per column costs ten times more on
+    # a busy machine (as in model._lstsq)
+    Xx = np.array([np.einsum("i,i->", c, x) for c in cols])
     var = float(np.sum((x - x.mean()) ** 2))
-    rss = float(x @ x - Xx @ Ginv @ Xx)
+    rss = float(np.einsum("i,i->", x, x) - Xx @ Ginv @ Xx)
     return 1.0 - max(rss, 0.0) / var if var > 0 else 1.0
 
 
@@ -149,8 +151,8 @@ def velocity_basis(S: Samples):
     w = S.w
     v = np.abs(w)
     cols = [np.ones_like(w), np.sign(w), w, v, w * v, w ** 3, np.sqrt(v)]
-    cols = [c / max(float(np.sqrt(c @ c)), 1e-300) for c in cols]
-    G = np.array([[a @ b for b in cols] for a in cols])
+    cols = [c / max(float(np.sqrt(np.einsum("i,i->", c, c))), 1e-300) for c in cols]
+    G = np.array([[np.einsum("i,i->", a, b) for b in cols] for a in cols])
     return cols, np.linalg.pinv(G, rcond=1e-12, hermitian=True)
 
 
