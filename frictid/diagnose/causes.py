@@ -335,8 +335,19 @@ def best_period(q, resid, level, prange, n_keep: int = 3) -> float | None:
     qb, A2, B2 = q0 + (used + 0.5) * h2, A2[used], B2[used]
 
     def exact(freqs):
-        E = np.exp(-2j * np.pi * np.outer(freqs, qb))
-        return _score(E @ A2, (E * E) @ B2, B2.sum())
+        # freqs are equally spaced: exp(-2 pi i f_k q) by the recurrence z_k = z_(k-1) r (two complex
+        # exponentials per bin, not one per bin and frequency, and no threaded BLAS for the thin products;
+        # the same sums to rounding)
+        step = (freqs[-1] - freqs[0]) / max(freqs.size - 1, 1)
+        z = np.exp(-2j * np.pi * freqs[0] * qb)
+        r = np.exp(-2j * np.pi * step * qb)
+        Cr, D = np.empty(freqs.size, complex), np.empty(freqs.size, complex)
+        for k in range(freqs.size):
+            if k:
+                z *= r
+            Cr[k] = np.einsum("i,i->", z, A2)
+            D[k] = np.einsum("i,i->", z * z, B2)
+        return _score(Cr, D, B2.sum())
 
     best_f, best_s = None, -np.inf
     for i in np.argsort(score)[::-1][:n_keep]:
