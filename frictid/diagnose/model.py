@@ -297,6 +297,19 @@ class Context:
             self._cache[key] = compute()
         return self._cache[key]
 
+    def abs_max(self, key, col, idx, fold) -> float:
+        """The largest |col| on samples idx; for all samples or a fold's training set (``fold`` from
+        :meth:`fold_of`) from the per-fold maxima of the column, cached under its key (no gather)."""
+        if fold is False:
+            return float(np.max(np.abs(col[idx])))
+        k = ("abs_max", key)
+        if k not in self._cache:
+            b = self._fold_bounds()
+            self._cache[k] = np.array([float(np.max(np.abs(col[b[f]:b[f + 1]]))) if b[f + 1] > b[f] else -np.inf
+                                       for f in range(self.S.n_folds)])
+        per = self._cache[k]
+        return float(np.max(per if fold is None else np.delete(per, fold)))
+
     def signed(self, key, col, positive: bool) -> np.ndarray:
         """col on the samples of one velocity sign (w >= 0 or w < 0), zero elsewhere (cached)."""
         k = ("signed", key, positive)
@@ -758,7 +771,7 @@ class Evaluator:
         # fit's amplitude: refitted there it would rest on nothing and blow up at low speed
         self._held = set()
         if 1 in self.base_cols and 1 in MAP_SLOTS[self.st.map] and idx.size:
-            if float(np.max(np.abs(self.base_cols[1][idx]))) < EXCITE:
+            if self.ctx.abs_max(self.base_keys[1], self.base_cols[1], idx, fold) < EXCITE:
                 self._held.add(1)
         linear = not (self.lf or self.af)
         # the columns at idx, gathered once (not needed by fits from the normal equations and moments)
