@@ -95,18 +95,26 @@ def print_stages(total: float, spent: dict) -> None:
 
 def floor(path: str) -> float:
     """Seconds for the floor of every joint of the file (see the module docstring)."""
+    c0 = time.process_time()
     t0 = time.perf_counter()
     for lg in read_logs(path):
         w, a = derivatives(lg)
         ok = np.isfinite(w) & np.isfinite(a)
         X = np.column_stack([np.sign(w[ok]), w[ok], a[ok], np.cos(lg.q[ok]), np.sin(lg.q[ok]), np.ones(ok.sum())])
         np.linalg.lstsq(X, lg.tau[ok], rcond=None)
+    CPU.append(time.process_time() - c0)
     return time.perf_counter() - t0
 
 
+#: CPU seconds of the last timed call of floor() or fit() (the load moves them less than the wall times)
+CPU: list = []
+
+
 def fit(path: str, diagnose: bool) -> float:
+    c0 = time.process_time()
     t0 = time.perf_counter()
     frictid.fit(path, jobs=1, diagnose=diagnose)
+    CPU.append(time.process_time() - c0)
     return time.perf_counter() - t0
 
 
@@ -124,13 +132,15 @@ def main(argv=None) -> int:
         rows = build_log(path, a.minutes / 60.0, a.joints)
         fit(path, False)  # warm: compilation caches and imports are not the fit's
         times = {"floor": [], "fit": [], "fit+diagnosis": []}
+        cpu = {k: [] for k in times}
         for _ in range(a.rounds):
-            times["floor"].append(floor(path))
-            times["fit"].append(fit(path, False))
-            times["floor"].append(floor(path))
-            times["fit+diagnosis"].append(fit(path, True))
+            for k, run in (("floor", floor), ("fit", lambda p: fit(p, False)), ("floor", floor),
+                           ("fit+diagnosis", lambda p: fit(p, True))):
+                times[k].append(run(path))
+                cpu[k].append(CPU[-1])
         stages = stage_times(lambda: fit(path, True)) if a.stages else None
     med = {k: statistics.median(v) for k, v in times.items()}
+    mcpu = {k: statistics.median(v) for k, v in cpu.items()}
     print(f"fit against its floor: {a.joints} joints x {a.minutes:g} min at 1 kHz ({rows} rows), "
           f"{a.rounds} rounds, medians")
     print(f"floor (read + derivatives + least squares): {med['floor']:.2f} s "
@@ -139,6 +149,8 @@ def main(argv=None) -> int:
         r = med[k] / med["floor"]
         print(f"{k:<14} {med[k]:6.2f} s  = {r:4.1f}x the floor  (target <= {TARGET:g}x: "
               f"{'met' if r <= TARGET else 'not met'}; runs {', '.join(f'{x:.2f}' for x in times[k])})")
+    ratio = {k: "" if k == "floor" else f" ({mcpu[k] / mcpu['floor']:.1f}x)" for k in mcpu}
+    print("CPU time, medians: " + ", ".join(f"{k} {mcpu[k]:.2f} s{ratio[k]}" for k in mcpu))
     if stages is not None:
         print_stages(*stages)
     return 0
