@@ -1,6 +1,6 @@
 """Benchmark: the diagnosis on every sliding sample of a long log, against the fit without the diagnosis.
 
-    python benchmarks/bench_diagnose_whole.py [--minutes 60] [--plant geared_industrial] [--seed 100000]
+    python benchmarks/bench_diagnose_whole.py [--minutes 60] [--plant geared_industrial] [--seed 100000] [--stages]
 
 Input: frictid's plant (``--plant``, its own hidden effects removed, ``tests/diag_synth.py``) run through a
 pick-and-place program (``diag_synth.pick_place_recipe``: a constant-velocity sweep, ``--minutes`` of 7 s
@@ -13,6 +13,8 @@ Measured in one run, on the same logs, after a warm-up fit of a short log (compi
 ``frictid.fit(..., diagnose=False)`` and ``frictid.fit(...)`` (with the diagnosis), CPU and wall time of each; the ratio of the two is the figure (aim: at most 3). Printed
 with it: the log's samples, the sliding samples the diagnosis used (all of them: no cap), its groups, the
 findings (cause, extension, held-out gain, where the temperature came from) and any warning.
+
+``--stages``: the CPU time of each step of one more fit with the diagnosis (``bench_fit_floor.stage_times``).
 
 ``FRICTID_SMOKE=1`` shrinks the log to one minute of cycles (a few seconds), the same code path.
 """
@@ -27,6 +29,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import diag_synth as ds  # noqa: E402
 
@@ -61,6 +64,7 @@ def main(argv=None) -> int:
     ap.add_argument("--minutes", type=float, default=60.0, help="pick-and-place cycles [min]")
     ap.add_argument("--plant", default="geared_industrial")
     ap.add_argument("--seed", type=int, default=100000)
+    ap.add_argument("--stages", action="store_true", help="also the CPU time of each step of one fit")
     args = ap.parse_args(argv)
     smoke = os.environ.get("FRICTID_SMOKE") == "1"
     minutes = 1.0 if smoke else args.minutes
@@ -92,6 +96,10 @@ def main(argv=None) -> int:
               f"{f['gain']:.2f}")
     for w in jf.warnings:
         print(f"  warning: {w}")
+    if args.stages:
+        from bench_fit_floor import print_stages, stage_times
+
+        print_stages(*stage_times(lambda: frictid.fit(logs, models=ds.FIT_MODELS)))
     print(f"load average at the end {load():.1f}")
     return 0
 

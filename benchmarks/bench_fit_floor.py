@@ -8,10 +8,18 @@ with the diagnosis; runs alternate with the floor's, and the ratios are of media
 
     python benchmarks/bench_fit_floor.py                  # 2 joints x 15 min at 1 kHz, 3 rounds
     python benchmarks/bench_fit_floor.py --minutes 5 --joints 1 --rounds 2
+    python benchmarks/bench_fit_floor.py --stages         # and the CPU time of each step of one fit
+
+``--stages`` times one more fit with the diagnosis with every step of :data:`STAGES` wrapped (CPU time,
+steps nest: "diagnosis" holds "samples", "chain" and the rest); :func:`stage_times` is shared with
+``bench_diagnose_whole.py``.
 """
 from __future__ import annotations
 
 import argparse
+import collections
+import functools
+import importlib
 import os
 import statistics
 import sys
@@ -32,21 +40,81 @@ from frictid.segments import derivatives  # noqa: E402
 #: The issue's target: the fit within this multiple of the floor.
 TARGET = 3.0
 
+#: (label, module, attribute) of the steps ``--stages`` times; "Class.method" for methods.
+STAGES = [("read", "frictid.api", "read_logs"), ("derivatives", "frictid.segments", "derivatives"),
+          ("scales", "frictid.segments", "estimate_scales"), ("segments", "frictid.segments", "find_segments"),
+          ("regression (rigid body)", "frictid.identify.mechanics", "regress"),
+          ("bandwidth check", "frictid.identify.mechanics", "_bandwidth_check"),
+          ("stage-2 map", "frictid.identify.mechanics", "_stage2_map"),
+          ("static maps", "frictid.identify.maps", "static_maps"), ("choice", "frictid.identify.maps", "choose_base"),
+          ("LuGre", "frictid.identify.dynamics", "fit_lugre"),
+          ("thermal", "frictid.identify.thermal_fit", "fit_thermal_models"),
+          ("diagnosis", "frictid.api", "diagnose_fit"), ("diagnosis: samples", "frictid.diagnose.joint", "build_samples"),
+          ("diagnosis: candidates", "frictid.diagnose.chain", "candidates"),
+          ("diagnosis: chain", "frictid.diagnose.chain", "Chain.run"),
+          ("diagnosis: proposals", "frictid.diagnose.chain", "propose"),
+          ("diagnosis check", "frictid.api", "check_diagnosis"), ("finish", "frictid.api", "finish")]
+
+
+def stage_times(run) -> tuple[float, dict]:
+    """CPU time of ``run()`` and of each step of :data:`STAGES` within it [s] (wrapped for the call only)."""
+    spent: dict = collections.defaultdict(float)
+    undo = []
+    for label, mod_name, attr in STAGES:
+        owner = importlib.import_module(mod_name)
+        *path, name = attr.split(".")
+        for part in path:
+            owner = getattr(owner, part)
+        fn = getattr(owner, name)
+
+        @functools.wraps(fn)
+        def timed(*a, _fn=fn, _label=label, **kw):
+            t0 = time.process_time()
+            try:
+                return _fn(*a, **kw)
+            finally:
+                spent[_label] += time.process_time() - t0
+        setattr(owner, name, timed)
+        undo.append((owner, name, fn))
+    try:
+        t0 = time.process_time()
+        run()
+        total = time.process_time() - t0
+    finally:
+        for owner, name, fn in reversed(undo):
+            setattr(owner, name, fn)
+    return total, dict(spent)
+
+
+def print_stages(total: float, spent: dict) -> None:
+    print(f"steps (CPU time of one fit with the diagnosis, {total:.2f} s; steps nest):")
+    for label, _, _ in STAGES:
+        if label in spent:
+            print(f"  {label:<24} {spent[label]:6.2f} s  {100 * spent[label] / total:4.0f} %")
+
 
 def floor(path: str) -> float:
     """Seconds for the floor of every joint of the file (see the module docstring)."""
+    c0 = time.process_time()
     t0 = time.perf_counter()
     for lg in read_logs(path):
         w, a = derivatives(lg)
         ok = np.isfinite(w) & np.isfinite(a)
         X = np.column_stack([np.sign(w[ok]), w[ok], a[ok], np.cos(lg.q[ok]), np.sin(lg.q[ok]), np.ones(ok.sum())])
         np.linalg.lstsq(X, lg.tau[ok], rcond=None)
+    CPU.append(time.process_time() - c0)
     return time.perf_counter() - t0
 
 
+#: CPU seconds of the last timed call of floor() or fit() (the load moves them less than the wall times)
+CPU: list = []
+
+
 def fit(path: str, diagnose: bool) -> float:
+    c0 = time.process_time()
     t0 = time.perf_counter()
     frictid.fit(path, jobs=1, diagnose=diagnose)
+    CPU.append(time.process_time() - c0)
     return time.perf_counter() - t0
 
 
@@ -55,6 +123,7 @@ def main(argv=None) -> int:
     ap.add_argument("--minutes", type=float, default=15.0, help="minutes of log per joint (1 kHz)")
     ap.add_argument("--joints", type=int, default=2)
     ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--stages", action="store_true", help="also the CPU time of each step of one fit")
     a = ap.parse_args(argv)
     if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
         a.minutes, a.joints, a.rounds = 1.0, 1, 1
@@ -63,12 +132,15 @@ def main(argv=None) -> int:
         rows = build_log(path, a.minutes / 60.0, a.joints)
         fit(path, False)  # warm: compilation caches and imports are not the fit's
         times = {"floor": [], "fit": [], "fit+diagnosis": []}
+        cpu = {k: [] for k in times}
         for _ in range(a.rounds):
-            times["floor"].append(floor(path))
-            times["fit"].append(fit(path, False))
-            times["floor"].append(floor(path))
-            times["fit+diagnosis"].append(fit(path, True))
+            for k, run in (("floor", floor), ("fit", lambda p: fit(p, False)), ("floor", floor),
+                           ("fit+diagnosis", lambda p: fit(p, True))):
+                times[k].append(run(path))
+                cpu[k].append(CPU[-1])
+        stages = stage_times(lambda: fit(path, True)) if a.stages else None
     med = {k: statistics.median(v) for k, v in times.items()}
+    mcpu = {k: statistics.median(v) for k, v in cpu.items()}
     print(f"fit against its floor: {a.joints} joints x {a.minutes:g} min at 1 kHz ({rows} rows), "
           f"{a.rounds} rounds, medians")
     print(f"floor (read + derivatives + least squares): {med['floor']:.2f} s "
@@ -77,6 +149,10 @@ def main(argv=None) -> int:
         r = med[k] / med["floor"]
         print(f"{k:<14} {med[k]:6.2f} s  = {r:4.1f}x the floor  (target <= {TARGET:g}x: "
               f"{'met' if r <= TARGET else 'not met'}; runs {', '.join(f'{x:.2f}' for x in times[k])})")
+    ratio = {k: "" if k == "floor" else f" ({mcpu[k] / mcpu['floor']:.1f}x)" for k in mcpu}
+    print("CPU time, medians: " + ", ".join(f"{k} {mcpu[k]:.2f} s{ratio[k]}" for k in mcpu))
+    if stages is not None:
+        print_stages(*stages)
     return 0
 
 

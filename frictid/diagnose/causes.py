@@ -103,7 +103,12 @@ def _dt(S: Samples) -> float:
 
 
 def _period_range(S: Samples):
-    """(shortest, longest) period [q] a periodic position term may have, or None."""
+    """(shortest, longest) period [q] a periodic position term may have, or None (computed once per
+    samples: the median speed is a partition of every sample)."""
+    return S.cached("period_range", lambda: _period_range_of(S))
+
+
+def _period_range_of(S: Samples):
     rng = float(np.ptp(S.q))
     dq = float(np.median(np.abs(S.w))) * _dt(S) * max(S.decimation, 1)
     p_min = max(10 * dq, rng / 2000.0)
@@ -132,9 +137,11 @@ def velocity_r2(S: Samples, x: np.ndarray, basis=None) -> float:
     """Fraction of the variance of x that the current velocity explains (least squares on 1, sgn w, w,
     |w|, w|w|, w^3 and |w|^(1/2)); basis : :func:`velocity_basis` (computed when None)."""
     cols, Ginv = velocity_basis(S) if basis is None else basis
-    Xx = np.array([c @ x for c in cols])
+    # einsum dot products of contiguous vectors: a threaded BLAS ddot per column costs ten times more on
+    # a busy machine (as in model._lstsq)
+    Xx = np.array([np.einsum("i,i->", c, x) for c in cols])
     var = float(np.sum((x - x.mean()) ** 2))
-    rss = float(x @ x - Xx @ Ginv @ Xx)
+    rss = float(np.einsum("i,i->", x, x) - Xx @ Ginv @ Xx)
     return 1.0 - max(rss, 0.0) / var if var > 0 else 1.0
 
 
@@ -144,8 +151,8 @@ def velocity_basis(S: Samples):
     w = S.w
     v = np.abs(w)
     cols = [np.ones_like(w), np.sign(w), w, v, w * v, w ** 3, np.sqrt(v)]
-    cols = [c / max(float(np.sqrt(c @ c)), 1e-300) for c in cols]
-    G = np.array([[a @ b for b in cols] for a in cols])
+    cols = [c / max(float(np.sqrt(np.einsum("i,i->", c, c))), 1e-300) for c in cols]
+    G = np.array([[np.einsum("i,i->", a, b) for b in cols] for a in cols])
     return cols, np.linalg.pinv(G, rcond=1e-12, hermitian=True)
 
 
@@ -328,8 +335,19 @@ def best_period(q, resid, level, prange, n_keep: int = 3) -> float | None:
     qb, A2, B2 = q0 + (used + 0.5) * h2, A2[used], B2[used]
 
     def exact(freqs):
-        E = np.exp(-2j * np.pi * np.outer(freqs, qb))
-        return _score(E @ A2, (E * E) @ B2, B2.sum())
+        # freqs are equally spaced: exp(-2 pi i f_k q) by the recurrence z_k = z_(k-1) r (two complex
+        # exponentials per bin, not one per bin and frequency, and no threaded BLAS for the thin products;
+        # the same sums to rounding)
+        step = (freqs[-1] - freqs[0]) / max(freqs.size - 1, 1)
+        z = np.exp(-2j * np.pi * freqs[0] * qb)
+        r = np.exp(-2j * np.pi * step * qb)
+        Cr, D = np.empty(freqs.size, complex), np.empty(freqs.size, complex)
+        for k in range(freqs.size):
+            if k:
+                z *= r
+            Cr[k] = np.einsum("i,i->", z, A2)
+            D[k] = np.einsum("i,i->", z * z, B2)
+        return _score(Cr, D, B2.sum())
 
     best_f, best_s = None, -np.inf
     for i in np.argsort(score)[::-1][:n_keep]:

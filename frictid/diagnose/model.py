@@ -122,8 +122,10 @@ def _block(out: np.ndarray, vecs: list, s: int, e: int) -> np.ndarray:
     return out
 
 
-#: Samples per block of the streamed sums of products (:meth:`Context.fold_products`): 4 MB per 8 columns.
-BLOCK_ROWS = 1 << 16
+#: Samples per block of the streamed sums of products (:meth:`Context.fold_products`): 32 kB per column,
+#: so a block's columns stay in the second-level cache between their copy and their product (blocks of
+#: 65 k samples, 4 MB per 8 columns, made the copies and the product go through memory twice).
+BLOCK_ROWS = 1 << 12
 
 
 class Context:
@@ -294,6 +296,19 @@ class Context:
         if key not in self._cache:
             self._cache[key] = compute()
         return self._cache[key]
+
+    def abs_max(self, key, col, idx, fold) -> float:
+        """The largest |col| on samples idx; for all samples or a fold's training set (``fold`` from
+        :meth:`fold_of`) from the per-fold maxima of the column, cached under its key (no gather)."""
+        if fold is False:
+            return float(np.max(np.abs(col[idx])))
+        k = ("abs_max", key)
+        if k not in self._cache:
+            b = self._fold_bounds()
+            self._cache[k] = np.array([float(np.max(np.abs(col[b[f]:b[f + 1]]))) if b[f + 1] > b[f] else -np.inf
+                                       for f in range(self.S.n_folds)])
+        per = self._cache[k]
+        return float(np.max(per if fold is None else np.delete(per, fold)))
 
     def signed(self, key, col, positive: bool) -> np.ndarray:
         """col on the samples of one velocity sign (w >= 0 or w < 0), zero elsewhere (cached)."""
@@ -756,7 +771,7 @@ class Evaluator:
         # fit's amplitude: refitted there it would rest on nothing and blow up at low speed
         self._held = set()
         if 1 in self.base_cols and 1 in MAP_SLOTS[self.st.map] and idx.size:
-            if float(np.max(np.abs(self.base_cols[1][idx]))) < EXCITE:
+            if self.ctx.abs_max(self.base_keys[1], self.base_cols[1], idx, fold) < EXCITE:
                 self._held.add(1)
         linear = not (self.lf or self.af)
         # the columns at idx, gathered once (not needed by fits from the normal equations and moments)
