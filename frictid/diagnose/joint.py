@@ -18,6 +18,7 @@ from .evidence import evidence, fmt
 from .model import Structure, Term, model_values
 from .params import param_entries
 from .samples import DiagLog, Samples, build_samples
+from .structure import torque_noise, unexplained
 
 #: Folds of the held-out split.
 N_FOLDS = 5
@@ -80,6 +81,7 @@ def diagnose_joint(jf: JointFit, logs: list[DiagLog], n_folds: int = N_FOLDS) ->
     rec["friction_rms"] = chain.F_rms
     steps = chain.run()
     findings = _findings(jf, steps, S, base, n_folds, rec)
+    _structure(jf, chain, S, rec)
     pres = _presliding(jf, findings[-1]["model"] if findings else base)
     if pres is not None:
         findings.append(pres)
@@ -141,6 +143,22 @@ def _step_model(jf: JointFit, step: dict, tr: Trial, S: Samples, base: str, rigi
                     method="diagnosis: base amplitudes and extension terms by least squares (Gauss-Newton) on "
                            "the sliding samples (shapes of the base map held)",
                     extra=extra)
+
+
+def _structure(jf: JointFit, chain: Chain, S: Samples, rec: dict) -> None:
+    """The residual structure tests after the chain's last model (:mod:`.structure`); a structure worth
+    stating goes to ``rec['unexplained']`` and the joint's warnings."""
+    units = {"F": jf.units.get("tau", "N m"), "q": jf.units.get("q", "rad")}
+    tests, text = unexplained(S, S.F - chain.pred, chain.F_rms, units)
+    rec["structure"] = {"noise": torque_noise(S), "model": chain.st.name,
+                        "rule": ("held-out bin means of the residual against each variable (training folds "
+                                 f"only), one-sided paired t over held-out groups, alpha {ALPHA} split over the "
+                                 f"variables; stated when the explained RMS is at least {100 * EXPLAINED_MIN:.0f} % "
+                                 "of the friction RMS and the noise of the friction torque"),
+                        "tests": tests}
+    rec["unexplained"] = [text] if text else []
+    if text:
+        jf.warnings.append(f"unexplained structure: {text}")
 
 
 def _presliding(jf: JointFit, prev: str) -> dict | None:
