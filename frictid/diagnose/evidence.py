@@ -107,6 +107,29 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
     if ext == "offset":
         return (f"the residual carries a constant {fmt(float(g[0]))} {F_u} at both velocity signs "
                 f"(r = {r:.2f}); a torque offset: {tail}")
+    if ext == "position_torque":
+        amp = float(np.hypot(*g[:2]))
+        k = 2 * math.pi / nl["period"] if S.axis_rotary else 0.0
+        kind = (f"a gravity harmonic (sin {k:.0f}q), a spring compensator or cogging" if abs(k - round(k)) < 1e-6
+                and round(k) >= 2 else "cogging, a spring or a gravity harmonic")
+        return (f"a torque that does not change sign with the velocity varies with position: amplitude "
+                f"{fmt(amp)} {F_u}, period {fmt(nl['period'])} {q_u} (r = {r:.2f}); {kind}, not friction: the "
+                f"friction model does not carry it; {tail}")
+    if ext == "delay":
+        d = float(g[0])
+        return (f"the residual tracks the rate of the measured torque (r = {r:.2f}): the torque "
+                f"{'leads' if d > 0 else 'lags'} the motion by {1e3 * abs(d):.3g} ms (a signal delay, not "
+                f"friction; shift the torque or the position by it before fitting); {tail}")
+    if ext == "dwell":
+        from .signals import rests
+        tr = rests(S)[0]
+        tr = tr[tr > 0]
+        lo, hi = float(tr.min()), float(tr.max())
+        x = np.log1p(np.array([lo, hi]) / nl["t0"])
+        return (f"static friction grows with the time at rest before a move: the friction level just after a "
+                f"rest of {fmt(hi)} s is {100 * float(g[0]) * (x[1] - x[0]):+.1f} % of that after {fmt(lo)} s "
+                f"(ln(1 + t_rest / {fmt(nl['t0'])} s), fading over {fmt(nl['s_c'])} {q_u} of travel; r = {r:.2f}); "
+                f"the friction model does not carry it; {tail}")
     if ext == "drift":
         span_h = float(np.ptp(S.th))
         return (f"friction changes {100 * float(g[0]):+.3g} % per hour ({100 * float(g[0]) * span_h:+.3g} % over "

@@ -1,0 +1,94 @@
+"""Per-sample variables of the causes outside the friction model's own list, computed on the full logs and
+taken at the sliding samples: the rests before each move (``dwell``) and the rate of the measured torque
+(``delay``).
+
+- **Dwell** (static friction that grows with the time spent at rest, Dieterich's contact ageing): the
+  level factor's variable ``ln(1 + t_rest / t0) exp(-s / s_c)``, with ``t_rest`` the length of the rest
+  (slower than the sliding speed ``v_min``) just before the current move (0 after a reversal without a
+  rest), ``s`` the travel since the move started, ``t0`` and ``s_c`` chosen on training folds from scales
+  of the data (the rests' durations, the moves' lengths).
+- **Delay** between the torque and the motion: a torque logged ``d`` seconds ahead of the position and
+  velocity leaves ``r = d dtau/dt`` in the friction residual (to first order), so the additive column is the
+  measured torque's rate (Savitzky-Golay, quadratic, over :data:`RATE_WINDOW` seconds); its coefficient is
+  the delay [s], positive when the torque leads the motion.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..data import finite
+from .samples import Samples
+
+#: Window [s] of the Savitzky-Golay rate of the measured torque (at least 7 samples).
+RATE_WINDOW = 0.025
+
+
+def _moves(w: np.ndarray, v_min: float):
+    """Per sample of one log: the start index of its run (at rest, or moving one way) and of the run before."""
+    sg = np.where(np.abs(w) > v_min, np.sign(w), 0.0)
+    n = sg.size
+    brk = np.flatnonzero(sg[1:] != sg[:-1]) + 1
+    edges = np.concatenate(([0], brk))
+    lens = np.diff(np.concatenate((edges, [n])))
+    return sg, np.repeat(edges, lens), np.repeat(np.concatenate(([-1], edges[:-1])), lens)
+
+
+def rests(S: Samples) -> tuple[np.ndarray, np.ndarray]:
+    """(t_rest [s], s [q]) at the sliding samples: the length of the rest before the current move (0 after a
+    reversal without a rest) and the travel since the move started (cached)."""
+    def compute():
+        tr, sd = np.zeros(S.n), np.zeros(S.n)
+        for i, lg in enumerate(S.logs):
+            sel = S.li == i
+            if not sel.any() or lg.q is None:
+                continue
+            sg, start, prev = _moves(S.log_w(i), S.v_min)
+            k = S.k[sel]
+            st, pv = start[k], prev[k]
+            after = (st > 0) & (pv >= 0)
+            after[after] &= sg[st[after] - 1] == 0
+            tr[sel] = np.where(after, lg.t[st] - lg.t[np.maximum(pv, 0)], 0.0)
+            q = finite(lg.q)
+            sd[sel] = np.abs(q[k] - q[st])
+        return tr, sd
+    return S.cached("rests", compute)
+
+
+def rest_scales(S: Samples) -> tuple[np.ndarray, np.ndarray] | None:
+    """The settings tried for the dwell variable: ``t0`` [s] (the shortest and the median rest before a move)
+    and ``s_c`` [q] (1 % to 30 % of the median travel of a move, 4 values); None when the moves follow
+    fewer than 3 rests of at least two different lengths (nothing to tell a dwell effect by)."""
+    tr, sd = rests(S)
+    lengths = np.unique(np.round(tr[tr > 0], 6))
+    if lengths.size < 2 or np.count_nonzero(tr > 0) < 3 or lengths.max() < 2 * lengths.min():
+        return None
+    travel = float(np.median(sd[tr > 0])) if np.any(tr > 0) else 0.0
+    if travel <= 0:
+        return None
+    t0 = np.unique([float(lengths.min()), float(np.median(lengths))])
+    return t0, np.geomspace(0.01, 0.3, 4) * 2 * travel
+
+
+def dwell_state(S: Samples, t0: float, s_c: float) -> np.ndarray:
+    """``ln(1 + t_rest / t0) exp(-s / s_c)`` at the sliding samples."""
+    tr, sd = rests(S)
+    return np.log1p(tr / t0) * np.exp(-sd / s_c)
+
+
+def torque_rate(S: Samples) -> np.ndarray:
+    """The measured torque's rate dtau/dt [F/s] at the sliding samples (cached)."""
+    def compute():
+        from scipy.signal import savgol_filter
+
+        out = np.empty(S.n)
+        for i, lg in enumerate(S.logs):
+            sel = S.li == i
+            if not sel.any():
+                continue
+            dt = S.dt(i)
+            win = max(7, int(round(RATE_WINDOW / dt)) | 1)
+            tau = finite(lg.tau)
+            rate = savgol_filter(tau, win, 2, deriv=1, delta=dt) if lg.n > win else np.gradient(tau, dt)
+            out[sel] = rate[S.k[sel]]
+        return out
+    return S.cached("torque_rate", compute)
