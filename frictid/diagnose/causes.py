@@ -42,8 +42,10 @@ EXTENSIONS = {
 
 #: Time constants tried for the thermal state, per decade (then refined between the best neighbours).
 TAU_PER_DECADE = 3
-#: Fewest periods the position range must hold for a periodic term.
+#: Fewest periods the position range must hold for a periodic term (its period searched) ...
 MIN_PERIODS = 2.0
+#: ... and for a gravity harmonic of a position torque (its period fixed in advance).
+HARMONIC_MIN_CYCLES = 0.5
 #: A thermal state (heat balance, no measured temperature) is a slow variable only if the current velocity
 #: explains at most this fraction of its variance; otherwise it is a proxy for the speed (a time constant
 #: of a fraction of a second makes it the instantaneous friction power) and the data cannot resolve it.
@@ -112,11 +114,12 @@ def candidates(S: Samples, st: Structure, ctx: Context | None = None) -> list[st
 def _torque_periods(S: Samples) -> list[float]:
     """Periods [q] fixed in advance for a position torque: on a rotary joint the gravity harmonics 2 pi / k
     (k = 2, 3, 4: a spring compensator, an eccentric or elliptic part; k = 1 is gravity itself) that fit
-    in the range of positions at least once ... and (0 here), in :func:`propose`, the best period of the
+    in the range of positions at least :data:`HARMONIC_MIN_CYCLES` times (a period fixed in advance is no
+    setting chosen on the data: half a cycle tells sin 2q from the gravity's cos q, sin q) ... and (0 here), in :func:`propose`, the best period of the
     residual's periodogram, when the range holds periods to search."""
     fixed = [2 * math.pi / k for k in (2, 3, 4)] if S.axis_rotary else []
     rng = float(np.ptp(S.q))
-    return [P for P in fixed if P <= rng] + ([0.0] if _period_range(S) is not None else [])
+    return [P for P in fixed if P <= rng / HARMONIC_MIN_CYCLES] + ([0.0] if _period_range(S) is not None else [])
 
 
 def _dt(S: Samples) -> float:

@@ -121,9 +121,9 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
                 f"{'leads' if d > 0 else 'lags'} the motion by {1e3 * abs(d):.3g} ms (a signal delay, not "
                 f"friction; shift the torque or the position by it before fitting); {tail}")
     if ext == "dwell":
-        from .signals import rests
+        from .signals import REST_MIN, rests
         tr = rests(S)[0]
-        tr = tr[tr > 0]
+        tr = tr[tr >= REST_MIN]
         lo, hi = float(tr.min()), float(tr.max())
         x = np.log1p(np.array([lo, hi]) / nl["t0"])
         return (f"static friction grows with the time at rest before a move: the friction level just after a "

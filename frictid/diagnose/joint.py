@@ -18,7 +18,7 @@ from .evidence import evidence, fmt
 from .model import OUTSIDE_MODEL, Structure, Term, model_values
 from .params import param_entries
 from .samples import DiagLog, Samples, build_samples
-from .structure import torque_noise, unexplained
+from .structure import X_NOISE, torque_noise, unexplained
 
 #: Folds of the held-out split.
 N_FOLDS = 5
@@ -164,7 +164,7 @@ def _structure(jf: JointFit, chain: Chain, S: Samples, rec: dict) -> None:
                         "rule": ("held-out bin means of the residual against each variable (training folds "
                                  f"only), one-sided paired t over held-out groups, alpha {ALPHA} split over the "
                                  f"variables; stated when the explained RMS is at least {100 * EXPLAINED_MIN:.0f} % "
-                                 "of the friction RMS and the noise of the friction torque"),
+                                 f"of the friction RMS and {X_NOISE:g}x the noise of the friction torque"),
                         "tests": tests}
     rec["unexplained"] = [text] if text else []
     if text:

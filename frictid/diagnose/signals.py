@@ -19,6 +19,8 @@ import numpy as np
 from ..data import finite
 from .samples import Samples
 
+#: Shortest rest [s] that counts (the edge left out at both ends of a run of sliding samples).
+REST_MIN = 0.05
 #: Window [s] of the Savitzky-Golay rate of the measured torque (at least 7 samples).
 RATE_WINDOW = 0.025
 
@@ -59,6 +61,9 @@ def rest_scales(S: Samples) -> tuple[np.ndarray, np.ndarray] | None:
     and ``s_c`` [q] (1 % to 30 % of the median travel of a move, 4 values); None when the moves follow
     fewer than 3 rests of at least two different lengths (nothing to tell a dwell effect by)."""
     tr, sd = rests(S)
+    # a rest shorter than the sliding samples' edge at the ends of a run (50 ms, samples.py) is a dip of
+    # the measured velocity at a reversal, not a rest
+    tr = np.where(tr >= REST_MIN, tr, 0.0)
     lengths = np.unique(np.round(tr[tr > 0], 6))
     if lengths.size < 2 or np.count_nonzero(tr > 0) < 3 or lengths.max() < 2 * lengths.min():
         return None
@@ -70,8 +75,9 @@ def rest_scales(S: Samples) -> tuple[np.ndarray, np.ndarray] | None:
 
 
 def dwell_state(S: Samples, t0: float, s_c: float) -> np.ndarray:
-    """``ln(1 + t_rest / t0) exp(-s / s_c)`` at the sliding samples."""
+    """``ln(1 + t_rest / t0) exp(-s / s_c)`` at the sliding samples (rests shorter than :data:`REST_MIN`: 0)."""
     tr, sd = rests(S)
+    tr = np.where(tr >= REST_MIN, tr, 0.0)
     return np.log1p(tr / t0) * np.exp(-sd / s_c)
 
 

@@ -8,8 +8,8 @@ averaged in bins of ``x`` (equal-count bins over all samples) and that step func
 held-out fold; the structure is *significant* when it lowers the held-out residual with the chain's test
 (one-sided paired t over held-out groups, ``ALPHA`` split over the variables), and *large enough to state*
 when the RMS it explains is at least the larger of :data:`frictid.diagnose.chain.EXPLAINED_MIN` of the
-friction RMS and the torque sensor noise the logs show (the robust white-noise level of the measured
-torque, :func:`frictid.segments.noise_sigma`): both scales come from the data. A slow, segment-to-segment
+friction RMS and :data:`X_NOISE` times the noise the logs show on the friction torque (its robust
+white-noise level, :func:`frictid.segments.noise_sigma`): both scales come from the data. A slow, segment-to-segment
 wander that no variable carries (autocorrelation) is measured by the scatter of the held-out groups'
 mean residuals against what the noise alone gives them (``sigma / sqrt(samples)``).
 
@@ -32,6 +32,10 @@ from .samples import Samples
 #: Bins of a variable: about this many samples per bin on average (at most MAX_BINS, at least MIN_BINS).
 PER_BIN = 200
 MAX_BINS, MIN_BINS = 120, 8
+#: A structure is worth stating when the RMS it explains is at least this many times the noise of the
+#: friction torque (and EXPLAINED_MIN of the friction RMS): a systematic part the size of the sample noise
+#: is what any estimated acceleration and held shape leave (clean logs of the shipped plants: 1-2x).
+X_NOISE = 3.0
 #: The variables tested, with their label and unit key.
 VARIABLES = (("speed", "velocity", "w"), ("dwell", "time since the last rest", "s"), ("time", "time", "s"),
              ("position", "position", "q"), ("acceleration", "acceleration", "a"),
@@ -112,7 +116,7 @@ def structure_tests(S: Samples, r: np.ndarray, F_rms: float) -> list[dict]:
     out = []
     names = [(n, lab, u) for n, lab, u in VARIABLES if variable(S, n) is not None]
     m = len(names) + 1
-    floor = max(EXPLAINED_MIN * F_rms, sig)
+    floor = max(EXPLAINED_MIN * F_rms, X_NOISE * sig)
     for name, label, unit in names:
         x = variable(S, name)
         ra = r - heldout_binned(S, r, x)
