@@ -162,7 +162,9 @@ def position_period(S: Samples, r: np.ndarray) -> float | None:
 def unexplained(S: Samples, r: np.ndarray, F_rms: float, units: dict) -> tuple[list[dict], str | None]:
     """(the tests, the sentence on the strongest structure worth stating or None)."""
     tests = structure_tests(S, r, F_rms)
-    large = sorted((e for e in tests if e["large"]), key=lambda e: -e["explained_rms"])
+    # a variable that carries the structure names it; the wander (which any slow structure also shows in
+    # the segments' means) only when none does
+    large = sorted((e for e in tests if e["large"]), key=lambda e: (e["variable"] == "wander", -e["explained_rms"]))
     if not large:
         return tests, None
     top = large[0]
@@ -171,7 +173,7 @@ def unexplained(S: Samples, r: np.ndarray, F_rms: float, units: dict) -> tuple[l
         P = position_period(S, r)
         if P is not None:
             what += f" (period {P:.3g} {units.get('q', 'rad')})"
-    others = [e["label"] for e in large[1:]]
+    others = [e["label"] for e in large[1:] if e["variable"] != "wander"]
     xn = f"{top['x_noise']:.0f}x the sensor noise" if math.isfinite(top["x_noise"]) else "noise-free torque"
     text = (f"residual varies with {what} after the best model: {top['explained_rms']:.3g} "
             f"{units.get('F', 'N m')} RMS, {100 * top['of_friction_rms']:.0f} % of the friction RMS, {xn}"
