@@ -115,3 +115,18 @@ def test_a_position_torque_on_plateaus_is_not_a_friction_modulation():
     assert pt["settings"]["period"] == pytest.approx(P, rel=0.01) and pt["gain"] > 0.5
     jf, findings = _run([plateau_log(level, seed=3)])
     assert findings[0]["cause"] == "position" and "position_torque" not in _outside(jf)
+
+
+def test_a_speed_effect_in_plateau_order_is_not_called_position():
+    """Each plateau speed in one stretch of travel (one sweep, speeds rising): a bump of the friction at one
+    speed that the base map cannot follow is a function of the position too (EMPS: "position 48 %"). Within
+    a plateau the level does not change with the position, so no position cause may be named."""
+    def bump(t, q, w, F):
+        return np.asarray(F) + 0.5 * np.exp(-((np.abs(w) - 0.6) / 0.25) ** 2) * np.sign(w)
+
+    jf, findings = _run([plateau_log(bump, seed=4, reps=2)])
+    d = jf.selection["diagnosis"]
+    assert not [f for f in findings if f["cause"] == "position"], findings
+    assert "position_torque" not in _outside(jf)
+    rejected = [r for st in d["steps"] for r in st.get("rejected", [])]
+    assert any(r["extension"].startswith("position") and "within segments" in r["reason"] for r in rejected), d["steps"]
