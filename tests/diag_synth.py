@@ -181,12 +181,30 @@ def declare_horizontal(logs, plant: dict) -> None:
             lg.meta["gravity"] = [0.0, 0.0]
 
 
+def named_causes(jf) -> list[tuple[str, str, float]]:
+    """(cause, extension, gain) of every cause the diagnosis named, in the chain's order: its findings and
+    the causes outside the friction model (``selection.diagnosis.outside_model``), then presliding."""
+    d = jf.selection.get("diagnosis") or {}
+    outside = list(d.get("outside_model") or [])
+    findings = [f for f in jf.diagnosis if f["cause"] != "presliding"]
+    out = []
+    for st in d.get("steps") or []:
+        ext = st.get("chosen")
+        if ext is None:
+            continue
+        src = outside if outside and outside[0]["extension"] == ext else findings
+        if src:
+            f = src.pop(0)
+            out.append((f["cause"], f["extension"], float(f["gain"])))
+    out += [(f["cause"], f["extension"], float(f["gain"])) for f in jf.diagnosis if f["cause"] == "presliding"]
+    return out
+
+
 def top_cause(jf) -> tuple[str, float]:
-    """(cause, gain) of the first finding of a joint's diagnosis, or ('none', 0)."""
-    if not jf.diagnosis:
-        return "none", 0.0
-    f = jf.diagnosis[0]
-    return f["cause"], float(f["gain"])
+    """(cause, gain) of the first cause the diagnosis named (a finding or a cause outside the friction
+    model), or ('none', 0)."""
+    named = named_causes(jf)
+    return (named[0][0], named[0][2]) if named else ("none", 0.0)
 
 
 def run_case(plant_name: str, cause: str, s: float, size: str = "small", seed: int = 0, noise: float = 1.0,
