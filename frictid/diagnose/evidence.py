@@ -9,6 +9,7 @@ from ..models.static import canonical_friction
 from .chain import Trial
 from .model import canonical_vectors
 from .samples import Samples
+from .signals import REST_MIN, rests
 
 
 def fmt(x: float) -> str:
@@ -107,6 +108,18 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
     if ext == "offset":
         return (f"the residual carries a constant {fmt(float(g[0]))} {F_u} at both velocity signs "
                 f"(r = {r:.2f}); a torque offset: {tail}")
+    if ext in ("position_torque", "delay", "dwell"):
+        return _outside_evidence(ext, S, nl, g, r, F_u, q_u, tail)
+    if ext == "drift":
+        span_h = float(np.ptp(S.th))
+        return (f"friction changes {100 * float(g[0]):+.3g} % per hour ({100 * float(g[0]) * span_h:+.3g} % over "
+                f"the {_duration(span_h * 3600)} between the first and last recording; r = {r:.2f}); a drift "
+                f"term: {tail}")
+    return f"r = {r:.2f}; {tail}"
+
+
+def _outside_evidence(ext: str, S: Samples, nl: dict, g: np.ndarray, r: float, F_u: str, q_u: str, tail: str) -> str:
+    """The sentence of a cause outside the friction model (position torque, delay, dwell)."""
     if ext == "position_torque":
         amp = float(np.hypot(*g[:2]))
         k = 2 * math.pi / nl["period"] if S.axis_rotary else 0.0
@@ -120,22 +133,14 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
         return (f"the residual tracks the rate of the measured torque (r = {r:.2f}): the torque "
                 f"{'leads' if d > 0 else 'lags'} the motion by {1e3 * abs(d):.3g} ms (a signal delay, not "
                 f"friction; shift the torque or the position by it before fitting); {tail}")
-    if ext == "dwell":
-        from .signals import REST_MIN, rests
-        tr = rests(S)[0]
-        tr = tr[tr >= REST_MIN]
-        lo, hi = float(tr.min()), float(tr.max())
-        x = np.log1p(np.array([lo, hi]) / nl["t0"])
-        return (f"static friction grows with the time at rest before a move: the friction level just after a "
-                f"rest of {fmt(hi)} s is {100 * float(g[0]) * (x[1] - x[0]):+.1f} % of that after {fmt(lo)} s "
-                f"(ln(1 + t_rest / {fmt(nl['t0'])} s), fading over {fmt(nl['s_c'])} {q_u} of travel; r = {r:.2f}); "
-                f"the friction model does not carry it; {tail}")
-    if ext == "drift":
-        span_h = float(np.ptp(S.th))
-        return (f"friction changes {100 * float(g[0]):+.3g} % per hour ({100 * float(g[0]) * span_h:+.3g} % over "
-                f"the {_duration(span_h * 3600)} between the first and last recording; r = {r:.2f}); a drift "
-                f"term: {tail}")
-    return f"r = {r:.2f}; {tail}"
+    tr = rests(S)[0]    # dwell
+    tr = tr[tr >= REST_MIN]
+    lo, hi = float(tr.min()), float(tr.max())
+    x = np.log1p(np.array([lo, hi]) / nl["t0"])
+    return (f"static friction grows with the time at rest before a move: the friction level just after a "
+            f"rest of {fmt(hi)} s is {100 * float(g[0]) * (x[1] - x[0]):+.1f} % of that after {fmt(lo)} s "
+            f"(ln(1 + t_rest / {fmt(nl['t0'])} s), fading over {fmt(nl['s_c'])} {q_u} of travel; r = {r:.2f}); "
+            f"the friction model does not carry it; {tail}")
 
 
 def _cum_energy(S: Samples) -> np.ndarray:
