@@ -130,3 +130,29 @@ def test_a_speed_effect_in_plateau_order_is_not_called_position():
     assert "position_torque" not in _outside(jf)
     rejected = [r for st in d["steps"] for r in st.get("rejected", [])]
     assert any(r["extension"].startswith("position") and "within segments" in r["reason"] for r in rejected), d["steps"]
+
+
+def test_a_warm_up_sentence_states_the_whole_fall_across_logs_that_restart_cold():
+    """Two logs laid end to end (no start times), each warming from cold: the sentence compares the
+    coldest and the warmest thermal state (it compared the ends of the clock, both cold: issue 20's
+    "falls 0.277 N m" where the model falls from 20.4 to 16.4 N m)."""
+    import re
+
+    from frictid.diagnose.samples import heat_balance_rise
+
+    tau_c = 60.0
+
+    def warm(t, q, w, F):
+        x = heat_balance_rise(t, F * w, np.zeros(t.size), tau_c)
+        return F * (1 - 0.06 * x)
+
+    logs = [plateau_log(warm, reps=4, alternate=True, seed=s) for s in (1, 2)]
+    jf, findings = _run(logs)
+    f = findings[0]
+    assert f["cause"] == "temperature", findings
+    lg = logs[0]
+    x = heat_balance_rise(lg.t, np.asarray(lg.F) * lg.w, np.zeros(lg.n), tau_c)   # the true state, roughly
+    lo, hi = np.percentile(x[np.abs(lg.w) > 0.1], [1, 99])
+    true = 100 * ((1 - 0.06 * hi) / (1 - 0.06 * lo) - 1)
+    said = float(re.search(r"\(([+-]\d+) %, the mean", f["evidence"]).group(1))
+    assert "falls from" in f["evidence"] and said == pytest.approx(true, rel=0.3), (f["evidence"], true)
