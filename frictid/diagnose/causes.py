@@ -12,7 +12,7 @@ import numpy as np
 
 from .model import OUTSIDE_MODEL, Context, Evaluator, Structure, Term
 from .samples import Samples
-from .signals import rest_scales
+from .signals import rate_share, rest_scales
 
 #: The causes, in the order the issue names them (``presliding`` is judged on ramp and step segments).
 CAUSES = ("temperature", "position", "load", "asymmetry", "stribeck", "presliding", "inertia", "gravity",
@@ -59,7 +59,7 @@ SPAN_MIN_TAUS = 3.0
 #: The inertia cause is tested only when the sliding samples carry at least this share of the acceleration
 #: excitation (sum of a^2) of the moving samples: the fit's inertia rests on all of them, and a subset with
 #: little acceleration cannot overrule it (on a pulses run it turns transients into a 56 % inertia change).
-INERTIA_EXCITATION_MIN = 0.25
+INERTIA_EXCITATION_MIN = 0.25   # the same share of the torque-rate excitation for the delay cause
 
 
 def n_coef(ext: str, st: Structure) -> int:
@@ -104,7 +104,7 @@ def candidates(S: Samples, st: Structure, ctx: Context | None = None) -> list[st
         out.append("drift")
     if "dwell" not in have and S.q is not None and rest_scales(S) is not None:
         out.append("dwell")
-    if "delay" not in have:
+    if "delay" not in have and rate_share(S) >= INERTIA_EXCITATION_MIN:
         out.append("delay")
     if "position_torque" not in have and S.q is not None and np.ptp(S.q) > 0 and _torque_periods(S):
         out.append("position_torque")

@@ -81,20 +81,40 @@ def dwell_state(S: Samples, t0: float, s_c: float) -> np.ndarray:
     return np.log1p(tr / t0) * np.exp(-sd / s_c)
 
 
-def torque_rate(S: Samples) -> np.ndarray:
-    """The measured torque's rate dtau/dt [F/s] at the sliding samples (cached)."""
+def _log_rate(S: Samples, i: int) -> np.ndarray:
+    """The measured torque's rate [F/s] at every sample of log i (cached)."""
     def compute():
         from scipy.signal import savgol_filter
 
+        lg = S.logs[i]
+        dt = S.dt(i)
+        win = max(7, int(round(RATE_WINDOW / dt)) | 1)
+        tau = finite(lg.tau)
+        return savgol_filter(tau, win, 2, deriv=1, delta=dt) if lg.n > win else np.gradient(tau, dt)
+    return S.cached(("torque_rate", i), compute)
+
+
+def torque_rate(S: Samples) -> np.ndarray:
+    """The measured torque's rate dtau/dt [F/s] at the sliding samples (cached)."""
+    def compute():
         out = np.empty(S.n)
-        for i, lg in enumerate(S.logs):
+        for i in range(len(S.logs)):
             sel = S.li == i
-            if not sel.any():
-                continue
-            dt = S.dt(i)
-            win = max(7, int(round(RATE_WINDOW / dt)) | 1)
-            tau = finite(lg.tau)
-            rate = savgol_filter(tau, win, 2, deriv=1, delta=dt) if lg.n > win else np.gradient(tau, dt)
-            out[sel] = rate[S.k[sel]]
+            if sel.any():
+                out[sel] = _log_rate(S, i)[S.k[sel]]
         return out
     return S.cached("torque_rate", compute)
+
+
+def rate_share(S: Samples) -> float:
+    """Share of the torque-rate excitation (sum of (dtau/dt)^2 over the moving samples, faster than 2 % of
+    the top speed) that the sliding samples carry: a delay shows where the torque changes fast, and a subset
+    that holds little of that change cannot measure it (on a run of plateaus the rate is large only in the
+    transitions the sliding samples leave out, and any slow misfit then passes for a delay)."""
+    def compute():
+        tot = 0.0
+        for i in range(len(S.logs)):
+            m = np.abs(S.log_w(i)) > 0.02 * S.w0
+            tot += float(np.sum(_log_rate(S, i)[m] ** 2))
+        return min(1.0, float(np.sum(torque_rate(S) ** 2)) * max(S.decimation, 1) / tot) if tot > 0 else 0.0
+    return S.cached("rate_share", compute)
