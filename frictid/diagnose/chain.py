@@ -235,10 +235,17 @@ POSITION_EXTS = ("position_periodic", "position_smooth", "position_torque")
 SPEED_BINS = 20
 
 
-def _within(cell: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """x less its mean in each cell."""
-    cnt = np.bincount(cell)
-    return x - (np.bincount(cell, weights=x) / np.maximum(cnt, 1))[cell]
+def _within(cell: np.ndarray, x: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
+    """x less its mean in each cell, and (w given) less its least-squares line in w within the cell: what
+    varies with the speed inside a cell (an accelerating stretch) is taken out with the mean."""
+    cnt = np.maximum(np.bincount(cell), 1)
+    xc = x - (np.bincount(cell, weights=x) / cnt)[cell]
+    if w is None:
+        return xc
+    wc = w - (np.bincount(cell, weights=w) / cnt)[cell]
+    sww = np.bincount(cell, weights=wc * wc)
+    beta = np.bincount(cell, weights=wc * xc) / np.where(sww > 0, sww, np.inf)
+    return xc - beta[cell] * wc
 
 
 def speed_cells(S: Samples) -> np.ndarray:
@@ -256,15 +263,17 @@ def speed_cells(S: Samples) -> np.ndarray:
 def confounded(S: Samples, tr: Trial, m: int) -> str | None:
     """Why a position candidate is a stand-in for the speed or the order of the plateaus (EMPS: each plateau
     speed in one stretch of travel, so any function of the speed is a function of the position), or None.
-    Its held-out correction, less its mean in every cell of one segment and one speed (:func:`speed_cells`),
-    must still explain the residual's variation within the cells: the paired t over held-out groups of
-    ``sum(rw^2 - (rw - dw)^2)`` significant at the step's level."""
+    Its held-out correction and the residual, each less its mean and its line in the velocity in every cell
+    of one segment and one speed bin (:func:`speed_cells`), must vary together within the cells: the one-sided t over held-out groups of
+    ``sum(rw dw)`` significant at the step's level. (A covariance, not the gain of subtracting ``dw``: in a
+    closed loop the residual's variation within a plateau is an attenuated copy of the effect's, the
+    controller's lag and the estimated acceleration share it.)"""
     if tr.ext not in POSITION_EXTS:
         return None
     cell = speed_cells(S)
-    rw = _within(cell, S.F - tr.pred_before)
-    dw = _within(cell, tr.pred_after - tr.pred_before)
-    t, p = paired_t(group_d(S, rw, rw - dw))
+    rw = _within(cell, S.F - tr.pred_before, S.w)
+    dw = _within(cell, tr.pred_after - tr.pred_before, S.w)
+    t, p = paired_t(np.bincount(S.group, weights=rw * dw, minlength=S.n_groups))
     if p < ALPHA / max(m, 1):
         return None
     return (f"{tr.ext} does not show within segments at one speed (held-out within-cell t = {t:.2f}, "
