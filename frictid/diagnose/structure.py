@@ -159,8 +159,10 @@ def position_period(S: Samples, r: np.ndarray) -> float | None:
     return None if pr is None else best_period(S.q, r, np.ones_like(r), pr)
 
 
-def unexplained(S: Samples, r: np.ndarray, F_rms: float, units: dict) -> tuple[list[dict], str | None]:
-    """(the tests, the sentence on the strongest structure worth stating or None)."""
+def unexplained(S: Samples, r: np.ndarray, F_rms: float, units: dict, model: str = "the best model"
+                ) -> tuple[list[dict], str | None]:
+    """(the tests, the sentence on the strongest structure worth stating or None); model : the name of the
+    model whose held-out residual r is."""
     tests = structure_tests(S, r, F_rms)
     # a variable that carries the structure names it; the wander (which any slow structure also shows in
     # the segments' means) only when none does
@@ -175,12 +177,12 @@ def unexplained(S: Samples, r: np.ndarray, F_rms: float, units: dict) -> tuple[l
             what += f" (period {P:.3g} {units.get('q', 'rad')})"
     others = [e["label"] for e in large[1:] if e["variable"] != "wander"]
     xn = f"{top['x_noise']:.0f}x the sensor noise" if math.isfinite(top["x_noise"]) else "noise-free torque"
-    text = (f"residual varies with {what} after the best model: {top['explained_rms']:.3g} "
+    text = (f"residual varies with {what} after {model}: {top['explained_rms']:.3g} "
             f"{units.get('F', 'N m')} RMS, {100 * top['of_friction_rms']:.0f} % of the friction RMS, {xn}"
             + (f" (also seen against {', '.join(others)})" if others else "")
             + "; no candidate explains it")
     if top["variable"] == "wander":
-        text = (f"residual wanders from segment to segment after the best model: {top['explained_rms']:.3g} "
+        text = (f"residual wanders from segment to segment after {model}: {top['explained_rms']:.3g} "
                 f"{units.get('F', 'N m')} RMS beyond the noise, {100 * top['of_friction_rms']:.0f} % of the "
                 f"friction RMS, {xn}; no candidate explains it")
     return tests, text
