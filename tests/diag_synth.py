@@ -181,12 +181,30 @@ def declare_horizontal(logs, plant: dict) -> None:
             lg.meta["gravity"] = [0.0, 0.0]
 
 
+def named_causes(jf) -> list[tuple[str, str, float]]:
+    """(cause, extension, gain) of every cause the diagnosis named, in the chain's order: its findings and
+    the causes outside the friction model (``selection.diagnosis.outside_model``), then presliding."""
+    d = jf.selection.get("diagnosis") or {}
+    outside = list(d.get("outside_model") or [])
+    findings = [f for f in jf.diagnosis if f["cause"] != "presliding"]
+    out = []
+    for st in d.get("steps") or []:
+        ext = st.get("chosen")
+        if ext is None:
+            continue
+        src = outside if outside and outside[0]["extension"] == ext else findings
+        if src:
+            f = src.pop(0)
+            out.append((f["cause"], f["extension"], float(f["gain"])))
+    out += [(f["cause"], f["extension"], float(f["gain"])) for f in jf.diagnosis if f["cause"] == "presliding"]
+    return out
+
+
 def top_cause(jf) -> tuple[str, float]:
-    """(cause, gain) of the first finding of a joint's diagnosis, or ('none', 0)."""
-    if not jf.diagnosis:
-        return "none", 0.0
-    f = jf.diagnosis[0]
-    return f["cause"], float(f["gain"])
+    """(cause, gain) of the first cause the diagnosis named (a finding or a cause outside the friction
+    model), or ('none', 0)."""
+    named = named_causes(jf)
+    return (named[0][0], named[0][2]) if named else ("none", 0.0)
 
 
 def run_case(plant_name: str, cause: str, s: float, size: str = "small", seed: int = 0, noise: float = 1.0,
@@ -254,3 +272,36 @@ def log_joint_temperature(logs, seed: int, sigma: float = 0.05, step: float = 0.
     for lg in logs:
         T = lg.truth["temp_joint"] + sigma * rng.standard_normal(lg.n)
         lg.channels["temp_joint"] = np.round(T / step) * step
+
+
+# ---------------------------------------------------------------------------------------------------
+# Causes outside the friction model's list (issue 20): dwell, delay, position torque
+
+
+def rests_recipe(size: str = "tiny", moves: int = 24, dwell=(0.1, 12.0), seed: int = 0) -> dict:
+    """The session's sweep, then ``moves`` random point-to-point moves with rests of ``dwell`` seconds (a
+    range: uniform), then the sweep again: a static friction that grows with the time at rest shows after
+    the long rests."""
+    rec = session_recipe(size)
+    rec["experiments"][1] = {"kind": "random_ptp", "moves": moves, "speed": [0.3, 0.9], "accel": [0.5, 1.0],
+                             "dwell": list(dwell), "seed": seed, "rest": 0.5}
+    rec["name"] = f"rests_{size}"
+    return rec
+
+
+def outside_case(plant_name: str, effect: dict | None, seed: int, recipe: dict | None = None,
+                 delay: int = 0):
+    """A null plant with one effect outside the friction model's list (an effect entry, or a sensor delay of
+    ``delay`` samples of the position behind the torque), simulated and fitted with the diagnosis; returns
+    (JointFit, logs)."""
+    import frictid
+    from frictid.plant import simulate_recipe
+
+    pl = null_plant(plant_name)
+    if effect is not None:
+        pl["joints"][0]["effects"] = [effect]
+    pl["sensors"]["delay"] = int(delay)
+    logs = simulate_recipe(recipe or session_recipe("tiny"), pl, seed=seed)
+    declare_horizontal(logs, pl)
+    res = frictid.fit(logs, models=FIT_MODELS)
+    return res[logs[0].joint], logs

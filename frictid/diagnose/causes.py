@@ -10,12 +10,13 @@ import math
 
 import numpy as np
 
-from .model import Context, Evaluator, Structure, Term
+from .model import OUTSIDE_MODEL, Context, Evaluator, Structure, Term
 from .samples import Samples
+from .signals import rate_share, rest_scales
 
 #: The causes, in the order the issue names them (``presliding`` is judged on ramp and step segments).
 CAUSES = ("temperature", "position", "load", "asymmetry", "stribeck", "presliding", "inertia", "gravity",
-          "offset", "drift")
+          "offset", "drift", "dwell", "delay", "position_torque")
 
 #: Extension name -> (cause, role, number of coefficients).
 EXTENSIONS = {
@@ -33,12 +34,18 @@ EXTENSIONS = {
     "gravity": ("gravity", "additive", 2),
     "offset": ("offset", "additive", 1),
     "drift": ("drift", "whole_factor", 1),
+    # causes the parameter file's friction models do not carry (OUTSIDE_MODEL): named, never exported
+    "dwell": ("dwell", "level_factor", 1),          # level times 1 + k ln(1 + t_rest / t0) exp(-s / s_c)
+    "delay": ("delay", "additive", 1),              # d dtau/dt: the torque logged d seconds ahead of the motion
+    "position_torque": ("position_torque", "additive", 2),   # a sin + b cos of 2 pi q / P: not friction
 }
 
 #: Time constants tried for the thermal state, per decade (then refined between the best neighbours).
 TAU_PER_DECADE = 3
-#: Fewest periods the position range must hold for a periodic term.
+#: Fewest periods the position range must hold for a periodic term (its period searched) ...
 MIN_PERIODS = 2.0
+#: ... and for a gravity harmonic of a position torque (its period fixed in advance).
+HARMONIC_MIN_CYCLES = 0.5
 #: A thermal state (heat balance, no measured temperature) is a slow variable only if the current velocity
 #: explains at most this fraction of its variance; otherwise it is a proxy for the speed (a time constant
 #: of a fraction of a second makes it the instantaneous friction power) and the data cannot resolve it.
@@ -52,7 +59,7 @@ SPAN_MIN_TAUS = 3.0
 #: The inertia cause is tested only when the sliding samples carry at least this share of the acceleration
 #: excitation (sum of a^2) of the moving samples: the fit's inertia rests on all of them, and a subset with
 #: little acceleration cannot overrule it (on a pulses run it turns transients into a 56 % inertia change).
-INERTIA_EXCITATION_MIN = 0.25
+INERTIA_EXCITATION_MIN = 0.25   # the same share of the torque-rate excitation for the delay cause
 
 
 def n_coef(ext: str, st: Structure) -> int:
@@ -95,7 +102,24 @@ def candidates(S: Samples, st: Structure, ctx: Context | None = None) -> list[st
         out.append("offset")
     if "drift" not in have and len(S.logs) > 1 and span_h > 0 and S.clock_real:
         out.append("drift")
+    if "dwell" not in have and S.q is not None and rest_scales(S) is not None:
+        out.append("dwell")
+    if "delay" not in have and rate_share(S) >= INERTIA_EXCITATION_MIN:
+        out.append("delay")
+    if "position_torque" not in have and S.q is not None and np.ptp(S.q) > 0 and _torque_periods(S):
+        out.append("position_torque")
     return out
+
+
+def _torque_periods(S: Samples) -> list[float]:
+    """Periods [q] fixed in advance for a position torque: on a rotary joint the gravity harmonics 2 pi / k
+    (k = 2, 3, 4: a spring compensator, an eccentric or elliptic part; k = 1 is gravity itself) that fit
+    in the range of positions at least :data:`HARMONIC_MIN_CYCLES` times (a period fixed in advance is no
+    setting chosen on the data: half a cycle tells sin 2q from the gravity's cos q, sin q) ... and (0 here), in :func:`propose`, the best period of the
+    residual's periodogram, when the range holds periods to search."""
+    fixed = [2 * math.pi / k for k in (2, 3, 4)] if S.axis_rotary else []
+    rng = float(np.ptp(S.q))
+    return [P for P in fixed if P <= rng / HARMONIC_MIN_CYCLES] + ([0.0] if _period_range(S) is not None else [])
 
 
 def _dt(S: Samples) -> float:
@@ -237,6 +261,13 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
     if ext == "position_periodic":
         P = best_period(S.q[idx], resid, level, _period_range(S))
         return None if P is None else Term(cause, ext, role, (("period", float(P)),))
+    if ext == "position_torque":
+        return _position_torque(ctx, st, idx, resid)
+    if ext == "dwell":
+        t0s, scs = rest_scales(S)
+        trials = [(t0, sc) for t0 in t0s for sc in scs]
+        terms = [Term(cause, ext, role, (("t0", float(t0)), ("s_c", float(sc)))) for t0, sc in trials]
+        return min(terms, key=lambda term: _fit_rms(ctx, st.plus(term), idx))
     if ext == "position_smooth":
         q0 = float(0.5 * (S.q.max() + S.q.min()))
         qs = float(0.5 * np.ptp(S.q)) or 1.0
@@ -255,6 +286,21 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
                     best = (r, term)
         return best[1]
     return Term(cause, ext, role, ())
+
+
+def _position_torque(ctx: Context, st: Structure, idx: np.ndarray, resid: np.ndarray) -> Term | None:
+    """The position torque's period: the fixed gravity harmonics and the residual's periodogram peak
+    (additive: the level is one), the best on the training samples."""
+    S = ctx.S
+    periods = [P for P in _torque_periods(S) if P > 0]
+    if _period_range(S) is not None:
+        P = best_period(S.q[idx], resid, np.ones(idx.size), _period_range(S))
+        if P is not None:
+            periods.append(float(P))
+    if not periods:
+        return None
+    terms = [Term("position_torque", "position_torque", "additive", (("period", float(P)),)) for P in periods]
+    return min(terms, key=lambda term: _fit_rms(ctx, st.plus(term), idx))
 
 
 def _thermal_source(per_source: dict, S: Samples, idx: np.ndarray) -> Term | None:

@@ -155,8 +155,14 @@ class Chain:
     def worth_it(self, tr: Trial) -> bool:
         return tr.gain > 0 and tr.explained >= EXPLAINED_MIN * self.F_rms
 
-    def choose(self, trials: list[Trial], m: int) -> Trial | None:
+    def choose(self, trials: list[Trial], m: int, rejected: list | None = None) -> Trial | None:
         ok = [t for t in trials if self.significant(t, m) and self.worth_it(t)]
+        for t in list(ok):
+            why = confounded(self.S, t, m)
+            if why is not None:
+                ok.remove(t)
+                if rejected is not None:
+                    rejected.append({"extension": t.ext, "reason": why})
         if not ok:
             return None
         ok.sort(key=lambda t: t.rms_after)
@@ -205,7 +211,11 @@ class Chain:
         ``step['rejected']``). (None, None, None) when none is left."""
         left = list(trials)
         while True:
-            best = self.choose(left, m)
+            conf: list = []   # position candidates that stand in for the speed (:func:`confounded`)
+            best = self.choose(left, m, conf)
+            step.setdefault("rejected", []).extend(c for c in conf if c not in step.get("rejected", []))
+            if not step["rejected"]:
+                del step["rejected"]
             if best is None:
                 return None, None, None
             res = self.S.F - self.pred
@@ -217,6 +227,57 @@ class Chain:
                 return best, term, st_new
             step.setdefault("rejected", []).append({"extension": best.ext, "reason": why})
             left = [t for t in left if t is not best]
+
+
+#: Extensions whose variable is the position: a finding must show itself at one speed within a segment.
+POSITION_EXTS = ("position_periodic", "position_smooth", "position_torque")
+#: Speed bins (equal count, per velocity sign) that cut the segments into cells of nearly one speed.
+SPEED_BINS = 20
+
+
+def _within(cell: np.ndarray, x: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
+    """x less its mean in each cell, and (w given) less its least-squares line in w within the cell: what
+    varies with the speed inside a cell (an accelerating stretch) is taken out with the mean."""
+    cnt = np.maximum(np.bincount(cell), 1)
+    xc = x - (np.bincount(cell, weights=x) / cnt)[cell]
+    if w is None:
+        return xc
+    wc = w - (np.bincount(cell, weights=w) / cnt)[cell]
+    sww = np.bincount(cell, weights=wc * wc)
+    beta = np.bincount(cell, weights=wc * xc) / np.where(sww > 0, sww, np.inf)
+    return xc - beta[cell] * wc
+
+
+def speed_cells(S: Samples) -> np.ndarray:
+    """Cell index per sample: its group (a segment or a chunk of one) and its speed bin (:data:`SPEED_BINS`
+    equal-count bins of the signed velocity): within a cell the speed, the plateau and the time hardly
+    change, so what varies there with the position is not a stand-in for any of them."""
+    def compute():
+        edges = np.unique(np.quantile(S.w, np.linspace(0, 1, 2 * SPEED_BINS + 1)[1:-1]))
+        b = np.searchsorted(edges, S.w, side="right")
+        _, cell = np.unique(S.group.astype(np.int64) * (edges.size + 1) + b, return_inverse=True)
+        return cell
+    return S.cached("speed_cells", compute)
+
+
+def confounded(S: Samples, tr: Trial, m: int) -> str | None:
+    """Why a position candidate is a stand-in for the speed or the order of the plateaus (EMPS: each plateau
+    speed in one stretch of travel, so any function of the speed is a function of the position), or None.
+    Its held-out correction and the residual, each less its mean and its line in the velocity in every cell
+    of one segment and one speed bin (:func:`speed_cells`), must vary together within the cells: the one-sided t over held-out groups of
+    ``sum(rw dw)`` significant at the step's level. (A covariance, not the gain of subtracting ``dw``: in a
+    closed loop the residual's variation within a plateau is an attenuated copy of the effect's, the
+    controller's lag and the estimated acceleration share it.)"""
+    if tr.ext not in POSITION_EXTS:
+        return None
+    cell = speed_cells(S)
+    rw = _within(cell, S.F - tr.pred_before, S.w)
+    dw = _within(cell, tr.pred_after - tr.pred_before, S.w)
+    t, p = paired_t(np.bincount(S.group, weights=rw * dw, minlength=S.n_groups))
+    if p < ALPHA / max(m, 1):
+        return None
+    return (f"{tr.ext} does not show within segments at one speed (held-out within-cell t = {t:.2f}, "
+            f"p = {p:.2g}): the position stands in for the speed or the order of the plateaus")
 
 
 def degenerate(before: Coef, st: Structure, after: Coef) -> str | None:

@@ -9,6 +9,7 @@ from ..models.static import canonical_friction
 from .chain import Trial
 from .model import canonical_vectors
 from .samples import Samples
+from .signals import REST_MIN, rests
 
 
 def fmt(x: float) -> str:
@@ -55,19 +56,7 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
             f"({100 * tr.gain:.0f} %)")
     ext = tr.ext
     if ext in ("thermal4", "thermal6"):
-        order = np.argsort(S.th)
-        n10 = max(1, S.n // 10)
-        sg = np.sign(S.w)
-        early = float(np.mean((corr * sg)[order[:n10]]))
-        late = float(np.mean((corr * sg)[order[-n10:]]))
-        span = float(np.ptp(S.th)) * 3600
-        dirn = "falls" if late < early else "rises"
-        what = ("the measured joint temperature" if nl.get("source") == "temp_joint" else
-                f"the estimated thermal state (time constant {_duration(nl['tau_c'])})")
-        E = _cum_energy(S)
-        rE = _corr(rb * sg, E)
-        return (f"friction {dirn} {fmt(abs(late - early))} {F_u} over {_duration(span)} of recording, "
-                f"tracking {what} (r = {r:.2f}; cumulative friction energy r = {rE:.2f}); {tail}")
+        return _thermal_evidence(S, nl, g if ext == "thermal4" else None, coef.dc, rb, r, F_u, tail)
     if ext == "position_periodic":
         amp = float(np.hypot(*g[:2]))
         return (f"friction level varies by +/-{100 * amp:.1f} % with position, period {fmt(nl['period'])} "
@@ -107,12 +96,64 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
     if ext == "offset":
         return (f"the residual carries a constant {fmt(float(g[0]))} {F_u} at both velocity signs "
                 f"(r = {r:.2f}); a torque offset: {tail}")
+    if ext in ("position_torque", "delay", "dwell"):
+        return _outside_evidence(ext, S, nl, g, r, F_u, q_u, tail)
     if ext == "drift":
         span_h = float(np.ptp(S.th))
         return (f"friction changes {100 * float(g[0]):+.3g} % per hour ({100 * float(g[0]) * span_h:+.3g} % over "
                 f"the {_duration(span_h * 3600)} between the first and last recording; r = {r:.2f}); a drift "
                 f"term: {tail}")
     return f"r = {r:.2f}; {tail}"
+
+
+def _thermal_evidence(S: Samples, nl: dict, g4, dc, rb, r: float, F_u: str, tail: str) -> str:
+    """The sentence of a temperature finding: the model's mean friction at the coldest and the warmest
+    thermal state of the recording (1st and 99th percentiles of the state, at the samples' speeds), not the
+    ends of the logs laid end to end (a last log that starts cold hid a 20 % fall as 1.4 %)."""
+    x = S.thermal_state(nl["tau_c"], measured=nl.get("source") == "temp_joint")
+    lo, hi = np.percentile(x, [1, 99])
+    sg = np.sign(S.w)
+    L = float(np.mean(np.abs(S.F)))
+    if g4 is not None:   # thermal4: the whole map times 1 + g x
+        m = 1.0 + float(g4[0]) * x
+        A, B = (L * (1.0 + float(g4[0]) * v) / float(np.mean(m)) for v in (lo, hi))
+    else:                # thermal6: slopes of c0..c3 per unit of x
+        w = S.w
+        slope = float(np.mean((dc[0] * sg + dc[1] * w + dc[2] * w * np.abs(w) + dc[3] * w ** 3) * sg))
+        A, B = (L + (v - float(np.mean(x))) * slope for v in (lo, hi))
+    what = ("the measured joint temperature" if nl.get("source") == "temp_joint" else
+            f"the estimated thermal state (time constant {_duration(nl['tau_c'])})")
+    span = float(np.ptp(S.th)) * 3600
+    rE = _corr(rb * sg, _cum_energy(S))
+    return (f"friction {'falls' if B < A else 'rises'} from {fmt(A)} to {fmt(B)} {F_u} "
+            f"({100 * (B / A - 1) if A else 0.0:+.0f} %, the mean over the recording's speeds) between the coldest "
+            f"and the warmest state of {_duration(span)} of recording, tracking {what} (r = {r:.2f}; cumulative "
+            f"friction energy r = {rE:.2f}); {tail}")
+
+
+def _outside_evidence(ext: str, S: Samples, nl: dict, g: np.ndarray, r: float, F_u: str, q_u: str, tail: str) -> str:
+    """The sentence of a cause outside the friction model (position torque, delay, dwell)."""
+    if ext == "position_torque":
+        amp = float(np.hypot(*g[:2]))
+        k = 2 * math.pi / nl["period"] if S.axis_rotary else 0.0
+        kind = (f"a gravity harmonic (sin {k:.0f}q), a spring compensator or cogging" if abs(k - round(k)) < 1e-6
+                and round(k) >= 2 else "cogging, a spring or a gravity harmonic")
+        return (f"a torque that does not change sign with the velocity varies with position: amplitude "
+                f"{fmt(amp)} {F_u}, period {fmt(nl['period'])} {q_u} (r = {r:.2f}); {kind}, not friction: the "
+                f"friction model does not carry it; {tail}")
+    if ext == "delay":
+        d = float(g[0])
+        return (f"the residual tracks the rate of the measured torque (r = {r:.2f}): the torque "
+                f"{'leads' if d > 0 else 'lags'} the motion by {1e3 * abs(d):.3g} ms (a signal delay, not "
+                f"friction; shift the torque or the position by it before fitting); {tail}")
+    tr = rests(S)[0]    # dwell
+    tr = tr[tr >= REST_MIN]
+    lo, hi = float(tr.min()), float(tr.max())
+    x = np.log1p(np.array([lo, hi]) / nl["t0"])
+    return (f"static friction grows with the time at rest before a move: the friction level just after a "
+            f"rest of {fmt(hi)} s is {100 * float(g[0]) * (x[1] - x[0]):+.1f} % of that after {fmt(lo)} s "
+            f"(ln(1 + t_rest / {fmt(nl['t0'])} s), fading over {fmt(nl['s_c'])} {q_u} of travel; r = {r:.2f}); "
+            f"the friction model does not carry it; {tail}")
 
 
 def _cum_energy(S: Samples) -> np.ndarray:

@@ -15,9 +15,10 @@ from ..models import static as sm
 from ..result import JointFit, ModelFit, ParamEstimate
 from .chain import ALPHA, EXPLAINED_MIN, GAIN_MIN, Chain, Trial
 from .evidence import evidence, fmt
-from .model import Structure, Term, model_values
+from .model import OUTSIDE_MODEL, Structure, Term, model_values
 from .params import param_entries
 from .samples import DiagLog, Samples, build_samples
+from .structure import X_NOISE, torque_noise, unexplained
 
 #: Folds of the held-out split.
 N_FOLDS = 5
@@ -80,6 +81,7 @@ def diagnose_joint(jf: JointFit, logs: list[DiagLog], n_folds: int = N_FOLDS) ->
     rec["friction_rms"] = chain.F_rms
     steps = chain.run()
     findings = _findings(jf, steps, S, base, n_folds, rec)
+    _structure(jf, chain, S, rec)
     pres = _presliding(jf, findings[-1]["model"] if findings else base)
     if pres is not None:
         findings.append(pres)
@@ -106,6 +108,16 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
         tr: Trial | None = step.get("chosen")
         if tr is None:
             continue
+        if tr.ext in OUTSIDE_MODEL:   # named with its numbers, never a friction model of the file
+            text = evidence(tr, S, step, units, rigid)
+            rec.setdefault("outside_model", []).append(
+                {"cause": tr.cause, "evidence": text, "extension": tr.ext, "settings": step["term"].settings,
+                 "coefficients": [float(x) for x in np.atleast_1d(
+                     step["coef"].gamma.get(len(step["structure"].terms) - 1, np.zeros(0)))],
+                 "rms_before": tr.rms_before, "rms_after": tr.rms_after, "gain": tr.gain,
+                 "statistic": {"t": tr.t, "p": tr.p, "groups": tr.groups, "threshold_p": ALPHA / max(step["m"], 1)}})
+            jf.warnings.append(f"{tr.cause} (outside the friction model): {text}")
+            continue
         mf = _step_model(jf, step, tr, S, base, rigid)
         jf.models[mf.name] = mf
         findings.append({
@@ -131,7 +143,7 @@ def _step_model(jf: JointFit, step: dict, tr: Trial, S: Samples, base: str, rigi
     fold_vals = [model_values(step["before"].plus(t), c, S, rigid)[1]
                  for t, c in zip(tr.fold_terms, tr.fold_coefs)]
     params = param_entries(mapname, vals, fold_vals, jf.axis)
-    extra = {"base": base, "extensions": [t.ext for t in st.terms if not t.in_base]}
+    extra = {"base": base, "extensions": [t.ext for t in st.terms if not t.in_base and t.ext not in OUTSIDE_MODEL]}
     th = next((t for t in st.terms if t.ext in ("thermal4", "thermal6")), None)
     if th is not None:
         extra["temperature"] = th.settings.get("source", "heat_balance")
@@ -141,6 +153,22 @@ def _step_model(jf: JointFit, step: dict, tr: Trial, S: Samples, base: str, rigi
                     method="diagnosis: base amplitudes and extension terms by least squares (Gauss-Newton) on "
                            "the sliding samples (shapes of the base map held)",
                     extra=extra)
+
+
+def _structure(jf: JointFit, chain: Chain, S: Samples, rec: dict) -> None:
+    """The residual structure tests after the chain's last model (:mod:`.structure`); a structure worth
+    stating goes to ``rec['unexplained']`` and the joint's warnings."""
+    units = {"F": jf.units.get("tau", "N m"), "q": jf.units.get("q", "rad")}
+    tests, text = unexplained(S, S.F - chain.pred, chain.F_rms, units, f"the diagnosis' model {chain.st.name}")
+    rec["structure"] = {"noise": torque_noise(S), "model": chain.st.name,
+                        "rule": ("held-out bin means of the residual against each variable (training folds "
+                                 f"only), one-sided paired t over held-out groups, alpha {ALPHA} split over the "
+                                 f"variables; stated when the explained RMS is at least {100 * EXPLAINED_MIN:.0f} % "
+                                 f"of the friction RMS and {X_NOISE:g}x the noise of the friction torque"),
+                        "tests": tests}
+    rec["unexplained"] = [text] if text else []
+    if text:
+        jf.warnings.append(f"unexplained structure: {text}")
 
 
 def _presliding(jf: JointFit, prev: str) -> dict | None:

@@ -31,6 +31,12 @@ from ..identify.regression import NormalEquations, solve
 from ..models import static as sm
 from . import moments as mo
 from .samples import Samples
+from .signals import dwell_state, torque_rate
+
+#: Extensions the parameter file's friction models do not carry: causes the diagnosis names (a finding with
+#: its numbers, in ``selection.diagnosis.outside_model`` and the warnings) but never exports. Their terms
+#: stay in the chain's structure, so the friction terms found after them are fitted on a clean residual.
+OUTSIDE_MODEL = ("dwell", "delay", "position_torque")
 
 #: Canonical slots: level (a0, a1, a2) and viscous (b1, b2, b3).
 LEVEL_SLOTS = (0, 1, 4)
@@ -87,7 +93,7 @@ class Structure:
 
     @property
     def name(self) -> str:
-        return "+".join([self.map] + [t.ext for t in self.terms if not t.in_base])
+        return "+".join([self.map] + [t.ext for t in self.terms if not t.in_base and t.ext not in OUTSIDE_MODEL])
 
     def slots(self) -> tuple:
         s = list(MAP_SLOTS[self.map])
@@ -374,6 +380,13 @@ class Context:
             c = S.a[:, None]
         elif term.ext == "gravity":
             c = np.array([np.cos(S.q), np.sin(S.q)]).T
+        elif term.ext == "position_torque":
+            ph = 2 * np.pi * S.q / nl["period"]
+            c = np.array([np.sin(ph), np.cos(ph)]).T
+        elif term.ext == "delay":
+            c = torque_rate(S)[:, None]
+        elif term.ext == "dwell":
+            c = dwell_state(S, nl["t0"], nl["s_c"])[:, None]
         else:
             raise KeyError(term.ext)
         # columns stored contiguously (Fortran order, np.array(...).T): the fits use them one by one

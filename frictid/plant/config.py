@@ -118,8 +118,32 @@ class DriftEffect(Strict):
     per_run: float = Field(0.0, gt=-1, lt=10)
 
 
+class PositionTorqueEffect(Strict):
+    """A torque that depends on position and not on the velocity sign, acting on the joint like gravity
+    (a gravity harmonic, a spring compensator, cogging): ``amplitude sin(2 pi q / period + phase)`` [F]. Not
+    friction: the drive supplies it, so the logged torque carries it."""
+
+    kind: Literal["position_torque"]
+    amplitude: float = Field(description="amplitude [F]")
+    period: Pos = Field(description="period in position [q]")
+    phase: float = 0.0
+
+
+class DwellEffect(Strict):
+    """Static friction that grows with the time spent at rest (Dieterich's ageing of the contacts): the
+    level times ``1 + amplitude ln(1 + t_rest / t0) exp(-s / distance)``, with ``t_rest`` the time at rest
+    before the current move (at rest: so far) and ``s`` the travel since the move started (the contacts
+    renew over ``distance``). Rests and moves are those of the program's reference."""
+
+    kind: Literal["dwell"]
+    amplitude: float = Field(gt=0, lt=1, description="level change per unit of ln(1 + t_rest / t0) [1]")
+    t0: Pos = Field(1.0, description="ageing time scale [s]")
+    distance: Pos = Field(description="travel over which the aged contacts renew [q]")
+
+
 EffectConfig = Annotated[
-    Union[PositionEffect, LoadEffect, AsymmetryEffect, TorqueOffsetEffect, DriftEffect],
+    Union[PositionEffect, LoadEffect, AsymmetryEffect, TorqueOffsetEffect, DriftEffect, PositionTorqueEffect,
+          DwellEffect],
     Field(discriminator="kind"),
 ]
 
@@ -392,7 +416,7 @@ def _fmt_loc(loc: tuple) -> str:
     return ".".join(parts)
 
 
-_EFFECT_KINDS = {"position", "load", "asymmetry", "torque_offset", "drift"}
+_EFFECT_KINDS = {"position", "load", "asymmetry", "torque_offset", "drift", "position_torque", "dwell"}
 _EXP_KINDS = {"constant_velocity", "ramp_presliding", "torque_steps", "duty_cycle", "validation_ptp",
               "multisine", "rest"}
 

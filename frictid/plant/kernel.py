@@ -9,8 +9,9 @@ Per sample k (period h, ZOH torque):
 4. heat balance, exact first-order step driven by the friction power ``F w`` at the sample.
 
 Friction: canonical map at temperature T (thermal law), level ``g`` scaled by ``gmul[k]`` (drift,
-payload), by ``1 + amp sin(2 pi q / period + phase)`` (position effect) and by ``1 + load |u|``
-(load effect); viscous part ``f`` scaled by ``fmul[k]`` (drift).
+payload, dwell), by ``1 + amp sin(2 pi q / period + phase)`` (position effect) and by ``1 + load |u|``
+(load effect); viscous part ``f`` scaled by ``fmul[k]`` (drift). Gravity ``G(q)`` includes a
+``position_torque`` effect's ``amplitude sin(2 pi q / period + phase)``.
 
 Why numba: the loop is inherently sequential (each step needs the previous state and the controller
 closes the loop every sample), so numpy cannot vectorise it; compiled, one hour at 1 kHz runs in well
@@ -33,7 +34,8 @@ P_PX, P_PY, P_GOFF, P_PAY = 5, 6, 7, 8
 P_TMAX, P_KP, P_KD, P_KI, P_KV, P_KVI = 9, 10, 11, 12, 13, 14
 P_PAMP, P_PPER, P_PPH, P_LOAD = 15, 16, 17, 18
 P_C, P_K, P_QRES = 19, 20, 21
-N_P = 22
+P_HAMP, P_HPER, P_HPH = 22, 23, 24
+N_P = 25
 
 MODE_TORQUE, MODE_PID, MODE_VEL = 0, 1, 2
 
@@ -136,12 +138,15 @@ def _step_map(q, w, z, u, hs, g0, dg0, f0, fp0, lmul, fm, amp, sin_end, G, iJ, s
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
-def _gravity(qm, pay, goff, px, py, parm):
-    """Gravity and offset torque [F] at position qm [q] with payload pay [kg]."""
+def _gravity(qm, pay, goff, px, py, parm, harm):
+    """Gravity and offset torque [F] at position qm [q] with payload pay [kg], plus the position torque
+    ``harm = (amplitude, 2 pi / period, phase)`` (a ``position_torque`` effect)."""
     G = goff
     if px != 0.0 or py != 0.0 or (pay != 0.0 and parm != 0.0):
         cq = math.cos(qm)
         G += px * cq + py * math.sin(qm) + pay * parm * cq
+    if harm[0] != 0.0:
+        G += harm[0] * math.sin(harm[1] * qm + harm[2])
     return G
 
 
@@ -168,10 +173,10 @@ def _rotate(qm, qg, cg, sg, exact):
 
 @njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
 def _step(q, w, z, u, hs, cp, cn, dp, dn, s_th, dT, lmul, fm, amp, kper, ph, pay,
-          iJ, s0p, s0n, s1p, s1n, goff, px, py, parm):
+          iJ, s0p, s0n, s1p, s1n, goff, px, py, parm, harm):
     """:func:`_step_map` with the map looked up from w and gravity computed; returns (q, w, z)."""
     g0, dg0, f0, fp0 = _map_at(w, cp, cn, dp, dn, s_th, dT)
-    G = _gravity(q + 0.5 * hs * w, pay, goff, px, py, parm)
+    G = _gravity(q + 0.5 * hs * w, pay, goff, px, py, parm, harm)
     sin_end = math.sin(kper * (q + hs * w) + ph) if amp != 0.0 else 0.0
     q1, w1, z1, _ = _step_map(q, w, z, u, hs, g0, dg0, f0, fp0, lmul, fm, amp, sin_end, G,
                               iJ, s0p, s0n, s1p, s1n)
@@ -198,17 +203,17 @@ def _needs_refine(w, w1, z, z1, s0, hs, ig, per_sign):
 
 @njit(cache=True, error_model="numpy", fastmath=_FM)
 def _refined(q, w, z, u, hs, cp, cn, dp, dn, s_th, dT, lmul, fm, amp, kper, ph, pay,
-             iJ, s0p, s0n, s1p, s1n, goff, px, py, parm):
+             iJ, s0p, s0n, s1p, s1n, goff, px, py, parm, harm):
     """The step hs cut into REFINE pieces; a piece in which the velocity changes sign is cut again."""
     hr = hs / REFINE
     for _ in range(REFINE):
         q1, w1, z1 = _step(q, w, z, u, hr, cp, cn, dp, dn, s_th, dT, lmul, fm, amp, kper, ph, pay,
-                           iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
+                           iJ, s0p, s0n, s1p, s1n, goff, px, py, parm, harm)
         if w1 * w < 0.0:
             q1, w1, z1 = q, w, z
             for _ in range(REFINE):
                 q1, w1, z1 = _step(q1, w1, z1, u, hr / REFINE, cp, cn, dp, dn, s_th, dT, lmul, fm, amp,
-                                   kper, ph, pay, iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
+                                   kper, ph, pay, iJ, s0p, s0n, s1p, s1n, goff, px, py, parm, harm)
         q, w, z = q1, w1, z1
     return q, w, z
 
@@ -310,6 +315,8 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
     px = p[P_PX]
     py = p[P_PY]
     parm = p[P_PAY]
+    hamp = p[P_HAMP]
+    harm = (hamp, 2.0 * math.pi / p[P_HPER] if hamp != 0.0 else 0.0, p[P_HPH])
     tmax = p[P_TMAX]
     kp = p[P_KP]
     kd = p[P_KD]
@@ -419,6 +426,8 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
                 cg, sg = _rotate(qmid, qg, cg, sg, (k & (RESYNC - 1)) == 0 and s == 0)
                 qg = qmid
                 G += px * cg + py * sg + pay * parm * cg
+            if hamp != 0.0:
+                G += hamp * math.sin(harm[1] * qmid + harm[2])
             sin_end = 0.0
             if amp != 0.0:
                 # the position effect's phase at the step's predicted end, rotated likewise
@@ -436,7 +445,7 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
                 # stiffness, or along a steep Stribeck curve: redo this step in REFINE pieces (rare:
                 # starts, stops and reversals; dithering at rest does not qualify)
                 q1, w1, z1 = _refined(q, w, z, u, hs, cp, cn, dp, dn, s_th, dT, lmul, fm, amp, kper, ph, pay,
-                                      iJ, s0p, s0n, s1p, s1n, goff, px, py, parm)
+                                      iJ, s0p, s0n, s1p, s1n, goff, px, py, parm, harm)
             q, w, z = q1, w1, z1
         F_o[k] = Fk
         Tss = Tenv[k * s_te] + Fk * w_k * iK
@@ -507,6 +516,8 @@ def simulate_joint_ref(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, rese
             qmid = q + 0.5 * hs * w
             G = (p[P_GOFF] + p[P_PX] * np.cos(qmid) + p[P_PY] * np.sin(qmid)
                  + payload[k] * p[P_PAY] * np.cos(qmid))
+            if p[P_HAMP]:
+                G += p[P_HAMP] * np.sin(2 * np.pi / p[P_HPER] * qmid + p[P_HPH])
             return lugre_step_ref(q, w, z, u - G, hs, p[P_J], s0, s1, g, dg, f, fp)
 
         for _s in range(nsub):

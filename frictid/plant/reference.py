@@ -15,7 +15,7 @@ from scipy.integrate import solve_ivp
 from ..models.static import canonical_level, canonical_viscous
 from ..models.thermal import canonical_at
 from .kernel import (MODE_PID, MODE_TORQUE, P_C, P_GOFF, P_J, P_K, P_KD, P_KI, P_KP, P_KV, P_KVI, P_LOAD,
-                     P_PAMP, P_PAY, P_PPER, P_PPH, P_PX, P_PY, P_QRES, P_S0N, P_S0P, P_S1N, P_S1P, P_TMAX)
+                     P_HAMP, P_HPER, P_HPH, P_PAMP, P_PAY, P_PPER, P_PPH, P_PX, P_PY, P_QRES, P_S0N, P_S0P, P_S1N, P_S1P, P_TMAX)
 
 
 def _friction(q, w, z, T, u, k, p, c_pos, c_neg, dc_pos, dc_neg, code, theta, gmul, fmul):
@@ -74,6 +74,8 @@ def simulate_joint_ivp(h, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
                                gmul, fmul)
             G = (p[P_GOFF] + p[P_PX] * math.cos(q_) + p[P_PY] * math.sin(q_)
                  + payload[k] * p[P_PAY] * math.cos(q_))
+            if p[P_HAMP]:
+                G += p[P_HAMP] * math.sin(2 * math.pi / p[P_HPER] * q_ + p[P_HPH])
             return [w_, (u - G - F_) / p[P_J], zd, (F_ * w_ - p[P_K] * (T_ - Tenv[k])) / p[P_C]]
 
         sol = solve_ivp(rhs, (0.0, h), x, method="Radau", rtol=rtol, atol=atol)

@@ -11,7 +11,7 @@ from ..models.static import canonical_pair
 from ..models.thermal import thermal_code
 from .config import Joint, Plant, friction_params, load_plant, load_recipe, resolve_plant_path
 from .effects import compile_effects
-from .kernel import (N_P, P_C, P_GOFF, P_J, P_K, P_KD, P_KI, P_KP, P_KV, P_KVI, P_LOAD, P_PAMP, P_PAY,
+from .kernel import (N_P, P_C, P_HAMP, P_HPER, P_HPH, P_GOFF, P_J, P_K, P_KD, P_KI, P_KP, P_KV, P_KVI, P_LOAD, P_PAMP, P_PAY,
                      P_PPER, P_PPH, P_PX, P_PY, P_QRES, P_S0N, P_S0P, P_S1N, P_S1P, P_TMAX,
                      simulate_joint, simulate_joint_ref)
 from .recipe import G0, compile_recipe, refine_labels
@@ -61,6 +61,7 @@ def kernel_inputs(plant: Plant, joint: Joint):
     p[P_KP], p[P_KD], p[P_KI], p[P_KV], p[P_KVI] = (gains[k] for k in ("kp", "kd", "ki", "kv", "kvi"))
     p[P_PAMP], p[P_PPER], p[P_PPH] = ce.pos_amp, ce.pos_period, ce.pos_phase
     p[P_LOAD] = ce.load_coeff
+    p[P_HAMP], p[P_HPER], p[P_HPH] = ce.ptq_amp, ce.ptq_period, ce.ptq_phase
     p[P_C], p[P_K] = th.C, th.K
     p[P_QRES] = plant.q_quantum
     return p, c_pos, c_neg, dc9, code, theta, ce, gains
@@ -120,7 +121,7 @@ def prepare_joint(plant: Plant, joint: Joint, recipe, seed_seq=0, scale=1.0):
     rng = np.random.default_rng(seed_seq)
     nq, nqd, ntau = draw_noise(rng, n, plant.sensors)
     p, c_pos, c_neg, dc9, code, theta, ce, gains = kernel_inputs(plant, joint)
-    gmul, fmul = ce.multipliers(t, prog["run"], prog["payload"])
+    gmul, fmul = ce.multipliers(t, prog["run"], prog["payload"], prog["q_ref"], prog["qd_ref"])
     state0 = np.array([float(prog["q_ref"][0]), 0.0, 0.0, float(prog["temp_env"][0])])
     args = dict(h=h, nsub=int(plant.substeps), mode=prog["mode"], q_ref=prog["q_ref"],
                 qd_ref=prog["qd_ref"], tau_ff=prog["tau_ff"], Tenv=prog["temp_env"],

@@ -1,0 +1,188 @@
+"""What the best model leaves: residual structure tests on held-out data, and "unexplained" as an answer.
+
+After the chain (:mod:`.chain`) the held-out residual of its last model, ``r = F - F_model`` (every sliding
+sample predicted by fits that never saw its segment), is tested for structure against the variables a
+user would plot it against: the velocity, the time since the last rest, the time, the position, the
+acceleration and the measured torque. Per variable ``x``, and per fold, the training folds' residual is
+averaged in bins of ``x`` (equal-count bins over all samples) and that step function predicts the
+held-out fold; the structure is *significant* when it lowers the held-out residual with the chain's test
+(one-sided paired t over held-out groups, ``ALPHA`` split over the variables), and *large enough to state*
+when the RMS it explains is at least the larger of :data:`frictid.diagnose.chain.EXPLAINED_MIN` of the
+friction RMS and :data:`X_NOISE` times the noise the logs show on the friction torque (its robust
+white-noise level, :func:`frictid.segments.noise_sigma`): both scales come from the data. A slow, segment-to-segment
+wander that no variable carries (autocorrelation) is measured by the scatter of the held-out groups'
+mean residuals against what the noise alone gives them (``sigma / sqrt(samples)``).
+
+The strongest significant structure becomes one sentence with its numbers ("residual varies with position
+(period 0.31 rad), 12 % of the friction RMS, 8x the sensor noise; no candidate explains it"), stored in
+``selection.diagnosis.unexplained`` and the joint's warnings (stderr, ``--json``, the parameter file, the
+report's summary); every test's numbers are in ``selection.diagnosis.structure``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..data import finite
+from ..segments import noise_sigma
+from .chain import ALPHA, EXPLAINED_MIN, group_d, paired_t
+from .samples import Samples
+
+#: Bins of a variable: about this many samples per bin on average (at most MAX_BINS, at least MIN_BINS).
+PER_BIN = 200
+MAX_BINS, MIN_BINS = 120, 8
+#: A structure is worth stating when the RMS it explains is at least this many times the noise of the
+#: friction torque (and EXPLAINED_MIN of the friction RMS): a systematic part the size of the sample noise
+#: is what any estimated acceleration and held shape leave (clean logs of the shipped plants: 1-2x).
+X_NOISE = 3.0
+#: The variables tested, with their label and unit key.
+VARIABLES = (("speed", "velocity", "w"), ("dwell", "time since the last rest", "s"), ("time", "time", "s"),
+             ("position", "position", "q"), ("acceleration", "acceleration", "a"),
+             ("torque", "measured torque", "F"))
+
+
+def torque_noise(S: Samples) -> float:
+    """The noise [F] the logs show on the friction torque the diagnosis fits, ``F = tau - J a - G`` (the
+    torque sensor's and that of the estimated acceleration): the largest robust white-noise level of a
+    log's F (MAD of its fourth difference)."""
+    return S.cached("torque_noise", lambda: max((noise_sigma(finite(lg.F)) for lg in S.logs if lg.n > 10),
+                                                default=0.0))
+
+
+def since_rest(S: Samples) -> np.ndarray:
+    """Time [s] since the joint last rested (moved slower than ``v_min``), per sample; since the start of
+    its log when it never rested before."""
+    def compute():
+        out = np.empty(S.n)
+        for i, lg in enumerate(S.logs):
+            sel = S.li == i
+            if not sel.any():
+                continue
+            rest = np.abs(S.log_w(i)) <= S.v_min
+            last = np.where(rest, np.arange(lg.n), 0)
+            np.maximum.accumulate(last, out=last)
+            k = S.k[sel]
+            out[sel] = lg.t[k] - lg.t[last[k]]
+        return out
+    return S.cached("since_rest", compute)
+
+
+def variable(S: Samples, name: str) -> np.ndarray | None:
+    """The samples of a tested variable (None when the logs do not have it)."""
+    if name == "speed":
+        return S.w
+    if name == "dwell":
+        return since_rest(S)
+    if name == "time":
+        return S.th * 3600.0
+    if name == "position":
+        return None if S.q is None or np.ptp(S.q) <= 0 else S.q
+    if name == "acceleration":
+        return S.a
+    if name == "torque":
+        return S.tau
+    raise KeyError(name)
+
+
+def _bins(x: np.ndarray, nb: int) -> np.ndarray:
+    """Bin index per sample: ``nb`` bins of about equal count (ties share a bin)."""
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, nb + 1)[1:-1]))
+    return np.searchsorted(edges, x, side="right")
+
+
+def heldout_binned(S: Samples, r: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The held-out prediction of r by the training folds' mean of r in bins of x (0 in a bin without
+    training samples)."""
+    nb = int(np.clip(S.n // PER_BIN, MIN_BINS, MAX_BINS))
+    b = _bins(x, nb)
+    m = int(b.max()) + 1
+    sums = np.array([np.bincount(b[S.fold == f], weights=r[S.fold == f], minlength=m) for f in range(S.n_folds)])
+    cnts = np.array([np.bincount(b[S.fold == f], minlength=m) for f in range(S.n_folds)])
+    pred = np.empty(S.n)
+    for f in range(S.n_folds):
+        s, c = sums.sum(0) - sums[f], cnts.sum(0) - cnts[f]
+        mean = np.where(c > 0, s / np.maximum(c, 1), 0.0)
+        te = S.fold == f
+        pred[te] = mean[b[te]]
+    return pred
+
+
+def structure_tests(S: Samples, r: np.ndarray, F_rms: float) -> list[dict]:
+    """Every variable's test on the held-out residual r: explained RMS [F], its share of the friction RMS,
+    its ratio to the sensor noise, t, p, significant, large (worth stating)."""
+    sig = torque_noise(S)
+    rms = float(np.sqrt(np.mean(r * r)))
+    out = []
+    names = [(n, lab, u) for n, lab, u in VARIABLES if variable(S, n) is not None]
+    m = len(names) + 1
+    floor = max(EXPLAINED_MIN * F_rms, X_NOISE * sig)
+    for name, label, unit in names:
+        x = variable(S, name)
+        ra = r - heldout_binned(S, r, x)
+        t, p = paired_t(group_d(S, r, ra))
+        expl = math.sqrt(max(rms ** 2 - float(np.mean(ra * ra)), 0.0))
+        out.append(_entry(name, label, expl, t, p, m, floor, F_rms, sig))
+    out.append(_wander(S, r, F_rms, sig, m, floor))
+    return out
+
+
+def _entry(name, label, expl, t, p, m, floor, F_rms, sig) -> dict:
+    sigf = bool(p < ALPHA / m)
+    return {"variable": name, "label": label, "explained_rms": expl,
+            "of_friction_rms": expl / F_rms if F_rms > 0 else math.nan,
+            "x_noise": expl / sig if sig > 0 else math.inf, "t": t, "p": p,
+            "significant": sigf, "large": bool(sigf and expl >= floor)}
+
+
+def _wander(S: Samples, r: np.ndarray, F_rms: float, sig: float, m: int, floor: float) -> dict:
+    """The slow wander of the residual from segment to segment (autocorrelation no variable carries): the
+    RMS of the held-out groups' mean residuals beyond what the noise gives them (``sig / sqrt(n_g)``), with a
+    one-sided t of ``n_g mean_g^2 / sig^2 - 1`` over the groups (zero mean for white noise)."""
+    n_g = np.bincount(S.group, minlength=S.n_groups).astype(float)
+    mean_g = np.bincount(S.group, weights=r, minlength=S.n_groups) / np.maximum(n_g, 1)
+    if sig > 0:
+        z = n_g * mean_g ** 2 / sig ** 2 - 1.0
+        t, p = paired_t(z)
+    else:
+        t, p = 0.0, 1.0
+    excess = float(np.sum(n_g * mean_g ** 2) - sig ** 2 * S.n_groups) / max(S.n, 1)
+    expl = math.sqrt(max(excess, 0.0))
+    e = _entry("wander", "segment to segment (autocorrelated)", expl, t, p, m, floor, F_rms, sig)
+    return e
+
+
+def position_period(S: Samples, r: np.ndarray) -> float | None:
+    """The period [q] of the sinusoid in position that best explains r (additive), or None."""
+    from .causes import _period_range, best_period
+    pr = _period_range(S)
+    return None if pr is None else best_period(S.q, r, np.ones_like(r), pr)
+
+
+def unexplained(S: Samples, r: np.ndarray, F_rms: float, units: dict, model: str = "the best model"
+                ) -> tuple[list[dict], str | None]:
+    """(the tests, the sentence on the strongest structure worth stating or None); model : the name of the
+    model whose held-out residual r is."""
+    tests = structure_tests(S, r, F_rms)
+    # a variable that carries the structure names it; the wander (which any slow structure also shows in
+    # the segments' means) only when none does
+    large = sorted((e for e in tests if e["large"]), key=lambda e: (e["variable"] == "wander", -e["explained_rms"]))
+    if not large:
+        return tests, None
+    top = large[0]
+    what = top["label"]
+    if top["variable"] == "position":
+        P = position_period(S, r)
+        if P is not None:
+            what += f" (period {P:.3g} {units.get('q', 'rad')})"
+    others = [e["label"] for e in large[1:] if e["variable"] != "wander"]
+    xn = f"{top['x_noise']:.0f}x the sensor noise" if math.isfinite(top["x_noise"]) else "noise-free torque"
+    text = (f"residual varies with {what} after {model}: {top['explained_rms']:.3g} "
+            f"{units.get('F', 'N m')} RMS, {100 * top['of_friction_rms']:.0f} % of the friction RMS, {xn}"
+            + (f" (also seen against {', '.join(others)})" if others else "")
+            + "; no candidate explains it")
+    if top["variable"] == "wander":
+        text = (f"residual wanders from segment to segment after {model}: {top['explained_rms']:.3g} "
+                f"{units.get('F', 'N m')} RMS beyond the noise, {100 * top['of_friction_rms']:.0f} % of the "
+                f"friction RMS, {xn}; no candidate explains it")
+    return tests, text
