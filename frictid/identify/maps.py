@@ -41,7 +41,8 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
         if len(plat) == 0:
             jf.not_identified.append({"what": name, "reason": "no constant-velocity plateaus"})
             continue
-        _guarded(jf, name, lambda n=name: fit_static(n, plat.w, plat.F, plat.F_se, axis=jd.axis))
+        _guarded(jf, name, lambda n=name: fit_static(n, plat.w, plat.F, plat.F_se, axis=jd.axis,
+                                                     shifts=fr.shifts))
     if "polynomial_ls" in wanted:
         if fr.basis == "samples":
             mf = _polynomial_ls_samples(jd, rb, fr)

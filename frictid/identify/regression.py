@@ -83,6 +83,20 @@ class NormalEquations:
         return NormalEquations(self.p, self.XtX - other.XtX, self.Xty - other.Xty, self.yty - other.yty,
                                self.n - other.n)
 
+    def within(self, k: int) -> "NormalEquations":
+        """The equations with the constant column ``k`` (all ones) partialled out: the residual of every
+        column and of ``y`` about its mean over these samples (a free level of their own, the "within"
+        estimator of a fixed effect). Column ``k`` becomes zero."""
+        if self.n < 2:
+            return NormalEquations(self.p)
+        c = self.XtX[k].copy()  # column sums
+        sy = self.Xty[k]
+        XtX = self.XtX - np.outer(c, c) / self.n
+        Xty = self.Xty - c * sy / self.n
+        XtX[k, :] = XtX[:, k] = 0.0
+        Xty[k] = 0.0
+        return NormalEquations(self.p, XtX, Xty, self.yty - sy * sy / self.n, self.n - 1)
+
     @staticmethod
     def total(parts) -> "NormalEquations":
         parts = list(parts)
