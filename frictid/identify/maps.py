@@ -83,7 +83,7 @@ def _not_physical(pe, why: str) -> None:
 
 def physical_shape(mf) -> None:
     """Names and signs that tell the truth (issue 19): a Stribeck map whose break-away level is below its
-    Coulomb level on a branch, and a viscous coefficient significantly below zero, are marked
+    Coulomb level on a branch, and a viscous coefficient below zero (significantly or within its errors), are marked
     not identifiable with the reason, so the choice takes a model whose shape says what the data do (the
     polynomial follows a friction that rises from zero speed) and no green badge is given to them."""
     base = mf.name[:-5] if mf.name.endswith("_asym") else mf.name
@@ -103,6 +103,11 @@ def physical_shape(mf) -> None:
         if v is not None and v.value is not None and v.value < -VISCOUS_Z * (v.stderr or 0.0):
             _not_physical(v, f"negative viscous coefficient ({v.value:.4g}): the friction falls with speed "
                              "over the measured range, which a viscous term cannot be")
+        elif v is not None and v.value is not None and v.value < 0:
+            # a negative slope within its errors of zero: the data do not tell its sign, and a negative
+            # value is no viscous coefficient (issue 19: a negative viscous term is flagged, not badged)
+            _not_physical(v, f"negative viscous coefficient ({v.value:.4g} +- {v.stderr or 0.0:.2g}): the data do "
+                             "not tell the slope's sign over the measured range")
 
 
 def _basis_warnings(jd: JointData, fr: Friction) -> None:
