@@ -126,3 +126,31 @@ def test_inertia_of_the_geared_duty_cycles_is_not_trusted_off_target():
         assert abs(J.value - true_J) <= 2 * J.stderr
     else:
         assert "low-pass filtered alike" in J.reason
+
+
+def test_a_level_of_its_own_per_plateau_leaves_gravity_to_the_change_along_it():
+    """Plateaus whose friction levels differ (and follow the angle they run at) with gravity: pooled, the
+    levels leak into gravity; with each plateau's level partialled out (NormalEquations.within), only the
+    torque's change along each plateau enters and gravity is recovered. The within equations equal those
+    of the data demeaned per plateau."""
+    rng = np.random.default_rng(3)
+    names = ("Px", "Py", "offset")
+    parts, pooled = [], []
+    Xs, ys = [], []
+    for k in range(8):
+        q = np.linspace(0.4 * k, 0.4 * k + 1.0, 400)
+        level = 0.5 + 0.3 * np.cos(0.4 * k)      # the plateau's friction: not a function of q along it
+        y = level + 0.2 * np.cos(q) - 0.1 * np.sin(q) + rng.normal(0, 0.01, q.size)
+        ne, = accumulate([(0, q.size)], names, q, np.ones_like(q), np.zeros_like(q), y)
+        pooled.append(ne)
+        parts.append(ne.within(names.index("offset")))
+        X = np.column_stack([np.cos(q), np.sin(q)])
+        Xs.append(X - X.mean(axis=0))
+        ys.append(y - y.mean())
+    fit_w = solve(NormalEquations.total(parts), names)
+    assert fit_w.value("Px") == pytest.approx(0.2, abs=0.01) and fit_w.value("Py") == pytest.approx(-0.1, abs=0.01)
+    assert "offset" in fit_w.dependent  # no sample outside the plateaus sets it
+    ref = np.linalg.lstsq(np.concatenate(Xs), np.concatenate(ys), rcond=None)[0]
+    np.testing.assert_allclose([fit_w.value("Px"), fit_w.value("Py")], ref, rtol=1e-8)
+    fit_p = solve(NormalEquations.total(pooled), names)
+    assert abs(fit_p.value("Px") - 0.2) > 0.05  # pooled, the levels leak into gravity

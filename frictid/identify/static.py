@@ -675,7 +675,7 @@ def _shift_profile(base: str, bw, bF, bse, bfixed: dict, scales, var_inflation: 
         if n not in bf.reasons and bf.stderr[n] > abs(v):
             bf.reasons[n] = (f"relative error {100 * bf.stderr[n] / abs(v):.0f} % (above 100 %) with the error of "
                              "the inertia, gravity and offset taken out of the torque" if v else
-                             "relative error above 100 % with the error of the rigid-body terms")
+                             "relative error above 100 % with the error of the inertia, gravity and offset")
 
 
 #: Stribeck exponents tried when the data do not pin delta down (000/003 hold it at 2; 1 is the exponential
