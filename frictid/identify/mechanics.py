@@ -168,6 +168,8 @@ def reg_estimate(name: str, fit_: rg.LinearFit | None, jd: JointData, why_none: 
     reason = ""
     if name == "J":
         se, reason = _inertia_checked(v, se, fit_.bandwidth)
+        if not reason:
+            se, reason = _inertia_split_checked(v, se, fit_.speed_split)
     if not reason:
         reason = _precision_reason(name, dim, v, se, jd)
     if name == "J" and v <= 0 and not reason:
@@ -211,6 +213,31 @@ def _inertia_checked(v: float, se: float | None, bw: dict | None) -> tuple[float
             f"changes from {v:.4g} to {bw['J']:.4g} when the torque and the regressors are low-pass filtered "
             f"alike over {bw['window']} samples: the torque is not resolved at the log rate (a loop faster "
             "than the log), or the joint is not rigid")
+    return math.hypot(se, sys_), ""
+
+
+#: The speed-split check's thresholds, as the bandwidth check's: significant beyond this many combined
+#: standard errors, material beyond this share of the inertia.
+SPLIT_Z = 3.0
+SPLIT_MATERIAL = 0.10
+
+
+def _inertia_split_checked(v: float, se: float | None, sp: dict | None) -> tuple[float | None, str]:
+    """The inertia's standard error with the speed-split check (:func:`_speed_split_check`) and the reason
+    it is not identifiable ("" when it is): the two halves' inertias differing beyond :data:`SPLIT_Z`
+    combined standard errors *and* by more than :data:`SPLIT_MATERIAL` of the inertia make it not
+    identifiable; a smaller difference enters the standard error as a systematic term (half the difference
+    beyond the halves' own scatter: the full fit sits between them)."""
+    if sp is None or se is None or not np.isfinite(se):
+        return se, ""
+    d = abs(sp["J_high"] - sp["J_low"])
+    s_d = math.hypot(sp["se_low"], sp["se_high"])
+    sys_ = 0.5 * math.sqrt(max(d * d - s_d * s_d, 0.0))
+    if d > SPLIT_Z * s_d and d > SPLIT_MATERIAL * abs(v):
+        return math.hypot(se, sys_), (
+            f"{sp['J_low']:.4g} on the moving samples slower than {sp['speed']:.3g} and {sp['J_high']:.4g} on "
+            "the faster ones: the friction's dynamics (bristles lagging the acceleration, a Stribeck drop "
+            "crossed while accelerating) or a control loop the log does not resolve go with the acceleration")
     return math.hypot(se, sys_), ""
 
 
@@ -263,7 +290,8 @@ def mechanics_not_identified(jf: JointFit) -> None:
             jf.not_identified.append({"what": n, "reason": pe.reason})
 
 
-def _accumulate(p: Prep, pi, ranges, seg_ids, names, known_coef, min_speed, axis, friction, within, smooth=0):
+def _accumulate(p: Prep, pi, ranges, seg_ids, names, known_coef, min_speed, axis, friction, within, smooth=0,
+                max_speed=math.inf):
     """Per-segment normal equations of one log. The segments in ``within`` (keys (prep index, segment
     index): plateaus) have a friction level of their own, the constant column partialled out
     (:meth:`.regression.NormalEquations.within`), and take every moving sample (``within[key]`` is their
@@ -273,11 +301,12 @@ def _accumulate(p: Prep, pi, ranges, seg_ids, names, known_coef, min_speed, axis
     rest = [k for k in range(len(ranges)) if k not in set(own)]
     out = [None] * len(ranges)
     for k, ne in zip(rest, rg.accumulate([ranges[k] for k in rest], *args, min_speed, axis, friction=friction,
-                                         smooth=smooth)):
+                                         smooth=smooth, max_speed=max_speed)):
         out[k] = ne
     j = list(names).index("offset") if own else 0
     for k in own:
-        ne, = rg.accumulate([ranges[k]], *args, within[(pi, seg_ids[k])], axis, friction=friction, smooth=smooth)
+        ne, = rg.accumulate([ranges[k]], *args, within[(pi, seg_ids[k])], axis, friction=friction, smooth=smooth,
+                            max_speed=max_speed)
         out[k] = ne.within(j)
     return out
 
@@ -311,6 +340,7 @@ def regress(preps: list[Prep], names, known_coef, min_speed, axis, friction=None
     fit_ = rg.solve(total, names, rho=rho)
     fit_.cov = rg.robust_stderr(fit_.cov, rg.cluster_covariance(fit_, [ne for *_, ne in seg_ne]))
     fit_.bandwidth = _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl, within)
+    fit_.speed_split = _speed_split_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl, within)
     return fit_, seg_ne
 
 
@@ -343,6 +373,43 @@ def _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, 
         return None
     f2.cov = rg.robust_stderr(f2.cov, rg.cluster_covariance(f2, parts))
     return {"window": win, "J": f2.value("J"), "se": f2.stderr("J")}
+
+
+def _speed_split_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl, within) -> dict | None:
+    """The regression again on the slower and on the faster half of its moving samples (split at their
+    median speed), each with all its terms. A rigid joint whose friction the model follows gives one
+    inertia on both; a friction whose dynamics go with the acceleration (LuGre's bristles lag it, the
+    Stribeck drop is crossed while accelerating) or a loop the log does not resolve moves it between the
+    halves. None without an inertia term or when a half cannot separate it."""
+    if "J" not in names or "J" in fit_.dependent:
+        return None
+    speeds = []
+    for p in preps:
+        for s in (s for s in p.segments if s.kind not in excl) if p.segments else ():
+            v = np.abs(p.w[s.i0:s.i1])
+            speeds.append(v[np.isfinite(v) & (v > min_speed)])
+    speeds = np.concatenate(speeds) if speeds else np.zeros(0)
+    if speeds.size < 4 * len(names):
+        return None
+    mid = float(np.median(speeds))
+    halves = []
+    for lo, hi in ((min_speed, mid), (mid, math.inf)):
+        parts = []
+        for pi, p in enumerate(preps):
+            ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in excl]
+            seg_ids = [si for si, s in enumerate(p.segments) if s.kind not in excl]
+            parts += _accumulate(p, pi, ranges, seg_ids, names, known_coef, lo, axis, friction,
+                                 {k: max(v, lo) for k, v in within.items()}, max_speed=hi)
+        parts = [ne for ne in parts if ne.n > 0]
+        if not parts or sum(ne.n for ne in parts) <= len(names):
+            return None
+        f = rg.solve(rg.NormalEquations.total(parts), names, rho=fit_.rho)
+        if "J" in f.dependent or f.stderr("J") is None:
+            return None
+        f.cov = rg.robust_stderr(f.cov, rg.cluster_covariance(f, parts))
+        halves.append((f.value("J"), f.stderr("J")))
+    return {"speed": mid, "J_low": halves[0][0], "se_low": halves[0][1], "J_high": halves[1][0],
+            "se_high": halves[1][1]}
 
 
 def rigid_body(jd: JointData, regs: Regressors, n_folds: int) -> tuple[RigidBody, Friction]:
