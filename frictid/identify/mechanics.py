@@ -447,9 +447,10 @@ def _stage2(jd: JointData, rb: RigidBody, fr: Friction) -> rg.LinearFit | None:
     v_low = min(max(jd.min_speed, v_low), 0.5 * jd.w0)
     # the map is fitted on plateau points that carry stage 1's gravity and offset errors, and gives them
     # back as the friction: each plateau's level is left free (only its change along the plateau enters)
-    own = {tuple(k): jd.min_speed for k in fr.keys.tolist()}
+    # (only for gravity: along a plateau the acceleration is nil and the offset is what a level absorbs)
+    own = {tuple(k): jd.min_speed for k in fr.keys.tolist()} if "Px" in mech or "Py" in mech else {}
     reg2, _ = regress(jd.preps, mech, rb.regs.known_coef, v_low, jd.axis, friction=friction, within=own)
-    how = ", each plateau at a level of its own"
+    how = ", each plateau at a level of its own" if own else ""
     if reg2 is not None and "offset" in reg2.dependent:  # no moves outside the plateaus to set the offset
         reg2, _ = regress(jd.preps, mech, rb.regs.known_coef, v_low, jd.axis, friction=friction)
         how = ""
