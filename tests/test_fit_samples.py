@@ -141,3 +141,27 @@ def test_jackknife_errors_by_hand():
     refits = [{"Fc": 2.0, "sigma2": 0.05 + d} for d in (-0.2, -0.1, 0.0, 0.1, 0.2)]
     jackknife_errors(mf, refits, S)
     assert not mf.params["sigma2"].identifiable and "jackknife" in mf.params["sigma2"].reason
+
+
+def test_two_recordings_that_differ_widen_the_errors_to_their_difference():
+    """Samples of two recordings of one joint whose Coulomb levels differ by 10 %: the delete-a-recording
+    jackknife puts Fc's standard error at about half the difference (the time-block folds mix the two
+    recordings and see only the samples' noise); one recording alone keeps its small error."""
+    from frictid.identify.samples import fit_map, heldout_map
+
+    rng = np.random.default_rng(7)
+    n, n_folds = 6000, 5
+    w = rng.uniform(0.1, 2.0, 2 * n) * rng.choice([-1.0, 1.0], 2 * n)
+    log = np.repeat([0, 1], n)
+    Fc = np.where(log == 0, 2.0, 2.2)
+    F = np.sign(w) * Fc + 0.5 * w + rng.normal(0, 0.05, 2 * n)
+    block = np.concatenate([np.arange(n) * 10 // n, 10 + np.arange(n) * 10 // n])
+    S = SampleSet(w, F, block, block % n_folds, log, 1, 2 * n, n_folds)
+    mf = fit_map("coulomb_viscous", S, heldout=False)
+    se_own = mf.params["Fc"].stderr
+    heldout_map("coulomb_viscous", S, mf)
+    assert se_own < 0.01 and mf.params["Fc"].stderr == pytest.approx(0.1, rel=0.1)
+    one = np.flatnonzero(log == 0)
+    S1 = SampleSet(w[one], F[one], block[one], block[one] % n_folds, log[one], 1, n, n_folds)
+    mf1 = fit_map("coulomb_viscous", S1)
+    assert mf1.params["Fc"].stderr < 0.01

@@ -226,3 +226,23 @@ def test_a_held_exponent_widens_what_depends_on_it():
     assert p["delta"].fixed
     for n, true in (("Fs", 2.6), ("vs", 0.02)):
         assert not p[n].identifiable or abs(p[n].value - true) <= 2 * p[n].stderr, (n, p[n])
+
+
+def test_a_common_error_of_the_points_enters_the_parameters_errors():
+    """fit_static(shifts=...): each shift is how every point moves for one standard deviation of an error
+    they share (the rigid-body terms subtracted from the torque); refitted on the shifted points, each
+    parameter's change enters its error in quadrature. A shift that tilts the points by 0.05 w moves the
+    viscous slope by 0.05 and leaves the Coulomb level; one that lifts the positive points only moves it."""
+    w = np.concatenate([np.linspace(0.2, 2.0, 10), -np.linspace(0.2, 2.0, 10)])
+    F = 1.5 * np.sign(w) + 0.8 * w + np.random.default_rng(5).normal(0, 1e-4, w.size)
+    se = np.full(w.size, 1e-4)
+    plain = fit_static("coulomb_viscous", w, F, se)
+    tilted = fit_static("coulomb_viscous", w, F, se, shifts=[0.05 * w])
+    assert plain.params["sigma2"].stderr < 1e-3
+    assert tilted.params["sigma2"].stderr == pytest.approx(0.05, rel=0.05)
+    assert tilted.params["Fc"].stderr == pytest.approx(plain.params["Fc"].stderr, rel=0.05)
+    assert tilted.params["sigma2"].value == plain.params["sigma2"].value
+    lifted = fit_static("coulomb_viscous", w, F, se, shifts=[0.1 * (w > 0)])
+    assert lifted.params["Fc"].stderr == pytest.approx(0.05, rel=0.05)  # half the lift, on both signs' mean
+    big = fit_static("coulomb_viscous", w, F, se, shifts=[1.0 * w])
+    assert not big.params["sigma2"].identifiable and "inertia, gravity and offset" in big.params["sigma2"].reason

@@ -20,7 +20,7 @@ from . import samples as smp
 from . import select as sel
 from .mechanics import POLY_COEFS, Friction, RigidBody, reg_estimate
 from .prepare import JointData
-from .static import fit_static, metrics
+from .static import NEGLIGIBLE, fit_static, metrics
 
 #: The polynomial_ls model's method, on either basis.
 POLY_LS_METHOD = "linear least squares on all moving samples with J, gravity and offset (002 eq 4-11)"
@@ -41,7 +41,8 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
         if len(plat) == 0:
             jf.not_identified.append({"what": name, "reason": "no constant-velocity plateaus"})
             continue
-        _guarded(jf, name, lambda n=name: fit_static(n, plat.w, plat.F, plat.F_se, axis=jd.axis))
+        _guarded(jf, name, lambda n=name: fit_static(n, plat.w, plat.F, plat.F_se, axis=jd.axis,
+                                                     shifts=fr.shifts))
     if "polynomial_ls" in wanted:
         if fr.basis == "samples":
             mf = _polynomial_ls_samples(jd, rb, fr)
@@ -53,7 +54,7 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
             jf.not_identified.append({"what": "polynomial_ls", "reason": rb.why or "no moving samples"})
     fitted = [n for n in static_names if n in jf.models]
     for n in fitted:
-        physical_shape(jf.models[n])
+        physical_shape(jf.models[n], jd.w0, jd.F0)
     # held-out errors of the maps the choice can take (the identifiable ones, unless none gets one)
     if fr.basis == "samples":
         sel.heldout_for_choice(jf.models, fitted, lambda n: smp.heldout_map(n, fr.S, jf.models[n], jd.axis),
@@ -80,9 +81,9 @@ def _not_physical(pe, why: str) -> None:
         pe.reason = why
 
 
-def physical_shape(mf) -> None:
+def physical_shape(mf, w0: float = math.inf, F0: float = 0.0) -> None:
     """Names and signs that tell the truth (issue 19): a Stribeck map whose break-away level is below its
-    Coulomb level on a branch, and a viscous coefficient significantly below zero, are marked
+    Coulomb level on a branch, and a viscous coefficient below zero (significantly or within its errors), are marked
     not identifiable with the reason, so the choice takes a model whose shape says what the data do (the
     polynomial follows a friction that rises from zero speed) and no green badge is given to them."""
     base = mf.name[:-5] if mf.name.endswith("_asym") else mf.name
@@ -102,6 +103,13 @@ def physical_shape(mf) -> None:
         if v is not None and v.value is not None and v.value < -VISCOUS_Z * (v.stderr or 0.0):
             _not_physical(v, f"negative viscous coefficient ({v.value:.4g}): the friction falls with speed "
                              "over the measured range, which a viscous term cannot be")
+        elif v is not None and v.value is not None and v.value < 0 and (v.stderr or 0.0) * w0 > NEGLIGIBLE * F0:
+            # a negative slope within its errors of zero: the data do not tell its sign, and a negative
+            # value is no viscous coefficient (issue 19: a negative viscous term is flagged, not badged),
+            # unless its uncertainty is negligible at the top speed w0 (1 % of the torque scale F0: a
+            # well-determined zero, the rule of the static fits)
+            _not_physical(v, f"negative viscous coefficient ({v.value:.4g} +- {v.stderr or 0.0:.2g}): the data do "
+                             "not tell the slope's sign over the measured range")
 
 
 def _basis_warnings(jd: JointData, fr: Friction) -> None:

@@ -71,6 +71,9 @@ class Friction:
     basis: str
     why: str
     excl: tuple[str, ...]
+    #: the plateau points' changes for one standard deviation of each independent error direction of the
+    #: inertia, gravity and offset (:func:`plateau_shifts`)
+    shifts: list[np.ndarray] | None = None
 
 
 def _meta_value(meta: dict, *keys):
@@ -165,6 +168,8 @@ def reg_estimate(name: str, fit_: rg.LinearFit | None, jd: JointData, why_none: 
     reason = ""
     if name == "J":
         se, reason = _inertia_checked(v, se, fit_.bandwidth)
+        if not reason:
+            se, reason = _inertia_split_checked(v, se, fit_.speed_split)
     if not reason:
         reason = _precision_reason(name, dim, v, se, jd)
     if name == "J" and v <= 0 and not reason:
@@ -208,6 +213,31 @@ def _inertia_checked(v: float, se: float | None, bw: dict | None) -> tuple[float
             f"changes from {v:.4g} to {bw['J']:.4g} when the torque and the regressors are low-pass filtered "
             f"alike over {bw['window']} samples: the torque is not resolved at the log rate (a loop faster "
             "than the log), or the joint is not rigid")
+    return math.hypot(se, sys_), ""
+
+
+#: The speed-split check's thresholds, as the bandwidth check's: significant beyond this many combined
+#: standard errors, material beyond this share of the inertia.
+SPLIT_Z = 3.0
+SPLIT_MATERIAL = 0.10
+
+
+def _inertia_split_checked(v: float, se: float | None, sp: dict | None) -> tuple[float | None, str]:
+    """The inertia's standard error with the speed-split check (:func:`_speed_split_check`) and the reason
+    it is not identifiable ("" when it is): the two halves' inertias differing beyond :data:`SPLIT_Z`
+    combined standard errors *and* by more than :data:`SPLIT_MATERIAL` of the inertia make it not
+    identifiable; a smaller difference enters the standard error as a systematic term (half the difference
+    beyond the halves' own scatter: the full fit sits between them)."""
+    if sp is None or se is None or not np.isfinite(se):
+        return se, ""
+    d = abs(sp["J_high"] - sp["J_low"])
+    s_d = math.hypot(sp["se_low"], sp["se_high"])
+    sys_ = 0.5 * math.sqrt(max(d * d - s_d * s_d, 0.0))
+    if d > SPLIT_Z * s_d and d > SPLIT_MATERIAL * abs(v):
+        return math.hypot(se, sys_), (
+            f"{sp['J_low']:.4g} on the moving samples slower than {sp['speed']:.3g} and {sp['J_high']:.4g} on "
+            "the faster ones: the friction's dynamics (bristles lagging the acceleration, a Stribeck drop "
+            "crossed while accelerating) or a control loop the log does not resolve go with the acceleration")
     return math.hypot(se, sys_), ""
 
 
@@ -260,8 +290,32 @@ def mechanics_not_identified(jf: JointFit) -> None:
             jf.not_identified.append({"what": n, "reason": pe.reason})
 
 
-def regress(preps: list[Prep], names, known_coef, min_speed, axis, friction=None):
-    """Chunked least squares over the moving samples of every log; per-segment normal equations."""
+def _accumulate(p: Prep, pi, ranges, seg_ids, names, known_coef, min_speed, axis, friction, within, smooth=0,
+                max_speed=math.inf):
+    """Per-segment normal equations of one log. The segments in ``within`` (keys (prep index, segment
+    index): plateaus) have a friction level of their own, the constant column partialled out
+    (:meth:`.regression.NormalEquations.within`), and take every moving sample (``within[key]`` is their
+    speed floor: a level of their own is immune to a map that misses the Stribeck drop)."""
+    own = [k for k, si in enumerate(seg_ids) if (pi, si) in within] if "offset" in names else []
+    args = (names, p.log.q, p.w, p.a, p.log.tau, p.log.channels.get("payload"), known_coef)
+    rest = [k for k in range(len(ranges)) if k not in set(own)]
+    out = [None] * len(ranges)
+    for k, ne in zip(rest, rg.accumulate([ranges[k] for k in rest], *args, min_speed, axis, friction=friction,
+                                         smooth=smooth, max_speed=max_speed)):
+        out[k] = ne
+    j = list(names).index("offset") if own else 0
+    for k in own:
+        ne, = rg.accumulate([ranges[k]], *args, within[(pi, seg_ids[k])], axis, friction=friction, smooth=smooth,
+                            max_speed=max_speed)
+        out[k] = ne.within(j)
+    return out
+
+
+def regress(preps: list[Prep], names, known_coef, min_speed, axis, friction=None, within=None):
+    """Chunked least squares over the moving samples of every log; per-segment normal equations.
+    ``within``: {(prep index, segment index): speed floor} of plateaus whose friction is a free constant
+    each (only their variation along the plateau enters: the torque's change with the angle is gravity)."""
+    within = within or {}
     seg_ne: list[tuple[int, int, rg.NormalEquations]] = []
     excl = regression_exclude(preps)
     for pi, p in enumerate(preps):
@@ -269,8 +323,7 @@ def regress(preps: list[Prep], names, known_coef, min_speed, axis, friction=None
         seg_ids = [si for si, s in enumerate(p.segments) if s.kind not in excl]
         if not p.segments:  # no segmentation: every sample is a candidate
             ranges, seg_ids = [(0, p.log.n)], [-1]
-        nes = rg.accumulate(ranges, names, p.log.q, p.w, p.a, p.log.tau, p.log.channels.get("payload"),
-                            known_coef, min_speed, axis, friction=friction)
+        nes = _accumulate(p, pi, ranges, seg_ids, names, known_coef, min_speed, axis, friction, within)
         seg_ne += [(pi, si, ne) for si, ne in zip(seg_ids, nes)]
     if not seg_ne or not names:
         return None, seg_ne
@@ -286,7 +339,8 @@ def regress(preps: list[Prep], names, known_coef, min_speed, axis, friction=None
                                                    friction=friction))
     fit_ = rg.solve(total, names, rho=rho)
     fit_.cov = rg.robust_stderr(fit_.cov, rg.cluster_covariance(fit_, [ne for *_, ne in seg_ne]))
-    fit_.bandwidth = _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl)
+    fit_.bandwidth = _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl, within)
+    fit_.speed_split = _speed_split_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl, within)
     return fit_, seg_ne
 
 
@@ -294,7 +348,8 @@ def regress(preps: list[Prep], names, known_coef, min_speed, axis, friction=None
 BANDWIDTH_WINDOWS = 3
 
 
-def _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl) -> dict | None:
+def _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl,
+                     within=None) -> dict | None:
     """The regression again with the torque and every regressor low-pass filtered alike over
     :data:`BANDWIDTH_WINDOWS` times the logs' acceleration window (parallel filtering: exact for a rigid
     joint whose torque is resolved at the log rate). A rigid-body fit that the data support gives the same
@@ -305,10 +360,11 @@ def _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, 
         return None
     win = int(BANDWIDTH_WINDOWS * max(wins)) | 1
     parts = []
-    for p in preps:
+    for pi, p in enumerate(preps):
         ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in excl] or [(0, p.log.n)]
-        parts += rg.accumulate(ranges, names, p.log.q, p.w, p.a, p.log.tau, p.log.channels.get("payload"),
-                               known_coef, min_speed, axis, friction=friction, smooth=win)
+        seg_ids = [si for si, s in enumerate(p.segments) if s.kind not in excl] or [-1]
+        parts += _accumulate(p, pi, ranges, seg_ids, names, known_coef, min_speed, axis, friction, within or {},
+                             smooth=win)
     parts = [ne for ne in parts if ne.n > 0]
     if not parts or sum(ne.n for ne in parts) <= len(names):
         return None
@@ -317,6 +373,43 @@ def _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, 
         return None
     f2.cov = rg.robust_stderr(f2.cov, rg.cluster_covariance(f2, parts))
     return {"window": win, "J": f2.value("J"), "se": f2.stderr("J")}
+
+
+def _speed_split_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl, within) -> dict | None:
+    """The regression again on the slower and on the faster half of its moving samples (split at their
+    median speed), each with all its terms. A rigid joint whose friction the model follows gives one
+    inertia on both; a friction whose dynamics go with the acceleration (LuGre's bristles lag it, the
+    Stribeck drop is crossed while accelerating) or a loop the log does not resolve moves it between the
+    halves. None without an inertia term or when a half cannot separate it."""
+    if "J" not in names or "J" in fit_.dependent:
+        return None
+    speeds = []
+    for p in preps:
+        for s in (s for s in p.segments if s.kind not in excl) if p.segments else ():
+            v = np.abs(p.w[s.i0:s.i1])
+            speeds.append(v[np.isfinite(v) & (v > min_speed)])
+    speeds = np.concatenate(speeds) if speeds else np.zeros(0)
+    if speeds.size < 4 * len(names):
+        return None
+    mid = float(np.median(speeds))
+    halves = []
+    for lo, hi in ((min_speed, mid), (mid, math.inf)):
+        parts = []
+        for pi, p in enumerate(preps):
+            ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in excl]
+            seg_ids = [si for si, s in enumerate(p.segments) if s.kind not in excl]
+            parts += _accumulate(p, pi, ranges, seg_ids, names, known_coef, lo, axis, friction,
+                                 {k: max(v, lo) for k, v in within.items()}, max_speed=hi)
+        parts = [ne for ne in parts if ne.n > 0]
+        if not parts or sum(ne.n for ne in parts) <= len(names):
+            return None
+        f = rg.solve(rg.NormalEquations.total(parts), names, rho=fit_.rho)
+        if "J" in f.dependent or f.stderr("J") is None:
+            return None
+        f.cov = rg.robust_stderr(f.cov, rg.cluster_covariance(f, parts))
+        halves.append((f.value("J"), f.stderr("J")))
+    return {"speed": mid, "J_low": halves[0][0], "se_low": halves[0][1], "J_high": halves[1][0],
+            "se_high": halves[1][1]}
 
 
 def rigid_body(jd: JointData, regs: Regressors, n_folds: int) -> tuple[RigidBody, Friction]:
@@ -333,28 +426,74 @@ def rigid_body(jd: JointData, regs: Regressors, n_folds: int) -> tuple[RigidBody
     S = smp.build(jd.preps, jd.min_speed, n_folds, exclude=excl) if reg_fit is not None else None
     basis, why_basis = smp.choose_basis(plat.w, S.n_moving if S is not None else 0)
     fr = Friction(plat, keys, S, basis, why_basis, excl)
-    _stage2(jd, rb, fr)
+    final = _stage2(jd, rb, fr) or reg_fit
+    if final is not None and fr.basis == "plateaus":
+        fr.shifts = plateau_shifts(jd, final, len(fr.plat))
     for p in jd.preps:  # the mechanics are final: cos q and sin q are not needed again (58 MB per joint-hour)
         p._trig = None
     mechanics_not_identified(jd.jf)
     return rb, fr
 
 
-def _stage2(jd: JointData, rb: RigidBody, fr: Friction) -> None:
+def _stage2(jd: JointData, rb: RigidBody, fr: Friction) -> rg.LinearFit | None:
     """With a static map from the plateaus, J / gravity / offset again with that map as the friction (the
     polynomial cannot follow a Stribeck drop, which then leaks into J; see docs/fit.md); the plateaus of
-    the new friction torque replace ``fr``'s."""
+    the new friction torque replace ``fr``'s. Returns the regression (None when stage 2 did not run)."""
     mech = tuple(n for n in rb.regs.free if n not in POLY_COEFS)
     fmap = _stage2_map(fr.plat) if mech and rb.fit is not None and fr.basis == "plateaus" else None
     if fmap is None:
-        return
+        return None
     name2, friction, v_low = fmap
     v_low = min(max(jd.min_speed, v_low), 0.5 * jd.w0)
-    reg2, _ = regress(jd.preps, mech, rb.regs.known_coef, v_low, jd.axis, friction=friction)
+    # the map is fitted on plateau points that carry stage 1's gravity and offset errors, and gives them
+    # back as the friction: each plateau's level is left free (only its change along the plateau enters)
+    # (only for gravity: along a plateau the acceleration is nil and the offset is what a level absorbs)
+    own = {tuple(k): jd.min_speed for k in fr.keys.tolist()} if "Px" in mech or "Py" in mech else {}
+    reg2, _ = regress(jd.preps, mech, rb.regs.known_coef, v_low, jd.axis, friction=friction, within=own)
+    how = ", each plateau at a level of its own" if own else ""
+    if reg2 is not None and "offset" in reg2.dependent:  # no moves outside the plateaus to set the offset
+        reg2, _ = regress(jd.preps, mech, rb.regs.known_coef, v_low, jd.axis, friction=friction)
+        how = ""
     if reg2 is not None:
         set_mechanics(jd, reg2, rb.regs, rb.why,
-                      f"least squares with the plateau map {name2} as the friction, |w| > {v_low:.3g}")
+                      f"least squares with the plateau map {name2} as the friction{how}, |w| > {v_low:.3g}")
         fr.plat, fr.keys = plateaus(jd)
+    return reg2
+
+
+def plateau_shifts(jd: JointData, fit_: rg.LinearFit, n_plat: int) -> list[np.ndarray]:
+    """How the plateau points move for one standard deviation of each independent error direction of the
+    rigid-body terms subtracted from the torque (inertia, gravity, payload, offset): the plateau means of
+    their regressors times the eigenvectors of their covariance (correlations from the regression, standard
+    errors from the reported estimates, which carry the bandwidth check's systematic term). Empty when a
+    plateau's regressors are not finite."""
+    jf = jd.jf
+    est = {"J": jf.inertia, "offset": jf.offset, **jf.gravity}
+    names = [n for n in fit_.names if n not in POLY_COEFS and n not in fit_.dependent and n in est]
+    if not names or n_plat == 0:
+        return []
+    idx = [fit_.names.index(n) for n in names]
+    C = np.asarray(fit_.cov, dtype=float)[np.ix_(idx, idx)]
+    se_c = np.sqrt(np.maximum(np.diag(C), 0.0))
+    se = np.array([est[n].stderr if est[n].stderr is not None and np.isfinite(est[n].stderr) else s_
+                   for n, s_ in zip(names, se_c)])
+    if not (np.all(np.isfinite(C)) and np.all(np.isfinite(se))):
+        return []
+    with np.errstate(divide="ignore", invalid="ignore"):
+        corr = np.nan_to_num(C / np.outer(se_c, se_c))
+    np.fill_diagonal(corr, 1.0)
+    lam, V = np.linalg.eigh(corr * np.outer(se, se))
+    Xbar = []
+    for p in jd.preps:
+        cols = [plateau_points(p.log.t, p.w, np.nan_to_num(rg.column(
+            n, p.log.q, p.w, p.a, p.log.channels.get("payload"), jd.axis)) * np.isfinite(p.F), p.segments).F
+            for n in names]
+        if len(cols[0]):
+            Xbar.append(np.column_stack(cols))
+    Xbar = np.concatenate(Xbar) if Xbar else np.zeros((0, len(names)))
+    if Xbar.shape[0] != n_plat or not np.all(np.isfinite(Xbar)):
+        return []
+    return [-(Xbar @ (V[:, i] * math.sqrt(l))) for i, l in enumerate(lam) if l > 0]
 
 
 def plateaus(jd: JointData) -> tuple[Plateaus, np.ndarray]:

@@ -83,6 +83,20 @@ class NormalEquations:
         return NormalEquations(self.p, self.XtX - other.XtX, self.Xty - other.Xty, self.yty - other.yty,
                                self.n - other.n)
 
+    def within(self, k: int) -> "NormalEquations":
+        """The equations with the constant column ``k`` (all ones) partialled out: the residual of every
+        column and of ``y`` about its mean over these samples (a free level of their own, the "within"
+        estimator of a fixed effect). Column ``k`` becomes zero."""
+        if self.n < 2:
+            return NormalEquations(self.p)
+        c = self.XtX[k].copy()  # column sums
+        sy = self.Xty[k]
+        XtX = self.XtX - np.outer(c, c) / self.n
+        Xty = self.Xty - c * sy / self.n
+        XtX[k, :] = XtX[:, k] = 0.0
+        Xty[k] = 0.0
+        return NormalEquations(self.p, XtX, Xty, self.yty - sy * sy / self.n, self.n - 1)
+
     @staticmethod
     def total(parts) -> "NormalEquations":
         parts = list(parts)
@@ -110,6 +124,9 @@ class LinearFit:
     dependent: list[str] = field(default_factory=list)
     #: the inertia refitted on parallel-filtered equations: {"window": samples, "J": value, "se": stderr}
     bandwidth: dict | None = None
+    #: the inertia on the slower and the faster half of the moving samples: {"speed": split [q/s],
+    #: "J_low", "se_low", "J_high", "se_high"}
+    speed_split: dict | None = None
 
     def value(self, name: str) -> float:
         return float(self.coef[self.names.index(name)])
@@ -209,7 +226,8 @@ def sample_mask(w, a, min_speed: float) -> np.ndarray:
 
 
 def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = None, min_speed: float = 0.0,
-               axis: str = "rotary", chunk: int = CHUNK, friction=None, smooth: int = 0) -> list[NormalEquations]:
+               axis: str = "rotary", chunk: int = CHUNK, friction=None, smooth: int = 0,
+               max_speed: float = math.inf) -> list[NormalEquations]:
     """Normal equations of ``tau - known terms = X(names) b``, one set per index range (i0, i1).
 
     q [q] (may be None if no gravity column is asked), w [q/s], a [q/s^2], tau [F], payload [kg] or None.
@@ -218,7 +236,8 @@ def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = N
     smooth : when above 1, the torque and every regressor column are low-pass filtered alike (a moving
     average of ``smooth`` samples, computed per sample and then averaged: the model is linear in its
     coefficients, so the filtered equations hold exactly: Gautier's parallel filtering) before the
-    moving samples are taken (:func:`bandwidth_check`).
+    moving samples are taken (:func:`bandwidth_check`). max_speed : only samples with |w| at most this
+    enter (not with ``smooth``).
     """
     known = dict(known or {})
     out = []
@@ -231,6 +250,8 @@ def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = N
             ww = w[a0:a1]
             aa = a[a0:a1]
             m = sample_mask(ww, aa, min_speed) & np.isfinite(tau[a0:a1])
+            if max_speed < math.inf:
+                m &= np.abs(np.nan_to_num(ww)) <= max_speed
             if q is not None:
                 m &= np.isfinite(q[a0:a1])
             if not m.any():

@@ -474,13 +474,16 @@ def predict(name: str, values: dict, w) -> np.ndarray:
 
 
 def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | float = "auto",
-               fixed: dict | None = None, start: dict | None = None, var_inflation: float = 1.0) -> ModelFit:
+               fixed: dict | None = None, start: dict | None = None, var_inflation: float = 1.0,
+               shifts=None) -> ModelFit:
     """Fit static map ``name`` (``stribeck``, ``polynomial_asym``, ...) to plateau points.
 
     w [q/s], F [F], F_se [F] : plateau means and standard errors. axis : "rotary" or "linear" (units).
     delta : Stribeck exponent, "auto" (free when the data pin it, else fixed at 2 as in 000/003), "free",
     or a number to hold it at. fixed : other parameters to hold (name -> value, suffixed for _asym).
     var_inflation : covariance factor for autocorrelated points (see :func:`fit_branch`).
+    shifts : the points' changes [F] for one standard deviation of each independent error direction of
+    what was subtracted from the torque (:func:`_shift_profile`), or None.
     A per-sign model is fitted branch by branch (the branches share no parameter).
     """
     w = np.asarray(w, dtype=float)
@@ -490,12 +493,15 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
     fixed = dict(fixed or {})
     F0, w0 = _scales(w, F)
     notes: list[str] = []
+    shifts = [np.asarray(d, dtype=float) for d in (shifts or ())]
     if not asym:
         branches = [("", w, F, F_se, "")]
+        bshifts = {"": shifts}
     else:
         pos, neg = w > 0, w < 0
         branches = [("_pos", w[pos], F[pos], None if F_se is None else F_se[pos], "positive"),
                     ("_neg", -w[neg], -F[neg], None if F_se is None else F_se[neg], "negative")]
+        bshifts = {"_pos": [d[pos] for d in shifts], "_neg": [-d[neg] for d in shifts]}
     params: dict[str, ParamEstimate] = {}
     covs = []
     k_total = 0
@@ -512,7 +518,7 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
             success = False
             continue
         bf, shapeless = _fit_one_branch(smap.name, bw, bF, bse, bfixed, suf, start, delta, (F0, w0),
-                                        var_inflation, notes)
+                                        var_inflation, notes, bshifts[suf])
         success = success and bf.success
         k_total += len(bf.free)
         if bf.cov is not None:
@@ -605,7 +611,7 @@ def _missing_branch(smap, suf: str, bfixed: dict, why: str, axis: str) -> dict[s
 
 
 def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict | None, delta, scales,
-                    var_inflation: float, notes: list[str]) -> tuple[BranchFit, dict[str, str]]:
+                    var_inflation: float, notes: list[str], shifts=None) -> tuple[BranchFit, dict[str, str]]:
     """Fit one branch: from the warm start (its held parameters held again), then with the shape of a drop
     the data cannot tell from none held where it came out, then (delta "auto") with a Stribeck exponent
     that is not identifiable held at 2. Returns the fit and the held shapes' reasons (suffixed names)."""
@@ -631,7 +637,45 @@ def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict 
         notes.append(f"delta{suf} fixed at 2 (000/003): free, it was not identifiable ({why})")
     if base == "stribeck" and delta == "auto" and "delta" in bfixed and start is None and bf.cov is not None:
         _delta_profile(bw, bF, bse, bfixed, scales, var_inflation, bf)
+    if shifts and bf.cov is not None:
+        _shift_profile(base, bw, bF, bse, bfixed, scales, var_inflation, bf, shifts)
     return bf, shapeless
+
+
+def _shift_profile(base: str, bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: BranchFit,
+                   shifts: list[np.ndarray]) -> None:
+    """The points' common errors propagated into the parameters: each of ``shifts`` is the change of every
+    point for one standard deviation of an independent direction of the rigid-body terms' error (inertia,
+    gravity, offset, subtracted from the torque before the points are averaged). The branch is refitted on
+    the shifted points and each parameter's change enters its standard error in quadrature (and its
+    covariance); one whose error so exceeds its value is not identifiable. The points' own scatter does not
+    show this error: it moves every point at once, smoothly along the angles the plateaus cover, and a
+    sweep that climbs in speed as it travels turns a gravity error into a slope or a drop of the friction.
+    ``bf`` is changed in place."""
+    free = list(bf.free)
+    D = []
+    for dF in shifts:
+        alt = fit_branch(base, bw, bF + dF, bse, dict(bfixed), scales=scales, start=dict(bf.values),
+                         var_inflation=var_inflation)
+        if not math.isfinite(alt.cost):
+            continue
+        D.append([alt.values[n] - bf.values[n] if alt.values.get(n) is not None else 0.0 for n in free])
+    if not D:
+        return
+    D = np.asarray(D, dtype=float)
+    extra = D.T @ D
+    if bf.cov is not None and bf.cov.shape == extra.shape:
+        bf.cov = bf.cov + extra
+    for j, n in enumerate(free):
+        se = bf.stderr.get(n)
+        if se is None or extra[j, j] <= 0:
+            continue
+        bf.stderr[n] = math.hypot(se, math.sqrt(extra[j, j]))
+        v = bf.values[n]
+        if n not in bf.reasons and bf.stderr[n] > abs(v):
+            bf.reasons[n] = (f"relative error {100 * bf.stderr[n] / abs(v):.0f} % (above 100 %) with the error of "
+                             "the inertia, gravity and offset taken out of the torque" if v else
+                             "relative error above 100 % with the error of the inertia, gravity and offset")
 
 
 #: Stribeck exponents tried when the data do not pin delta down (000/003 hold it at 2; 1 is the exponential
