@@ -27,8 +27,8 @@ Then, in order (each sample gets one kind; earlier kinds win):
    noise, changing the torque by ``K_RAMP`` standard errors; kept in groups that start at a hold and
    return to its level at a hold (loading and unloading), one segment per monotonic ramp;
 4. constant velocity: steady, moving runs of at least ``T_MIN``, edged where the velocity leaves the
-   plateau's band; kept when the log holds plateaus at ``MIN_PLATEAUS`` speeds and, in a sweep over both
-   signs, next to their mirror speed (a lone steady stretch is a repositioning move);
+   plateau's band; kept when they form a sweep: plateaus held at their mirror speed nearby or joined
+   without a stop, at ``MIN_PLATEAUS`` speeds (a lone steady stretch is a move's cruise phase);
 5. rest: still runs of at least ``T_MIN`` where no controller is loading the joint towards break-away;
    everything else is *other*.
 """
@@ -458,23 +458,51 @@ def _constant_velocity(f: Features, code: np.ndarray, n_min: int) -> list[tuple[
     """(start, end) of the constant-velocity plateaus among the unclassified samples: steady, moving runs
     of one sign and at least ``n_min`` samples, edged where the velocity leaves the plateau's band.
 
-    A static map needs plateaus at several speeds: none are kept unless they hold ``MIN_PLATEAUS``
-    distinct speeds (one or two steady stretches are moves, not a sweep); in a sweep over both signs, a
-    plateau next to neither of its mirror speeds is a repositioning move and is left out."""
+    A plateau identifies the static map only as part of a sweep (:func:`_sweeps`): a steady stretch
+    that is neither held at its mirror speed nearby nor joined without a stop to plateaus at other speeds
+    is a move's cruise phase (point-to-point motion, a repositioning move), not an experiment."""
     cv = f.steady & f.moving & ~f.still & (code < 0)
     plateaus = []
     for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), n_min)):
         got = _plateau(f, int(i0), int(i1), code, n_min)
         if got is not None:
             plateaus.append(got)
-    # the mirror may lie beyond a steady stretch of another speed (a joint creeping in a dwell)
-    paired = [p for k, p in enumerate(plateaus)
-              if any(_mirror(p, o) for o in plateaus[max(0, k - MIRROR_REACH):k + MIRROR_REACH + 1] if o is not p)]
-    if _distinct_speeds([p[2] for p in paired]) >= MIN_PLATEAUS:
-        plateaus = paired
-    if _distinct_speeds([p[2] for p in plateaus]) < MIN_PLATEAUS:
-        return []
-    return [(i0, i1) for i0, i1, _ in plateaus]
+    return [(i0, i1) for i0, i1, _ in _sweeps(f, plateaus, code)]
+
+
+def _sweeps(f: Features, plateaus: list[tuple[int, int, float]], code: np.ndarray
+            ) -> list[tuple[int, int, float]]:
+    """The plateaus (start, end, velocity) that belong to a sweep. A plateau is *linked* when its mirror
+    speed is held nearby (:func:`_mirror`, up to ``MIRROR_REACH`` plateaus away: a joint creeping in a
+    dwell is a steady stretch in between) or when the joint runs into or out of it from another plateau
+    without stopping (:func:`_chained`: a chained sweep). Linked plateaus no more than ``MIRROR_REACH``
+    plateaus apart form a group; a group is a sweep when it holds ``MIN_PLATEAUS`` distinct speeds
+    (unsigned). A move's cruise phase is linked only by the chance of a mirror speed, and a few chance
+    mirrors side by side at three speeds do not happen."""
+    m = len(plateaus)
+    chained = [_chained(f, plateaus[k], plateaus[k + 1], code) for k in range(m - 1)]
+    linked = [any(_mirror(p, o) for o in plateaus[max(0, k - MIRROR_REACH):k + MIRROR_REACH + 1] if o is not p)
+              or (k > 0 and chained[k - 1]) or (k < m - 1 and chained[k])
+              for k, p in enumerate(plateaus)]
+    keep: list[tuple[int, int, float]] = []
+    group: list[int] = []
+    for k in [k for k in range(m) if linked[k]] + [m + MIRROR_REACH + 1]:
+        if group and k - group[-1] > MIRROR_REACH:
+            if _distinct_speeds([abs(plateaus[j][2]) for j in group]) >= MIN_PLATEAUS:
+                keep.extend(plateaus[j] for j in group)
+            group = []
+        group.append(k)
+    return keep
+
+
+def _chained(f: Features, a: tuple[int, int, float], b: tuple[int, int, float], code: np.ndarray) -> bool:
+    """True if the joint runs from plateau ``a`` into plateau ``b`` (start, end, velocity) without
+    stopping: one sign throughout and never slower than half the slower plateau in between (a
+    point-to-point move always stops before the next one)."""
+    if a[2] * b[2] <= 0 or abs(a[2] - b[2]) <= R_STEADY * max(abs(a[2]), abs(b[2])):
+        return False
+    gap = f.w[a[1]:b[0]] * math.copysign(1.0, a[2])
+    return bool(np.all(code[a[1]:b[0]] < 0)) and (gap.size == 0 or float(gap.min()) > 0.5 * min(abs(a[2]), abs(b[2])))
 
 
 def _mirror(a: tuple[int, int, float], b: tuple[int, int, float]) -> bool:
