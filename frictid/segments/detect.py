@@ -64,6 +64,8 @@ T_SETTLE = 1.0
 MIN_PLATEAUS = 3
 #: Plateaus looked at on each side for a plateau's mirror speed.
 MIRROR_REACH = 3
+#: Relative tolerance of a mirror speed (a plateau's mean speed against its mirror's).
+R_MIRROR = 0.005
 #: Relative velocity tolerance of a constant-velocity plateau.
 R_STEADY = 0.02
 #: A still joint whose torque changes by more than this fraction of the log's torque range within
@@ -463,7 +465,9 @@ def _constant_velocity(f: Features, code: np.ndarray, n_min: int) -> list[tuple[
     is a move's cruise phase (point-to-point motion, a repositioning move), not an experiment."""
     cv = f.steady & f.moving & ~f.still & (code < 0)
     plateaus = []
-    for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), n_min)):
+    # the steady test looks h samples each side, so a plateau of n_min + 2 h shows a steady core of only
+    # n_min: cores of h / 2 are grown into their band (short plateaus of 0.25-0.4 s, chained sweeps)
+    for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), max(2, f.h // 2))):
         got = _plateau(f, int(i0), int(i1), code, n_min)
         if got is not None:
             plateaus.append(got)
@@ -481,7 +485,9 @@ def _sweeps(f: Features, plateaus: list[tuple[int, int, float]], code: np.ndarra
     mirrors side by side at three speeds do not happen."""
     m = len(plateaus)
     chained = [_chained(f, plateaus[k], plateaus[k + 1], code) for k in range(m - 1)]
-    linked = [any(_mirror(p, o) for o in plateaus[max(0, k - MIRROR_REACH):k + MIRROR_REACH + 1] if o is not p)
+    mean = [_mean_speed(f, a, b) for a, b, _ in plateaus]
+    linked = [any(_mirror(p, o, mean[k], mean[j]) for j, o in enumerate(plateaus)
+                  if 0 < abs(j - k) <= MIRROR_REACH)
               or (k > 0 and chained[k - 1]) or (k < m - 1 and chained[k])
               for k, p in enumerate(plateaus)]
     keep: list[tuple[int, int, float]] = []
@@ -505,11 +511,25 @@ def _chained(f: Features, a: tuple[int, int, float], b: tuple[int, int, float], 
     return bool(np.all(code[a[1]:b[0]] < 0)) and (gap.size == 0 or float(gap.min()) > 0.5 * min(abs(a[2]), abs(b[2])))
 
 
-def _mirror(a: tuple[int, int, float], b: tuple[int, int, float]) -> bool:
-    """True if plateaus ``a`` and ``b`` (start, end, velocity) run at opposite speeds and lie apart by at
-    most four times the longer of the two."""
+def _mean_speed(f: Features, a: int, b: int) -> tuple[float, float]:
+    """Mean velocity [q/s] of the plateau ``[a, b)`` from its end positions, and its standard error (the
+    position noise, at least the encoder's quantisation, at both ends)."""
+    span = max(1, b - 1 - a) * f.sc.dt
+    sq = max(f.sc.sigma_q, f.sc.q_step / math.sqrt(12.0))
+    return float(f.q[b - 1] - f.q[a]) / span, math.sqrt(2.0) * sq / span
+
+
+def _mirror(a: tuple[int, int, float], b: tuple[int, int, float], ma: tuple[float, float],
+            mb: tuple[float, float]) -> bool:
+    """True if plateaus ``a`` and ``b`` (start, end, velocity; mean velocity and its standard error) run
+    at opposite speeds and lie apart by at most four times the longer of the two. Opposite: the mean
+    speeds agree within ``R_MIRROR`` or ``K_NOISE`` standard errors (a settled loop holds the mean speed
+    of its reference; two unrelated speeds agree that closely by chance once in a hundred)."""
     apart = max(a[0], b[0]) - min(a[1], b[1])
-    return abs(a[2] + b[2]) <= R_STEADY * abs(a[2]) and apart <= 4 * max(a[1] - a[0], b[1] - b[0])
+    if a[2] * b[2] >= 0 or apart > 4 * max(a[1] - a[0], b[1] - b[0]):
+        return False
+    tol = max(R_MIRROR * max(abs(ma[0]), abs(mb[0])), K_NOISE * math.hypot(ma[1], mb[1]))
+    return abs(ma[0] + mb[0]) <= tol
 
 
 def _distinct_speeds(w: list[float]) -> int:
@@ -533,9 +553,28 @@ def _plateau(f: Features, i0: int, i1: int, code: np.ndarray, n_min: int) -> tup
     lo = max(0, i0 - 2 * f.h)
     for w, off in ((f.w[lo:min(f.t.size, i1 + 2 * f.h)], lo), _plateau_velocity(f, i0, i1)):
         a, b = _extend_plateau(f, i0, i1, code, w, off)
-        if b - a >= n_min and _same_sign(w[a - off:b - off]):
+        if b - a >= n_min and _same_sign(w[a - off:b - off]) and _level(f, w[a - off:b - off]):
             return a, b, float(np.median(w[a - off:b - off]))
     return None
+
+
+def _level(f: Features, w: np.ndarray) -> bool:
+    """True if the velocity ``w`` [q/s] over a candidate plateau does not bend: the quadratic term of a fit
+    across it changes the velocity from the centre to the ends by less than half the plateau's band
+    (``R_STEADY / 2``) or by less than ``K_NOISE`` standard errors. The top of a smooth move stays within
+    the band for a while too, but bends across it. (A linear trend is allowed: a loop under a changing
+    gravity load holds a plateau with a slight drift.)"""
+    stride = max(1, w.size // 2000, f.sc.window_w // 2)   # samples about independent after smoothing
+    y = w[::stride]
+    if y.size < 8:
+        return True
+    x = np.linspace(-1.0, 1.0, y.size)
+    basis = np.stack((np.ones_like(x), x, x * x - float(np.mean(x * x))), axis=1)
+    coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
+    resid = y - basis @ coef
+    se = float(np.std(resid)) * math.sqrt(float(np.linalg.inv(basis.T @ basis)[2, 2]))
+    bend = abs(float(coef[2]))
+    return not (bend > 0.5 * R_STEADY * abs(float(coef[0])) and bend > K_NOISE * se)
 
 
 def _plateau_velocity(f: Features, i0: int, i1: int) -> tuple[np.ndarray, int]:

@@ -7,8 +7,9 @@ and repeat the same velocity profile. The search works on onsets of motion, not 
 2. *candidate periods* from an onset: the distances to the next ``LOOKAHEAD`` onsets, and, when the
    onset opens a long stretch of motion without rests (a joint that never stops between cycles), the
    lags where the autocorrelation of that stretch's velocity peaks;
-3. *chains*: a chain goes on while the velocity over the next period matches the one before (relative
-   RMS difference at most ``R_SHAPE``); the next cycle starts at an onset one period later (within
+3. *chains*: a chain goes on while the velocity over the next period matches the one before and the
+   chain's first cycle (relative RMS difference at most ``R_SHAPE``: the same motion repeats, where a
+   sweep's cycles drift, each a little faster); the next cycle starts at an onset one period later (within
    ``tol``) or, in continuous motion, exactly one period later. Of the chains of at least ``MIN_CYCLES``
    cycles from an onset (or from an onset within its first period), the one covering the longest time
    wins, then the shortest period; earlier cycles with the same profile are prepended (a run's first
@@ -145,7 +146,9 @@ def _chain_nb(onsets, w, rests, moves, start, P, tol, virtual):  # pragma: no co
     while True:
         nxt = _next_start_nb(onsets, w, rests, moves, chain[-1], int(np.rint(chain[-1] + period)), P, tol,
                              virtual)
-        if nxt < 0:
+        # a duty cycle repeats the same motion: every cycle also repeats the chain's first one (a sweep's
+        # cycles drift, each a little faster than the one before)
+        if nxt < 0 or not _difference_nb(w, rests, moves, chain[0], nxt, P) <= R_SHAPE:
             return np.array(chain, dtype=np.int64)
         chain.append(nxt)
         period = (chain[-1] - chain[0]) / (len(chain) - 1)
@@ -171,7 +174,7 @@ def _extend_back(onsets: np.ndarray, w: _Signal, chain: list[int], P: int, tol: 
         j = int(np.searchsorted(onsets, target - tol))
         if j < onsets.size and abs(int(onsets[j]) - target) <= tol and int(onsets[j]) < out[0]:
             cands.append(int(onsets[j]))
-        diffs = [_difference(w, c, out[0], P) for c in cands]
+        diffs = [max(_difference(w, c, out[0], P), _difference(w, c, chain[0], P)) for c in cands]
         k = int(np.argmin(diffs))
         if diffs[k] > R_SHAPE:
             return out
