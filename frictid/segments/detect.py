@@ -483,9 +483,16 @@ def _sweeps(f: Features, plateaus: list[tuple[int, int, float]], code: np.ndarra
     plateaus apart form a group; a group is a sweep when it holds ``MIN_PLATEAUS`` distinct speeds
     (unsigned). A move's cruise phase is linked only by the chance of a mirror speed, and a few chance
     mirrors side by side at three speeds do not happen."""
+    reach = max(1, int(round(T_SETTLE / f.sc.dt)))
+    mean_all = [_mean_speed(f, a, b) for a, b, _ in plateaus]
+    # still by the rule of the still mask: slower than R_STILL of the motion within T_SETTLE (a settling
+    # tail decaying through a few steady stretches is no chained sweep)
+    moving = [abs(m[0]) > R_STILL * float(np.max(np.abs(f.w[max(0, a - reach):b + reach])))
+              for (a, b, _), m in zip(plateaus, mean_all)]
+    plateaus = [p for p, ok in zip(plateaus, moving) if ok]
+    mean = [m for m, ok in zip(mean_all, moving) if ok]
     m = len(plateaus)
-    chained = [_chained(f, plateaus[k], plateaus[k + 1], code) for k in range(m - 1)]
-    mean = [_mean_speed(f, a, b) for a, b, _ in plateaus]
+    chained = [_chained(f, plateaus[k], plateaus[k + 1], mean[k], mean[k + 1], code) for k in range(m - 1)]
     linked = [any(_mirror(p, o, mean[k], mean[j]) for j, o in enumerate(plateaus)
                   if 0 < abs(j - k) <= MIRROR_REACH)
               or (k > 0 and chained[k - 1]) or (k < m - 1 and chained[k])
@@ -501,14 +508,17 @@ def _sweeps(f: Features, plateaus: list[tuple[int, int, float]], code: np.ndarra
     return keep
 
 
-def _chained(f: Features, a: tuple[int, int, float], b: tuple[int, int, float], code: np.ndarray) -> bool:
-    """True if the joint runs from plateau ``a`` into plateau ``b`` (start, end, velocity) without
-    stopping: one sign throughout and never slower than half the slower plateau in between (a
-    point-to-point move always stops before the next one)."""
-    if a[2] * b[2] <= 0 or abs(a[2] - b[2]) <= R_STEADY * max(abs(a[2]), abs(b[2])):
+def _chained(f: Features, a: tuple[int, int, float], b: tuple[int, int, float], ma: tuple[float, float],
+             mb: tuple[float, float], code: np.ndarray) -> bool:
+    """True if the joint runs from plateau ``a`` into plateau ``b`` (start, end, velocity; mean velocity
+    and its standard error) without stopping: two clearly different speeds of one sign, and never slower
+    than half the slower one in between (a point-to-point move always stops before the next one)."""
+    va, vb = ma[0], mb[0]
+    tol = max(R_STEADY * max(abs(va), abs(vb)), K_NOISE * math.hypot(ma[1], mb[1]))
+    if va * vb <= 0 or abs(va - vb) <= tol or min(abs(va), abs(vb)) <= K_NOISE * max(ma[1], mb[1]):
         return False
-    gap = f.w[a[1]:b[0]] * math.copysign(1.0, a[2])
-    return bool(np.all(code[a[1]:b[0]] < 0)) and (gap.size == 0 or float(gap.min()) > 0.5 * min(abs(a[2]), abs(b[2])))
+    gap = f.w[a[1]:b[0]] * math.copysign(1.0, va)
+    return bool(np.all(code[a[1]:b[0]] < 0)) and (gap.size == 0 or float(gap.min()) > 0.5 * min(abs(va), abs(vb)))
 
 
 def _mean_speed(f: Features, a: int, b: int) -> tuple[float, float]:
@@ -561,7 +571,7 @@ def _plateau(f: Features, i0: int, i1: int, code: np.ndarray, n_min: int) -> tup
 def _level(f: Features, w: np.ndarray) -> bool:
     """True if the velocity ``w`` [q/s] over a candidate plateau does not bend: the quadratic term of a fit
     across it changes the velocity from the centre to the ends by less than half the plateau's band
-    (``R_STEADY / 2``) or by less than ``K_NOISE`` standard errors. The top of a smooth move stays within
+    (:func:`_extend_plateau`) or by less than ``K_NOISE`` standard errors. The top of a smooth move stays within
     the band for a while too, but bends across it. (A linear trend is allowed: a loop under a changing
     gravity load holds a plateau with a slight drift.)"""
     stride = max(1, w.size // 2000, f.sc.window_w // 2)   # samples about independent after smoothing
@@ -574,7 +584,8 @@ def _level(f: Features, w: np.ndarray) -> bool:
     resid = y - basis @ coef
     se = float(np.std(resid)) * math.sqrt(float(np.linalg.inv(basis.T @ basis)[2, 2]))
     bend = abs(float(coef[2]))
-    return not (bend > 0.5 * R_STEADY * abs(float(coef[0])) and bend > K_NOISE * se)
+    band = max(K_NOISE * f.sc.sigma_w, R_STEADY * abs(float(coef[0])))   # as in _extend_plateau
+    return not (bend > 0.5 * band and bend > K_NOISE * se)
 
 
 def _plateau_velocity(f: Features, i0: int, i1: int) -> tuple[np.ndarray, int]:
