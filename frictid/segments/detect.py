@@ -477,8 +477,8 @@ def _constant_velocity(f: Features, code: np.ndarray, n_min: int) -> list[tuple[
 def _sweeps(f: Features, plateaus: list[tuple[int, int, float]], code: np.ndarray
             ) -> list[tuple[int, int, float]]:
     """The plateaus (start, end, velocity) that belong to a sweep. A plateau is *linked* when its mirror
-    speed is held nearby (:func:`_mirror`, up to ``MIRROR_REACH`` plateaus away: a joint creeping in a
-    dwell is a steady stretch in between) or when the joint runs into or out of it from another plateau
+    speed is held nearby (:func:`_mirror`, up to ``MIRROR_REACH`` plateaus away, however long the
+    repositioning between them: a joint creeping in a dwell is a steady stretch in between) or when the joint runs into or out of it from another plateau
     without stopping (:func:`_chained`: a chained sweep). Linked plateaus no more than ``MIRROR_REACH``
     plateaus apart form a group; a group is a sweep when it holds ``MIN_PLATEAUS`` distinct speeds
     (unsigned). A move's cruise phase is linked only by the chance of a mirror speed, and a few chance
@@ -493,8 +493,8 @@ def _sweeps(f: Features, plateaus: list[tuple[int, int, float]], code: np.ndarra
     mean = [m for m, ok in zip(mean_all, moving) if ok]
     m = len(plateaus)
     chained = [_chained(f, plateaus[k], plateaus[k + 1], mean[k], mean[k + 1], code) for k in range(m - 1)]
-    linked = [any(_mirror(p, o, mean[k], mean[j]) for j, o in enumerate(plateaus)
-                  if 0 < abs(j - k) <= MIRROR_REACH)
+    linked = [any(_mirror(mean[k], mean[j]) for j in range(max(0, k - MIRROR_REACH), min(m, k + MIRROR_REACH + 1))
+                  if j != k)
               or (k > 0 and chained[k - 1]) or (k < m - 1 and chained[k])
               for k, p in enumerate(plateaus)]
     keep: list[tuple[int, int, float]] = []
@@ -529,17 +529,14 @@ def _mean_speed(f: Features, a: int, b: int) -> tuple[float, float]:
     return float(f.q[b - 1] - f.q[a]) / span, math.sqrt(2.0) * sq / span
 
 
-def _mirror(a: tuple[int, int, float], b: tuple[int, int, float], ma: tuple[float, float],
-            mb: tuple[float, float]) -> bool:
-    """True if plateaus ``a`` and ``b`` (start, end, velocity; mean velocity and its standard error) run
-    at opposite speeds and lie apart by at most four times the longer of the two. Opposite: the mean
+def _mirror(a: tuple[float, float], b: tuple[float, float]) -> bool:
+    """True if two plateaus (mean velocity and its standard error) run at opposite speeds: the mean
     speeds agree within ``R_MIRROR`` or ``K_NOISE`` standard errors (a settled loop holds the mean speed
-    of its reference; two unrelated speeds agree that closely by chance once in a hundred)."""
-    apart = max(a[0], b[0]) - min(a[1], b[1])
-    if a[2] * b[2] >= 0 or apart > 4 * max(a[1] - a[0], b[1] - b[0]):
+    of its reference; two unrelated speeds agree that closely by chance about once in a hundred)."""
+    if a[0] * b[0] >= 0:
         return False
-    tol = max(R_MIRROR * max(abs(ma[0]), abs(mb[0])), K_NOISE * math.hypot(ma[1], mb[1]))
-    return abs(ma[0] + mb[0]) <= tol
+    tol = max(R_MIRROR * max(abs(a[0]), abs(b[0])), K_NOISE * math.hypot(a[1], b[1]))
+    return abs(a[0] + b[0]) <= tol
 
 
 def _distinct_speeds(w: list[float]) -> int:
