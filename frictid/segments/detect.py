@@ -566,23 +566,26 @@ def _plateau(f: Features, i0: int, i1: int, code: np.ndarray, n_min: int) -> tup
 
 
 def _level(f: Features, w: np.ndarray) -> bool:
-    """True if the velocity ``w`` [q/s] over a candidate plateau does not bend: the quadratic term of a fit
-    across it changes the velocity from the centre to the ends by less than half the plateau's band
-    (:func:`_extend_plateau`) or by less than ``K_NOISE`` standard errors. The top of a smooth move stays within
-    the band for a while too, but bends across it. (A linear trend is allowed: a loop under a changing
-    gravity load holds a plateau with a slight drift.)"""
+    """True if the velocity ``w`` [q/s] over a candidate plateau is no hump: the top of a smooth move stays
+    within the plateau's band (:func:`_extend_plateau`) for a while too, but both its ends lie below its
+    middle. Rejected when the mean velocity over each outer quarter differs from the middle half's in
+    the same direction, by more than a quarter of the band and ``K_NOISE`` standard errors. (A plateau
+    that settles at one end, or drifts under a changing gravity load, has one end off, not both.)"""
     stride = max(1, w.size // 2000, f.sc.window_w // 2)   # samples about independent after smoothing
     y = w[::stride]
-    if y.size < 8:
+    nq = y.size // 4
+    if nq < 2:
         return True
-    x = np.linspace(-1.0, 1.0, y.size)
-    basis = np.stack((np.ones_like(x), x, x * x - float(np.mean(x * x))), axis=1)
-    coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
-    resid = y - basis @ coef
-    se = float(np.std(resid)) * math.sqrt(float(np.linalg.inv(basis.T @ basis)[2, 2]))
-    bend = abs(float(coef[2]))
-    band = max(K_NOISE * f.sc.sigma_w, R_STEADY * abs(float(coef[0])))   # as in _extend_plateau
-    return not (bend > 0.5 * band and bend > K_NOISE * se)
+    parts = (y[:nq], y[nq:y.size - nq], y[y.size - nq:])
+    m = [float(np.mean(x)) for x in parts]
+    d = (m[1] - m[0], m[1] - m[2])
+    if d[0] * d[1] <= 0:
+        return True
+    sd = math.sqrt(sum(float(np.sum((x - mx) ** 2)) for x, mx in zip(parts, m)) / max(1, y.size - 3))
+    se = sd * math.sqrt(1.0 / nq + 1.0 / parts[1].size)
+    band = max(K_NOISE * f.sc.sigma_w, R_STEADY * abs(m[1]))
+    bend = min(abs(d[0]), abs(d[1]))
+    return not (bend > 0.25 * band and bend > K_NOISE * se)
 
 
 def _plateau_velocity(f: Features, i0: int, i1: int) -> tuple[np.ndarray, int]:
