@@ -171,10 +171,11 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
     # two for the whole segmentation was 58 MB of its peak on a joint-hour)
     band = np.abs(wc, out=wc)
     del wc
-    moving = band >= K_NOISE * sigma_wc
-    still = band < np.maximum(floor, K_NOISE * sigma_wc)
+    moving = band > K_NOISE * sigma_wc
+    # <=: a position that never changes (a step log on a coarse encoder: no noise, no motion) is still
+    still = band <= np.maximum(floor, K_NOISE * sigma_wc)
     aw = np.abs(w)
-    still_fine = fill_short(aw < np.maximum(floor, K_NOISE * max(sc.sigma_w, sigma_enc)), sc.window_w, False)
+    still_fine = fill_short(aw <= np.maximum(floor, K_NOISE * max(sc.sigma_w, sigma_enc)), sc.window_w, False)
     # quiet: also below R_STILL of the log's top speed, the scale on which a torque experiment's joint
     # (presliding, creep) does not slide; steps, ramps and duty cycles read it
     top = R_QUIET * sc.w_scale
@@ -277,9 +278,12 @@ def _step(f: Features, j: int, hj: int, events: np.ndarray, code: np.ndarray) ->
     settled within the first half of the segment."""
     n = f.t.size
     i0 = j - hj // 2
-    if i0 < f.h:  # nothing before the jump to judge it by
+    # the smoothed velocity sees the jump's transient half a velocity window early: the joint is judged
+    # still before that
+    reach = f.sc.window_w // 2
+    if i0 - reach < f.h:  # nothing before the jump to judge it by
         return None
-    before = f.quiet_fine[i0 - f.h: i0]
+    before = f.quiet_fine[i0 - reach - f.h: i0 - reach]
     if before.size == 0 or before.mean() < 0.8:
         return None
     nxt = events[events > j + hj]
