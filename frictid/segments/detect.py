@@ -64,6 +64,9 @@ T_SETTLE = 1.0
 MIN_PLATEAUS = 3
 #: Plateaus looked at on each side for a plateau's mirror speed.
 MIRROR_REACH = 3
+#: A pause between two plateaus of a sweep longer than this many times the log's median pause between
+#: linked plateaus ends the sweep (something else happens in between).
+R_PAUSE = 10.0
 #: Relative tolerance of a mirror speed (a plateau's mean speed against its mirror's).
 R_MIRROR = 0.005
 #: Relative velocity tolerance of a constant-velocity plateau.
@@ -501,10 +504,15 @@ def _sweeps(f: Features, plateaus: list[tuple[int, int, float]], code: np.ndarra
                   if j != k)
               or (k > 0 and chained[k - 1]) or (k < m - 1 and chained[k])
               for k, p in enumerate(plateaus)]
+    idx = [k for k in range(m) if linked[k]]
+    # a sweep keeps its rhythm: a pause far longer than its usual one (R_PAUSE times the median) between
+    # two linked plateaus is another experiment in between (a session's repositioning moves)
+    pauses = [plateaus[b][0] - plateaus[a][1] for a, b in zip(idx[:-1], idx[1:])]
+    longest = R_PAUSE * float(np.median(pauses)) if pauses else 0.0
     keep: list[tuple[int, int, float]] = []
     group: list[int] = []
-    for k in [k for k in range(m) if linked[k]] + [m + MIRROR_REACH + 1]:
-        if group and k - group[-1] > MIRROR_REACH:
+    for k in idx + [m + MIRROR_REACH + 1]:
+        if group and (k - group[-1] > MIRROR_REACH or k >= m or plateaus[k][0] - plateaus[group[-1]][1] > longest):
             if _distinct_speeds([abs(plateaus[j][2]) for j in group]) >= MIN_PLATEAUS:
                 keep.extend(plateaus[j] for j in group)
             group = []
@@ -840,7 +848,7 @@ def _ramps(f: Features, ok: list[tuple[int, int, int]]) -> tuple[list[tuple[int,
                     holds.extend((b, a) for (_, b, _), (a, _, _) in zip(ok[k:j], ok[k + 1:j + 1]) if a - b >= f.n_min)
                     done = j + 1
                     break
-                if j + 1 >= len(ok) or not _connected(f, ok[j][1], ok[j + 1][0]):
+                if j + 1 >= len(ok) or not _connected(f, ok[j], ok[j + 1]):
                     break
                 j += 1
         k = done
@@ -865,12 +873,21 @@ def _hold_level(f: Features, a: int, b: int) -> float | None:
     return float(np.mean(f.tau[a:b]))
 
 
-def _connected(f: Features, e0: int, s1: int) -> bool:
-    """Two ramps belong to one chain when the joint does not slide (break away) between them."""
+def _connected(f: Features, r0: tuple[int, int, int], r1: tuple[int, int, int]) -> bool:
+    """Two ramps (start, end, sign) belong to one chain when the joint does not slide (break away) between
+    them: it is quiet or steady, or does not break away by itself (:func:`_no_break_away`), or moves no
+    farther than a presliding displacement and never faster than ``R_SLIDE`` times its median speed under
+    the two ramps (the bristles relaxing at a hold after a ramp: fast at first, then still)."""
+    e0, s1 = r0[1], r1[0]
     if s1 <= e0:
         return True
     gap = slice(e0, s1)
-    return bool(np.all(f.steady[gap] | f.quiet[gap])) or _no_break_away(f, e0, s1)
+    if bool(np.all(f.steady[gap] | f.quiet[gap])) or _no_break_away(f, e0, s1):
+        return True
+    if abs(float(np.ptp(f.q[gap]))) > f.d_preslide:
+        return False
+    under = max(float(np.median(np.abs(f.w[a:b]))) for a, b, _ in (r0, r1))
+    return float(np.max(np.abs(f.w[gap]))) <= R_SLIDE * max(under, K_NOISE * f.sigma_wc)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -884,7 +901,11 @@ def find_duty_cycles(f: Features) -> list[tuple[int, int, int]]:
     # motion as the log's own scales see it (noise, R_QUIET of the top speed): a duty cycle's rests and
     # moves are judged against the whole log, not against the motion around them
     rest = fill_short(np.abs(f.w) < max(K_NOISE * f.sc.sigma_w, R_QUIET * f.sc.w_scale), f.sc.window_w, False)
-    return duty_cycles(f.w, ~rest, gap_min, f.n_min, tol, f.sc.sigma_w)
+    cycles = duty_cycles(f.w, ~rest, gap_min, f.n_min, tol, f.sc.sigma_w)
+    # a cycle's motion moves the logged position (by more than an encoder step and the position noise):
+    # presliding seen in a logged qd, with an encoder that never changes its count, is no duty cycle
+    floor = max(f.sc.q_step, K_NOISE * f.sc.sigma_q)
+    return [(a, b, c) for a, b, c in cycles if float(np.ptp(f.q[a:b])) > floor]
 
 
 def _segment(f: Features, kind: str, i0: int, i1: int, cycle: int | None = None) -> Segment:
