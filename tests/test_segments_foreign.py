@@ -64,3 +64,42 @@ def test_creeping_presliding_ramps_are_ramps(seed, tmp_path):
     assert int(np.sum(_iou_best(tr, fo) >= IOU)) >= 3, (tr, fo)
     assert len(fo) <= 4
     assert not [s for s in segs if s.kind == "constant_velocity"]
+
+
+def _f1_parts(kind, truth, segs):
+    tr, fo = _of(kind, truth, segs)
+    return int(np.sum(_iou_best(tr, fo) >= IOU)), len(tr), int(np.sum(_iou_best(fo, tr) >= IOU)), len(fo)
+
+
+@pytest.mark.parametrize("seed", [191, 300, 325])
+def test_point_to_point_cruise_phases_are_not_plateaus(seed, tmp_path):
+    """Class 5: random point-to-point moves (20-60 moves at 10-100 % of the top speed) hold cruise phases
+    at many speeds; none is a sweep, so there is no plateau, and no ramp, step or duty cycle either. (The
+    seeds: three of the shortest point-to-point logs among seeds 100-399 that simulate in seconds.)"""
+    truth, segs = _draw(seed, "ptp", tmp_path)
+    assert not [s for s in segs if s.kind in ("constant_velocity", "ramp_presliding", "step", "duty_cycle")]
+
+
+@pytest.mark.parametrize("seed", [285, 287, 320])
+def test_short_plateaus_of_chained_sweeps_are_plateaus(seed, tmp_path):
+    """Class 4: a sweep whose plateaus (0.3-0.5 s) follow each other without a stop, one sign after the
+    other: at least 85 % of the truth plateaus are found and at least 90 % of those found are true. (The
+    seeds: the three shortest logs among seeds 100-699 with a chained sweep of plateaus under 0.5 s on an
+    encoder of at least 16 bits; coarser encoders at slow speeds are class 3, not fixed.)"""
+    truth, segs = _draw(seed, "sweep", tmp_path)
+    assert truth["layout"]["style"] == "chain" and truth["layout"]["plateau"] < 0.5
+    tp_t, n_t, tp_f, n_f = _f1_parts("constant_velocity", truth, segs)
+    assert tp_t >= 0.85 * n_t and tp_f >= 0.9 * n_f, (tp_t, n_t, tp_f, n_f)
+
+
+@pytest.mark.parametrize("seed", [139, 142, 228])
+def test_a_sweep_with_repositioning_moves_is_no_duty_cycle(seed, tmp_path):
+    """Class 6: move back, dwell, plateau, for speed after speed: the pattern repeats, but each cycle a
+    little faster; it is a sweep (plateaus), not a duty cycle. (The seeds: the three shortest logs among
+    seeds 100-699 with an ordered repositioning sweep, plateaus of at least 0.6 s, encoder >= 16 bits.)"""
+    truth, segs = _draw(seed, "sweep", tmp_path)
+    assert truth["layout"]["style"] == "reposition"
+    assert not [s for s in segs if s.kind == "duty_cycle"]
+    # the plateaus are plateaus (how well their edges match the truth's settling is class 4's business)
+    tr, fo = _of("constant_velocity", truth, segs)
+    assert len(fo) >= 0.8 * len(tr), (len(fo), len(tr))

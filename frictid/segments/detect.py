@@ -27,8 +27,8 @@ Then, in order (each sample gets one kind; earlier kinds win):
    noise, changing the torque by ``K_RAMP`` standard errors; kept in groups that start at a hold and
    return to its level at a hold (loading and unloading), one segment per monotonic ramp;
 4. constant velocity: steady, moving runs of at least ``T_MIN``, edged where the velocity leaves the
-   plateau's band; kept when the log holds plateaus at ``MIN_PLATEAUS`` speeds and, in a sweep over both
-   signs, next to their mirror speed (a lone steady stretch is a repositioning move);
+   plateau's band; kept when they form a sweep: plateaus held at their mirror speed nearby or joined
+   without a stop, at ``MIN_PLATEAUS`` speeds (a lone steady stretch is a move's cruise phase);
 5. rest: still runs of at least ``T_MIN`` where no controller is loading the joint towards break-away;
    everything else is *other*.
 """
@@ -64,6 +64,11 @@ T_SETTLE = 1.0
 MIN_PLATEAUS = 3
 #: Plateaus looked at on each side for a plateau's mirror speed.
 MIRROR_REACH = 3
+#: A pause between two plateaus of a sweep longer than this many times the log's median pause between
+#: linked plateaus ends the sweep (something else happens in between).
+R_PAUSE = 10.0
+#: Relative tolerance of a mirror speed (a plateau's mean speed against its mirror's).
+R_MIRROR = 0.005
 #: Relative velocity tolerance of a constant-velocity plateau.
 R_STEADY = 0.02
 #: A still joint whose torque changes by more than this fraction of the log's torque range within
@@ -169,10 +174,11 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
     # two for the whole segmentation was 58 MB of its peak on a joint-hour)
     band = np.abs(wc, out=wc)
     del wc
-    moving = band >= K_NOISE * sigma_wc
-    still = band < np.maximum(floor, K_NOISE * sigma_wc)
+    moving = band > K_NOISE * sigma_wc
+    # <=: a position that never changes (a step log on a coarse encoder: no noise, no motion) is still
+    still = band <= np.maximum(floor, K_NOISE * sigma_wc)
     aw = np.abs(w)
-    still_fine = fill_short(aw < np.maximum(floor, K_NOISE * max(sc.sigma_w, sigma_enc)), sc.window_w, False)
+    still_fine = fill_short(aw <= np.maximum(floor, K_NOISE * max(sc.sigma_w, sigma_enc)), sc.window_w, False)
     # quiet: also below R_STILL of the log's top speed, the scale on which a torque experiment's joint
     # (presliding, creep) does not slide; steps, ramps and duty cycles read it
     top = R_QUIET * sc.w_scale
@@ -275,9 +281,12 @@ def _step(f: Features, j: int, hj: int, events: np.ndarray, code: np.ndarray) ->
     settled within the first half of the segment."""
     n = f.t.size
     i0 = j - hj // 2
-    if i0 < f.h:  # nothing before the jump to judge it by
+    # the smoothed velocity sees the jump's transient half a velocity window early: the joint is judged
+    # still before that
+    reach = f.sc.window_w // 2
+    if i0 - reach < f.h:  # nothing before the jump to judge it by
         return None
-    before = f.quiet_fine[i0 - f.h: i0]
+    before = f.quiet_fine[i0 - reach - f.h: i0 - reach]
     if before.size == 0 or before.mean() < 0.8:
         return None
     nxt = events[events > j + hj]
@@ -458,30 +467,88 @@ def _constant_velocity(f: Features, code: np.ndarray, n_min: int) -> list[tuple[
     """(start, end) of the constant-velocity plateaus among the unclassified samples: steady, moving runs
     of one sign and at least ``n_min`` samples, edged where the velocity leaves the plateau's band.
 
-    A static map needs plateaus at several speeds: none are kept unless they hold ``MIN_PLATEAUS``
-    distinct speeds (one or two steady stretches are moves, not a sweep); in a sweep over both signs, a
-    plateau next to neither of its mirror speeds is a repositioning move and is left out."""
+    A plateau identifies the static map only as part of a sweep (:func:`_sweeps`): a steady stretch
+    that is neither held at its mirror speed nearby nor joined without a stop to plateaus at other speeds
+    is a move's cruise phase (point-to-point motion, a repositioning move), not an experiment."""
     cv = f.steady & f.moving & ~f.still & (code < 0)
     plateaus = []
-    for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), n_min)):
+    # the steady test looks h samples each side, so a plateau of n_min + 2 h shows a steady core of only
+    # n_min: cores of h / 2 are grown into their band (short plateaus of 0.25-0.4 s, chained sweeps)
+    for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), max(2, f.h // 2))):
         got = _plateau(f, int(i0), int(i1), code, n_min)
         if got is not None:
             plateaus.append(got)
-    # the mirror may lie beyond a steady stretch of another speed (a joint creeping in a dwell)
-    paired = [p for k, p in enumerate(plateaus)
-              if any(_mirror(p, o) for o in plateaus[max(0, k - MIRROR_REACH):k + MIRROR_REACH + 1] if o is not p)]
-    if _distinct_speeds([p[2] for p in paired]) >= MIN_PLATEAUS:
-        plateaus = paired
-    if _distinct_speeds([p[2] for p in plateaus]) < MIN_PLATEAUS:
-        return []
-    return [(i0, i1) for i0, i1, _ in plateaus]
+    return [(i0, i1) for i0, i1, _ in _sweeps(f, plateaus, code)]
 
 
-def _mirror(a: tuple[int, int, float], b: tuple[int, int, float]) -> bool:
-    """True if plateaus ``a`` and ``b`` (start, end, velocity) run at opposite speeds and lie apart by at
-    most four times the longer of the two."""
-    apart = max(a[0], b[0]) - min(a[1], b[1])
-    return abs(a[2] + b[2]) <= R_STEADY * abs(a[2]) and apart <= 4 * max(a[1] - a[0], b[1] - b[0])
+def _sweeps(f: Features, plateaus: list[tuple[int, int, float]], code: np.ndarray
+            ) -> list[tuple[int, int, float]]:
+    """The plateaus (start, end, velocity) that belong to a sweep. A plateau is *linked* when its mirror
+    speed is held nearby (:func:`_mirror`, up to ``MIRROR_REACH`` plateaus away, however long the
+    repositioning between them: a joint creeping in a dwell is a steady stretch in between) or when the joint runs into or out of it from another plateau
+    without stopping (:func:`_chained`: a chained sweep). Linked plateaus no more than ``MIRROR_REACH``
+    plateaus apart form a group; a group is a sweep when it holds ``MIN_PLATEAUS`` distinct speeds
+    (unsigned). A move's cruise phase is linked only by the chance of a mirror speed, and a few chance
+    mirrors side by side at three speeds do not happen."""
+    reach = max(1, int(round(T_SETTLE / f.sc.dt)))
+    mean_all = [_mean_speed(f, a, b) for a, b, _ in plateaus]
+    # still by the rule of the still mask: slower than R_STILL of the motion within T_SETTLE (a settling
+    # tail decaying through a few steady stretches is no chained sweep)
+    moving = [abs(m[0]) > R_STILL * float(np.max(np.abs(f.w[max(0, a - reach):b + reach])))
+              for (a, b, _), m in zip(plateaus, mean_all)]
+    plateaus = [p for p, ok in zip(plateaus, moving) if ok]
+    mean = [m for m, ok in zip(mean_all, moving) if ok]
+    m = len(plateaus)
+    chained = [_chained(f, plateaus[k], plateaus[k + 1], mean[k], mean[k + 1], code) for k in range(m - 1)]
+    linked = [any(_mirror(mean[k], mean[j]) for j in range(max(0, k - MIRROR_REACH), min(m, k + MIRROR_REACH + 1))
+                  if j != k)
+              or (k > 0 and chained[k - 1]) or (k < m - 1 and chained[k])
+              for k, p in enumerate(plateaus)]
+    idx = [k for k in range(m) if linked[k]]
+    # a sweep keeps its rhythm: a pause far longer than its usual one (R_PAUSE times the median) between
+    # two linked plateaus is another experiment in between (a session's repositioning moves)
+    pauses = [plateaus[b][0] - plateaus[a][1] for a, b in zip(idx[:-1], idx[1:])]
+    longest = R_PAUSE * float(np.median(pauses)) if pauses else 0.0
+    keep: list[tuple[int, int, float]] = []
+    group: list[int] = []
+    for k in idx + [m + MIRROR_REACH + 1]:
+        if group and (k - group[-1] > MIRROR_REACH or k >= m or plateaus[k][0] - plateaus[group[-1]][1] > longest):
+            if _distinct_speeds([abs(plateaus[j][2]) for j in group]) >= MIN_PLATEAUS:
+                keep.extend(plateaus[j] for j in group)
+            group = []
+        group.append(k)
+    return keep
+
+
+def _chained(f: Features, a: tuple[int, int, float], b: tuple[int, int, float], ma: tuple[float, float],
+             mb: tuple[float, float], code: np.ndarray) -> bool:
+    """True if the joint runs from plateau ``a`` into plateau ``b`` (start, end, velocity; mean velocity
+    and its standard error) without stopping: two clearly different speeds of one sign, and never slower
+    than half the slower one in between (a point-to-point move always stops before the next one)."""
+    va, vb = ma[0], mb[0]
+    tol = max(R_STEADY * max(abs(va), abs(vb)), K_NOISE * math.hypot(ma[1], mb[1]))
+    if va * vb <= 0 or abs(va - vb) <= tol or min(abs(va), abs(vb)) <= K_NOISE * max(ma[1], mb[1]):
+        return False
+    gap = f.w[a[1]:b[0]] * math.copysign(1.0, va)
+    return bool(np.all(code[a[1]:b[0]] < 0)) and (gap.size == 0 or float(gap.min()) > 0.5 * min(abs(va), abs(vb)))
+
+
+def _mean_speed(f: Features, a: int, b: int) -> tuple[float, float]:
+    """Mean velocity [q/s] of the plateau ``[a, b)`` from its end positions, and its standard error (the
+    position noise, at least the encoder's quantisation, at both ends)."""
+    span = max(1, b - 1 - a) * f.sc.dt
+    sq = max(f.sc.sigma_q, f.sc.q_step / math.sqrt(12.0))
+    return float(f.q[b - 1] - f.q[a]) / span, math.sqrt(2.0) * sq / span
+
+
+def _mirror(a: tuple[float, float], b: tuple[float, float]) -> bool:
+    """True if two plateaus (mean velocity and its standard error) run at opposite speeds: the mean
+    speeds agree within ``R_MIRROR`` or ``K_NOISE`` standard errors (a settled loop holds the mean speed
+    of its reference; two unrelated speeds agree that closely by chance about once in a hundred)."""
+    if a[0] * b[0] >= 0:
+        return False
+    tol = max(R_MIRROR * max(abs(a[0]), abs(b[0])), K_NOISE * math.hypot(a[1], b[1]))
+    return abs(a[0] + b[0]) <= tol
 
 
 def _distinct_speeds(w: list[float]) -> int:
@@ -505,9 +572,32 @@ def _plateau(f: Features, i0: int, i1: int, code: np.ndarray, n_min: int) -> tup
     lo = max(0, i0 - 2 * f.h)
     for w, off in ((f.w[lo:min(f.t.size, i1 + 2 * f.h)], lo), _plateau_velocity(f, i0, i1)):
         a, b = _extend_plateau(f, i0, i1, code, w, off)
-        if b - a >= n_min and _same_sign(w[a - off:b - off]):
+        if b - a >= n_min and _same_sign(w[a - off:b - off]) and _level(f, w[a - off:b - off]):
             return a, b, float(np.median(w[a - off:b - off]))
     return None
+
+
+def _level(f: Features, w: np.ndarray) -> bool:
+    """True if the velocity ``w`` [q/s] over a candidate plateau is no hump: the top of a smooth move stays
+    within the plateau's band (:func:`_extend_plateau`) for a while too, but both its ends lie below its
+    middle. Rejected when the mean velocity over each outer quarter differs from the middle half's in
+    the same direction, by more than a quarter of the band and ``K_NOISE`` standard errors. (A plateau
+    that settles at one end, or drifts under a changing gravity load, has one end off, not both.)"""
+    stride = max(1, w.size // 2000, f.sc.window_w // 2)   # samples about independent after smoothing
+    y = w[::stride]
+    nq = y.size // 4
+    if nq < 2:
+        return True
+    parts = (y[:nq], y[nq:y.size - nq], y[y.size - nq:])
+    m = [float(np.mean(x)) for x in parts]
+    d = (m[1] - m[0], m[1] - m[2])
+    if d[0] * d[1] <= 0:
+        return True
+    sd = math.sqrt(sum(float(np.sum((x - mx) ** 2)) for x, mx in zip(parts, m)) / max(1, y.size - 3))
+    se = sd * math.sqrt(1.0 / nq + 1.0 / parts[1].size)
+    band = max(K_NOISE * f.sc.sigma_w, R_STEADY * abs(m[1]))
+    bend = min(abs(d[0]), abs(d[1]))
+    return not (bend > 0.25 * band and bend > K_NOISE * se)
 
 
 def _plateau_velocity(f: Features, i0: int, i1: int) -> tuple[np.ndarray, int]:
@@ -758,7 +848,7 @@ def _ramps(f: Features, ok: list[tuple[int, int, int]]) -> tuple[list[tuple[int,
                     holds.extend((b, a) for (_, b, _), (a, _, _) in zip(ok[k:j], ok[k + 1:j + 1]) if a - b >= f.n_min)
                     done = j + 1
                     break
-                if j + 1 >= len(ok) or not _connected(f, ok[j][1], ok[j + 1][0]):
+                if j + 1 >= len(ok) or not _connected(f, ok[j], ok[j + 1]):
                     break
                 j += 1
         k = done
@@ -783,12 +873,21 @@ def _hold_level(f: Features, a: int, b: int) -> float | None:
     return float(np.mean(f.tau[a:b]))
 
 
-def _connected(f: Features, e0: int, s1: int) -> bool:
-    """Two ramps belong to one chain when the joint does not slide (break away) between them."""
+def _connected(f: Features, r0: tuple[int, int, int], r1: tuple[int, int, int]) -> bool:
+    """Two ramps (start, end, sign) belong to one chain when the joint does not slide (break away) between
+    them: it is quiet or steady, or does not break away by itself (:func:`_no_break_away`), or moves no
+    farther than a presliding displacement and never faster than ``R_SLIDE`` times its median speed under
+    the two ramps (the bristles relaxing at a hold after a ramp: fast at first, then still)."""
+    e0, s1 = r0[1], r1[0]
     if s1 <= e0:
         return True
     gap = slice(e0, s1)
-    return bool(np.all(f.steady[gap] | f.quiet[gap])) or _no_break_away(f, e0, s1)
+    if bool(np.all(f.steady[gap] | f.quiet[gap])) or _no_break_away(f, e0, s1):
+        return True
+    if abs(float(np.ptp(f.q[gap]))) > f.d_preslide:
+        return False
+    under = max(float(np.median(np.abs(f.w[a:b]))) for a, b, _ in (r0, r1))
+    return float(np.max(np.abs(f.w[gap]))) <= R_SLIDE * max(under, K_NOISE * f.sigma_wc)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -802,7 +901,11 @@ def find_duty_cycles(f: Features) -> list[tuple[int, int, int]]:
     # motion as the log's own scales see it (noise, R_QUIET of the top speed): a duty cycle's rests and
     # moves are judged against the whole log, not against the motion around them
     rest = fill_short(np.abs(f.w) < max(K_NOISE * f.sc.sigma_w, R_QUIET * f.sc.w_scale), f.sc.window_w, False)
-    return duty_cycles(f.w, ~rest, gap_min, f.n_min, tol, f.sc.sigma_w)
+    cycles = duty_cycles(f.w, ~rest, gap_min, f.n_min, tol, f.sc.sigma_w)
+    # a cycle's motion moves the logged position (by more than an encoder step and the position noise):
+    # presliding seen in a logged qd, with an encoder that never changes its count, is no duty cycle
+    floor = max(f.sc.q_step, K_NOISE * f.sc.sigma_q)
+    return [(a, b, c) for a, b, c in cycles if float(np.ptp(f.q[a:b])) > floor]
 
 
 def _segment(f: Features, kind: str, i0: int, i1: int, cycle: int | None = None) -> Segment:

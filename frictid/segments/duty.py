@@ -8,7 +8,8 @@ and repeat the same velocity profile. The search works on onsets of motion, not 
    onset opens a long stretch of motion without rests (a joint that never stops between cycles), the
    lags where the autocorrelation of that stretch's velocity peaks;
 3. *chains*: a chain goes on while the velocity over the next period matches the one before (relative
-   RMS difference at most ``R_SHAPE``); the next cycle starts at an onset one period later (within
+   RMS difference at most ``R_SHAPE``) and its RMS that of the chain's first cycle within a factor
+   ``1 + R_SHAPE`` (the same motion repeats, where a sweep's cycles drift, each a little faster); the next cycle starts at an onset one period later (within
    ``tol``) or, in continuous motion, exactly one period later. Of the chains of at least ``MIN_CYCLES``
    cycles from an onset (or from an onset within its first period), the one covering the longest time
    wins, then the shortest period; earlier cycles with the same profile are prepended (a run's first
@@ -114,6 +115,19 @@ def _rel_rms(w, a, b, P, stride):  # pragma: no cover - compiled
     return np.sqrt(sdd / scale)
 
 
+@njit(cache=True)
+def _rms_ratio(w, a, b, P):  # pragma: no cover - compiled
+    """Ratio (at least 1) of the RMS velocities over ``[a, a+P)`` and ``[b, b+P)``; inf when one is 0."""
+    stride = max(1, P // N_PROFILE)
+    sxx = syy = 0.0
+    for k in range(0, P, stride):
+        sxx += w[a + k] * w[a + k]
+        syy += w[b + k] * w[b + k]
+    if sxx <= 0.0 or syy <= 0.0:
+        return np.inf
+    return np.sqrt(max(sxx, syy) / min(sxx, syy))
+
+
 def _similar(w: _Signal, a: int, b: int, P: int) -> bool:
     """Velocity over ``[a, a+P)`` and ``[b, b+P)`` agree within ``R_SHAPE`` (relative RMS)."""
     return _difference(w, a, b, P) <= R_SHAPE
@@ -145,7 +159,9 @@ def _chain_nb(onsets, w, rests, moves, start, P, tol, virtual):  # pragma: no co
     while True:
         nxt = _next_start_nb(onsets, w, rests, moves, chain[-1], int(np.rint(chain[-1] + period)), P, tol,
                              virtual)
-        if nxt < 0:
+        # a duty cycle repeats the same motion: every cycle moves as fast as the chain's first one (a
+        # sweep's cycles drift, each a little faster than the one before)
+        if nxt < 0 or _rms_ratio(w, chain[0], nxt, P) > 1.0 + R_SHAPE:
             return np.array(chain, dtype=np.int64)
         chain.append(nxt)
         period = (chain[-1] - chain[0]) / (len(chain) - 1)
@@ -171,7 +187,8 @@ def _extend_back(onsets: np.ndarray, w: _Signal, chain: list[int], P: int, tol: 
         j = int(np.searchsorted(onsets, target - tol))
         if j < onsets.size and abs(int(onsets[j]) - target) <= tol and int(onsets[j]) < out[0]:
             cands.append(int(onsets[j]))
-        diffs = [_difference(w, c, out[0], P) for c in cands]
+        diffs = [_difference(w, c, out[0], P) if _rms_ratio(w.w, c, chain[0], P) <= 1.0 + R_SHAPE else np.inf
+                 for c in cands]
         k = int(np.argmin(diffs))
         if diffs[k] > R_SHAPE:
             return out
