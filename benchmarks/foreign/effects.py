@@ -265,7 +265,7 @@ def calibrate(d: CardDraw, plant: sim.Plant, refs: list) -> None:
                 r["L_ref"] = e["L_ref"]
         if kind == "position":
             span = np.ptp(np.concatenate([r["q"][k] for r, k in zip(refs, m)]))
-            e["period"] = max(span / e["cycles"], 20.0 * d.sc.w_top / d.fs)
+            e["period"] = float(max(span / e["cycles"], 20.0 * d.sc.w_top / d.fs))
         if kind == "drift":
             frac = (np.asarray(d.starts) - d.starts[0]) / (d.starts[-1] - d.starts[0])
             unit = np.concatenate([fr * f[k] for fr, f, k in zip(frac, F, m)])
