@@ -232,6 +232,9 @@ def unit_change(kind: str, e: dict, plant: sim.Plant, ref: dict, fs: float) -> n
 #: friction stays positive, the break-away at most 4 Fc; a size the cap stops short of is measured as it is.
 CAPS = {"temperature": 0.6, "temperature_logged": 0.6, "load": 1.0, "position": 0.8, "asymmetry": 0.8,
         "drift": 0.6, "dwell": 3.0}
+#: Time constant [s] over which the friction follows the transmitted torque (a gear's contact load does
+#: not follow the loop's sub-millisecond torque swings).
+LOAD_FILTER = 0.02
 #: Longest torque-motion delay [s].
 DELAY_MAX = 0.05
 
@@ -303,7 +306,7 @@ def fx_array(d: CardDraw, plant: sim.Plant, k: int = 0) -> np.ndarray:
         if kind.startswith("temperature"):
             fx[i["kT"]], fx[i["tau_th"]], fx[i["P_ref"]] = c, e["tau_th"], e["P_ref"]
         elif kind == "load":
-            fx[i["kL"]], fx[i["L_ref"]] = c, e["L_ref"]
+            fx[i["kL"]], fx[i["L_ref"]], fx[i["tau_load"]] = c, e["L_ref"], LOAD_FILTER
         elif kind == "position":
             fx[i["aP"]], fx[i["period"]], fx[i["phiP"]] = c, e["period"], e["phase"]
         elif kind == "asymmetry":

@@ -168,15 +168,16 @@ def _g(w, Fc, Fs, vs, delta):
 
 #: Hidden-effect parameters of the kernel (``fx``, see ``effects.py``): their positions in the array.
 FX = ("on", "kT", "tau_th", "P_ref", "kL", "L_ref", "aP", "period", "phiP", "kA_level", "kA_visc",
-      "kW", "t0W", "s0W", "w_still", "bG2", "phiG2", "cC", "nC", "phiC", "m_all")
+      "kW", "t0W", "s0W", "w_still", "bG2", "phiG2", "cC", "nC", "phiC", "m_all", "tau_load")
 FXI = {k: i for i, k in enumerate(FX)}
 
 
 @numba.njit(cache=True)
 def _effects(fx, q, w, st, h, Fc):
     """The hidden effects' level factor mL, viscous factor mV, added level dg [N m] and non-friction
-    torque E [N m] at one sub-step; ``st`` = (thermal state, last transmitted torque, rest time, rest time
-    before this motion, travel since it started) is advanced for the dwell clock here."""
+    torque E [N m] at one sub-step; ``st`` = (thermal state, transmitted torque (low-passed over
+    fx[21] s, 0: none), rest time, rest time before this motion, travel since it started) is advanced for
+    the dwell clock here."""
     mL = fx[20] * (1.0 + fx[1] * st[0])
     mV = mL
     if fx[4] != 0.0:                          # load: the torque the transmission carries
@@ -287,7 +288,7 @@ def _kernel(mode, qr, wr, u, m, dt, par, ctl, q0, fx):
             if on:                            # friction power heats; the transmission carries tau - F
                 Fn = F0 + Fw * w
                 st[0] += h * (abs(Fn * w) / fx[3] - st[0]) / fx[2]
-                st[1] = tau - Fn
+                st[1] += (tau - Fn - st[1]) * (min(1.0, h / fx[21]) if fx[21] > 0.0 else 1.0)
     return Q, W, Z, T, FF, GL, MV, EE, TH
 
 
