@@ -80,9 +80,21 @@ def diagnosis_of(jf) -> dict:
     rec = jf.selection.get("diagnosis") or {}
     tested = sorted({_cause_of(t) for st in rec.get("steps", []) for t in st.get("tested", []) if isinstance(t, dict)}
                     - {""})
-    return {"findings": [(str(f["cause"]), str(f.get("extension")), float(f.get("gain") or 0.0)) for f in jf.diagnosis],
-            "tested": tested, "unexplained": unexplained(jf), "skipped": rec.get("skipped"),
+    return {"findings": named_in_order(jf, rec), "tested": tested, "unexplained": unexplained(jf), "skipped": rec.get("skipped"),
             "selected": jf.selected, "warnings": [w for w in jf.warnings if "diagnos" in w.lower()][:3]}
+
+
+def named_in_order(jf, rec: dict) -> list:
+    """(cause, extension, gain) of every cause the diagnosis named, in the chain's order: its findings
+    (``jf.diagnosis``) and causes it names without exporting them (any list of findings in the diagnosis
+    record, e.g. ``outside_model``), ordered by the chain step that chose them."""
+    found = [f for f in jf.diagnosis] + [f for k, v in rec.items() if k not in ("steps", "unexplained")
+                                         and isinstance(v, list) for f in v
+                                         if isinstance(f, dict) and "cause" in f and "gain" in f]
+    chosen = [st.get("chosen") for st in rec.get("steps", [])]
+    place = {ext: i for i, ext in enumerate(chosen) if ext}
+    found.sort(key=lambda f: place.get(f.get("extension"), len(chosen)))
+    return [(str(f["cause"]), str(f.get("extension")), float(f.get("gain") or 0.0)) for f in found]
 
 
 def _cause_of(trial: dict) -> str:
