@@ -303,7 +303,22 @@ def line(r: dict) -> str:
     t = r["truth"]
     return (f"seed {r['seed']} {t['family']} size {100 * t['size']:.1f} % {t['fs']:.0f} Hz: "
             + (", ".join(f"{c} {g:.2f}" for c, _, g in r["diag"]["findings"]) or "no finding")
-            + f"; python benchmarks/foreign/diagnosis_scorecard.py --draws 1 --seed-base {r['seed']}")
+            + f"; {command(r)}")
+
+
+def command(r: dict) -> str:
+    """The command that reproduces a draw (with the options it was drawn with)."""
+    _, family, effect, minutes, rate = json.loads(r["key"])
+    opts = [f"--draws 1 --seed-base {r['seed']}"]
+    if family:
+        opts.append(f"--family {family}")
+    if effect:
+        opts.append(f"--effect {effect}")
+    if tuple(minutes) != effects.MINUTES:
+        opts.append(f"--log-minutes {minutes[0]:g},{minutes[1]:g}")
+    if tuple(rate) != effects.RATE:
+        opts.append(f"--rate {rate[0]:g},{rate[1]:g}")
+    return "python benchmarks/foreign/diagnosis_scorecard.py " + " ".join(opts)
 
 
 def describe(r: dict) -> str:
