@@ -67,6 +67,8 @@ def unexplained(jf) -> str | None:
         if "unexplained" in str(k).lower() and v:
             if isinstance(v, dict):
                 return str(v.get("statement") or v.get("sentence") or v.get("evidence") or json.dumps(v, default=str))
+            if isinstance(v, (list, tuple)):
+                return "; ".join(str(x) for x in v)
             return str(v)
     for f in jf.diagnosis:
         if "unexplained" in str(f.get("cause", "")).lower():
