@@ -247,48 +247,56 @@ def _reference(pr: sim.Program, plant: sim.Plant, fs: float) -> dict:
             "label": arr["label"]}
 
 
+def _prepare(e: dict, d: CardDraw, plant: sim.Plant, refs: list, F: list, m: list) -> None:
+    """Settings an effect takes from the planned motions: the warm-up's reference power ``P_ref`` [W] and
+    thermal states, the load's reference torque ``L_ref`` [N m], the ripple's period [q]."""
+    kind = e["kind"]
+    if kind.startswith("temperature"):
+        P = [np.abs(f * r["w"]) for f, r in zip(F, refs)]
+        e["P_ref"] = float(np.mean(np.concatenate(P))) or 1.0
+        for r, p in zip(refs, P):
+            r["theta"] = _first_order(p / e["P_ref"], 1.0 / d.fs, e["tau_th"])
+    elif kind == "load":
+        x = np.concatenate([np.abs(plant.J * r["a"] + r["G"])[k] for r, k in zip(refs, m)])
+        e["L_ref"] = _rms(x) or plant.Fc
+        for r in refs:
+            r["L_ref"] = e["L_ref"]
+    elif kind == "position":
+        span = np.ptp(np.concatenate([r["q"][k] for r, k in zip(refs, m)]))
+        e["period"] = float(max(span / e["cycles"], 20.0 * d.sc.w_top / d.fs))
+
+
+def _peak(kind: str, plant: sim.Plant, refs: list, units: list) -> float:
+    """The largest change of the effect's factor per unit coefficient (what ``CAPS`` bounds)."""
+    if kind.startswith("temperature"):
+        return max(float(np.max(r["theta"])) for r in refs)
+    if kind == "load":
+        return max(float(np.max(np.abs(plant.J * r["a"] + r["G"]))) for r in refs) / refs[0]["L_ref"]
+    if kind == "dwell":
+        return max(float(np.max(np.abs(u))) for u in units) / plant.Fc
+    return 1.0      # a sine, a branch or recording factor: at most the coefficient itself
+
+
 def calibrate(d: CardDraw, plant: sim.Plant, refs: list) -> None:
     """Set each effect's coefficient from its target size on the planned motions ``refs`` (one per
     recording), within ``CAPS``; records ``coef`` and the planned size ``size_plan`` in the effect."""
-    dt = 1.0 / d.fs
     F = [plant.static(r["w"]) for r in refs]
     m = [_sliding(r["w"], r["label"], d.sc.w_top) for r in refs]
     R = _rms(np.concatenate([f[k] for f, k in zip(F, m)]))
     for e in d.effects:
         kind = e["kind"]
-        if kind.startswith("temperature"):
-            P = [np.abs(f * r["w"]) for f, r in zip(F, refs)]
-            e["P_ref"] = float(np.mean(np.concatenate(P))) or 1.0
-            for r, p in zip(refs, P):
-                r["theta"] = _first_order(p / e["P_ref"], dt, e["tau_th"])
-        if kind == "load":
-            x = np.concatenate([np.abs(plant.J * r["a"] + r["G"])[k] for r, k in zip(refs, m)])
-            e["L_ref"] = _rms(x) or plant.Fc
-            for r in refs:
-                r["L_ref"] = e["L_ref"]
-        if kind == "position":
-            span = np.ptp(np.concatenate([r["q"][k] for r, k in zip(refs, m)]))
-            e["period"] = float(max(span / e["cycles"], 20.0 * d.sc.w_top / d.fs))
+        _prepare(e, d, plant, refs, F, m)
         if kind == "drift":
             frac = (np.asarray(d.starts) - d.starts[0]) / (d.starts[-1] - d.starts[0])
-            unit = np.concatenate([fr * f[k] for fr, f, k in zip(frac, F, m)])
-            peak = 1.0
+            units = [fr * f for fr, f in zip(frac, F)]
         else:
             units = [unit_change(kind, e, plant, r, d.fs) for r in refs]
-            unit = np.concatenate([u[k] for u, k in zip(units, m)])
-            peak = max(float(np.max(np.abs(u[k]) / np.maximum(np.abs(f[k]), 1e-300))) if k.any() else 0.0
-                       for u, f, k in zip(units, F, m))
-            if kind in ("load", "dwell"):
-                peak = max(float(np.max(np.abs(u))) for u in units) / plant.Fc if kind == "dwell" else \
-                    max(float(np.max(np.abs(r["a"] * plant.J + r["G"]))) for r in refs) / e["L_ref"]
-            if kind.startswith("temperature"):
-                peak = max(float(np.max(r["theta"])) for r in refs)
-        per_unit = _rms(unit) / R if R > 0 else 0.0
+        per_unit = _rms(np.concatenate([u[k] for u, k in zip(units, m)])) / R if R > 0 else 0.0
         c = e["size_target"] / per_unit if per_unit > 0 else 0.0
         if kind == "delay":
             c = min(c, DELAY_MAX)
-        elif kind in CAPS and peak > 0:
-            c = min(c, CAPS[kind] / peak)
+        elif kind in CAPS:
+            c = min(c, CAPS[kind] / max(_peak(kind, plant, refs, units), 1e-12))
         sign = -1.0 if kind.startswith("temperature") else e.get("sign", 1.0)
         e["coef"] = float(sign * c)
         e["size_plan"] = float(c * per_unit)
