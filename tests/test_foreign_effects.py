@@ -118,6 +118,13 @@ def test_non_friction_torque_is_the_stated_harmonics():
     np.testing.assert_allclose(out["g_eff"], pl.g(out["w"]), rtol=1e-12)     # friction untouched
 
 
+def test_cycling_scales_the_level_with_time_alone():
+    pl, ctl = _joint()
+    out = sim.simulate(pl, ctl, _program(), fx=_fx(aCyc=0.3, Tcyc=7.0, phiCyc=0.5))
+    want = (1 + 0.3 * np.sin(2 * np.pi * out["t"] / 7.0 + 0.5)) * pl.g(out["w"])
+    np.testing.assert_allclose(out["g_eff"], want, rtol=1e-12)
+
+
 def test_load_scales_the_level_with_the_transmitted_torque():
     pl, ctl = _joint()
     out = sim.simulate(pl, ctl, _program(), fx=_fx(kL=0.2, L_ref=3.0))
@@ -129,7 +136,7 @@ def test_load_scales_the_level_with_the_transmitted_torque():
 
 
 @pytest.mark.parametrize("kind", ["position", "asymmetry", "gravity2", "cogging", "delay", "drift", "load",
-                                  "temperature", "dwell"])
+                                  "temperature", "dwell", "cycling"])
 def test_measured_size_lands_near_the_target(kind, tmp_path):
     paths, truth = effects.make_card_logs(7, tmp_path, family="sweeps", effect=kind, minutes=(1.5, 1.5))
     (e,) = truth["effects"]

@@ -45,7 +45,8 @@ IN_LIST = {"temperature": ("temperature",), "temperature_logged": ("temperature"
 OUTSIDE = {"dwell": ("dwell",), "delay": ("delay",), "gravity2": ("harmonic", "spring", "non_friction",
                                                                   "nonfriction", "position_torque", "torque_position"),
            "cogging": ("cogging", "harmonic", "non_friction", "nonfriction", "position_torque",
-                       "torque_position")}
+                       "torque_position"),
+           "cycling": ("cycl", "time_periodic", "periodic_time")}
 KINDS = tuple(IN_LIST) + tuple(OUTSIDE)
 #: Long-log programs: experiments and work blocks with rests between them.
 CARD_FAMILIES = ("sweeps_work", "work", "sweeps")
@@ -135,6 +136,9 @@ def _settings(kind: str, rng, sc, seconds: float) -> dict:
         return {"t0": rng.uniform(0.05, 0.5), "s0": sc.w_top * rng.uniform(0.05, 0.5), "w_still": 0.01 * sc.w_top}
     if kind == "gravity2":
         return {"phase": rng.uniform(-math.pi, math.pi)}
+    if kind == "cycling":
+        return {"period": min(60.0 * scenarios.loguniform(rng, 2.0, 10.0), seconds / 3.0),
+                "phase": rng.uniform(-math.pi, math.pi)}
     if kind == "cogging":
         per_rev = float(rng.integers(6, 73)) if sc.plant.axis == "rotary" else 2 * math.pi / rng.uniform(0.01, 0.05)
         return {"n": per_rev, "phase": rng.uniform(-math.pi, math.pi)}
@@ -220,6 +224,8 @@ def unit_change(kind: str, e: dict, plant: sim.Plant, ref: dict, fs: float) -> n
         return plant.Fc * np.log1p(t_rest / e["t0"]) * np.exp(-s / e["s0"]) * np.sign(w)
     if kind == "gravity2":
         return np.sin(2 * q + e["phase"])
+    if kind == "cycling":
+        return np.sin(2 * math.pi * np.arange(w.size) / fs / e["period"] + e["phase"]) * lvl
     if kind == "cogging":
         return np.sin(e["n"] * q + e["phase"])
     if kind == "delay":
@@ -231,7 +237,7 @@ def unit_change(kind: str, e: dict, plant: sim.Plant, ref: dict, fs: float) -> n
 #: Caps of the coefficients (the largest change where the effect is largest), so that no draw is unphysical:
 #: friction stays positive, the break-away at most 4 Fc; a size the cap stops short of is measured as it is.
 CAPS = {"temperature": 0.6, "temperature_logged": 0.6, "load": 1.0, "position": 0.8, "asymmetry": 0.8,
-        "drift": 0.6, "dwell": 3.0}
+        "drift": 0.6, "dwell": 3.0, "cycling": 0.6}
 #: Time constant [s] over which the friction follows the transmitted torque (a gear's contact load does
 #: not follow the loop's sub-millisecond torque swings).
 LOAD_FILTER = 0.02
@@ -308,7 +314,7 @@ def fx_array(d: CardDraw, plant: sim.Plant, k: int = 0) -> np.ndarray:
     i = sim.FXI
     fx[i["on"]] = fx[i["m_all"]] = 1.0
     fx[i["tau_th"]] = fx[i["P_ref"]] = fx[i["L_ref"]] = fx[i["period"]] = 1.0
-    fx[i["t0W"]] = fx[i["s0W"]] = 1.0
+    fx[i["t0W"]] = fx[i["s0W"]] = fx[i["Tcyc"]] = 1.0
     for e in d.effects:
         kind, c = e["kind"], e["coef"]
         if kind.startswith("temperature"):
@@ -328,6 +334,8 @@ def fx_array(d: CardDraw, plant: sim.Plant, k: int = 0) -> np.ndarray:
             fx[i["bG2"]], fx[i["phiG2"]] = c, e["phase"]
         elif kind == "cogging":
             fx[i["cC"]], fx[i["nC"]], fx[i["phiC"]] = c, e["n"], e["phase"]
+        elif kind == "cycling":
+            fx[i["aCyc"]], fx[i["Tcyc"]], fx[i["phiCyc"]] = c, e["period"], e["phase"]
     return fx
 
 

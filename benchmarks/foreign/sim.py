@@ -168,12 +168,13 @@ def _g(w, Fc, Fs, vs, delta):
 
 #: Hidden-effect parameters of the kernel (``fx``, see ``effects.py``): their positions in the array.
 FX = ("on", "kT", "tau_th", "P_ref", "kL", "L_ref", "aP", "period", "phiP", "kA_level", "kA_visc",
-      "kW", "t0W", "s0W", "w_still", "bG2", "phiG2", "cC", "nC", "phiC", "m_all", "tau_load")
+      "kW", "t0W", "s0W", "w_still", "bG2", "phiG2", "cC", "nC", "phiC", "m_all", "tau_load", "aCyc", "Tcyc",
+      "phiCyc")
 FXI = {k: i for i, k in enumerate(FX)}
 
 
 @numba.njit(cache=True)
-def _effects(fx, q, w, st, h, Fc):
+def _effects(fx, q, w, st, h, Fc, t):
     """The hidden effects' level factor mL, viscous factor mV, added level dg [N m] and non-friction
     torque E [N m] at one sub-step; ``st`` = (thermal state, transmitted torque (low-passed over
     fx[21] s, 0: none), rest time, rest time before this motion, travel since it started) is advanced for
@@ -184,6 +185,8 @@ def _effects(fx, q, w, st, h, Fc):
         mL *= 1.0 + fx[4] * abs(st[1]) / fx[5]
     if fx[6] != 0.0:                          # position ripple of the level
         mL *= 1.0 + fx[6] * math.sin(2.0 * math.pi * q / fx[7] + fx[8])
+    if fx[22] != 0.0:                         # a level cycling in time t [s] (not driven by the motion)
+        mL *= 1.0 + fx[22] * math.sin(2.0 * math.pi * t / fx[23] + fx[24])
     if w < 0.0:                               # asymmetry: the negative branch scaled
         mL *= 1.0 + fx[9]
         mV *= 1.0 + fx[10]
@@ -260,7 +263,7 @@ def _kernel(mode, qr, wr, u, m, dt, par, ctl, q0, fx):
                 T[i] = tau
             gw = _g(w, Fc, Fs, vs, delta)
             if on:
-                mL, mV, dg, E = _effects(fx, q, w, st, h, Fc)
+                mL, mV, dg, E = _effects(fx, q, w, st, h, Fc, (i + a) * dt)
                 gw = gw * mL + dg
                 s2e = s2 * mV
                 G = G + E
