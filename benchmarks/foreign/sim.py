@@ -166,11 +166,51 @@ def _g(w, Fc, Fs, vs, delta):
     return Fc + (Fs - Fc) * math.exp(-abs(w / vs) ** delta)
 
 
+#: Hidden-effect parameters of the kernel (``fx``, see ``effects.py``): their positions in the array.
+FX = ("on", "kT", "tau_th", "P_ref", "kL", "L_ref", "aP", "period", "phiP", "kA_level", "kA_visc",
+      "kW", "t0W", "s0W", "w_still", "bG2", "phiG2", "cC", "nC", "phiC", "m_all", "tau_load", "aCyc", "Tcyc",
+      "phiCyc")
+FXI = {k: i for i, k in enumerate(FX)}
+
+
 @numba.njit(cache=True)
-def _kernel(mode, qr, wr, u, m, dt, par, ctl, q0):
+def _effects(fx, q, w, st, h, Fc, t):
+    """The hidden effects' level factor mL, viscous factor mV, added level dg [N m] and non-friction
+    torque E [N m] at one sub-step; ``st`` = (thermal state, transmitted torque (low-passed over
+    fx[21] s, 0: none), rest time, rest time before this motion, travel since it started) is advanced for
+    the dwell clock here."""
+    mL = fx[20] * (1.0 + fx[1] * st[0])
+    mV = mL
+    if fx[4] != 0.0:                          # load: the torque the transmission carries
+        mL *= 1.0 + fx[4] * abs(st[1]) / fx[5]
+    if fx[6] != 0.0:                          # position ripple of the level
+        mL *= 1.0 + fx[6] * math.sin(2.0 * math.pi * q / fx[7] + fx[8])
+    if fx[22] != 0.0:                         # a level cycling in time t [s] (not driven by the motion)
+        mL *= 1.0 + fx[22] * math.sin(2.0 * math.pi * t / fx[23] + fx[24])
+    if w < 0.0:                               # asymmetry: the negative branch scaled
+        mL *= 1.0 + fx[9]
+        mV *= 1.0 + fx[10]
+    dg = 0.0
+    if fx[11] != 0.0:                         # dwell: break-away grows with the rest before a move
+        if abs(w) < fx[14]:
+            st[2] += h
+            st[3] = st[2]
+            st[4] = 0.0
+        else:
+            st[2] = 0.0
+            st[4] += abs(w) * h
+        dg = Fc * fx[11] * math.log1p(st[3] / fx[12]) * math.exp(-st[4] / fx[13])
+    E = fx[15] * math.sin(2.0 * q + fx[16]) + fx[17] * math.sin(fx[18] * q + fx[19])
+    return mL, mV, dg, E
+
+
+@numba.njit(cache=True)
+def _kernel(mode, qr, wr, u, m, dt, par, ctl, q0, fx):
     """Integrate the joint over the program. par = (J, Fc, Fs, vs, delta, sigma2, sigma0, sigma1, Px, Py,
-    c_cr); ctl = (kind 0 pid / 1 pd / 2 pi_velocity, Kp, Kd, Ki, ff_err). Returns q, w, z, tau, F at the
-    log samples [q, q/s, q, N m, N m]."""
+    c_cr); ctl = (kind 0 pid / 1 pd / 2 pi_velocity, Kp, Kd, Ki, ff_err); fx the hidden effects (``FX``;
+    fx[0] = 0: none, and the arithmetic is that of the plain joint). Returns q, w, z, tau, F at the log
+    samples [q, q/s, q, N m, N m] and, per sample, the effects' level g_eff [N m], viscous factor, torque E
+    [N m] and thermal state [1]."""
     J, Fc, Fs, vs, delta, s2, s0, s1, Px, Py, c_cr = par
     kind, Kp, Kd, Ki, ff_err = ctl
     n = mode.size
@@ -180,6 +220,13 @@ def _kernel(mode, qr, wr, u, m, dt, par, ctl, q0):
     Z = np.empty(n)
     T = np.empty(n)
     FF = np.empty(n)
+    GL = np.empty(n)
+    MV = np.ones(n)
+    EE = np.zeros(n)
+    TH = np.zeros(n)
+    on = fx[0] != 0.0
+    st = np.zeros(5)
+    s2e = s2
     q, w, z, integ, off, g_hold, tau = q0, 0.0, 0.0, 0.0, q0 - qr[0], 0.0, 0.0
     prev_mode = CLOSED
     G0 = Px * math.cos(q) + Py * math.sin(q)   # the loop was holding the joint before the log starts
@@ -215,6 +262,11 @@ def _kernel(mode, qr, wr, u, m, dt, par, ctl, q0):
             if k == 0:
                 T[i] = tau
             gw = _g(w, Fc, Fs, vs, delta)
+            if on:
+                mL, mV, dg, E = _effects(fx, q, w, st, h, Fc, (i + a) * dt)
+                gw = gw * mL + dg
+                s2e = s2 * mV
+                G = G + E
             c = s0 * abs(w) / gw
             D = 0.0
             if c_cr > 0.0:
@@ -222,16 +274,25 @@ def _kernel(mode, qr, wr, u, m, dt, par, ctl, q0):
             A = (z - h * D) / (1.0 + h * c)
             B = h / (1.0 + h * c)
             F0 = s0 * A - s1 * (c * A + D)
-            Fw = s0 * B + s1 * (1.0 - c * B) + s2
+            Fw = s0 * B + s1 * (1.0 - c * B) + s2e
             if k == 0:
                 Q[i] = q
                 W[i] = w
                 Z[i] = z
-                FF[i] = s0 * z + s1 * (w - c * z - D) + s2 * w
+                FF[i] = s0 * z + s1 * (w - c * z - D) + s2e * w
+                GL[i] = gw
+                if on:
+                    MV[i] = mV
+                    EE[i] = E
+                    TH[i] = st[0]
             w = (J * w / h + tau - G - F0) / (J / h + Fw)
             z = A + B * w
             q = q + h * w
-    return Q, W, Z, T, FF
+            if on:                            # friction power heats; the transmission carries tau - F
+                Fn = F0 + Fw * w
+                st[0] += h * (abs(Fn * w) / fx[3] - st[0]) / fx[2]
+                st[1] += (tau - Fn - st[1]) * (min(1.0, h / fx[21]) if fx[21] > 0.0 else 1.0)
+    return Q, W, Z, T, FF, GL, MV, EE, TH
 
 
 #: Highest internal rate [Hz].
@@ -247,17 +308,23 @@ def substeps(plant: Plant, ctl: Controller, fs: float) -> int:
     return int(max(5, math.ceil(min(need, F_INTERNAL_MAX) / fs)))
 
 
-def simulate(plant: Plant, ctl: Controller, prog: Program, q0: float = 0.0) -> dict:
+def simulate(plant: Plant, ctl: Controller, prog: Program, q0: float = 0.0, fx=None) -> dict:
     """Run ``prog`` on ``plant`` under ``ctl``. Returns the true signals per log sample: t [s], q [q],
-    w [q/s], z [q], tau [N m] (applied), F [N m] (friction), and the program's label / index / mode."""
+    w [q/s], z [q], tau [N m] (applied), F [N m] (friction), and the program's label / index / mode.
+    ``fx``: hidden effects (an array laid out as ``FX``, made by ``effects.py``); with them the output
+    also holds g_eff [N m] (the friction level the effects made), mV [1] (their viscous factor), E [N m]
+    (their non-friction torque) and theta [1] (the thermal state)."""
     arr = prog.arrays()
     dt = 1.0 / prog.fs
     par = np.array([plant.J, plant.Fc, plant.Fs, plant.vs, plant.delta, plant.sigma2, plant.sigma0,
                     plant.sigma1, plant.Px, plant.Py, plant.c_cr])
     ck = np.array([float(CONTROLLERS.index(ctl.kind)), ctl.Kp, ctl.Kd, ctl.Ki, ctl.ff_err])
-    Q, W, Z, T, F = _kernel(arr["mode"], arr["qr"], arr["wr"], arr["u"], substeps(plant, ctl, prog.fs), dt,
-                            par, ck, q0)
+    fxa = np.zeros(len(FX)) if fx is None else np.asarray(fx, dtype=float)
+    Q, W, Z, T, F, GL, MV, EE, TH = _kernel(arr["mode"], arr["qr"], arr["wr"], arr["u"],
+                                            substeps(plant, ctl, prog.fs), dt, par, ck, q0, fxa)
     out = {"t": np.arange(arr["mode"].size) * dt, "q": Q, "w": W, "z": Z, "tau": T, "F": F}
+    if fx is not None:
+        out.update(g_eff=GL, mV=MV, E=EE, theta=TH)
     out.update(label=arr["label"], index=arr["index"], mode=arr["mode"], wr=arr["wr"])
     return out
 
