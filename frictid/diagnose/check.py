@@ -87,7 +87,7 @@ def _stored_rms(jf: JointFit, preps: list[Prep], name: str, min_speed: float) ->
         for p in preps:
             r = replay(p.log, m, w=p.w, a=p.a, scales=p.scales).residual
             r = r[(np.abs(p.w) > min_speed) & np.isfinite(r)]
-            ss += float(r @ r)
+            ss += float(np.sum(r * r))  # not BLAS: the same sum in a worker as in the parent
             n += r.size
         return math.sqrt(ss / n) if n else math.nan
     except (ConfigError, FrictidInputError, KeyError, ValueError):
