@@ -289,3 +289,23 @@ def test_file_sha256_is_the_hash_of_the_bytes(tmp_path):
     assert file_sha256(str(empty)) == hashlib.sha256(b"").hexdigest()  # cannot be mapped: read instead
     assert file_sha256("-") is None
     assert file_sha256(str(tmp_path)) is None  # not a file
+
+
+def test_a_top_level_start_time_in_the_metadata_is_the_recordings(tmp_path):
+    """Issue 20: a start time at the top of a Parquet file's metadata (or a sidecar) is not ignored; a
+    ``meta.start_time`` still wins."""
+    import json
+
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from frictid.io.logs import read_logs
+
+    t = np.arange(100) * 1e-3
+    table = pa.table({"t": t, "q": np.sin(t), "tau": np.cos(t)})
+    table = table.replace_schema_metadata({b"frictid": json.dumps({"start_time": "2026-01-02T03:04:05"}).encode()})
+    pq.write_table(table, tmp_path / "a.parquet")
+    assert read_logs(str(tmp_path / "a.parquet"))[0].meta["start_time"] == "2026-01-02T03:04:05"
+    both = table.replace_schema_metadata({b"frictid": json.dumps({"start_time": 1.0, "meta": {"start_time": 2.0}}).encode()})
+    pq.write_table(both, tmp_path / "b.parquet")
+    assert read_logs(str(tmp_path / "b.parquet"))[0].meta["start_time"] == 2.0

@@ -920,6 +920,8 @@ def _joint_log(jid: str, a: dict[str, np.ndarray], segments: np.ndarray | None, 
     per_joint_meta = (meta_all.get("joints") or {}) if isinstance(meta_all.get("joints"), dict) else {}
     truth_meta = meta_all.get("truth") or {}
     jmeta = dict(door.spec.meta)
+    if "start_time" in meta_all and "start_time" not in jmeta:  # a top-level start time is the recording's
+        jmeta["start_time"] = meta_all["start_time"]
     jm = per_joint_meta.get(jid) or {}
     jmeta.update(jm.get("meta") or {})
     jmeta.update(door.spec.joint_meta.get(jid) or {})
