@@ -18,7 +18,7 @@ from .errors import FrictidInputError
 from .io.logs import file_sha256, read_many
 from .result import FitResult
 from .robot import identify_robot, load_robot
-from .robot.identify import Prediction, predict
+from .robot.identify import Prediction, cut_log, predict
 from .robot.result import fit_result
 
 FRICTION_STAGES = ("models", "linear")
@@ -91,7 +91,7 @@ def heldout_models(robot, logs: list[JointLog], fraction: float = 0.3, smooth_hz
     from scipy.signal import butter, sosfiltfilt
 
     k = int(round((1.0 - fraction) * min(lg.n for lg in logs)))
-    head, tail = [_cut(lg, slice(0, k)) for lg in logs], [_cut(lg, slice(k, None)) for lg in logs]
+    head, tail = [cut_log(lg, slice(0, k)) for lg in logs], [cut_log(lg, slice(k, None)) for lg in logs]
     rf = identify_robot(robot, head)
     res = fit_joints(friction_logs(head, predict(robot, rf, head)), diagnose=False)
     p = predict(robot, rf, tail)
@@ -109,10 +109,3 @@ def heldout_models(robot, logs: list[JointLog], fraction: float = 0.3, smooth_hz
             out[stage]["moving"][j] = float(np.sqrt(np.mean(r[p.moving[j]] ** 2)))
     return out
 
-
-def _cut(lg: JointLog, sl: slice) -> JointLog:
-    out = copy.copy(lg)
-    out.t, out.q, out.tau = lg.t[sl], None if lg.q is None else lg.q[sl], lg.tau[sl]
-    out.qd = None if lg.qd is None else lg.qd[sl]
-    out.channels = {k: v[sl] for k, v in lg.channels.items()}
-    return out

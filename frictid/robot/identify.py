@@ -275,23 +275,26 @@ def predict(robot: Robot, fit: RobotFit, logs) -> Prediction:
     return out
 
 
+def cut_log(lg, sl: slice):
+    """A copy of joint log ``lg`` holding only the samples ``sl`` (its signals and channels)."""
+    import copy
+
+    out = copy.copy(lg)
+    out.t, out.q, out.tau = lg.t[sl], None if lg.q is None else lg.q[sl], lg.tau[sl]
+    out.qd = None if lg.qd is None else lg.qd[sl]
+    out.channels = {k: v[sl] for k, v in lg.channels.items()}
+    return out
+
+
 def heldout_errors(robot: Robot, logs, fraction: float = 0.3, smooth_hz: float | None = None) -> dict:
     """Identify on the first ``1 - fraction`` of the joints' logs and predict the rest: per joint the RMS of
     (measured - predicted) torque at the log's own samples over the whole held-out part and over its moving
     samples, against the measured torque as logged or low-passed at ``smooth_hz`` (zero phase, at the
     log's median rate). Returns {'fit', 'whole', 'moving'}."""
-    import copy
-
     n = min(lg.n for lg in logs)
     k = int(round((1.0 - fraction) * n))
-
-    def cut(lg, sl):
-        out = copy.copy(lg)
-        out.t, out.q, out.tau = lg.t[sl], lg.q[sl], lg.tau[sl]
-        out.qd = None if lg.qd is None else lg.qd[sl]
-        return out
-    fit = identify_robot(robot, [cut(lg, slice(0, k)) for lg in logs])
-    test = [cut(lg, slice(k, None)) for lg in logs]
+    fit = identify_robot(robot, [cut_log(lg, slice(0, k)) for lg in logs])
+    test = [cut_log(lg, slice(k, None)) for lg in logs]
     p = predict(robot, fit, test)
     _, ordered = align(robot, test)
     whole, moving = {}, {}
