@@ -8,8 +8,6 @@ estimate gives it); ``"models"`` (the default) runs the second.
 """
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 
 from .api import fit as fit_joints
@@ -18,25 +16,16 @@ from .errors import FrictidInputError
 from .io.logs import file_sha256, read_many
 from .result import FitResult
 from .robot import identify_robot, load_robot
-from .robot.identify import Prediction, cut_log, predict
+from .robot.identify import Prediction, cut_log, friction_log, predict
 from .robot.result import fit_result
 
 FRICTION_STAGES = ("models", "linear")
 
 
 def friction_logs(logs: list[JointLog], p: Prediction) -> list[JointLog]:
-    """Each joint's log with its torque replaced by the friction torque (measured less the rigid-body part
-    of the robot model's prediction ``p``), its inertia and gravity given as zero: what is left of the
-    torque is the joint's friction and offset."""
-    out = []
-    for lg in logs:
-        j = str(lg.joint)
-        fl = copy.copy(lg)
-        fl.tau = lg.tau - (p.tau[j] - p.F[j])
-        fl.meta = {**lg.meta, "inertia": 0.0, "gravity": [0.0, 0.0]}
-        fl.warnings = list(lg.warnings)
-        out.append(fl)
-    return out
+    """Each joint's log with its torque replaced by the friction torque of the robot model's prediction
+    ``p`` (:func:`frictid.robot.identify.friction_log`)."""
+    return [friction_log(lg, p.tau[str(lg.joint)], p.F[str(lg.joint)]) for lg in logs]
 
 
 def fit_robot(paths_or_logs, robot, mapping=None, units=None, *, friction: str = "models",

@@ -10,7 +10,6 @@ the arm's inertia and gravity).
 """
 from __future__ import annotations
 
-import copy
 from pathlib import Path
 
 import numpy as np
@@ -61,6 +60,7 @@ def robot_page(params: dict, logs: list[JointLog], robot_file: str | None, fmt_p
                        "--robot).")
         return page, []
     from ..robot import load_robot
+    from ..robot.identify import friction_log
     from ..robot.replay import replay_robot
 
     robot = load_robot(path)
@@ -79,7 +79,5 @@ def robot_page(params: dict, logs: list[JointLog], robot_file: str | None, fmt_p
         page["rows"].append({"joint": lg.joint, "rms_tau": fmt_num(rms_tau), "rms_res": fmt_num(rms_r),
                              "share": f"{100 * rms_r / rms_tau:.1f} %" if rms_tau > 0 else "-",
                              "rms_F": fmt_num(float(np.sqrt(np.mean(r.F_model ** 2))))})
-        fl = copy.copy(lg)
-        fl.tau = np.asarray(lg.tau, float) - (r.tau_model - r.F_model)
-        friction_logs.append(fl)
+        friction_logs.append(friction_log(lg, r.tau_model, r.F_model))
     return page, friction_logs

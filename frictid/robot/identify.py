@@ -286,6 +286,20 @@ def cut_log(lg, sl: slice):
     return out
 
 
+def friction_log(lg, tau_model: np.ndarray, F_model: np.ndarray):
+    """A copy of joint log ``lg`` whose torque is the joint's friction torque: the measured torque less the
+    rigid-body part (``tau_model - F_model``) of the robot model's prediction at the log's samples. Its
+    inertia and gravity are given as zero (the rigid body is taken out): what is left of the torque is the
+    joint's friction and offset, which the single-joint fit and the report's joint sections read."""
+    import copy
+
+    out = copy.copy(lg)
+    out.tau = np.asarray(lg.tau, float) - (np.asarray(tau_model, float) - np.asarray(F_model, float))
+    out.meta = {**lg.meta, "inertia": 0.0, "gravity": [0.0, 0.0]}
+    out.warnings = list(lg.warnings)
+    return out
+
+
 def heldout_errors(robot: Robot, logs, fraction: float = 0.3, smooth_hz: float | None = None) -> dict:
     """Identify on the first ``1 - fraction`` of the joints' logs and predict the rest: per joint the RMS of
     (measured - predicted) torque at the log's own samples over the whole held-out part and over its moving
