@@ -151,6 +151,17 @@ def make_log(seed: int, family: str | None = None, outdir=".", families=FAMILIES
 T_STEADY, K_STEADY = 0.1, 5.0
 
 
+def _close_gaps(mask: np.ndarray, n: int) -> np.ndarray:
+    """``mask`` with its gaps shorter than ``n`` samples between two runs filled: one change through a
+    sign flip of its slope (a stop and its settling)."""
+    e = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
+    out = mask.copy()
+    for a, b in zip(e[1:-1:2], e[2::2]):
+        if b - a < n:
+            out[a:b] = True
+    return out
+
+
 def steady_torque(tau: np.ndarray, fs: float, noise: float) -> np.ndarray:
     """Per sample: the true torque ``tau`` [N m] is steady. It changes where the means over the
     ``T_STEADY`` before and after a sample differ by more than ``thr`` = ``K_STEADY`` standard errors of
@@ -164,7 +175,7 @@ def steady_torque(tau: np.ndarray, fs: float, noise: float) -> np.ndarray:
     i = np.arange(tau.size) + k
     before, after = (c[i] - c[i - k]) / k, (c[i + k] - c[i]) / k
     z = np.abs(after - before) / (K_STEADY * noise * math.sqrt(2.0 / k))
-    changing = np.concatenate(([False], z > 1.0, [False]))
+    changing = np.concatenate(([False], _close_gaps(z > 1.0, k), [False]))
     kf = max(1, k // 2)  # the edges: means over k / 2 samples against the k-sample levels
     cf = np.concatenate(([0.0], np.cumsum(np.pad(tau, (kf // 2, kf - kf // 2), mode="edge"))))
     fine = (cf[kf:] - cf[:-kf])[:tau.size] / kf

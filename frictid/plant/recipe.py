@@ -531,6 +531,17 @@ def _local_jitter(u: np.ndarray, block: int) -> np.ndarray:
     return sig[np.minimum(np.arange(n) // block, nb - 1)]
 
 
+def _close_gaps(mask: np.ndarray, n: int) -> np.ndarray:
+    """``mask`` with its gaps shorter than ``n`` samples between two runs filled: one change through a
+    sign flip of its slope (a stop and its settling)."""
+    e = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
+    out = mask.copy()
+    for a, b in zip(e[1:-1:2], e[2::2]):
+        if b - a < n:
+            out[a:b] = True
+    return out
+
+
 def _steady(u: np.ndarray, k: int, k_noise: np.ndarray) -> np.ndarray:
     """Per sample: the drive torque ``u`` [F] is steady. It changes where its means over the k samples
     before and after a sample differ by more than ``k_noise sqrt(2 / k)`` (``K_LOAD`` standard errors of
@@ -542,7 +553,7 @@ def _steady(u: np.ndarray, k: int, k_noise: np.ndarray) -> np.ndarray:
     i = np.arange(u.size) + k
     before, after = (c[i] - c[i - k]) / k, (c[i + k] - c[i]) / k
     z = np.abs(after - before) / (k_noise * math.sqrt(2.0 / k))
-    changing = np.concatenate(([False], z > 1.0, [False]))
+    changing = np.concatenate(([False], _close_gaps(z > 1.0, k), [False]))
     us = _smooth(u, max(1, k // 2))  # the edges: means over k / 2 against the k-sample levels
     thr = k_noise * math.sqrt(1.0 / k + 2.0 / k)  # per sample
     edge = np.flatnonzero(changing[1:] != changing[:-1])

@@ -672,7 +672,8 @@ def _torque_changing(f: Features, hf: int) -> tuple[np.ndarray, np.ndarray]:
     each run of it edged where the torque itself changes: from the first sample whose mean over ``2 hf``
     samples leaves the mean of the ``h`` samples before the run, to the last one that differs from the
     mean of the ``h`` after it, by ``K_NOISE`` standard errors of the two means (the feature window sees
-    a change ``h`` samples early; a slow trend is changing all along)."""
+    a change ``h`` samples early; a slow trend is changing all along). Runs less than ``h`` apart are one
+    change (the slope passes through zero where a move's torque turns, e.g. a stop and its settling)."""
     n, sc, h = f.t.size, f.sc, f.h
     core = np.empty(n, dtype=bool)
     for c in chunks(n):  # chunk by chunk: no full-length thresholds or |slopes|
@@ -681,7 +682,7 @@ def _torque_changing(f: Features, hf: int) -> tuple[np.ndarray, np.ndarray]:
         thr *= K_NOISE
         np.greater(np.abs(f.s[c]), thr, out=core[c])
     changing = np.zeros(n, dtype=bool)
-    cs, ce = runs(core)
+    cs, ce = runs(fill_short(core, h, False))  # one change through a sign flip of its slope
     tc = f.tau_c if f.tau_c is not None else prefix_sum(f.tau)
     for a, b in zip(cs.tolist(), ce.tolist()):
         before = (tc[a] - tc[max(a - h, 0)]) / max(a - max(a - h, 0), 1)
