@@ -149,6 +149,8 @@ def make_log(seed: int, family: str | None = None, outdir=".", families=FAMILIES
 #: Time over which the true torque is averaged to judge whether it is steady [s] (half frictid's T_MIN,
 #: the scale at which it averages anything) and the standard errors a change must exceed (its K_NOISE).
 T_STEADY, K_STEADY = 0.1, 5.0
+#: The longest rise of a torque jump [s] (frictid's T_JUMP).
+T_JUMP = 0.01
 
 
 def _close_gaps(mask: np.ndarray, n: int) -> np.ndarray:
@@ -169,7 +171,8 @@ def steady_torque(tau: np.ndarray, fs: float, noise: float) -> np.ndarray:
     change the log's torque could show); each such stretch is then edged where the torque, averaged over
     ``T_STEADY`` / 2, leaves the level of the ``T_STEADY`` before it (and reaches that after it) by
     ``K_STEADY`` standard errors of the two means, so that a change starts where it starts, not where a
-    window first sees it (frictid's edges, docs/segments.md)."""
+    window first sees it (frictid's edges, docs/segments.md). A change no longer than a torque jump
+    (``T_JUMP``, seen through the ``T_STEADY`` / 2 means) does not end a steady stretch, as in frictid."""
     k = max(1, int(round(T_STEADY * fs)))
     c = np.concatenate(([0.0], np.cumsum(np.pad(tau, (k, k), mode="edge"))))
     i = np.arange(tau.size) + k
@@ -187,7 +190,9 @@ def steady_torque(tau: np.ndarray, fs: float, noise: float) -> np.ndarray:
         if off.size:
             a0 = a + int(off[0])
             off = np.flatnonzero(np.abs(fine[a0:b] - after[b - 1]) > thr)
-            steady[a0:a0 + (int(off[-1]) + 1 if off.size else 0)] = False
+            e = a0 + (int(off[-1]) + 1 if off.size else 0)
+            if e - a0 > kf + max(1, int(round(T_JUMP * fs))):  # a torque jump alone is no change (frictid)
+                steady[a0:e] = False
     return steady
 
 

@@ -461,6 +461,8 @@ T_LOAD = 0.2
 #: A still, unloaded stretch within a move or an excitation is a rest when at least this long [s]
 #: (docs/segments.md: T_MIN, the shortest segment).
 T_REST = 0.2
+#: The longest rise of a torque jump [s] (docs/segments.md: T_JUMP): a jump alone does not end a rest.
+T_JUMP = 0.01
 
 
 def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray | None = None,
@@ -512,7 +514,7 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray |
     np.maximum(noise, 1e-9 * float(np.subtract(*np.percentile(u, [99.9, 0.1]))), out=noise)
     closed = np.repeat([p[1] != MODE_TORQUE for p in pr.pieces], [p[0] for p in pr.pieces])
     k = max(1, int(round(0.5 * T_LOAD * pr.fs)))
-    calm = ~moving & _steady(u, k, K_LOAD * noise)
+    calm = ~moving & _steady(u, k, K_LOAD * noise, max(1, int(round(T_JUMP * pr.fs))))
     return _rests_by_definition(label, closed, calm, int(round(T_REST * pr.fs)))
 
 
@@ -542,13 +544,15 @@ def _close_gaps(mask: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def _steady(u: np.ndarray, k: int, k_noise: np.ndarray) -> np.ndarray:
+def _steady(u: np.ndarray, k: int, k_noise: np.ndarray, jump: int) -> np.ndarray:
     """Per sample: the drive torque ``u`` [F] is steady. It changes where its means over the k samples
     before and after a sample differ by more than ``k_noise sqrt(2 / k)`` (``K_LOAD`` standard errors of
     that difference under the logged noise: a change the log could show); each such stretch
     is edged where the torque, averaged over k / 2 samples, leaves the level of the k samples before it
     (and reaches that after it) by more than ``k_noise`` standard errors of the two means: a change
-    starts where it starts, not where the window first sees it (frictid's edges, docs/segments.md)."""
+    starts where it starts, not where the window first sees it (frictid's edges, docs/segments.md). A
+    change no longer than a torque jump (``jump`` samples, seen through the k / 2 means) does not end a
+    steady stretch, as in frictid: a controller switched on or off under a still joint."""
     c = np.concatenate(([0.0], np.cumsum(np.pad(u, (k, k), mode="edge"))))
     i = np.arange(u.size) + k
     before, after = (c[i] - c[i - k]) / k, (c[i + k] - c[i]) / k
@@ -563,7 +567,9 @@ def _steady(u: np.ndarray, k: int, k_noise: np.ndarray) -> np.ndarray:
         if off.size:
             a0 = a + int(off[0])
             off = np.flatnonzero(np.abs(us[a0:b] - after[b - 1]) > thr[a])
-            steady[a0:a0 + (int(off[-1]) + 1 if off.size else 0)] = False
+            e = a0 + (int(off[-1]) + 1 if off.size else 0)
+            if e - a0 > k // 2 + jump:  # a torque jump alone (its edges smeared by the k / 2 means) is no change
+                steady[a0:e] = False
     return steady
 
 
