@@ -126,7 +126,7 @@ def test_the_truth_rests_are_steady_and_the_wound_up_moves_are_not():
     prog = scenarios.sim.Program(fs=sc.sensors.fs)
     scenarios.BUILDERS[sc.family](prog, sc, rng)
     out = scenarios.sim.simulate(sc.plant, sc.ctl, prog)
-    labels, _ = scenarios.refine_labels(out, sc.sensors.tau_noise)
+    labels, _ = scenarios.refine_labels(out, sc.sensors.tau_noise, sc.w_top)
     rest = labels == scenarios.sim.CODE["rest"]
     steady = scenarios.steady_torque(out["tau"], sc.sensors.fs, sc.sensors.tau_noise)
     top = float(np.max(np.abs(out["wr"])))

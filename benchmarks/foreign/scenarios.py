@@ -137,7 +137,7 @@ def make_log(seed: int, family: str | None = None, outdir=".", families=FAMILIES
     if sc.creep > 0:
         sc.plant.c_cr = sc.creep
     out = sim.simulate(sc.plant, sc.ctl, prog)
-    labels, demoted = refine_labels(out, sc.sensors.tau_noise)
+    labels, demoted = refine_labels(out, sc.sensors.tau_noise, sc.w_top)
     df = sim.measure(out, sc.sensors, np.random.default_rng([seed, 2]))
     truth = sim.truth_record(sc.plant, sc.ctl, sc.sensors, labels, out["index"],
                              {"seed": seed, "family": sc.family, "w_top": sc.w_top, "creep": sc.creep,
@@ -196,21 +196,22 @@ def steady_torque(tau: np.ndarray, fs: float, noise: float) -> np.ndarray:
     return steady
 
 
-def refine_labels(out: dict, tau_noise: float) -> tuple[np.ndarray, int]:
+def refine_labels(out: dict, tau_noise: float, w_top: float) -> tuple[np.ndarray, int]:
     """The program's labels made physical: a constant-velocity piece starts where the true velocity has
     settled for good within 5 % of its reference (the samples before are ``other``: the loop still
     settling); a piece that has not settled by its middle (a slow transient, stick-slip, a ripple) is
     ``other`` altogether. A ``rest`` right after a step is the step's still tail (nothing in the data
     marks where one ends: a step lasts until the next input). Dwells and moves (closed-loop ``rest`` and
     ``other``) are relabelled by docs/segments.md's definition of a rest: ``rest`` where the joint is
-    still (true speed below 1 % of the top reference speed) and its torque steady
+    still (true speed below 1 % of the top reference speed, of ``w_top`` [q/s] in a layout without
+    motion) and its torque steady
     (:func:`steady_torque` under the logged noise ``tau_noise`` [N m]) for at least ``T_REST``, ``other``
     elsewhere: a move starts where its torque starts to change or the joint to move, a dwell where the
     torque has settled after the move. Returns (labels, plateaus demoted)."""
     lab = out["label"].copy()
     idx = out["index"]                       # changed in place: a rest after a step joins the step
     w, wr = out["w"], out["wr"]
-    top = max(float(np.max(np.abs(wr))), 1e-12)
+    top = float(np.max(np.abs(wr))) or w_top  # a layout without motion (ramps, steps): the scenario's
     change = np.flatnonzero((lab[1:] != lab[:-1]) | (idx[1:] != idx[:-1])) + 1
     starts = np.concatenate(([0], change))
     ends = np.concatenate((change, [lab.size]))

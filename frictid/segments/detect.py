@@ -701,12 +701,12 @@ def _torque_changing(f: Features, hf: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _rest(f: Features, code: np.ndarray, loading: np.ndarray, n_min: int) -> np.ndarray:
     """Where the joint rests (per sample), among the unclassified samples: still runs at the fine scale
-    that hold a still sample at the coarse scale, outside a ``loading``, of at least ``n_min`` samples. A
-    torque jump alone, or a jolt shorter than two fine windows (the joint kicked by a torque jump), does
-    not end a rest."""
+    that hold a still sample at the coarse scale, outside every torque change (``loading``: the edged
+    changes themselves, no speck removed), of at least ``n_min`` samples. A torque jump alone, or a jolt
+    shorter than two fine windows (the joint kicked by a torque jump), does not end a rest."""
     hf = _fine_width(f)
     free = code < 0
-    calm = fill_short(~loading, 2 * hf + 2, False)
+    calm = ~loading
     rest = grow(f.quiet & calm & free, f.quiet_fine & calm & free)
     rest = fill_short(rest, 2 * hf, False) & free
     return drop_short(rest, n_min)
