@@ -103,3 +103,34 @@ def test_a_sweep_with_repositioning_moves_is_no_duty_cycle(seed, tmp_path):
     # the plateaus are plateaus (how well their edges match the truth's settling is class 4's business)
     tr, fo = _of("constant_velocity", truth, segs)
     assert len(fo) >= 0.8 * len(tr), (len(fo), len(tr))
+
+
+@pytest.mark.parametrize("seed", [11, 12, 13])
+def test_rests_of_the_issue19_sweep_are_still_and_steady(seed, tmp_path):
+    """Classes 3 and 8: a rest is a still joint whose torque is steady (docs/segments.md, "What a rest
+    is"). Before each slow plateau the 1.5 s repositioning move hardly moves the joint while its
+    controller winds up, then a 0.2-0.5 s dwell settles: the wound-up start is no rest, the settled dwell
+    is. The truth follows the definition (its rests hold no torque change beyond 5 standard errors of
+    0.1 s means), and frictid finds at least 75 % of its rests, at least 75 % of those it reports true."""
+    truth, segs = _draw(seed, "issue19_sweep", tmp_path)
+    tp_t, n_t, tp_f, n_f = _f1_parts("rest", truth, segs)
+    assert n_t >= 16
+    assert tp_t >= 0.75 * n_t and tp_f >= 0.75 * n_f, (tp_t, n_t, tp_f, n_f)
+
+
+def test_the_truth_rests_are_steady_and_the_wound_up_moves_are_not():
+    """The foreign truth's rule itself, on the simulator's true torque: every truth rest is still and
+    steady, and a still joint whose torque changes (a slow repositioning move) is ``other``."""
+    sc = scenarios.draw(12, "issue19_sweep")
+    rng = np.random.default_rng([12, 1])
+    prog = scenarios.sim.Program(fs=sc.sensors.fs)
+    scenarios.BUILDERS[sc.family](prog, sc, rng)
+    out = scenarios.sim.simulate(sc.plant, sc.ctl, prog)
+    labels, _ = scenarios.refine_labels(out, sc.sensors.tau_noise, sc.w_top)
+    rest = labels == scenarios.sim.CODE["rest"]
+    steady = scenarios.steady_torque(out["tau"], sc.sensors.fs, sc.sensors.tau_noise)
+    top = float(np.max(np.abs(out["wr"])))
+    assert rest.sum() > 0 and np.all(steady[rest]) and np.all(np.abs(out["w"][rest]) < 0.01 * top)
+    # still, torque changing, commanded as a move or a dwell: other
+    wound = (~steady) & (np.abs(out["w"]) < 0.01 * top) & (out["mode"] == scenarios.sim.CLOSED)
+    assert wound.sum() > 0.05 * sc.sensors.fs and not np.any(rest[wound])

@@ -18,10 +18,10 @@ import numpy as np
 
 try:
     from . import sim
-    from .layouts import BUILDERS
+    from .layouts import BUILDERS, T_REST
 except ImportError:  # run as a script from this folder
     import sim
-    from layouts import BUILDERS
+    from layouts import BUILDERS, T_REST
 
 #: Every layout family, for the segments scorecard.
 FAMILIES = ("sweep", "issue19_sweep", "ramps", "issue19_ramps", "steps", "duty", "ptp", "session")
@@ -137,7 +137,7 @@ def make_log(seed: int, family: str | None = None, outdir=".", families=FAMILIES
     if sc.creep > 0:
         sc.plant.c_cr = sc.creep
     out = sim.simulate(sc.plant, sc.ctl, prog)
-    labels, demoted = refine_labels(out)
+    labels, demoted = refine_labels(out, sc.sensors.tau_noise, sc.w_top)
     df = sim.measure(out, sc.sensors, np.random.default_rng([seed, 2]))
     truth = sim.truth_record(sc.plant, sc.ctl, sc.sensors, labels, out["index"],
                              {"seed": seed, "family": sc.family, "w_top": sc.w_top, "creep": sc.creep,
@@ -146,17 +146,72 @@ def make_log(seed: int, family: str | None = None, outdir=".", families=FAMILIES
     return path, truth
 
 
-def refine_labels(out: dict) -> tuple[np.ndarray, int]:
+#: Time over which the true torque is averaged to judge whether it is steady [s] (half frictid's T_MIN,
+#: the scale at which it averages anything) and the standard errors a change must exceed (its K_NOISE).
+T_STEADY, K_STEADY = 0.1, 5.0
+#: The longest rise of a torque jump [s] (frictid's T_JUMP).
+T_JUMP = 0.01
+
+
+def _close_gaps(mask: np.ndarray, n: int) -> np.ndarray:
+    """``mask`` with its gaps shorter than ``n`` samples between two runs filled: one change through a
+    sign flip of its slope (a stop and its settling)."""
+    e = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
+    out = mask.copy()
+    for a, b in zip(e[1:-1:2], e[2::2]):
+        if b - a < n:
+            out[a:b] = True
+    return out
+
+
+def steady_torque(tau: np.ndarray, fs: float, noise: float) -> np.ndarray:
+    """Per sample: the true torque ``tau`` [N m] is steady. It changes where the means over the
+    ``T_STEADY`` before and after a sample differ by more than ``thr`` = ``K_STEADY`` standard errors of
+    that difference under the logged torque noise ``noise`` [N m] (``noise sqrt(2 / k)``, k samples: a
+    change the log's torque could show); each such stretch is then edged where the torque, averaged over
+    ``T_STEADY`` / 2, leaves the level of the ``T_STEADY`` before it (and reaches that after it) by
+    ``K_STEADY`` standard errors of the two means, so that a change starts where it starts, not where a
+    window first sees it (frictid's edges, docs/segments.md). A change no longer than a torque jump
+    (``T_JUMP``, seen through the ``T_STEADY`` / 2 means) does not end a steady stretch, as in frictid."""
+    k = max(1, int(round(T_STEADY * fs)))
+    c = np.concatenate(([0.0], np.cumsum(np.pad(tau, (k, k), mode="edge"))))
+    i = np.arange(tau.size) + k
+    before, after = (c[i] - c[i - k]) / k, (c[i + k] - c[i]) / k
+    z = np.abs(after - before) / (K_STEADY * noise * math.sqrt(2.0 / k))
+    changing = np.concatenate(([False], _close_gaps(z > 1.0, k), [False]))
+    kf = max(1, k // 2)  # the edges: means over k / 2 samples against the k-sample levels
+    cf = np.concatenate(([0.0], np.cumsum(np.pad(tau, (kf // 2, kf - kf // 2), mode="edge"))))
+    fine = (cf[kf:] - cf[:-kf])[:tau.size] / kf
+    thr = K_STEADY * noise * math.sqrt(1.0 / k + 1.0 / kf)
+    edge = np.flatnonzero(changing[1:] != changing[:-1])
+    steady = np.ones(tau.size, dtype=bool)
+    for a, b in zip(edge[::2], edge[1::2]):
+        off = np.flatnonzero(np.abs(fine[a:b] - before[a]) > thr)
+        if off.size:
+            a0 = a + int(off[0])
+            off = np.flatnonzero(np.abs(fine[a0:b] - after[b - 1]) > thr)
+            e = a0 + (int(off[-1]) + 1 if off.size else 0)
+            if e - a0 > kf + max(1, int(round(T_JUMP * fs))):  # a torque jump alone is no change (frictid)
+                steady[a0:e] = False
+    return steady
+
+
+def refine_labels(out: dict, tau_noise: float, w_top: float) -> tuple[np.ndarray, int]:
     """The program's labels made physical: a constant-velocity piece starts where the true velocity has
     settled for good within 5 % of its reference (the samples before are ``other``: the loop still
     settling); a piece that has not settled by its middle (a slow transient, stick-slip, a ripple) is
     ``other`` altogether. A ``rest`` right after a step is the step's still tail (nothing in the data
-    marks where one ends: a step lasts until the next input). A ``rest`` after a move starts where the
-    true speed falls below 1 % of the top reference speed for good. Returns (labels, plateaus demoted)."""
+    marks where one ends: a step lasts until the next input). Dwells and moves (closed-loop ``rest`` and
+    ``other``) are relabelled by docs/segments.md's definition of a rest: ``rest`` where the joint is
+    still (true speed below 1 % of the top reference speed, of ``w_top`` [q/s] in a layout without
+    motion) and its torque steady
+    (:func:`steady_torque` under the logged noise ``tau_noise`` [N m]) for at least ``T_REST``, ``other``
+    elsewhere: a move starts where its torque starts to change or the joint to move, a dwell where the
+    torque has settled after the move. Returns (labels, plateaus demoted)."""
     lab = out["label"].copy()
     idx = out["index"]                       # changed in place: a rest after a step joins the step
     w, wr = out["w"], out["wr"]
-    top = max(float(np.max(np.abs(wr))), 1e-12)
+    top = float(np.max(np.abs(wr))) or w_top  # a layout without motion (ramps, steps): the scenario's
     change = np.flatnonzero((lab[1:] != lab[:-1]) | (idx[1:] != idx[:-1])) + 1
     starts = np.concatenate(([0], change))
     ends = np.concatenate((change, [lab.size]))
@@ -172,7 +227,22 @@ def refine_labels(out: dict) -> tuple[np.ndarray, int]:
         elif lab[a] == sim.CODE["rest"] and a > 0 and lab[a - 1] == sim.CODE["step"]:
             idx[a:b] = idx[a - 1]        # a still joint after a step: the step lasts until the next input
             lab[a:b] = sim.CODE["step"]
-        elif lab[a] == sim.CODE["rest"] and a > 0 and lab[a - 1] == sim.CODE["other"]:
-            bad = np.flatnonzero(np.abs(w[a:b]) >= 0.01 * top)
-            lab[a:a + (int(bad[-1]) + 1 if bad.size else 0)] = sim.CODE["other"]
+    _rests_by_definition(lab, out, tau_noise, top)
     return lab, demoted
+
+
+def _rests_by_definition(lab: np.ndarray, out: dict, tau_noise: float, top: float) -> None:
+    """Closed-loop ``rest`` and ``other`` samples become ``rest`` where the joint is still and its torque
+    steady (:func:`steady_torque`), in runs of at least ``T_REST``, else ``other`` (in place). Open-loop rests (a ramp's hold or
+    settle: the input torque is constant) stay as the program wrote them."""
+    fs = 1.0 / float(out["t"][1] - out["t"][0])
+    closed = (out["mode"] == sim.CLOSED) & ((lab == sim.CODE["rest"]) | (lab == sim.CODE["other"]))
+    calm = (np.abs(out["w"]) < 0.01 * top) & steady_torque(out["tau"], fs, tau_noise)
+    rest = np.concatenate(([False], closed & calm, [False]))
+    edge = np.flatnonzero(rest[1:] != rest[:-1])
+    lab[closed] = sim.CODE["other"]
+    n_min = int(round(T_REST * fs))
+    for a, b in zip(edge[::2], edge[1::2]):
+        if b - a >= n_min:
+            lab[a:b] = sim.CODE["rest"]
+

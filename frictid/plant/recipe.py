@@ -13,6 +13,7 @@ cannot make the joint slide) unless an experiment sets ``relative: false``.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -452,30 +453,32 @@ T_PLATEAU = 0.1
 T_STILL = 0.01
 #: A joint is still when that average is below this fraction of ``limits.velocity``.
 R_STILL = 5e-3
-#: A still joint is loaded while its drive torque changes faster than ``R_LOAD`` of the drive torque's
-#: range (0.1 to 99.9 percentile) per ``T_LOAD`` (docs/segments.md: R_RAMP and T_MIN).
-R_LOAD = 0.05
+#: A still joint's torque is steady while the means of its drive torque over the ``T_LOAD`` / 2 before
+#: and after a sample differ by at most ``K_LOAD`` standard errors of that difference under the logged
+#: torque noise (docs/segments.md, "What the truth labels are": T_MIN and K_NOISE).
+K_LOAD = 5.0
 T_LOAD = 0.2
 #: A still, unloaded stretch within a move or an excitation is a rest when at least this long [s]
 #: (docs/segments.md: T_MIN, the shortest segment).
 T_REST = 0.2
+#: The longest rise of a torque jump [s] (docs/segments.md: T_JUMP): a jump alone does not end a rest.
+T_JUMP = 0.01
 
 
 def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray | None = None,
-                  cycle: np.ndarray | None = None) -> np.ndarray:
+                  cycle: np.ndarray | None = None, tau_noise: float = 0.0) -> np.ndarray:
     """Honest labels from the true velocity ``w``:
 
     - plateau samples become constant_velocity once the true velocity (``T_PLATEAU`` mean) has settled
       within 2 % (plus 0.1 % of the velocity limit) of the reference for the rest of the plateau;
     - leading samples of a closed-loop rest stay ``other`` until the joint has stopped (``T_STILL`` mean
       below ``R_STILL`` of the limit);
-    - with the drive torque ``u`` [F]: a rest lasts while the joint is still and not loaded (the torque's
-      rate, means over ``T_LOAD``/2 after minus before, below ``R_LOAD`` of its range per ``T_LOAD``):
-      such samples at the start of the move that follows a rest (a slow fade-in: the reference moves, the
-      joint and its torque not yet) and at the end of the move before it (the joint stopped before its
-      reference) are ``rest``; a rest into which the load of the move before goes on, on a still joint,
-      starts after it; still, unloaded stretches of at least ``T_REST`` within a move or an excitation
-      are ``rest`` (the joint stopped); a rest shorter than ``T_REST`` between two moves is ``other``;
+    - with the drive torque ``u`` [F] and the torque sensor's noise ``tau_noise`` [F] (with the drive
+      torque's own jitter, the logged torque's noise level), the closed-loop
+      rests and moves follow docs/segments.md's definition of a rest: ``rest`` where the joint is still
+      and its torque steady (:func:`_steady`: no change beyond ``K_LOAD`` standard errors between
+      means over ``T_LOAD``/2) for at least ``T_REST``, ``other`` elsewhere (the still start of a move
+      before its torque changes is rest, a wound-up start or a settling torque after a stop is not);
     - with the cycle indices ``cycle`` (changed in place): a duty cycle starts where its motion starts
       (the joint breaks away a little after its program starts) and lasts one period."""
     label = label.copy()
@@ -505,15 +508,69 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray |
     if u is None:
         return label
     u = np.asarray(u, dtype=float)
-    # torque rate: mean over the T_LOAD/2 after each sample minus the mean over the T_LOAD/2 before it
-    # (the drive torque carries the controller's reaction to sensor noise: rates of single samples
-    # would be noise)
+    # the logged torque's white-noise level along the log: the sensor's and the drive torque's own
+    # jitter (the controller's reaction to sensor noise), as frictid measures it on the log
+    noise = np.hypot(tau_noise, _local_jitter(u, int(round(T_REST * pr.fs))))
+    np.maximum(noise, 1e-9 * float(np.subtract(*np.percentile(u, [99.9, 0.1]))), out=noise)
+    closed = np.repeat([p[1] != MODE_TORQUE for p in pr.pieces], [p[0] for p in pr.pieces])
     k = max(1, int(round(0.5 * T_LOAD * pr.fs)))
+    calm = ~moving & _steady(u, k, K_LOAD * noise, max(1, int(round(T_JUMP * pr.fs))))
+    return _rests_by_definition(label, closed, calm, int(round(T_REST * pr.fs)))
+
+
+def _local_jitter(u: np.ndarray, block: int) -> np.ndarray:
+    """Per-sample white-noise level of ``u`` [F]: median |fourth difference| / 0.6745 / sqrt(70) in
+    blocks of ``block`` samples, the larger of a block's and its neighbours' (docs/segments.md, local
+    sigma_tau)."""
+    n, block = u.size, max(8, block)
+    if n < 2 * block:
+        return np.full(n, float(np.median(np.abs(np.diff(u, 4)))) / 0.6745 / math.sqrt(70.0) if n > 8 else 0.0)
+    d = np.abs(np.diff(u, 4))
+    nb = d.size // block
+    sig = np.median(d[:nb * block].reshape(nb, block), axis=1) / 0.6745 / math.sqrt(70.0)
+    p = np.concatenate(([sig[0]], sig, [sig[-1]]))
+    sig = np.maximum(np.maximum(p[:-2], p[1:-1]), p[2:])
+    return sig[np.minimum(np.arange(n) // block, nb - 1)]
+
+
+def _close_gaps(mask: np.ndarray, n: int) -> np.ndarray:
+    """``mask`` with its gaps shorter than ``n`` samples between two runs filled: one change through a
+    sign flip of its slope (a stop and its settling)."""
+    e = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
+    out = mask.copy()
+    for a, b in zip(e[1:-1:2], e[2::2]):
+        if b - a < n:
+            out[a:b] = True
+    return out
+
+
+def _steady(u: np.ndarray, k: int, k_noise: np.ndarray, jump: int) -> np.ndarray:
+    """Per sample: the drive torque ``u`` [F] is steady. It changes where its means over the k samples
+    before and after a sample differ by more than ``k_noise sqrt(2 / k)`` (``K_LOAD`` standard errors of
+    that difference under the logged noise: a change the log could show); each such stretch
+    is edged where the torque, averaged over k / 2 samples, leaves the level of the k samples before it
+    (and reaches that after it) by more than ``k_noise`` standard errors of the two means: a change
+    starts where it starts, not where the window first sees it (frictid's edges, docs/segments.md). A
+    change no longer than a torque jump (``jump`` samples, seen through the k / 2 means) does not end a
+    steady stretch, as in frictid: a controller switched on or off under a still joint."""
     c = np.concatenate(([0.0], np.cumsum(np.pad(u, (k, k), mode="edge"))))
     i = np.arange(u.size) + k
-    rate = ((c[i + k] - c[i]) - (c[i] - c[i - k])) / (k * k * pr.h)
-    loading = np.abs(rate) > R_LOAD * float(np.subtract(*np.percentile(u, [99.9, 0.1]))) / T_LOAD
-    return _still_moves_rest(label, moving, loading, int(round(T_REST * pr.fs)))
+    before, after = (c[i] - c[i - k]) / k, (c[i + k] - c[i]) / k
+    z = np.abs(after - before) / (k_noise * math.sqrt(2.0 / k))
+    changing = np.concatenate(([False], _close_gaps(z > 1.0, k), [False]))
+    us = _smooth(u, max(1, k // 2))  # the edges: means over k / 2 against the k-sample levels
+    thr = k_noise * math.sqrt(1.0 / k + 2.0 / k)  # per sample
+    edge = np.flatnonzero(changing[1:] != changing[:-1])
+    steady = np.ones(u.size, dtype=bool)
+    for a, b in zip(edge[::2], edge[1::2]):
+        off = np.flatnonzero(np.abs(us[a:b] - before[a]) > thr[a])
+        if off.size:
+            a0 = a + int(off[0])
+            off = np.flatnonzero(np.abs(us[a0:b] - after[b - 1]) > thr[a])
+            e = a0 + (int(off[-1]) + 1 if off.size else 0)
+            if e - a0 > k // 2 + jump:  # a torque jump alone (its edges smeared by the k / 2 means) is no change
+                steady[a0:e] = False
+    return steady
 
 
 def _cycles_from_onsets(label: np.ndarray, cycle: np.ndarray, moving: np.ndarray) -> None:
@@ -543,47 +600,18 @@ def _cycles_from_onsets(label: np.ndarray, cycle: np.ndarray, moving: np.ndarray
             cycle[new[k]:new[k + 1]] = ids[k]
 
 
-def _still_moves_rest(label: np.ndarray, moving: np.ndarray, loading: np.ndarray, n_min: int) -> np.ndarray:
-    """Extend every ``rest`` run over the samples of adjacent ``other`` runs until the joint moves or is
-    loaded, or start it after the load of the move before it when that load (longer than ``n_min``: not a
-    jump) goes on into it on a still joint; and stretches of ``other`` of at least ``n_min`` samples where
-    the joint is still and not loaded (a stop within an excitation) are ``rest`` too."""
-    change = np.flatnonzero(label[1:] != label[:-1]) + 1
-    starts = np.concatenate(([0], change))
-    ends = np.concatenate((change, [label.size]))
-    kinds = label[starts]
-    busy = moving | loading
-    calm_at = np.flatnonzero(~loading)
-    for k in range(len(kinds)):
-        if kinds[k] != L["rest"]:
-            continue
-        a = int(starts[k])
-        if k > 0 and kinds[k - 1] == L["other"] and loading[a] and not moving[a]:
-            # the load of the move before goes on into the rest while the joint stands still (a
-            # controller unloading a creeping joint after a slow excitation): the rest starts after it
-            j = int(np.searchsorted(calm_at, a))
-            ls = int(calm_at[j - 1]) + 1 if j > 0 else 0
-            le = int(calm_at[j]) if j < calm_at.size else label.size
-            if le - ls > n_min and not moving[ls:le].any():
-                label[a:min(le, int(ends[k]))] = L["other"]
-                continue
-        if k + 1 < len(kinds) and kinds[k + 1] == L["other"]:
-            a, b = int(ends[k]), int(ends[k + 1])
-            mv = np.flatnonzero(busy[a:b])
-            label[a:a + (int(mv[0]) if mv.size else b - a)] = L["rest"]
-        if k > 0 and kinds[k - 1] == L["other"]:
-            a, b = int(starts[k - 1]), int(starts[k])
-            mv = np.flatnonzero(busy[a:b])
-            label[a + (int(mv[-1]) + 1 if mv.size else 0):b] = L["rest"]
-    calm = np.concatenate(([False], (label == L["other"]) & ~busy, [False]))
-    edge = np.flatnonzero(calm[1:] != calm[:-1])
+def _rests_by_definition(label: np.ndarray, closed: np.ndarray, calm: np.ndarray, n_min: int) -> np.ndarray:
+    """docs/segments.md's definition of a rest on the closed-loop ``rest`` and ``other`` samples (holds,
+    moves, excitations): ``rest`` where the joint is still and its torque steady (``calm``) for at least
+    ``n_min`` samples, ``other`` elsewhere. A move starts where its torque starts to change or the joint
+    to move, a hold after it where the torque has settled; a stop of ``n_min`` within a move is a rest.
+    Open-loop rests (a ramp's hold, a settle before steps: a constant input torque) stay as written."""
+    cand = closed & ((label == L["rest"]) | (label == L["other"]))
+    ok = np.concatenate(([False], cand & calm, [False]))
+    edge = np.flatnonzero(ok[1:] != ok[:-1])
+    label[cand] = L["other"]
     for a, b in zip(edge[::2], edge[1::2]):
         if b - a >= n_min:
             label[a:b] = L["rest"]
-    # a stop shorter than n_min (a reversal, a brief dwell) is part of the motion around it
-    rest = np.concatenate(([False], label == L["rest"], [False]))
-    edge = np.flatnonzero(rest[1:] != rest[:-1])
-    for a, b in zip(edge[::2], edge[1::2]):
-        if b - a < n_min and 0 < a and b < label.size and label[a - 1] == label[b] == L["other"]:
-            label[a:b] = L["other"]
     return label
+

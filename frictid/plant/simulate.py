@@ -141,7 +141,7 @@ def simulate_joint_program(plant: Plant, joint: Joint, recipe, seed_seq, scale=1
     q, w, z, F, T, u, qm, qdm = fn(**args)
     del args  # the kernel inputs (noise, multipliers, modes) are not needed any more: lower the peak
     q_log, qd_log, tau_log = logged_signals(qm, qdm, u, ntau, plant.sensors, ce.torque_offset)
-    labels = refine_labels(prog["label"], w, pr, u, prog["cycle"])
+    labels = refine_labels(prog["label"], w, pr, u, prog["cycle"], plant.sensors.tau_noise)
     channels = {"q_ref": prog["q_ref"], "qd_ref": prog["qd_ref"], "tau_ref": prog["tau_ff"]}
     uses_temp = joint.thermal.law != "none" or recipe.temp_env is not None or any(
         getattr(e, "temp_env", None) is not None or e.kind in ("duty_cycle", "validation_ptp")

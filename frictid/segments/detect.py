@@ -71,9 +71,6 @@ R_PAUSE = 10.0
 R_MIRROR = 0.005
 #: Relative velocity tolerance of a constant-velocity plateau.
 R_STEADY = 0.02
-#: A still joint whose torque changes by more than this fraction of the log's torque range within
-#: T_MIN is being loaded, not resting.
-R_RAMP = 0.05
 #: A ramp changes the torque by at least this many standard errors of its fitted change (and by
 #: two noise levels).
 K_RAMP = 10.0
@@ -651,56 +648,65 @@ def _fine_width(f: Features) -> int:
 
 
 def _loading(f: Features, jumps: np.ndarray, hj: int) -> np.ndarray:
-    """Where a controller is loading a still joint towards break-away (per sample): the torque changes by
-    more than ``R_RAMP`` of its range within ``T_MIN``, found at the feature scale and edged at a finer one
-    (hysteresis) ... unless the joint does not move right after it and it is a controller relaxing after a
-    stop (it starts right after motion, within ``h``) or a torque jump (one of ``jumps``, seen through the
-    slope window: its core above the full threshold no longer than ``2 h + hj``)."""
+    """Where the torque on a still joint is not steady (per sample): a controller winding up before a
+    move, a transient settling after one. A torque jump (one of ``jumps``, seen through the slope window:
+    its core above the threshold no longer than ``2 h + hj``) after which the joint does not move is not
+    a loading: a jump alone does not end a rest."""
     n, hf = f.t.size, _fine_width(f)
     core, loading = _torque_changing(f, hf)
     ls, le = runs(loading)
     core_c = count_prefix(core)
     moving_c = count_prefix(~f.quiet_fine)
     moves_after = moving_c[np.minimum(le + hf, n)] - moving_c[np.minimum(le, n)] > 0
-    moved_before = moving_c[ls] - moving_c[np.maximum(ls - f.h, 0)] > 0
     all_jumps = np.sort(jumps)
     has_jump = np.searchsorted(all_jumps, le) > np.searchsorted(all_jumps, ls)
-    relax = (moved_before | (has_jump & (core_c[le] - core_c[ls] <= 2 * f.h + hj))) & ~moves_after
+    relax = has_jump & (core_c[le] - core_c[ls] <= 2 * f.h + hj) & ~moves_after
     if relax.any():
         paint(loading, ls[relax], le[relax], False)
     return loading
 
 
 def _torque_changing(f: Features, hf: int) -> tuple[np.ndarray, np.ndarray]:
-    """Two masks: where the torque slope at the feature scale clearly exceeds both its noise
-    (``K_NOISE`` levels) and the loading rate (``R_RAMP`` of the torque range per ``T_MIN``); and the runs
-    of a slope at the fine scale ``hf`` above two noise levels and half that rate which hold such a
-    sample."""
-    n, sc = f.t.size, f.sc
-    sf = _slope(f, hf)
-    rate = R_RAMP * sc.tau_range / T_MIN
-    core, fast = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+    """Two masks: ``core``, where the torque slope at the feature scale exceeds ``K_NOISE`` standard
+    errors under the local torque noise (the torque is not steady, whatever the log's torque range); and
+    each run of it edged where the torque itself changes: from the first sample whose mean over ``2 hf``
+    samples leaves the mean of the ``h`` samples before the run, to the last one that differs from the
+    mean of the ``h`` after it, by ``K_NOISE`` standard errors of the two means (the feature window sees
+    a change ``h`` samples early; a slow trend is changing all along). Runs less than ``h`` apart are one
+    change (the slope passes through zero where a move's torque turns, e.g. a stop and its settling)."""
+    n, sc, h = f.t.size, f.sc, f.h
+    core = np.empty(n, dtype=bool)
     for c in chunks(n):  # chunk by chunk: no full-length thresholds or |slopes|
-        thr = f.sigma_tau_loc[c] * math.sqrt(2.0 / f.h)  # K_NOISE sig_s, the noise of f.s, or the rate
-        thr /= f.h * sc.dt
+        thr = f.sigma_tau_loc[c] * math.sqrt(2.0 / h)  # K_NOISE sig_s, the noise of f.s
+        thr /= h * sc.dt
         thr *= K_NOISE
-        np.greater(np.abs(f.s[c]), np.maximum(thr, rate, out=thr), out=core[c])
-        thr = f.sigma_tau_loc[c] * math.sqrt(2.0 / hf)  # 2 sig_sf, the noise of sf, or half the rate
-        thr /= hf * sc.dt
-        thr *= 2.0
-        np.greater(np.abs(sf[c]), np.maximum(thr, 0.5 * rate, out=thr), out=fast[c])
-    del sf
-    return core, grow(core, fast)
+        np.greater(np.abs(f.s[c]), thr, out=core[c])
+    changing = np.zeros(n, dtype=bool)
+    cs, ce = runs(fill_short(core, h, False))  # one change through a sign flip of its slope
+    tc = f.tau_c if f.tau_c is not None else prefix_sum(f.tau)
+    for a, b in zip(cs.tolist(), ce.tolist()):
+        before = (tc[a] - tc[max(a - h, 0)]) / max(a - max(a - h, 0), 1)
+        after = (tc[min(b + h, n)] - tc[b]) / max(min(b + h, n) - b, 1)
+        i = np.arange(a, b)
+        lo, hi = np.maximum(i - hf, 0), np.minimum(i + hf, n)
+        m = (tc[hi] - tc[lo]) / (hi - lo)
+        thr = K_NOISE * float(f.sigma_tau_loc[a]) * math.sqrt(1.0 / h + 0.5 / hf)
+        off = np.flatnonzero(np.abs(m - before) > thr)
+        if off.size:
+            a0 = int(off[0])
+            off = np.flatnonzero(np.abs(m[a0:] - after) > thr)
+            changing[a + a0:a + a0 + (int(off[-1]) + 1 if off.size else 0)] = True
+    return core, changing
 
 
 def _rest(f: Features, code: np.ndarray, loading: np.ndarray, n_min: int) -> np.ndarray:
     """Where the joint rests (per sample), among the unclassified samples: still runs at the fine scale
-    that hold a still sample at the coarse scale, outside a ``loading``, of at least ``n_min`` samples. A
-    torque jump alone, or a jolt shorter than two fine windows (the joint kicked by a torque jump), does
-    not end a rest."""
+    that hold a still sample at the coarse scale, outside every torque change (``loading``: the edged
+    changes themselves, no speck removed), of at least ``n_min`` samples. A torque jump alone, or a jolt
+    shorter than two fine windows (the joint kicked by a torque jump), does not end a rest."""
     hf = _fine_width(f)
     free = code < 0
-    calm = fill_short(~loading, 2 * hf + 2, False)
+    calm = ~loading
     rest = grow(f.quiet & calm & free, f.quiet_fine & calm & free)
     rest = fill_short(rest, 2 * hf, False) & free
     return drop_short(rest, n_min)
