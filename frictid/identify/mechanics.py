@@ -170,8 +170,6 @@ def reg_estimate(name: str, fit_: rg.LinearFit | None, jd: JointData, why_none: 
         se, reason = _inertia_checked(v, se, fit_.bandwidth)
         if not reason:
             se, reason = _inertia_split_checked(v, se, fit_.speed_split)
-        if not reason:
-            se, reason = _inertia_resolved(v, se, fit_.resolution)
     if not reason:
         reason = _precision_reason(name, dim, v, se, jd)
     if name == "J" and v <= 0 and not reason:
@@ -192,31 +190,6 @@ def _precision_reason(name: str, dim: str, v: float, se: float | None, jd: Joint
     if name == "J" or impact is None or impact > NEGLIGIBLE * jd.F0:
         return f"relative error {100 * se / abs(v):.0f} % (above 100 %)" if v else "relative error above 100 %"
     return ""
-
-
-#: The high band of the acceleration is conclusive beyond this many noise levels of the second difference;
-#: a share of the acceleration's RMS above RESOLUTION_MATERIAL in it makes J not identifiable.
-RESOLUTION_Z = 3.0
-RESOLUTION_MATERIAL = 0.10
-
-
-def _inertia_resolved(v: float, se: float | None, res: dict | None) -> tuple[float | None, str]:
-    """The inertia's standard error with the resolution check (:func:`_resolution_check`) and the reason it
-    is not identifiable ("" when it is). The share of the acceleration the derivative filter does not pass
-    (where the data show one) is a relative error of J: the torque samples carry ``J`` times that part,
-    the regression's acceleration does not. Above :data:`RESOLUTION_MATERIAL`: not identifiable; below,
-    it enters the standard error as a systematic term."""
-    if res is None or se is None or not np.isfinite(se) or res["ratio"] <= RESOLUTION_Z:
-        return se, ""
-    sys_ = res["share"] * abs(v)
-    if res["share"] > RESOLUTION_MATERIAL:
-        return math.hypot(se, sys_), (
-            f"{100 * res['share']:.0f} % of the joint's acceleration (RMS over the moving samples) changes "
-            "faster than the log's derivative filter passes (the second difference of the position, "
-            f"{res['ratio']:.0f} times its noise level beyond that filter): the motion is not resolved at "
-            "the log rate (a control loop faster than the log), and the torque samples are not the torque "
-            "of the acceleration the regression sees")
-    return math.hypot(se, sys_), ""
 
 
 #: The inertia's change between the two bandwidths counts as significant beyond this many combined
@@ -366,46 +339,9 @@ def regress(preps: list[Prep], names, known_coef, min_speed, axis, friction=None
                                                    friction=friction))
     fit_ = rg.solve(total, names, rho=rho)
     fit_.cov = rg.robust_stderr(fit_.cov, rg.cluster_covariance(fit_, [ne for *_, ne in seg_ne]))
-    fit_.resolution = _resolution_check(preps, min_speed, excl)
     fit_.bandwidth = _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl, within)
     fit_.speed_split = _speed_split_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl, within)
     return fit_, seg_ne
-
-
-def _resolution_check(preps, min_speed, excl) -> dict | None:
-    """How much of the joint's acceleration the log does not resolve: on the regression's moving samples,
-    the finest acceleration the positions give (their second difference) against the one the regression
-    uses (the derivative filter's, ``Prep.a``). Their difference is the band above the filter's pass band
-    plus the second difference's noise (``sqrt(6) sigma_q / dt^2``, ``sigma_q`` the position's white-noise
-    level, at least the encoder's quantisation); its part beyond that noise, as a share of the
-    acceleration's RMS, is motion the regression does not see while the torque samples carry it (a loop
-    whose natural frequency is near or above the log's sample rate moves the joint within a sample period).
-    ``{"share", "ratio"}`` (ratio: the high band's RMS over its noise level); None without the logs'
-    scales or moving samples."""
-    hp2 = a2 = noise2 = 0.0
-    n = 0
-    for p in preps:
-        sc = p.scales
-        if sc is None or getattr(sc, "sigma_q", None) is None or p.log.n < 3:
-            return None
-        ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in excl] or [(0, p.log.n)]
-        q, dt = p.log.q, float(sc.dt)
-        for i0, i1 in ranges:
-            i0, i1 = max(i0, 1), min(i1, p.log.n - 1)
-            if i1 <= i0:
-                continue
-            d2 = (q[i0 + 1:i1 + 1] - 2.0 * q[i0:i1] + q[i0 - 1:i1 - 1]) / (dt * dt)
-            a, w = p.a[i0:i1], p.w[i0:i1]
-            m = np.isfinite(d2) & np.isfinite(a) & (np.abs(w) > min_speed)
-            k = int(m.sum())
-            hp2 += float(np.sum((d2[m] - a[m]) ** 2))
-            a2 += float(np.sum(a[m] ** 2))
-            noise2 += k * 6.0 * float(sc.sigma_q) ** 2 / dt**4
-            n += k
-    if n < 10 or a2 <= 0:
-        return None
-    ratio = math.sqrt(hp2 / noise2) if noise2 > 0 else math.inf
-    return {"share": math.sqrt(max(hp2 - noise2, 0.0) / a2), "ratio": ratio}
 
 
 #: The parallel filter of the bandwidth check spans this many acceleration windows.
@@ -519,8 +455,6 @@ def _stage2(jd: JointData, rb: RigidBody, fr: Friction) -> rg.LinearFit | None:
         reg2, _ = regress(jd.preps, mech, rb.regs.known_coef, v_low, jd.axis, friction=friction)
         how = ""
     if reg2 is not None:
-        # the log's resolution is read on every moving sample (the moves' starts and stops show it best)
-        reg2.resolution = rb.fit.resolution
         set_mechanics(jd, reg2, rb.regs, rb.why,
                       f"least squares with the plateau map {name2} as the friction{how}, |w| > {v_low:.3g}")
         fr.plat, fr.keys = plateaus(jd)

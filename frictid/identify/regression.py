@@ -127,9 +127,6 @@ class LinearFit:
     #: the inertia on the slower and the faster half of the moving samples: {"speed": split [q/s],
     #: "J_low", "se_low", "J_high", "se_high"}
     speed_split: dict | None = None
-    #: the acceleration the log does not resolve: {"share": of the acceleration's RMS, "ratio": the
-    #: second difference's high band against its noise level} (mechanics._resolution_check)
-    resolution: dict | None = None
 
     def value(self, name: str) -> float:
         return float(self.coef[self.names.index(name)])
