@@ -157,6 +157,7 @@ def _without_creep(out: Presliding, jd: JointData) -> None:
     is dropped; the kept ones' relative uncertainty enters sigma0's standard error (:func:`_creep_inflated`). ``out.creep`` records each."""
     keep = []
     k = 0
+    resolved = any(np.ptp(q) >= pre.MIN_COUNTS * max(out.resolution, 1e-300) for q, _ in out.ramps)
     for p in jd.preps:
         if p.log.q is None:
             continue
@@ -172,7 +173,9 @@ def _without_creep(out: Presliding, jd: JointData) -> None:
                 keep.append(True)
                 continue
             if abs(h["drift"]) < CREEP_COUNTS * res or np.sign(h["rate"]) != h["load_sign"]:
-                keep.append(_unseen_creep(h, q, t, res, out))
+                # ramps the encoder does not resolve (none spans presliding.MIN_COUNTS steps) are left
+                # to the encoder's rule, which says why sigma0 is not identifiable
+                keep.append(_unseen_creep(h, q, t, res, out) if resolved else True)
                 continue
             if not h["loading"]:  # unloading: the creep decays with the load, no constant rate to take out
                 out.creep.append(dict(h, ramp_creep=float(abs(h["rate"]) * (t[-1] - t[0])), ramp_bristle=0.0,
