@@ -3,12 +3,15 @@ held load is creep, not bristle deflection; it is taken out of the loading ramps
 identifiable with the reason, never a trusted value far off."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import frictid
 from fit_synth import truth_segments
 from frictid.identify import dynamics
+from frictid.identify.presliding import DynamicEstimate
 
 
 def _creeping_logs(v_cr: float, seed: int = 3):
@@ -54,3 +57,41 @@ def test_creep_taken_as_bristles_without_the_check(monkeypatch):
 def test_no_creep_leaves_the_ramps_alone():
     s0, true = _sigma0(_creeping_logs(0.0))
     assert s0.identifiable and s0.value == pytest.approx(true, rel=0.2)
+
+
+def _hold(rate_se, duration):
+    """A hold whose drift is below detection (as _hold_drift returns it)."""
+    return {"rate": 0.0, "rate_se": rate_se, "loading": True, "duration": duration, "drift": 0.0,
+            "load_sign": 1.0}
+
+
+def test_a_hold_too_short_to_rule_out_creep_drops_its_ramp():
+    """A 0.3 s hold seen by a 2e-5 rad encoder cannot show a creep below 3 steps / 0.3 s = 2e-4 rad/s; over
+    a 4 s ramp of 1e-3 rad (50 steps) half of that creep is 4e-4 rad: the ramp is dropped. A 3 s hold
+    (limit 2e-5 rad/s, 4e-5 rad: 4 % of the ramp) keeps it, with that error."""
+    t = np.linspace(0.0, 4.0, 401)
+    q = 1e-3 * t / 4.0
+    out = dynamics.Presliding()
+    assert not dynamics._unseen_creep(_hold(1e-6, 0.3), q, t, 2e-5, out)
+    assert dynamics._unseen_creep(_hold(1e-6, 3.0), q, t, 2e-5, out)
+    kept = out.creep[-1]
+    assert kept["kept"] and kept["correction_se"] == pytest.approx(0.5 * 2e-5 * 4.0)
+    s0 = dynamics._creep_inflated(DynamicEstimate(1e5, 1e3, True, "", "ramps", 1), out)
+    assert s0.stderr == pytest.approx(np.hypot(1e3, 1e5 * 0.04), rel=1e-6)
+
+
+def test_no_ramp_left_for_unseen_creep_says_why(monkeypatch):
+    """Every hold too short to rule creep out: sigma0 not identifiable, and the reason says so."""
+    monkeypatch.setattr(dynamics, "CREEP_COUNTS", 1e6)   # no hold can see anything: every limit is huge
+    s0, _ = _sigma0(_creeping_logs(0.0))
+    assert not s0.identifiable and "cannot rule out creep" in s0.reason
+
+
+def test_unresolved_ramps_keep_the_encoders_reason():
+    """The direct-drive sample's ramps span a few encoder steps: the encoder's rule, not the creep bound,
+    says why sigma0 is not identifiable."""
+    root = Path(__file__).resolve().parents[1] / "sample_logs"
+    res = frictid.fit([str(root / "direct_drive_presliding.parquet"), str(root / "direct_drive_sweep.parquet")],
+                      models="stribeck_asym,lugre", diagnose=False)
+    s0 = next(iter(res.joints.values())).models["lugre"].params["sigma0"]
+    assert not s0.identifiable and "encoder does not resolve" in s0.reason

@@ -157,6 +157,7 @@ def _without_creep(out: Presliding, jd: JointData) -> None:
     is dropped; the kept ones' relative uncertainty enters sigma0's standard error (:func:`_creep_inflated`). ``out.creep`` records each."""
     keep = []
     k = 0
+    resolved = any(np.ptp(q) >= pre.MIN_COUNTS * max(out.resolution, 1e-300) for q, _ in out.ramps)
     for p in jd.preps:
         if p.log.q is None:
             continue
@@ -167,10 +168,15 @@ def _without_creep(out: Presliding, jd: JointData) -> None:
             k += 1
             h = _hold_drift(p, s)
             res = max(out.resolution, 1e-300)
-            if h is None or abs(h["drift"]) < CREEP_COUNTS * res or np.sign(h["rate"]) != h["load_sign"]:
+            t = p.log.t[s.i0:s.i1]
+            if h is None:
                 keep.append(True)
                 continue
-            t = p.log.t[s.i0:s.i1]
+            if abs(h["drift"]) < CREEP_COUNTS * res or np.sign(h["rate"]) != h["load_sign"]:
+                # ramps the encoder does not resolve (none spans presliding.MIN_COUNTS steps) are left
+                # to the encoder's rule, which says why sigma0 is not identifiable
+                keep.append(_unseen_creep(h, q, t, res, out) if resolved else True)
+                continue
             if not h["loading"]:  # unloading: the creep decays with the load, no constant rate to take out
                 out.creep.append(dict(h, ramp_creep=float(abs(h["rate"]) * (t[-1] - t[0])), ramp_bristle=0.0,
                                       correction_se=math.inf))
@@ -191,6 +197,23 @@ def _without_creep(out: Presliding, jd: JointData) -> None:
     out.ramps = [r for r, kp in zip(out.ramps, keep) if kp]
     out.ramp_t = [r for r, kp in zip(out.ramp_t, keep) if kp]
     out.ramp_w = [r for r, kp in zip(out.ramp_w, keep) if kp]
+
+
+def _unseen_creep(h: dict, q: np.ndarray, t: np.ndarray, res: float, out: Presliding) -> bool:
+    """Whether a ramp whose hold shows no creep is kept. The hold rules creep out only down to its
+    detection limit (CREEP_Z standard errors of the rate, or CREEP_COUNTS encoder steps over the hold): a
+    creep below it, running through the ramp, is displacement the bristles did not make. Its uncertainty
+    (CREEP_PROFILE of that limit over the ramp's duration: it may run at any rate up to the limit) is
+    recorded like a creep correction's; above CREEP_SHARE of the ramp's displacement the ramp is dropped
+    (a short or coarse hold cannot tell a creeping joint from a still one), below it enters sigma0's
+    error (:func:`_creep_inflated`)."""
+    limit = max(h["rate_se"], CREEP_COUNTS * res / max(h["duration"], 1e-300))
+    unseen = CREEP_PROFILE * limit * float(t[-1] - t[0])
+    h.update(rate=0.0, unseen_limit=float(limit), ramp_creep=0.0, ramp_bristle=float(np.ptp(q)),
+             correction_se=float(unseen))
+    h["kept"] = bool(np.isfinite(unseen) and unseen <= CREEP_SHARE * h["ramp_bristle"])
+    out.creep.append(h)
+    return h["kept"]
 
 
 def _creep_inflated(s0: pre.DynamicEstimate, pd: Presliding) -> pre.DynamicEstimate:
@@ -223,7 +246,14 @@ def fit_lugre(jd: JointData, selected: str | None) -> None:
     pd = presliding_data(jd)
     g_of = [abs(level(1e-12 if np.mean(F) >= 0 else -1e-12)) for _, F in pd.ramps]
     s0 = pre.fit_sigma0(pd.ramps, g_of, pd.resolution)
-    if not pd.ramps and pd.creep:
+    if not pd.ramps and pd.creep and all("unseen_limit" in h for h in pd.creep):
+        c = min(pd.creep, key=lambda h: h["unseen_limit"])
+        s0 = pre.DynamicEstimate(None, None, False, (
+            f"the holds at the ramps' loads cannot rule out creep: a drift below {c['unseen_limit']:.3g} per s "
+            f"(their detection limit, from their length and the encoder step) would move a ramp by "
+            f"{2 * c['correction_se']:.3g}, more than {100 * CREEP_SHARE:.0f} % of its displacement "
+            f"({c['ramp_bristle']:.3g})"), "ramps", len(pd.creep))
+    elif not pd.ramps and pd.creep:
         c = max(pd.creep, key=lambda h: abs(h["rate"]))
         s0 = pre.DynamicEstimate(None, None, False, (
             f"the joint creeps under load: it drifts at {abs(c['rate']):.3g} per s while the load is held "
