@@ -117,6 +117,46 @@ def score(setting: str, res, seed: int) -> list[dict]:
     return rows
 
 
+def ablation(setting: str, res, seed: int) -> list[dict]:
+    """Which part of an identified LuGre model limits its feed-forward: the reduction with the model, and
+    with one part replaced by the plant's own (its static map, sigma0, sigma1)."""
+    plant_name, rec = SETTINGS[setting][:2]
+    plant = plant_of(plant_name)
+    pl = load_plant(copy.deepcopy(plant))
+    rows = []
+    for j, jf in res.joints.items():
+        if "lugre" not in jf.models or not jf.models["lugre"].identifiable:
+            continue
+        fit, true = jf.friction_model("lugre"), plant_friction_model(pl, pl.joint(j))
+        variants = {"identified": fit}
+        for part in ("map", "sigma0", "sigma1"):
+            m = copy.deepcopy(fit)
+            if part == "map":
+                m.map, m.c_pos, m.c_neg = true.map, true.c_pos, true.c_neg
+            else:
+                setattr(m, part, getattr(true, part))
+            variants[part] = m
+        row = dict(plant=plant_name, recipe=rec, seed=seed, joint=j, sigma0=fit.sigma0[0], sigma1=fit.sigma1[0],
+                   true=(true.sigma0, true.sigma1), red={})
+        for name, m in variants.items():
+            by = compensation_runs({j: m}, str(RECIPES / f"{rec}.yaml"), copy.deepcopy(plant), seed=seed)[j]
+            row["red"][name] = by["none"].metrics.rms_error / by["model"].metrics.rms_error
+        rows.append(row)
+    return rows
+
+
+def print_ablation(rows: list[dict]) -> None:
+    print("which part limits the identified LuGre model (23-bit encoder what-if): its feed-forward's reduction, "
+          "and with one part replaced by the plant's own")
+    print(f"{'recipe':<13} {'seed':>6} {'joint':<5} {'sigma0':>8} {'sigma1':>7} {'plant s0 / s1 (+/-)':<24} "
+          f"{'identified':>10} {'map':>6} {'sigma0':>7} {'sigma1':>7}")
+    for r in rows:
+        (s0p, s0n), (s1p, s1n) = r["true"]
+        print(f"{r['recipe']:<13} {r['seed']:>6} {r['joint']:<5} {r['sigma0']:8.0f} {r['sigma1']:7.0f} "
+              f"{f'{s0p:.0f}/{s0n:.0f}, {s1p:.0f}/{s1n:.0f}':<24} {r['red']['identified']:9.1f}x "
+              f"{r['red']['map']:5.1f}x {r['red']['sigma0']:6.1f}x {r['red']['sigma1']:6.1f}x")
+
+
 def warm_score(seed: int, scale: float, warm_scale: float, recipe_scale: float = 1.0) -> list[dict]:
     """The warm-up case: identify with the diagnosis, then the error after the warm-up with the diagnosis'
     base model and with its thermal extension."""
@@ -184,13 +224,15 @@ def main(argv=None) -> int:
         settings = settings[:1]
     seeds = range(args.seed_base, args.seed_base + args.seeds)
     t0 = time.time()
-    rows, fits = [], {}
+    rows, fits, abl = [], {}, []
     for s in settings:
         for seed in seeds:
             pn = SETTINGS[s][0]
             if (pn, seed) not in fits:
                 fits[pn, seed] = identify(plant_of(pn), seed, args.scale)
             rows += score(s, fits[pn, seed], seed)
+            if SETTINGS[s][2] == "what-if":
+                abl += ablation(s, fits[pn, seed], seed)
     warm = [r for seed in seeds for r in warm_score(seed, args.scale, args.warm_scale, recipe_scale)]
     print(f"compensation scorecard: {len(rows)} joint runs and {len(warm)} warm-up runs, seeds {seeds[0]}..{seeds[-1]}, "
           f"identification scale {args.scale} (duty cycles {args.warm_scale}), {time.time() - t0:.0f} s")
@@ -205,6 +247,8 @@ def main(argv=None) -> int:
                  f"{len(obs)}" if obs else ""))
     print(f"(reduction >= 3x hydraulic, >= 8x direct drive and no stick episode with the model there; share of "
           f"the ideal reduction >= {SHARE:.0%})")
+    if abl:
+        print_ablation(abl)
     print_warm(warm)
     return 0
 
