@@ -3,23 +3,36 @@ simulation from the models frictid identifies.
 
     python benchmarks/compensation_scorecard.py [--seeds 3] [--seed-base 300000] [--scale 0.5]
 
-For each plant (hydraulic: 000; direct_drive: 003) and seed: simulate the identification experiments
-(constant-velocity sweep and presliding ramps, noise from the seed), fit them with ``frictid.fit``, and
-run ``recipes/tracking_slow.yaml`` in closed loop without compensation, with the fitted joint's selected
-model as feed-forward, with the LuGre friction observer of 000 on it (where sigma0 is identified), and
-with the plant's true friction (:mod:`frictid.compensate`). Printed per joint:
-the RMS tracking error of each run, the reduction (none / model), the ideal reduction (none / true), the
-share of the ideal reduction the model reaches ((none - model) / (none - true)), the share the plant's own
-friction reaches as a static map (column ``static``: the ceiling of a model without bristle dynamics),
-and stick episodes.
+For each plant and seed: simulate the identification experiments (constant-velocity sweep and presliding
+ramps, noise from the seed), fit them with ``frictid.fit`` as a user would, and run a
+tracking recipe in closed loop without compensation, with the fitted joint's selected model as
+feed-forward, with the LuGre friction observer of 000 on it (where sigma0 is identified), and with the
+plant's true friction (:mod:`frictid.compensate`). The settings:
+
+- ``hydraulic`` (000) on ``recipes/tracking_slow.yaml``;
+- ``direct_drive`` (003) on ``recipes/tracking_lv.yaml``, 003's LV test (cyclic tracking, joint speeds up
+  to half the limit, below 2 rad/s), and on ``tracking_slow`` (speeds of 0.3-10 % of the limit, slower
+  than anything 003 ran: reported against the same target);
+- ``direct_drive`` with a 23-bit encoder instead of 003's 2 pi/76800 (a what-if: 001 found presliding
+  not resolvable at 003's resolution; with it the fit identifies sigma0 and sigma1 and the observer runs);
+- ``geared_industrial`` (002's warm-up, the joint temperature not logged): identified from 002's duty
+  cycles (scaled by ``--warm-scale``) and a sweep with the diagnosis on, then ``recipes/tracking_warm.yaml``
+  (20 minutes of duty cycles from cold, then slow tracking): the tracking error after the warm-up with
+  the diagnosis' base (static) model and with the model the diagnosis extended by a thermal law.
+
+Printed per joint: the RMS tracking error of each run, the reduction (none / model), the ideal reduction
+(none / true), the share of the ideal reduction the model reaches ((none - model) / (none - true)), the
+share the plant's own friction reaches as a static map (column ``static``: the ceiling of a model
+without bristle dynamics), stick episodes, and the observer's reduction.
 
 Targets (issue 23): hydraulic error down >= 3x; direct drive >= 8x with stick-slip removed; the model
 >= 90 % of the true friction's reduction. Seeds >= 300000 (the tests use < 1000). With FRICTID_SMOKE=1:
-one plant, one seed, a short log.
+one seed, short identification logs, the hydraulic plant and the warm-up case with a short warm-up.
 """
 from __future__ import annotations
 
 import argparse
+import copy
 import os
 import sys
 import time
@@ -33,50 +46,169 @@ from frictid.compensate import compensation_runs, plant_friction_model  # noqa: 
 from frictid.plant.config import load_plant  # noqa: E402
 from frictid.plant import simulate_recipe  # noqa: E402
 
-PLANTS = {"hydraulic": {"reduction": 3.0, "stick_free": False}, "direct_drive": {"reduction": 8.0, "stick_free": True}}
+RECIPES = ROOT / "recipes"
+#: setting -> (plant, tracking recipe, what the setting is, target reduction, stick-free target)
+SETTINGS = {
+    "hydraulic": ("hydraulic", "tracking_slow", "000", 3.0, False),
+    "direct_drive/lv": ("direct_drive", "tracking_lv", "003 LV", 8.0, True),
+    "direct_drive/slow": ("direct_drive", "tracking_slow", "slower", 8.0, True),
+    "fine_encoder/lv": ("direct_drive@23bit", "tracking_lv", "what-if", 8.0, True),
+    "fine_encoder/slow": ("direct_drive@23bit", "tracking_slow", "what-if", 8.0, True),
+}
 IDENTIFY = ("constant_velocity_sweep", "ramp_presliding")
 SHARE = 0.9
+FINE_COUNTS = 2**23
+WARM = ("geared_industrial", "tracking_warm")
 
 
-def identify(plant: str, seed: int, scale: float):
+def plant_of(name: str):
+    """A plant file's path, or for ``NAME@23bit`` the plant as a dict with a 23-bit encoder."""
+    base, _, variant = name.partition("@")
+    path = str(RECIPES / "plants" / f"{base}.yaml")
+    if not variant:
+        return path
+    pl = load_plant(path).model_dump()
+    pl["sensors"]["encoder_counts"], pl["sensors"]["encoder_step"] = FINE_COUNTS, None
+    pl["name"] = f"{base}_23bit"
+    return pl
+
+
+def identify(plant, seed: int, scale: float, recipes=IDENTIFY, scales=None):
     logs = []
-    for i, r in enumerate(IDENTIFY):
-        logs += simulate_recipe(str(ROOT / "recipes" / f"{r}.yaml"), plant=str(ROOT / "recipes/plants" / f"{plant}.yaml"),
-                                seed=seed * 10 + i, duration_scale=scale)
+    for i, r in enumerate(recipes):
+        s = (scales or {}).get(r, scale)
+        logs += simulate_recipe(str(RECIPES / f"{r}.yaml"), plant=copy.deepcopy(plant), seed=seed * 10 + i,
+                                duration_scale=s)
     return frictid.fit(logs)
 
 
-def static_share(plant: str, joint: str, seed: int, recipe: str, plant_path: str) -> float:
+def static_share(plant, joint: str, seed: int, recipe: str) -> float:
     """The share of the ideal reduction the plant's own friction reaches as a *static* map (its bristle
     dynamics left out): the most a static model can give with this feed-forward."""
-    pl = load_plant(plant_path)
+    pl = load_plant(copy.deepcopy(plant))
     m = plant_friction_model(pl, pl.joint(joint))
     m.sigma0 = None
-    by = compensation_runs({joint: m}, recipe, plant_path, seed=seed)[joint]
+    by = compensation_runs({joint: m}, recipe, copy.deepcopy(plant), seed=seed)[joint]
     n, s, t = (by[k].metrics.rms_error for k in ("none", "model", "true"))
     return (n - s) / (n - t)
 
 
-def score(plant: str, seed: int, scale: float) -> list[dict]:
-    res = identify(plant, seed, scale)
+def score(setting: str, res, seed: int) -> list[dict]:
+    plant_name, rec, what, reduction, stick_free = SETTINGS[setting]
+    plant = plant_of(plant_name)
     models = {j: jf.model for j, jf in res.joints.items() if jf.selected}
-    recipe, plant_path = str(ROOT / "recipes" / "tracking_slow.yaml"), str(ROOT / "recipes/plants" / f"{plant}.yaml")
-    runs = compensation_runs(models, recipe, plant_path, seed=seed)
+    recipe = str(RECIPES / f"{rec}.yaml")
+    runs = compensation_runs(models, recipe, copy.deepcopy(plant), seed=seed)
     rows = []
     for j, by in runs.items():
         n, m, t = (by[k].metrics for k in ("none", "model", "true"))
-        target = PLANTS[plant]
-        row = dict(plant=plant, seed=seed, joint=j, model=models[j].name, none=n.rms_error, with_model=m.rms_error,
-                   true=t.rms_error, reduction=n.rms_error / m.rms_error, ideal=n.rms_error / t.rms_error,
+        row = dict(plant=plant_name, recipe=rec, what=what, seed=seed, joint=j,
+                   model=models[j].name, none=n.rms_error, with_model=m.rms_error, true=t.rms_error,
+                   reduction=n.rms_error / m.rms_error, ideal=n.rms_error / t.rms_error,
                    share=(n.rms_error - m.rms_error) / (n.rms_error - t.rms_error),
                    stick=(n.stick_slip_episodes, m.stick_slip_episodes, t.stick_slip_episodes),
-                   static=static_share(plant, j, seed, recipe, plant_path))
+                   static=static_share(plant, j, seed, recipe))
         o = by["observer"].metrics if "observer" in by else None
         row["observer"] = None if o is None else (n.rms_error / o.rms_error, o.stick_slip_episodes)
-        row["ok"] = (row["reduction"] >= target["reduction"] and row["share"] >= SHARE
-                     and (not target["stick_free"] or m.stick_slip_episodes == 0))
+        row["ok"] = (row["reduction"] >= reduction and row["share"] >= SHARE
+                     and (not stick_free or m.stick_slip_episodes == 0))
+        row["observer_ok"] = o is not None and row["observer"][0] >= reduction and (not stick_free or o.stick_slip_episodes == 0)
         rows.append(row)
     return rows
+
+
+def ablation(setting: str, res, seed: int) -> list[dict]:
+    """Which part of an identified LuGre model limits its feed-forward: the reduction with the model, and
+    with one part replaced by the plant's own (its static map, sigma0, sigma1)."""
+    plant_name, rec = SETTINGS[setting][:2]
+    plant = plant_of(plant_name)
+    pl = load_plant(copy.deepcopy(plant))
+    rows = []
+    for j, jf in res.joints.items():
+        if "lugre" not in jf.models or not jf.models["lugre"].identifiable:
+            continue
+        fit, true = jf.friction_model("lugre"), plant_friction_model(pl, pl.joint(j))
+        variants = {"identified": fit}
+        for part in ("map", "sigma0", "sigma1"):
+            m = copy.deepcopy(fit)
+            if part == "map":
+                m.map, m.c_pos, m.c_neg = true.map, true.c_pos, true.c_neg
+            else:
+                setattr(m, part, getattr(true, part))
+            variants[part] = m
+        row = dict(plant=plant_name, recipe=rec, seed=seed, joint=j, sigma0=fit.sigma0[0], sigma1=fit.sigma1[0],
+                   true=(true.sigma0, true.sigma1), red={})
+        for name, m in variants.items():
+            by = compensation_runs({j: m}, str(RECIPES / f"{rec}.yaml"), copy.deepcopy(plant), seed=seed)[j]
+            row["red"][name] = by["none"].metrics.rms_error / by["model"].metrics.rms_error
+        rows.append(row)
+    return rows
+
+
+def print_ablation(rows: list[dict]) -> None:
+    print("which part limits the identified LuGre model (23-bit encoder what-if): its feed-forward's reduction, "
+          "and with one part replaced by the plant's own")
+    print(f"{'recipe':<13} {'seed':>6} {'joint':<5} {'sigma0':>8} {'sigma1':>7} {'plant s0 / s1 (+/-)':<24} "
+          f"{'identified':>10} {'map':>6} {'sigma0':>7} {'sigma1':>7}")
+    for r in rows:
+        (s0p, s0n), (s1p, s1n) = r["true"]
+        print(f"{r['recipe']:<13} {r['seed']:>6} {r['joint']:<5} {r['sigma0']:8.0f} {r['sigma1']:7.0f} "
+              f"{f'{s0p:.0f}/{s0n:.0f}, {s1p:.0f}/{s1n:.0f}':<24} {r['red']['identified']:9.1f}x "
+              f"{r['red']['map']:5.1f}x {r['red']['sigma0']:6.1f}x {r['red']['sigma1']:6.1f}x")
+
+
+def warm_score(seed: int, scale: float, warm_scale: float, recipe_scale: float = 1.0) -> list[dict]:
+    """The warm-up case: identify with the diagnosis, then the error after the warm-up with the diagnosis'
+    base model and with its thermal extension."""
+    plant_name, rec = WARM
+    plant = plant_of(plant_name)
+    res = identify(plant, seed, scale, ("duty_cycle", "constant_velocity_sweep"), {"duty_cycle": warm_scale})
+    rows = []
+    for j, jf in res.joints.items():
+        d = jf.selection.get("diagnosis") or {}
+        thermal = jf.model if jf.selected and jf.model.thermal else None
+        base = jf.friction_model(d["base"]) if d.get("base") in jf.models else None
+        row = dict(seed=seed, joint=j, base=d.get("base"), selected=jf.selected,
+                   found=[f["extension"] for f in jf.diagnosis])
+        if thermal is None or base is None:
+            rows.append(row)
+            continue
+        recipe = str(RECIPES / f"{rec}.yaml")
+        by = {k: compensation_runs({j: m}, recipe, plant, seed=seed, duration_scale=recipe_scale)[j]
+              for k, m in (("static", base), ("thermal", thermal))}
+        after = {k: by["static"][k].metrics_from(1).rms_error for k in ("none", "true")}
+        after.update({k: by[k]["model"].metrics_from(1).rms_error for k in ("static", "thermal")})
+        T = by["static"]["none"]
+        row.update(after, rise=float(T.T[T.part >= 1].mean() - T.T[0]),
+                   stick={k: by[k]["model"].metrics_from(1).stick_slip_episodes for k in ("static", "thermal")})
+        rows.append(row)
+    return rows
+
+
+def print_rows(rows: list[dict]) -> None:
+    print(f"{'plant':<19} {'recipe':<13} {'setting':<8} {'seed':>6} {'joint':<5} {'model':<31} {'none':>9} "
+          f"{'model':>9} {'true':>9} {'reduct.':>7} {'ideal':>7} {'share':>6} {'static':>6}  "
+          f"stick none/model/true  target  observer (stick)")
+    for r in rows:
+        obs = "-" if r["observer"] is None else f"{r['observer'][0]:6.1f}x ({r['observer'][1]})"
+        print(f"{r['plant']:<19} {r['recipe']:<13} {r['what']:<8} {r['seed']:>6} {r['joint']:<5} {r['model']:<31} "
+              f"{r['none']:9.3g} {r['with_model']:9.3g} {r['true']:9.3g} {r['reduction']:6.1f}x {r['ideal']:6.1f}x "
+              f"{r['share']:6.2f} {r['static']:6.2f}  {'/'.join(map(str, r['stick'])):<20}  "
+              f"{'met' if r['ok'] else 'MISSED':<7} {obs}")
+
+
+def print_warm(rows: list[dict]) -> None:
+    print(f"warm-up ({WARM[0]}, {WARM[1]}): RMS tracking error after the warm-up (experiments 2-3 of the recipe)")
+    print(f"{'seed':>6} {'joint':<5} {'base':<14} {'selected':<22} {'rise K':>6} {'none':>9} {'static':>9} "
+          f"{'thermal':>9} {'true':>9} {'static/thermal':>14}  stick static/thermal")
+    for r in rows:
+        if "static" not in r:
+            print(f"{r['seed']:>6} {r['joint']:<5} {str(r['base']):<14} {str(r['selected']):<22}  no thermal "
+                  f"extension found (diagnosis: {r['found'] or 'nothing'})")
+            continue
+        print(f"{r['seed']:>6} {r['joint']:<5} {r['base']:<14} {r['selected']:<22} {r['rise']:6.1f} {r['none']:9.3g} "
+              f"{r['static']:9.3g} {r['thermal']:9.3g} {r['true']:9.3g} {r['static'] / r['thermal']:13.2f}x  "
+              f"{r['stick']['static']}/{r['stick']['thermal']}")
 
 
 def main(argv=None) -> int:
@@ -84,26 +216,40 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--seed-base", type=int, default=300000)
     ap.add_argument("--scale", type=float, default=0.5, help="duration scale of the identification recipes")
+    ap.add_argument("--warm-scale", type=float, default=0.25, help="duration scale of 002's duty cycles")
     args = ap.parse_args(argv)
-    plants = list(PLANTS)
+    settings, recipe_scale = list(SETTINGS), 1.0
     if os.environ.get("FRICTID_SMOKE"):
-        args.seeds, args.scale, plants = 1, 0.15, plants[:1]
+        args.seeds, args.scale, args.warm_scale, recipe_scale = 1, 0.15, 0.02, 0.05
+        settings = settings[:1]
+    seeds = range(args.seed_base, args.seed_base + args.seeds)
     t0 = time.time()
-    rows = [r for p in plants for s in range(args.seed_base, args.seed_base + args.seeds) for r in score(p, s, args.scale)]
-    print(f"compensation scorecard: {len(rows)} joint runs, seeds {args.seed_base}..{args.seed_base + args.seeds - 1}, "
-          f"identification scale {args.scale}, {time.time() - t0:.0f} s")
-    print(f"{'plant':<13} {'seed':>6} {'joint':<5} {'model':<20} {'none':>9} {'model':>9} {'true':>9} "
-          f"{'reduct.':>7} {'ideal':>7} {'share':>6} {'static':>6}  stick none/model/true  target   observer (stick)")
-    for r in rows:
-        obs = "-" if r["observer"] is None else f"{r['observer'][0]:6.1f}x ({r['observer'][1]})"
-        print(f"{r['plant']:<13} {r['seed']:>6} {r['joint']:<5} {r['model']:<20} {r['none']:9.3g} {r['with_model']:9.3g} "
-              f"{r['true']:9.3g} {r['reduction']:6.1f}x {r['ideal']:6.1f}x {r['share']:6.2f} {r['static']:6.2f}  "
-              f"{'/'.join(map(str, r['stick'])):<20}  {'met' if r['ok'] else 'MISSED':<7}  {obs}")
+    rows, fits, abl = [], {}, []
+    for s in settings:
+        for seed in seeds:
+            pn = SETTINGS[s][0]
+            if (pn, seed) not in fits:
+                fits[pn, seed] = identify(plant_of(pn), seed, args.scale)
+            rows += score(s, fits[pn, seed], seed)
+            if SETTINGS[s][2] == "what-if":
+                abl += ablation(s, fits[pn, seed], seed)
+    warm = [r for seed in seeds for r in warm_score(seed, args.scale, args.warm_scale, recipe_scale)]
+    print(f"compensation scorecard: {len(rows)} joint runs and {len(warm)} warm-up runs, seeds {seeds[0]}..{seeds[-1]}, "
+          f"identification scale {args.scale} (duty cycles {args.warm_scale}), {time.time() - t0:.0f} s")
+    print_rows(rows)
     print("observer: the LuGre friction observer (000 eq. 17) on the identified model, its reduction of the "
           "error without compensation; '-' where the model has no identified presliding stiffness")
-    met = sum(r["ok"] for r in rows)
-    print(f"targets met: {met} of {len(rows)} (reduction >= 3x hydraulic, >= 8x direct drive and no stick episode "
-          f"with the model there; share of the ideal reduction >= {SHARE:.0%})")
+    for what in dict.fromkeys(r["what"] for r in rows):
+        sub = [r for r in rows if r["what"] == what]
+        obs = [r for r in sub if r["observer"] is not None]
+        print(f"targets met ({what}): {sum(r['ok'] for r in sub)} of {len(sub)} with the model's feed-forward"
+              + (f"; the observer's reduction reaches the target in {sum(r['observer_ok'] for r in obs)} of "
+                 f"{len(obs)}" if obs else ""))
+    print(f"(reduction >= 3x hydraulic, >= 8x direct drive and no stick episode with the model there; share of "
+          f"the ideal reduction >= {SHARE:.0%})")
+    if abl:
+        print_ablation(abl)
+    print_warm(warm)
     return 0
 
 

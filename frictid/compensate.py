@@ -62,7 +62,8 @@ class RunMetrics:
 
 @dataclass
 class Run:
-    """One closed-loop run: the samples (T: the joint temperature [degC]) and their metrics."""
+    """One closed-loop run: the samples (T: the joint temperature [degC]; part: the index of the recipe's
+    experiment each sample belongs to) and their metrics."""
 
     name: str
     t: np.ndarray
@@ -73,6 +74,15 @@ class Run:
     ff: np.ndarray
     T: np.ndarray
     metrics: RunMetrics
+    part: np.ndarray
+    closed: np.ndarray
+    qd_ref: np.ndarray
+
+    def metrics_from(self, first_part: int) -> RunMetrics:
+        """The metrics over the recipe's experiments from ``first_part`` on (e.g. the tracking after a
+        warm-up experiment)."""
+        sel = self.closed & (self.part >= first_part)
+        return run_metrics(self.t, self.q_ref, self.qd_ref, self.q, self.w, sel)
 
 
 def stick_episodes(t, w, qd_ref, closed) -> tuple[int, float]:
@@ -155,7 +165,8 @@ def observer_of(m: FrictionModel, args) -> tuple | None:
 def _run(name, args, t, prog, ff, closed, observer=None) -> Run:
     a = dict(args, tau_ff=np.where(closed, prog["tau_ff"] + ff, prog["tau_ff"]))
     q, w, _, _, T, u, _, _ = simulate_joint(**a, observer=observer)
-    return Run(name, t, prog["q_ref"], q, w, u, ff, T, run_metrics(t, prog["q_ref"], prog["qd_ref"], q, w, closed))
+    return Run(name, t, prog["q_ref"], q, w, u, ff, T, run_metrics(t, prog["q_ref"], prog["qd_ref"], q, w, closed),
+               np.broadcast_to(prog["run"], t.shape), closed, prog["qd_ref"])
 
 
 def compensation_runs(models: dict[str, FrictionModel], recipe, plant=None, seed: int = 0,

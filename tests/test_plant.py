@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PLANTS = sorted(p.stem for p in (ROOT / "recipes" / "plants").glob("*.yaml"))
 RECIPES = sorted(p.stem for p in (ROOT / "recipes").glob("*.yaml"))
 # shrink every recipe to a few seconds of simulated time per experiment
-SCALE = {"duty_cycle": 0.01, "validation_ptp": 0.02, "multisine": 0.2}
+SCALE = {"duty_cycle": 0.01, "validation_ptp": 0.02, "multisine": 0.2, "tracking_warm": 0.02}
 
 
 def quiet(plant):
@@ -55,7 +55,8 @@ def test_every_recipe_runs_on_every_plant(recipe, plant):
     assert [lg.joint for lg in logs] == [j.name for j in pl.joints]
     want = {"constant_velocity_sweep": "constant_velocity", "ramp_presliding": "ramp_presliding",
             "torque_steps": "step", "duty_cycle": "duty_cycle", "validation_ptp": "duty_cycle",
-            "multisine": "other", "random_ptp": "other", "tracking_slow": "other"}[recipe]
+            "multisine": "other", "random_ptp": "other", "tracking_slow": "other", "tracking_lv": "other",
+            "tracking_warm": "duty_cycle"}[recipe]
     for lg in logs:
         seg, cyc = lg.truth["segment"], lg.truth["cycle"]
         assert seg.shape == (lg.n,) and cyc.shape == (lg.n,)
