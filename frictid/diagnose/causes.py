@@ -12,7 +12,7 @@ import numpy as np
 
 from .model import OUTSIDE_MODEL, Context, Evaluator, Structure, Term
 from .samples import Samples
-from .signals import rate_share, rest_scales
+from .signals import delay_estimate, delay_map, moving_samples, rest_scales
 
 #: The causes, in the order the issue names them (``presliding`` is judged on ramp and step segments).
 CAUSES = ("temperature", "position", "load", "asymmetry", "stribeck", "presliding", "inertia", "gravity",
@@ -104,9 +104,9 @@ def candidates(S: Samples, st: Structure, ctx: Context | None = None) -> list[st
         out.append("drift")
     if "dwell" not in have and S.q is not None and rest_scales(S) is not None:
         out.append("dwell")
-    if "delay" not in have and rate_share(S) >= INERTIA_EXCITATION_MIN:
+    if "delay" not in have and moving_samples(S) >= 20 * S.n_folds:
         out.append("delay")
-    if "position_torque" not in have and S.q is not None and np.ptp(S.q) > 0 and _torque_periods(S):
+    if "position_torque" not in have and S.q is not None and np.ptp(S.q) > 0:
         out.append("position_torque")
     return out
 
@@ -268,6 +268,10 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
         trials = [(t0, sc) for t0 in t0s for sc in scs]
         terms = [Term(cause, ext, role, (("t0", float(t0)), ("s_c", float(sc)))) for t0, sc in trials]
         return min(terms, key=lambda term: _fit_rms(ctx, st.plus(term), idx))
+    if ext == "delay":   # the shift estimated on the training folds' moving samples
+        folds = np.unique(S.fold[idx])
+        d = delay_estimate(S, folds)
+        return Term(cause, ext, role, (("shift", d), ("beta", delay_map(S, d, folds))))
     if ext == "position_smooth":
         q0 = float(0.5 * (S.q.max() + S.q.min()))
         qs = float(0.5 * np.ptp(S.q)) or 1.0
@@ -297,9 +301,12 @@ def _position_torque(ctx: Context, st: Structure, idx: np.ndarray, resid: np.nda
         P = best_period(S.q[idx], resid, np.ones(idx.size), _period_range(S))
         if P is not None:
             periods.append(float(P))
-    if not periods:
-        return None
     terms = [Term("position_torque", "position_torque", "additive", (("period", float(P)),)) for P in periods]
+    # a torque that varies smoothly over the travel (a spring, a cable carrier, a harmonic longer than the
+    # range): 1, (q - q0) and (q - q0)^2 over the half-range, period 0 (its mean over the travel is part of
+    # it: without the constant, a harmonic of a short travel was split into an offset and a shape)
+    q0, qs = float(0.5 * (S.q.max() + S.q.min())), float(0.5 * np.ptp(S.q)) or 1.0
+    terms.append(Term("position_torque", "position_torque", "additive", (("period", 0.0), ("q0", q0), ("qs", qs))))
     return min(terms, key=lambda term: _fit_rms(ctx, st.plus(term), idx))
 
 

@@ -31,7 +31,7 @@ from ..identify.regression import NormalEquations, solve
 from ..models import static as sm
 from . import moments as mo
 from .samples import Samples
-from .signals import dwell_state, torque_rate
+from .signals import delay_column, dwell_state
 
 #: Extensions the parameter file's friction models do not carry: causes the diagnosis names (a finding with
 #: its numbers, in ``selection.diagnosis.outside_model`` and the warnings) but never exports. Their terms
@@ -380,11 +380,14 @@ class Context:
             c = S.a[:, None]
         elif term.ext == "gravity":
             c = np.array([np.cos(S.q), np.sin(S.q)]).T
+        elif term.ext == "position_torque" and nl["period"] == 0:   # smooth over the travel
+            d = (S.q - nl["q0"]) / nl["qs"]
+            c = np.array([np.ones_like(d), d, d * d]).T
         elif term.ext == "position_torque":
             ph = 2 * np.pi * S.q / nl["period"]
             c = np.array([np.sin(ph), np.cos(ph)]).T
         elif term.ext == "delay":
-            c = torque_rate(S)[:, None]
+            c = delay_column(S, nl.get("shift", 0.0), nl.get("beta", ()))[:, None]
         elif term.ext == "dwell":
             c = dwell_state(S, nl["t0"], nl["s_c"])[:, None]
         else:
