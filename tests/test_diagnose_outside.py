@@ -163,7 +163,7 @@ def test_a_warm_up_sentence_states_the_whole_fall_across_logs_that_restart_cold(
 
 @pytest.mark.parametrize("seed", [61])
 def test_a_smooth_position_torque_on_a_slide_is_not_an_offset_or_asymmetry(seed):
-    """A spring-like torque over the slide's travel (a sine of period 3-5 times the travel: smooth, no
+    """A spring-like torque over the slide's travel (a sine of period 1.5-2.5 times the travel: smooth, no
     period to search): its mean over the travel is an offset and, sampled by moves of each direction, an
     asymmetry (the foreign card's seed 300026 named a gravity harmonic on a linear axis `asymmetry`). The
     smooth position torque explains all of it and must be named first. Competing explanations: offset,
@@ -171,8 +171,8 @@ def test_a_smooth_position_torque_on_a_slide_is_not_an_offset_or_asymmetry(seed)
     rng = np.random.default_rng(seed)
     pl = ds.null_plant("linear_slide")
     lo, hi = pl["joints"][0]["limits"]["position"]
-    eff = {"kind": "position_torque", "amplitude": float(rng.uniform(0.2, 0.3)) * ds.friction_scale(pl),
-           "period": float(rng.uniform(3, 5)) * (hi - lo), "phase": float(rng.uniform(0, 2 * math.pi))}
+    eff = {"kind": "position_torque", "amplitude": float(rng.uniform(0.3, 0.5)) * ds.friction_scale(pl),
+           "period": float(rng.uniform(1.5, 2.5)) * (hi - lo), "phase": float(rng.uniform(0, 2 * math.pi))}
     jf, _ = ds.outside_case("linear_slide", eff, seed)
     steps = jf.selection["diagnosis"]["steps"]
     assert steps and steps[0]["chosen"] == "position_torque", (eff, steps)

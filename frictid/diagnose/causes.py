@@ -28,6 +28,7 @@ EXTENSIONS = {
     "load_gravity": ("load", "level_factor", 1),
     "load_payload": ("load", "level_factor", 1),
     "asym_scale": ("asymmetry", "whole_factor", 1),  # the whole w < 0 branch times (1 + gamma)
+    "asym_level": ("asymmetry", "level_factor", 1),  # the w < 0 level (Coulomb, Stribeck) times (1 + gamma)
     "asym": ("asymmetry", "asym", None),  # as many as the base map's amplitudes
     "stribeck": ("stribeck", "stribeck", 1),
     "inertia": ("inertia", "additive", 1),
@@ -91,7 +92,7 @@ def candidates(S: Samples, st: Structure, ctx: Context | None = None) -> list[st
         if S.payload is not None and np.std(S.payload) > 0:
             out.append("load_payload")
     if "asymmetry" not in have and (S.w > 0).any() and (S.w < 0).any():
-        out += ["asym_scale", "asym"]
+        out += ["asym_scale", "asym_level", "asym"]
     if "stribeck" not in have and 1 not in st.slots():
         out.append("stribeck")
     if "inertia" not in have and np.std(S.a) > 0 and acceleration_share(S) >= INERTIA_EXCITATION_MIN:

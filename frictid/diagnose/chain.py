@@ -30,7 +30,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.special import stdtr
+from scipy.special import bdtrc, stdtr
 
 from .causes import EXTENSIONS, candidates, n_coef, propose
 from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure, Term
@@ -91,6 +91,17 @@ def paired_t(d: np.ndarray) -> tuple[float, float]:
         return (math.inf, 0.0) if d.mean() > 0 else (0.0, 1.0)
     t = float(d.mean() / (sd / math.sqrt(G)))
     return t, float(stdtr(G - 1, -t))  # the survival function of Student's t (scipy.stats.t.sf's own)
+
+
+def beats(d: np.ndarray) -> bool:
+    """Whether per-group differences ``d`` (positive where the second model predicts better) say it is
+    better: the one-sided paired t, or the sign test over the groups that differ (robust to the heavy tails
+    of a few long groups), at level :data:`ALPHA`."""
+    if paired_t(d)[1] < ALPHA:
+        return True
+    d = d[np.isfinite(d) & (d != 0)]
+    k = int(np.count_nonzero(d > 0))
+    return bool(d.size >= 3 and k > 0 and bdtrc(k - 1, d.size, 0.5) < ALPHA)
 
 
 class Chain:
@@ -188,9 +199,23 @@ class Chain:
             _, p = paired_t(group_d(self.S, self.S.F - t.pred_after, self.S.F - best.pred_after))
             if p >= ALPHA / max(m, 1):
                 best.rivals.append((t.cause, t.ext, t.rms_after))
-            if p >= ALPHA and t.cause not in best.unresolved:   # the best competing explanation is not beaten
+            # a competing explanation (no more coefficients) that the best neither beats nor adds to
+            if (t.k <= best.k and t.cause not in best.unresolved
+                    and not beats(group_d(self.S, self.S.F - t.pred_after, self.S.F - best.pred_after))
+                    and not self.adds(best, t)):
                 best.unresolved.append(t.cause)
         return best
+
+    def adds(self, best: Trial, rival: Trial) -> bool:
+        """Whether ``best`` adds to ``rival`` on held-out data: the model with both terms (each fold's own)
+        predicts significantly better than with the rival's alone (one-sided paired t, p < ALPHA)."""
+        S = self.S
+        both = np.empty(S.n)
+        for f, (tr, te, _, _, _) in enumerate(self.train_info):
+            ev = Evaluator(self.st.plus(rival.fold_terms[f]).plus(best.fold_terms[f]), self.ctx)
+            both[te] = ev.predict(ev.fit(tr), te)
+        self.ctx.release(self.st)
+        return beats(group_d(S, S.F - rival.pred_after, S.F - both))
 
     # -- the loop --------------------------------------------------------------------------------------
     def run(self, max_steps: int = MAX_STEPS) -> list[dict]:

@@ -73,7 +73,7 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
         per = float(g[0]) / nl["scale"]
         return (f"friction level grows {100 * per * nl['scale']:+.1f} % per {fmt(nl['scale'])} {unit} of "
                 f"{var} (r = {r:.2f}); a load-dependent level: {tail}")
-    if ext in ("asym", "asym_scale"):
+    if ext in ("asym", "asym_scale", "asym_level"):
         v = np.abs(S.w)
         cp, cn = canonical_vectors(st, coef)
         Fp = np.abs(canonical_friction(v, cp, cp))
@@ -81,7 +81,7 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
         ratio = float(np.mean(Fn) / np.mean(Fp)) if np.mean(Fp) > 0 else float("nan")
         return (f"friction for w < 0 is {100 * abs(ratio - 1):.1f} % {'above' if ratio > 1 else 'below'} "
                 f"that for w > 0 at the same speeds (r = {r:.2f}); "
-                f"{'per-sign parameters' if ext == 'asym' else 'the w < 0 branch scaled'}: {tail}")
+                f"{ {'asym': 'per-sign parameters', 'asym_scale': 'the w < 0 branch scaled'}.get(ext, 'the w < 0 level scaled')}: {tail}")
     if ext == "stribeck":
         return (f"the residual concentrates at low speed, below about {fmt(3 * nl['vs'])} {q_u}/s "
                 f"(r = {r:.2f}); a Stribeck term with vs = {fmt(nl['vs'])} {q_u}/s: {tail}")
