@@ -183,10 +183,9 @@ def test_a_smooth_position_torque_on_a_slide_is_not_an_offset_or_asymmetry(seed)
 
 def test_a_cause_that_does_not_beat_a_competing_explanation_is_not_named():
     """The foreign card's seed 300017 (drift + a Coulomb-level asymmetry on a map the fit took for Coulomb +
-    viscous): an offset and the asymmetry are the same sliding data, and the offset was named first. A
-    cause is named only when it beats every competing explanation of another cause on the same held-out
-    residual: two candidates with one prediction leave the step ambiguous; one significantly worse does
-    not."""
+    viscous): an offset and the asymmetry are the same sliding data, and the offset was named first. Two
+    candidates of different causes that make the same held-out correction leave the step ambiguous; a
+    competitor that corrects differently (here, half as much) does not."""
     from dataclasses import replace
 
     from frictid.diagnose.chain import Chain

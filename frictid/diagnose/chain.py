@@ -20,7 +20,8 @@ Choice among the worthy candidates (:func:`choose`): the lowest held-out RMS, ex
 with fewer coefficients wins when the best is not significantly better than it (the same paired test
 between the two). This keeps a torque offset from being named an asymmetry (per-sign amplitudes can
 absorb an offset, with more coefficients). A cause is *named* only when it beats every competing
-explanation of another cause on the same held-out residual (one-sided paired t, p < ``ALPHA``); otherwise
+explanation of another cause that makes the same correction on the held-out residual (:meth:`Chain.same_correction`:
+the same column space on these data, as an offset and a level-only asymmetry on a Coulomb + viscous map); otherwise
 its term enters the model (the residual the next steps search stays clean) but no cause is named: the
 step is recorded as ambiguous between the causes (``Trial.unresolved``).
 """
@@ -30,7 +31,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.special import bdtrc, stdtr
+from scipy.special import stdtr
 
 from .causes import EXTENSIONS, candidates, n_coef, propose
 from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure, Term
@@ -44,6 +45,9 @@ GAIN_MIN = 0.05
 EXPLAINED_MIN = 0.02
 #: Longest chain.
 MAX_STEPS = 6
+#: Two candidates make the same correction when their held-out corrections differ by at most this share of
+#: the RMS the chosen one explains (rounding and the iterations of a factor's fit, not the data, part them).
+SAME_CORRECTION = 1e-3
 
 
 @dataclass
@@ -91,17 +95,6 @@ def paired_t(d: np.ndarray) -> tuple[float, float]:
         return (math.inf, 0.0) if d.mean() > 0 else (0.0, 1.0)
     t = float(d.mean() / (sd / math.sqrt(G)))
     return t, float(stdtr(G - 1, -t))  # the survival function of Student's t (scipy.stats.t.sf's own)
-
-
-def beats(d: np.ndarray) -> bool:
-    """Whether per-group differences ``d`` (positive where the second model predicts better) say it is
-    better: the one-sided paired t, or the sign test over the groups that differ (robust to the heavy tails
-    of a few long groups), at level :data:`ALPHA`."""
-    if paired_t(d)[1] < ALPHA:
-        return True
-    d = d[np.isfinite(d) & (d != 0)]
-    k = int(np.count_nonzero(d > 0))
-    return bool(d.size >= 3 and k > 0 and bdtrc(k - 1, d.size, 0.5) < ALPHA)
 
 
 class Chain:
@@ -199,23 +192,18 @@ class Chain:
             _, p = paired_t(group_d(self.S, self.S.F - t.pred_after, self.S.F - best.pred_after))
             if p >= ALPHA / max(m, 1):
                 best.rivals.append((t.cause, t.ext, t.rms_after))
-            # a competing explanation (no more coefficients) that the best neither beats nor adds to
-            if (t.k <= best.k and t.cause not in best.unresolved
-                    and not beats(group_d(self.S, self.S.F - t.pred_after, self.S.F - best.pred_after))
-                    and not self.adds(best, t)):
+            # a competing explanation (no more coefficients) that makes the same correction: the data
+            # cannot tell the two apart, whichever has the lower RMS by rounding
+            if t.k <= best.k and t.cause not in best.unresolved and self.same_correction(best, t):
                 best.unresolved.append(t.cause)
         return best
 
-    def adds(self, best: Trial, rival: Trial) -> bool:
-        """Whether ``best`` adds to ``rival`` on held-out data: the model with both terms (each fold's own)
-        predicts significantly better than with the rival's alone (one-sided paired t, p < ALPHA)."""
-        S = self.S
-        both = np.empty(S.n)
-        for f, (tr, te, _, _, _) in enumerate(self.train_info):
-            ev = Evaluator(self.st.plus(rival.fold_terms[f]).plus(best.fold_terms[f]), self.ctx)
-            both[te] = ev.predict(ev.fit(tr), te)
-        self.ctx.release(self.st)
-        return beats(group_d(S, S.F - rival.pred_after, S.F - both))
+    def same_correction(self, a: Trial, b: Trial) -> bool:
+        """Whether two candidates make the same held-out correction: their corrections differ by an RMS of
+        at most :data:`SAME_CORRECTION` of what the first explains (the same column space on these data,
+        e.g. an offset and a level-only asymmetry on a Coulomb + viscous map, up to the fits' rounding)."""
+        diff = a.pred_after - b.pred_after
+        return float(np.sqrt(np.mean(diff * diff))) <= SAME_CORRECTION * a.explained
 
     # -- the loop --------------------------------------------------------------------------------------
     def run(self, max_steps: int = MAX_STEPS) -> list[dict]:
