@@ -60,7 +60,7 @@ SPAN_MIN_TAUS = 3.0
 #: The inertia cause is tested only when the sliding samples carry at least this share of the acceleration
 #: excitation (sum of a^2) of the moving samples: the fit's inertia rests on all of them, and a subset with
 #: little acceleration cannot overrule it (on a pulses run it turns transients into a 56 % inertia change).
-INERTIA_EXCITATION_MIN = 0.25   # the same share of the torque-rate excitation for the delay cause
+INERTIA_EXCITATION_MIN = 0.25
 
 
 def n_coef(ext: str, st: Structure) -> int:

@@ -8,9 +8,12 @@ taken at the sliding samples: the rests before each move (``dwell``) and the rat
   rest), ``s`` the travel since the move started, ``t0`` and ``s_c`` chosen on training folds from scales
   of the data (the rests' durations, the moves' lengths).
 - **Delay** between the torque and the motion: a torque logged ``d`` seconds ahead of the position and
-  velocity leaves ``r = d dtau/dt`` in the friction residual (to first order), so the additive column is the
-  measured torque's rate (Savitzky-Golay, quadratic, over :data:`RATE_WINDOW` seconds); its coefficient is
-  the delay [s], positive when the torque leads the motion.
+  velocity leaves ``tau(t) - tau(t - d)`` in the friction residual. ``d`` is the shift of the torque that
+  best fits the friction torque of every moving sample (transients included) by a velocity-only map with
+  inertia and gravity corrections (:func:`delay_estimate`); the additive column at the sliding samples is
+  the rate of the torque the motion explains over that shift, centred (:func:`delay_column`); its
+  coefficient is the delay [s], positive when the torque leads the motion. The Savitzky-Golay rate of
+  the measured torque (quadratic, over :data:`RATE_WINDOW` seconds) is what the structure tests use.
 """
 from __future__ import annotations
 
@@ -106,20 +109,6 @@ def torque_rate(S: Samples) -> np.ndarray:
                 out[sel] = _log_rate(S, i)[S.k[sel]]
         return out
     return S.cached("torque_rate", compute)
-
-
-def rate_share(S: Samples) -> float:
-    """Share of the torque-rate excitation (sum of (dtau/dt)^2 over the moving samples, faster than 2 % of
-    the top speed) that the sliding samples carry: a delay shows where the torque changes fast, and a subset
-    that holds little of that change cannot measure it (on a run of plateaus the rate is large only in the
-    transitions the sliding samples leave out, and any slow misfit then passes for a delay)."""
-    def compute():
-        tot = 0.0
-        for i in range(len(S.logs)):
-            m = np.abs(S.log_w(i)) > 0.02 * S.w0
-            tot += float(np.sum(_log_rate(S, i)[m] ** 2))
-        return min(1.0, float(np.sum(torque_rate(S) ** 2)) * max(S.decimation, 1) / tot) if tot > 0 else 0.0
-    return S.cached("rate_share", compute)
 
 
 # -- the delay between torque and motion, estimated on all moving samples ----------------------------------
