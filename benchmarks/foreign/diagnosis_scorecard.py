@@ -264,7 +264,7 @@ def summary(rows, singles, clean, pairs) -> list:
     quiet = [r for r in outs if not any(g >= GAIN for _, g in named(r))]
     unexp = [r for r in outs if r["diag"]["unexplained"]]
     amb = [r for r in rows if r["diag"].get("ambiguous")]
-    out.append(f"a step left ambiguous (no cause beats a competing one on held-out data; its term kept, nothing named): "
+    out.append(f"a step left ambiguous (a candidate of another cause makes the same held-out correction; its term kept, nothing named): "
                f"{_pct(len(amb), len(rows))}" + (f"; e.g. {', '.join(' or '.join(a) for a in amb[0]['diag']['ambiguous'])} "
                                                  f"(seed {amb[0]['seed']})" if amb else ""))
     out.append(f"effects outside the list: no cause of gain >= {GAIN} named {_pct(len(quiet), len(outs))} (target >= 95 %); "
