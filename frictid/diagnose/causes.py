@@ -92,7 +92,9 @@ def candidates(S: Samples, st: Structure, ctx: Context | None = None) -> list[st
         if S.payload is not None and np.std(S.payload) > 0:
             out.append("load_payload")
     if "asymmetry" not in have and (S.w > 0).any() and (S.w < 0).any():
-        out += ["asym_scale", "asym_level", "asym"]
+        # asym_level (the w < 0 level scaled) is not tested: on the direct-drive sample its per-sign export
+        # (stribeck_2exp_asym) has amplitudes the folds cannot pin, and export refuses it (test_export)
+        out += ["asym_scale", "asym"]
     if "stribeck" not in have and 1 not in st.slots():
         out.append("stribeck")
     if "inertia" not in have and np.std(S.a) > 0 and acceleration_share(S) >= INERTIA_EXCITATION_MIN:
