@@ -12,7 +12,10 @@ import numpy as np
 import pytest
 
 import diag_synth as ds
-from test_diagnose import Parts, _run, plateau_log
+from frictid.diagnose.model import Structure
+from frictid.diagnose.samples import build_samples
+from frictid.models import static as sm
+from test_diagnose import TRUE, Parts, _run, plateau_log
 
 
 def _outside(jf) -> dict:
@@ -156,3 +159,45 @@ def test_a_warm_up_sentence_states_the_whole_fall_across_logs_that_restart_cold(
     true = 100 * ((1 - 0.06 * hi) / (1 - 0.06 * lo) - 1)
     said = float(re.search(r"\(([+-]\d+) %, the mean", f["evidence"]).group(1))
     assert "falls from" in f["evidence"] and said == pytest.approx(true, rel=0.3), (f["evidence"], true)
+
+
+@pytest.mark.parametrize("seed", [61])
+def test_a_smooth_position_torque_on_a_slide_is_not_an_offset_or_asymmetry(seed):
+    """A spring-like torque over the slide's travel (a sine of period 1.5-2.5 times the travel: smooth, no
+    period to search): its mean over the travel is an offset and, sampled by moves of each direction, an
+    asymmetry (the foreign card's seed 300026 named a gravity harmonic on a linear axis `asymmetry`). The
+    smooth position torque explains all of it and must be named first. Competing explanations: offset,
+    asymmetry, position (level modulation)."""
+    rng = np.random.default_rng(seed)
+    pl = ds.null_plant("linear_slide")
+    lo, hi = pl["joints"][0]["limits"]["position"]
+    eff = {"kind": "position_torque", "amplitude": float(rng.uniform(0.3, 0.5)) * ds.friction_scale(pl),
+           "period": float(rng.uniform(1.5, 2.5)) * (hi - lo), "phase": float(rng.uniform(0, 2 * math.pi))}
+    jf, _ = ds.outside_case("linear_slide", eff, seed)
+    steps = jf.selection["diagnosis"]["steps"]
+    assert steps and steps[0]["chosen"] == "position_torque", (eff, steps)
+    pt = _outside(jf)["position_torque"]
+    assert pt["settings"]["period"] == 0 and "smoothly with position" in pt["evidence"] and pt["gain"] > 0.3
+    assert not [f for f in jf.diagnosis if f["cause"] in ("asymmetry", "position") and f["gain"] >= 0.05], jf.diagnosis
+
+
+def test_a_cause_that_does_not_beat_a_competing_explanation_is_not_named():
+    """The foreign card's seed 300017 (drift + a Coulomb-level asymmetry on a map the fit took for Coulomb +
+    viscous): an offset and the asymmetry are the same sliding data, and the offset was named first. Two
+    candidates of different causes that make the same held-out correction leave the step ambiguous; a
+    competitor that corrects differently (here, half as much) does not."""
+    from dataclasses import replace
+
+    from frictid.diagnose.chain import Chain
+
+    S = build_samples([plateau_log(lambda t, q, w, F: np.asarray(F) + 0.2, seed=9)], 5)
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    chain = Chain(S, Structure("stribeck", cp))
+    off = chain.evaluate("offset", 2)
+    assert off.p < 1e-6 and off.gain > 0.5
+    twin = replace(off, cause="asymmetry", ext="asym_scale")
+    assert chain.choose([off, twin], 2).unresolved == ["asymmetry"]
+    worse = replace(off, cause="asymmetry", ext="asym_scale", pred_after=0.5 * (off.pred_before + off.pred_after))
+    worse.rms_after = float(np.sqrt(np.mean((S.F - worse.pred_after) ** 2)))
+    best = chain.choose([off, worse], 2)
+    assert best.ext == "offset" and best.unresolved == []

@@ -83,6 +83,7 @@ def diagnosis_of(jf) -> dict:
     tested = sorted({_cause_of(t) for st in rec.get("steps", []) for t in st.get("tested", []) if isinstance(t, dict)}
                     - {""})
     return {"findings": named_in_order(jf, rec), "tested": tested, "unexplained": unexplained(jf), "skipped": rec.get("skipped"),
+            "ambiguous": [list(a.get("causes", [])) for a in rec.get("ambiguous", []) if isinstance(a, dict)],
             "selected": jf.selected, "warnings": [w for w in jf.warnings if "diagnos" in w.lower()][:3]}
 
 
@@ -262,6 +263,10 @@ def summary(rows, singles, clean, pairs) -> list:
     outs = [r for r in singles if not on_list(r, kinds(r)[0])]
     quiet = [r for r in outs if not any(g >= GAIN for _, g in named(r))]
     unexp = [r for r in outs if r["diag"]["unexplained"]]
+    amb = [r for r in rows if r["diag"].get("ambiguous")]
+    out.append(f"a step left ambiguous (a candidate of another cause makes the same held-out correction; its term kept, nothing named): "
+               f"{_pct(len(amb), len(rows))}" + (f"; e.g. {', '.join(' or '.join(a) for a in amb[0]['diag']['ambiguous'])} "
+                                                 f"(seed {amb[0]['seed']})" if amb else ""))
     out.append(f"effects outside the list: no cause of gain >= {GAIN} named {_pct(len(quiet), len(outs))} (target >= 95 %); "
                f"'unexplained' statement {_pct(len(unexp), len(outs))} (target >= 80 %)")
     for k in effects.OUTSIDE:
@@ -343,6 +348,8 @@ def describe(r: dict) -> str:
     d = r["diag"]
     lines.append("  named: " + ("; ".join(f"{c} ({x}) gain {g:.3f}" for c, x, g in d["findings"]) or "nothing")
                  + f"; selected {d['selected']}")
+    if d.get("ambiguous"):
+        lines.append("  ambiguous (nothing named): " + "; ".join(" or ".join(a) for a in d["ambiguous"]))
     lines.append(f"  tested: {', '.join(d['tested']) or '-'}; unexplained: {d['unexplained'] or '-'}"
                  + (f"; not diagnosed: {d['skipped']}" if d["skipped"] else ""))
     return "\n".join(lines)

@@ -12,7 +12,7 @@ import numpy as np
 
 from .model import OUTSIDE_MODEL, Context, Evaluator, Structure, Term
 from .samples import Samples
-from .signals import rate_share, rest_scales
+from .signals import delay_estimate, delay_map, moving_samples, rest_scales
 
 #: The causes, in the order the issue names them (``presliding`` is judged on ramp and step segments).
 CAUSES = ("temperature", "position", "load", "asymmetry", "stribeck", "presliding", "inertia", "gravity",
@@ -28,6 +28,7 @@ EXTENSIONS = {
     "load_gravity": ("load", "level_factor", 1),
     "load_payload": ("load", "level_factor", 1),
     "asym_scale": ("asymmetry", "whole_factor", 1),  # the whole w < 0 branch times (1 + gamma)
+    "asym_level": ("asymmetry", "level_factor", 1),  # the w < 0 level (Coulomb, Stribeck) times (1 + gamma)
     "asym": ("asymmetry", "asym", None),  # as many as the base map's amplitudes
     "stribeck": ("stribeck", "stribeck", 1),
     "inertia": ("inertia", "additive", 1),
@@ -59,7 +60,7 @@ SPAN_MIN_TAUS = 3.0
 #: The inertia cause is tested only when the sliding samples carry at least this share of the acceleration
 #: excitation (sum of a^2) of the moving samples: the fit's inertia rests on all of them, and a subset with
 #: little acceleration cannot overrule it (on a pulses run it turns transients into a 56 % inertia change).
-INERTIA_EXCITATION_MIN = 0.25   # the same share of the torque-rate excitation for the delay cause
+INERTIA_EXCITATION_MIN = 0.25
 
 
 def n_coef(ext: str, st: Structure) -> int:
@@ -91,6 +92,8 @@ def candidates(S: Samples, st: Structure, ctx: Context | None = None) -> list[st
         if S.payload is not None and np.std(S.payload) > 0:
             out.append("load_payload")
     if "asymmetry" not in have and (S.w > 0).any() and (S.w < 0).any():
+        # asym_level (the w < 0 level scaled) is not tested: on the direct-drive sample its per-sign export
+        # (stribeck_2exp_asym) has amplitudes the folds cannot pin, and export refuses it (test_export)
         out += ["asym_scale", "asym"]
     if "stribeck" not in have and 1 not in st.slots():
         out.append("stribeck")
@@ -104,9 +107,9 @@ def candidates(S: Samples, st: Structure, ctx: Context | None = None) -> list[st
         out.append("drift")
     if "dwell" not in have and S.q is not None and rest_scales(S) is not None:
         out.append("dwell")
-    if "delay" not in have and rate_share(S) >= INERTIA_EXCITATION_MIN:
+    if "delay" not in have and moving_samples(S) >= 20 * S.n_folds:
         out.append("delay")
-    if "position_torque" not in have and S.q is not None and np.ptp(S.q) > 0 and _torque_periods(S):
+    if "position_torque" not in have and S.q is not None and np.ptp(S.q) > 0:
         out.append("position_torque")
     return out
 
@@ -268,6 +271,10 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
         trials = [(t0, sc) for t0 in t0s for sc in scs]
         terms = [Term(cause, ext, role, (("t0", float(t0)), ("s_c", float(sc)))) for t0, sc in trials]
         return min(terms, key=lambda term: _fit_rms(ctx, st.plus(term), idx))
+    if ext == "delay":   # the shift estimated on the training folds' moving samples
+        folds = np.unique(S.fold[idx])
+        d = delay_estimate(S, folds)
+        return Term(cause, ext, role, (("shift", d), ("beta", delay_map(S, d, folds))))
     if ext == "position_smooth":
         q0 = float(0.5 * (S.q.max() + S.q.min()))
         qs = float(0.5 * np.ptp(S.q)) or 1.0
@@ -297,9 +304,12 @@ def _position_torque(ctx: Context, st: Structure, idx: np.ndarray, resid: np.nda
         P = best_period(S.q[idx], resid, np.ones(idx.size), _period_range(S))
         if P is not None:
             periods.append(float(P))
-    if not periods:
-        return None
     terms = [Term("position_torque", "position_torque", "additive", (("period", float(P)),)) for P in periods]
+    # a torque that varies smoothly over the travel (a spring, a cable carrier, a harmonic longer than the
+    # range): 1, (q - q0) and (q - q0)^2 over the half-range, period 0 (its mean over the travel is part of
+    # it: without the constant, a harmonic of a short travel was split into an offset and a shape)
+    q0, qs = float(0.5 * (S.q.max() + S.q.min())), float(0.5 * np.ptp(S.q)) or 1.0
+    terms.append(Term("position_torque", "position_torque", "additive", (("period", 0.0), ("q0", q0), ("qs", qs))))
     return min(terms, key=lambda term: _fit_rms(ctx, st.plus(term), idx))
 
 

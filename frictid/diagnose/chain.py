@@ -19,7 +19,11 @@ in noisy data has a small gain.
 Choice among the worthy candidates (:func:`choose`): the lowest held-out RMS, except that a candidate
 with fewer coefficients wins when the best is not significantly better than it (the same paired test
 between the two). This keeps a torque offset from being named an asymmetry (per-sign amplitudes can
-absorb an offset, with more coefficients).
+absorb an offset, with more coefficients). A cause is *named* only when it beats every competing
+explanation of another cause that makes the same correction on the held-out residual (:meth:`Chain.same_correction`:
+the same column space on these data, as an offset and a level-only asymmetry on a Coulomb + viscous map); otherwise
+its term enters the model (the residual the next steps search stays clean) but no cause is named: the
+step is recorded as ambiguous between the causes (``Trial.unresolved``).
 """
 from __future__ import annotations
 
@@ -41,6 +45,9 @@ GAIN_MIN = 0.05
 EXPLAINED_MIN = 0.02
 #: Longest chain.
 MAX_STEPS = 6
+#: Two candidates make the same correction when their held-out corrections differ by at most this share of
+#: the RMS the chosen one explains (rounding and the iterations of a factor's fit, not the data, part them).
+SAME_CORRECTION = 1e-3
 
 
 @dataclass
@@ -63,6 +70,9 @@ class Trial:
     k: int
     d: np.ndarray = field(repr=False, default=None)
     rivals: list = field(default_factory=list)
+    #: other causes this one does not beat on held-out data (one-sided paired t, p >= ALPHA): it is then not
+    #: named, its term kept (:func:`frictid.diagnose.joint`: ``selection.diagnosis.ambiguous``)
+    unresolved: list = field(default_factory=list)
 
     def record(self) -> dict:
         return {"extension": self.ext, "rms_before": self.rms_before, "rms_after": self.rms_after,
@@ -175,14 +185,25 @@ class Chain:
             if p >= ALPHA / max(m, 1):
                 best = t
         # other causes the data cannot tell from the chosen one (not significantly worse)
-        best.rivals = []
+        best.rivals, best.unresolved = [], []
         for t in ok:
             if t.cause == best.cause:
                 continue
             _, p = paired_t(group_d(self.S, self.S.F - t.pred_after, self.S.F - best.pred_after))
             if p >= ALPHA / max(m, 1):
                 best.rivals.append((t.cause, t.ext, t.rms_after))
+            # a competing explanation (no more coefficients) that makes the same correction: the data
+            # cannot tell the two apart, whichever has the lower RMS by rounding
+            if t.k <= best.k and t.cause not in best.unresolved and self.same_correction(best, t):
+                best.unresolved.append(t.cause)
         return best
+
+    def same_correction(self, a: Trial, b: Trial) -> bool:
+        """Whether two candidates make the same held-out correction: their corrections differ by an RMS of
+        at most :data:`SAME_CORRECTION` of what the first explains (the same column space on these data,
+        e.g. an offset and a level-only asymmetry on a Coulomb + viscous map, up to the fits' rounding)."""
+        diff = a.pred_after - b.pred_after
+        return float(np.sqrt(np.mean(diff * diff))) <= SAME_CORRECTION * a.explained
 
     # -- the loop --------------------------------------------------------------------------------------
     def run(self, max_steps: int = MAX_STEPS) -> list[dict]:
@@ -268,6 +289,8 @@ def confounded(S: Samples, tr: Trial, m: int) -> str | None:
     ``sum(rw dw)`` significant at the step's level. (A covariance, not the gain of subtracting ``dw``: in a
     closed loop the residual's variation within a plateau is an attenuated copy of the effect's, the
     controller's lag and the estimated acceleration share it.)"""
+    if tr.ext == "delay":
+        return _unresolved_delay(S, tr)
     if tr.ext not in POSITION_EXTS:
         return None
     cell = speed_cells(S)
@@ -278,6 +301,28 @@ def confounded(S: Samples, tr: Trial, m: int) -> str | None:
         return None
     return (f"{tr.ext} does not show within segments at one speed (held-out within-cell t = {t:.2f}, "
             f"p = {p:.2g}): the position stands in for the speed or the order of the plateaus")
+
+
+#: A delay is resolved by the log's rate when it is at least this many sample periods (the sampling places
+#: the torque and the motion within half a period of each other).
+DELAY_MIN_SAMPLES = 0.5
+
+
+def _unresolved_delay(S: Samples, tr: Trial) -> str | None:
+    """Why a delay candidate cannot be named (its shift, estimated on the training folds' moving samples,
+    is shorter than :data:`DELAY_MIN_SAMPLES` sample periods in any fold, or at the end of the range
+    searched), or None."""
+    from .signals import delay_limit
+    shifts = [float(t.settings.get("shift", 0.0)) for t in tr.fold_terms]
+    dt = min(S.dt(i) for i in range(len(S.logs)))
+    lo = min(abs(x) for x in shifts)
+    if lo < DELAY_MIN_SAMPLES * dt:
+        return (f"delay: the shift fitted on the moving samples, {1e3 * lo:.3g} ms in one fold, is shorter than "
+                f"{DELAY_MIN_SAMPLES:g} of the sample period ({1e3 * dt:.3g} ms): the log's rate does not resolve it")
+    if max(abs(x) for x in shifts) >= delay_limit(S) - S.dt(0):
+        return (f"delay: the shift reaches the longest searched ({1e3 * delay_limit(S):.3g} ms): not a delay of "
+                f"the torque against the same motion")
+    return None
 
 
 def degenerate(before: Coef, st: Structure, after: Coef) -> str | None:

@@ -73,7 +73,7 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
         per = float(g[0]) / nl["scale"]
         return (f"friction level grows {100 * per * nl['scale']:+.1f} % per {fmt(nl['scale'])} {unit} of "
                 f"{var} (r = {r:.2f}); a load-dependent level: {tail}")
-    if ext in ("asym", "asym_scale"):
+    if ext in ("asym", "asym_scale", "asym_level"):
         v = np.abs(S.w)
         cp, cn = canonical_vectors(st, coef)
         Fp = np.abs(canonical_friction(v, cp, cp))
@@ -81,7 +81,7 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
         ratio = float(np.mean(Fn) / np.mean(Fp)) if np.mean(Fp) > 0 else float("nan")
         return (f"friction for w < 0 is {100 * abs(ratio - 1):.1f} % {'above' if ratio > 1 else 'below'} "
                 f"that for w > 0 at the same speeds (r = {r:.2f}); "
-                f"{'per-sign parameters' if ext == 'asym' else 'the w < 0 branch scaled'}: {tail}")
+                f"{ {'asym': 'per-sign parameters', 'asym_scale': 'the w < 0 branch scaled'}.get(ext, 'the w < 0 level scaled')}: {tail}")
     if ext == "stribeck":
         return (f"the residual concentrates at low speed, below about {fmt(3 * nl['vs'])} {q_u}/s "
                 f"(r = {r:.2f}); a Stribeck term with vs = {fmt(nl['vs'])} {q_u}/s: {tail}")
@@ -133,6 +133,13 @@ def _thermal_evidence(S: Samples, nl: dict, g4, dc, rb, r: float, F_u: str, tail
 
 def _outside_evidence(ext: str, S: Samples, nl: dict, g: np.ndarray, r: float, F_u: str, q_u: str, tail: str) -> str:
     """The sentence of a cause outside the friction model (position torque, delay, dwell)."""
+    if ext == "position_torque" and nl["period"] == 0:   # smooth over the travel
+        d = np.linspace(-1.0, 1.0, 201)
+        E = float(g[1]) * d + float(g[2]) * d * d
+        return (f"a torque that does not change sign with the velocity varies smoothly with position: "
+                f"{fmt(float(E.max() - E.min()))} {F_u} from end to end of the travel (a quadratic in q over "
+                f"{fmt(2 * nl['qs'])} {q_u}; r = {r:.2f}); a spring, a cable carrier or a gravity harmonic "
+                f"longer than the travel, not friction: the friction model does not carry it; {tail}")
     if ext == "position_torque":
         amp = float(np.hypot(*g[:2]))
         k = 2 * math.pi / nl["period"] if S.axis_rotary else 0.0
@@ -142,10 +149,12 @@ def _outside_evidence(ext: str, S: Samples, nl: dict, g: np.ndarray, r: float, F
                 f"{fmt(amp)} {F_u}, period {fmt(nl['period'])} {q_u} (r = {r:.2f}); {kind}, not friction: the "
                 f"friction model does not carry it; {tail}")
     if ext == "delay":
-        d = float(g[0])
+        d = float(nl.get("shift") or g[0])
         return (f"the residual tracks the rate of the measured torque (r = {r:.2f}): the torque "
-                f"{'leads' if d > 0 else 'lags'} the motion by {1e3 * abs(d):.3g} ms (a signal delay, not "
-                f"friction; shift the torque or the position by it before fitting); {tail}")
+                f"{'leads' if d > 0 else 'lags'} the motion by {1e3 * abs(d):.3g} ms (the shift that best fits "
+                f"the friction torque of every moving sample; the sliding samples' coefficient "
+                f"{1e3 * float(g[0]):.3g} ms; a signal delay, not friction: shift the torque or the position by "
+                f"it before fitting); {tail}")
     tr = rests(S)[0]    # dwell
     tr = tr[tr >= REST_MIN]
     lo, hi = float(tr.min()), float(tr.max())

@@ -108,10 +108,13 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
         tr: Trial | None = step.get("chosen")
         if tr is None:
             continue
+        if tr.unresolved:   # it does not beat a competing explanation: its term kept, no cause named
+            _ambiguous(jf, rec, tr, evidence(tr, S, step, units, rigid))
+            continue
         if tr.ext in OUTSIDE_MODEL:   # named with its numbers, never a friction model of the file
             text = evidence(tr, S, step, units, rigid)
             rec.setdefault("outside_model", []).append(
-                {"cause": tr.cause, "evidence": text, "extension": tr.ext, "settings": step["term"].settings,
+                {"cause": tr.cause, "evidence": text, "extension": tr.ext, "settings": {k: v for k, v in step["term"].settings.items() if k != "beta"},
                  "coefficients": [float(x) for x in np.atleast_1d(
                      step["coef"].gamma.get(len(step["structure"].terms) - 1, np.zeros(0)))],
                  "rms_before": tr.rms_before, "rms_after": tr.rms_after, "gain": tr.gain,
@@ -134,6 +137,19 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
             "heldout": heldout,
         })
     return findings
+
+
+def _ambiguous(jf: JointFit, rec: dict, tr: Trial, text: str) -> None:
+    """A step whose best candidate does not beat a competing explanation of another cause on held-out data:
+    recorded in ``rec['ambiguous']`` and the warnings with the causes the data cannot tell apart; no cause
+    is named (its term stays in the chain's model, so the next steps search a clean residual)."""
+    causes = [tr.cause] + list(tr.unresolved)
+    rec.setdefault("ambiguous", []).append(
+        {"causes": causes, "extension": tr.ext, "evidence": text, "rms_before": tr.rms_before,
+         "rms_after": tr.rms_after, "heldout_gain": tr.gain})
+    jf.warnings.append(f"ambiguous: {' or '.join(causes)} explain the residual equally well on held-out data "
+                       f"(held-out RMS {fmt(tr.rms_before)} -> {fmt(tr.rms_after)} with {tr.ext}): the data cannot "
+                       f"tell them apart, no cause is named")
 
 
 def _step_model(jf: JointFit, step: dict, tr: Trial, S: Samples, base: str, rigid: dict) -> ModelFit:

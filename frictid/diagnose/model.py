@@ -31,7 +31,7 @@ from ..identify.regression import NormalEquations, solve
 from ..models import static as sm
 from . import moments as mo
 from .samples import Samples
-from .signals import dwell_state, torque_rate
+from .signals import delay_column, dwell_state
 
 #: Extensions the parameter file's friction models do not carry: causes the diagnosis names (a finding with
 #: its numbers, in ``selection.diagnosis.outside_model`` and the warnings) but never exports. Their terms
@@ -83,7 +83,7 @@ class Structure:
     @property
     def per_sign(self) -> bool:
         """The model has a per-sign map: per-sign amplitudes or the w < 0 branch scaled (``asym_scale``)."""
-        return any(t.ext in ("asym", "asym_scale") for t in self.terms)
+        return any(t.ext in ("asym", "asym_scale", "asym_level") for t in self.terms)
 
     def has(self, ext_or_cause: str) -> bool:
         return any(t.ext == ext_or_cause or t.cause == ext_or_cause for t in self.terms)
@@ -360,7 +360,7 @@ class Context:
             c = (var / nl["scale"])[:, None]
         elif term.ext == "drift":
             c = S.th[:, None]
-        elif term.ext == "asym_scale":
+        elif term.ext in ("asym_scale", "asym_level"):
             c = (S.w < 0).astype(float)[:, None]
         elif term.ext in ("thermal4", "thermal6"):
             x = self.thermal(nl["tau_c"], nl.get("source", "heat_balance"))
@@ -380,11 +380,14 @@ class Context:
             c = S.a[:, None]
         elif term.ext == "gravity":
             c = np.array([np.cos(S.q), np.sin(S.q)]).T
+        elif term.ext == "position_torque" and nl["period"] == 0:   # smooth over the travel
+            d = (S.q - nl["q0"]) / nl["qs"]
+            c = np.array([np.ones_like(d), d, d * d]).T
         elif term.ext == "position_torque":
             ph = 2 * np.pi * S.q / nl["period"]
             c = np.array([np.sin(ph), np.cos(ph)]).T
         elif term.ext == "delay":
-            c = torque_rate(S)[:, None]
+            c = delay_column(S, nl.get("shift", 0.0), nl.get("beta", ()))[:, None]
         elif term.ext == "dwell":
             c = dwell_state(S, nl["t0"], nl["s_c"])[:, None]
         else:
@@ -836,14 +839,16 @@ def canonical_vectors(st: Structure, c: Coef) -> tuple[np.ndarray, np.ndarray]:
     out = []
     strib = next((t for t in st.terms if t.role == "stribeck"), None)
     # the asym_scale factor (1 + gamma on w < 0) folds into the w < 0 amplitudes
-    neg = 1.0
+    neg, neg_level = 1.0, 1.0   # asym_level (1 + gamma on the w < 0 level) folds into its level amplitudes
     for i, t in enumerate(st.terms):
         if t.ext == "asym_scale":
             neg = 1.0 + float(np.atleast_1d(c.gamma.get(i, [0.0]))[0])
-    for amps, fac in ((c.base_pos, 1.0), (c.base_neg, neg)):
+        if t.ext == "asym_level":
+            neg_level = 1.0 + float(np.atleast_1d(c.gamma.get(i, [0.0]))[0])
+    for amps, fac, lev in ((c.base_pos, 1.0, 1.0), (c.base_neg, neg, neg_level)):
         v = np.array(st.shapes, dtype=float).copy()
         for sl in (0, 1, 4, 6, 7, 8):
-            v[sl] = amps.get(sl, 0.0) * fac
+            v[sl] = amps.get(sl, 0.0) * fac * (lev if sl in LEVEL_SLOTS else 1.0)
         if strib is not None and 1 not in MAP_SLOTS[st.map]:
             v[2], v[3] = strib.settings["vs"], strib.settings["delta"]
         out.append(v)

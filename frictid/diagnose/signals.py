@@ -8,11 +8,16 @@ taken at the sliding samples: the rests before each move (``dwell``) and the rat
   rest), ``s`` the travel since the move started, ``t0`` and ``s_c`` chosen on training folds from scales
   of the data (the rests' durations, the moves' lengths).
 - **Delay** between the torque and the motion: a torque logged ``d`` seconds ahead of the position and
-  velocity leaves ``r = d dtau/dt`` in the friction residual (to first order), so the additive column is the
-  measured torque's rate (Savitzky-Golay, quadratic, over :data:`RATE_WINDOW` seconds); its coefficient is
-  the delay [s], positive when the torque leads the motion.
+  velocity leaves ``tau(t) - tau(t - d)`` in the friction residual. ``d`` is the shift of the torque that
+  best fits the friction torque of every moving sample (transients included) by a velocity-only map with
+  inertia and gravity corrections (:func:`delay_estimate`); the additive column at the sliding samples is
+  the rate of the torque the motion explains over that shift, centred (:func:`delay_column`); its
+  coefficient is the delay [s], positive when the torque leads the motion. The Savitzky-Golay rate of
+  the measured torque (quadratic, over :data:`RATE_WINDOW` seconds) is what the structure tests use.
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -106,15 +111,212 @@ def torque_rate(S: Samples) -> np.ndarray:
     return S.cached("torque_rate", compute)
 
 
-def rate_share(S: Samples) -> float:
-    """Share of the torque-rate excitation (sum of (dtau/dt)^2 over the moving samples, faster than 2 % of
-    the top speed) that the sliding samples carry: a delay shows where the torque changes fast, and a subset
-    that holds little of that change cannot measure it (on a run of plateaus the rate is large only in the
-    transitions the sliding samples leave out, and any slow misfit then passes for a delay)."""
+# -- the delay between torque and motion, estimated on all moving samples ----------------------------------
+
+#: Longest delay tried, as a share of the mean duration of a one-sign run of the motion (a delay longer
+#: than that is no longer a shift of the torque against the same motion).
+DELAY_MAX_RUN = 0.25
+#: Moving samples: faster than this share of the top speed (as the excitation shares of the causes).
+MOVING_FRACTION = 0.02
+#: Rows per block of the moving samples' sums (bounded memory, one pass per shift).
+BLOCK = 1 << 16
+
+
+def shifted_torque(tau: np.ndarray, k: np.ndarray, shift: float) -> np.ndarray:
+    """``tau`` at the (fractional) sample positions ``k - shift`` [samples], linearly interpolated, clipped
+    to the log: the measured torque ``shift`` samples earlier."""
+    j = k - shift
+    j0 = np.clip(np.floor(j).astype(np.int64), 0, tau.size - 2)
+    fr = np.clip(j - j0, 0.0, 1.0)
+    return tau[j0] * (1.0 - fr) + tau[j0 + 1] * fr
+
+
+def _moving_rows(S: Samples) -> list:
+    """Per log: (indices of its moving samples, their fold: that of the nearest sliding sample in time)."""
     def compute():
-        tot = 0.0
-        for i in range(len(S.logs)):
-            m = np.abs(S.log_w(i)) > 0.02 * S.w0
-            tot += float(np.sum(_log_rate(S, i)[m] ** 2))
-        return min(1.0, float(np.sum(torque_rate(S) ** 2)) * max(S.decimation, 1) / tot) if tot > 0 else 0.0
-    return S.cached("rate_share", compute)
+        out = []
+        for i, lg in enumerate(S.logs):
+            w = S.log_w(i)
+            km = np.flatnonzero((np.abs(w) > max(MOVING_FRACTION * S.w0, S.v_min)) & np.isfinite(lg.F)
+                                & np.isfinite(lg.tau))
+            sel = S.li == i
+            if km.size < 8 or not sel.any() or lg.n < 3:
+                out.append((np.zeros(0, np.int64), np.zeros(0, np.int64)))
+                continue
+            order = np.argsort(S.k[sel])
+            ks, fs = S.k[sel][order], S.fold[sel][order]
+            j = np.clip(np.searchsorted(ks, km), 1, ks.size - 1) if ks.size > 1 else np.zeros(km.size, np.int64)
+            if ks.size > 1:
+                j = np.where(np.abs(ks[j - 1] - km) <= np.abs(ks[j] - km), j - 1, j)
+            out.append((km, fs[j]))
+        return out
+    return S.cached("moving_rows", compute)
+
+
+def _delay_columns(S: Samples, i: int, k: np.ndarray) -> np.ndarray:
+    """The velocity-only map and rigid-body corrections a delay must not stand in for, at samples k of log
+    i: per sign 1, sqrt|w|, |w|, w^2; the acceleration (an inertia error); cos q, sin q (a gravity error)."""
+    w = S.log_w(i)[k]
+    v = np.abs(w)
+    cols = []
+    for m in ((w > 0).astype(float), (w < 0).astype(float)):
+        cols += [m, m * np.sqrt(v), m * v, m * v * v]
+    cols.append(S.log_a(i)[k])
+    q = S.logs[i].q
+    if S.axis_rotary and q is not None:
+        qk = finite(q[k])
+        cols += [np.cos(qk), np.sin(qk)]
+    return np.array(cols).T
+
+
+def _delay_sums(S: Samples, shift_s: float):
+    """Per fold: (X'X, X'y, y'y) of the moving samples, ``y`` the friction torque with the measured torque
+    taken ``shift_s`` seconds earlier (``F - tau(t) + tau(t - shift)``), X :func:`_delay_columns` (cached)."""
+    key = ("delay_sums", round(float(shift_s), 12))
+
+    def compute():
+        nf = S.n_folds
+        XtX = XtY = None
+        yty = np.zeros(nf)
+        for i, (km, fk) in enumerate(_moving_rows(S)):
+            lg = S.logs[i]
+            tau = finite(lg.tau)
+            sh = shift_s / S.dt(i)
+            for b in range(0, km.size, BLOCK):
+                k, f = km[b:b + BLOCK], fk[b:b + BLOCK]
+                X = _delay_columns(S, i, k)
+                y = lg.F[k] - tau[k] + shifted_torque(tau, k.astype(float), sh)
+                if XtX is None:
+                    XtX, XtY = np.zeros((nf, X.shape[1], X.shape[1])), np.zeros((nf, X.shape[1]))
+                for g in np.unique(f):
+                    m = f == g
+                    Xg, yg = X[m], y[m]
+                    XtX[g] += np.einsum("ij,ik->jk", Xg, Xg)
+                    XtY[g] += np.einsum("ij,i->j", Xg, yg)
+                    yty[g] += float(np.einsum("i,i->", yg, yg))
+        return XtX, XtY, yty
+    return S.cached(key, compute)
+
+
+def _delay_fit(S: Samples, shift_s: float, folds):
+    """(coefficients of :func:`_delay_columns`, residual sum of squares) of the least-squares fit of
+    :func:`_delay_sums` on the given folds ((None, inf) without moving samples)."""
+    XtX, XtY, yty = _delay_sums(S, shift_s)
+    if XtX is None:
+        return None, math.inf
+    f = list(folds)
+    A, b = XtX[f].sum(0), XtY[f].sum(0)
+    sc = np.sqrt(np.maximum(np.diag(A), 1e-300))
+    beta = np.linalg.pinv(A / np.outer(sc, sc), rcond=1e-10, hermitian=True) @ (b / sc)
+    return beta / sc, float(yty[f].sum() - beta @ (b / sc))
+
+
+def _delay_rss(S: Samples, shift_s: float, folds) -> float:
+    return _delay_fit(S, shift_s, folds)[1]
+
+
+def delay_map(S: Samples, shift_s: float, folds) -> tuple:
+    """The coefficients of the velocity-only map with inertia and gravity corrections fitted with the delay
+    (:func:`_delay_fit`), as a tuple (a term's setting)."""
+    beta = _delay_fit(S, shift_s, folds)[0]
+    return () if beta is None else tuple(float(x) for x in beta)
+
+
+def delay_estimate(S: Samples, folds=None) -> float:
+    """The delay [s] between the measured torque and the motion, positive when the torque leads: the shift
+    of the torque that best fits the friction torque of every moving sample of the given folds (all when
+    None) by a velocity-only map with inertia and gravity corrections (:func:`_delay_columns`). Shifts of
+    0, 1, 2, 3 samples and two per octave up to :func:`delay_limit`, refined to the sample between the best
+    one's neighbours (ternary search), then to a fraction of a sample by a parabola."""
+    folds = tuple(range(S.n_folds)) if folds is None else tuple(folds)
+    dt = S.dt(0)
+    kmax = max(1, int(delay_limit(S) / dt))
+    pos = sorted({1, 2, 3} | {int(round(v)) for v in np.geomspace(1, kmax, max(2, int(2 * math.log2(kmax + 1))))})
+    grid = sorted({-g for g in pos if g <= kmax} | {0} | {g for g in pos if g <= kmax})
+    rss: dict = {}
+
+    def at(g: int) -> float:
+        if g not in rss:
+            rss[g] = _delay_rss(S, g * dt, folds)
+        return rss[g]
+
+    best = min(grid, key=at)
+    i = grid.index(best)
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    while hi - lo > 2:   # ternary search on the samples between the grid's neighbours of its best
+        m1, m2 = lo + (hi - lo) // 3, hi - (hi - lo) // 3
+        if at(m1) <= at(m2):
+            hi = m2
+        else:
+            lo = m1
+    best = min(range(lo, hi + 1), key=at)
+    if -kmax < best < kmax:
+        a, b, c = at(best - 1), at(best), at(best + 1)
+        den = a - 2 * b + c
+        frac = 0.5 * (a - c) / den if den > 0 else 0.0
+        return float((best + float(np.clip(frac, -0.5, 0.5))) * dt)
+    return float(best * dt)
+
+
+def _run_time(S: Samples) -> float:
+    """Mean duration [s] of a run of one velocity sign (moving samples) over the logs."""
+    def compute():
+        total, runs = 0.0, 0
+        for i, lg in enumerate(S.logs):
+            w = S.log_w(i)
+            m = np.abs(w) > MOVING_FRACTION * S.w0
+            if m.sum() < 2:
+                continue
+            runs += 1 + int(np.count_nonzero(np.diff(np.sign(w[m]))))
+            total += float(np.count_nonzero(m)) * S.dt(i)
+        return total / runs if runs else 0.0
+    return S.cached("run_time_moving", compute)
+
+
+def _torque_model(S: Samples, i: int, j: np.ndarray, beta: tuple) -> np.ndarray:
+    """The torque at samples j of log i as the motion explains it, free of the torque sensor's noise:
+    ``J a + G`` (``tau - F``, in which the sensor's noise cancels) plus the delay fit's map and corrections."""
+    lg = S.logs[i]
+    rigid = finite(lg.tau[j]) - finite(lg.F[j])
+    if not beta:
+        return rigid
+    return rigid + _delay_columns(S, i, j) @ np.asarray(beta)
+
+
+def delay_column(S: Samples, shift_s: float, beta: tuple = ()) -> np.ndarray:
+    """At the sliding samples: ``(T(t + shift/2) - T(t - shift/2)) / shift`` [F/s] with ``T`` the torque the
+    motion explains (:func:`_torque_model`, the map fitted with the delay): the rate of the torque over the
+    delay, centred (its coefficient is the delay [s]; ``tau(t) - tau(t - shift)`` is what a delay leaves, to
+    first order). Not the measured torque's own rate: the friction torque it is fitted to carries the
+    torque sensor's noise, and a difference of measured torques would explain part of that noise and pass
+    for a delay on a clean log (or, centred, be attenuated by it). The Savitzky-Golay rate of the measured
+    torque when the shift is zero."""
+    if shift_s == 0:
+        return torque_rate(S)
+
+    def compute():
+        out = np.empty(S.n)
+        for i, lg in enumerate(S.logs):
+            sel = S.li == i
+            if not sel.any():
+                continue
+            h = 0.5 * shift_s / S.dt(i)
+            k = S.k[sel].astype(float)
+            ends = []
+            for pos in (k + h, k - h):
+                j0 = np.clip(np.floor(pos).astype(np.int64), 0, lg.n - 2)
+                fr = np.clip(pos - j0, 0.0, 1.0)
+                ends.append(_torque_model(S, i, j0, beta) * (1 - fr) + _torque_model(S, i, j0 + 1, beta) * fr)
+            out[sel] = (ends[0] - ends[1]) / shift_s
+        return out
+    return S.cached(("delay_column", round(float(shift_s), 12), beta), compute)
+
+
+def moving_samples(S: Samples) -> int:
+    """The number of moving samples :func:`delay_estimate` fits."""
+    return int(sum(km.size for km, _ in _moving_rows(S)))
+
+
+def delay_limit(S: Samples) -> float:
+    """The longest delay [s] searched: :data:`DELAY_MAX_RUN` of the mean run of one sign (at least a sample)."""
+    return max(DELAY_MAX_RUN * _run_time(S), S.dt(0))

@@ -28,6 +28,7 @@ from ..data import finite
 from ..segments import noise_sigma
 from .chain import ALPHA, EXPLAINED_MIN, group_d, paired_t
 from .samples import Samples
+from .signals import torque_rate
 
 #: Bins of a variable: about this many samples per bin on average (at most MAX_BINS, at least MIN_BINS).
 PER_BIN = 200
@@ -39,7 +40,7 @@ X_NOISE = 3.0
 #: The variables tested, with their label and unit key.
 VARIABLES = (("speed", "velocity", "w"), ("dwell", "time since the last rest", "s"), ("time", "time", "s"),
              ("position", "position", "q"), ("acceleration", "acceleration", "a"),
-             ("torque", "measured torque", "F"))
+             ("torque", "measured torque", "F"), ("torque_rate", "rate of the measured torque", "F/s"))
 
 
 def torque_noise(S: Samples) -> float:
@@ -82,6 +83,8 @@ def variable(S: Samples, name: str) -> np.ndarray | None:
         return S.a
     if name == "torque":
         return S.tau
+    if name == "torque_rate":   # a delay between torque and motion leaves d dtau/dt
+        return torque_rate(S)
     raise KeyError(name)
 
 
