@@ -9,7 +9,7 @@ with the diagnosis; runs alternate with the floor's, and the ratios are of media
     python benchmarks/bench_fit_floor.py                  # 2 joints x 15 min at 1 kHz, 3 rounds
     python benchmarks/bench_fit_floor.py --minutes 5 --joints 1 --rounds 2
     python benchmarks/bench_fit_floor.py --stages         # and the CPU time of each step of one fit
-    python benchmarks/bench_fit_floor.py --optimiser      # and the CPU time inside least_squares, by caller
+    python benchmarks/bench_fit_floor.py --optimiser      # and the CPU time inside least_squares, by purpose
 
 ``--stages`` times one more fit with the diagnosis with every step of :data:`STAGES` wrapped (CPU time,
 steps nest: "diagnosis" holds "samples", "chain" and the rest); :func:`stage_times` is shared with
@@ -90,10 +90,26 @@ def stage_times(run) -> tuple[float, dict]:
 
 #: Modules of the fit that call ``scipy.optimize.least_squares`` (imported by name: wrapped there).
 LSQ_MODULES = ("frictid.identify.static", "frictid.identify.thermal", "frictid.identify.presliding")
+#: What a least-squares run is for: the innermost of these functions on the call stack names it.
+LSQ_PURPOSES = (("_shift_profile", "static maps: rigid-body error refits"),
+                ("_delta_profile", "static maps: Stribeck exponent profile"),
+                ("heldout_static", "static maps: held-out folds"),
+                ("_stage2_map", "stage-2 map (per-sign, on stage 1's plateaus)"),
+                ("static_maps", "static maps: full-data fits"),
+                ("_presliding_rms", "LuGre: sigma0 held-out ramps"), ("_sigma1", "LuGre: sigma1 steps"),
+                ("fit_lugre", "LuGre: sigma0"), ("fit_thermal_models", "thermal models"))
+
+
+def _purpose(frame) -> str:
+    names = []
+    while frame is not None:
+        names.append(frame.f_code.co_name)
+        frame = frame.f_back
+    return next((label for fn, label in LSQ_PURPOSES if fn in names), "other")
 
 
 def optimiser_times(run) -> tuple[float, dict]:
-    """CPU time of ``run()`` and, per function that calls ``least_squares`` (module.function), its runs,
+    """CPU time of ``run()`` and, per purpose of a ``least_squares`` run (:data:`LSQ_PURPOSES`), the runs,
     residual and Jacobian evaluations, the CPU time inside ``least_squares`` and, of it, inside the
     residual and Jacobian callbacks (the rest is the optimiser's own loop: trust-region steps, SVDs, scaling
     and bound handling, finite differences' bookkeeping)."""
@@ -115,7 +131,8 @@ def optimiser_times(run) -> tuple[float, dict]:
 
         def timed(fun, x0, *a, _lsq=lsq, **kw):
             caller = sys._getframe(1)
-            row = rows[f"{caller.f_globals['__name__'].split('.')[-1]}.{caller.f_code.co_name}"]
+            smap = getattr(caller.f_locals.get("self"), "smap", None)  # a static map's branch: its name too
+            row = rows[_purpose(caller) + (f", {smap.name}" if smap is not None else "")]
             if callable(kw.get("jac")):
                 kw["jac"] = clocked(kw["jac"], row)
             t0 = time.process_time()
@@ -146,7 +163,7 @@ def print_optimiser(total: float, rows: dict) -> None:
           f"({100 * cpu / total:.0f} %), of it the residuals and Jacobians {cb:.2f} s and the optimiser's own "
           f"loop {cpu - cb:.2f} s ({100 * (cpu - cb) / total:.0f} % of the fit)")
     for name, r in sorted(rows.items(), key=lambda kv: -kv[1]["cpu"]):
-        print(f"  {name:<28} {r['runs']:4d} runs  {r['nfev']:6d} residuals  {r['njev']:6d} Jacobians  "
+        print(f"  {name:<62} {r['runs']:4d} runs  {r['nfev']:6d} residuals  {r['njev']:6d} Jacobians  "
               f"{r['cpu']:6.2f} s  (callbacks {r['callbacks']:5.2f} s, loop {r['cpu'] - r['callbacks']:5.2f} s)")
 
 
@@ -189,7 +206,7 @@ def main(argv=None) -> int:
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--stages", action="store_true", help="also the CPU time of each step of one fit")
     ap.add_argument("--optimiser", action="store_true",
-                    help="also the CPU time of one fit without the diagnosis inside least_squares, by caller")
+                    help="also the CPU time of one fit without the diagnosis inside least_squares, by purpose")
     a = ap.parse_args(argv)
     if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
         a.minutes, a.joints, a.rounds = 1.0, 1, 1
