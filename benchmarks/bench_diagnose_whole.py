@@ -1,6 +1,7 @@
 """Benchmark: the diagnosis on every sliding sample of a long log, against the fit without the diagnosis.
 
     python benchmarks/bench_diagnose_whole.py [--minutes 60] [--plant geared_industrial] [--seed 100000] [--stages]
+                                             [--candidates]
 
 Input: frictid's plant (``--plant``, its own hidden effects removed, ``tests/diag_synth.py``) run through a
 pick-and-place program (``diag_synth.pick_place_recipe``: a constant-velocity sweep, ``--minutes`` of 7 s
@@ -15,6 +16,7 @@ with it: the log's samples, the sliding samples the diagnosis used (all of them:
 findings (cause, extension, held-out gain, where the temperature came from) and any warning.
 
 ``--stages``: the CPU time of each step of one more fit with the diagnosis (``bench_fit_floor.stage_times``).
+``--candidates``: the CPU time of each candidate extension's trials in the chain of one more fit.
 
 ``FRICTID_SMOKE=1`` shrinks the log to one minute of cycles (a few seconds), the same code path.
 """
@@ -59,12 +61,47 @@ def make_logs(minutes: float, plant: str, seed: int):
     return logs
 
 
+def candidate_times(run) -> tuple[float, dict]:
+    """CPU time of ``run()`` and, per candidate extension, the CPU time of its trials in the diagnosis'
+    chain (``Chain.evaluate``: its proposals and held-out refits over the folds, summed over the chain's
+    steps) and the number of steps it was tried in."""
+    from frictid.diagnose.chain import Chain
+
+    spent: dict = {}
+    fn = Chain.evaluate
+
+    def timed(self, ext, m):
+        t0 = time.process_time()
+        try:
+            return fn(self, ext, m)
+        finally:
+            cpu, n = spent.get(ext, (0.0, 0))
+            spent[ext] = (cpu + time.process_time() - t0, n + 1)
+    Chain.evaluate = timed
+    try:
+        t0 = time.process_time()
+        run()
+        total = time.process_time() - t0
+    finally:
+        Chain.evaluate = fn
+    return total, spent
+
+
+def print_candidates(total: float, spent: dict) -> None:
+    chain = sum(c for c, _ in spent.values())
+    print(f"candidates (CPU time of one fit with the diagnosis, {total:.2f} s; their trials {chain:.2f} s):")
+    for ext, (cpu, n) in sorted(spent.items(), key=lambda kv: -kv[1][0]):
+        print(f"  {ext:<20} {cpu:6.2f} s  {100 * cpu / total:4.0f} %  ({n} steps)")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=60.0, help="pick-and-place cycles [min]")
     ap.add_argument("--plant", default="geared_industrial")
     ap.add_argument("--seed", type=int, default=100000)
     ap.add_argument("--stages", action="store_true", help="also the CPU time of each step of one fit")
+    ap.add_argument("--candidates", action="store_true",
+                    help="also the CPU time of each candidate extension in the diagnosis' chain of one fit")
     args = ap.parse_args(argv)
     smoke = os.environ.get("FRICTID_SMOKE") == "1"
     minutes = 1.0 if smoke else args.minutes
@@ -100,6 +137,8 @@ def main(argv=None) -> int:
         from bench_fit_floor import print_stages, stage_times
 
         print_stages(*stage_times(lambda: frictid.fit(logs, models=ds.FIT_MODELS)))
+    if args.candidates:
+        print_candidates(*candidate_times(lambda: frictid.fit(logs, models=ds.FIT_MODELS)))
     print(f"load average at the end {load():.1f}")
     return 0
 

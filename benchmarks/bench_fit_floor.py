@@ -9,6 +9,7 @@ with the diagnosis; runs alternate with the floor's, and the ratios are of media
     python benchmarks/bench_fit_floor.py                  # 2 joints x 15 min at 1 kHz, 3 rounds
     python benchmarks/bench_fit_floor.py --minutes 5 --joints 1 --rounds 2
     python benchmarks/bench_fit_floor.py --stages         # and the CPU time of each step of one fit
+    python benchmarks/bench_fit_floor.py --optimiser      # and the CPU time inside least_squares, by purpose
 
 ``--stages`` times one more fit with the diagnosis with every step of :data:`STAGES` wrapped (CPU time,
 steps nest: "diagnosis" holds "samples", "chain" and the rest); :func:`stage_times` is shared with
@@ -87,6 +88,85 @@ def stage_times(run) -> tuple[float, dict]:
     return total, dict(spent)
 
 
+#: Modules of the fit that call ``scipy.optimize.least_squares`` (imported by name: wrapped there).
+LSQ_MODULES = ("frictid.identify.static", "frictid.identify.thermal", "frictid.identify.presliding")
+#: What a least-squares run is for: the innermost of these functions on the call stack names it.
+LSQ_PURPOSES = (("_shift_profile", "static maps: rigid-body error refits"),
+                ("_delta_profile", "static maps: Stribeck exponent profile"),
+                ("heldout_static", "static maps: held-out folds"),
+                ("_stage2_map", "stage-2 map (per-sign, on stage 1's plateaus)"),
+                ("static_maps", "static maps: full-data fits"),
+                ("_presliding_rms", "LuGre: sigma0 held-out ramps"), ("_sigma1", "LuGre: sigma1 steps"),
+                ("fit_lugre", "LuGre: sigma0"), ("fit_thermal_models", "thermal models"))
+
+
+def _purpose(frame) -> str:
+    names = []
+    while frame is not None:
+        names.append(frame.f_code.co_name)
+        frame = frame.f_back
+    return next((label for fn, label in LSQ_PURPOSES if fn in names), "other")
+
+
+def optimiser_times(run) -> tuple[float, dict]:
+    """CPU time of ``run()`` and, per purpose of a ``least_squares`` run (:data:`LSQ_PURPOSES`), the runs,
+    residual and Jacobian evaluations, the CPU time inside ``least_squares`` and, of it, inside the
+    residual and Jacobian callbacks (the rest is the optimiser's own loop: trust-region steps, SVDs, scaling
+    and bound handling, finite differences' bookkeeping)."""
+    rows: dict = collections.defaultdict(lambda: {"runs": 0, "nfev": 0, "njev": 0, "cpu": 0.0, "callbacks": 0.0})
+    undo = []
+
+    def clocked(fn, row):
+        def inner(*a, **kw):
+            t0 = time.process_time()
+            try:
+                return fn(*a, **kw)
+            finally:
+                row["callbacks"] += time.process_time() - t0
+        return inner
+
+    for mod_name in LSQ_MODULES:
+        mod = importlib.import_module(mod_name)
+        lsq = mod.least_squares
+
+        def timed(fun, x0, *a, _lsq=lsq, **kw):
+            caller = sys._getframe(1)
+            smap = getattr(caller.f_locals.get("self"), "smap", None)  # a static map's branch: its name too
+            row = rows[_purpose(caller) + (f", {smap.name}" if smap is not None else "")]
+            if callable(kw.get("jac")):
+                kw["jac"] = clocked(kw["jac"], row)
+            t0 = time.process_time()
+            try:
+                res = _lsq(clocked(fun, row), x0, *a, **kw)
+            finally:
+                row["cpu"] += time.process_time() - t0
+            row["runs"] += 1
+            row["nfev"] += int(res.nfev)
+            row["njev"] += int(res.njev or 0)
+            return res
+        mod.least_squares = timed
+        undo.append((mod, lsq))
+    try:
+        t0 = time.process_time()
+        run()
+        total = time.process_time() - t0
+    finally:
+        for mod, lsq in undo:
+            mod.least_squares = lsq
+    return total, dict(rows)
+
+
+def print_optimiser(total: float, rows: dict) -> None:
+    cpu = sum(r["cpu"] for r in rows.values())
+    cb = sum(r["callbacks"] for r in rows.values())
+    print(f"least_squares (CPU time of one fit without the diagnosis, {total:.2f} s): {cpu:.2f} s "
+          f"({100 * cpu / total:.0f} %), of it the residuals and Jacobians {cb:.2f} s and the optimiser's own "
+          f"loop {cpu - cb:.2f} s ({100 * (cpu - cb) / total:.0f} % of the fit)")
+    for name, r in sorted(rows.items(), key=lambda kv: -kv[1]["cpu"]):
+        print(f"  {name:<62} {r['runs']:4d} runs  {r['nfev']:6d} residuals  {r['njev']:6d} Jacobians  "
+              f"{r['cpu']:6.2f} s  (callbacks {r['callbacks']:5.2f} s, loop {r['cpu'] - r['callbacks']:5.2f} s)")
+
+
 def print_stages(total: float, spent: dict) -> None:
     print(f"steps (CPU time of one fit with the diagnosis, {total:.2f} s; steps nest):")
     for label, _, _ in STAGES:
@@ -125,6 +205,8 @@ def main(argv=None) -> int:
     ap.add_argument("--joints", type=int, default=2)
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--stages", action="store_true", help="also the CPU time of each step of one fit")
+    ap.add_argument("--optimiser", action="store_true",
+                    help="also the CPU time of one fit without the diagnosis inside least_squares, by purpose")
     a = ap.parse_args(argv)
     if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
         a.minutes, a.joints, a.rounds = 1.0, 1, 1
@@ -140,6 +222,7 @@ def main(argv=None) -> int:
                 times[k].append(run(path))
                 cpu[k].append(CPU[-1])
         stages = stage_times(lambda: fit(path, True)) if a.stages else None
+        optim = optimiser_times(lambda: fit(path, False)) if a.optimiser else None
     med = {k: statistics.median(v) for k, v in times.items()}
     mcpu = {k: statistics.median(v) for k, v in cpu.items()}
     print(f"fit against its floor: {a.joints} joints x {a.minutes:g} min at 1 kHz ({rows} rows), "
@@ -154,6 +237,8 @@ def main(argv=None) -> int:
     print("CPU time, medians: " + ", ".join(f"{k} {mcpu[k]:.2f} s{ratio[k]}" for k in mcpu))
     if stages is not None:
         print_stages(*stages)
+    if optim is not None:
+        print_optimiser(*optim)
     return 0
 
 
