@@ -63,6 +63,32 @@ def test_a_joint_turning_several_revolutions_passes(tmp_path, revs, speed):
     assert np.ptp(lg.q) > 2 * np.pi * revs * 0.95
 
 
+def coarse(path, src, rate, bits=12, factor=1.0):
+    """Log ``src`` as a ``bits``-bit encoder with the drive's backward difference as qd, times ``factor``."""
+    df = pd.read_csv(src)
+    step = 2 * np.pi / 2**bits
+    q = np.floor(df.q.to_numpy() / step) * step
+    qd = np.concatenate([[0.0], np.diff(q) * rate])
+    df.assign(q=q * factor, qd=qd * factor).to_csv(path, index=False)
+    return path, qd
+
+
+def test_a_coarse_encoder_differenced_at_a_high_rate_passes(tmp_path):
+    """A 12-bit encoder logged at 5 kHz with the drive's backward difference as qd: single counts read as a
+    count times the rate (7.7 rad/s) on a joint turning 1.4 revolutions at 1.9 rad/s. Radians, as the
+    position's speed over 50 ms says (a foreign-scorecard draw, seed 100189, was refused for it); a quarter
+    turn of the same encoder logged in degrees is still refused."""
+    rate = 5000.0
+    log, qd = coarse(tmp_path / "coarse.csv", turning_log(tmp_path / "a.csv", 1.4, 1.9, rate=rate), rate)
+    assert np.percentile(np.abs(qd), 99) > 2 * np.pi  # the counts alone would pass for a turning joint
+    (lg,) = read_logs(str(log))
+    assert np.ptp(lg.q) > 2 * np.pi
+    deg, _ = coarse(tmp_path / "deg.csv", turning_log(tmp_path / "b.csv", 0.25, 1.9, rate=rate), rate,
+                    factor=np.degrees(1.0))
+    with pytest.raises(LogFormatError, match="look like degrees"):
+        read_logs(str(deg))
+
+
 def test_refused_turning_log_and_the_cli_exit(tmp_path, cli):
     """Two turns at 2 rev/s read as radians is within the rule's doubt: exit 2, one message, no output;
     --units q=rad,qd=rad/s accepts it."""

@@ -837,7 +837,7 @@ def _check_joint(a: dict[str, np.ndarray], rows, jid: str, door: _Door
     if not jprob and "q" in a and "q" not in door.spec.units and door.axis == "rotary":
         msg = _degrees_check(a["t"], a["q"], a.get("qd"))
         if msg is None and "qd" in a and "qd" not in door.spec.units:
-            msg = _both_degrees_check(a["q"], a["qd"])
+            msg = _both_degrees_check(a["t"], a["q"], a["qd"])
         if msg:
             jprob.append(where + msg)
     return a, rows, jprob, jwarn
@@ -995,6 +995,21 @@ def _joint_blocks(jcol: pa.ChunkedArray) -> list[tuple[str, slice | np.ndarray]]
 DEGREES_SAMPLES = 20_000
 
 
+#: The window over which the degrees checks read the joint's speed from its position [s]: long against a
+#: sample period, so that a coarse encoder's single count per sample (a count times the log rate, which a
+#: drive's backward difference logs as qd) does not pass for the joint's speed.
+SPEED_WINDOW = 0.05
+
+
+def _top_speed(t: np.ndarray, q: np.ndarray) -> float:
+    """The 99th percentile of |dq/dt| over SPEED_WINDOW, on up to DEGREES_SAMPLES windows spread over the log."""
+    k = max(1, int(round(SPEED_WINDOW / max(float(np.median(np.diff(t[:1000]))), 1e-12))))
+    if q.size <= k:
+        return 0.0
+    i = np.linspace(0, q.size - 1 - k, min(q.size - k, DEGREES_SAMPLES)).astype(np.int64)
+    return float(np.percentile(np.abs((q[i + k] - q[i]) / (t[i + k] - t[i])), 99))
+
+
 def _degrees_check(t: np.ndarray, q: np.ndarray, qd: np.ndarray | None) -> str | None:
     """A message when a position column in rad looks like degrees, else None."""
     span = float(np.max(q) - np.min(q))
@@ -1012,7 +1027,7 @@ def _degrees_check(t: np.ndarray, q: np.ndarray, qd: np.ndarray | None) -> str |
                 return (f"column 'q' changes {ratio:.0f} times faster than 'qd': q looks like degrees; "
                         "declare --units q=deg (or --units q=rad if it really is radians)")
         return None
-    vmax = float(np.percentile(np.abs(np.diff(q) / np.diff(t)), 99))
+    vmax = _top_speed(t, q)
     if span > 90.0 and vmax > 50.0:
         return (f"column 'q' spans {span:.0f} rad at up to {vmax:.0f} rad/s, which suggests degrees given as "
                 "radians; declare --units q=deg (or --units q=rad if it really is radians)")
@@ -1023,17 +1038,21 @@ def _degrees_check(t: np.ndarray, q: np.ndarray, qd: np.ndarray | None) -> str |
 REVOLUTION = 2 * math.pi
 
 
-def _both_degrees_check(q: np.ndarray, qd: np.ndarray) -> str | None:
+def _both_degrees_check(t: np.ndarray, q: np.ndarray, qd: np.ndarray) -> str | None:
     """A message when q and qd, consistent with each other and undeclared, are both plausibly degrees.
 
     Read as radians the joint turns more than one revolution (span of q > 2 pi rad) at a top speed
     (99th percentile of |qd|) above one revolution per second; read as degrees it stays within one
     revolution (span <= 360). A joint that turns several revolutions slower than 1 rev/s, or a motor shaft
-    spanning more than 360 rad, is taken as radians (docs/log-format.md)."""
+    spanning more than 360 rad, is taken as radians (docs/log-format.md). The top speed is the smaller of
+    qd's and the position's over SPEED_WINDOW: a backward difference of a coarse encoder logs single counts
+    as speeds of a count times the log rate (12 bits at 5 kHz: 7.7 rad/s steps on a joint moving at 1.9)."""
     span = float(np.max(q) - np.min(q))
     if not REVOLUTION < span <= 360.0:
         return None
     top = float(np.percentile(np.abs(qd[:: max(1, qd.size // DEGREES_SAMPLES)]), 99))  # a spread sample
+    if top > REVOLUTION:
+        top = min(top, _top_speed(t, q))
     if top <= REVOLUTION:
         return None
     return (f"columns 'q' and 'qd' look like degrees: as radians the joint would turn {span / REVOLUTION:.1f} "
