@@ -317,7 +317,7 @@ def test_parse_limits():
 
 
 #: The sizes the documented commands run with here (the page shows the full sizes).
-SMALL = {"--robots 6": "--robots 1", "--joints 6": "--joints 2", "--days 30": "--days 8",
+SMALL = {"--robots 6": "--robots 1", "--joints 6": "--joints 2", "--days 30": "--days 8", "--days 12": "--days 6",
          "--partitions 8": "--partitions 2", "--seconds 60": "--seconds 10"}
 
 
