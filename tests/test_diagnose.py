@@ -2,16 +2,15 @@
 
 Fast tests build the friction torque directly (a Stribeck map along prescribed plateaus and transitions,
 with one effect added) and call :func:`frictid.diagnose.diagnose_joint` with a stand-in for the fit's
-result; the plant tests (``@pytest.mark.slow`` for the matrix over causes, plants, sizes and noise)
-simulate logs with ``tests/diag_synth.py`` and run the whole ``frictid fit``.
+result; the plant tests simulate logs with ``tests/diag_synth.py`` and run the whole ``frictid fit`` (the
+matrix over causes, plants, sizes and noise is in ``tests/test_diagnose_plants.py``, a file of its own so
+that the test workers, one file each, share the load).
 
 Stated thresholds: the right first cause with a held-out gain of at least :data:`GAIN_FOUND` for an effect
 of about 15 % of the friction RMS (:data:`GAIN_FOUND_NOISY` with three times the plant's sensor noise, which
 stays in both RMS and dilutes the ratio); with nothing hidden, no finding with a gain above 5 %.
 """
 from __future__ import annotations
-
-import math
 
 import numpy as np
 import pytest
@@ -438,36 +437,6 @@ def test_cli_fit_diagnoses_by_default_and_the_result_replays(tmp_path, cli):
     assert r.code == 0, r
     nd = read_params(str(tmp_path / "nd.yaml"))[logs[0].joint]
     assert nd.diagnosis == [] and "+" not in nd.selected
-
-
-#: (cause, plant, size, noise) cases of the matrix; strength 0.15 (about 15 % of the friction RMS).
-MATRIX = [
-    ("temperature", "hydraulic", "small", 1.0), ("temperature", "geared_industrial", "large", 3.0),
-    ("position", "hydraulic", "small", 3.0), ("position", "linear_slide", "large", 1.0),
-    ("load", "geared_industrial", "small", 1.0), ("load", "geared_industrial", "large", 3.0),
-    ("asymmetry", "geared_industrial", "small", 1.0), ("asymmetry", "hydraulic", "large", 3.0),
-    ("asymmetry", "linear_slide", "small", 1.0),
-    ("offset", "linear_slide", "small", 3.0), ("offset", "hydraulic", "large", 1.0),
-    ("drift", "geared_industrial", "small", 1.0), ("drift", "linear_slide", "large", 3.0),
-]
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("cause,plant,size,noise", MATRIX)
-def test_hidden_effect_is_found(cause, plant, size, noise):
-    jf, es, logs = ds.run_case(plant, cause, 0.15, size, seed=7, noise=noise, with_effect_size=True)
-    top, gain = ds.top_cause(jf)
-    assert es > 0.08, f"the injected effect is {100 * es:.0f} % of the friction RMS"
-    assert top == cause, (top, jf.diagnosis)
-    assert gain >= (GAIN_FOUND_PLANT if noise <= 1.0 else GAIN_FOUND_NOISY)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("plant,size,noise", [("hydraulic", "small", 1.0), ("geared_industrial", "small", 3.0),
-                                              ("linear_slide", "large", 1.0), ("hydraulic", "large", 3.0)])
-def test_nothing_hidden_gives_no_finding(plant, size, noise):
-    jf, _, _ = ds.run_case(plant, "none", 0.0, size, seed=11, noise=noise)
-    assert not [f for f in jf.diagnosis if f["gain"] > GAIN_NULL], jf.diagnosis
 
 
 def test_no_evidence_warning_without_findings():

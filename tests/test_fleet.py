@@ -1,5 +1,5 @@
 """Fleets: a simulated fleet fitted on a real distributed.LocalCluster (2 worker processes, started and
-closed here) and serially, the trend store, re-runs, a bad partition, and the trend's verdicts.
+closed here, in a child process) and serially, the trend store, re-runs, a bad partition, and the trend's verdicts.
 
 The fleet: 2 robots x 2 joints x 12 days of ~15 s logs; one joint with planted wear, one with a
 re-lubrication step, one whose ambient swings by +-8 K day to day (thermal4 law: friction follows it,
@@ -15,12 +15,12 @@ import re
 import shlex
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
-from distributed import LocalCluster
 
 from conftest import ROOT
 from fleet_synth import plan_fleet, write_fleet
@@ -48,6 +48,34 @@ def run_cli(*args) -> tuple[int, str, str]:
     return code, out.getvalue(), err.getvalue()
 
 
+def run_cli_process(*args) -> tuple[int, str, str]:
+    """``frictid ARGS`` in a child process: a dask client leaves a thread behind in the process that ran it
+    (distributed's offload thread), and a process with other threads never forks workers
+    (:func:`frictid.parallel.map_ordered`), which tests/test_fit_parallel.py checks in the same worker."""
+    p = subprocess.run([sys.executable, "-m", "frictid", *map(str, args)], capture_output=True, text=True,
+                       timeout=900)
+    return p.returncode, p.stdout, p.stderr
+
+
+@contextlib.contextmanager
+def local_cluster():
+    """The address of a distributed.LocalCluster (2 worker processes) run by a child process, closed on exit."""
+    code = ("import sys\nfrom distributed import LocalCluster\n"
+            "with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=':0') as c:\n"
+            "    print(c.scheduler_address, flush=True)\n    sys.stdin.read()\n")
+    proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        address = proc.stdout.readline().strip()
+        assert address.startswith("tcp://"), f"the cluster did not start: {address!r}"
+        yield address
+    finally:
+        proc.stdin.close()
+        try:
+            proc.wait(timeout=60)
+        except subprocess.TimeoutExpired:  # pragma: no cover - a cluster that does not close
+            proc.kill()
+
+
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory):
     root = tmp_path_factory.mktemp("fleet")
@@ -63,12 +91,14 @@ def fleet(tmp_path_factory):
 def fitted(fleet):
     """The fleet fitted on a LocalCluster (twice: the second run must skip) and serially."""
     root, plan = fleet
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
-        first = run_cli("fit", root / "fleet", "--engine", "dask", "--scheduler", cluster.scheduler_address,
-                        "-o", root / "store", *FIT)
-        again = run_cli("fit", root / "fleet", "--engine", "dask", "--scheduler", cluster.scheduler_address,
-                        "-o", root / "store", *FIT, "--json")
+    threads = threading.active_count()
+    with local_cluster() as address:
+        first = run_cli_process("fit", root / "fleet", "--engine", "dask", "--scheduler", address,
+                                "-o", root / "store", *FIT)
+        again = run_cli_process("fit", root / "fleet", "--engine", "dask", "--scheduler", address,
+                                "-o", root / "store", *FIT, "--json")
     serial = run_cli("fit", root / "fleet", "--engine", "serial", "-o", root / "serial", *FIT)
+    assert threading.active_count() == threads, "a fleet fit left a thread behind in the test process"
     return root, plan, first, again, serial
 
 
@@ -330,11 +360,11 @@ def doc_commands() -> list[str]:
 def test_every_command_in_docs_fleet_runs(tmp_path):
     cmds = doc_commands()
     assert len(cmds) >= 8 and any("--scheduler" in c for c in cmds)
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
+    with local_cluster() as address:
         for cmd in cmds:
             for a, b in SMALL.items():
                 cmd = cmd.replace(a, b)
-            cmd = cmd.replace("tcp://127.0.0.1:8786", cluster.scheduler_address)
+            cmd = cmd.replace("tcp://127.0.0.1:8786", address)
             argv = shlex.split(cmd)
             if argv[0] == "python":
                 argv = [sys.executable, str(ROOT / argv[1]), *argv[2:]]
