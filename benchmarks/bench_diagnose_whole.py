@@ -51,14 +51,7 @@ def timed(fn):
 
 def make_logs(minutes: float, plant: str, seed: int):
     """The pick-and-place logs with the warm-up hidden and the joint temperature logged."""
-    from frictid.plant import simulate_recipe
-
-    base = ds.null_plant(plant)
-    rec = ds.pick_place_recipe(minutes)
-    logs = simulate_recipe(rec, ds.warm_up_plant(base, 0.3, 35.0, rec, seed), seed=seed)
-    ds.log_joint_temperature(logs, seed)
-    ds.declare_horizontal(logs, base)
-    return logs
+    return ds.warm_pick_place(minutes, plant, seed)
 
 
 def candidate_times(run) -> tuple[float, dict]:

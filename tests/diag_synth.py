@@ -265,6 +265,20 @@ def warm_up_plant(plant: dict, drop: float, dT: float, recipe: dict, seed: int) 
     return pl
 
 
+def warm_pick_place(minutes: float, plant: str, seed: int) -> list:
+    """Logs of :func:`pick_place_recipe` on a null plant that warms up (friction -30 % over 35 K,
+    :func:`warm_up_plant`), the joint temperature logged (:func:`log_joint_temperature`), declared
+    horizontal: nothing hidden but the warm-up."""
+    from frictid.plant import simulate_recipe
+
+    base = null_plant(plant)
+    rec = pick_place_recipe(minutes)
+    logs = simulate_recipe(rec, warm_up_plant(base, 0.3, 35.0, rec, seed), seed=seed)
+    log_joint_temperature(logs, seed)
+    declare_horizontal(logs, base)
+    return logs
+
+
 def log_joint_temperature(logs, seed: int, sigma: float = 0.05, step: float = 0.1) -> None:
     """Write the true joint temperature as a logged ``temp_joint`` channel, as a sensor would: with noise
     ``sigma`` [K] and quantised to ``step`` [K]."""

@@ -31,7 +31,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.special import stdtr
+from scipy.special import ndtri, stdtr
 
 from .causes import EXTENSIONS, candidates, n_coef, propose
 from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure, Term
@@ -297,10 +297,63 @@ def confounded(S: Samples, tr: Trial, m: int) -> str | None:
     rw = _within(cell, S.F - tr.pred_before, S.w)
     dw = _within(cell, tr.pred_after - tr.pred_before, S.w)
     t, p = paired_t(np.bincount(S.group, weights=rw * dw, minlength=S.n_groups))
-    if p < ALPHA / max(m, 1):
+    if p >= ALPHA / max(m, 1):
+        return (f"{tr.ext} does not show within segments at one speed (held-out within-cell t = {t:.2f}, "
+                f"p = {p:.2g}): the position stands in for the speed or the order of the plateaus")
+    return _grows_with_speed(S, tr, rw, dw, m)
+
+
+#: Equal-count bands of the speed |w| in which a position candidate's share of the residual is compared.
+SPEED_BANDS = 4
+#: Most a closed loop can raise a torque of the position in the measured torque at a higher speed, by the
+#: resonance peak of its complementary sensitivity (1 / (2 zeta sqrt(1 - zeta^2)): 2 at a damping of 0.25).
+LOOP_PEAK_MAX = 2.0
+
+
+def _band_shares(S: Samples, rw: np.ndarray, dw: np.ndarray) -> list[tuple[float, float, float, float]]:
+    """Per speed band (:data:`SPEED_BANDS` equal-count bands of |w|): the share of the candidate's
+    correction in the residual, ``beta = sum(rw dw) / sum(dw^2)`` over the band's samples (both within
+    cells), its standard error with the held-out groups as the independent units (a ratio estimator), and
+    the band's speeds [lowest, highest]."""
+    speed = np.abs(S.w)
+    edges = np.unique(np.quantile(speed, np.linspace(0, 1, SPEED_BANDS + 1)[1:-1]))
+    band = np.searchsorted(edges, speed, side="right")
+    out = []
+    for k in range(edges.size + 1):
+        sel = band == k
+        s = np.bincount(S.group[sel], weights=(rw * dw)[sel], minlength=S.n_groups)
+        d = np.bincount(S.group[sel], weights=(dw * dw)[sel], minlength=S.n_groups)
+        if d.sum() <= 0:
+            continue
+        beta = float(s.sum() / d.sum())
+        out.append((beta, float(np.sqrt(np.sum((s - beta * d) ** 2)) / d.sum()),
+                    float(speed[sel].min()), float(speed[sel].max())))
+    return out
+
+
+def _grows_with_speed(S: Samples, tr: Trial, rw: np.ndarray, dw: np.ndarray, m: int) -> str | None:
+    """Why a position candidate is a vibration of the speed, not a torque of the position, or None. A torque
+    that depends on the position reaches the measured torque at every speed: a closed loop attenuates it
+    where ``v / P`` lies above its bandwidth and raises it at most by its resonance peak
+    (:data:`LOOP_PEAK_MAX`). A correction whose share of the residual (:func:`_band_shares`) is
+    significantly more than that many times larger in a faster band than in every slower one (the largest
+    of them) lives at some speeds only: a vibration at the time frequency ``v / P`` (a resonance the motion
+    passes through), which the position stands in for on a repeated program."""
+    bands = _band_shares(S, rw, dw)
+    if len(bands) < 2:
         return None
-    return (f"{tr.ext} does not show within segments at one speed (held-out within-cell t = {t:.2f}, "
-            f"p = {p:.2g}): the position stands in for the speed or the order of the plateaus")
+    z = float(ndtri(1.0 - ALPHA / (max(m, 1) * (len(bands) - 1))))
+    for k in range(1, len(bands)):
+        j = max(range(k), key=lambda i: bands[i][0])
+        (bj, sj, lo_j, hi_j), (bk, sk, lo_k, hi_k) = bands[j], bands[k]
+        excess = bk - LOOP_PEAK_MAX * bj
+        se = math.hypot(sk, LOOP_PEAK_MAX * sj)
+        if excess > z * se:
+            return (f"{tr.ext} grows with the speed: it carries {bk:.2f} of its correction at {lo_k:.3g}-{hi_k:.3g} "
+                    f"against {bj:.2f} at {lo_j:.3g}-{hi_j:.3g} (speed units; held-out groups, z = {excess / se:.1f}): "
+                    f"a closed loop passes a torque of the position at every speed, at most "
+                    f"{LOOP_PEAK_MAX:g}x more at a higher one; a vibration at the time frequency v / P is not one")
+    return None
 
 
 #: A delay is resolved by the log's rate when it is at least this many sample periods (the sampling places
