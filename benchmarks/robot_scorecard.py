@@ -12,7 +12,12 @@
    samples, against AURT's figures (issue 24), for the torque as logged and low-passed at 20 Hz.
 3. The Franka Panda excitation run against Gaz et al. 2019 Table III (classical LS on the same run):
    Coulomb, viscous and offset per joint, the relative torque error and the condition number.
-With FRICTID_SMOKE=1: two arms and the Franka run.
+4. The friction values against the published ones, one choice of the joint estimate changed at a time
+   (standing band, weighting, parallel filtering, cut-off), then the published methods' own processing
+   (classical least squares: every sample, the torque low-passed, the regressor not; for the UR10e exactly
+   Mamedov et al.'s filterData.m), per joint; and the published friction held with the base parameters
+   re-fitted, against the free fit (the residual each joint gains).
+With FRICTID_SMOKE=1: two arms, the Franka run, and part 4 on the first eighth of the Franka run.
 """
 from __future__ import annotations
 
@@ -23,6 +28,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scipy.signal import butter, sosfiltfilt
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -31,7 +37,9 @@ sys.path.insert(0, str(ROOT / "tests"))
 from frictid.io.logs import read_logs  # noqa: E402
 from frictid.robot import identify_robot, load_robot  # noqa: E402
 from frictid.robotfit import heldout_models  # noqa: E402
-from frictid.robot.identify import heldout_errors  # noqa: E402
+from frictid.robot.identify import (RobotFit, align, cut_log, design, heldout_errors, parallel_filter,  # noqa: E402
+                                    predict, prepare, solve)
+from frictid.robot.regressor import base_parameters  # noqa: E402
 from test_robot import AURT_20HZ, random_arm, simulate_excitation  # noqa: E402
 
 AURT_RAW = {"1": 3.44, "2": 6.25, "3": 2.27, "4": 0.65, "5": 1.19, "6": 0.80}
@@ -39,6 +47,9 @@ AURT_RAW = {"1": 3.44, "2": 6.25, "3": 2.27, "4": 0.65, "5": 1.19, "6": 0.80}
 TABLE3 = {"1": (0.0665, 0.2450, -0.1073), "2": (0.1987, 0.1523, -0.1566), "3": (0.0399, 0.1827, -0.0686),
           "4": (0.2257, 0.3591, -0.2522), "5": (0.1023, 0.2669, 0.0045), "6": (-0.0132, 0.1658, 0.0910),
           "7": (0.0638, 0.2109, -0.0127)}
+#: UR10E_parameters.txt (Mamedov et al. 2020): fv, fc, fo per joint
+MAMEDOV = {"1": (21.2560, 12.5484, 0.1961), "2": (20.2209, 13.2656, -0.7535), "3": (10.3777, 4.9943, 0.1979),
+           "4": (3.5751, 1.9979, 0.0548), "5": (2.4909, 2.6905, -0.0096), "6": (3.0256, 2.2979, 0.0425)}
 TOL = {"fc": ("rel", 0.03), "fv": ("rel", 0.10), "fo": ("abs", 0.1)}
 
 
@@ -57,12 +68,15 @@ def ur10e_arm(rng):
 
 def arms(n: int, base: int, make=random_arm, label: str = "random arms, 4 DH joints each") -> None:
     hits = {k: [0, 0, 0] for k in TOL}   # within tolerance, within 2 se, count
-    rel = []
+    rel, cls = [], []   # cls: the classical processing's relative errors of fv and fc (signed)
     for s in range(base, base + n):
         rng = np.random.default_rng(s)
         robot, friction = make(rng)
-        fit = identify_robot(robot, simulate_excitation(robot, friction, rng))
+        logs = simulate_excitation(robot, friction, rng)
+        fit = identify_robot(robot, logs)
         rel.append(fit.rel_error)
+        truth_all = np.array([friction[j] for j in robot.joints])
+        cls.append((classical(robot, logs)[0][:, :2] - truth_all[:, :2]) / np.abs(truth_all[:, :2]))
         for j, truth in friction.items():
             for k, true in zip(("fv", "fc", "fo"), truth):
                 got = fit.friction[j][k]
@@ -77,6 +91,44 @@ def arms(n: int, base: int, make=random_arm, label: str = "random arms, 4 DH joi
         kind, tol = TOL[k]
         print(f"  {k}: within {tol:g}{' (relative)' if kind == 'rel' else ' N m'}: {ok}/{cnt} ({100 * ok / cnt:.0f} %); "
               f"truth within 2 se: {cov}/{cnt} ({100 * cov / cnt:.0f} %)")
+    c = np.concatenate(cls)
+    print(f"  classical LS on the same logs (torque low-passed, regressor not; ordinary LS; part 4): fc within 3 %: "
+          f"{int(np.sum(np.abs(c[:, 1]) <= 0.03))}/{len(c)}, fv within 10 %: {int(np.sum(np.abs(c[:, 0]) <= 0.1))}/{len(c)}; "
+          f"median error fc {100 * np.median(c[:, 1]):+.1f} %, fv {100 * np.median(c[:, 0]):+.1f} %")
+
+
+def alternation(robot, logs, rounds: int, fraction: float = 0.3) -> list[np.ndarray]:
+    """Stage 2 with the rigid body re-estimated by alternation (issue 24): identify on the head, then in
+    each round fit frictid's models on each joint's friction torque, hold them (the selected law where the
+    joint moves, its offset everywhere) and re-fit the base parameters by the joint estimate's WLS on the
+    parallel-filtered torque less that friction. Per round (0: the rigid body of stage 1, held), the held-out
+    RMS per joint [N m] of the rigid body plus the models, at the tail's own samples, as logged."""
+    from frictid.api import fit as fit_joints
+    from frictid.robotfit import friction_logs, model_torque
+
+    k = int(round((1.0 - fraction) * min(lg.n for lg in logs)))
+    head, tail = [cut_log(lg, slice(0, k)) for lg in logs], [cut_log(lg, slice(k, None)) for lg in logs]
+    rf = identify_robot(robot, head)
+    d = prepare(robot, head, rf.cutoff_hz)
+    nb, mov = rf.bp.n, d.moving()
+    Y = design(robot, rf.bp, d)[:, :nb]
+    _, ordered = align(robot, tail)
+    out = []
+    for r in range(rounds + 1):
+        res = fit_joints(friction_logs(head, predict(robot, rf, head)), diagnose=False)
+        pr = model_torque(res, predict(robot, rf, tail), tail)
+        out.append(np.array([np.sqrt(np.mean((np.asarray(lg.tau) - pr[j]) ** 2)) for j, lg in zip(robot.joints, ordered)]))
+        if r == rounds:
+            return out
+        F = np.zeros_like(d.qd)
+        for i, j in enumerate(robot.joints):
+            off = res[j].offset.value if res[j].offset is not None and res[j].offset.value is not None else 0.0
+            F[:, i] = off
+            F[mov[:, i], i] += res[j].model.friction(d.qd[mov[:, i], i], q=d.q[mov[:, i], i])
+        A, y, jid = parallel_filter(d, np.hstack([Y, F.reshape(-1, 1)]), d.tau.reshape(-1))
+        rf.x = rf.x.copy()
+        rf.x[:nb] = solve(A[:, :nb], y - A[:, nb], jid, robot.nv)[0]
+    return out
 
 
 def ur10e() -> None:
@@ -102,6 +154,11 @@ def ur10e() -> None:
     for j in robot.joints:
         a, b = both["linear"], both["models"]
         print(f"  {j:<5} {a['whole'][j]:7.2f} {b['whole'][j]:7.2f}   {a['moving'][j]:14.2f} {b['moving'][j]:7.2f}")
+    t0 = time.time()
+    rounds = 1 if os.environ.get("FRICTID_SMOKE") else 3
+    alt = alternation(robot, logs, rounds)
+    print(f"  stage 2 with the rigid body re-estimated by alternation, same split, as logged, per round "
+          f"({time.time() - t0:.1f} s): " + "; ".join(f"{r}: " + " ".join(f"{v:.2f}" for v in e) for r, e in enumerate(alt)))
 
 
 def franka() -> None:
@@ -112,11 +169,147 @@ def franka() -> None:
     print(f"Franka Panda (Gaz 2019 Table III, classical LS): relative torque error {100 * fit.rel_error:.2f} % "
           f"(published 1.41 %), condition {fit.condition:.1f} (published 121.88), {len(fit.base)} base parameters, "
           f"cut-off {fit.cutoff_hz:.1f} Hz, {time.time() - t0:.1f} s")
-    print(f"  {'joint':<5} {'fc':>8} {'Table III':>9} {'diff':>7}  {'fv':>8} {'Table III':>9}  {'fo':>8} {'Table III':>9} {'diff':>7}")
+    print(f"  {'joint':<5} {'fc':>8} {'se':>6} {'Table III':>9} {'diff':>7} {'/se':>5}  {'fv':>8} {'se':>6} {'Table III':>9} "
+          f"{'/se':>5}  {'fo':>8} {'Table III':>9} {'diff':>7}")
     for j, (fv_p, fc_p, fo_p) in TABLE3.items():
         f = fit.friction[j]
-        print(f"  {j:<5} {f['fc'].value:8.4f} {fc_p:9.4f} {100 * (f['fc'].value / fc_p - 1):+6.1f}%  "
-              f"{f['fv'].value:8.4f} {fv_p:9.4f}  {f['fo'].value:8.4f} {fo_p:9.4f} {f['fo'].value - fo_p:+7.3f}")
+        fc, fv = f["fc"], f["fv"]
+        print(f"  {j:<5} {fc.value:8.4f} {fc.stderr:6.4f} {fc_p:9.4f} {100 * (fc.value / fc_p - 1):+6.1f}% "
+              f"{(fc.value - fc_p) / fc.stderr:+5.1f}  {fv.value:8.4f} {fv.stderr:6.4f} {fv_p:9.4f} "
+              f"{(fv.value - fv_p) / fv.stderr:+5.1f}  {f['fo'].value:8.4f} {fo_p:9.4f} {f['fo'].value - fo_p:+7.3f}")
+
+
+def _solve(A, y, jid, nb: int, nv: int, weighted: bool, hold=None):
+    """(friction (nv, 3) [fv fc fo], residual RMS per joint, relative torque error, the estimate [base |
+    friction]), all on the fitted samples: WLS as frictid
+    or ordinary LS; with ``hold`` ((nv, 3)) the friction is held and only the base parameters are fitted."""
+    if hold is not None:
+        fh = np.asarray(hold, float).reshape(-1)
+        yb = y - A[:, nb:] @ fh
+        xb = solve(A[:, :nb], yb, jid, nv)[0] if weighted else np.linalg.lstsq(A[:, :nb], yb, rcond=None)[0]
+        x = np.concatenate([xb, fh])
+    else:
+        x = solve(A, y, jid, nv)[0] if weighted else np.linalg.lstsq(A, y, rcond=None)[0]
+    r = y - A @ x
+    rms = np.array([np.sqrt(np.mean(r[jid == j] ** 2)) for j in range(nv)])
+    return x[nb:].reshape(nv, 3), rms, float(np.linalg.norm(r) / np.linalg.norm(y)), x
+
+
+def variant(robot, logs, cutoff=None, standing=True, weighted=True, parallel=True, hold=None):
+    """frictid's joint estimate (frictid.robot.identify) with one choice changed: the cut-off [Hz], the
+    standing band (off: every sample keeps its friction sign), WLS or ordinary LS, parallel filtering (off:
+    the torque low-passed at the cut-off, the regressor left as built)."""
+    d = prepare(robot, logs, cutoff)
+    if not standing:
+        d.still = None
+    bp = base_parameters(robot, robot.armature)
+    A = design(robot, bp, d)
+    if parallel:
+        A2, y2, jid = parallel_filter(d, A, d.tau.reshape(-1))
+    else:
+        fs = 1.0 / float(np.median(np.diff(d.t)))
+        y = sosfiltfilt(butter(4, d.cutoff, fs=fs, output="sos"), d.tau, axis=0).reshape(-1)
+        keep = d.moving().reshape(-1)
+        A2, y2, jid = A[keep], y[keep], np.tile(np.arange(robot.nv), d.q.shape[0])[keep]
+    return _solve(A2, y2, jid, bp.n, robot.nv, weighted, hold) + (d.cutoff, bp)
+
+
+def classical(robot, logs, cutoff=None, mamedov=False, hold=None):
+    """The published methods' processing: ordinary LS on every sample (sign of the filtered velocity
+    throughout), the torque low-passed, the regressor not filtered. Default: position and velocity
+    low-passed (4th order, zero phase) at ``cutoff`` (frictid's when None), acceleration their derivative.
+    ``mamedov``: filterData.m of Mamedov et al. (5th-order Butterworth at 0.15 of Nyquist on velocity and on
+    the central-difference acceleration, 0.20 on the torque; position unfiltered), on the samples from the
+    first to the last at which a joint moves."""
+    d = prepare(robot, logs)
+    _, ordered = align(robot, logs)
+    q, qd = (np.column_stack([np.interp(d.t, lg.t, getattr(lg, k)) for lg in ordered]) for k in ("q", "qd"))
+    fs = 1.0 / float(np.median(np.diff(d.t)))
+    if mamedov:
+        lp = butter(5, 0.15, output="sos")
+        qd = sosfiltfilt(lp, qd, axis=0)
+        qdd = sosfiltfilt(lp, np.gradient(qd, d.t, axis=0), axis=0)
+        tau = sosfiltfilt(butter(5, 0.20, output="sos"), d.tau, axis=0)
+        idx = np.flatnonzero(d.moving().any(axis=1))
+        span = slice(idx[0], idx[-1] + 1)
+    else:
+        cutoff = d.cutoff if cutoff is None else cutoff
+        sos = butter(4, cutoff, fs=fs, output="sos")
+        q, qd, tau = (sosfiltfilt(sos, x, axis=0) for x in (q, qd, d.tau))
+        qdd = np.gradient(qd, d.t, axis=0)
+        span = slice(None)
+    d.q, d.qd, d.qdd, d.tau, d.still = q[span], qd[span], qdd[span], tau[span], None
+    bp = base_parameters(robot, robot.armature)
+    A = design(robot, bp, d)
+    jid = np.tile(np.arange(robot.nv), d.q.shape[0])
+    return _solve(A, d.tau.reshape(-1), jid, bp.n, robot.nv, False, hold)
+
+
+def published(name: str, robot, logs, pub: dict, rows: list) -> None:
+    """Part 4 for one robot: rows of (label, kwargs of :func:`variant` or ('classical', kwargs))."""
+    P = np.array([pub[j] for j in robot.joints])
+    print(f"{name}: friction against the published values, one change at a time (fc, fv: % off; fo: N m off; "
+          "relative torque error on the samples each fits)")
+    print(f"  {'':<46} " + " ".join(f"fc{j:<5}" for j in robot.joints) + " | "
+          + " ".join(f"fv{j:<5}" for j in robot.joints) + " | " + " ".join(f"fo{j:<5}" for j in robot.joints) + " | torque error")
+    for label, kind, kw in rows:
+        f, _, rel = (classical(robot, logs, **kw) if kind == "classical" else variant(robot, logs, **kw))[:3]
+        print(f"  {label:<46} " + " ".join(f"{v:+6.1f}%" for v in 100 * (f[:, 1] / P[:, 1] - 1)) + " | "
+              + " ".join(f"{v:+6.1f}%" for v in 100 * (f[:, 0] / P[:, 0] - 1)) + " | "
+              + " ".join(f"{v:+7.3f}" for v in f[:, 2] - P[:, 2]) + f" | {100 * rel:.2f} %")
+    for label, kind, kw in rows[:1] + rows[-1:]:
+        run = classical if kind == "classical" else variant
+        free, held = run(robot, logs, **kw)[1], run(robot, logs, hold=P, **kw)[1]  # residual on the fitted rows
+        print(f"  published friction held, base re-fitted ({label}): residual RMS per joint "
+              + " ".join(f"{a:.3g}->{b:.3g}" for a, b in zip(free, held))
+              + f" N m ({' '.join(f'{100 * (b / a - 1):+.0f}%' for a, b in zip(free, held))})")
+    (_, free), (_, held) = heldout_held(robot, logs, P)
+    print("  held out (first 70 % identified, last 30 % predicted, frictid), RMS per joint, free -> published friction "
+          "held: " + " ".join(f"{a:.3g}->{b:.3g}" for a, b in zip(free, held)) + " N m")
+
+
+def heldout_held(robot, logs, P, fraction: float = 0.3) -> list[tuple[str, np.ndarray]]:
+    """Identify on the head (frictid's joint estimate, free and with the published friction ``P`` held),
+    predict the tail with frictid's predict (the fit's cut-off); RMS per joint at the logs' own samples."""
+    k = int(round((1.0 - fraction) * min(lg.n for lg in logs)))
+    head, tail = [cut_log(lg, slice(0, k)) for lg in logs], [cut_log(lg, slice(k, None)) for lg in logs]
+    _, ordered = align(robot, tail)
+    out = []
+    for label, hold in (("free", None), ("published friction held", P)):
+        *_, x, cutoff, bp = variant(robot, head, hold=hold)
+        p = predict(robot, RobotFit([], [], {}, np.nan, np.nan, {}, cutoff, 0, x=x, bp=bp), tail)
+        out.append((label, np.array([np.sqrt(np.mean((np.asarray(lg.tau) - p.tau[j]) ** 2))
+                                     for j, lg in zip(robot.joints, ordered)])))
+    return out
+
+
+def friction_values(smoke: bool) -> None:
+    franka = read_logs(str(ROOT.parent / "shared/realdata/franka_panda_gaz2019"),
+                       str(ROOT / "recipes/realdata/franka_panda.yaml"))
+    if smoke:
+        franka = [cut_log(lg, slice(0, lg.n // 8)) for lg in franka]
+    panda = load_robot(ROOT / "recipes/robots/panda.yaml")
+    cut = prepare(panda, franka).cutoff
+    rows = [("frictid (WLS, parallel filter, standing band)", "variant", {}),
+            ("standing band off", "variant", {"standing": False}),
+            ("ordinary LS", "variant", {"weighted": False}),
+            ("no parallel filter (torque low-passed)", "variant", {"parallel": False}),
+            (f"cut-off x0.5 ({cut / 2:.1f} Hz)", "variant", {"cutoff": cut / 2}),
+            (f"cut-off x2 ({cut * 2:.1f} Hz)", "variant", {"cutoff": cut * 2}),
+            (f"classical LS, cut-off {cut / 2:.1f} Hz", "classical", {"cutoff": cut / 2}),
+            (f"classical LS, cut-off {cut * 2:.1f} Hz", "classical", {"cutoff": cut * 2}),
+            (f"classical LS, cut-off {cut:.1f} Hz", "classical", {})]
+    published("Franka Panda (Table III)", panda, franka, TABLE3, rows[:1] + rows[-1:] if smoke else rows)
+    if smoke:
+        return
+    run = ROOT.parent / "shared/realdata/ur10e_mamedov2020/identification_data/ur-20_02_19_15harm50sec.csv"
+    ur = read_logs(str(run), str(ROOT / "recipes/realdata/ur10e_harmonic.yaml"))
+    ur10e = load_robot(ROOT / "recipes/robots/ur10e.yaml")
+    cut = prepare(ur10e, ur).cutoff
+    rows = rows[:4] + [(f"cut-off x0.5 ({cut / 2:.1f} Hz)", "variant", {"cutoff": cut / 2}),
+                       (f"cut-off x2 ({cut * 2:.1f} Hz)", "variant", {"cutoff": cut * 2}),
+                       ("Mamedov et al.'s processing (OLS)", "classical", {"mamedov": True})]
+    published("UR10e harmonic run, whole (UR10E_parameters.txt)", ur10e, ur, MAMEDOV, rows)
 
 
 def main(argv=None) -> int:
@@ -124,13 +317,20 @@ def main(argv=None) -> int:
     ap.add_argument("--arms", type=int, default=20)
     ap.add_argument("--ur-arms", type=int, default=5, help="6-axis arms with the UR10e's kinematics")
     ap.add_argument("--seed-base", type=int, default=400000)
+    ap.add_argument("--part", choices=("all", "published"), default="all",
+                    help="published: part 4 only (friction values against the published ones)")
     args = ap.parse_args(argv)
-    if os.environ.get("FRICTID_SMOKE"):
+    smoke = bool(os.environ.get("FRICTID_SMOKE"))
+    if smoke:
         args.arms, args.ur_arms = 2, 1
+    if args.part == "published":
+        friction_values(smoke)
+        return 0
     arms(args.arms, args.seed_base)
     arms(args.ur_arms, args.seed_base + 1000, ur10e_arm, "UR10e kinematics, random inertias (6-axis, 500 Hz)")
     ur10e()
     franka()
+    friction_values(smoke)
     return 0
 
 

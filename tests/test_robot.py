@@ -105,6 +105,29 @@ def test_friction_recovered_jointly_with_the_rigid_body_on_a_random_arm():
             assert abs(got[k].value - true) < 4 * got[k].stderr + 0.01 * abs(true), (j, k, got[k], true)
 
 
+def test_a_stretch_is_predicted_with_the_fits_filter():
+    """The model predicts a short stretch of a log as it predicts the whole log: the stretch's signals pass
+    the fit's filter. A cut-off found anew on the stretch (its velocity noise weighs more in a short log: 24 Hz
+    here against the fit's 5 Hz) differentiates that noise into the acceleration (0.3-0.4 N m RMS apart)."""
+    from frictid.robot.identify import cut_log, predict
+
+    rng = np.random.default_rng(243)
+    robot, friction = random_arm(rng)
+    logs = simulate_excitation(robot, friction, rng, duration=20.0)
+    for lg in logs:
+        lg.qd = lg.qd + rng.normal(0, 0.02, lg.n)   # a measured velocity's noise
+    fit = identify_robot(robot, logs)
+    n = logs[0].n
+    k0, k1 = n // 2, n // 2 + n // 8
+    whole, part = predict(robot, fit, logs), predict(robot, fit, [cut_log(lg, slice(k0, k1)) for lg in logs])
+    edge = int(3 * 500.0 / fit.cutoff_hz)   # the filter's settling at the stretch's ends
+    for j in robot.joints:
+        same = (part.moving[j] == whole.moving[j][k0:k1])[edge:-edge]   # the standing band is the stretch's own
+        assert same.mean() > 0.95, j
+        d = (part.tau[j] - whole.tau[j][k0:k1])[edge:-edge][same]
+        assert np.sqrt(np.mean(d ** 2)) < 0.01, (j, np.sqrt(np.mean(d ** 2)))
+
+
 def test_a_log_missing_a_joint_is_refused():
     rng = np.random.default_rng(242)
     robot, friction = random_arm(rng, 3)

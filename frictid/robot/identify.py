@@ -102,7 +102,9 @@ def _cutoff(qd: np.ndarray, fs: float) -> float:
     return float(min(max(10.0 * f99, 1e-3 * fs), 0.4 * fs))
 
 
-def prepare(robot: Robot, logs) -> RobotData:
+def prepare(robot: Robot, logs, cutoff: float | None = None) -> RobotData:
+    """The joints' signals on one uniform time base, filtered (cut-off from the data unless ``cutoff`` [Hz]
+    is given), with each joint's standing band."""
     t0, ordered = align(robot, logs)
     dt = np.diff(t0)
     h = float(np.median(dt))
@@ -112,7 +114,7 @@ def prepare(robot: Robot, logs) -> RobotData:
         return np.column_stack([np.interp(t, lg.t, getattr(lg, name)) for lg in ordered])
     q, tau = col("q"), col("tau")
     qd = col("qd") if all(lg.qd is not None for lg in ordered) else np.gradient(q, h, axis=0)
-    fc = _cutoff(qd, 1.0 / h)
+    fc = _cutoff(qd, 1.0 / h) if cutoff is None else float(min(cutoff, 0.4 / h))
     sos = butter(4, fc, fs=1.0 / h, output="sos")
     raw = qd
     q, qd = (sosfiltfilt(sos, x, axis=0) for x in (q, qd))
@@ -259,8 +261,12 @@ class Prediction:
 def predict(robot: Robot, fit: RobotFit, logs) -> Prediction:
     """The identified model's torque along the joints' logs: positions and velocities filtered as for the
     fit on a uniform time base, the model evaluated there and read back at each log's own instants (the
-    measured torque is never resampled: a prediction is judged against the torque as logged)."""
-    d = prepare(robot, logs)
+    measured torque is never resampled: a prediction is judged against the torque as logged). The signals
+    pass the fit's own filter (its cut-off, ``fit.cutoff_hz``): the parameters describe the torque of
+    signals filtered so, and a cut-off found anew on another log (a short one, or one slowing to rest, whose
+    velocity spectrum reaches further into the noise) would not match them."""
+    cut = fit.cutoff_hz if fit.cutoff_hz is not None and np.isfinite(fit.cutoff_hz) and fit.cutoff_hz > 0 else None
+    d = prepare(robot, logs, cut)
     A = design(robot, fit.bp, d)
     nb, nv = fit.bp.n, robot.nv
     tau = (A @ fit.x).reshape(-1, nv)
