@@ -75,7 +75,7 @@ def of_joint(preps, friction, min_speed: float) -> dict:
 DROP_INSIDE = (0.05, 0.95)
 
 
-def drop_spanned(mf, plateau_w: np.ndarray) -> None:
+def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None) -> None:
     """Shape parameters identifiable only when enough distinct plateau speeds span them (issue 19): a
     Stribeck drop's level, speed and exponent are measured by steady runs inside the drop (plateaus where
     the fitted drop holds :data:`DROP_INSIDE` of its amplitude; one on its top counts for the level). With
@@ -83,7 +83,13 @@ def drop_spanned(mf, plateau_w: np.ndarray) -> None:
     drop between and below its steady points: a few points trade amplitude against speed, and on the moving
     samples the speeds below the steady runs are crossed while the joint speeds up or slows down, where the
     friction lags its steady value (on point-to-point moves the drop came out 20 % low and 25 % wide,
-    trusted). ``Fs``, ``vs`` and ``delta`` of such a branch are marked not identifiable with the reason."""
+    trusted). ``Fs``, ``vs`` and ``delta`` of such a branch are marked not identifiable with the reason.
+
+    The level the drop ends at and the viscous slope of such a branch are read from the steady part of the
+    map the guessed drop leaves: a drop that really reaches into the measured speeds (a slow one, a low
+    exponent) moves both. ``without_drop`` (the same data's ``coulomb_viscous`` map, or its ``_asym``
+    variant for ``stribeck_asym``): their change between the two maps enters their standard errors (added
+    in quadrature), as the held exponent's profile does."""
     base = mf.name[:-5] if mf.name.endswith("_asym") else mf.name
     if base != "stribeck":
         return
@@ -112,3 +118,16 @@ def drop_spanned(mf, plateau_w: np.ndarray) -> None:
             pe = p[n]
             if pe.identifiable and not pe.fixed:
                 pe.identifiable, pe.reason = False, why
+        _level_spread(mf, without_drop, suf)
+
+
+def _level_spread(mf, without_drop, suf: str) -> None:
+    """``Fc`` and ``sigma2`` of branch ``suf`` of ``mf`` with their change to the drop-free map
+    ``without_drop`` added to their standard errors (:func:`drop_spanned`)."""
+    if without_drop is None:
+        return
+    for n in ("Fc", "sigma2"):
+        pe, alt = mf.params.get(n + suf), without_drop.params.get(n + suf)
+        if pe is None or alt is None or pe.value is None or alt.value is None or pe.stderr is None:
+            continue
+        pe.stderr = float(np.hypot(pe.stderr, alt.value - pe.value))
