@@ -86,3 +86,17 @@ def test_drop_spanned_counts_distinct_speeds_inside_the_drop():
     assert not any(m2.params[n].identifiable for n in ("Fs", "vs", "delta"))
     assert m2.params["Fc"].identifiable and m2.params["sigma2"].identifiable
     assert "2 distinct plateau speed(s)" in m2.params["vs"].reason
+
+
+def test_unspanned_drop_widens_level_and_slope_by_the_drop_free_map():
+    """An unspanned drop's Coulomb level and viscous slope carry their change to the drop-free map."""
+    from frictid.identify.validity import drop_spanned
+
+    pe = lambda n, v: ParamEstimate(n, v, 0.001, "N m")  # noqa: E731
+    mf = ModelFit("stribeck", "stribeck", {"Fc": pe("Fc", 1.0), "Fs": pe("Fs", 1.5), "vs": pe("vs", 0.1),
+                                           "delta": pe("delta", 2.0), "sigma2": pe("sigma2", 0.2)}, {})
+    cv = ModelFit("coulomb_viscous", "coulomb_viscous", {"Fc": pe("Fc", 1.04), "sigma2": pe("sigma2", 0.17)}, {})
+    drop_spanned(mf, np.array([0.5, 1.0]), cv)
+    assert np.isclose(mf.params["Fc"].stderr, np.hypot(0.001, 0.04))
+    assert np.isclose(mf.params["sigma2"].stderr, np.hypot(0.001, 0.03))
+    assert mf.params["Fc"].identifiable and mf.params["Fc"].value == 1.0
