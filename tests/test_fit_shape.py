@@ -49,3 +49,54 @@ def test_negative_viscous_is_flagged():
     assert not mf.params["sigma2_neg"].identifiable and "negative viscous" in mf.params["sigma2_neg"].reason
     assert not mf.identifiable
     assert np.isclose(mf.params["sigma2_neg"].value, -0.67)  # the number is kept, only the badge goes
+
+
+def test_a_drop_between_two_plateau_speeds_is_not_identified():
+    """Shape parameters are identifiable only when enough distinct plateau speeds span them (issue 19): one
+    plateau speed on the drop's top (0.01 rad/s) and the next beyond its end (0.25 rad/s, where 0.001 % of
+    the drop is left) leave its speed and shape to the fit's guess; the Coulomb level and the viscous slope
+    stay measured. Competing explanation: the same log with plateaus inside the drop keeps them
+    (test_a_true_drop_stays_identified)."""
+    v = np.array([0.01, 0.25, 0.4, 0.6, 0.9, 1.3, 2.0])
+    log = synth_log(speeds=np.concatenate([v, -v]), seed=23, excitation=False)
+    jf = frictid.fit(log, models="coulomb_viscous,stribeck,stribeck_asym,polynomial", **FAST)[log.joint]
+    for name, sufs in (("stribeck", ("",)), ("stribeck_asym", ("_pos", "_neg"))):
+        p = jf.models[name].params
+        for suf in sufs:
+            assert not p["vs" + suf].identifiable
+            assert not p["Fs" + suf].identifiable
+            assert p["Fc" + suf].identifiable and p["sigma2" + suf].identifiable
+    assert "plateau speed" in jf.models["stribeck"].params["vs"].reason
+
+
+def test_drop_spanned_counts_distinct_speeds_inside_the_drop():
+    """By hand: vs 0.1, delta 2 (drop inside 0.023..0.173 rad/s). Speeds 0.05 and 0.052 are one level (10 %
+    apart at most), 0.12 another, 0.01 is on the top: 3 for Fs, vs, delta; without 0.12, 2 are too few."""
+    from frictid.identify.validity import drop_spanned
+
+    def mf():
+        pe = lambda n, v: ParamEstimate(n, v, 0.01, "N m")  # noqa: E731
+        return ModelFit("stribeck", "stribeck", {"Fc": pe("Fc", 1.0), "Fs": pe("Fs", 1.5), "vs": pe("vs", 0.1),
+                                                 "delta": pe("delta", 2.0), "sigma2": pe("sigma2", 0.2)}, {})
+    m1 = mf()
+    drop_spanned(m1, np.array([0.01, 0.05, -0.052, 0.12, 0.5, 1.0]))
+    assert all(m1.params[n].identifiable for n in ("Fs", "vs", "delta"))
+    m2 = mf()
+    drop_spanned(m2, np.array([0.01, 0.05, -0.052, 0.5, 1.0]))
+    assert not any(m2.params[n].identifiable for n in ("Fs", "vs", "delta"))
+    assert m2.params["Fc"].identifiable and m2.params["sigma2"].identifiable
+    assert "2 distinct plateau speed(s)" in m2.params["vs"].reason
+
+
+def test_unspanned_drop_widens_level_and_slope_by_the_drop_free_map():
+    """An unspanned drop's Coulomb level and viscous slope carry their change to the drop-free map."""
+    from frictid.identify.validity import drop_spanned
+
+    pe = lambda n, v: ParamEstimate(n, v, 0.001, "N m")  # noqa: E731
+    mf = ModelFit("stribeck", "stribeck", {"Fc": pe("Fc", 1.0), "Fs": pe("Fs", 1.5), "vs": pe("vs", 0.1),
+                                           "delta": pe("delta", 2.0), "sigma2": pe("sigma2", 0.2)}, {})
+    cv = ModelFit("coulomb_viscous", "coulomb_viscous", {"Fc": pe("Fc", 1.04), "sigma2": pe("sigma2", 0.17)}, {})
+    drop_spanned(mf, np.array([0.5, 1.0]), cv)
+    assert np.isclose(mf.params["Fc"].stderr, np.hypot(0.001, 0.04))
+    assert np.isclose(mf.params["sigma2"].stderr, np.hypot(0.001, 0.03))
+    assert mf.params["Fc"].identifiable and mf.params["Fc"].value == 1.0

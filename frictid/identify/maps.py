@@ -18,6 +18,7 @@ from frictid.result import ModelFit
 from . import regression as rg
 from . import samples as smp
 from . import select as sel
+from . import validity
 from .mechanics import POLY_COEFS, Friction, RigidBody, reg_estimate
 from .prepare import JointData
 from .static import NEGLIGIBLE, fit_static, metrics
@@ -55,6 +56,7 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
     fitted = [n for n in static_names if n in jf.models]
     for n in fitted:
         physical_shape(jf.models[n], jd.w0, jd.F0)
+        validity.drop_spanned(jf.models[n], fr.plat.w, jf.models.get(n.replace("stribeck", "coulomb_viscous")))
     # held-out errors of the maps the choice can take (the identifiable ones, unless none gets one)
     if fr.basis == "samples":
         sel.heldout_for_choice(jf.models, fitted, lambda n: smp.heldout_map(n, fr.S, jf.models[n], jd.axis),

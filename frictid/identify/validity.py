@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .samples import LEVEL_TOLERANCE, speed_levels
+
 #: Share of the moving samples left out at each end of a range measured on samples (a stray sample at a
 #: reversal spike does not widen a range the data do not really cover).
 TAIL = 0.005
@@ -66,3 +68,66 @@ def of_joint(preps, friction, min_speed: float) -> dict:
         if T is not None:
             Ts.append(np.asarray(T)[moving])
     return validity(basis_w, qs, Ts)
+
+
+#: A plateau speed is inside a fitted Stribeck drop when the drop still holds between these shares of its
+#: amplitude there (:func:`drop_spanned`); above the upper one it is on the drop's top (the break-away level).
+DROP_INSIDE = (0.05, 0.95)
+
+
+def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None) -> None:
+    """Shape parameters identifiable only when enough distinct plateau speeds span them (issue 19): a
+    Stribeck drop's level, speed and exponent are measured by steady runs inside the drop (plateaus where
+    the fitted drop holds :data:`DROP_INSIDE` of its amplitude; one on its top counts for the level). With
+    fewer distinct plateau speeds (10 % apart) there than free parameters of the drop, the fit placed the
+    drop between and below its steady points: a few points trade amplitude against speed, and on the moving
+    samples the speeds below the steady runs are crossed while the joint speeds up or slows down, where the
+    friction lags its steady value (on point-to-point moves the drop came out 20 % low and 25 % wide,
+    trusted). ``Fs``, ``vs`` and ``delta`` of such a branch are marked not identifiable with the reason.
+
+    The level the drop ends at and the viscous slope of such a branch are read from the steady part of the
+    map the guessed drop leaves: a drop that really reaches into the measured speeds (a slow one, a low
+    exponent) moves both. ``without_drop`` (the same data's ``coulomb_viscous`` map, or its ``_asym``
+    variant for ``stribeck_asym``): their change between the two maps enters their standard errors (added
+    in quadrature), as the held exponent's profile does."""
+    base = mf.name[:-5] if mf.name.endswith("_asym") else mf.name
+    if base != "stribeck":
+        return
+    w = np.asarray(plateau_w, dtype=float)
+    w = w[np.isfinite(w)]
+    for suf, side in ((("_pos", 1.0), ("_neg", -1.0)) if mf.name.endswith("_asym") else (("", 0.0),)):
+        p = {n: mf.params.get(n + suf) for n in ("Fc", "Fs", "vs", "delta")}
+        if any(pe is None or pe.value is None for pe in p.values()) or p["vs"].value <= 0:
+            continue
+        if p["Fs"].value <= p["Fc"].value:  # no drop: physical_shape's case
+            continue
+        v = np.abs(w[np.sign(w) == side] if side else w)
+        share = np.exp(-((v / p["vs"].value) ** p["delta"].value))
+        inside = v[(share >= DROP_INSIDE[0]) & (share <= DROP_INSIDE[1])]
+        have = speed_levels(inside, LEVEL_TOLERANCE) + int(bool((share > DROP_INSIDE[1]).any()))
+        need = sum(1 for n in ("Fs", "vs", "delta") if not p[n].fixed)
+        if have >= need:
+            continue
+        lo = p["vs"].value * (-np.log(DROP_INSIDE[1])) ** (1.0 / p["delta"].value)
+        hi = p["vs"].value * (-np.log(DROP_INSIDE[0])) ** (1.0 / p["delta"].value)
+        why = (f"{have} distinct plateau speed(s) within the fitted drop ({lo:.3g} to {hi:.3g}) where its level, "
+               f"speed and shape need {need}: the drop is not spanned by steady runs (it is placed between and "
+               "below them; moving samples there are crossed while the speed changes, where the friction lags "
+               "its steady value)")
+        for n in ("Fs", "vs", "delta"):
+            pe = p[n]
+            if pe.identifiable and not pe.fixed:
+                pe.identifiable, pe.reason = False, why
+        _level_spread(mf, without_drop, suf)
+
+
+def _level_spread(mf, without_drop, suf: str) -> None:
+    """``Fc`` and ``sigma2`` of branch ``suf`` of ``mf`` with their change to the drop-free map
+    ``without_drop`` added to their standard errors (:func:`drop_spanned`)."""
+    if without_drop is None:
+        return
+    for n in ("Fc", "sigma2"):
+        pe, alt = mf.params.get(n + suf), without_drop.params.get(n + suf)
+        if pe is None or alt is None or pe.value is None or alt.value is None or pe.stderr is None:
+            continue
+        pe.stderr = float(np.hypot(pe.stderr, alt.value - pe.value))
