@@ -89,7 +89,7 @@ def stage_times(run) -> tuple[float, dict]:
 
 
 #: Modules of the fit that call ``scipy.optimize.least_squares`` (imported by name: wrapped there).
-LSQ_MODULES = ("frictid.identify.varpro", "frictid.identify.thermal", "frictid.identify.presliding")
+LSQ_MODULES = ("frictid.identify.thermal", "frictid.identify.presliding")
 #: What a least-squares run is for: the innermost of these functions on the call stack names it.
 LSQ_PURPOSES = (("_shift_profile", "static maps: rigid-body error refits"),
                 ("_delta_profile", "static maps: Stribeck exponent profile"),
@@ -246,8 +246,17 @@ def main(argv=None) -> int:
                            ("fit+diagnosis", lambda p: fit(p, True))):
                 times[k].append(run(path))
                 cpu[k].append(CPU[-1])
+        print_ratios(a, rows, times, cpu)
         stages = stage_times(lambda: fit(path, True)) if a.stages else None
         optim = optimiser_times(lambda: fit(path, False)) if a.optimiser else None
+    if stages is not None:
+        print_stages(*stages)
+    if optim is not None:
+        print_optimiser(*optim)
+    return 0
+
+
+def print_ratios(a, rows: int, times: dict, cpu: dict) -> None:
     med = {k: statistics.median(v) for k, v in times.items()}
     mcpu = {k: statistics.median(v) for k, v in cpu.items()}
     print(f"fit against its floor: {a.joints} joints x {a.minutes:g} min at 1 kHz ({rows} rows), "
@@ -259,12 +268,7 @@ def main(argv=None) -> int:
         print(f"{k:<14} {med[k]:6.2f} s  = {r:4.1f}x the floor  (target <= {TARGET:g}x: "
               f"{'met' if r <= TARGET else 'not met'}; runs {', '.join(f'{x:.2f}' for x in times[k])})")
     ratio = {k: "" if k == "floor" else f" ({mcpu[k] / mcpu['floor']:.1f}x)" for k in mcpu}
-    print("CPU time, medians: " + ", ".join(f"{k} {mcpu[k]:.2f} s{ratio[k]}" for k in mcpu))
-    if stages is not None:
-        print_stages(*stages)
-    if optim is not None:
-        print_optimiser(*optim)
-    return 0
+    print("CPU time, medians: " + ", ".join(f"{k} {mcpu[k]:.2f} s{ratio[k]}" for k in mcpu), flush=True)
 
 
 if __name__ == "__main__":
