@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from types import SimpleNamespace
 
 import numpy as np
 from numba import njit
@@ -34,12 +33,8 @@ from scipy.optimize import least_squares
 from frictid.models.lugre import _FM, dviscous_nb, level_slope_nb, lugre_core, lugre_step, lugre_step_ref, viscous_nb
 from frictid.models.static import canonical_level, canonical_viscous
 
-from .varpro import levenberg_marquardt
-
 #: Minimum presliding displacement, in encoder counts, for sigma0 to be identifiable.
 MIN_COUNTS = 20
-#: Residual evaluations allowed to one start of the sigma0 fit (MINPACK's default for one parameter).
-LM_MAX_NFEV = 100
 
 #: Damping ratio range of the critical-damping rule (000 eq 16).
 ZETA = (0.8, 1.0)
@@ -183,19 +178,14 @@ class _RampForces:
         return self.dy.reshape(-1, 1).copy()
 
     def fit(self, starts):
-        """The best Levenberg-Marquardt result in log(sigma0) over the starts [F/q], or None: x, fun, cost
-        and jac at the optimum (:func:`.varpro.levenberg_marquardt` on the one parameter: MINPACK's loop
-        through scipy cost 7 ms an evaluation on these residuals of thousands of samples, its QR and
-        copies of the long vector, against the residual's own 0.7 ms)."""
+        """The best Levenberg-Marquardt result in log(sigma0) over the starts [F/q], or None."""
         best = None
         for s_init in starts:
-            if not (s_init > 0 and math.isfinite(s_init)):
+            try:
+                r = least_squares(self.resid, [math.log(s_init)], jac=self.jac, method="lm", x_scale=1.0)
+            except ValueError:
                 continue
-            x, _, _ = levenberg_marquardt(self.resid, self.jac, np.array([math.log(s_init)]), np.array([-np.inf]),
-                                          np.array([np.inf]), np.ones(1), LM_MAX_NFEV)
-            fun = self.resid(x)
-            r = SimpleNamespace(x=x, fun=fun.copy(), cost=0.5 * float(fun @ fun), jac=self.jac(x))
-            if np.isfinite(r.cost) and (best is None or r.cost < best.cost):
+            if best is None or r.cost < best.cost:
                 best = r
         return best
 
