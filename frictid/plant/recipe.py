@@ -502,20 +502,40 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray |
                 label[i0:i0 + last] = L["other"]
             else:
                 label[i0:i1] = L["other"]
-    moving = np.abs(_smooth(w, m)) > tol_rest
+    moving = moving_mask(w, pr.fs, vmax)
     if cycle is not None:
         _cycles_from_onsets(label, cycle, moving)
     if u is None:
         return label
+    return closed_loop_rests(label, moving, u, closed_loop(pr), pr.fs, tau_noise)
+
+
+def closed_loop(pr: Program) -> np.ndarray:
+    """Per sample: the joint is under a closed loop (not an open-loop torque input)."""
+    return np.repeat([p[1] != MODE_TORQUE for p in pr.pieces], [p[0] for p in pr.pieces])
+
+
+def moving_mask(w: np.ndarray, fs: float, v_limit: float) -> np.ndarray:
+    """Per sample: the true velocity ``w`` [q/s] (``T_STILL`` mean) above ``R_STILL`` of the velocity
+    limit ``v_limit``: the joint moves (the complement is still)."""
+    return np.abs(_smooth(w, max(1, int(round(T_STILL * fs))))) > R_STILL * v_limit
+
+
+def closed_loop_rests(label: np.ndarray, moving: np.ndarray, u: np.ndarray, closed: np.ndarray, fs: float,
+                      tau_noise: float) -> np.ndarray:
+    """docs/segments.md's rest on the closed-loop ``rest`` and ``other`` samples of a log sampled at
+    ``fs`` [Hz]: still (not ``moving``) and the drive torque ``u`` [F] steady against the logged torque's
+    noise at that rate (``tau_noise`` [F], the sensor's, with the drive torque's own jitter). A log kept
+    at a lower rate than the drive runs (every k-th sample) is judged on its own samples: a 0.1 s mean
+    there holds k times fewer samples, and the standard errors the definition allows are larger."""
     u = np.asarray(u, dtype=float)
     # the logged torque's white-noise level along the log: the sensor's and the drive torque's own
     # jitter (the controller's reaction to sensor noise), as frictid measures it on the log
-    noise = np.hypot(tau_noise, _local_jitter(u, int(round(T_REST * pr.fs))))
+    noise = np.hypot(tau_noise, _local_jitter(u, int(round(T_REST * fs))))
     np.maximum(noise, 1e-9 * float(np.subtract(*np.percentile(u, [99.9, 0.1]))), out=noise)
-    closed = np.repeat([p[1] != MODE_TORQUE for p in pr.pieces], [p[0] for p in pr.pieces])
-    k = max(1, int(round(0.5 * T_LOAD * pr.fs)))
-    calm = ~moving & _steady(u, k, K_LOAD * noise, max(1, int(round(T_JUMP * pr.fs))))
-    return _rests_by_definition(label, closed, calm, int(round(T_REST * pr.fs)))
+    k = max(1, int(round(0.5 * T_LOAD * fs)))
+    calm = ~moving & _steady(u, k, K_LOAD * noise, max(1, int(round(T_JUMP * fs))))
+    return _rests_by_definition(label, closed, calm, int(round(T_REST * fs)))
 
 
 def _local_jitter(u: np.ndarray, block: int) -> np.ndarray:
