@@ -390,3 +390,23 @@ def test_segments_do_not_depend_on_the_chunk_size(monkeypatch):
     got = find_segments(lg)
     assert [(s.kind, s.i0, s.i1, s.cycle) for s in got] == [(s.kind, s.i0, s.i1, s.cycle) for s in ref]
     np.testing.assert_equal([s.stats for s in got], [s.stats for s in ref])
+
+
+@pytest.mark.parametrize("after, rest", [("move", False), ("jolt", True), ("still", True)])
+def test_the_truth_ends_a_rest_where_a_move_starts_with_a_torque_jump(after, rest):
+    """The plant's truth (recipe._steady): a torque jump on a still joint is no change (a controller
+    switched on or off), unless the joint moves after it: a move starts where its torque starts to change
+    (docs/segments.md, "What a rest is"). A jolt the jump gives the joint (10 ms) is no move. The truth had
+    called a wound-up move's first 40-70 ms rest (constant_velocity_sweep on the direct drive)."""
+    from frictid.plant.recipe import _steady
+
+    fs, n, j = 1000.0, 2000, 1000
+    u = np.where(np.arange(n) < j, -2.0, 9.0) + 0.05 * np.random.default_rng(7).standard_normal(n)
+    moving = np.zeros(n, dtype=bool)
+    if after == "move":
+        moving[j + 40:] = True
+    elif after == "jolt":
+        moving[j:j + 10] = True
+    k = int(0.1 * fs)
+    steady = _steady(u, k, np.full(n, 5 * 0.05), int(0.01 * fs), moving)
+    assert bool(np.all(steady[j - 5:j + 5])) is rest

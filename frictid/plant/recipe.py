@@ -534,7 +534,7 @@ def closed_loop_rests(label: np.ndarray, moving: np.ndarray, u: np.ndarray, clos
     noise = np.hypot(tau_noise, _local_jitter(u, int(round(T_REST * fs))))
     np.maximum(noise, 1e-9 * float(np.subtract(*np.percentile(u, [99.9, 0.1]))), out=noise)
     k = max(1, int(round(0.5 * T_LOAD * fs)))
-    calm = ~moving & _steady(u, k, K_LOAD * noise, max(1, int(round(T_JUMP * fs))))
+    calm = ~moving & _steady(u, k, K_LOAD * noise, max(1, int(round(T_JUMP * fs))), moving)
     return _rests_by_definition(label, closed, calm, int(round(T_REST * fs)))
 
 
@@ -564,7 +564,7 @@ def _close_gaps(mask: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def _steady(u: np.ndarray, k: int, k_noise: np.ndarray, jump: int) -> np.ndarray:
+def _steady(u: np.ndarray, k: int, k_noise: np.ndarray, jump: int, moving: np.ndarray | None = None) -> np.ndarray:
     """Per sample: the drive torque ``u`` [F] is steady. It changes where its means over the k samples
     before and after a sample differ by more than ``k_noise sqrt(2 / k)`` (``K_LOAD`` standard errors of
     that difference under the logged noise: a change the log could show); each such stretch
@@ -572,7 +572,10 @@ def _steady(u: np.ndarray, k: int, k_noise: np.ndarray, jump: int) -> np.ndarray
     (and reaches that after it) by more than ``k_noise`` standard errors of the two means: a change
     starts where it starts, not where the window first sees it (frictid's edges, docs/segments.md). A
     change no longer than a torque jump (``jump`` samples, seen through the k / 2 means) does not end a
-    steady stretch, as in frictid: a controller switched on or off under a still joint."""
+    steady stretch, as in frictid: a controller switched on or off under a still joint; unless the joint
+    still moves (``moving``) k / 2 to k samples after it: then the jump is the start of a move, and a move
+    starts where its torque starts to change (docs/segments.md, "What a rest is"); a jolt the jump gives
+    the joint is over by then."""
     c = np.concatenate(([0.0], np.cumsum(np.pad(u, (k, k), mode="edge"))))
     i = np.arange(u.size) + k
     before, after = (c[i] - c[i - k]) / k, (c[i + k] - c[i]) / k
@@ -588,7 +591,8 @@ def _steady(u: np.ndarray, k: int, k_noise: np.ndarray, jump: int) -> np.ndarray
             a0 = a + int(off[0])
             off = np.flatnonzero(np.abs(us[a0:b] - after[b - 1]) > thr[a])
             e = a0 + (int(off[-1]) + 1 if off.size else 0)
-            if e - a0 > k // 2 + jump:  # a torque jump alone (its edges smeared by the k / 2 means) is no change
+            # a torque jump alone (its edges smeared by the k / 2 means) is no change, unless a move follows
+            if e - a0 > k // 2 + jump or (moving is not None and bool(np.any(moving[e + k // 2:e + k]))):
                 steady[a0:e] = False
     return steady
 
