@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))
 
-from segscore import (PLANTS, Tally, decimated, plant_variant, random_ptp_logs, session_recipe,  # noqa: E402
+from segscore import (PLANTS, Tally, plant_variant, random_ptp_logs, session_recipe, slow_logger,  # noqa: E402
                       truth_segments)
 
 from frictid.data import SEGMENT_KINDS  # noqa: E402
@@ -220,12 +220,10 @@ def timing(seed: int, quick: bool, say) -> None:
 def rate_logs(recipe: str, plant: str, fs: float, seed: int):
     """Logs at sample rate ``fs``: a 10 kHz drive simulated at 10 kHz; a 100 Hz logger as every tenth
     sample of the drive running at 1 kHz (the plant's controller runs at the log's rate, and a 100 Hz
-    position loop would not hold a plateau)."""
+    position loop would not hold a plateau), its rests labelled on the kept samples (``slow_logger``)."""
     if fs >= 1000.0:
         return simulate_recipe(recipe, plant_variant(plant, 1.0, sample_rate=fs), seed=seed)
-    k = int(round(1000.0 / fs))
-    return [decimated(lg, k) for lg in simulate_recipe(recipe, plant_variant(plant, 1.0, sample_rate=1000.0),
-                                                          seed=seed)]
+    return slow_logger(recipe, plant, int(round(1000.0 / fs)), seed=seed)
 
 
 def tiled(log, n: int):

@@ -8,7 +8,7 @@ intersection-over-union >= ``IOU`` (0.8; above 0.5 a match is necessarily one-to
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -141,6 +141,40 @@ def random_ptp_logs(plant, seed: int = 0, moves: int = 40):
     d = rec.model_dump()
     d["experiments"][0].update(seed=seed, moves=moves)
     return simulate_recipe(type(rec).model_validate(d), plant, seed=seed)
+
+
+def slow_logger(recipe, plant_name: str, k: int, seed: int = 0, drive_rate: float = 1000.0):
+    """Logs of ``recipe`` on ``plant_name`` driven at ``drive_rate`` [Hz] and logged every ``k``-th sample
+    (a logger recording slower than the drive controls), with their rests labelled at the log's rate.
+
+    The plant labels its rests by docs/segments.md's definition on the samples it logs: a 0.1 s mean of
+    the torque and its standard errors at ``drive_rate``. The log kept at ``drive_rate / k`` holds k times
+    fewer samples per 0.1 s: a torque change the drive's log shows at 5 standard errors is at about
+    5 / sqrt(k) on the kept samples, within the noise. The closed-loop rests are therefore labelled again
+    on the kept samples (``frictid.plant.recipe.closed_loop_rests``), from the drive torque: the same
+    run without torque-sensor noise (that noise is drawn last and the loop never sees it, so the motion and
+    the drive torque are the same)."""
+    from frictid.plant import simulate_recipe
+    from frictid.plant.config import load_recipe
+    from frictid.plant.recipe import L, closed_loop, closed_loop_rests, compile_recipe, moving_mask
+
+    plant = plant_variant(plant_name, 1.0, drive_rate)
+    logs = simulate_recipe(recipe, plant, seed=seed)
+    quiet = plant.model_copy(update={"sensors": plant.sensors.model_copy(update={"tau_noise": 0.0})})
+    drive = simulate_recipe(recipe, quiet, seed=seed)
+    rec, _ = load_recipe(recipe)
+    kinds = np.asarray(SEGMENT_KINDS, dtype=object)
+    out = []
+    for lg, dr in zip(logs, drive):
+        pr = compile_recipe(rec, plant, plant.joint(lg.joint), 1.0)
+        d = decimated(lg, k)
+        label = np.array([L[x] for x in np.asarray(d.truth["segment"]).astype(str)], dtype=np.int64)
+        w = np.asarray(d.truth["velocity"], dtype=float)
+        moving = moving_mask(w, drive_rate / k, pr.joint.limits.velocity)
+        label = closed_loop_rests(label, moving, dr.tau[::k], closed_loop(pr)[::k], drive_rate / k,
+                                  plant.sensors.tau_noise)
+        out.append(replace(d, truth=dict(d.truth, segment=kinds[label])))
+    return out
 
 
 def decimated(log, k: int):

@@ -164,7 +164,7 @@ def _close_gaps(mask: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def steady_torque(tau: np.ndarray, fs: float, noise: float) -> np.ndarray:
+def steady_torque(tau: np.ndarray, fs: float, noise: float, moving: np.ndarray | None = None) -> np.ndarray:
     """Per sample: the true torque ``tau`` [N m] is steady. It changes where the means over the
     ``T_STEADY`` before and after a sample differ by more than ``thr`` = ``K_STEADY`` standard errors of
     that difference under the logged torque noise ``noise`` [N m] (``noise sqrt(2 / k)``, k samples: a
@@ -172,7 +172,10 @@ def steady_torque(tau: np.ndarray, fs: float, noise: float) -> np.ndarray:
     ``T_STEADY`` / 2, leaves the level of the ``T_STEADY`` before it (and reaches that after it) by
     ``K_STEADY`` standard errors of the two means, so that a change starts where it starts, not where a
     window first sees it (frictid's edges, docs/segments.md). A change no longer than a torque jump
-    (``T_JUMP``, seen through the ``T_STEADY`` / 2 means) does not end a steady stretch, as in frictid."""
+    (``T_JUMP``, seen through the ``T_STEADY`` / 2 means) does not end a steady stretch, as in frictid,
+    unless the joint still moves (``moving``) ``T_STEADY`` / 2 to ``T_STEADY`` after it: a move starts where
+    its torque starts to change (docs/segments.md, "What a rest is"); a jolt the jump gives the joint is
+    over by then."""
     k = max(1, int(round(T_STEADY * fs)))
     c = np.concatenate(([0.0], np.cumsum(np.pad(tau, (k, k), mode="edge"))))
     i = np.arange(tau.size) + k
@@ -191,7 +194,9 @@ def steady_torque(tau: np.ndarray, fs: float, noise: float) -> np.ndarray:
             a0 = a + int(off[0])
             off = np.flatnonzero(np.abs(fine[a0:b] - after[b - 1]) > thr)
             e = a0 + (int(off[-1]) + 1 if off.size else 0)
-            if e - a0 > kf + max(1, int(round(T_JUMP * fs))):  # a torque jump alone is no change (frictid)
+            # a torque jump alone is no change (frictid), unless a move follows it
+            if e - a0 > kf + max(1, int(round(T_JUMP * fs))) or (
+                    moving is not None and bool(np.any(moving[e + k // 2:e + k]))):
                 steady[a0:e] = False
     return steady
 
@@ -237,7 +242,8 @@ def _rests_by_definition(lab: np.ndarray, out: dict, tau_noise: float, top: floa
     settle: the input torque is constant) stay as the program wrote them."""
     fs = 1.0 / float(out["t"][1] - out["t"][0])
     closed = (out["mode"] == sim.CLOSED) & ((lab == sim.CODE["rest"]) | (lab == sim.CODE["other"]))
-    calm = (np.abs(out["w"]) < 0.01 * top) & steady_torque(out["tau"], fs, tau_noise)
+    still = np.abs(out["w"]) < 0.01 * top
+    calm = still & steady_torque(out["tau"], fs, tau_noise, ~still)
     rest = np.concatenate(([False], closed & calm, [False]))
     edge = np.flatnonzero(rest[1:] != rest[:-1])
     lab[closed] = sim.CODE["other"]

@@ -502,20 +502,40 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray |
                 label[i0:i0 + last] = L["other"]
             else:
                 label[i0:i1] = L["other"]
-    moving = np.abs(_smooth(w, m)) > tol_rest
+    moving = moving_mask(w, pr.fs, vmax)
     if cycle is not None:
         _cycles_from_onsets(label, cycle, moving)
     if u is None:
         return label
+    return closed_loop_rests(label, moving, u, closed_loop(pr), pr.fs, tau_noise)
+
+
+def closed_loop(pr: Program) -> np.ndarray:
+    """Per sample: the joint is under a closed loop (not an open-loop torque input)."""
+    return np.repeat([p[1] != MODE_TORQUE for p in pr.pieces], [p[0] for p in pr.pieces])
+
+
+def moving_mask(w: np.ndarray, fs: float, v_limit: float) -> np.ndarray:
+    """Per sample: the true velocity ``w`` [q/s] (``T_STILL`` mean) above ``R_STILL`` of the velocity
+    limit ``v_limit``: the joint moves (the complement is still)."""
+    return np.abs(_smooth(w, max(1, int(round(T_STILL * fs))))) > R_STILL * v_limit
+
+
+def closed_loop_rests(label: np.ndarray, moving: np.ndarray, u: np.ndarray, closed: np.ndarray, fs: float,
+                      tau_noise: float) -> np.ndarray:
+    """docs/segments.md's rest on the closed-loop ``rest`` and ``other`` samples of a log sampled at
+    ``fs`` [Hz]: still (not ``moving``) and the drive torque ``u`` [F] steady against the logged torque's
+    noise at that rate (``tau_noise`` [F], the sensor's, with the drive torque's own jitter). A log kept
+    at a lower rate than the drive runs (every k-th sample) is judged on its own samples: a 0.1 s mean
+    there holds k times fewer samples, and the standard errors the definition allows are larger."""
     u = np.asarray(u, dtype=float)
     # the logged torque's white-noise level along the log: the sensor's and the drive torque's own
     # jitter (the controller's reaction to sensor noise), as frictid measures it on the log
-    noise = np.hypot(tau_noise, _local_jitter(u, int(round(T_REST * pr.fs))))
+    noise = np.hypot(tau_noise, _local_jitter(u, int(round(T_REST * fs))))
     np.maximum(noise, 1e-9 * float(np.subtract(*np.percentile(u, [99.9, 0.1]))), out=noise)
-    closed = np.repeat([p[1] != MODE_TORQUE for p in pr.pieces], [p[0] for p in pr.pieces])
-    k = max(1, int(round(0.5 * T_LOAD * pr.fs)))
-    calm = ~moving & _steady(u, k, K_LOAD * noise, max(1, int(round(T_JUMP * pr.fs))))
-    return _rests_by_definition(label, closed, calm, int(round(T_REST * pr.fs)))
+    k = max(1, int(round(0.5 * T_LOAD * fs)))
+    calm = ~moving & _steady(u, k, K_LOAD * noise, max(1, int(round(T_JUMP * fs))), moving)
+    return _rests_by_definition(label, closed, calm, int(round(T_REST * fs)))
 
 
 def _local_jitter(u: np.ndarray, block: int) -> np.ndarray:
@@ -544,7 +564,7 @@ def _close_gaps(mask: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def _steady(u: np.ndarray, k: int, k_noise: np.ndarray, jump: int) -> np.ndarray:
+def _steady(u: np.ndarray, k: int, k_noise: np.ndarray, jump: int, moving: np.ndarray | None = None) -> np.ndarray:
     """Per sample: the drive torque ``u`` [F] is steady. It changes where its means over the k samples
     before and after a sample differ by more than ``k_noise sqrt(2 / k)`` (``K_LOAD`` standard errors of
     that difference under the logged noise: a change the log could show); each such stretch
@@ -552,7 +572,10 @@ def _steady(u: np.ndarray, k: int, k_noise: np.ndarray, jump: int) -> np.ndarray
     (and reaches that after it) by more than ``k_noise`` standard errors of the two means: a change
     starts where it starts, not where the window first sees it (frictid's edges, docs/segments.md). A
     change no longer than a torque jump (``jump`` samples, seen through the k / 2 means) does not end a
-    steady stretch, as in frictid: a controller switched on or off under a still joint."""
+    steady stretch, as in frictid: a controller switched on or off under a still joint; unless the joint
+    still moves (``moving``) k / 2 to k samples after it: then the jump is the start of a move, and a move
+    starts where its torque starts to change (docs/segments.md, "What a rest is"); a jolt the jump gives
+    the joint is over by then."""
     c = np.concatenate(([0.0], np.cumsum(np.pad(u, (k, k), mode="edge"))))
     i = np.arange(u.size) + k
     before, after = (c[i] - c[i - k]) / k, (c[i + k] - c[i]) / k
@@ -568,7 +591,8 @@ def _steady(u: np.ndarray, k: int, k_noise: np.ndarray, jump: int) -> np.ndarray
             a0 = a + int(off[0])
             off = np.flatnonzero(np.abs(us[a0:b] - after[b - 1]) > thr[a])
             e = a0 + (int(off[-1]) + 1 if off.size else 0)
-            if e - a0 > k // 2 + jump:  # a torque jump alone (its edges smeared by the k / 2 means) is no change
+            # a torque jump alone (its edges smeared by the k / 2 means) is no change, unless a move follows
+            if e - a0 > k // 2 + jump or (moving is not None and bool(np.any(moving[e + k // 2:e + k]))):
                 steady[a0:e] = False
     return steady
 
