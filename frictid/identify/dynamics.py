@@ -157,7 +157,8 @@ def _without_creep(out: Presliding, jd: JointData) -> None:
     is dropped; the kept ones' relative uncertainty enters sigma0's standard error (:func:`_creep_inflated`). ``out.creep`` records each."""
     keep = []
     k = 0
-    resolved = any(np.ptp(q) >= pre.MIN_COUNTS * max(out.resolution, 1e-300) for q, _ in out.ramps)
+    res = max(out.resolution, 1e-300)
+    resolved = any(np.ptp(q) >= pre.MIN_COUNTS * res for q, _ in out.ramps)
     for p in jd.preps:
         if p.log.q is None:
             continue
@@ -167,11 +168,10 @@ def _without_creep(out: Presliding, jd: JointData) -> None:
             q, F = out.ramps[k]
             k += 1
             h = _hold_drift(p, s)
-            res = max(out.resolution, 1e-300)
-            t = p.log.t[s.i0:s.i1]
             if h is None:
                 keep.append(True)
                 continue
+            t = p.log.t[s.i0:s.i1]
             if abs(h["drift"]) < CREEP_COUNTS * res or np.sign(h["rate"]) != h["load_sign"]:
                 # ramps the encoder does not resolve (none spans presliding.MIN_COUNTS steps) are left
                 # to the encoder's rule, which says why sigma0 is not identifiable

@@ -20,6 +20,7 @@ least squares (Gaz et al. 2019, "classical" identification; Gautier's base param
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -283,8 +284,6 @@ def predict(robot: Robot, fit: RobotFit, logs) -> Prediction:
 
 def cut_log(lg, sl: slice):
     """A copy of joint log ``lg`` holding only the samples ``sl`` (its signals and channels)."""
-    import copy
-
     out = copy.copy(lg)
     out.t, out.q, out.tau = lg.t[sl], None if lg.q is None else lg.q[sl], lg.tau[sl]
     out.qd = None if lg.qd is None else lg.qd[sl]
@@ -297,8 +296,6 @@ def friction_log(lg, tau_model: np.ndarray, F_model: np.ndarray):
     rigid-body part (``tau_model - F_model``) of the robot model's prediction at the log's samples. Its
     inertia and gravity are given as zero (the rigid body is taken out): what is left of the torque is the
     joint's friction and offset, which the single-joint fit and the report's joint sections read."""
-    import copy
-
     out = copy.copy(lg)
     out.tau = np.asarray(lg.tau, float) - (np.asarray(tau_model, float) - np.asarray(F_model, float))
     out.meta = {**lg.meta, "inertia": 0.0, "gravity": [0.0, 0.0]}
