@@ -40,7 +40,7 @@ from frictid.robotfit import heldout_models  # noqa: E402
 from frictid.robot.identify import (RobotFit, align, cut_log, design, heldout_errors, parallel_filter,  # noqa: E402
                                     predict, prepare, solve)
 from frictid.robot.regressor import base_parameters  # noqa: E402
-from test_robot import AURT_20HZ, random_arm, simulate_excitation  # noqa: E402
+from test_robot import AURT_20HZ, physical_inertia, random_arm, simulate_excitation  # noqa: E402
 
 AURT_RAW = {"1": 3.44, "2": 6.25, "3": 2.27, "4": 0.65, "5": 1.19, "6": 0.80}
 
@@ -55,13 +55,10 @@ TOL = {"fc": ("rel", 0.03), "fv": ("rel", 0.10), "fo": ("abs", 0.1)}
 
 def ur10e_arm(rng):
     """The UR10e's kinematics with random link inertias (2-15 kg) and random friction per joint."""
-    import pinocchio as pin
-
     robot = load_robot(ROOT / "recipes/robots/ur10e.yaml")
     robot.armature = False  # simulated link-side torques
     for i in range(1, robot.nv + 1):
-        robot.model.inertias[i] = pin.Inertia(rng.uniform(2, 15), rng.uniform(-0.1, 0.1, 3),
-                                              np.diag(rng.uniform(0.01, 0.3, 3)))
+        robot.model.inertias[i] = physical_inertia(rng, rng.uniform(2, 15), (0.05, 0.6))
     friction = {j: (rng.uniform(0.5, 5), rng.uniform(0.5, 8), rng.uniform(-1, 1)) for j in robot.joints}
     return robot, friction
 
@@ -69,12 +66,14 @@ def ur10e_arm(rng):
 def arms(n: int, base: int, make=random_arm, label: str = "random arms, 4 DH joints each") -> None:
     hits = {k: [0, 0, 0] for k in TOL}   # within tolerance, within 2 se, count
     rel, cls = [], []   # cls: the classical processing's relative errors of fv and fc (signed)
+    consistent = 0      # estimates found physically consistent (every simulated arm is)
     for s in range(base, base + n):
         rng = np.random.default_rng(s)
         robot, friction = make(rng)
         logs = simulate_excitation(robot, friction, rng)
         fit = identify_robot(robot, logs)
         rel.append(fit.rel_error)
+        consistent += any(note.startswith("physical feasibility: ") for note in fit.notes)
         truth_all = np.array([friction[j] for j in robot.joints])
         cls.append((classical(robot, logs)[0][:, :2] - truth_all[:, :2]) / np.abs(truth_all[:, :2]))
         for j, truth in friction.items():
@@ -86,7 +85,8 @@ def arms(n: int, base: int, make=random_arm, label: str = "random arms, 4 DH joi
                 hits[k][1] += abs(got.value - true) <= 2 * got.stderr
                 hits[k][2] += 1
     print(f"{label}: {n} (seeds {base}..{base + n - 1}); relative torque error median "
-          f"{100 * np.median(rel):.2f} %")
+          f"{100 * np.median(rel):.2f} %; base parameters physically consistent (as the simulated links are): "
+          f"{consistent}/{n}")
     for k, (ok, cov, cnt) in hits.items():
         kind, tol = TOL[k]
         print(f"  {k}: within {tol:g}{' (relative)' if kind == 'rel' else ' N m'}: {ok}/{cnt} ({100 * ok / cnt:.0f} %); "
@@ -141,6 +141,7 @@ def ur10e() -> None:
     print(f"UR10e harmonic run: last 30 % held out; {len(fit.base)} base parameters (with rotor inertias), "
           f"condition {fit.condition:.1f}, relative torque error in the fit {100 * fit.rel_error:.2f} %, "
           f"{time.time() - t0:.1f} s for both")
+    print("  " + "; ".join(n for n in fit.notes if "physical" in n))
     print(f"  {'joint':<5} {'whole':>6} {'AURT':>6} {'moving':>7}   {'whole 20Hz':>10} {'AURT':>6} {'moving':>7}   fv fc fo")
     for j in robot.joints:
         f = fit.friction[j]
@@ -169,6 +170,7 @@ def franka() -> None:
     print(f"Franka Panda (Gaz 2019 Table III, classical LS): relative torque error {100 * fit.rel_error:.2f} % "
           f"(published 1.41 %), condition {fit.condition:.1f} (published 121.88), {len(fit.base)} base parameters, "
           f"cut-off {fit.cutoff_hz:.1f} Hz, {time.time() - t0:.1f} s")
+    print("  " + "; ".join(n for n in fit.notes if "physical" in n))
     print(f"  {'joint':<5} {'fc':>8} {'se':>6} {'Table III':>9} {'diff':>7} {'/se':>5}  {'fv':>8} {'se':>6} {'Table III':>9} "
           f"{'/se':>5}  {'fo':>8} {'Table III':>9} {'diff':>7}")
     for j, (fv_p, fc_p, fo_p) in TABLE3.items():

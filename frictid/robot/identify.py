@@ -29,6 +29,7 @@ from scipy.signal import butter, sosfiltfilt
 from ..errors import ConfigError
 from ..result import ParamEstimate
 from .description import Robot
+from .feasibility import feasibility_note, nearest_consistent
 from .regressor import BaseParameters, base_parameters, full_regressor
 
 FRICTION = ("fv", "fc", "fo")
@@ -70,6 +71,8 @@ class RobotFit:
     #: the estimate vector [base | fv fc fo per joint] and the base parameters' definition (for predict)
     x: np.ndarray | None = None
     bp: BaseParameters | None = None
+    #: the base parameters' covariance (the physical-consistency check weighs departures by it)
+    base_cov: np.ndarray | None = None
     #: what the checks found (excitation, friction signs, physical feasibility), one sentence each
     notes: list[str] = field(default_factory=list)
     #: per joint, the speeds [rad/s] and positions [rad] the moving samples covered ([lo, hi] each)
@@ -118,7 +121,10 @@ def prepare(robot: Robot, logs, cutoff: float | None = None) -> RobotData:
     fc = _cutoff(qd, 1.0 / h) if cutoff is None else float(min(cutoff, 0.4 / h))
     sos = butter(4, fc, fs=1.0 / h, output="sos")
     raw = qd
-    q, qd = (sosfiltfilt(sos, x, axis=0) for x in (q, qd))
+    # padded by odd extension over three periods of the cut-off: the filter's start-up transient then falls
+    # outside a log that starts or ends in motion
+    pad = min(q.shape[0] - 1, 3 * int(round(1.0 / (h * fc))))
+    q, qd = (sosfiltfilt(sos, x, axis=0, padlen=pad) for x in (q, qd))
     qdd = np.gradient(qd, h, axis=0)
     # standing still: within five noise levels of zero (the noise: what the filter removed, robust scale)
     noise = 1.4826 * np.median(np.abs(raw - qd), axis=0)
@@ -160,8 +166,8 @@ def _lag1(r: np.ndarray) -> float:
 
 
 def solve(A: np.ndarray, y: np.ndarray, jid: np.ndarray, nv: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """WLS with per-joint weights (jid: each row's joint); returns (x, standard errors, residuals,
-    condition number)."""
+    """WLS with per-joint weights (jid: each row's joint); returns (x, covariance, residuals, condition
+    number)."""
     x = np.linalg.lstsq(A, y, rcond=None)[0]
     r = y - A @ x
     sd = np.array([r[jid == j].std() if np.any(jid == j) else 1.0 for j in range(nv)])
@@ -181,7 +187,7 @@ def solve(A: np.ndarray, y: np.ndarray, jid: np.ndarray, nv: int) -> tuple[np.nd
     s2 = float(np.sum((rw**2) * infl[jid])) / dof
     sv = np.linalg.svd(Aw / scale, compute_uv=False)
     cov = s2 * np.linalg.pinv((Aw / scale).T @ (Aw / scale)) / np.outer(scale, scale)
-    return x, np.sqrt(np.maximum(np.diag(cov), 0.0)), y - A @ x, float(sv[0] / sv[-1])
+    return x, cov, y - A @ x, float(sv[0] / sv[-1])
 
 
 def _errors(robot: Robot, A: np.ndarray, y: np.ndarray, x: np.ndarray, jid) -> tuple[float, dict[str, float]]:
@@ -197,7 +203,8 @@ def identify_robot(robot: Robot, logs) -> RobotFit:
     fit_d = prepare(robot, logs)
     bp = base_parameters(robot, robot.armature)
     A, y, jid = parallel_filter(fit_d, design(robot, bp, fit_d), fit_d.tau.reshape(-1))
-    x, se, _, cond = solve(A, y, jid, robot.nv)
+    x, cov, _, cond = solve(A, y, jid, robot.nv)
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     nb = bp.n
     names = bp.names(robot)
     base = [ParamEstimate(n, float(v), float(s), "") for n, v, s in zip(names, x[:nb], se[:nb])]
@@ -207,7 +214,8 @@ def identify_robot(robot: Robot, logs) -> RobotFit:
         friction[j] = {k: ParamEstimate(k, float(x[nb + 3 * i + m]), float(se[nb + 3 * i + m]), units[k])
                        for m, k in enumerate(FRICTION)}
     rel, rms = _errors(robot, A, y, x, jid)
-    out = RobotFit(names, base, friction, cond, rel, rms, fit_d.cutoff, int(y.size), x=x, bp=bp)
+    out = RobotFit(names, base, friction, cond, rel, rms, fit_d.cutoff, int(y.size), x=x, bp=bp,
+                   base_cov=cov[:nb, :nb])
     out.notes = check(out, bp, robot)
     mov = fit_d.moving()
     for i, j in enumerate(robot.joints):
@@ -221,8 +229,8 @@ def identify_robot(robot: Robot, logs) -> RobotFit:
 def check(fit: RobotFit, bp: BaseParameters, robot: Robot) -> list[str]:
     """Mark what the data cannot support and say so: every estimate when the excitation is too poorly
     conditioned; a base parameter with a relative standard error over 100 %; a Coulomb level or viscous
-    coefficient negative by more than two standard errors (not a dissipative friction). Feasibility of the
-    link inertias is reported as not checkable unless every link parameter is identified."""
+    coefficient negative by more than two standard errors (not a dissipative friction); whether some
+    physically consistent set of link inertias has the identified base parameters (:mod:`.feasibility`)."""
     notes = []
     every = fit.base + [p for f in fit.friction.values() for p in f.values()]
     if fit.condition > COND_LIMIT:
@@ -240,9 +248,9 @@ def check(fit: RobotFit, bp: BaseParameters, robot: Robot) -> list[str]:
                 p.identifiable = False
                 p.reason = f"negative ({p.value:.3g} +- {p.stderr:.2g}): not a dissipative friction"
                 notes.append(f"joint {j}: {k} {p.reason}")
-    if bp.n < bp.n_full:
-        notes.append(f"physical feasibility of the link inertias not checked: the {bp.n} base parameters are "
-                     f"combinations of the {bp.n_full} link parameters")
+    if fit.base_cov is not None and fit.x is not None and fit.condition <= COND_LIMIT:
+        feas = nearest_consistent(bp, fit.x[:bp.n], fit.base_cov, robot.nv)
+        notes.append(feasibility_note(feas, fit.base_names))
     return notes
 
 
