@@ -294,6 +294,8 @@ def confounded(S: Samples, tr: Trial, m: int) -> str | None:
         return _unresolved_delay(S, tr)
     if tr.ext in AT_ONE_SPEED_EXTS:
         return _not_at_one_speed(S, tr, m)
+    if tr.ext in TIME_STATE_EXTS:
+        return _not_its_time_course(S, tr, m)
     if tr.ext not in POSITION_EXTS:
         return None
     cell = speed_cells(S)
@@ -336,6 +338,32 @@ def _not_at_one_speed(S: Samples, tr: Trial, m: int) -> str | None:
     if p >= ALPHA / max(m, 1):
         return (f"{tr.ext} does not show at one speed between moves after short and long rests (held-out "
                 f"within-speed-bin t = {t:.2f}, p = {p:.2g}): a function of the speed stands in for it")
+    return None
+
+
+#: Extensions of a slow state (a warm-up): their best competing explanation of the same residual is a free
+#: function of the time.
+TIME_STATE_EXTS = ("thermal4", "thermal6")
+
+
+def _not_its_time_course(S: Samples, tr: Trial, m: int) -> str | None:
+    """Why a temperature candidate follows only part of a slow change that is not a warm-up (a level cycling
+    in time), or None. Its best competing explanation is a free function of the time times the velocity's
+    sign (the training folds' mean of ``r sgn w`` in bins of the time,
+    :func:`frictid.diagnose.structure.heldout_binned`): after the
+    candidate's correction, that function must not explain, on held-out data and significantly at the
+    step's level, at least as much of what is left as the candidate explained. A warm-up the thermal state
+    describes leaves little of its course behind; a cycle it follows in part leaves the rest of it."""
+    from .structure import heldout_binned, variable
+    ra = S.F - tr.pred_after
+    sg = np.sign(S.w)   # a slow change of the friction changes its level, whose sign is the velocity's
+    rest = ra - sg * heldout_binned(S, ra * sg, variable(S, "time"))
+    t, p = paired_t(group_d(S, ra, rest))
+    left = math.sqrt(max(float(np.mean(ra * ra) - np.mean(rest * rest)), 0.0))
+    if p < ALPHA / max(m, 1) and left >= tr.explained:
+        return (f"{tr.ext} follows only part of the residual's course in time: it explains {tr.explained:.3g} "
+                f"RMS, and a free function of the time explains {left:.3g} more of what it leaves on held-out data "
+                f"(t = {t:.2f}, p = {p:.2g}): a slow change that is not the shape of a warm-up")
     return None
 
 
