@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import ndtri, stdtr
 
+from .binned import heldout_binned
 from .causes import EXTENSIONS, candidates, n_coef, propose
 from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure, Term
 from .samples import Samples
@@ -350,14 +351,13 @@ def _not_its_time_course(S: Samples, tr: Trial, m: int) -> str | None:
     """Why a temperature candidate follows only part of a slow change that is not a warm-up (a level cycling
     in time), or None. Its best competing explanation is a free function of the time times the velocity's
     sign (the training folds' mean of ``r sgn w`` in bins of the time,
-    :func:`frictid.diagnose.structure.heldout_binned`): after the
+    :func:`frictid.diagnose.binned.heldout_binned`): after the
     candidate's correction, that function must not explain, on held-out data and significantly at the
     step's level, at least as much of what is left as the candidate explained. A warm-up the thermal state
     describes leaves little of its course behind; a cycle it follows in part leaves the rest of it."""
-    from .structure import heldout_binned, variable
     ra = S.F - tr.pred_after
     sg = np.sign(S.w)   # a slow change of the friction changes its level, whose sign is the velocity's
-    rest = ra - sg * heldout_binned(S, ra * sg, variable(S, "time"))
+    rest = ra - sg * heldout_binned(S, ra * sg, S.th * 3600.0)
     t, p = paired_t(group_d(S, ra, rest))
     left = math.sqrt(max(float(np.mean(ra * ra) - np.mean(rest * rest)), 0.0))
     if p < ALPHA / max(m, 1) and left >= tr.explained:
