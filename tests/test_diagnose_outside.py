@@ -225,11 +225,13 @@ def test_a_cause_that_does_not_beat_a_competing_explanation_is_not_named():
     assert best.ext == "offset" and best.unresolved == []
 
 
-def _rest_plateau_log(seed: int, amp: float, values: dict, dt: float = 2e-3, noise: float = 0.01):
+def _rest_plateau_log(seed: int, amp: float, values: dict, dt: float = 2e-3, noise: float = 0.01,
+                      cycle: tuple[float, float] = (0.0, 1.0)):
     """Moves to 8 speeds per sign, twice (each held 0.8 s, reached in 0.3 s) from rest, each after a rest of a random
     0.1-6 s, with a static friction that grows with that rest (level times ``1 + amp ln(1 + t_rest / t0)
     exp(-s / s_c)``, ``amp`` 0 for none): the dwell shows where a move starts, at low speed, where a
-    Stribeck hump lives too. About 2 min of data."""
+    Stribeck hump lives too; ``cycle`` = (amplitude, period [s]): the level also times ``1 + amplitude
+    sin(2 pi t / period)``. About 2 min of data."""
     rng = np.random.default_rng(seed)
     v = np.geomspace(0.05, 1.5, 8)
     speeds = rng.permutation(np.concatenate([v, -v, v, -v]))
@@ -249,7 +251,8 @@ def _rest_plateau_log(seed: int, amp: float, values: dict, dt: float = 2e-3, noi
     t = np.arange(n) * dt
     q = np.cumsum(w) * dt
     F = sm.stribeck(w, **values)
-    F = (F - values["sigma2"] * w) * (1 + amp * x) + values["sigma2"] * w
+    cyc = 1 + cycle[0] * np.sin(2 * np.pi * t / cycle[1] + rng.uniform(0, 2 * np.pi))
+    F = (F - values["sigma2"] * w) * (1 + amp * x) * cyc + values["sigma2"] * w
     F = F + noise * rng.standard_normal(n)
     segs, i = [], 0
     for kind, m in kinds:
@@ -306,3 +309,38 @@ def test_a_level_cycling_in_time_is_not_named_temperature(seed):
     rejected = [r for s in jf.selection["diagnosis"]["steps"] for r in s.get("rejected", [])]
     assert any("not the shape of a warm-up" in r["reason"] for r in rejected), rejected
     assert jf.selection["diagnosis"]["unexplained"]
+
+
+@pytest.mark.parametrize("seed", [4])
+def test_a_candidate_that_follows_part_of_a_slow_cycle_is_not_named(seed):
+    """The foreign card's seed 300204 (a level cycling in time, 25 %, outside the list) was named dwell (gain
+    0.06): the program's rests follow part of the cycle. A dwell or temperature candidate whose correction is
+    a fifth of the cycle leaves more of the residual's course in time than it explains and is
+    rejected; one that takes the whole cycle is not."""
+    from dataclasses import replace
+
+    from frictid.diagnose.chain import Chain, _not_its_time_course
+
+    P = 40.0
+
+    def cyc(t, q, w, F):
+        return F.level * (1 + 0.15 * np.sin(2 * np.pi * t / P)) + F.viscous
+
+    lg = plateau_log(cyc, seed=seed, reps=4, alternate=True)
+    S = build_samples([lg], 5)
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    chain = Chain(S, Structure("stribeck", cp))
+    off = chain.evaluate("offset", 1)          # a trial to dress up: its fields, another correction
+    true_map = Parts(sm.stribeck(lg.w, **TRUE), TRUE["sigma2"] * lg.w)
+    cycle = (np.asarray(cyc(lg.t, lg.q, lg.w, true_map)) - np.asarray(true_map))[S.k]
+    whole = chain.pred + cycle
+    for ext in ("dwell", "thermal6"):
+        part = replace(off, ext=ext, pred_after=chain.pred + (whole - chain.pred) / 5)
+        rb, ra = S.F - part.pred_before, S.F - part.pred_after
+        part.explained = float(np.sqrt(max(np.mean(rb ** 2) - np.mean(ra ** 2), 0.0)))
+        why = _not_its_time_course(S, part, 1)
+        assert why is not None and "slow change that is not the shape of" in why, why
+        all_of_it = replace(part, pred_after=whole)
+        rb, ra = S.F - all_of_it.pred_before, S.F - all_of_it.pred_after
+        all_of_it.explained = float(np.sqrt(max(np.mean(rb ** 2) - np.mean(ra ** 2), 0.0)))
+        assert _not_its_time_course(S, all_of_it, 1) is None

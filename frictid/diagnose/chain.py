@@ -294,8 +294,10 @@ def confounded(S: Samples, tr: Trial, m: int) -> str | None:
     if tr.ext == "delay":
         return _unresolved_delay(S, tr)
     if tr.ext in AT_ONE_SPEED_EXTS:
-        return _not_at_one_speed(S, tr, m)
-    if tr.ext in TIME_STATE_EXTS:
+        why = _not_at_one_speed(S, tr, m)
+        if why is not None:
+            return why
+    if tr.ext in TIME_COURSE_EXTS:
         return _not_its_time_course(S, tr, m)
     if tr.ext not in POSITION_EXTS:
         return None
@@ -342,19 +344,20 @@ def _not_at_one_speed(S: Samples, tr: Trial, m: int) -> str | None:
     return None
 
 
-#: Extensions of a slow state (a warm-up): their best competing explanation of the same residual is a free
-#: function of the time.
-TIME_STATE_EXTS = ("thermal4", "thermal6")
+#: Extensions whose variable changes slowly over the recording or from move to move (a warm-up, the rests
+#: of a program): a free function of the time competes with them for the same residual.
+TIME_COURSE_EXTS = ("thermal4", "thermal6", "dwell")
 
 
 def _not_its_time_course(S: Samples, tr: Trial, m: int) -> str | None:
-    """Why a temperature candidate follows only part of a slow change that is not a warm-up (a level cycling
-    in time), or None. Its best competing explanation is a free function of the time times the velocity's
+    """Why a temperature or dwell candidate follows only part of a slow change of another shape (a level
+    cycling in time), or None. Its best competing explanation is a free function of the time times the velocity's
     sign (the training folds' mean of ``r sgn w`` in bins of the time,
     :func:`frictid.diagnose.binned.heldout_binned`): after the
     candidate's correction, that function must not explain, on held-out data and significantly at the
     step's level, at least as much of what is left as the candidate explained. A warm-up the thermal state
-    describes leaves little of its course behind; a cycle it follows in part leaves the rest of it."""
+    describes leaves little of its course behind, nor does a dwell effect; a cycle that a thermal state or
+    the rests of a program follow in part leaves the rest of it."""
     ra = S.F - tr.pred_after
     sg = np.sign(S.w)   # a slow change of the friction changes its level, whose sign is the velocity's
     rest = ra - sg * heldout_binned(S, ra * sg, S.th * 3600.0)
@@ -363,7 +366,8 @@ def _not_its_time_course(S: Samples, tr: Trial, m: int) -> str | None:
     if p < ALPHA / max(m, 1) and left >= tr.explained:
         return (f"{tr.ext} follows only part of the residual's course in time: it explains {tr.explained:.3g} "
                 f"RMS, and a free function of the time explains {left:.3g} more of what it leaves on held-out data "
-                f"(t = {t:.2f}, p = {p:.2g}): a slow change that is not the shape of a warm-up")
+                f"(t = {t:.2f}, p = {p:.2g}): a slow change that is not the shape of "
+                f"{'a dwell effect' if tr.ext == 'dwell' else 'a warm-up'}")
     return None
 
 
