@@ -12,10 +12,12 @@ import numpy as np
 import pytest
 
 import diag_synth as ds
+from frictid.data import Segment
+from frictid.diagnose import DiagLog, diagnose_joint
 from frictid.diagnose.model import Structure
 from frictid.diagnose.samples import build_samples
 from frictid.models import static as sm
-from test_diagnose import TRUE, Parts, _run, plateau_log
+from test_diagnose import TRUE, Parts, _run, fake_fit, plateau_log, smooth
 
 
 def _outside(jf) -> dict:
@@ -221,3 +223,124 @@ def test_a_cause_that_does_not_beat_a_competing_explanation_is_not_named():
     worse.rms_after = float(np.sqrt(np.mean((S.F - worse.pred_after) ** 2)))
     best = chain.choose([off, worse], 2)
     assert best.ext == "offset" and best.unresolved == []
+
+
+def _rest_plateau_log(seed: int, amp: float, values: dict, dt: float = 2e-3, noise: float = 0.01,
+                      cycle: tuple[float, float] = (0.0, 1.0)):
+    """Moves to 8 speeds per sign, twice (each held 0.8 s, reached in 0.3 s) from rest, each after a rest of a random
+    0.1-6 s, with a static friction that grows with that rest (level times ``1 + amp ln(1 + t_rest / t0)
+    exp(-s / s_c)``, ``amp`` 0 for none): the dwell shows where a move starts, at low speed, where a
+    Stribeck hump lives too; ``cycle`` = (amplitude, period [s]): the level also times ``1 + amplitude
+    sin(2 pi t / period)``. About 2 min of data."""
+    rng = np.random.default_rng(seed)
+    v = np.geomspace(0.05, 1.5, 8)
+    speeds = rng.permutation(np.concatenate([v, -v, v, -v]))
+    rests_s = rng.uniform(0.1, 6.0, speeds.size)
+    t0, s_c = 0.1, 0.04
+    ws, kinds, xs = [], [], []
+    for s, tr in zip(speeds, rests_s):
+        n_r, n_m, n_h, n_b = int(tr / dt), int(0.3 / dt), int(0.8 / dt), int(0.3 / dt)
+        up = s * smooth(np.arange(n_m) / n_m)
+        move = np.concatenate([up, np.full(n_h, s), s * smooth(1 - np.arange(n_b) / n_b)])
+        travel = np.abs(np.cumsum(move) * dt)
+        ws += [np.zeros(n_r), move]
+        xs += [np.zeros(n_r), np.log1p(tr / t0) * np.exp(-travel / s_c)]
+        kinds += [("rest", n_r), ("other", n_m), ("constant_velocity", n_h), ("other", n_b)]
+    w, x = np.concatenate(ws), np.concatenate(xs)
+    n = w.size
+    t = np.arange(n) * dt
+    q = np.cumsum(w) * dt
+    F = sm.stribeck(w, **values)
+    cyc = 1 + cycle[0] * np.sin(2 * np.pi * t / cycle[1] + rng.uniform(0, 2 * np.pi))
+    F = (F - values["sigma2"] * w) * (1 + amp * x) * cyc + values["sigma2"] * w
+    F = F + noise * rng.standard_normal(n)
+    segs, i = [], 0
+    for kind, m in kinds:
+        segs.append(Segment(kind, i, i + m, float(t[i]), float(t[i + m - 1])))
+        i += m
+    return DiagLog(t=t, q=q - q.mean(), w=w, a=np.gradient(w, dt), tau=F.copy(), F=F, G=np.zeros(n),
+                   offset=0.0, segments=segs, channels={"temp_env": np.full(n, 25.0)}, start=None)
+
+
+#: A Stribeck hump the fit's base map lacks (Fs / Fc = 1.6): the base handed over is Coulomb + viscous.
+HUMP = dict(Fc=2.0, Fs=3.2, vs=0.1, delta=2.0, sigma2=1.0)
+
+
+@pytest.mark.parametrize("seed", [3, 8])
+def test_a_dwell_is_named_before_a_stribeck_hump_the_base_lacks(seed):
+    """Issue 20, foreign card seeds 300021 / 300103: the plant has a Stribeck hump the fit's base lacks and a
+    dwell effect; both corrections live where a move starts slowly after a rest, and the Stribeck term, a
+    function of the speed alone (a repair the fit should have made), was named first. Where the two differ,
+    at one speed between moves after short and after long rests, only the dwell shows: it is named first,
+    the Stribeck repair after it."""
+    jf = fake_fit({"Fc": HUMP["Fc"], "sigma2": HUMP["sigma2"]}, "coulomb_viscous")
+    diagnose_joint(jf, [_rest_plateau_log(seed, 0.15, HUMP)])
+    steps = [s["chosen"] for s in jf.selection["diagnosis"]["steps"] if s.get("chosen")]
+    assert steps and steps[0] == "dwell", jf.selection["diagnosis"]["steps"]
+    assert "stribeck" in steps, steps
+
+
+@pytest.mark.parametrize("seed", [3])
+def test_a_stribeck_hump_without_a_dwell_is_not_named_dwell(seed):
+    """The same moves after rests of random length, the hump the base lacks and no dwell effect: the dwell
+    candidate's correction (large after long rests, at the start of a move) can take part of the hump, but
+    at one speed between short and long rests it does not follow the residual, so it is not named."""
+    jf = fake_fit({"Fc": HUMP["Fc"], "sigma2": HUMP["sigma2"]}, "coulomb_viscous")
+    findings = diagnose_joint(jf, [_rest_plateau_log(seed, 0.0, HUMP)])
+    assert not [f for f in findings if f["cause"] == "dwell"], findings
+    assert not [o for o in jf.selection["diagnosis"].get("outside_model", []) if o["cause"] == "dwell"]
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_level_cycling_in_time_is_not_named_temperature(seed):
+    """Issue 20, foreign card seed 300100: a friction level cycling in time (+-15 %, a 50 s period over a
+    134 s log) is outside the list; the heat balance with a time constant chosen on the data follows part
+    of it and was named temperature (gain 0.12 and 0.24 on these seeds). Competing explanation: a free
+    function of the time (times the velocity's sign), which explains more of what the thermal term leaves
+    than the term explains: not named, and the structure is stated unexplained."""
+    rng = np.random.default_rng(seed)
+    ph = rng.uniform(0, 2 * np.pi)
+
+    def cyc(t, q, w, F):
+        return F.level * (1 + 0.15 * np.sin(2 * np.pi * t / 50.0 + ph)) + F.viscous
+
+    jf, findings = _run([plateau_log(cyc, seed=seed, reps=4, alternate=True)])
+    assert not [f for f in findings if f["gain"] >= 0.05], findings
+    rejected = [r for s in jf.selection["diagnosis"]["steps"] for r in s.get("rejected", [])]
+    assert any("not the shape of a warm-up" in r["reason"] for r in rejected), rejected
+    assert jf.selection["diagnosis"]["unexplained"]
+
+
+@pytest.mark.parametrize("seed", [4])
+def test_a_candidate_that_follows_part_of_a_slow_cycle_is_not_named(seed):
+    """The foreign card's seed 300204 (a level cycling in time, 25 %, outside the list) was named dwell (gain
+    0.06): the program's rests follow part of the cycle. A dwell or temperature candidate whose correction is
+    a fifth of the cycle leaves more of the residual's course in time than it explains and is
+    rejected; one that takes the whole cycle is not."""
+    from dataclasses import replace
+
+    from frictid.diagnose.chain import Chain, _not_its_time_course
+
+    P = 40.0
+
+    def cyc(t, q, w, F):
+        return F.level * (1 + 0.15 * np.sin(2 * np.pi * t / P)) + F.viscous
+
+    lg = plateau_log(cyc, seed=seed, reps=4, alternate=True)
+    S = build_samples([lg], 5)
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    chain = Chain(S, Structure("stribeck", cp))
+    off = chain.evaluate("offset", 1)          # a trial to dress up: its fields, another correction
+    true_map = Parts(sm.stribeck(lg.w, **TRUE), TRUE["sigma2"] * lg.w)
+    cycle = (np.asarray(cyc(lg.t, lg.q, lg.w, true_map)) - np.asarray(true_map))[S.k]
+    whole = chain.pred + cycle
+    for ext in ("dwell", "thermal6"):
+        part = replace(off, ext=ext, pred_after=chain.pred + (whole - chain.pred) / 5)
+        rb, ra = S.F - part.pred_before, S.F - part.pred_after
+        part.explained = float(np.sqrt(max(np.mean(rb ** 2) - np.mean(ra ** 2), 0.0)))
+        why = _not_its_time_course(S, part, 1)
+        assert why is not None and "slow change that is not the shape of" in why, why
+        all_of_it = replace(part, pred_after=whole)
+        rb, ra = S.F - all_of_it.pred_before, S.F - all_of_it.pred_after
+        all_of_it.explained = float(np.sqrt(max(np.mean(rb ** 2) - np.mean(ra ** 2), 0.0)))
+        assert _not_its_time_course(S, all_of_it, 1) is None

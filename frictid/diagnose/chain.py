@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import ndtri, stdtr
 
+from .binned import heldout_binned
 from .causes import EXTENSIONS, candidates, n_coef, propose
 from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure, Term
 from .samples import Samples
@@ -184,6 +185,7 @@ class Chain:
             _, p = paired_t(group_d(self.S, self.S.F - t.pred_after, self.S.F - best.pred_after))
             if p >= ALPHA / max(m, 1):
                 best = t
+        best = _speed_only_last(best, ok)
         # other causes the data cannot tell from the chosen one (not significantly worse)
         best.rivals, best.unresolved = [], []
         for t in ok:
@@ -291,6 +293,12 @@ def confounded(S: Samples, tr: Trial, m: int) -> str | None:
     controller's lag and the estimated acceleration share it.)"""
     if tr.ext == "delay":
         return _unresolved_delay(S, tr)
+    if tr.ext in AT_ONE_SPEED_EXTS:
+        why = _not_at_one_speed(S, tr, m)
+        if why is not None:
+            return why
+    if tr.ext in TIME_COURSE_EXTS:
+        return _not_its_time_course(S, tr, m)
     if tr.ext not in POSITION_EXTS:
         return None
     cell = speed_cells(S)
@@ -301,6 +309,78 @@ def confounded(S: Samples, tr: Trial, m: int) -> str | None:
         return (f"{tr.ext} does not show within segments at one speed (held-out within-cell t = {t:.2f}, "
                 f"p = {p:.2g}): the position stands in for the speed or the order of the plateaus")
     return _grows_with_speed(S, tr, rw, dw, m)
+
+
+#: Extensions that are functions of the speed alone: a repair of the base map, which the fit should carry.
+SPEED_ONLY_EXTS = ("stribeck",)
+#: Extensions whose variable changes at one speed from move to move (the rest before it): they must show
+#: there, where a function of the speed cannot follow them.
+AT_ONE_SPEED_EXTS = ("dwell",)
+
+
+def speed_bins(S: Samples) -> np.ndarray:
+    """Bin index per sample: :data:`SPEED_BINS` equal-count bins of the signed velocity per sign, all
+    segments pooled (cached). Within a bin a function of the speed hardly changes; a dwell variable changes
+    from a move after a short rest to one after a long rest."""
+    def compute():
+        edges = np.unique(np.quantile(S.w, np.linspace(0, 1, 2 * SPEED_BINS + 1)[1:-1]))
+        return np.searchsorted(edges, S.w, side="right")
+    return S.cached("speed_bins", compute)
+
+
+def _not_at_one_speed(S: Samples, tr: Trial, m: int) -> str | None:
+    """Why a dwell candidate is a stand-in for a function of the speed (a Stribeck hump the base map lacks:
+    the moves start slowly), or None. Where the two differ is at one speed, between moves after short and
+    after long rests: the candidate's held-out correction and the residual, each less its mean and its line
+    in the velocity in every speed bin (:func:`speed_bins`, segments pooled), must vary together there, the
+    one-sided t over held-out groups of ``sum(rw dw)`` significant at the step's level."""
+    cell = speed_bins(S)
+    rw = _within(cell, S.F - tr.pred_before, S.w)
+    dw = _within(cell, tr.pred_after - tr.pred_before, S.w)
+    t, p = paired_t(np.bincount(S.group, weights=rw * dw, minlength=S.n_groups))
+    if p >= ALPHA / max(m, 1):
+        return (f"{tr.ext} does not show at one speed between moves after short and long rests (held-out "
+                f"within-speed-bin t = {t:.2f}, p = {p:.2g}): a function of the speed stands in for it")
+    return None
+
+
+#: Extensions whose variable changes slowly over the recording or from move to move (a warm-up, the rests
+#: of a program): a free function of the time competes with them for the same residual.
+TIME_COURSE_EXTS = ("thermal4", "thermal6", "dwell")
+
+
+def _not_its_time_course(S: Samples, tr: Trial, m: int) -> str | None:
+    """Why a temperature or dwell candidate follows only part of a slow change of another shape (a level
+    cycling in time), or None. Its best competing explanation is a free function of the time times the velocity's
+    sign (the training folds' mean of ``r sgn w`` in bins of the time,
+    :func:`frictid.diagnose.binned.heldout_binned`): after the
+    candidate's correction, that function must not explain, on held-out data and significantly at the
+    step's level, at least as much of what is left as the candidate explained. A warm-up the thermal state
+    describes leaves little of its course behind, nor does a dwell effect; a cycle that a thermal state or
+    the rests of a program follow in part leaves the rest of it."""
+    ra = S.F - tr.pred_after
+    sg = np.sign(S.w)   # a slow change of the friction changes its level, whose sign is the velocity's
+    rest = ra - sg * heldout_binned(S, ra * sg, S.th * 3600.0)
+    t, p = paired_t(group_d(S, ra, rest))
+    left = math.sqrt(max(float(np.mean(ra * ra) - np.mean(rest * rest)), 0.0))
+    if p < ALPHA / max(m, 1) and left >= tr.explained:
+        return (f"{tr.ext} follows only part of the residual's course in time: it explains {tr.explained:.3g} "
+                f"RMS, and a free function of the time explains {left:.3g} more of what it leaves on held-out data "
+                f"(t = {t:.2f}, p = {p:.2g}): a slow change that is not the shape of "
+                f"{'a dwell effect' if tr.ext == 'dwell' else 'a warm-up'}")
+    return None
+
+
+def _speed_only_last(best: Trial, ok: list[Trial]) -> Trial:
+    """The chosen candidate, except that a function of the speed alone (:data:`SPEED_ONLY_EXTS`, a repair of
+    the base map) yields to a worthy candidate shown at one speed (:data:`AT_ONE_SPEED_EXTS`, past
+    :func:`_not_at_one_speed`): the speed-only term cannot explain what the other shows where the speed
+    does not change, while the other's correction can take part of the speed-only one's (the moves after
+    rests start slowly); the speed-only term is tested again at the next step, on the residual without it."""
+    if best.ext not in SPEED_ONLY_EXTS:
+        return best
+    shown = [t for t in ok if t.ext in AT_ONE_SPEED_EXTS]
+    return min(shown, key=lambda t: t.rms_after) if shown else best
 
 
 #: Equal-count bands of the speed |w| in which a position candidate's share of the residual is compared.

@@ -26,13 +26,11 @@ import numpy as np
 
 from ..data import finite
 from ..segments import noise_sigma
+from .binned import heldout_binned
 from .chain import ALPHA, EXPLAINED_MIN, group_d, paired_t
 from .samples import Samples
 from .signals import torque_rate
 
-#: Bins of a variable: about this many samples per bin on average (at most MAX_BINS, at least MIN_BINS).
-PER_BIN = 200
-MAX_BINS, MIN_BINS = 120, 8
 #: A structure is worth stating when the RMS it explains is at least this many times the noise of the
 #: friction torque (and EXPLAINED_MIN of the friction RMS): a systematic part the size of the sample noise
 #: is what any estimated acceleration and held shape leave (clean logs of the shipped plants: 1-2x).
@@ -86,29 +84,6 @@ def variable(S: Samples, name: str) -> np.ndarray | None:
     if name == "torque_rate":   # a delay between torque and motion leaves d dtau/dt
         return torque_rate(S)
     raise KeyError(name)
-
-
-def _bins(x: np.ndarray, nb: int) -> np.ndarray:
-    """Bin index per sample: ``nb`` bins of about equal count (ties share a bin)."""
-    edges = np.unique(np.quantile(x, np.linspace(0, 1, nb + 1)[1:-1]))
-    return np.searchsorted(edges, x, side="right")
-
-
-def heldout_binned(S: Samples, r: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """The held-out prediction of r by the training folds' mean of r in bins of x (0 in a bin without
-    training samples)."""
-    nb = int(np.clip(S.n // PER_BIN, MIN_BINS, MAX_BINS))
-    b = _bins(x, nb)
-    m = int(b.max()) + 1
-    sums = np.array([np.bincount(b[S.fold == f], weights=r[S.fold == f], minlength=m) for f in range(S.n_folds)])
-    cnts = np.array([np.bincount(b[S.fold == f], minlength=m) for f in range(S.n_folds)])
-    pred = np.empty(S.n)
-    for f in range(S.n_folds):
-        s, c = sums.sum(0) - sums[f], cnts.sum(0) - cnts[f]
-        mean = np.where(c > 0, s / np.maximum(c, 1), 0.0)
-        te = S.fold == f
-        pred[te] = mean[b[te]]
-    return pred
 
 
 def structure_tests(S: Samples, r: np.ndarray, F_rms: float) -> list[dict]:
