@@ -213,9 +213,13 @@ def test_inertia_speed_split_check_by_hand():
                                                 "se_high": 0.04})
     assert why == "" and se == pytest.approx(0.05)
     # a small, real difference: half of it (beyond the halves' scatter) enters the error
+    se, why = _inertia_split_checked(2.0, 0.01, {"speed": 0.5, "J_low": 2.05, "se_low": 0.01, "J_high": 1.97,
+                                                "se_high": 0.01})
+    assert why == "" and se == pytest.approx(math.hypot(0.01, 0.5 * math.sqrt(0.08**2 - 2e-4)))
+    # a difference beyond the accuracy asked of J (7.5 % > 5 %), significant: not identifiable
     se, why = _inertia_split_checked(2.0, 0.01, {"speed": 0.5, "J_low": 2.1, "se_low": 0.01, "J_high": 1.95,
                                                 "se_high": 0.01})
-    assert why == "" and se == pytest.approx(math.hypot(0.01, 0.5 * math.sqrt(0.15**2 - 2e-4)))
+    assert "slower than 0.5" in why
     # significant and material: not identifiable, with the reason
     se, why = _inertia_split_checked(0.30, 0.008, {"speed": 0.4, "J_low": -0.155, "se_low": 0.016,
                                                   "J_high": 0.638, "se_high": 0.0033})

@@ -224,9 +224,9 @@ def _inertia_checked(v: float, se: float | None, bw: dict | None) -> tuple[float
 
 
 #: The speed-split check's thresholds, as the bandwidth check's: significant beyond this many combined
-#: standard errors, material beyond this share of the inertia.
+#: standard errors, material beyond this share of the inertia (the accuracy asked of J).
 SPLIT_Z = 3.0
-SPLIT_MATERIAL = 0.10
+SPLIT_MATERIAL = 0.05
 
 
 def _inertia_split_checked(v: float, se: float | None, sp: dict | None) -> tuple[float | None, str]:
