@@ -192,23 +192,30 @@ def _precision_reason(name: str, dim: str, v: float, se: float | None, jd: Joint
     return ""
 
 
-#: The inertia's change between the two bandwidths counts as significant beyond this many combined
-#: standard errors, and as material beyond this share of the inertia (the accuracy asked of J is 5 %).
+#: The inertia's change between the two bandwidths counts as significant beyond this many standard errors
+#: of the change, and as material beyond this share of the inertia: the accuracy asked of J (a J that moves
+#: by more than that when the torque is low-pass filtered cannot be claimed to that accuracy).
 BANDWIDTH_Z = 3.0
-BANDWIDTH_MATERIAL = 0.10
+BANDWIDTH_MATERIAL = 0.05
 
 
 def _inertia_checked(v: float, se: float | None, bw: dict | None) -> tuple[float | None, str]:
     """The inertia's standard error with the bandwidth check (:func:`_bandwidth_check`) and the reason it
     is not identifiable ("" when it is). A significant, material change of J between the bandwidths: not
-    identifiable; a smaller one enters the standard error as a systematic term (its part beyond the two
-    fits' own scatter, added in quadrature)."""
+    identifiable; a smaller one enters the standard error as a systematic term (its part beyond the
+    change's own scatter, added in quadrature). The change's scatter is the paired delete-a-segment
+    jackknife's (``bw["se_change"]``) where the check has one, at most the two fits' errors combined."""
     if bw is None or se is None or not np.isfinite(se):
         return se, ""
     d = abs(bw["J"] - v)
     se2 = bw["se"] if bw["se"] is not None and np.isfinite(bw["se"]) else se
-    sys_ = math.sqrt(max(d * d - se * se - se2 * se2, 0.0))  # the change beyond both fits' scatter
-    if d > BANDWIDTH_Z * math.hypot(se, se2) and d > BANDWIDTH_MATERIAL * abs(v):
+    # the change's error: the paired one (both fits on the same segments), at most the two fits' errors
+    # combined (their errors are positively correlated: the paired error cannot exceed that bound)
+    s_d = math.hypot(se, se2)
+    if bw.get("se_change") is not None and np.isfinite(bw["se_change"]):
+        s_d = min(s_d, bw["se_change"])
+    sys_ = math.sqrt(max(d * d - s_d * s_d, 0.0))  # the change beyond its own scatter
+    if d > BANDWIDTH_Z * s_d and d > BANDWIDTH_MATERIAL * abs(v):
         return math.hypot(se, sys_), (
             f"changes from {v:.4g} to {bw['J']:.4g} when the torque and the regressors are low-pass filtered "
             f"alike over {bw['window']} samples: the torque is not resolved at the log rate (a loop faster "
@@ -217,9 +224,9 @@ def _inertia_checked(v: float, se: float | None, bw: dict | None) -> tuple[float
 
 
 #: The speed-split check's thresholds, as the bandwidth check's: significant beyond this many combined
-#: standard errors, material beyond this share of the inertia.
+#: standard errors, material beyond this share of the inertia (the accuracy asked of J).
 SPLIT_Z = 3.0
-SPLIT_MATERIAL = 0.10
+SPLIT_MATERIAL = 0.05
 
 
 def _inertia_split_checked(v: float, se: float | None, sp: dict | None) -> tuple[float | None, str]:
@@ -339,7 +346,8 @@ def regress(preps: list[Prep], names, known_coef, min_speed, axis, friction=None
                                                    friction=friction))
     fit_ = rg.solve(total, names, rho=rho)
     fit_.cov = rg.robust_stderr(fit_.cov, rg.cluster_covariance(fit_, [ne for *_, ne in seg_ne]))
-    fit_.bandwidth = _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl, within)
+    fit_.bandwidth = _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl, within,
+                                      raw=[ne for *_, ne in seg_ne])
     fit_.speed_split = _speed_split_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl, within)
     return fit_, seg_ne
 
@@ -349,12 +357,13 @@ BANDWIDTH_WINDOWS = 3
 
 
 def _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl,
-                     within=None) -> dict | None:
+                     within=None, raw=None) -> dict | None:
     """The regression again with the torque and every regressor low-pass filtered alike over
     :data:`BANDWIDTH_WINDOWS` times the logs' acceleration window (parallel filtering: exact for a rigid
     joint whose torque is resolved at the log rate). A rigid-body fit that the data support gives the same
     inertia at both bandwidths; a torque sampled from a loop faster than the log, or a joint that is not
-    rigid, does not. None without the logs' scales (derivatives given by the caller) or an inertia term."""
+    rigid, does not. ``raw``: the raw regression's per-segment normal equations (for the change's paired
+    error). None without the logs' scales (derivatives given by the caller) or an inertia term."""
     wins = [getattr(p.scales, "window_a", None) for p in preps]
     if "J" not in names or "J" in fit_.dependent or any(w is None for w in wins):
         return None
@@ -365,6 +374,7 @@ def _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, 
         seg_ids = [si for si, s in enumerate(p.segments) if s.kind not in excl] or [-1]
         parts += _accumulate(p, pi, ranges, seg_ids, names, known_coef, min_speed, axis, friction, within or {},
                              smooth=win)
+    filt = parts
     parts = [ne for ne in parts if ne.n > 0]
     if not parts or sum(ne.n for ne in parts) <= len(names):
         return None
@@ -372,7 +382,35 @@ def _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, 
     if "J" in f2.dependent:
         return None
     f2.cov = rg.robust_stderr(f2.cov, rg.cluster_covariance(f2, parts))
-    return {"window": win, "J": f2.value("J"), "se": f2.stderr("J")}
+    return {"window": win, "J": f2.value("J"), "se": f2.stderr("J"),
+            "se_change": _paired_change_se(raw, filt, names)}
+
+
+def _paired_change_se(raw, filt, names) -> float | None:
+    """The standard error of the inertia's change between the raw and the filtered regression, from the
+    delete-a-segment jackknife of the change: both fits are solved on the same segments, so their errors are
+    correlated and the two standard errors combined misstate the change's scatter (a bias common to every
+    segment cancels in the change; one that differs from segment to segment shows in it). ``raw`` and
+    ``filt`` are the per-segment normal equations, in the same order. None with fewer than
+    :data:`.regression.MIN_CLUSTERS` segments that both fits use, or when a deleted segment leaves J
+    inseparable."""
+    if raw is None or len(raw) != len(filt):
+        return None
+    keep = [k for k in range(len(raw)) if raw[k].n > 0 and filt[k].n > 0]
+    G = len(keep)
+    if G < rg.MIN_CLUSTERS:
+        return None
+    A = rg.NormalEquations.total(raw[k] for k in keep)
+    B = rg.NormalEquations.total(filt[k] for k in keep)
+    j = list(names).index("J")
+    dd = []
+    for k in keep:
+        fa, fb = rg.solve(A - raw[k], names), rg.solve(B - filt[k], names)
+        if "J" in fa.dependent or "J" in fb.dependent:
+            return None
+        dd.append(fb.coef[j] - fa.coef[j])
+    dd = np.asarray(dd)
+    return float(math.sqrt((G - 1) / G * np.sum((dd - dd.mean()) ** 2)))
 
 
 def _speed_split_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl, within) -> dict | None:
