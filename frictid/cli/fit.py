@@ -116,8 +116,10 @@ def _fit_robot(logs, robot, output, mapping, units, con, as_json, friction, diag
     con.info(f"frictid: {rs['name']}: {len(rs['base_parameters'])} base parameters, condition number "
              f"{rs['condition_number']:.3g}, relative torque error {100 * rs['relative_torque_error']:.2f} %")
     for note in rs["notes"]:  # a passed check is said; what was marked or not shown is warned
-        (con.info if note.startswith("physical feasibility: ") else con.warn)(
-            f"frictid: {note}" if note.startswith("physical feasibility: ") else note)
+        if note.startswith("physical feasibility: "):
+            con.info(f"frictid: {note}")
+        else:
+            con.warn(note)
     summary = {j: joint_summary(jd) for j, jd in res.to_dict()["joints"].items()}
     for j, f in rs["friction"].items():
         sel = summary[j]["selected"] if friction == "models" else "coulomb_viscous"

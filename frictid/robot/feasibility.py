@@ -174,7 +174,8 @@ def nearest_consistent(bp: BaseParameters, beta: np.ndarray, cov: np.ndarray, n_
         except _Reached as hit:
             best, converged = hit.x, True
             break
-        if best is None or sol.cost < float(np.sum(resid(best) ** 2)) / 2:
+        # compare the starts by the distance alone (``sol.cost`` also holds the pull to the start)
+        if best is None or np.sum(resid(sol.x) ** 2) < np.sum(resid(best) ** 2):
             best, converged = sol.x, sol.status > 0
     full = full_of(best)
     se = np.sqrt(np.maximum(np.diag(cov), 1e-300))
