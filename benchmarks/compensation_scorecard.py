@@ -1,10 +1,10 @@
 """Scorecard of the compensation what-if (issue 23): the papers' compensation results, reproduced in
 simulation from the models frictid identifies.
 
-    python benchmarks/compensation_scorecard.py [--seeds 3] [--seed-base 300000] [--scale 0.5]
+    python benchmarks/compensation_scorecard.py [--seeds 3] [--seed-base 300000] [--scale 0.5] [--ramp-scale 0.5]
 
 For each plant and seed: simulate the identification experiments (constant-velocity sweep and presliding
-ramps, noise from the seed), fit them with ``frictid.fit`` as a user would, and run a
+ramps as 000; on the direct drive also torque steps, as 001 identifies sigma1; noise from the seed), fit them with ``frictid.fit`` as a user would, and run a
 tracking recipe in closed loop without compensation, with the fitted joint's selected model as
 feed-forward, with the LuGre friction observer of 000 on it (where sigma0 is identified), and with the
 plant's true friction (:mod:`frictid.compensate`). The settings:
@@ -22,8 +22,8 @@ plant's true friction (:mod:`frictid.compensate`). The settings:
 
 Printed per joint: the RMS tracking error of each run, the reduction (none / model), the ideal reduction
 (none / true), the share of the ideal reduction the model reaches ((none - model) / (none - true)), the
-share the plant's own friction reaches as a static map (column ``static``: the ceiling of a model
-without bristle dynamics), stick episodes, and the observer's reduction.
+share the plant's own friction reaches as a static map (column ``static``, and its reduction ``st.red``: the
+ceiling of a model without bristle dynamics), stick episodes, and the observer's reduction.
 
 Targets (issue 23): hydraulic error down >= 3x; direct drive >= 8x with stick-slip removed; the model
 >= 90 % of the true friction's reduction. Seeds >= 300000 (the tests use < 1000). With FRICTID_SMOKE=1:
@@ -55,7 +55,10 @@ SETTINGS = {
     "fine_encoder/lv": ("direct_drive@23bit", "tracking_lv", "what-if", 8.0, True),
     "fine_encoder/slow": ("direct_drive@23bit", "tracking_slow", "what-if", 8.0, True),
 }
-IDENTIFY = ("constant_velocity_sweep", "ramp_presliding")
+#: identification experiments: 000's (sweep and presliding ramps; sigma1 by its critical-damping rule) on the
+#: hydraulic plant, 001's (the same and torque steps, whose transient carries sigma1) on the direct drive
+IDENTIFY = {"hydraulic": ("constant_velocity_sweep", "ramp_presliding"),
+            "direct_drive": ("constant_velocity_sweep", "ramp_presliding", "torque_steps")}
 SHARE = 0.9
 FINE_COUNTS = 2**23
 WARM = ("geared_industrial", "tracking_warm")
@@ -73,7 +76,7 @@ def plant_of(name: str):
     return pl
 
 
-def identify(plant, seed: int, scale: float, recipes=IDENTIFY, scales=None):
+def identify(plant, seed: int, scale: float, recipes=IDENTIFY["hydraulic"], scales=None):
     logs = []
     for i, r in enumerate(recipes):
         s = (scales or {}).get(r, scale)
@@ -82,15 +85,15 @@ def identify(plant, seed: int, scale: float, recipes=IDENTIFY, scales=None):
     return frictid.fit(logs)
 
 
-def static_share(plant, joint: str, seed: int, recipe: str) -> float:
+def static_share(plant, joint: str, seed: int, recipe: str) -> tuple[float, float]:
     """The share of the ideal reduction the plant's own friction reaches as a *static* map (its bristle
-    dynamics left out): the most a static model can give with this feed-forward."""
+    dynamics left out), and that reduction: the most a static model can give with this feed-forward."""
     pl = load_plant(copy.deepcopy(plant))
     m = plant_friction_model(pl, pl.joint(joint))
     m.sigma0 = None
     by = compensation_runs({joint: m}, recipe, copy.deepcopy(plant), seed=seed)[joint]
     n, s, t = (by[k].metrics.rms_error for k in ("none", "model", "true"))
-    return (n - s) / (n - t)
+    return (n - s) / (n - t), n / s
 
 
 def score(setting: str, res, seed: int) -> list[dict]:
@@ -106,8 +109,8 @@ def score(setting: str, res, seed: int) -> list[dict]:
                    model=models[j].name, none=n.rms_error, with_model=m.rms_error, true=t.rms_error,
                    reduction=n.rms_error / m.rms_error, ideal=n.rms_error / t.rms_error,
                    share=(n.rms_error - m.rms_error) / (n.rms_error - t.rms_error),
-                   stick=(n.stick_slip_episodes, m.stick_slip_episodes, t.stick_slip_episodes),
-                   static=static_share(plant, j, seed, recipe))
+                   stick=(n.stick_slip_episodes, m.stick_slip_episodes, t.stick_slip_episodes))
+        row["static"], row["static_red"] = static_share(plant, j, seed, recipe)
         o = by["observer"].metrics if "observer" in by else None
         row["observer"] = None if o is None else (n.rms_error / o.rms_error, o.stick_slip_episodes)
         row["ok"] = (row["reduction"] >= reduction and row["share"] >= SHARE
@@ -136,7 +139,7 @@ def ablation(setting: str, res, seed: int) -> list[dict]:
             else:
                 setattr(m, part, getattr(true, part))
             variants[part] = m
-        row = dict(plant=plant_name, recipe=rec, seed=seed, joint=j, sigma0=fit.sigma0[0], sigma1=fit.sigma1[0],
+        row = dict(plant=plant_name, recipe=rec, seed=seed, joint=j, sigma0=fit.sigma0, sigma1=fit.sigma1,
                    true=(true.sigma0, true.sigma1), red={})
         for name, m in variants.items():
             by = compensation_runs({j: m}, str(RECIPES / f"{rec}.yaml"), copy.deepcopy(plant), seed=seed)[j]
@@ -148,12 +151,14 @@ def ablation(setting: str, res, seed: int) -> list[dict]:
 def print_ablation(rows: list[dict]) -> None:
     print("which part limits the identified LuGre model (23-bit encoder what-if): its feed-forward's reduction, "
           "and with one part replaced by the plant's own")
-    print(f"{'recipe':<13} {'seed':>6} {'joint':<5} {'sigma0':>8} {'sigma1':>7} {'plant s0 / s1 (+/-)':<24} "
+    print(f"{'recipe':<13} {'seed':>6} {'joint':<5} {'fitted s0 / s1 (+/-)':<26} {'plant s0 / s1 (+/-)':<24} "
           f"{'identified':>10} {'map':>6} {'sigma0':>7} {'sigma1':>7}")
+
+    def pair(s0, s1):
+        return f"{s0[0]:.0f}/{s0[1]:.0f}, {s1[0]:.0f}/{s1[1]:.0f}"
     for r in rows:
-        (s0p, s0n), (s1p, s1n) = r["true"]
-        print(f"{r['recipe']:<13} {r['seed']:>6} {r['joint']:<5} {r['sigma0']:8.0f} {r['sigma1']:7.0f} "
-              f"{f'{s0p:.0f}/{s0n:.0f}, {s1p:.0f}/{s1n:.0f}':<24} {r['red']['identified']:9.1f}x "
+        print(f"{r['recipe']:<13} {r['seed']:>6} {r['joint']:<5} {pair(r['sigma0'], r['sigma1']):<26} "
+              f"{pair(*r['true']):<24} {r['red']['identified']:9.1f}x "
               f"{r['red']['map']:5.1f}x {r['red']['sigma0']:6.1f}x {r['red']['sigma1']:6.1f}x")
 
 
@@ -187,13 +192,13 @@ def warm_score(seed: int, scale: float, warm_scale: float, recipe_scale: float =
 
 def print_rows(rows: list[dict]) -> None:
     print(f"{'plant':<19} {'recipe':<13} {'setting':<8} {'seed':>6} {'joint':<5} {'model':<31} {'none':>9} "
-          f"{'model':>9} {'true':>9} {'reduct.':>7} {'ideal':>7} {'share':>6} {'static':>6}  "
+          f"{'model':>9} {'true':>9} {'reduct.':>7} {'ideal':>7} {'share':>6} {'static':>6} {'st.red':>6}  "
           f"stick none/model/true  target  observer (stick)")
     for r in rows:
         obs = "-" if r["observer"] is None else f"{r['observer'][0]:6.1f}x ({r['observer'][1]})"
         print(f"{r['plant']:<19} {r['recipe']:<13} {r['what']:<8} {r['seed']:>6} {r['joint']:<5} {r['model']:<31} "
               f"{r['none']:9.3g} {r['with_model']:9.3g} {r['true']:9.3g} {r['reduction']:6.1f}x {r['ideal']:6.1f}x "
-              f"{r['share']:6.2f} {r['static']:6.2f}  {'/'.join(map(str, r['stick'])):<20}  "
+              f"{r['share']:6.2f} {r['static']:6.2f} {r['static_red']:5.1f}x  {'/'.join(map(str, r['stick'])):<20}  "
               f"{'met' if r['ok'] else 'MISSED':<7} {obs}")
 
 
@@ -216,11 +221,17 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--seed-base", type=int, default=300000)
     ap.add_argument("--scale", type=float, default=0.5, help="duration scale of the identification recipes")
+    ap.add_argument("--ramp-scale", type=float, default=0.5,
+                    help="duration scale of the presliding ramps: at 0.5 their 0.5 s holds cannot rule out creep "
+                         "on the hydraulic encoder (3 counts over the hold) and the fit drops most ramps in two "
+                         "seeds; at 1 one hydraulic seed still does, and 003's joint 1 at 23 bits loses its "
+                         "per-sign fit in one (docs/using-the-model.md)")
     ap.add_argument("--warm-scale", type=float, default=0.25, help="duration scale of 002's duty cycles")
     args = ap.parse_args(argv)
     settings, recipe_scale = list(SETTINGS), 1.0
     if os.environ.get("FRICTID_SMOKE"):
         args.seeds, args.scale, args.warm_scale, recipe_scale = 1, 0.15, 0.02, 0.05
+        args.ramp_scale = args.scale
         settings = settings[:1]
     seeds = range(args.seed_base, args.seed_base + args.seeds)
     t0 = time.time()
@@ -229,13 +240,15 @@ def main(argv=None) -> int:
         for seed in seeds:
             pn = SETTINGS[s][0]
             if (pn, seed) not in fits:
-                fits[pn, seed] = identify(plant_of(pn), seed, args.scale)
+                fits[pn, seed] = identify(plant_of(pn), seed, args.scale, IDENTIFY[pn.partition("@")[0]],
+                                          {"ramp_presliding": args.ramp_scale})
             rows += score(s, fits[pn, seed], seed)
             if SETTINGS[s][2] == "what-if":
                 abl += ablation(s, fits[pn, seed], seed)
     warm = [r for seed in seeds for r in warm_score(seed, args.scale, args.warm_scale, recipe_scale)]
     print(f"compensation scorecard: {len(rows)} joint runs and {len(warm)} warm-up runs, seeds {seeds[0]}..{seeds[-1]}, "
-          f"identification scale {args.scale} (duty cycles {args.warm_scale}), {time.time() - t0:.0f} s")
+          f"identification scale {args.scale} (ramps {args.ramp_scale}, duty cycles {args.warm_scale}), "
+          f"{time.time() - t0:.0f} s")
     print_rows(rows)
     print("observer: the LuGre friction observer (000 eq. 17) on the identified model, its reduction of the "
           "error without compensation; '-' where the model has no identified presliding stiffness")

@@ -57,6 +57,23 @@ def static_params(mf: ModelFit) -> dict[str, ParamEstimate]:
     return {k: ParamEstimate(**vars(p)) for k, p in mf.params.items()}
 
 
+#: Samples before a step segment that estimate the level it starts from.
+PRE_SAMPLES = 10
+
+
+def _pre_level(p, i0: int) -> float | None:
+    """The torque less gravity [F] a step starts from: the median of the PRE_SAMPLES samples up to and
+    including ``i0`` when they hold one level (none further than 4 noise deviations, the noise from their
+    differences, from it), else None (the segment's first sample stands alone)."""
+    j0 = max(i0 + 1 - PRE_SAMPLES, 0)
+    v = np.asarray(p.log.tau[j0:i0 + 1] - p.G[j0:i0 + 1], dtype=float)
+    if v.size < 3 or not np.all(np.isfinite(v)):
+        return None
+    med = float(np.median(v))
+    noise = 1.4826 * float(np.median(np.abs(np.diff(v)))) / math.sqrt(2.0)
+    return med if float(np.max(np.abs(v - med))) <= 4.0 * noise else None
+
+
 def presliding_data(jd: JointData) -> Presliding:
     """The ramps and steps of a joint's logs (at least 10 samples each, logs with a position only)."""
     out = Presliding()
@@ -70,7 +87,7 @@ def presliding_data(jd: JointData) -> Presliding:
                 out.ramp_w.append(p.w[s.i0:s.i1])
             elif s.kind == "step" and s.n >= 10:
                 i0 = max(s.i0 - 1, 0)  # one sample before: the rest state the step starts from
-                u = p.log.tau[i0:s.i1] - p.G[i0:s.i1]
+                u = pre.step_input(p.log.tau[i0:s.i1] - p.G[i0:s.i1], _pre_level(p, i0))
                 out.steps.append((p.log.t[i0:s.i1], np.asarray(p.log.q[i0:s.i1], float), u, s, p.index))
     res_meta = [p.log.meta.get("encoder_resolution") for p in jd.preps if p.log.meta]
     res_meta = [float(r) for r in res_meta if r]
@@ -260,62 +277,104 @@ def fit_lugre(jd: JointData, selected: str | None) -> None:
             f"({c['ramp_creep']:.3g} over a ramp): the ramps' displacement is creep, not presliding deflection, "
             "and what the creep leaves is not known well enough to carry sigma0"), "ramps", len(pd.creep))
     s0 = _creep_inflated(s0, pd)
-    s1 = _sigma1(jd, pd, s0, c_pos, c_neg)
+    sides = _per_sign(pd, g_of, s0)
+    jd.used.pop("step", None)
+    est = {"": (s0, _sigma1(jd, pd, s0, c_pos, c_neg))} if sides is None else {
+        sfx: (e, _sigma1(jd, pd, e, c_pos, c_neg, sign)) for sfx, sign, e in zip(("", "_neg"), (1, -1), sides)}
+    s0, s1 = est[""]
     if pd.ramps:
         jd.used["ramp_presliding"] = pd.ramp_t
     params = static_params(base)
-    params["sigma0"] = ParamEstimate("sigma0", s0.value, s0.stderr, unit_of("K", jd.axis), s0.identifiable,
-                                     s0.reason, source=s0.source)
-    params["sigma1"] = ParamEstimate("sigma1", s1.value, s1.stderr, unit_of("D", jd.axis), s1.identifiable,
-                                     s1.reason, source=s1.source)
+    for sfx, (e0, e1) in est.items():
+        params["sigma0" + sfx] = ParamEstimate("sigma0" + sfx, e0.value, e0.stderr, unit_of("K", jd.axis),
+                                               e0.identifiable, e0.reason, source=e0.source)
+        params["sigma1" + sfx] = ParamEstimate("sigma1" + sfx, e1.value, e1.stderr, unit_of("D", jd.axis),
+                                               e1.identifiable, e1.reason, source=e1.source)
     met = dict(base.metrics)
-    met["k"] = int((met.get("k") or 0) + 2)
+    met["k"] = int((met.get("k") or 0) + 2 * len(est))
     if s0.identifiable and pd.ramps:
-        met.update(_presliding_rms(pd, g_of, s0, base_name, vals))
+        s0_of = [est["_neg" if sides is not None and np.mean(F) < 0 else ""][0].value for _, F in pd.ramps]
+        met.update(_presliding_rms(pd, g_of, s0_of, base_name, vals, per_sign=sides is not None))
     mf = ModelFit("lugre", base.map if base_name != "polynomial_ls" else "polynomial", params, met,
                   method="static map on plateaus; sigma0 from ramps (torque against displacement); sigma1 "
                          + ("from steps (simulation error)" if "steps" in s1.source else
                             "by the critical-damping rule" if "rule" in s1.source else "not identified"),
                   notes=[f"static part: {base_name}"], extra={"static_model": base_name})
     jf.models["lugre"] = mf
-    for n in ("sigma0", "sigma1"):
+    for n in [p + sfx for sfx in est for p in ("sigma0", "sigma1")]:
         if not params[n].identifiable:
             jf.not_identified.append({"what": f"lugre.{n}", "reason": params[n].reason})
     _lugre_choice(jd, mf, base_name)
 
 
-def _sigma1(jd: JointData, pd: Presliding, s0: pre.DynamicEstimate, c_pos, c_neg) -> pre.DynamicEstimate:
-    """sigma1 from the steps, else by the critical-damping rule (records the steps used)."""
+#: Combined standard errors by which the two signs' sigma0 must differ for the fit to keep one per sign.
+PER_SIGN_Z = 3.0
+
+
+def _per_sign(pd: Presliding, g_of: list[float], s0: pre.DynamicEstimate):
+    """sigma0 per bristle sign (z > 0, z < 0: the ramps' load sign), when each sign's ramps identify it
+    and the two differ by more than PER_SIGN_Z combined standard errors (a per-sign plant, as 001's joint
+    1); None otherwise (one sigma0 for both)."""
+    if not s0.identifiable:
+        return None
+    sides = []
+    for positive in (True, False):
+        idx = [i for i, (_, F) in enumerate(pd.ramps) if (np.mean(F) >= 0) == positive]
+        if len(idx) < 2:
+            return None
+        e = _creep_inflated(pre.fit_sigma0([pd.ramps[i] for i in idx], [g_of[i] for i in idx], pd.resolution), pd)
+        if not e.identifiable:
+            return None
+        e.source += f"; {'z > 0' if positive else 'z < 0'} ramps (per sign)"
+        sides.append(e)
+    if abs(sides[0].value - sides[1].value) <= PER_SIGN_Z * math.hypot(sides[0].stderr, sides[1].stderr):
+        return None
+    return sides
+
+
+def _step_sign(u: np.ndarray) -> int:
+    """The bristle sign a step loads: the sign of its torque level of largest magnitude."""
+    return 1 if float(u[int(np.argmax(np.abs(u)))]) >= 0 else -1
+
+
+def _sigma1(jd: JointData, pd: Presliding, s0: pre.DynamicEstimate, c_pos, c_neg,
+            sign: int = 0) -> pre.DynamicEstimate:
+    """sigma1 from the steps (those loading the bristles with ``sign`` when not 0), else by the
+    critical-damping rule (records the steps used)."""
     jf = jd.jf
     J = jf.inertia.value if jf.inertia and jf.inertia.value else None
     sig2 = c_pos[6] if abs(c_pos[6]) > 0 else 0.0
     if not (s0.identifiable and J):
         why = "needs sigma0" if not s0.identifiable else "needs the inertia J"
         return pre.DynamicEstimate(None, None, False, f"{why}, which is not identifiable", "")
-    s1 = pre.fit_sigma1_steps([(t, q, u) for t, q, u, *_ in pd.steps], J, s0.value, c_pos, c_neg, sig2,
+    steps = [st for st in pd.steps if not sign or _step_sign(st[2]) == sign]
+    s1 = pre.fit_sigma1_steps([(t, q, u) for t, q, u, *_ in steps], J, s0.value, c_pos, c_neg, sig2,
                               pd.resolution)
     if not s1.identifiable:
         why_steps = s1.reason
         s1 = pre.sigma1_rule(s0.value, s0.stderr, J, jf.inertia.stderr, sig2)
         s1.source += f" ({why_steps})"
     else:
-        jd.used["step"] = [[float(s.t_start), float(s.t_end), src] for *_, s, src in pd.steps]
+        jd.used.setdefault("step", []).extend([float(s.t_start), float(s.t_end), src] for *_, s, src in steps)
     return s1
 
 
-def _presliding_rms(pd: Presliding, g_of: list[float], s0: pre.DynamicEstimate, base_name: str,
-                    vals: dict) -> dict:
-    """The presliding prediction on the ramps: LuGre (sigma0 bristles along the measured path) against the
-    static map alone, and LuGre with sigma0 refitted without each ramp (RMS [F])."""
+def _presliding_rms(pd: Presliding, g_of: list[float], s0_of: list[float], base_name: str,
+                    vals: dict, per_sign: bool = False) -> dict:
+    """The presliding prediction on the ramps: LuGre (sigma0 bristles along the measured path, s0_of per
+    ramp) against the static map alone, and LuGre with sigma0 refitted without each ramp (RMS [F]; with
+    ``per_sign`` on the other ramps of its load sign)."""
     lug, stat, held = [], [], []
-    for i, ((q, F), g0, w) in enumerate(zip(pd.ramps, g_of, pd.ramp_w)):
-        z0 = float(np.clip(F[0] / s0.value, -g0 / s0.value, g0 / s0.value))
-        lug.append(s0.value * pre.bristle_path(q, z0, s0.value, g0) - F)
+    for i, ((q, F), g0, w, s0) in enumerate(zip(pd.ramps, g_of, pd.ramp_w, s0_of)):
+        z0 = float(np.clip(F[0] / s0, -g0 / s0, g0 / s0))
+        lug.append(s0 * pre.bristle_path(q, z0, s0, g0) - F)
         stat.append(predict(base_name if base_name != "polynomial_ls" else "polynomial", vals, w) - F)
-        if len(pd.ramps) >= 2:
-            rest = [r for k, r in enumerate(pd.ramps) if k != i]
-            gr = [g for k, g in enumerate(g_of) if k != i]
-            e = pre.fit_sigma0(rest, gr, pd.resolution, starts=(s0.value,))
+        same = [k for k, (_, Fk) in enumerate(pd.ramps)
+                if k != i and (not per_sign or (np.mean(Fk) >= 0) == (np.mean(F) >= 0))]
+        if same:
+            rest = [pd.ramps[k] for k in same]
+            gr = [g_of[k] for k in same]
+            e = pre.fit_sigma0(rest, gr, pd.resolution, starts=(s0,))
             if e.value:
                 z0h = float(np.clip(F[0] / e.value, -g0 / e.value, g0 / e.value))
                 held.append(e.value * pre.bristle_path(q, z0h, e.value, g0) - F)

@@ -327,6 +327,41 @@ def _simulate_step_py(t, u, q0, w0, J, sigma0, sigma1, level, viscous, z0, subst
     return q
 
 
+def step_input(u: np.ndarray, pre_level: float | None = None) -> np.ndarray:
+    """A step segment's torque [F] as the two-level step it was commanded to be, when the samples say so.
+
+    The step simulation is driven by the measured torque. Its noise is an input error: the simulated
+    position jitters where the measured one did not, and more damping shrinks that jitter, so a
+    simulation-error fit on noisy input drifts towards a larger sigma1 (errors in variables). A torque step
+    is two constant levels: the split that explains u best by two means is taken, and when what the two
+    levels leave is noise (its RMS within 1.5 of the noise the sample-to-sample differences show, robust
+    estimate) u is replaced by them. ``pre_level`` [F]: the level before the segment (the rest or hold the
+    step starts from, estimated from more samples than the segment's first), used for the first level when
+    the split is at the segment's first sample. u is returned unchanged when it is not a step plus noise.
+    """
+    u = np.asarray(u, dtype=float)
+    n = u.size
+    if n < 6:
+        return u
+    noise = 1.4826 * float(np.median(np.abs(np.diff(u)))) / math.sqrt(2.0)
+    c1, c2 = np.cumsum(u), np.cumsum(u * u)
+    k = np.arange(1, n)
+    sse_l = c2[k - 1] - c1[k - 1] ** 2 / k
+    sse_r = (c2[-1] - c2[k - 1]) - (c1[-1] - c1[k - 1]) ** 2 / (n - k)
+    sse = sse_l + sse_r
+    i = int(np.argmin(sse))
+    split = int(k[i])
+    if not sse[i] / n <= (1.5 * noise) ** 2:
+        return u
+    first = float(c1[split - 1] / split)
+    if split == 1 and pre_level is not None and np.isfinite(pre_level):
+        first = float(pre_level)
+    out = np.empty(n)
+    out[:split] = first
+    out[split:] = (c1[-1] - c1[split - 1]) / (n - split)
+    return out
+
+
 def fit_sigma1_steps(steps: list[tuple[np.ndarray, np.ndarray, np.ndarray]], J: float, sigma0: float,
                      c_pos, c_neg, sigma2: float, resolution: float = 0.0, min_steps: int = 3,
                      starts: tuple[float, ...] | None = None) -> DynamicEstimate:
