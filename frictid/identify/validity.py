@@ -127,10 +127,12 @@ def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None) -> None:
 
 
 def _no_drop_seen(p: dict, v: np.ndarray) -> None:
-    """``Fs`` is a break-away level only when the data show a drop down from it: the part of the fitted
-    drop left at the slowest plateau speed, ``(Fs - Fc) exp(-(v_min / vs)^delta)``, beyond
-    :data:`NO_DROP_Z` errors of the drop (Fs's and Fc's combined), and a drop the fit could place (it
-    held the drop's speed because the drop is not distinguishable from zero: :func:`.static._shapeless`).
+    """``Fs`` is a break-away level only when the data show a drop down from it. When the drop's speed
+    ``vs`` is not identifiable, the fit did not resolve a drop if it held ``vs`` because the drop is not
+    distinguishable from zero (:func:`.static._shapeless`), or if the part of the fitted drop left at the
+    slowest plateau speed, ``(Fs - Fc) exp(-(v_min / vs)^delta)``, is within :data:`NO_DROP_Z` errors
+    (Fs's and Fc's combined: a bound, since their errors are correlated; used only where ``vs`` is not
+    measured, which on the real screw drives' sweeps would otherwise take a resolved drop for none).
     Otherwise ``Fs`` is the level of the slowest plateaus, and a break-away below the slowest plateau
     speed leaves nothing in the data: ``Fs`` is marked not identifiable with that reason (issue 19: a
     foreign draw gave Fs 0.420 +- 0.0006 against 0.500, the level at its slowest plateaus, trusted).
@@ -138,7 +140,9 @@ def _no_drop_seen(p: dict, v: np.ndarray) -> None:
     vs, fs, fc, dl = p["vs"], p["Fs"], p["Fc"], p["delta"]
     if not fs.identifiable or fs.fixed or v.size == 0:
         return
-    held = vs.fixed and not vs.identifiable
+    if vs.identifiable:  # the drop's speed is measured: the data resolve a drop
+        return
+    held = vs.fixed
     if not held:
         ses = [x.stderr for x in (fs, fc) if x.stderr is not None and np.isfinite(x.stderr)]
         if not ses or fs.value <= fc.value:
