@@ -9,9 +9,10 @@ identifiable), thermal prediction within 5 % after warm-up with thermal6 at leas
 the truth has distinct per-coefficient slopes (a variant of the geared plant: :data:`DISTINCT_SLOPES`),
 published tables (001 Table 1, 004 Table 2) fitted by stribeck_2exp_asym within 1 % RMS of the range.
 
-A value whose own standard error exceeds its target cannot be held to it by these data: that line counts
-as met ("unresolved") when the file marks it not identifiable or the true value lies within 2 stderr, and
-is a miss otherwise. The last line is the coverage: the fraction of true values within 2 stderr.
+A value outside its target whose own error says the data do not resolve it to the target (2 stderr >= target
+x |value|) cannot be held to it by these data: that line counts as met ("unresolved") when the file marks it
+not identifiable or the true value lies within 2 stderr, and is a miss otherwise (the convention of the
+foreign card, ``benchmarks/foreign/fit_scorecard.py``, too). The last line is the coverage: the fraction of true values within 2 stderr.
 """
 from __future__ import annotations
 
@@ -45,7 +46,7 @@ COVERAGE: list[tuple[str, float]] = []
 def row(plant, joint, what, true, got, tol, unit="", note="", se=None, identifiable=True):
     """One scorecard line: relative error against tolerance (tol None: report only).
 
-    se : the fit's standard error. When it exceeds the target itself (``se > tol |true|``) the data cannot
+    se : the fit's standard error. When twice it reaches the target (``2 se >= tol |got|``) the data cannot
     resolve the value to the target: the honest outcome is a parameter marked not identifiable or an error
     within 2 stderr, and the line counts as met ("unresolved") in either case.
     """
@@ -56,9 +57,9 @@ def row(plant, joint, what, true, got, tol, unit="", note="", se=None, identifia
         ok = True if tol is None else err <= tol
         if se is not None and se > 0 and math.isfinite(se):
             COVERAGE.append((f"{plant} {joint} {what}", abs(got - true) / se))
-            if tol is not None and not ok and true and se > tol * abs(true):
+            if tol is not None and not ok and true and 2 * se >= tol * abs(got):
                 ok = (not identifiable) or abs(got - true) <= 2 * se
-                note = (f"unresolved: stderr {100 * se / abs(true):.0f} % > target, error "
+                note = (f"unresolved: 2 stderr {200 * se / abs(got or true):.0f} % >= target, error "
                         f"{abs(got - true) / se:.1f} stderr" + (f"; {note}" if note else ""))
     ROWS.append((plant, joint, what, true, got, err, tol, ok, note))
 
@@ -272,6 +273,9 @@ def main(argv=None):
               f"{(f'{100 * err:.2f}%' if err is not None else '-'):>8} {(f'{100 * tol:g}%' if tol else '-'):>7}  "
               f"{'ok' if ok else 'MISS'}  {note}")
     print(f"{len(ROWS) - n_bad} of {len(ROWS)} lines within target")
+    n_unres = sum(1 for r in ROWS if r[7] and r[8].startswith("unresolved"))
+    print(f"strict: {len(ROWS) - n_bad - n_unres} of {len(ROWS)} lines within target whatever the error "
+          f"({n_unres} met as unresolved)")
     if COVERAGE:
         z = np.array([c[1] for c in COVERAGE])
         print(f"coverage: {int(np.sum(z <= 2))} of {z.size} true values within 2 stderr of the fitted value "

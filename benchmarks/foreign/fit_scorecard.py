@@ -22,6 +22,7 @@ Seeds: scorecards use seeds >= 100000 (this card 200000 on by default); the test
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import math
 import sys
@@ -45,7 +46,17 @@ TARGETS = (
     ("Fc (selected)", "selected", "Fc", 0.03), ("Fs (selected)", "selected", "Fs", 0.03),
     ("sigma2 (selected)", "selected", "sigma2", 0.03), ("vs (selected)", "selected", "vs", 0.15),
 )
-OUTCOMES = ("on_target", "not_identifiable", "wrong_identifiable", "absent")
+OUTCOMES = ("on_target", "not_identifiable", "wrong_identifiable", "absent", "unresolved")
+
+
+def unresolved(value: float, stderr, truth: float, tol: float) -> bool:
+    """The scoring convention of both fit cards (this one and ``benchmarks/fit_scorecard.py``): a value
+    outside its tolerance is *honest-unresolved*, not wrong, when its own error says the data do not
+    resolve it to the tolerance (2 stderr >= tol |value|) and covers the truth (|value - truth| <= 2
+    stderr)."""
+    if stderr is None or not math.isfinite(stderr) or stderr <= 0:
+        return False
+    return 2.0 * stderr >= tol * abs(value) and abs(value - truth) <= 2.0 * stderr
 
 
 def estimates(jf, model: str, name: str) -> list:
@@ -62,19 +73,30 @@ def estimates(jf, model: str, name: str) -> list:
     return pair if all(p is not None for p in pair) else []
 
 
+def raw(ests: list) -> list:
+    """The estimates as (value, stderr, identifiable) triples (what :func:`judge` reads; kept per draw so
+    that ``--rescore`` can judge a saved run again)."""
+    return [(e.value, e.stderr, bool(e.identifiable)) for e in ests]
+
+
 def judge(ests: list, truth: float, tol: float) -> tuple[str, float, list[bool]]:
     """Outcome, worst relative error and, per estimate with a standard error, whether the truth lies
-    within 2 of them."""
+    within 2 of them. ``ests``: (value, stderr, identifiable) triples. Outside the tolerance, the outcome
+    is "unresolved" when every estimate outside it is (:func:`unresolved`), else "wrong_identifiable"."""
     if not ests:
         return "absent", math.nan, []
-    if not all(e.identifiable for e in ests):
+    if not all(ok for _, _, ok in ests):
         return "not_identifiable", math.nan, []
-    if any(e.value is None for e in ests):
+    if any(v is None for v, _, _ in ests):
         return "absent", math.nan, []
-    err = max(abs(e.value - truth) / abs(truth) for e in ests)
-    cover = [abs(e.value - truth) <= 2.0 * e.stderr for e in ests
-             if e.stderr is not None and math.isfinite(e.stderr) and e.stderr > 0]
-    return ("on_target" if err <= tol else "wrong_identifiable"), err, cover
+    err = max(abs(v - truth) / abs(truth) for v, _, _ in ests)
+    cover = [abs(v - truth) <= 2.0 * se for v, se, _ in ests
+             if se is not None and math.isfinite(se) and se > 0]
+    if err <= tol:
+        return "on_target", err, cover
+    off = [(v, se) for v, se, _ in ests if abs(v - truth) > tol * abs(truth)]
+    return ("unresolved" if all(unresolved(v, se, truth, tol) for v, se in off) else "wrong_identifiable"), \
+        err, cover
 
 
 def run_draw(seed: int, family: str | None, tmp: Path, diagnose: bool) -> dict:
@@ -89,12 +111,17 @@ def run_draw(seed: int, family: str | None, tmp: Path, diagnose: bool) -> dict:
     for p in tmp.glob(path.name + "*"):
         p.unlink()
     jf = next(iter(res.joints.values()))
-    out = {}
-    for row, model, name, tol in TARGETS:
-        out[row] = judge(estimates(jf, model, name), float(truth["plant"][name]), tol)
-    return {"seed": seed, "family": truth["family"], "rows": out, "selected": jf.selected,
+    ests = {row: raw(estimates(jf, model, name)) for row, model, name, _ in TARGETS}
+    d = {"seed": seed, "family": truth["family"], "ests": ests, "selected": jf.selected,
             "basis": jf.selection.get("basis"), "sensors": truth["sensors"], "n": truth["n"],
             "sim_s": t1 - t0, "fit_s": t2 - t1, "plant": truth["plant"]}
+    return scored(d)
+
+
+def scored(d: dict) -> dict:
+    """The draw with its per-target outcomes (``rows``) judged from its saved estimates."""
+    d["rows"] = {row: judge(d["ests"][row], float(d["plant"][name]), tol) for row, _, name, tol in TARGETS}
+    return d
 
 
 def main(argv=None) -> int:
@@ -105,7 +132,14 @@ def main(argv=None) -> int:
     ap.add_argument("--diagnose", action="store_true", help="run frictid's diagnosis too (slower)")
     ap.add_argument("--minutes", type=float, default=None, help="stop starting draws after this many minutes")
     ap.add_argument("--examples", type=int, default=4, help="draws listed per failure class")
+    ap.add_argument("--out", default=None, help="write each draw's estimates and truth here (JSON lines)")
+    ap.add_argument("--rescore", default=None, help="judge the draws of a saved --out file again, fit nothing")
     args = ap.parse_args(argv)
+    if args.rescore:
+        rows = [scored(json.loads(line)) for line in Path(args.rescore).read_text().splitlines() if line.strip()]
+        args.seed_base = min((d["seed"] for d in rows), default=args.seed_base)
+        report(args, rows, [], 0.0)
+        return 0
     if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
         args.draws, args.minutes = 1, None
     rows, errors, t_start = [], [], time.time()
@@ -122,6 +156,9 @@ def main(argv=None) -> int:
                 traceback.print_exc(limit=3, file=sys.stderr)
                 continue
             rows.append(d)
+            if args.out:
+                with open(args.out, "a") as fh:
+                    fh.write(json.dumps({k: v for k, v in d.items() if k != "rows"}, default=float) + "\n")
             if args.draws <= 5:
                 print(describe(d))
     report(args, rows, errors, time.time() - t_start)
@@ -146,13 +183,16 @@ def report(args, rows, errors, wall):
     print(f"\nforeign fit scorecard: {n} draws (seeds {args.seed_base}..{last}"
           f"{', family ' + args.family if args.family else ''}), diagnose={args.diagnose}, {wall:.0f} s wall")
     print(f"{'parameter':<19} {'tol':>4} {'on target':>9} {'not ident.':>10} {'WRONG+ident.':>12} "
-          f"{'absent':>6} {'coverage (2 se)':>16}")
+          f"{'absent':>6} {'unresolved':>10} {'coverage (2 se)':>16}")
+    strict = []
     for row, _, _, tol in TARGETS:
         cnt = {o: sum(1 for d in rows if d["rows"][row][0] == o) for o in OUTCOMES}
         cov = [c for d in rows for c in d["rows"][row][2]]
         covs = f"{sum(cov)}/{len(cov)} ({100 * sum(cov) / len(cov):.0f}%)" if cov else "-"
         print(f"{row:<19} {100 * tol:>3.0f}% " + " ".join(
-            f"{100 * cnt[o] / max(n, 1):>{w}.1f}%" for o, w in zip(OUTCOMES, (8, 9, 11, 5))) + f" {covs:>16}")
+            f"{100 * cnt[o] / max(n, 1):>{w}.1f}%" for o, w in zip(OUTCOMES, (8, 9, 11, 5, 9))) + f" {covs:>16}")
+        strict.append(f"{row} {100 * (cnt['wrong_identifiable'] + cnt['unresolved']) / max(n, 1):.1f}%")
+    print("strict WRONG+ident. (identifiable and outside the tolerance, whatever its error): " + ", ".join(strict))
     print("\nper family: on target / not identifiable / WRONG but identifiable, % of the family's draws")
     fams = [f for f in scenarios.FIT_FAMILIES if any(d["family"] == f for d in rows)]
     print(f"{'parameter':<19} " + " ".join(f"{f[:19]:>20}" for f in fams))

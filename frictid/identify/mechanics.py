@@ -170,6 +170,7 @@ def reg_estimate(name: str, fit_: rg.LinearFit | None, jd: JointData, why_none: 
         se, reason = _inertia_checked(v, se, fit_.bandwidth)
         if not reason:
             se, reason = _inertia_split_checked(v, se, fit_.speed_split)
+        se = _inertia_friction_spread(v, se, fit_.friction_change)
     if not reason:
         reason = _precision_reason(name, dim, v, se, jd)
     if name == "J" and v <= 0 and not reason:
@@ -246,6 +247,18 @@ def _inertia_split_checked(v: float, se: float | None, sp: dict | None) -> tuple
             "the faster ones: the friction's dynamics (bristles lagging the acceleration, a Stribeck drop "
             "crossed while accelerating) or a control loop the log does not resolve go with the acceleration")
     return math.hypot(se, sys_), ""
+
+
+def _inertia_friction_spread(v: float, se: float | None, fc: dict | None) -> float | None:
+    """The inertia's standard error with its change between the two friction models it was solved with
+    (stage 1's polynomial in the speed, stage 2's plateau map; :func:`_stage2`) added in quadrature. Both
+    fit the steady friction; at the starts, stops and reversals, where the acceleration is, the data do not
+    tell which holds, and J takes up the difference. The whole change enters (not only its part beyond
+    the fits' scatter): on the foreign scorecard J was off by 0.3-4 % with stage 2's errors of 0.1-0.4 %,
+    each time by about its change from stage 1 (docs/fit.md step 1)."""
+    if fc is None or se is None or not np.isfinite(se) or fc.get("J") is None or not np.isfinite(fc["J"]):
+        return se
+    return math.hypot(se, fc["J"] - v)
 
 
 def set_mechanics(jd: JointData, reg_fit: rg.LinearFit | None, regs: Regressors, why_reg: str,
@@ -493,6 +506,8 @@ def _stage2(jd: JointData, rb: RigidBody, fr: Friction) -> rg.LinearFit | None:
         reg2, _ = regress(jd.preps, mech, rb.regs.known_coef, v_low, jd.axis, friction=friction)
         how = ""
     if reg2 is not None:
+        if "J" in rb.fit.names and "J" not in rb.fit.dependent and "J" in reg2.names:
+            reg2.friction_change = {"J": rb.fit.value("J"), "how": "stage 1's polynomial friction"}
         set_mechanics(jd, reg2, rb.regs, rb.why,
                       f"least squares with the plateau map {name2} as the friction{how}, |w| > {v_low:.3g}")
         fr.plat, fr.keys = plateaus(jd)

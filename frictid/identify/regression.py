@@ -127,6 +127,9 @@ class LinearFit:
     #: the inertia on the slower and the faster half of the moving samples: {"speed": split [q/s],
     #: "J_low", "se_low", "J_high", "se_high"}
     speed_split: dict | None = None
+    #: the inertia of the same regression with the other friction model (stage 1's polynomial for stage 2's
+    #: plateau map): {"J": value, "how": what that friction was}
+    friction_change: dict | None = None
 
     def value(self, name: str) -> float:
         return float(self.coef[self.names.index(name)])

@@ -75,6 +75,10 @@ def of_joint(preps, friction, min_speed: float) -> dict:
 DROP_INSIDE = (0.05, 0.95)
 
 
+#: The drop seen at the slowest plateau speed counts when beyond this many of its errors (:func:`_no_drop_seen`).
+NO_DROP_Z = 2.0
+
+
 def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None) -> None:
     """Shape parameters identifiable only when enough distinct plateau speeds span them (issue 19): a
     Stribeck drop's level, speed and exponent are measured by steady runs inside the drop (plateaus where
@@ -99,9 +103,10 @@ def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None) -> None:
         p = {n: mf.params.get(n + suf) for n in ("Fc", "Fs", "vs", "delta")}
         if any(pe is None or pe.value is None for pe in p.values()) or p["vs"].value <= 0:
             continue
+        v = np.abs(w[np.sign(w) == side] if side else w)
+        _no_drop_seen(p, v)
         if p["Fs"].value <= p["Fc"].value:  # no drop: physical_shape's case
             continue
-        v = np.abs(w[np.sign(w) == side] if side else w)
         share = np.exp(-((v / p["vs"].value) ** p["delta"].value))
         inside = v[(share >= DROP_INSIDE[0]) & (share <= DROP_INSIDE[1])]
         have = speed_levels(inside, LEVEL_TOLERANCE) + int(bool((share > DROP_INSIDE[1]).any()))
@@ -119,6 +124,36 @@ def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None) -> None:
             if pe.identifiable and not pe.fixed:
                 pe.identifiable, pe.reason = False, why
         _level_spread(mf, without_drop, suf)
+
+
+def _no_drop_seen(p: dict, v: np.ndarray) -> None:
+    """``Fs`` is a break-away level only when the data show a drop down from it. When the drop's speed
+    ``vs`` is not identifiable, the fit did not resolve a drop if it held ``vs`` because the drop is not
+    distinguishable from zero (:func:`.static._shapeless`), or if the part of the fitted drop left at the
+    slowest plateau speed, ``(Fs - Fc) exp(-(v_min / vs)^delta)``, is within :data:`NO_DROP_Z` errors
+    (Fs's and Fc's combined: a bound, since their errors are correlated; used only where ``vs`` is not
+    measured, which on the real screw drives' sweeps would otherwise take a resolved drop for none).
+    Otherwise ``Fs`` is the level of the slowest plateaus, and a break-away below the slowest plateau
+    speed leaves nothing in the data: ``Fs`` is marked not identifiable with that reason (issue 19: a
+    foreign draw gave Fs 0.420 +- 0.0006 against 0.500, the level at its slowest plateaus, trusted).
+    ``p``: the branch's Fc, Fs, vs, delta estimates; ``v``: its plateau speeds."""
+    vs, fs, fc, dl = p["vs"], p["Fs"], p["Fc"], p["delta"]
+    if not fs.identifiable or fs.fixed or v.size == 0:
+        return
+    if vs.identifiable:  # the drop's speed is measured: the data resolve a drop
+        return
+    held = vs.fixed
+    if not held:
+        ses = [x.stderr for x in (fs, fc) if x.stderr is not None and np.isfinite(x.stderr)]
+        if not ses or fs.value <= fc.value:
+            return
+        seen = (fs.value - fc.value) * np.exp(-((float(v.min()) / vs.value) ** dl.value))
+        if seen > NO_DROP_Z * float(np.sqrt(np.sum(np.square(ses)))):
+            return
+    fs.identifiable, fs.reason = False, (
+        f"no Stribeck drop above the slowest plateau speed ({float(v.min()):.3g}): the break-away, if any, lies "
+        "below it" + (f" ({vs.reason})" if held else f" (the drop seen there, {seen:.3g}, is within "
+                      f"{NO_DROP_Z:g} errors of zero)"))
 
 
 def _level_spread(mf, without_drop, suf: str) -> None:
