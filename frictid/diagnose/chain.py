@@ -145,8 +145,8 @@ class Chain:
         S = self.S
         after = np.empty(S.n)
         terms, coefs = [], []
-        for f, (tr, te, res, lev, _) in enumerate(self.train_info):
-            term = propose(ext, self.ctx, self.st, tr, res, lev)
+        for f, (tr, te, res, lev, c0) in enumerate(self.train_info):
+            term = propose(ext, self.ctx, self.st, tr, res, lev, c0)
             if term is None:
                 self.ctx.release(self.st)
                 return None
@@ -269,7 +269,7 @@ class Chain:
                 return None, None, None
             res = self.S.F - self.pred
             ev0 = Evaluator(self.st, self.ctx)
-            term = propose(best.ext, self.ctx, self.st, self.idx_all, res, ev0.level(self.coef, self.idx_all))
+            term = propose(best.ext, self.ctx, self.st, self.idx_all, res, ev0.level(self.coef, self.idx_all), self.coef)
             st_new = self.st.plus(term)
             why = degenerate(self.coef, st_new, Evaluator(st_new, self.ctx).fit(self.idx_all))
             if why is None:
