@@ -223,16 +223,11 @@ def test_a_cause_that_does_not_beat_a_competing_explanation_is_not_named():
     worse.rms_after = float(np.sqrt(np.mean((S.F - worse.pred_after) ** 2)))
     best = chain.choose([off, worse], 2)
     assert best.ext == "offset" and best.unresolved == []
-    # a competitor that corrects differently, better in half the groups and worse in the others: neither
-    # beats the other significantly, so whichever is chosen, the step is ambiguous (round 5)
-    r = S.F - off.pred_after
-    e = np.bincount(S.group, weights=r * r)   # each group's squared residual: changed by +-0.9 of the least
-    c = 1.0 - np.where(np.arange(e.size) % 2 == 1, 0.9, -0.9) * e.min() / e
-    mixed = replace(off, cause="asymmetry", ext="asym_scale", pred_after=S.F - r * np.sqrt(c[S.group]))
-    mixed.rms_after = float(np.sqrt(np.mean((S.F - mixed.pred_after) ** 2)))
-    assert not chain.same_correction(off, mixed) and not chain.same_correction(mixed, off)
-    best = chain.choose([off, mixed], 2)
-    assert best.unresolved == [({"offset", "asymmetry"} - {best.cause}).pop()]
+    # an explanation that is not a candidate competes too: a per-direction level (asym_level) against an
+    # offset, evaluated on the same folds (round 5); here the base has a Stribeck part, and the true offset
+    # beats it at low speed
+    comp = chain._competitors(off, 2)
+    assert [t.ext for t in comp] == ["asym_level"] and not chain.same_correction(off, comp[0])
 
 
 def _rest_plateau_log(seed: int, amp: float, values: dict, dt: float = 2e-3, noise: float = 0.01,

@@ -23,10 +23,8 @@ absorb an offset, with more coefficients). A cause is *named* only when it beats
 explanation of another cause that makes the same correction on the held-out residual (:meth:`Chain.same_correction`:
 the same column space on these data, as an offset and a level-only asymmetry on a Coulomb + viscous map); otherwise
 its term enters the model (the residual the next steps search stays clean) but no cause is named: the
-step is recorded as ambiguous between the causes (``Trial.unresolved``). Since round 5 the same holds for
-every worthy candidate of another cause with no more coefficients that the chosen one does not beat by the
-paired held-out test at the step's level (:meth:`Chain._rivals`), and for explanations that are not
-candidates but make the chosen one's correction (:data:`COMPETITORS`: a level asymmetry for an offset).
+step is recorded as ambiguous between the causes (``Trial.unresolved``). Since round 5 explanations that
+are not candidates compete too (:data:`COMPETITORS`: a per-direction level for an offset).
 """
 from __future__ import annotations
 
@@ -199,10 +197,11 @@ class Chain:
 
     def _rivals(self, best: Trial, others: list[Trial], m: int) -> None:
         """Other causes the data cannot tell from the chosen one (``best.rivals``: not significantly worse on
-        held-out data), and those it does not beat (``best.unresolved``): a competing explanation of another
-        cause with no more coefficients that the chosen one does not beat by the paired one-sided t at the
-        step's level. The paired differences ``r_other^2 - r_best^2`` are zero where the two corrections
-        agree, so the test is decided on the samples where they differ. Such a step names no cause."""
+        held-out data, named in its sentence), and those that make its correction (``best.unresolved``: a
+        competing explanation of another cause with no more coefficients whose held-out correction is the
+        chosen one's, :meth:`same_correction`). Such a step names no cause. (A rival that is merely not
+        significantly worse is not enough: two real effects of similar size, a warm-up and a position
+        ripple, explain different parts of the residual and each is not significantly worse than the other.)"""
         best.rivals, best.unresolved = [], []
         for t in others:
             if t.cause == best.cause:
@@ -211,9 +210,9 @@ class Chain:
             beaten = p < ALPHA / max(m, 1)
             if not beaten:
                 best.rivals.append((t.cause, t.ext, t.rms_after))
-            # a competing explanation (no more coefficients) that the chosen one does not beat, or that makes
-            # the same correction (the same column space on these data, whichever wins by rounding)
-            if t.k <= best.k and t.cause not in best.unresolved and (not beaten or self.same_correction(best, t)):
+            # a competing explanation (no more coefficients) that makes the same correction (the same column
+            # space on these data, whichever wins by rounding)
+            if t.k <= best.k and t.cause not in best.unresolved and self.same_correction(best, t):
                 best.unresolved.append(t.cause)
 
     def _competitors(self, best: Trial, m: int) -> list[Trial]:
