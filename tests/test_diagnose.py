@@ -563,3 +563,31 @@ def test_a_degenerate_extended_model_is_no_finding():
     off = Structure("coulomb_viscous", cp, (Term("offset", "offset", "additive", ()),))
     assert "collapses" in degenerate(before, off, Coef({0: 2.0, 6: 1.2}, {0: 2.0, 6: 1.2}, gamma={0: np.zeros(1)}))
     assert degenerate(before, off, Coef({0: 2.0, 6: 1.2}, {0: 2.0, 6: 1.2}, gamma={0: np.array([0.3])})) is None
+
+
+def test_a_load_on_a_gravity_the_fit_got_wrong_is_named_load_not_position():
+    """The foreign card's seed 300205 (drift + a load that raises the friction with ``|J a + G|``): the load
+    biased the fit's gravity by 20-25 %, ``|G|`` of the fit crossed zero at the wrong angles, and a
+    position ripple (0.50) beat the load term (0.37). The load variable now carries the chain's own gravity
+    correction (the base's gravity term, refitted on the training folds): the load is named."""
+    from frictid.diagnose.chain import Chain
+
+    P_true, P_fit = (0.4, 1.5), (0.55, 1.25)        # the fit's gravity 0.15 and 0.25 N m off
+
+    def G(q, P):
+        return P[0] * np.cos(q) + P[1] * np.sin(q)
+
+    def eff(t, q, w, F):
+        L = np.abs(G(q, P_true))
+        return F.level * (1 + 0.3 * L / np.sqrt(np.mean(L * L))) + F.viscous + G(q, P_true) - G(q, P_fit)
+
+    lg = plateau_log(eff, seed=4, reps=2)
+    lg.G = G(lg.q, P_fit)
+    lg.tau = lg.F + lg.G
+    S = build_samples([lg], 5, axis="rotary")
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    chain = Chain(S, Structure("stribeck", cp, (Term("gravity", "gravity", "additive", (), in_base=True),)))
+    steps = chain.run(max_steps=1)
+    best = steps[0]["chosen"]
+    assert best is not None and best.cause == "load" and not best.unresolved, steps[0]["tested"]
+    assert dict(steps[0]["term"].nl)["dPy"] == pytest.approx(P_true[1] - P_fit[1], abs=0.08)

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from .model import OUTSIDE_MODEL, Context, Evaluator, Structure, Term
+from .model import OUTSIDE_MODEL, Coef, Context, Evaluator, Structure, Term, load_variable
 from .samples import Samples
 from .signals import delay_estimate, delay_map, moving_samples, rest_scales
 
@@ -229,12 +229,13 @@ def _fit_rms(ctx: Context, st: Structure, idx) -> float:
     return Evaluator(st, ctx).fit(idx).rms
 
 
-def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.ndarray, level: np.ndarray
-            ) -> Term | None:
+def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.ndarray, level: np.ndarray,
+            coef: Coef | None = None) -> Term | None:
     """The term of extension ``ext`` on top of st, its settings chosen on the training samples idx.
 
     resid : the current model's residual on idx (training); level : the current model's signed level
-    ``mL g`` on idx (for the periodogram of the position term).
+    ``mL g`` on idx (for the periodogram of the position term); coef : the current model's coefficients
+    fitted on idx (a load term's variable carries its gravity and inertia corrections, :func:`_rigid_fix`).
     """
     S = ctx.S
     cause, role, _ = EXTENSIONS[ext]
@@ -280,9 +281,10 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
         qs = float(0.5 * np.ptp(S.q)) or 1.0
         return Term(cause, ext, role, (("q0", q0), ("qs", qs)))
     if ext.startswith("load_"):
-        var = {"load_torque": S.load, "load_gravity": np.abs(S.G), "load_payload": S.payload}[ext]
+        fix = _rigid_fix(st, coef) if ext != "load_payload" else ()
+        var = load_variable(S, ext, dict(fix))
         sc = float(np.sqrt(np.mean(var * var))) or 1.0
-        return Term(cause, ext, role, (("scale", sc),))
+        return Term(cause, ext, role, (("scale", sc),) + fix)
     if ext == "stribeck":
         best = None
         for vs in np.geomspace(max(S.v_min, 1e-12), S.w0 / 3.0, 8):
@@ -293,6 +295,21 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
                     best = (r, term)
         return best[1]
     return Term(cause, ext, role, ())
+
+
+def _rigid_fix(st: Structure, coef: Coef | None) -> tuple:
+    """The current model's corrections of the fit's rigid body, as settings of a load term: ``dPx``, ``dPy``
+    (its gravity term's coefficients) and ``dJ`` (its inertia term's), those it has."""
+    if coef is None:
+        return ()
+    out = []
+    for i, t in enumerate(st.terms):
+        g = np.atleast_1d(coef.gamma.get(i, np.zeros(0)))
+        if t.ext == "gravity" and g.size == 2:
+            out += [("dPx", float(g[0])), ("dPy", float(g[1]))]
+        elif t.ext == "inertia" and g.size == 1:
+            out.append(("dJ", float(g[0])))
+    return tuple(out)
 
 
 def _position_torque(ctx: Context, st: Structure, idx: np.ndarray, resid: np.ndarray) -> Term | None:

@@ -23,7 +23,8 @@ absorb an offset, with more coefficients). A cause is *named* only when it beats
 explanation of another cause that makes the same correction on the held-out residual (:meth:`Chain.same_correction`:
 the same column space on these data, as an offset and a level-only asymmetry on a Coulomb + viscous map); otherwise
 its term enters the model (the residual the next steps search stays clean) but no cause is named: the
-step is recorded as ambiguous between the causes (``Trial.unresolved``).
+step is recorded as ambiguous between the causes (``Trial.unresolved``). Since round 5 explanations that
+are not candidates compete too (:data:`COMPETITORS`: a per-direction level for an offset).
 """
 from __future__ import annotations
 
@@ -44,6 +45,11 @@ ALPHA = 0.01
 GAIN_MIN = 0.05
 #: Smallest RMS a term must explain, as a fraction of the friction RMS.
 EXPLAINED_MIN = 0.02
+#: Competing explanations that are not candidates (their models are not exported) but must be beaten before
+#: the candidate is named: a torque offset is, on sliding data of a map without a Stribeck part, the same
+#: column space as a per-direction Coulomb level (``asym_level``); where the map has a Stribeck part the
+#: two differ at low speed, where the level asymmetry scales the hump and the offset does not.
+COMPETITORS = {"offset": ("asym_level",)}
 #: Longest chain.
 MAX_STEPS = 6
 #: Two candidates make the same correction when their held-out corrections differ by at most this share of
@@ -137,8 +143,8 @@ class Chain:
         S = self.S
         after = np.empty(S.n)
         terms, coefs = [], []
-        for f, (tr, te, res, lev, _) in enumerate(self.train_info):
-            term = propose(ext, self.ctx, self.st, tr, res, lev)
+        for f, (tr, te, res, lev, c0) in enumerate(self.train_info):
+            term = propose(ext, self.ctx, self.st, tr, res, lev, c0)
             if term is None:
                 self.ctx.release(self.st)
                 return None
@@ -186,19 +192,38 @@ class Chain:
             if p >= ALPHA / max(m, 1):
                 best = t
         best = _speed_only_last(best, ok)
-        # other causes the data cannot tell from the chosen one (not significantly worse)
+        self._rivals(best, ok + self._competitors(best, m), m)
+        return best
+
+    def _rivals(self, best: Trial, others: list[Trial], m: int) -> None:
+        """Other causes the data cannot tell from the chosen one (``best.rivals``: not significantly worse on
+        held-out data, named in its sentence), and those that make its correction (``best.unresolved``: a
+        competing explanation of another cause with no more coefficients whose held-out correction is the
+        chosen one's, :meth:`same_correction`). Such a step names no cause. (A rival that is merely not
+        significantly worse is not enough: two real effects of similar size, a warm-up and a position
+        ripple, explain different parts of the residual and each is not significantly worse than the other.)"""
         best.rivals, best.unresolved = [], []
-        for t in ok:
+        for t in others:
             if t.cause == best.cause:
                 continue
             _, p = paired_t(group_d(self.S, self.S.F - t.pred_after, self.S.F - best.pred_after))
-            if p >= ALPHA / max(m, 1):
+            beaten = p < ALPHA / max(m, 1)
+            if not beaten:
                 best.rivals.append((t.cause, t.ext, t.rms_after))
-            # a competing explanation (no more coefficients) that makes the same correction: the data
-            # cannot tell the two apart, whichever has the lower RMS by rounding
+            # a competing explanation (no more coefficients) that makes the same correction (the same column
+            # space on these data, whichever wins by rounding)
             if t.k <= best.k and t.cause not in best.unresolved and self.same_correction(best, t):
                 best.unresolved.append(t.cause)
-        return best
+
+    def _competitors(self, best: Trial, m: int) -> list[Trial]:
+        """The competing explanations of the chosen candidate that are not candidates themselves
+        (:data:`COMPETITORS`), judged on the same held-out folds."""
+        out = []
+        for ext in COMPETITORS.get(best.ext, ()):
+            tr = self.evaluate(ext, m)
+            if tr is not None:
+                out.append(tr)
+        return out
 
     def same_correction(self, a: Trial, b: Trial) -> bool:
         """Whether two candidates make the same held-out correction: their corrections differ by an RMS of
@@ -243,7 +268,7 @@ class Chain:
                 return None, None, None
             res = self.S.F - self.pred
             ev0 = Evaluator(self.st, self.ctx)
-            term = propose(best.ext, self.ctx, self.st, self.idx_all, res, ev0.level(self.coef, self.idx_all))
+            term = propose(best.ext, self.ctx, self.st, self.idx_all, res, ev0.level(self.coef, self.idx_all), self.coef)
             st_new = self.st.plus(term)
             why = degenerate(self.coef, st_new, Evaluator(st_new, self.ctx).fit(self.idx_all))
             if why is None:
@@ -269,6 +294,16 @@ def _within(cell: np.ndarray, x: np.ndarray, w: np.ndarray | None = None) -> np.
     sww = np.bincount(cell, weights=wc * wc)
     beta = np.bincount(cell, weights=wc * xc) / np.where(sww > 0, sww, np.inf)
     return xc - beta[cell] * wc
+
+
+def _within_t(S: Samples, cell: np.ndarray, tr: Trial) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """The residual before the candidate (``rw``) and its held-out correction (``dw``), each less its mean
+    and its line in the velocity in every cell (:func:`_within`), and the one-sided t (and p) over held-out
+    groups that they vary together there: ``sum(rw dw)`` per group."""
+    rw = _within(cell, S.F - tr.pred_before, S.w)
+    dw = _within(cell, tr.pred_after - tr.pred_before, S.w)
+    t, p = paired_t(np.bincount(S.group, weights=rw * dw, minlength=S.n_groups))
+    return rw, dw, t, p
 
 
 def speed_cells(S: Samples) -> np.ndarray:
@@ -301,10 +336,7 @@ def confounded(S: Samples, tr: Trial, m: int) -> str | None:
         return _not_its_time_course(S, tr, m)
     if tr.ext not in POSITION_EXTS:
         return None
-    cell = speed_cells(S)
-    rw = _within(cell, S.F - tr.pred_before, S.w)
-    dw = _within(cell, tr.pred_after - tr.pred_before, S.w)
-    t, p = paired_t(np.bincount(S.group, weights=rw * dw, minlength=S.n_groups))
+    rw, dw, t, p = _within_t(S, speed_cells(S), tr)
     if p >= ALPHA / max(m, 1):
         return (f"{tr.ext} does not show within segments at one speed (held-out within-cell t = {t:.2f}, "
                 f"p = {p:.2g}): the position stands in for the speed or the order of the plateaus")
@@ -334,10 +366,7 @@ def _not_at_one_speed(S: Samples, tr: Trial, m: int) -> str | None:
     after long rests: the candidate's held-out correction and the residual, each less its mean and its line
     in the velocity in every speed bin (:func:`speed_bins`, segments pooled), must vary together there, the
     one-sided t over held-out groups of ``sum(rw dw)`` significant at the step's level."""
-    cell = speed_bins(S)
-    rw = _within(cell, S.F - tr.pred_before, S.w)
-    dw = _within(cell, tr.pred_after - tr.pred_before, S.w)
-    t, p = paired_t(np.bincount(S.group, weights=rw * dw, minlength=S.n_groups))
+    _, _, t, p = _within_t(S, speed_bins(S), tr)
     if p >= ALPHA / max(m, 1):
         return (f"{tr.ext} does not show at one speed between moves after short and long rests (held-out "
                 f"within-speed-bin t = {t:.2f}, p = {p:.2g}): a function of the speed stands in for it")

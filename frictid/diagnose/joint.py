@@ -147,9 +147,9 @@ def _ambiguous(jf: JointFit, rec: dict, tr: Trial, text: str) -> None:
     rec.setdefault("ambiguous", []).append(
         {"causes": causes, "extension": tr.ext, "evidence": text, "rms_before": tr.rms_before,
          "rms_after": tr.rms_after, "heldout_gain": tr.gain})
-    jf.warnings.append(f"ambiguous: {' or '.join(causes)} explain the residual equally well on held-out data "
-                       f"(held-out RMS {fmt(tr.rms_before)} -> {fmt(tr.rms_after)} with {tr.ext}): the data cannot "
-                       f"tell them apart, no cause is named")
+    jf.warnings.append(f"ambiguous: {' or '.join(causes)} explain the residual about as well on held-out data "
+                       f"(held-out RMS {fmt(tr.rms_before)} -> {fmt(tr.rms_after)} with {tr.ext}, which does not "
+                       f"beat the others significantly): the data cannot tell them apart, no cause is named")
 
 
 def _step_model(jf: JointFit, step: dict, tr: Trial, S: Samples, base: str, rigid: dict) -> ModelFit:

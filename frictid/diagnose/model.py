@@ -134,6 +134,25 @@ def _block(out: np.ndarray, vecs: list, s: int, e: int) -> np.ndarray:
 BLOCK_ROWS = 1 << 12
 
 
+
+def load_variable(S: Samples, ext: str, nl: dict) -> np.ndarray:
+    """The variable of a load term: the payload, or the torque the transmission carries besides friction
+    (``load_torque``: ``|J a + G|``; ``load_gravity``: ``|G|``) with the model's own corrections of the
+    fit's rigid body, ``dPx cos q + dPy sin q`` (its gravity term) and ``dJ a`` (its inertia term), from the
+    settings (:func:`frictid.diagnose.causes.propose`): the friction the fit took out with a biased gravity
+    is the torque the corrected model puts back (a load that raises the friction with ``|G|`` biases the
+    fit's gravity, and ``|G|`` of the fit then crosses zero at the wrong angles)."""
+    if ext == "load_payload":
+        return S.payload
+    corr = 0.0
+    if S.q is not None and (nl.get("dPx", 0.0) or nl.get("dPy", 0.0)):
+        corr = nl.get("dPx", 0.0) * np.cos(S.q) + nl.get("dPy", 0.0) * np.sin(S.q)
+    if ext == "load_gravity":
+        return np.abs(S.G + corr)
+    if nl.get("dJ", 0.0):
+        corr = corr + nl["dJ"] * S.a
+    return np.abs(S.tau - S.F + corr)
+
 class Context:
     """Column cache for one :class:`Samples` (columns of the base map and of each term)."""
 
@@ -356,8 +375,7 @@ class Context:
             d = (S.q - nl["q0"]) / nl["qs"]
             c = np.array([d, d * d]).T
         elif term.ext.startswith("load_"):
-            var = {"load_torque": S.load, "load_gravity": np.abs(S.G), "load_payload": S.payload}[term.ext]
-            c = (var / nl["scale"])[:, None]
+            c = (load_variable(S, term.ext, nl) / nl["scale"])[:, None]
         elif term.ext == "drift":
             c = S.th[:, None]
         elif term.ext in ("asym_scale", "asym_level"):
