@@ -90,7 +90,9 @@ def _stribeck_points(rng, n, Fc, ratio, vs, delta, sigma2, noise, per_sign=False
     return w, F + noise * Fc * rng.standard_normal(w.shape)
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# derandomize: CI runs the same examples every time (two optimisers compared; rare degenerate valleys are
+# searched for locally with --hypothesis-seed and pinned below with @example)
+@settings(max_examples=20, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @example(seed=143, Fc=1.0, ratio=1.125, vs=0.5, delta=1.0, slope=0.0, noise=0.03125, n=7)  # a step
 @example(seed=188, Fc=1.0, ratio=1.125, vs=0.25, delta=0.75, slope=0.0, noise=0.046875, n=9)  # singular LM
 @example(seed=38, Fc=1.0, ratio=1.0, vs=0.5, delta=1.0, slope=0.0, noise=0.03125, n=7)  # the 0.0505 case
@@ -117,7 +119,7 @@ def test_projected_stribeck_reaches_the_multistart_residual(seed, Fc, ratio, vs,
     _no_worse(new, old, pb, chi2=0.1)
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 999), a0=st.floats(0.5, 20.0), a1=st.floats(-1.0, 1.0), a2=st.floats(-1.0, 1.0),
        ws1=st.floats(0.01, 0.3), ws_ratio=st.floats(1.5, 20.0), a3=st.floats(0.0, 5.0),
        noise=st.floats(0.001, 0.03), n=st.integers(10, 18))
