@@ -149,6 +149,8 @@ class BranchFit:
     cost: float
     success: bool
     message: str
+    #: a rise that fits the points as well as this drop (name -> value), or None (:meth:`_Branch._drop_first`)
+    rival: dict | None = None
 
 
 def _scales(w, F):
@@ -224,13 +226,40 @@ class _Branch:
                 else:
                     starts = [np.array([tries[0][nm] for nm in shape], dtype=float)]
                 screen = SCREEN_NFEV_PER_PARAM * (len(shape) + 1) if len(starts) > 1 else budget
-                res = min((pr.refine(t, screen) for t in starts), key=lambda r: r.cost)
-                if res.status == 0 and screen < budget:  # stopped by the screening budget: run on
-                    res = pr.refine(res.x[pr.nl], budget - screen)
+                tried = [pr.refine(t, screen) for t in starts]
+                run_on = lambda r: (pr.refine(r.x[pr.nl], budget - screen)  # noqa: E731
+                                    if r.status == 0 and screen < budget else r)  # stopped by the screening budget
+                res = self._drop_first(run_on(min(tried, key=lambda r: r.cost)), tried, run_on)
                 res = self._ordered(pr, res)
         except (ValueError, np.linalg.LinAlgError):  # e.g. non-finite residuals from a degenerate start
             return None
         return res if np.all(np.isfinite(res.fun)) else None
+
+    def _rises(self, res) -> bool:
+        """A Stribeck solution whose break-away level is below its Coulomb level (a rise, not a drop)."""
+        x = dict(zip(self.names, self.full(res.x)))
+        return self.smap.name == "stribeck" and x["Fs"] < x["Fc"]
+
+    def _drop_first(self, res, tried: list, run_on):
+        """A Stribeck fit (:func:`frictid.models.static.stribeck` is 003's drop, Fs >= Fc) that a cold
+        search ends in a rise, when a drop among the valleys ``tried`` fits as well (within
+        :data:`DELTA_CHI2` of chi-square, scaled by the rise's reduced chi-square): the drop, with the rise
+        as its ``rival`` (the data cannot tell them apart: :func:`_fit_one_branch` holds the drop's shape
+        as not identifiable). A rise that fits clearly better stays (issue 19: it is named, and the choice
+        takes a map that follows it). The search is free to find either: which valley of two the data
+        cannot tell apart it ends in says nothing about the data, and the map's definition does."""
+        if not self._rises(res):
+            return res
+        drops = [r for r in tried if not self._rises(r)]
+        if not drops:
+            return res
+        drop = run_on(min(drops, key=lambda r: r.cost))
+        dof = max(self.w.shape[0] - len(self.free), 1)
+        s2 = 2.0 * res.cost / dof
+        if self._rises(drop) or not (s2 > 0 and 2.0 * (drop.cost - res.cost) / s2 <= DELTA_CHI2):
+            return res
+        drop.rival = dict(zip(self.names, (float(v) for v in self.full(res.x))))
+        return drop
 
     def _ordered(self, pr, res):
         """A two-exponential fit with its speeds in order, ws1 <= ws2: the mirror image of an optimum with
@@ -282,7 +311,7 @@ def fit_branch(base: str, w, F, F_se=None, fixed: dict | None = None,
     stderr, reasons, cov = _branch_errors(pb, best, var_inflation)
     _bound_and_error_reasons(pb, best, x, table, stderr, reasons)
     return BranchFit(dict(zip(names, (float(v) for v in x))), stderr, reasons, fixed, cov,
-                     [names[k] for k in free], float(best.cost), bool(best.success), str(best.message))
+                     [names[k] for k in free], float(best.cost), bool(best.success), str(best.message), best.rival)
 
 
 def _branch_errors(pb: _Branch, best, var_inflation: float) -> tuple[dict, dict, np.ndarray | None]:
@@ -578,6 +607,7 @@ def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict 
                     shapeless[n + suf] = h[1]
     bf = fit_branch(base, bw, bF, bse, bfixed, scales=scales, start=bstart, var_inflation=var_inflation)
     held = {} if bf.cov is None else _shapeless(base, bf.values, bf.cov, bf.free, bf.reasons)
+    held.update(_rival_rise(bf, held))
     if held:  # a drop the data cannot tell from none: its shape held where it came out, the rest refitted
         bfixed.update({nm: bf.values[nm] for nm in held})
         bf = fit_branch(base, bw, bF, bse, bfixed, scales=scales, start=bstart, var_inflation=var_inflation)
@@ -592,6 +622,19 @@ def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict 
     if shifts and bf.cov is not None:
         _shift_profile(base, bw, bF, bse, bfixed, scales, var_inflation, bf, shifts)
     return bf, shapeless
+
+
+def _rival_rise(bf: BranchFit, held: dict) -> dict[str, str]:
+    """The free shape parameters of a Stribeck drop that a rise fits as well as (``bf.rival``:
+    :meth:`_Branch._drop_first`), with the reason: the data cannot tell the drop from a rise, so its speed
+    and shape are not measured; held where the fit put it (the levels and the slope stay measured)."""
+    r = bf.rival
+    if not r:
+        return {}
+    why = (f"a rise (Fs {r['Fs']:.4g} below Fc {r['Fc']:.4g}, vs {r['vs']:.3g}, delta {r['delta']:.3g}) fits the "
+           f"points within {DELTA_CHI2:g} of chi-square of this drop: the data cannot tell the drop from a rise, "
+           "and the speed and shape of the drop cannot be placed; held where the fit put it")
+    return {nm: why for nm in ("vs", "delta") if nm in bf.free and nm not in held}
 
 
 def _shift_profile(base: str, bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: BranchFit,

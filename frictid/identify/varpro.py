@@ -69,6 +69,8 @@ class Solution:
     status: int
     success: bool
     message: str
+    #: a Stribeck search's rise that fits as well as this drop (name -> value; :meth:`.static._Branch.search`)
+    rival: dict | None = None
 
 
 class Projection:
