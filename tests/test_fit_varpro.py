@@ -276,8 +276,8 @@ def test_a_drop_that_fits_as_well_as_a_rise_is_reported_with_its_shape_held():
     dof = w.size - len(pb.free)
     assert 0.0 < 2.0 * (sol.cost - 0.5 * float(r @ r)) / (float(r @ r) / dof) <= fs.DELTA_CHI2
     bf = fs.fit_branch("stribeck", w, F)
-    assert set(fs._rival_rise(bf, {})) == {"vs", "delta"}
-    assert "cannot tell the drop from a rise" in fs._rival_rise(bf, {})["vs"]
+    assert set(fs._rival_rise(bf)) == {"vs", "delta"}
+    assert "cannot tell the drop from a rise" in fs._rival_rise(bf)["vs"]
     mf = fs.fit_static("stribeck", w, F, delta="free")  # here the drop is also within its errors of none
     for nm in ("vs", "delta"):
         pe = mf.params[nm]

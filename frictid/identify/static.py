@@ -607,7 +607,6 @@ def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict 
                     shapeless[n + suf] = h[1]
     bf = fit_branch(base, bw, bF, bse, bfixed, scales=scales, start=bstart, var_inflation=var_inflation)
     held = {} if bf.cov is None else _shapeless(base, bf.values, bf.cov, bf.free, bf.reasons)
-    held.update(_rival_rise(bf, held))
     if held:  # a drop the data cannot tell from none: its shape held where it came out, the rest refitted
         bfixed.update({nm: bf.values[nm] for nm in held})
         bf = fit_branch(base, bw, bF, bse, bfixed, scales=scales, start=bstart, var_inflation=var_inflation)
@@ -617,6 +616,12 @@ def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict 
         bfixed["delta"] = 2.0
         bf = fit_branch(base, bw, bF, bse, bfixed, scales=scales, start=bstart, var_inflation=var_inflation)
         notes.append(f"delta{suf} fixed at 2 (000/003): free, it was not identifiable ({why})")
+    rival, held = bf.rival, _rival_rise(bf)
+    if held:  # a drop a rise fits as well as: its shape held, the levels refitted and their change added
+        bfixed.update({nm: bf.values[nm] for nm in held})
+        bf = fit_branch(base, bw, bF, bse, bfixed, scales=scales, start=bstart, var_inflation=var_inflation)
+        shapeless.update({nm + suf: why for nm, why in held.items()})
+        _rival_spread(bf, rival)
     if base == "stribeck" and delta == "auto" and "delta" in bfixed and start is None and bf.cov is not None:
         _delta_profile(bw, bF, bse, bfixed, scales, var_inflation, bf)
     if shifts and bf.cov is not None:
@@ -624,17 +629,35 @@ def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict 
     return bf, shapeless
 
 
-def _rival_rise(bf: BranchFit, held: dict) -> dict[str, str]:
+def _rival_rise(bf: BranchFit) -> dict[str, str]:
     """The free shape parameters of a Stribeck drop that a rise fits as well as (``bf.rival``:
     :meth:`_Branch._drop_first`), with the reason: the data cannot tell the drop from a rise, so its speed
-    and shape are not measured; held where the fit put it (the levels and the slope stay measured)."""
+    and shape are not measured; held where the fit put it (the levels and the slope are refitted, and
+    :func:`_rival_spread` adds their change in the rise to their errors)."""
     r = bf.rival
-    if not r:
+    if not r or bf.cov is None:
         return {}
     why = (f"a rise (Fs {r['Fs']:.4g} below Fc {r['Fc']:.4g}, vs {r['vs']:.3g}, delta {r['delta']:.3g}) fits the "
            f"points within {DELTA_CHI2:g} of chi-square of this drop: the data cannot tell the drop from a rise, "
            "and the speed and shape of the drop cannot be placed; held where the fit put it")
-    return {nm: why for nm in ("vs", "delta") if nm in bf.free and nm not in held}
+    return {nm: why for nm in ("vs", "delta") if nm in bf.free}
+
+
+def _rival_spread(bf: BranchFit, rival: dict) -> None:
+    """The levels and slope of a drop whose shape is held because a rise ``rival`` fits as well: each one's
+    change between the two enters its standard error (added in quadrature, as :func:`_delta_profile` does
+    for the exponents that fit as well); one whose error so exceeds its value is not identifiable (the
+    data do not say whether the friction drops or rises, and where such a parameter lies depends on it).
+    ``bf`` is changed in place."""
+    for n in bf.free:
+        se, v, r = bf.stderr.get(n), bf.values.get(n), rival.get(n)
+        if se is None or v is None or r is None or r == v:
+            continue
+        sp = abs(r - v)
+        bf.stderr[n] = math.hypot(se, sp)
+        if n not in bf.reasons and bf.stderr[n] > abs(v):
+            bf.reasons[n] = (f"moves by {sp:.3g} to a rise (Fs below Fc) that fits the points as well as this drop: "
+                             "the data cannot tell the drop from a rise")
 
 
 def _shift_profile(base: str, bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: BranchFit,
