@@ -410,3 +410,34 @@ def test_the_truth_ends_a_rest_where_a_move_starts_with_a_torque_jump(after, res
     k = int(0.1 * fs)
     steady = _steady(u, k, np.full(n, 5 * 0.05), int(0.01 * fs), moving)
     assert bool(np.all(steady[j - 5:j + 5])) is rest
+
+
+@pytest.mark.parametrize("seed", [41, 42, 43])
+def test_a_rest_is_what_the_encoder_resolves_not_a_share_of_the_top_speed(seed):
+    """A rest is still to the sensors (docs/segments.md, "What a rest is"): a hold, then a slow crawl
+    that moves a 15-bit encoder by a few counts per 0.1 s under a steady torque (a sweep's slow
+    repositioning; the short velocity window's noise is larger than the crawl), then a hold, then fast
+    moves. The holds are rests, the crawl is not, and nothing changes when the fast moves are 10 or 1000
+    times faster (a share of the log's top speed called 0.01 rad/s still)."""
+    rng = np.random.default_rng(seed)
+    fs = float(rng.choice([500.0, 1000.0, 2000.0]))
+    step = 2 * np.pi / 2 ** 15
+    crawl = step * rng.uniform(40.0, 80.0)  # [rad/s]: 4..8 counts per 0.1 s
+    t_hold, t_crawl = rng.uniform(0.6, 1.2), rng.uniform(1.0, 2.0)
+    found = []
+    for top in (0.5, 5.0, 500.0):
+        w = np.concatenate((np.zeros(int(t_hold * fs)), np.full(int(t_crawl * fs), crawl),
+                            np.zeros(int(t_hold * fs)), top * np.sin(np.linspace(0, 4 * np.pi, int(2 * fs))),
+                            np.zeros(int(t_hold * fs))))
+        t = np.arange(w.size) / fs
+        q = np.floor(np.cumsum(w) / fs / step + 0.5) * step
+        tau = 1.0 + 0.2 * w / top + rng.normal(0, 0.01, w.size)  # steady over the holds and the crawl
+        segs = find_segments(JointLog("1", t, tau, q=q))
+        found.append([(s.kind, round(s.t_start, 1), round(s.t_end, 1)) for s in segs if s.kind == "rest"])
+        rests = [s for s in segs if s.kind == "rest"]
+        a, b = int(t_hold * fs), int((t_hold + t_crawl) * fs)
+        assert rests and not any(s.i0 < b - 0.1 * fs and s.i1 > a + 0.1 * fs for s in rests), found[-1]
+        # the holds either side of the crawl are rests (to within the T_MIN window's reach)
+        assert any(s.i0 <= 0.1 * fs and s.i1 >= a - 0.15 * fs for s in rests), found[-1]
+        assert any(s.i0 <= b + 0.15 * fs and s.i1 >= b + (t_hold - 0.15) * fs for s in rests), found[-1]
+    assert found[0] == found[1] == found[2]

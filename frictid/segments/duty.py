@@ -247,12 +247,13 @@ def _best_chain(onsets: np.ndarray, w: _Signal, i: int, tol_min: int, extra: lis
     return best
 
 
-def _settle(onsets: np.ndarray, w: _Signal, ch: list[int], P: int, tol_min: int, p_min: int
-            ) -> tuple[list[int], int]:
+def _settle(onsets: np.ndarray, gaps: np.ndarray, w: _Signal, ch: list[int], P: int, tol_min: int,
+            p_min: int) -> tuple[list[int], int]:
     """Fundamental period and phase of a chain. Period: the shortest P / m that chains as far from the
-    second cycle on (the first may hold the run's approach). Phase: the earliest onset within the first
-    period from which the next period repeats about as well as it does from the best such onset (the
-    run starts where the repetition starts)."""
+    second cycle on (the first may hold the run's approach). Phase: of the onsets within the first
+    period from which the next period repeats about as well as it does from the best such onset, the
+    one that follows the cycle's rest (:func:`_after_longest_rest`), the earliest of equals (the run
+    starts where the repetition starts)."""
     if len(ch) < 2:
         return ch, P
     end = ch[-1] + P
@@ -274,12 +275,27 @@ def _settle(onsets: np.ndarray, w: _Signal, ch: list[int], P: int, tol_min: int,
         return ch, P
     best = float(np.nanmin(diffs))
     ok = np.flatnonzero(diffs <= max(2.0 * best, best + 0.05))
-    start = cands[int(ok[0])]
     tol = max(tol_min, int(R_PERIOD * P))
+    start = cands[int(ok[_after_longest_rest(onsets, gaps, [cands[k] for k in ok], P, tol)])]
     out = _chain(onsets, w, start, P, tol, True)
     if len(out) < MIN_CYCLES:
         return ch, P
     return out, P
+
+
+def _after_longest_rest(onsets: np.ndarray, gaps: np.ndarray, cands: list[int], P: int, tol: int) -> int:
+    """Index into ``cands`` (onsets within a chain's first period) of the one where a cycle starts: a duty
+    cycle is motion, then rest, so it starts where the motion starts after the cycle's longest stop. The
+    stop is read one period later (the first cycle may follow the run's own approach and its dwell):
+    the still stretch before the onset within ``tol`` of ``c + P``, 0 where no onset is there. The
+    earliest of the candidates whose stop is within ``2 tol`` of the longest (a cycle with two equal
+    stops: the run starts where the repetition starts)."""
+    rest = np.zeros(len(cands), dtype=np.int64)
+    for k, c in enumerate(cands):
+        j = int(np.searchsorted(onsets, c + P - tol))
+        if j < onsets.size and abs(int(onsets[j]) - (c + P)) <= tol:
+            rest[k] = gaps[j]
+    return int(np.flatnonzero(rest >= rest.max() - 2 * tol)[0])
 
 
 def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, tol_min: int
@@ -330,7 +346,7 @@ def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, 
             i += 1
             continue
         _, ch, P = best
-        ch, P = _settle(onsets, w, ch, P, tol_min, 2 * gap_min)
+        ch, P = _settle(onsets, gaps, w, ch, P, tol_min, 2 * gap_min)
         ch = _extend_back(onsets, w, ch, P, max(tol_min, int(R_PERIOD * P)), claimed)
         starts = np.asarray(ch, dtype=np.int64)
         period = int(round((starts[-1] - starts[0]) / (starts.size - 1)))
