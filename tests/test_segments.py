@@ -245,6 +245,23 @@ def test_sessions_every_experiment_in_one_log():
     _assert_f1(_tally(logs), ["constant_velocity", "ramp_presliding", "step", "duty_cycle", "rest"])
 
 
+@pytest.mark.parametrize("plant", ["hydraulic", "linear_slide"])
+def test_a_session_repeated_per_payload_is_no_duty_cycle(plant):
+    """A duty cycle contains no experiment of another kind (issue 19). The diagnosis session (a sweep,
+    point-to-point cycles, the sweep again) recorded once per payload repeats as a whole, with motion and
+    rests: before, it was read as 3 duty cycles of the whole session (no plateau left for the static
+    map; tests/test_diagnose_plants.py, load on the geared joint). Its cycles are the point-to-point
+    ones, its sweeps plateaus."""
+    import diag_synth as ds
+
+    lg = ds.simulate(ds.null_plant(plant), "tiny", 3, [0.0, 10.0, 20.0])[0]
+    segs = find_segments(lg)
+    t = Tally().add(truth_segments(lg), segs)
+    assert t.prf("duty_cycle")[2] >= 0.95, [(s.t_start, s.t_end) for s in segs if s.kind == "duty_cycle"]
+    # every plateau of the sweeps is found (the extra ones are repositioning moves between the parts)
+    assert t.tp_true["constant_velocity"] == t.n_true["constant_velocity"] > 0
+
+
 # ---------------------------------------------------------------------------------------------------
 # 100 Hz and 10 kHz, with qd logged or not
 

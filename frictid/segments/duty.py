@@ -304,7 +304,50 @@ def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, 
 
     w : velocity. moving : motion mask. gap_min : shortest stop that marks an onset [samples].
     rest_min : shortest rest that separates two stretches of motion [samples]. tol_min : onset jitter.
+
+    A duty cycle contains no experiment of another kind: a chain whose cycle holds a run of shorter
+    duty cycles and motion outside it (:func:`_session`: a session of experiments, a sweep, a duty-cycle
+    run, a sweep, repeated once per payload) is no duty cycle; its cycles are searched one by one.
     """
+    out: list[tuple[np.ndarray, int]] = []
+    for starts, P in _search_chains(w, moving, gap_min, rest_min, tol_min):
+        inner = _session(w, moving, starts, P, (gap_min, rest_min, tol_min))
+        out.extend([(starts, P)] if inner is None else inner)
+    return out
+
+
+def _session(w: np.ndarray, moving: np.ndarray, starts: np.ndarray, P: int, args: tuple[int, int, int]
+             ) -> list[tuple[np.ndarray, int]] | None:
+    """The duty-cycle runs inside the cycles of the chain (``starts``, period ``P``) when its cycle is a
+    session of experiments, else None. A session: one of its cycles (the second: the first may hold the
+    run's approach) holds a run of at least ``MIN_CYCLES`` shorter cycles, and the joint moves outside
+    that run for at least ``rest_min`` samples (``T_MIN``; a cycle that is all its shorter repetitions
+    is one duty cycle with several moves, :func:`_whole_cycles`)."""
+    n = w.size
+    probe = int(starts[1])
+    if not _holds_other_motion(w[probe:min(n, probe + P)], moving[probe:min(n, probe + P)], args):
+        return None
+    ends = np.concatenate((starts[1:], [starts[-1] + P]))
+    out = []
+    for s, e in zip(starts.tolist(), np.minimum(ends, n).tolist()):
+        out += [(st + s, p) for st, p in find_chains(w[s:e], moving[s:e], *args)]
+    return out
+
+
+def _holds_other_motion(w: np.ndarray, moving: np.ndarray, args: tuple[int, int, int]) -> bool:
+    """The stretch holds a duty-cycle run and at least ``rest_min`` moving samples outside it."""
+    inner = find_chains(w, moving, *args)
+    if not inner:
+        return False
+    covered = np.zeros(w.size, dtype=bool)
+    for st, p in inner:
+        covered[int(st[0]):int(st[-1]) + p] = True
+    return int(np.count_nonzero(moving & ~covered)) >= args[1]
+
+
+def _search_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, tol_min: int
+                   ) -> list[tuple[np.ndarray, int]]:
+    """The chains of :func:`find_chains` before the session test."""
     n = w.size
     onsets, gaps = motion_onsets(moving, gap_min)
     if onsets.size == 0:
