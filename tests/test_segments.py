@@ -245,8 +245,7 @@ def test_sessions_every_experiment_in_one_log():
     _assert_f1(_tally(logs), ["constant_velocity", "ramp_presliding", "step", "duty_cycle", "rest"])
 
 
-@pytest.mark.parametrize("plant", ["hydraulic", "linear_slide"])
-def test_a_session_repeated_per_payload_is_no_duty_cycle(plant):
+def test_a_session_repeated_per_payload_is_no_duty_cycle():
     """A duty cycle contains no experiment of another kind (issue 19). The diagnosis session (a sweep,
     point-to-point cycles, the sweep again) recorded once per payload repeats as a whole, with motion and
     rests: before, it was read as 3 duty cycles of the whole session (no plateau left for the static
@@ -254,12 +253,43 @@ def test_a_session_repeated_per_payload_is_no_duty_cycle(plant):
     ones, its sweeps plateaus."""
     import diag_synth as ds
 
-    lg = ds.simulate(ds.null_plant(plant), "tiny", 3, [0.0, 10.0, 20.0])[0]
+    lg = ds.simulate(ds.null_plant("linear_slide"), "tiny", 3, [0.0, 10.0, 20.0])[0]
     segs = find_segments(lg)
     t = Tally().add(truth_segments(lg), segs)
     assert t.prf("duty_cycle")[2] >= 0.95, [(s.t_start, s.t_end) for s in segs if s.kind == "duty_cycle"]
     # every plateau of the sweeps is found (the extra ones are repositioning moves between the parts)
     assert t.tp_true["constant_velocity"] == t.n_true["constant_velocity"] > 0
+
+
+def _bump(n: int, v: float) -> np.ndarray:
+    return v * np.sin(np.linspace(0.0, np.pi, n)) ** 2
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_duty_cycles_inside_a_repeated_session_are_found_not_the_session(seed):
+    """The duty-cycle search on a velocity (100 Hz): a session (a sweep at three speeds both ways, four
+    cycles of two moves and a rest, the sweep backwards) repeated three times is three runs of four cycles
+    (main: one chain of three session-long cycles); a cycle of two different moves and a rest repeated is
+    one run (no shorter run inside it: nothing changes)."""
+    from frictid.segments.duty import find_chains
+
+    rng = np.random.default_rng(seed)
+    fs = 100.0
+
+    def rest(s):
+        return np.zeros(int(s * fs))
+
+    v = np.sort(rng.uniform(0.1, 1.0, 3))
+    sweep = np.concatenate([np.concatenate((np.full(int(1.5 * fs), sg * x), rest(0.5))) for x in v for sg in (1, -1)])
+    cyc = np.concatenate((_bump(int(1.2 * fs), 1.0), rest(0.3), _bump(int(0.8 * fs), -0.6), rest(rng.uniform(1.0, 1.5))))
+    block = np.concatenate((rest(1.0), sweep, rest(1.0), np.tile(cyc, 4), rest(1.0), sweep[::-1], rest(1.0)))
+    for w, runs_expected in ((np.concatenate((np.tile(block, 3), rest(3.0))), 3),
+                             (np.concatenate((rest(1.0), np.tile(cyc, 6), rest(3.0))), 1)):
+        w = w + rng.normal(0.0, 1e-3, w.size)
+        chains = find_chains(w, np.abs(w) > 0.01, 3, int(0.2 * fs), 4)
+        assert len(chains) == runs_expected, [(int(c[0]), c.size, P) for c, P in chains]
+        assert all(P == pytest.approx(cyc.size, abs=4) for _, P in chains), [P for _, P in chains]
+        assert sum(c.size for c, _ in chains) == (12 if runs_expected == 3 else 6)
 
 
 # ---------------------------------------------------------------------------------------------------
