@@ -335,13 +335,23 @@ def _session(w: np.ndarray, moving: np.ndarray, starts: np.ndarray, P: int, args
 
 
 def _holds_other_motion(w: np.ndarray, moving: np.ndarray, args: tuple[int, int, int]) -> bool:
-    """The stretch holds a duty-cycle run and at least ``rest_min`` moving samples outside it."""
+    """The stretch holds a duty-cycle run and at least ``rest_min`` moving samples outside it. The run
+    reaches over the periods (or the part of one left at the stretch's ends) next to it whose velocity
+    repeats its end cycles (within ``R_SHAPE``, rest or not: a joint moving in every slot of its cycle
+    has no rest in the last slot, and the run of slots stops one short of the cycle)."""
     inner = find_chains(w, moving, *args)
     if not inner:
         return False
-    covered = np.zeros(w.size, dtype=bool)
+    n = w.size
+    covered = np.zeros(n, dtype=bool)
     for st, p in inner:
-        covered[int(st[0]):int(st[-1]) + p] = True
+        a, b = int(st[0]), int(st[-1]) + p
+        stride = max(1, p // N_PROFILE)
+        while b < n and _rel_rms(w, b - p, b, min(p, n - b), stride) <= R_SHAPE:  # the end: part of a period
+            b += min(p, n - b)
+        while a > 0 and _rel_rms(w, a - min(p, a), a + p - min(p, a), min(p, a), stride) <= R_SHAPE:
+            a -= min(p, a)
+        covered[a:min(b, n)] = True
     return int(np.count_nonzero(moving & ~covered)) >= args[1]
 
 
