@@ -156,7 +156,8 @@ def slow_logger(recipe, plant_name: str, k: int, seed: int = 0, drive_rate: floa
     the drive torque are the same)."""
     from frictid.plant import simulate_recipe
     from frictid.plant.config import load_recipe
-    from frictid.plant.recipe import L, closed_loop, closed_loop_rests, compile_recipe, moving_mask
+    from frictid.plant.recipe import (L, closed_loop, closed_loop_rests, compile_recipe, encoder_step,
+                                      still_to_sensors)
 
     plant = plant_variant(plant_name, 1.0, drive_rate)
     logs = simulate_recipe(recipe, plant, seed=seed)
@@ -170,7 +171,8 @@ def slow_logger(recipe, plant_name: str, k: int, seed: int = 0, drive_rate: floa
         d = decimated(lg, k)
         label = np.array([L[x] for x in np.asarray(d.truth["segment"]).astype(str)], dtype=np.int64)
         w = np.asarray(d.truth["velocity"], dtype=float)
-        moving = moving_mask(w, drive_rate / k, pr.joint.limits.velocity)
+        moving = ~still_to_sensors(np.asarray(d.truth["position"], dtype=float), drive_rate / k, d.q,
+                                   encoder_step(plant.sensors, plant.axis))
         label = closed_loop_rests(label, moving, dr.tau[::k], closed_loop(pr)[::k], drive_rate / k,
                                   plant.sensors.tau_noise)
         out.append(replace(d, truth=dict(d.truth, segment=kinds[label])))

@@ -56,7 +56,7 @@ def test_plateaus_reach_the_stribeck_map(seed):
     static map g(w) sgn(w) + sigma2 w at the reference speed (a = 0 there)."""
     sc, _, out = _run(seed, "issue19_sweep")
     p = sc.plant
-    labels, _ = scenarios.refine_labels(out, sc.sensors.tau_noise, sc.w_top)
+    labels, _ = scenarios.refine_labels(out, sc.sensors.tau_noise, sc.sensors.q_step)
     runs = sim.truth_record(p, sc.ctl, sc.sensors, labels, out["index"])["segments"]
     plateaus = [(a, b) for k, a, b, _ in runs if k == "constant_velocity"]
     assert len(plateaus) >= 20

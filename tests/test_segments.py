@@ -245,6 +245,53 @@ def test_sessions_every_experiment_in_one_log():
     _assert_f1(_tally(logs), ["constant_velocity", "ramp_presliding", "step", "duty_cycle", "rest"])
 
 
+def test_a_session_repeated_per_payload_is_no_duty_cycle():
+    """A duty cycle contains no experiment of another kind (issue 19). The diagnosis session (a sweep,
+    point-to-point cycles, the sweep again) recorded once per payload repeats as a whole, with motion and
+    rests: before, it was read as 3 duty cycles of the whole session (no plateau left for the static
+    map; tests/test_diagnose_plants.py, load on the geared joint). Its cycles are the point-to-point
+    ones, its sweeps plateaus."""
+    import diag_synth as ds
+
+    lg = ds.simulate(ds.null_plant("linear_slide"), "tiny", 3, [0.0, 10.0, 20.0])[0]
+    segs = find_segments(lg)
+    t = Tally().add(truth_segments(lg), segs)
+    assert t.prf("duty_cycle")[2] >= 0.95, [(s.t_start, s.t_end) for s in segs if s.kind == "duty_cycle"]
+    # every plateau of the sweeps is found (the extra ones are repositioning moves between the parts)
+    assert t.tp_true["constant_velocity"] == t.n_true["constant_velocity"] > 0
+
+
+def _bump(n: int, v: float) -> np.ndarray:
+    return v * np.sin(np.linspace(0.0, np.pi, n)) ** 2
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_duty_cycles_inside_a_repeated_session_are_found_not_the_session(seed):
+    """The duty-cycle search on a velocity (100 Hz): a session (a sweep at three speeds both ways, four
+    cycles of two moves and a rest, the sweep backwards) repeated three times is three runs of four cycles
+    (main: one chain of three session-long cycles); a cycle of two different moves and a rest repeated is
+    one run (no shorter run inside it: nothing changes)."""
+    from frictid.segments.duty import find_chains
+
+    rng = np.random.default_rng(seed)
+    fs = 100.0
+
+    def rest(s):
+        return np.zeros(int(s * fs))
+
+    v = np.sort(rng.uniform(0.1, 1.0, 3))
+    sweep = np.concatenate([np.concatenate((np.full(int(1.5 * fs), sg * x), rest(0.5))) for x in v for sg in (1, -1)])
+    cyc = np.concatenate((_bump(int(1.2 * fs), 1.0), rest(0.3), _bump(int(0.8 * fs), -0.6), rest(rng.uniform(1.0, 1.5))))
+    block = np.concatenate((rest(1.0), sweep, rest(1.0), np.tile(cyc, 4), rest(1.0), sweep[::-1], rest(1.0)))
+    for w, runs_expected in ((np.concatenate((np.tile(block, 3), rest(3.0))), 3),
+                             (np.concatenate((rest(1.0), np.tile(cyc, 6), rest(3.0))), 1)):
+        w = w + rng.normal(0.0, 1e-3, w.size)
+        chains = find_chains(w, np.abs(w) > 0.01, 3, int(0.2 * fs), 4)
+        assert len(chains) == runs_expected, [(int(c[0]), c.size, P) for c, P in chains]
+        assert all(P == pytest.approx(cyc.size, abs=4) for _, P in chains), [P for _, P in chains]
+        assert sum(c.size for c, _ in chains) == (12 if runs_expected == 3 else 6)
+
+
 # ---------------------------------------------------------------------------------------------------
 # 100 Hz and 10 kHz, with qd logged or not
 
@@ -410,3 +457,34 @@ def test_the_truth_ends_a_rest_where_a_move_starts_with_a_torque_jump(after, res
     k = int(0.1 * fs)
     steady = _steady(u, k, np.full(n, 5 * 0.05), int(0.01 * fs), moving)
     assert bool(np.all(steady[j - 5:j + 5])) is rest
+
+
+@pytest.mark.parametrize("seed", [41, 42, 43])
+def test_a_rest_is_what_the_encoder_resolves_not_a_share_of_the_top_speed(seed):
+    """A rest is still to the sensors (docs/segments.md, "What a rest is"): a hold, then a slow crawl
+    that moves a 15-bit encoder by a few counts per 0.1 s under a steady torque (a sweep's slow
+    repositioning; the short velocity window's noise is larger than the crawl), then a hold, then fast
+    moves. The holds are rests, the crawl is not, and nothing changes when the fast moves are 10 or 1000
+    times faster (a share of the log's top speed called 0.01 rad/s still)."""
+    rng = np.random.default_rng(seed)
+    fs = float(rng.choice([500.0, 1000.0, 2000.0]))
+    step = 2 * np.pi / 2 ** 15
+    crawl = step * rng.uniform(40.0, 80.0)  # [rad/s]: 4..8 counts per 0.1 s
+    t_hold, t_crawl = rng.uniform(0.6, 1.2), rng.uniform(1.0, 2.0)
+    found = []
+    for top in (0.5, 5.0, 500.0):
+        w = np.concatenate((np.zeros(int(t_hold * fs)), np.full(int(t_crawl * fs), crawl),
+                            np.zeros(int(t_hold * fs)), top * np.sin(np.linspace(0, 4 * np.pi, int(2 * fs))),
+                            np.zeros(int(t_hold * fs))))
+        t = np.arange(w.size) / fs
+        q = np.floor(np.cumsum(w) / fs / step + 0.5) * step
+        tau = 1.0 + 0.2 * w / top + rng.normal(0, 0.01, w.size)  # steady over the holds and the crawl
+        segs = find_segments(JointLog("1", t, tau, q=q))
+        found.append([(s.kind, round(s.t_start, 1), round(s.t_end, 1)) for s in segs if s.kind == "rest"])
+        rests = [s for s in segs if s.kind == "rest"]
+        a, b = int(t_hold * fs), int((t_hold + t_crawl) * fs)
+        assert rests and not any(s.i0 < b - 0.1 * fs and s.i1 > a + 0.1 * fs for s in rests), found[-1]
+        # the holds either side of the crawl are rests (to within the T_MIN window's reach)
+        assert any(s.i0 <= 0.1 * fs and s.i1 >= a - 0.15 * fs for s in rests), found[-1]
+        assert any(s.i0 <= b + 0.15 * fs and s.i1 >= b + (t_hold - 0.15) * fs for s in rests), found[-1]
+    assert found[0] == found[1] == found[2]

@@ -137,7 +137,7 @@ def make_log(seed: int, family: str | None = None, outdir=".", families=FAMILIES
     if sc.creep > 0:
         sc.plant.c_cr = sc.creep
     out = sim.simulate(sc.plant, sc.ctl, prog)
-    labels, demoted = refine_labels(out, sc.sensors.tau_noise, sc.w_top)
+    labels, demoted = refine_labels(out, sc.sensors.tau_noise, sc.sensors.q_step)
     df = sim.measure(out, sc.sensors, np.random.default_rng([seed, 2]))
     truth = sim.truth_record(sc.plant, sc.ctl, sc.sensors, labels, out["index"],
                              {"seed": seed, "family": sc.family, "w_top": sc.w_top, "creep": sc.creep,
@@ -201,22 +201,20 @@ def steady_torque(tau: np.ndarray, fs: float, noise: float, moving: np.ndarray |
     return steady
 
 
-def refine_labels(out: dict, tau_noise: float, w_top: float) -> tuple[np.ndarray, int]:
+def refine_labels(out: dict, tau_noise: float, q_step: float) -> tuple[np.ndarray, int]:
     """The program's labels made physical: a constant-velocity piece starts where the true velocity has
     settled for good within 5 % of its reference (the samples before are ``other``: the loop still
     settling); a piece that has not settled by its middle (a slow transient, stick-slip, a ripple) is
     ``other`` altogether. A ``rest`` right after a step is the step's still tail (nothing in the data
     marks where one ends: a step lasts until the next input). Dwells and moves (closed-loop ``rest`` and
     ``other``) are relabelled by docs/segments.md's definition of a rest: ``rest`` where the joint is
-    still (true speed below 1 % of the top reference speed, of ``w_top`` [q/s] in a layout without
-    motion) and its torque steady
+    still to the encoder of step ``q_step`` [q] (:func:`still_to_encoder`) and its torque steady
     (:func:`steady_torque` under the logged noise ``tau_noise`` [N m]) for at least ``T_REST``, ``other``
     elsewhere: a move starts where its torque starts to change or the joint to move, a dwell where the
     torque has settled after the move. Returns (labels, plateaus demoted)."""
     lab = out["label"].copy()
     idx = out["index"]                       # changed in place: a rest after a step joins the step
     w, wr = out["w"], out["wr"]
-    top = float(np.max(np.abs(wr))) or w_top  # a layout without motion (ramps, steps): the scenario's
     change = np.flatnonzero((lab[1:] != lab[:-1]) | (idx[1:] != idx[:-1])) + 1
     starts = np.concatenate(([0], change))
     ends = np.concatenate((change, [lab.size]))
@@ -232,17 +230,60 @@ def refine_labels(out: dict, tau_noise: float, w_top: float) -> tuple[np.ndarray
         elif lab[a] == sim.CODE["rest"] and a > 0 and lab[a - 1] == sim.CODE["step"]:
             idx[a:b] = idx[a - 1]        # a still joint after a step: the step lasts until the next input
             lab[a:b] = sim.CODE["step"]
-    _rests_by_definition(lab, out, tau_noise, top)
+    _duty_cycles_by_definition(lab, out, q_step)
+    _rests_by_definition(lab, out, tau_noise, q_step)
     return lab, demoted
 
 
-def _rests_by_definition(lab: np.ndarray, out: dict, tau_noise: float, top: float) -> None:
+def _duty_cycles_by_definition(lab: np.ndarray, out: dict, q_step: float) -> None:
+    """A duty cycle is a repeated motion-and-rest pattern (docs/segments.md): a run of ``duty_cycle``
+    cycles one of which never holds the joint still (:func:`still_to_encoder`) for ``T_REST`` (the moves
+    fill the drawn period, the dwells between them are shorter than a rest) is back-and-forth motion,
+    not a duty cycle: its samples become ``other`` (and, where still and steady, ``rest``), their
+    index -1 (in place)."""
+    fs = 1.0 / float(out["t"][1] - out["t"][0])
+    duty = np.concatenate(([False], lab == sim.CODE["duty_cycle"], [False]))
+    edge = np.flatnonzero(duty[1:] != duty[:-1])
+    still = np.concatenate(([False], still_to_encoder(out["q"], fs, q_step), [False]))
+    n_min = int(round(T_REST * fs))
+    for a, b in zip(edge[::2], edge[1::2]):
+        idx = out["index"][a:b]
+        cut = np.flatnonzero(idx[1:] != idx[:-1]) + 1
+        for c0, c1 in zip(np.concatenate(([0], cut)), np.concatenate((cut, [b - a]))):
+            st = still[a + c0 + 1:a + c1 + 1]
+            e = np.flatnonzero(np.diff(np.concatenate(([0], st.astype(np.int8), [0]))))
+            if not np.any(e[1::2] - e[::2] >= n_min):
+                lab[a:b] = sim.CODE["other"]
+                out["index"][a:b] = -1
+                break
+
+
+def still_to_encoder(q: np.ndarray, fs: float, q_step: float) -> np.ndarray:
+    """Per sample: the joint is still to its encoder (docs/segments.md, "What a rest is": stillness is what
+    the sensors resolve, not a fraction of a speed): the true position ``q`` [q] moves over each half of a
+    window of ``T_REST`` that holds the sample by at most ``K_STEADY`` standard errors of a difference of two logged
+    positions, ``sqrt(2) sigma_q``, ``sigma_q`` the white-noise level of the encoder's reading (median
+    |fourth difference| / 0.6745 / sqrt(70): the joint's jitter in a hold), at least ``q_step /
+    sqrt(12)`` (quantisation)."""
+    n, h = q.size, max(1, int(round(0.5 * T_REST * fs)))
+    read = np.round(q / q_step) * q_step
+    jitter = float(np.median(np.abs(np.diff(read, 4)))) / 0.6745 / math.sqrt(70.0) if n > 8 else 0.0
+    sigma = max(jitter, q_step / math.sqrt(12.0))
+    i = np.arange(n)
+    half = np.abs(q[np.minimum(i + h, n - 1)] - q) <= K_STEADY * math.sqrt(2.0) * sigma  # each half: a reversal moves
+    half[h:] &= half[:n - h].copy()
+    centre = np.concatenate(([0], np.cumsum(half)))
+    # still where a still window of T_REST holds the sample (frictid's rule)
+    return centre[np.minimum(i + h + 1, n)] > centre[np.maximum(i - h, 0)]
+
+
+def _rests_by_definition(lab: np.ndarray, out: dict, tau_noise: float, q_step: float) -> None:
     """Closed-loop ``rest`` and ``other`` samples become ``rest`` where the joint is still and its torque
     steady (:func:`steady_torque`), in runs of at least ``T_REST``, else ``other`` (in place). Open-loop rests (a ramp's hold or
     settle: the input torque is constant) stay as the program wrote them."""
     fs = 1.0 / float(out["t"][1] - out["t"][0])
     closed = (out["mode"] == sim.CLOSED) & ((lab == sim.CODE["rest"]) | (lab == sim.CODE["other"]))
-    still = np.abs(out["w"]) < 0.01 * top
+    still = still_to_encoder(out["q"], fs, q_step)
     calm = still & steady_torque(out["tau"], fs, tau_noise, ~still)
     rest = np.concatenate(([False], closed & calm, [False]))
     edge = np.flatnonzero(rest[1:] != rest[:-1])

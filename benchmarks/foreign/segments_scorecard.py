@@ -147,6 +147,8 @@ def report(args, total, fams, rows, errors, ptp_fp, wall):
     print(f"\nforeign segments scorecard: {len(rows)} draws (seeds {args.seed_base}..{args.seed_base + n - 1}"
           f"{', family ' + args.family if args.family else ''}), IoU >= {IOU}, {wall:.0f} s wall")
     print(total.table())
+    print("(other is the complement, not a target: moves, transitions and the fragments between segments;"
+          " docs/segments.md)")
     n_ptp = sum(1 for d, _ in rows if d["family"] == "ptp")
     print(f"\nramp/step/duty-cycle segments reported on {n_ptp} pure point-to-point draws: {ptp_fp} (must be 0)")
     print("\nper layout family (F1 per kind; truth/found counts in brackets)")

@@ -466,7 +466,8 @@ T_JUMP = 0.01
 
 
 def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray | None = None,
-                  cycle: np.ndarray | None = None, tau_noise: float = 0.0) -> np.ndarray:
+                  cycle: np.ndarray | None = None, tau_noise: float = 0.0, still: np.ndarray | None = None
+                  ) -> np.ndarray:
     """Honest labels from the true velocity ``w``:
 
     - plateau samples become constant_velocity once the true velocity (``T_PLATEAU`` mean) has settled
@@ -479,6 +480,8 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray |
       and its torque steady (:func:`_steady`: no change beyond ``K_LOAD`` standard errors between
       means over ``T_LOAD``/2) for at least ``T_REST``, ``other`` elsewhere (the still start of a move
       before its torque changes is rest, a wound-up start or a settling torque after a stop is not);
+      still there is ``still`` when given (:func:`still_to_sensors`: what the sensors resolve), else
+      below ``R_STILL`` of the velocity limit;
     - with the cycle indices ``cycle`` (changed in place): a duty cycle starts where its motion starts
       (the joint breaks away a little after its program starts) and lasts one period."""
     label = label.copy()
@@ -507,6 +510,8 @@ def refine_labels(label: np.ndarray, w: np.ndarray, pr: Program, u: np.ndarray |
         _cycles_from_onsets(label, cycle, moving)
     if u is None:
         return label
+    if still is not None:  # a rest is still to the sensors (docs/segments.md, "What a rest is")
+        moving = ~still
     return closed_loop_rests(label, moving, u, closed_loop(pr), pr.fs, tau_noise)
 
 
@@ -517,8 +522,39 @@ def closed_loop(pr: Program) -> np.ndarray:
 
 def moving_mask(w: np.ndarray, fs: float, v_limit: float) -> np.ndarray:
     """Per sample: the true velocity ``w`` [q/s] (``T_STILL`` mean) above ``R_STILL`` of the velocity
-    limit ``v_limit``: the joint moves (the complement is still)."""
+    limit ``v_limit``: the joint moves (plateau settling and duty-cycle onsets)."""
     return np.abs(_smooth(w, max(1, int(round(T_STILL * fs))))) > R_STILL * v_limit
+
+
+def white_noise(x: np.ndarray) -> float:
+    """White-noise level of ``x``: median |fourth difference| / 0.6745 / sqrt(70), as frictid measures a
+    channel's noise (the sensor's noise and the joint's own jitter in a hold)."""
+    return float(np.median(np.abs(np.diff(x, 4)))) / 0.6745 / math.sqrt(70.0) if x.size > 8 else 0.0
+
+
+def still_to_sensors(q: np.ndarray, fs: float, q_logged: np.ndarray, q_step: float) -> np.ndarray:
+    """Per sample: the joint is still to its sensors (docs/segments.md, "What a rest is"): the true
+    position ``q`` [q] moves over each half of a window of ``T_REST`` that holds the sample by at most ``K_LOAD`` standard errors
+    of a logged position difference, ``sqrt(2) sigma_q``, ``sigma_q`` the logged position's white-noise
+    level (``q_logged``: sensor noise and jitter), at least the encoder's ``q_step / sqrt(12)`` [q].
+    Nothing relative to a speed of the log or of the joint."""
+    n, h = q.size, max(1, int(round(0.5 * T_REST * fs)))
+    logged = q if q_logged is None else np.asarray(q_logged, dtype=float)
+    sigma = max(white_noise(logged), q_step / math.sqrt(12.0),
+                1e-9 * max(float(np.ptp(q)) if n else 0.0, 1e-300))
+    i = np.arange(n)
+    half = np.abs(q[np.minimum(i + h, n - 1)] - q) <= K_LOAD * math.sqrt(2.0) * sigma  # each half: a reversal moves
+    half[h:] &= half[:n - h].copy()
+    centre = np.concatenate(([0], np.cumsum(half)))
+    # still where a still window of T_REST holds the sample (frictid's rule)
+    return centre[np.minimum(i + h + 1, n)] > centre[np.maximum(i - h, 0)]
+
+
+def encoder_step(sensors, axis: str) -> float:
+    """The position quantum [q] of ``sensors`` (0 for a continuous position)."""
+    if sensors.encoder_step:
+        return float(sensors.encoder_step)
+    return 2.0 * math.pi / sensors.encoder_counts if sensors.encoder_counts and axis == "rotary" else 0.0
 
 
 def closed_loop_rests(label: np.ndarray, moving: np.ndarray, u: np.ndarray, closed: np.ndarray, fs: float,

@@ -14,7 +14,7 @@ from .effects import compile_effects
 from .kernel import (N_P, P_C, P_HAMP, P_HPER, P_HPH, P_GOFF, P_J, P_K, P_KD, P_KI, P_KP, P_KV, P_KVI, P_LOAD, P_PAMP, P_PAY,
                      P_PPER, P_PPH, P_PX, P_PY, P_QRES, P_S0N, P_S0P, P_S1N, P_S1P, P_TMAX,
                      simulate_joint, simulate_joint_ref)
-from .recipe import G0, compile_recipe, refine_labels
+from .recipe import G0, compile_recipe, encoder_step, refine_labels, still_to_sensors
 from .sensors import draw_noise, logged_signals
 
 _KINDS = np.asarray(SEGMENT_KINDS, dtype=object)
@@ -141,7 +141,8 @@ def simulate_joint_program(plant: Plant, joint: Joint, recipe, seed_seq, scale=1
     q, w, z, F, T, u, qm, qdm = fn(**args)
     del args  # the kernel inputs (noise, multipliers, modes) are not needed any more: lower the peak
     q_log, qd_log, tau_log = logged_signals(qm, qdm, u, ntau, plant.sensors, ce.torque_offset)
-    labels = refine_labels(prog["label"], w, pr, u, prog["cycle"], plant.sensors.tau_noise)
+    still = still_to_sensors(q, fs, q_log, encoder_step(plant.sensors, plant.axis))
+    labels = refine_labels(prog["label"], w, pr, u, prog["cycle"], plant.sensors.tau_noise, still)
     channels = {"q_ref": prog["q_ref"], "qd_ref": prog["qd_ref"], "tau_ref": prog["tau_ff"]}
     uses_temp = joint.thermal.law != "none" or recipe.temp_env is not None or any(
         getattr(e, "temp_env", None) is not None or e.kind in ("duty_cycle", "validation_ptp")

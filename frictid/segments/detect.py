@@ -121,6 +121,7 @@ class Features:
     sigma_tau_loc: np.ndarray
     sigma_wc: float
     sigma_dv: float
+    resting: np.ndarray | None = None  # still to the sensors over T_MIN: a rest's stillness
     tau_c: np.ndarray | None = None  # prefix_sum(tau): every torque slope (box_slope) works from it
     d_preslide: float = 0.0  # D_PRESLIDE of the log's axis [q]
 
@@ -131,6 +132,28 @@ def _local_top(w: np.ndarray, half: int) -> np.ndarray:
     from scipy.ndimage import maximum_filter1d  # lazily, as scipy.signal in .scales
 
     return maximum_filter1d(np.abs(w), 2 * half + 1, mode="nearest")
+
+
+def _resting(log: JointLog, q: np.ndarray, h: int, sc: Scales, moving: np.ndarray) -> np.ndarray:
+    """Per sample: the joint is still to its sensors over ``T_MIN`` (docs/segments.md, "What a rest is"):
+    a window of ``2h`` samples (``T_MIN``) holds the sample over each half of which the logged position
+    moves by at most ``K_NOISE`` standard errors of a position difference, ``sqrt(2) sigma_q`` (``sigma_q``
+    the position's white-noise level, at least the encoder's ``step / sqrt(12)``; halves: a reversal
+    returns to where it was, but moves). Without a logged position: the mean velocity within
+    ``K_NOISE`` of its noise (not ``moving``)."""
+    n = q.size
+    if log.q is None or n <= 2 * h:
+        return ~moving
+    thr = K_NOISE * math.sqrt(2.0) * max(sc.sigma_q, sc.q_step / math.sqrt(12.0))
+    # both halves of the window centred on a sample: a reversal returns to where it was, but moves
+    half = np.abs(q[np.minimum(np.arange(n) + h, n - 1)] - q) <= thr  # |q[i + h] - q[i]|, clipped at the end
+    centre = half.copy()
+    centre[h:] &= half[:n - h]
+    # a sample is still when a still window of T_MIN holds it (the window centred on it reaches h
+    # samples into the move before a stop and after a start)
+    c = count_prefix(centre)
+    i = np.arange(n)
+    return c[np.minimum(i + h + 1, n)] > c[np.maximum(i - h, 0)]
 
 
 def features(log: JointLog, sc: Scales | None = None) -> Features:
@@ -175,6 +198,8 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
     # <=: a position that never changes (a step log on a coarse encoder: no noise, no motion) is still
     still = band <= np.maximum(floor, K_NOISE * sigma_wc)
     aw = np.abs(w)
+    # a rest's stillness: what the sensors resolve over T_MIN, nothing relative to a speed of the log
+    resting = _resting(log, q, h, sc, moving)
     still_fine = fill_short(aw <= np.maximum(floor, K_NOISE * max(sc.sigma_w, sigma_enc)), sc.window_w, False)
     # quiet: also below R_STILL of the log's top speed, the scale on which a torque experiment's joint
     # (presliding, creep) does not slide; steps, ramps and duty cycles read it
@@ -192,7 +217,7 @@ def features(log: JointLog, sc: Scales | None = None) -> Features:
     np.maximum(sigma_tau_loc, floor, out=sigma_tau_loc)
     return Features(sc=sc, t=np.asarray(log.t, dtype=float), q=q, tau=tau, w=w, h=h, n_min=n_min,
                     still=still, still_fine=still_fine, quiet=quiet, quiet_fine=quiet_fine, moving=moving, steady=steady, s=s, sigma_tau_loc=sigma_tau_loc,
-                    sigma_wc=sigma_wc, sigma_dv=sigma_dv, tau_c=tau_c,
+                    sigma_wc=sigma_wc, sigma_dv=sigma_dv, tau_c=tau_c, resting=resting,
                     d_preslide=D_PRESLIDE[log.axis == "linear"])
 
 
@@ -656,7 +681,7 @@ def _loading(f: Features, jumps: np.ndarray, hj: int) -> np.ndarray:
     core, loading = _torque_changing(f, hf)
     ls, le = runs(loading)
     core_c = count_prefix(core)
-    moving_c = count_prefix(~f.quiet_fine)
+    moving_c = count_prefix(~f.resting)
     moves_after = moving_c[np.minimum(le + hf, n)] - moving_c[np.minimum(le, n)] > 0
     all_jumps = np.sort(jumps)
     has_jump = np.searchsorted(all_jumps, le) > np.searchsorted(all_jumps, ls)
@@ -700,16 +725,22 @@ def _torque_changing(f: Features, hf: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _rest(f: Features, code: np.ndarray, loading: np.ndarray, n_min: int) -> np.ndarray:
-    """Where the joint rests (per sample), among the unclassified samples: still runs at the fine scale
-    that hold a still sample at the coarse scale, outside every torque change (``loading``: the edged
-    changes themselves, no speck removed), of at least ``n_min`` samples. A torque jump alone, or a jolt
-    shorter than two fine windows (the joint kicked by a torque jump), does not end a rest."""
+    """Where the joint rests (per sample), among the unclassified samples: runs still to the sensors
+    (``Features.resting``) outside every torque change (``loading``: the edged changes themselves, no
+    speck removed) of at least ``n_min`` samples, of which at least ``n_min`` less a velocity window are
+    unclassified. A torque jump alone, or a jolt shorter than two fine windows (the joint kicked by a
+    torque jump), does not end a rest."""
     hf = _fine_width(f)
     free = code < 0
     calm = ~loading
-    rest = grow(f.quiet & calm & free, f.quiet_fine & calm & free)
-    rest = fill_short(rest, 2 * hf, False) & free
-    return drop_short(rest, n_min)
+    # still to the sensors over T_MIN (the logged position's displacement, not a speed of the log): one
+    # statistic for the rest and its edges, the one the definition reads
+    rest = f.resting & calm
+    rest = fill_short(rest, 2 * hf, False)
+    # at least T_MIN still and steady, judged before a neighbour takes its edge: a segment's edge is
+    # known to within its smoothing window (a plateau's edge runs half a velocity window into the stop)
+    rest = drop_short(rest, n_min) & free
+    return drop_short(rest, max(1, n_min - f.sc.window_w))
 
 
 # ---------------------------------------------------------------------------------------------------

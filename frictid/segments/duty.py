@@ -247,12 +247,13 @@ def _best_chain(onsets: np.ndarray, w: _Signal, i: int, tol_min: int, extra: lis
     return best
 
 
-def _settle(onsets: np.ndarray, w: _Signal, ch: list[int], P: int, tol_min: int, p_min: int
-            ) -> tuple[list[int], int]:
+def _settle(onsets: np.ndarray, gaps: np.ndarray, w: _Signal, ch: list[int], P: int, tol_min: int,
+            p_min: int) -> tuple[list[int], int]:
     """Fundamental period and phase of a chain. Period: the shortest P / m that chains as far from the
-    second cycle on (the first may hold the run's approach). Phase: the earliest onset within the first
-    period from which the next period repeats about as well as it does from the best such onset (the
-    run starts where the repetition starts)."""
+    second cycle on (the first may hold the run's approach). Phase: of the onsets within the first
+    period from which the next period repeats about as well as it does from the best such onset, the
+    one that follows the cycle's rest (:func:`_after_longest_rest`), the earliest of equals (the run
+    starts where the repetition starts)."""
     if len(ch) < 2:
         return ch, P
     end = ch[-1] + P
@@ -274,12 +275,27 @@ def _settle(onsets: np.ndarray, w: _Signal, ch: list[int], P: int, tol_min: int,
         return ch, P
     best = float(np.nanmin(diffs))
     ok = np.flatnonzero(diffs <= max(2.0 * best, best + 0.05))
-    start = cands[int(ok[0])]
     tol = max(tol_min, int(R_PERIOD * P))
+    start = cands[int(ok[_after_longest_rest(onsets, gaps, [cands[k] for k in ok], P, tol)])]
     out = _chain(onsets, w, start, P, tol, True)
     if len(out) < MIN_CYCLES:
         return ch, P
     return out, P
+
+
+def _after_longest_rest(onsets: np.ndarray, gaps: np.ndarray, cands: list[int], P: int, tol: int) -> int:
+    """Index into ``cands`` (onsets within a chain's first period) of the one where a cycle starts: a duty
+    cycle is motion, then rest, so it starts where the motion starts after the cycle's longest stop. The
+    stop is read one period later (the first cycle may follow the run's own approach and its dwell):
+    the still stretch before the onset within ``tol`` of ``c + P``, 0 where no onset is there. The
+    earliest of the candidates whose stop is within ``2 tol`` of the longest (a cycle with two equal
+    stops: the run starts where the repetition starts)."""
+    rest = np.zeros(len(cands), dtype=np.int64)
+    for k, c in enumerate(cands):
+        j = int(np.searchsorted(onsets, c + P - tol))
+        if j < onsets.size and abs(int(onsets[j]) - (c + P)) <= tol:
+            rest[k] = gaps[j]
+    return int(np.flatnonzero(rest >= rest.max() - 2 * tol)[0])
 
 
 def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, tol_min: int
@@ -288,7 +304,60 @@ def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, 
 
     w : velocity. moving : motion mask. gap_min : shortest stop that marks an onset [samples].
     rest_min : shortest rest that separates two stretches of motion [samples]. tol_min : onset jitter.
+
+    A duty cycle contains no experiment of another kind: a chain whose cycle holds a run of shorter
+    duty cycles and motion outside it (:func:`_session`: a session of experiments, a sweep, a duty-cycle
+    run, a sweep, repeated once per payload) is no duty cycle; its cycles are searched one by one.
     """
+    out: list[tuple[np.ndarray, int]] = []
+    for starts, P in _search_chains(w, moving, gap_min, rest_min, tol_min):
+        inner = _session(w, moving, starts, P, (gap_min, rest_min, tol_min))
+        out.extend([(starts, P)] if inner is None else inner)
+    return out
+
+
+def _session(w: np.ndarray, moving: np.ndarray, starts: np.ndarray, P: int, args: tuple[int, int, int]
+             ) -> list[tuple[np.ndarray, int]] | None:
+    """The duty-cycle runs inside the cycles of the chain (``starts``, period ``P``) when its cycle is a
+    session of experiments, else None. A session: one of its cycles (the second: the first may hold the
+    run's approach) holds a run of at least ``MIN_CYCLES`` shorter cycles, and the joint moves outside
+    that run for at least ``rest_min`` samples (``T_MIN``; a cycle that is all its shorter repetitions
+    is one duty cycle with several moves, :func:`_whole_cycles`)."""
+    n = w.size
+    probe = int(starts[1])
+    if not _holds_other_motion(w[probe:min(n, probe + P)], moving[probe:min(n, probe + P)], args):
+        return None
+    ends = np.concatenate((starts[1:], [starts[-1] + P]))
+    out = []
+    for s, e in zip(starts.tolist(), np.minimum(ends, n).tolist()):
+        out += [(st + s, p) for st, p in find_chains(w[s:e], moving[s:e], *args)]
+    return out
+
+
+def _holds_other_motion(w: np.ndarray, moving: np.ndarray, args: tuple[int, int, int]) -> bool:
+    """The stretch holds a duty-cycle run and at least ``rest_min`` moving samples outside it. The run
+    reaches over the periods (or the part of one left at the stretch's ends) next to it whose velocity
+    repeats its end cycles (within ``R_SHAPE``, rest or not: a joint moving in every slot of its cycle
+    has no rest in the last slot, and the run of slots stops one short of the cycle)."""
+    inner = find_chains(w, moving, *args)
+    if not inner:
+        return False
+    n = w.size
+    covered = np.zeros(n, dtype=bool)
+    for st, p in inner:
+        a, b = int(st[0]), int(st[-1]) + p
+        stride = max(1, p // N_PROFILE)
+        while b < n and _rel_rms(w, b - p, b, min(p, n - b), stride) <= R_SHAPE:  # the end: part of a period
+            b += min(p, n - b)
+        while a > 0 and _rel_rms(w, a - min(p, a), a + p - min(p, a), min(p, a), stride) <= R_SHAPE:
+            a -= min(p, a)
+        covered[a:min(b, n)] = True
+    return int(np.count_nonzero(moving & ~covered)) >= args[1]
+
+
+def _search_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, tol_min: int
+                   ) -> list[tuple[np.ndarray, int]]:
+    """The chains of :func:`find_chains` before the session test."""
     n = w.size
     onsets, gaps = motion_onsets(moving, gap_min)
     if onsets.size == 0:
@@ -330,7 +399,7 @@ def find_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: int, 
             i += 1
             continue
         _, ch, P = best
-        ch, P = _settle(onsets, w, ch, P, tol_min, 2 * gap_min)
+        ch, P = _settle(onsets, gaps, w, ch, P, tol_min, 2 * gap_min)
         ch = _extend_back(onsets, w, ch, P, max(tol_min, int(R_PERIOD * P)), claimed)
         starts = np.asarray(ch, dtype=np.int64)
         period = int(round((starts[-1] - starts[0]) / (starts.size - 1)))
