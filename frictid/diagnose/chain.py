@@ -23,8 +23,7 @@ absorb an offset, with more coefficients). A cause is *named* only when it beats
 explanation of another cause that makes the same correction on the held-out residual (:meth:`Chain.same_correction`:
 the same column space on these data, as an offset and a level-only asymmetry on a Coulomb + viscous map); otherwise
 its term enters the model (the residual the next steps search stays clean) but no cause is named: the
-step is recorded as ambiguous between the causes (``Trial.unresolved``). Since round 5 explanations that
-are not candidates compete too (:data:`COMPETITORS`: a per-direction level for an offset).
+step is recorded as ambiguous between the causes (``Trial.unresolved``).
 """
 from __future__ import annotations
 
@@ -45,11 +44,6 @@ ALPHA = 0.01
 GAIN_MIN = 0.05
 #: Smallest RMS a term must explain, as a fraction of the friction RMS.
 EXPLAINED_MIN = 0.02
-#: Competing explanations that are not candidates (their models are not exported) but must be beaten before
-#: the candidate is named: a torque offset is, on sliding data of a map without a Stribeck part, the same
-#: column space as a per-direction Coulomb level (``asym_level``); where the map has a Stribeck part the
-#: two differ at low speed, where the level asymmetry scales the hump and the offset does not.
-COMPETITORS = {"offset": ("asym_level",)}
 #: Longest chain.
 MAX_STEPS = 6
 #: Two candidates make the same correction when their held-out corrections differ by at most this share of
@@ -192,7 +186,7 @@ class Chain:
             if p >= ALPHA / max(m, 1):
                 best = t
         best = _speed_only_last(best, ok)
-        self._rivals(best, ok + self._competitors(best, m), m)
+        self._rivals(best, ok, m)
         return best
 
     def _rivals(self, best: Trial, others: list[Trial], m: int) -> None:
@@ -214,16 +208,6 @@ class Chain:
             # space on these data, whichever wins by rounding)
             if t.k <= best.k and t.cause not in best.unresolved and self.same_correction(best, t):
                 best.unresolved.append(t.cause)
-
-    def _competitors(self, best: Trial, m: int) -> list[Trial]:
-        """The competing explanations of the chosen candidate that are not candidates themselves
-        (:data:`COMPETITORS`), judged on the same held-out folds."""
-        out = []
-        for ext in COMPETITORS.get(best.ext, ()):
-            tr = self.evaluate(ext, m)
-            if tr is not None:
-                out.append(tr)
-        return out
 
     def same_correction(self, a: Trial, b: Trial) -> bool:
         """Whether two candidates make the same held-out correction: their corrections differ by an RMS of
