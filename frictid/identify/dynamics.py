@@ -70,7 +70,7 @@ def _pre_level(p, i0: int) -> float | None:
     if v.size < 3 or not np.all(np.isfinite(v)):
         return None
     med = float(np.median(v))
-    noise = 1.4826 * float(np.median(np.abs(np.diff(v)))) / math.sqrt(2.0)
+    noise = pre.step_noise(v)
     return med if float(np.max(np.abs(v - med))) <= 4.0 * noise else None
 
 

@@ -507,7 +507,7 @@ def _stage2(jd: JointData, rb: RigidBody, fr: Friction) -> rg.LinearFit | None:
         how = ""
     if reg2 is not None:
         if "J" in rb.fit.names and "J" not in rb.fit.dependent and "J" in reg2.names:
-            reg2.friction_change = {"J": rb.fit.value("J"), "how": "stage 1's polynomial friction"}
+            reg2.friction_change = {"J": rb.fit.value("J")}
         set_mechanics(jd, reg2, rb.regs, rb.why,
                       f"least squares with the plateau map {name2} as the friction{how}, |w| > {v_low:.3g}")
         fr.plat, fr.keys = plateaus(jd)

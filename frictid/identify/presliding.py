@@ -327,6 +327,12 @@ def _simulate_step_py(t, u, q0, w0, J, sigma0, sigma1, level, viscous, z0, subst
     return q
 
 
+def step_noise(u: np.ndarray) -> float:
+    """Robust white-noise standard deviation of a torque stretch from its sample-to-sample differences
+    (1.4826 MAD / sqrt 2): a step between two levels is one difference, which the median passes over."""
+    return 1.4826 * float(np.median(np.abs(np.diff(u)))) / math.sqrt(2.0)
+
+
 def step_input(u: np.ndarray, pre_level: float | None = None) -> np.ndarray:
     """A step segment's torque [F] as the two-level step it was commanded to be, when the samples say so.
 
@@ -343,7 +349,7 @@ def step_input(u: np.ndarray, pre_level: float | None = None) -> np.ndarray:
     n = u.size
     if n < 6:
         return u
-    noise = 1.4826 * float(np.median(np.abs(np.diff(u)))) / math.sqrt(2.0)
+    noise = step_noise(u)
     c1, c2 = np.cumsum(u), np.cumsum(u * u)
     k = np.arange(1, n)
     sse_l = c2[k - 1] - c1[k - 1] ** 2 / k

@@ -128,7 +128,7 @@ class LinearFit:
     #: "J_low", "se_low", "J_high", "se_high"}
     speed_split: dict | None = None
     #: the inertia of the same regression with the other friction model (stage 1's polynomial for stage 2's
-    #: plateau map): {"J": value, "how": what that friction was}
+    #: plateau map): {"J": value}
     friction_change: dict | None = None
 
     def value(self, name: str) -> float:
