@@ -58,15 +58,15 @@ def fit_robot(paths_or_logs, robot, mapping=None, units=None, *, friction: str =
 
 def model_torque(res: FitResult, p: Prediction, logs: list[JointLog]) -> dict:
     """Each joint's torque as the rigid body of the robot model's prediction ``p`` plus the joint's selected
-    friction model of ``res`` at the filtered velocity (its offset alone where the joint stands: at rest
-    the friction has no sign), at each log's own samples."""
+    friction model of ``res`` at the filtered velocity (where the joint stands, its offset and the friction
+    the robot estimate holds there, :mod:`frictid.robot.hold`), at each log's own samples."""
     out = {}
     for lg in logs:
         j = str(lg.joint)
         jf = res[j]
         off = jf.offset.value if jf.offset is not None and jf.offset.value is not None else 0.0
         mov = p.moving[j]
-        F = np.full(lg.n, off)
+        F = off + p.held.get(j, np.zeros(lg.n))
         F[mov] += jf.model.friction(p.qd[j][mov], q=None if lg.q is None else lg.q[mov])
         out[j] = p.tau[j] - p.F[j] + F
     return out

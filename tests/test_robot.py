@@ -76,25 +76,45 @@ def random_arm(rng, n: int = 4):
     return robot, friction
 
 
-def simulate_excitation(robot, friction, rng, fs=500.0, duration=40.0, noise=0.05):
-    """Joint logs of a 5-harmonic Fourier trajectory (0.1 Hz base) with the rigid-body and friction torque."""
+def _pausing_clock(t, move, rest):
+    """A clock s(t) that runs for ``move`` seconds and stands for ``rest`` seconds in turn, with its first
+    and second derivatives; it starts and stops over 0.4 s raised-cosine ramps (smooth acceleration)."""
+    ramp, period = 0.4, move + rest
+    ph = np.mod(t, period)
+    up = np.clip(ph / ramp, 0, 1)
+    down = np.clip((move - ph) / ramp, 0, 1)
+    rate = np.minimum(0.5 - 0.5 * np.cos(np.pi * up), 0.5 - 0.5 * np.cos(np.pi * down))
+    rate = np.where(ph < move, rate, 0.0)
+    s = np.cumsum(rate) * (t[1] - t[0])
+    return s, rate, np.gradient(rate, t)
+
+
+def simulate_excitation(robot, friction, rng, fs=500.0, duration=40.0, noise=0.05, pauses=None, hold=None):
+    """Joint logs of a 5-harmonic Fourier trajectory (0.1 Hz base) with the rigid-body and friction torque.
+    pauses : (move, rest) seconds: the trajectory runs and stands in turn; hold : per joint, the friction
+    held while standing, as a fraction of its Coulomb level in the direction of its last motion."""
     t = np.arange(0, duration, 1 / fs)
+    s, rate, rate_d = (t, np.ones_like(t), np.zeros_like(t)) if pauses is None else _pausing_clock(t, *pauses)
     nv = robot.nv
     wf = 2 * np.pi * 0.1
     a = rng.normal(0, 0.4, (nv, 5))
     b = rng.normal(0, 0.4, (nv, 5))
     ks = np.arange(1, 6)
-    q = np.stack([sum(a[j, k - 1] / (k * wf) * np.sin(k * wf * t) - b[j, k - 1] / (k * wf) * np.cos(k * wf * t)
+    q = np.stack([sum(a[j, k - 1] / (k * wf) * np.sin(k * wf * s) - b[j, k - 1] / (k * wf) * np.cos(k * wf * s)
                       for k in ks) for j in range(nv)], axis=1)
-    qd = np.stack([sum(a[j, k - 1] * np.cos(k * wf * t) + b[j, k - 1] * np.sin(k * wf * t) for k in ks)
-                   for j in range(nv)], axis=1)
-    qdd = np.stack([sum(-a[j, k - 1] * k * wf * np.sin(k * wf * t) + b[j, k - 1] * k * wf * np.cos(k * wf * t)
+    v = np.stack([sum(a[j, k - 1] * np.cos(k * wf * s) + b[j, k - 1] * np.sin(k * wf * s) for k in ks)
+                  for j in range(nv)], axis=1)
+    acc = np.stack([sum(-a[j, k - 1] * k * wf * np.sin(k * wf * s) + b[j, k - 1] * k * wf * np.cos(k * wf * s)
                         for k in ks) for j in range(nv)], axis=1)
+    qd, qdd = v * rate[:, None], acc * (rate ** 2)[:, None] + v * rate_d[:, None]
     data = robot.model.createData()
     tau = np.stack([pin.rnea(robot.model, data, q[k], qd[k], qdd[k]) for k in range(t.size)])
     for i, j in enumerate(robot.joints):
         fv, fc, fo = friction[j]
         tau[:, i] += fv * qd[:, i] + fc * np.sign(qd[:, i]) + fo
+        if hold:
+            standing = rate == 0
+            tau[standing, i] += hold[j] * fc * np.sign(v[standing, i])
     tau += rng.normal(0, noise, tau.shape)
     return [JointLog(joint=j, t=t, tau=tau[:, i], q=q[:, i], qd=qd[:, i]) for i, j in enumerate(robot.joints)]
 
@@ -117,6 +137,58 @@ def test_friction_recovered_jointly_with_the_rigid_body_on_a_random_arm():
     flipped = nearest_consistent(fit.bp, -fit.x[:fit.bp.n], fit.base_cov, robot.nv)
     assert not flipped.consistent and flipped.distance > 10 * flipped.limit
     assert not feasibility_note(flipped, fit.base_names).startswith("physical feasibility: ")
+
+
+def test_the_friction_held_at_standstill_is_identified_and_predicted():
+    """An arm that stops now and then, two of its joints holding part of their Coulomb level in the direction
+    of their last motion while they stand: their level in the standing band is identified (the hold, plus
+    the sliding of the samples below the band as the joint stops and starts: up to 12 % more here), and
+    predicting it lowers the held-out error at rest on every joint where it is identified (by half where a
+    hold is simulated); an arm in
+    continuous motion never stands and identifies none."""
+    from frictid.robot.identify import cut_log, heldout_errors, predict
+
+    rng = np.random.default_rng(247)
+    robot, friction = random_arm(rng)
+    hold = {"1": 0.6, "2": 0.0, "3": 0.35, "4": 0.0}
+    logs = simulate_excitation(robot, friction, rng, duration=40.0, pauses=(3.0, 1.0), hold=hold)
+    for lg in logs:
+        lg.qd = lg.qd + rng.normal(0, 0.002, lg.n)   # a measured velocity's noise
+    fit = heldout_errors(robot, logs, 0.3)["fit"]
+    tail = [cut_log(lg, slice(int(0.7 * lg.n), None)) for lg in logs]
+    p = predict(robot, fit, tail)
+    for lg in tail:
+        j = str(lg.joint)
+        fh, true = fit.friction[j]["fh"], hold[j] * friction[j][1]
+        if true:
+            assert fh.identifiable and true - 3 * fh.stderr < fh.value < 1.12 * true + 3 * fh.stderr, (j, fh, true)
+        if fh.identifiable:
+            rest = ~p.moving[j]
+            r = np.asarray(lg.tau)[rest] - p.tau[j][rest]
+            gain = np.sqrt(np.mean(r ** 2)) / np.sqrt(np.mean((r + p.held[j][rest]) ** 2))
+            assert gain < (0.5 if true else 1.0), (j, gain)
+    steady = identify_robot(robot, simulate_excitation(robot, friction, rng, duration=20.0))
+    assert not any(f["fh"].identifiable for f in steady.friction.values())
+
+
+def test_hold_level_needs_stops_that_agree():
+    from frictid.result import ParamEstimate
+    from frictid.robot.hold import hold_level, last_sign
+
+    qd = np.array([0.0, 0.2, 0.0, 0.0, -0.3, 0.0, 0.1, 0.0])
+    mov = qd != 0
+    np.testing.assert_array_equal(last_sign(qd[:, None], mov[:, None])[:, 0], [0, 1, 1, 1, -1, -1, 1, 1])
+    rng = np.random.default_rng(5)
+    n, fc = 600, ParamEstimate("fc", 2.0, 0.05, "N m")
+    s = np.where(np.arange(n) // 100 % 2, 1.0, -1.0)      # six stops, alternating directions
+    standing = np.arange(n) % 100 >= 40
+    noise = rng.normal(0, 0.1, n)
+    p = hold_level(1.2 * s + noise, s, standing, fc)
+    assert p.identifiable and abs(p.value - 1.2) < 3 * p.stderr, p
+    assert not hold_level(-1.2 * s + noise, s, standing, fc).identifiable            # against the motion
+    assert "exceeds the Coulomb level" in hold_level(3.0 * s + noise, s, standing, fc).reason
+    assert "fewer than" in hold_level(1.2 * s + noise, s, standing & (np.arange(n) < 200), fc).reason
+    assert not hold_level(noise, s, standing, fc).identifiable                          # no hold at all
 
 
 def test_the_consistency_search_covers_every_physical_link():
@@ -184,7 +256,8 @@ def test_franka_panda_against_gaz_2019():
 
 
 #: AURT's held-out torque error on the UR10e harmonic run (issue 24), per joint [N m RMS], against the drive
-#: gain x current low-passed at 20 Hz (last 30 % of the run held out).
+#: gain x current as logged and low-passed at 20 Hz (last 30 % of the run held out).
+AURT_RAW = {"1": 3.44, "2": 6.25, "3": 2.27, "4": 0.65, "5": 1.19, "6": 0.80}
 AURT_20HZ = {"1": 3.33, "2": 6.18, "3": 2.23, "4": 0.65, "5": 1.19, "6": 0.80}
 
 
@@ -194,9 +267,11 @@ def test_ur10e_harmonic_run_predicted_better_than_aurt():
 
     run = REALDATA / "ur10e_mamedov2020/identification_data/ur-20_02_19_15harm50sec.csv"
     logs = read_logs(str(run), str(ROOT / "recipes/realdata/ur10e_harmonic.yaml"))
-    e = heldout_errors(load_robot(ROOT / "recipes/robots/ur10e.yaml"), logs, 0.3, smooth_hz=20.0)
-    for j, aurt in AURT_20HZ.items():
-        assert e["whole"][j] < aurt, (j, e["whole"][j], aurt)
+    robot = load_robot(ROOT / "recipes/robots/ur10e.yaml")
+    for smooth, aurt in ((None, AURT_RAW), (20.0, AURT_20HZ)):
+        e = heldout_errors(robot, logs, 0.3, smooth_hz=smooth)
+        for j, a in aurt.items():   # docs/robots.md: joint 6 as logged 0.35 (0.80 before the standing level)
+            assert e["whole"][j] < a, (smooth, j, e["whole"][j], a)
 
 
 def test_robots_page_example_runs():

@@ -30,6 +30,7 @@ from ..errors import ConfigError
 from ..result import ParamEstimate
 from .description import Robot
 from .feasibility import feasibility_note, nearest_consistent
+from .hold import hold_level, hold_torque, last_sign
 from .regressor import BaseParameters, base_parameters, full_regressor
 
 FRICTION = ("fv", "fc", "fo")
@@ -202,7 +203,8 @@ def identify_robot(robot: Robot, logs) -> RobotFit:
     prediction: :func:`heldout_errors`)."""
     fit_d = prepare(robot, logs)
     bp = base_parameters(robot, robot.armature)
-    A, y, jid = parallel_filter(fit_d, design(robot, bp, fit_d), fit_d.tau.reshape(-1))
+    A_full = design(robot, bp, fit_d)
+    A, y, jid = parallel_filter(fit_d, A_full, fit_d.tau.reshape(-1))
     x, cov, _, cond = solve(A, y, jid, robot.nv)
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     nb = bp.n
@@ -213,6 +215,7 @@ def identify_robot(robot: Robot, logs) -> RobotFit:
     for i, j in enumerate(robot.joints):
         friction[j] = {k: ParamEstimate(k, float(x[nb + 3 * i + m]), float(se[nb + 3 * i + m]), units[k])
                        for m, k in enumerate(FRICTION)}
+    _hold(friction, fit_d, fit_d.tau - (A_full @ x).reshape(fit_d.tau.shape))
     rel, rms = _errors(robot, A, y, x, jid)
     out = RobotFit(names, base, friction, cond, rel, rms, fit_d.cutoff, int(y.size), x=x, bp=bp,
                    base_cov=cov[:nb, :nb])
@@ -223,6 +226,25 @@ def identify_robot(robot: Robot, logs) -> RobotFit:
         if v.size:
             out.validity[j] = {"speed": [float(np.quantile(v, 0.005)), float(np.quantile(v, 0.995))],
                                "position": [float(q.min()), float(q.max())]}
+    return out
+
+
+def _hold(friction: dict, d: RobotData, resid: np.ndarray) -> None:
+    """Each joint's standstill hold ``fh`` (:mod:`.hold`) from the joint estimate's residual ``resid``
+    (n, nv) at the full rate, added to its friction."""
+    mov = d.moving()
+    s = last_sign(d.qd, mov)
+    for i, j in enumerate(friction):
+        friction[j]["fh"] = hold_level(resid[:, i], s[:, i], ~mov[:, i], friction[j]["fc"])
+
+
+def holds(fit: RobotFit, joints) -> np.ndarray:
+    """Each joint's identified hold [N m] (0 where none is identified or the fit has none)."""
+    out = np.zeros(len(joints))
+    for i, j in enumerate(joints):
+        p = fit.friction.get(j, {}).get("fh")
+        if p is not None and p.identifiable and p.value is not None:
+            out[i] = p.value
     return out
 
 
@@ -257,14 +279,16 @@ def check(fit: RobotFit, bp: BaseParameters, robot: Robot) -> list[str]:
 @dataclass
 class Prediction:
     """The identified model along logs, at each log's own samples, per robot joint: tau (the whole torque),
-    F (the friction and offset part), qd, qdd (the filtered velocity and acceleration the model used) and
-    moving (True where the joint's friction has a sign)."""
+    F (the friction and offset part), qd, qdd (the filtered velocity and acceleration the model used),
+    moving (True where the joint's friction has a sign) and held (the friction held at standstill, part of
+    F: :mod:`.hold`)."""
 
     tau: dict[str, np.ndarray]
     F: dict[str, np.ndarray]
     qd: dict[str, np.ndarray]
     qdd: dict[str, np.ndarray]
     moving: dict[str, np.ndarray]
+    held: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def predict(robot: Robot, fit: RobotFit, logs) -> Prediction:
@@ -278,13 +302,15 @@ def predict(robot: Robot, fit: RobotFit, logs) -> Prediction:
     d = prepare(robot, logs, cut)
     A = design(robot, fit.bp, d)
     nb, nv = fit.bp.n, robot.nv
-    tau = (A @ fit.x).reshape(-1, nv)
-    F = (A[:, nb:] @ fit.x[nb:]).reshape(-1, nv)
-    mov = d.moving().astype(float)
+    mov = d.moving()
+    held = hold_torque(holds(fit, robot.joints), last_sign(d.qd, mov), mov)
+    tau = (A @ fit.x).reshape(-1, nv) + held
+    F = (A[:, nb:] @ fit.x[nb:]).reshape(-1, nv) + held
+    mov = mov.astype(float)
     _, ordered = align(robot, logs)
     out = Prediction({}, {}, {}, {}, {})
     for i, (j, lg) in enumerate(zip(robot.joints, ordered)):
-        for name, y in (("tau", tau), ("F", F), ("qd", d.qd), ("qdd", d.qdd)):
+        for name, y in (("tau", tau), ("F", F), ("qd", d.qd), ("qdd", d.qdd), ("held", held)):
             getattr(out, name)[j] = np.interp(lg.t, d.t, y[:, i])
         out.moving[j] = np.interp(lg.t, d.t, mov[:, i]) > 0.5
     return out

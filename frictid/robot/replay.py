@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import FrictidInputError
 from ..replay import ReplayResult
+from ..result import ParamEstimate
 from .description import Robot
 from .identify import RobotFit, predict
 from .regressor import base_parameters
@@ -39,16 +40,21 @@ def fit_from_params(robot: Robot, res) -> RobotFit:
                                 f"file ({len(names)}); give the robot description it was identified with")
     x = [float(p["value"]) for p in rs["base_parameters"]]
     fr = rs.get("friction") or {}
+    held = {}
     for j in robot.joints:
         if str(j) in fr:  # the joint estimate's own friction
             x += [float(fr[str(j)][k]["value"]) for k in ("fv", "fc", "fo")]
+            if "fh" in fr[str(j)]:  # the friction held at standstill (frictid.robot.hold)
+                h = fr[str(j)]["fh"]
+                held[j] = {"fh": ParamEstimate("fh", h["value"], h.get("stderr"), "N m", h.get("identifiable", True),
+                                               h.get("reason", ""))}
             continue
         cv = res[j].models.get("coulomb_viscous")
         if cv is None:
             raise FrictidInputError(f"joint {j}: the parameter file has no coulomb_viscous model")
         off = res[j].offset.value if res[j].offset is not None else 0.0
         x += [cv.params["sigma2"].value, cv.params["Fc"].value, off]
-    return RobotFit(names, [], {}, float(rs.get("condition_number", np.nan)),
+    return RobotFit(names, [], held, float(rs.get("condition_number", np.nan)),
                     float(rs.get("relative_torque_error", np.nan)), {}, float(rs.get("cutoff_hz", np.nan)),
                     0, x=np.array(x), bp=bp)
 

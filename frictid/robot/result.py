@@ -31,6 +31,13 @@ def joint_fit(name: str, fit: RobotFit) -> JointFit:
     return jf
 
 
+def _estimate(p) -> dict:
+    out = {"value": p.value, "stderr": p.stderr}
+    if not p.identifiable:
+        out.update(identifiable=False, reason=p.reason)
+    return out
+
+
 def fit_result(robot: Robot, fit: RobotFit, sources: list[dict], robot_file: str) -> FitResult:
     """The parameter file of a whole-robot identification."""
     base = [{"name": p.name, "value": p.value, "stderr": p.stderr, "identifiable": p.identifiable,
@@ -41,8 +48,7 @@ def fit_result(robot: Robot, fit: RobotFit, sources: list[dict], robot_file: str
                           "samples": fit.n_samples, "base_parameters": base,
                           "base_columns": fit.bp.columns.tolist() if fit.bp is not None else None,
                           # the joint estimate's friction (what the robot model's prediction uses)
-                          "friction": {j: {k: {"value": p.value, "stderr": p.stderr} for k, p in f.items()}
-                                       for j, f in fit.friction.items()},
+                          "friction": {j: {k: _estimate(p) for k, p in f.items()} for j, f in fit.friction.items()},
                           "notes": list(fit.notes)}}
     return FitResult(joints={j: joint_fit(j, fit) for j in robot.joints}, sources=sources, version=__version__,
                      settings=settings)
