@@ -160,13 +160,39 @@ def ur10e() -> None:
     alt = alternation(robot, logs, rounds)
     print(f"  stage 2 with the rigid body re-estimated by alternation, same split, as logged, per round "
           f"({time.time() - t0:.1f} s): " + "; ".join(f"{r}: " + " ".join(f"{v:.2f}" for v in e) for r, e in enumerate(alt)))
+    standing(robot, logs)
+
+
+def standing(robot, logs, fraction: float = 0.3) -> None:
+    """The standing level (frictid/robot/hold.py) on a held-out tail: identify on the head, predict the tail
+    as logged with and without each joint's level; per joint the level and the RMS error, whole tail and its
+    standing samples."""
+    k = int(round((1.0 - fraction) * min(lg.n for lg in logs)))
+    fit = identify_robot(robot, [cut_log(lg, slice(0, k)) for lg in logs])
+    tail = [cut_log(lg, slice(k, None)) for lg in logs]
+    _, ordered = align(robot, tail)
+    levels = {j: f["fh"] for j, f in fit.friction.items()}
+    with_level = predict(robot, fit, tail)
+    fit.friction = {j: {kk: v for kk, v in f.items() if kk != "fh"} for j, f in fit.friction.items()}
+    without = predict(robot, fit, tail)
+    print("  standing level (robot/hold.py), held out as logged: fh [N m], whole tail without -> with, standing "
+          "samples without -> with")
+    for j, lg in zip(robot.joints, ordered):
+        h, st = levels[j], ~with_level.moving[j]
+        r0, r1 = np.asarray(lg.tau) - without.tau[j], np.asarray(lg.tau) - with_level.tau[j]
+        rms = (lambda r, m=slice(None): float(np.sqrt(np.mean(r[m] ** 2))) if np.size(r[m]) else float("nan"))
+        lev = f"{h.value:6.3f} +- {h.stderr:.3f}" if h.identifiable else f"{'-':>15}"
+        why = "" if h.identifiable else f"; not identifiable: {h.reason.split(' (')[0]}"
+        print(f"  {j:<5} {lev:<15} {rms(r0):7.3f} -> {rms(r1):7.3f}   {rms(r0, st):7.3f} -> {rms(r1, st):7.3f} "
+              f"({100 * st.mean():.0f} % standing{why})")
 
 
 def franka() -> None:
     logs = read_logs(str(ROOT.parent / "shared/realdata/franka_panda_gaz2019"),
                      str(ROOT / "recipes/realdata/franka_panda.yaml"))
     t0 = time.time()
-    fit = identify_robot(load_robot(ROOT / "recipes/robots/panda.yaml"), logs)
+    panda = load_robot(ROOT / "recipes/robots/panda.yaml")
+    fit = identify_robot(panda, logs)
     print(f"Franka Panda (Gaz 2019 Table III, classical LS): relative torque error {100 * fit.rel_error:.2f} % "
           f"(published 1.41 %), condition {fit.condition:.1f} (published 121.88), {len(fit.base)} base parameters, "
           f"cut-off {fit.cutoff_hz:.1f} Hz, {time.time() - t0:.1f} s")
@@ -179,6 +205,7 @@ def franka() -> None:
         print(f"  {j:<5} {fc.value:8.4f} {fc.stderr:6.4f} {fc_p:9.4f} {100 * (fc.value / fc_p - 1):+6.1f}% "
               f"{(fc.value - fc_p) / fc.stderr:+5.1f}  {fv.value:8.4f} {fv.stderr:6.4f} {fv_p:9.4f} "
               f"{(fv.value - fv_p) / fv.stderr:+5.1f}  {f['fo'].value:8.4f} {fo_p:9.4f} {f['fo'].value - fo_p:+7.3f}")
+    standing(panda, logs)
 
 
 def _solve(A, y, jid, nb: int, nv: int, weighted: bool, hold=None):
@@ -266,7 +293,7 @@ def published(name: str, robot, logs, pub: dict, rows: list) -> None:
               + " ".join(f"{a:.3g}->{b:.3g}" for a, b in zip(free, held))
               + f" N m ({' '.join(f'{100 * (b / a - 1):+.0f}%' for a, b in zip(free, held))})")
     (_, free), (_, held) = heldout_held(robot, logs, P)
-    print("  held out (first 70 % identified, last 30 % predicted, frictid), RMS per joint, free -> published friction "
+    print("  held out (first 70 % identified, last 30 % predicted, frictid without the standing level), RMS per joint, free -> published friction "
           "held: " + " ".join(f"{a:.3g}->{b:.3g}" for a, b in zip(free, held)) + " N m")
 
 
@@ -314,19 +341,31 @@ def friction_values(smoke: bool) -> None:
     published("UR10e harmonic run, whole (UR10E_parameters.txt)", ur10e, ur, MAMEDOV, rows)
 
 
+#: the real runs of the standing level's lines: (run under shared/realdata, mapping file, robot file)
+REAL_RUNS = [("ur10e_mamedov2020/identification_data/ur-20_02_19_15harm50sec.csv", "recipes/realdata/ur10e_harmonic.yaml",
+              "recipes/robots/ur10e.yaml"),
+             ("franka_panda_gaz2019", "recipes/realdata/franka_panda.yaml", "recipes/robots/panda.yaml")]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--arms", type=int, default=20)
     ap.add_argument("--ur-arms", type=int, default=5, help="6-axis arms with the UR10e's kinematics")
     ap.add_argument("--seed-base", type=int, default=400000)
-    ap.add_argument("--part", choices=("all", "published"), default="all",
-                    help="published: part 4 only (friction values against the published ones)")
+    ap.add_argument("--part", choices=("all", "published", "standing"), default="all",
+                    help="published: part 4 only (friction values against the published ones); standing: the "
+                         "standing level's held-out lines of the UR10e and Franka runs only")
     args = ap.parse_args(argv)
     smoke = bool(os.environ.get("FRICTID_SMOKE"))
     if smoke:
         args.arms, args.ur_arms = 2, 1
     if args.part == "published":
         friction_values(smoke)
+        return 0
+    if args.part == "standing":
+        for run, mapping, robot in REAL_RUNS:
+            print(run)
+            standing(load_robot(ROOT / robot), read_logs(str(ROOT.parent / "shared/realdata" / run), str(ROOT / mapping)))
         return 0
     arms(args.arms, args.seed_base)
     arms(args.ur_arms, args.seed_base + 1000, ur10e_arm, "UR10e kinematics, random inertias (6-axis, 500 Hz)")
