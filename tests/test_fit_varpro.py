@@ -192,6 +192,15 @@ def test_a_linear_parameter_beyond_its_bound_is_solved_within_it():
     assert bf.values["sigma2"] == pytest.approx(ref.x[1], rel=1e-9)
 
 
+def _assert_reduced_gradient(pr, theta: np.ndarray, rel_step: float) -> None:
+    """J_red^T r at theta equals the reduced cost's gradient by central differences (steps rel_step x theta)."""
+    grad = pr.jac(theta).T @ pr.resid(theta)
+    cost = lambda t: 0.5 * float(np.sum(pr.resid(t) ** 2))  # noqa: E731
+    h = rel_step * theta
+    num = [(cost(theta + h * e) - cost(theta - h * e)) / (2 * h[i]) for i, e in enumerate(np.eye(theta.size))]
+    np.testing.assert_allclose(grad, num, rtol=1e-4)
+
+
 def test_kaufman_jacobian_is_the_reduced_cost_gradient():
     """J_red^T r is the gradient of the reduced cost (the projection drops nothing of it), checked against
     central differences."""
@@ -199,12 +208,7 @@ def test_kaufman_jacobian_is_the_reduced_cost_gradient():
     w, F = _stribeck_points(rng, 10, 1.0, 1.7, 0.05, 1.5, 0.3, 0.02)
     pb, _ = _branch("stribeck", w, F)
     pr = vp.Projection(pb)
-    theta = np.array([0.07, 1.2])
-    grad = pr.jac(theta).T @ pr.resid(theta)
-    cost = lambda t: 0.5 * float(np.sum(pr.resid(t) ** 2))  # noqa: E731
-    h = 1e-6 * theta
-    num = [(cost(theta + h * e) - cost(theta - h * e)) / (2 * h[i]) for i, e in enumerate(np.eye(2))]
-    np.testing.assert_allclose(grad, num, rtol=1e-4)
+    _assert_reduced_gradient(pr, np.array([0.07, 1.2]), 1e-6)
 
 
 def test_reduced_gradient_with_a_level_at_its_bound():
@@ -221,11 +225,7 @@ def test_reduced_gradient_with_a_level_at_its_bound():
     theta = np.array([3.820495014215447, 1.3096669624047137])  # where the refinement stalled
     b, _, _ = pr._eval(theta)
     assert b[0] == pb.hi_f[pr.lin[0]]  # Fc at its upper bound
-    grad = pr.jac(theta).T @ pr.resid(theta)
-    cost = lambda t: 0.5 * float(np.sum(pr.resid(t) ** 2))  # noqa: E731
-    h = 1e-7 * theta
-    num = [(cost(theta + h * e) - cost(theta - h * e)) / (2 * h[i]) for i, e in enumerate(np.eye(2))]
-    np.testing.assert_allclose(grad, num, rtol=1e-4)
+    _assert_reduced_gradient(pr, theta, 1e-7)
 
 
 def test_warm_start_stays_in_its_basin():
