@@ -340,8 +340,10 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary", heldout: bool = True)
         s2_bins = float(np.sum(nb * rb**2)) / max(wb.size - k, 1)
         s2_samples = rss / max(n - k, 1)
         if s2_bins > 0:
+            first = mf.notes  # why the first pass held what the second holds again (e.g. delta at 2)
             mf = _fit_binned(name, bins, axis, start=warm_start(mf),
                              var_inflation=S.inflation * s2_samples / s2_bins)
+            mf.notes = first + [nt for nt in mf.notes if nt not in first]
             vals = mf.values()
         if heldout:
             held = heldout_map(name, S, mf, axis)
