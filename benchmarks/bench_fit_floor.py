@@ -89,7 +89,7 @@ def stage_times(run) -> tuple[float, dict]:
 
 
 #: Modules of the fit that call ``scipy.optimize.least_squares`` (imported by name: wrapped there).
-LSQ_MODULES = ("frictid.identify.static", "frictid.identify.thermal", "frictid.identify.presliding")
+LSQ_MODULES = ("frictid.identify.thermal", "frictid.identify.presliding")
 #: What a least-squares run is for: the innermost of these functions on the call stack names it.
 LSQ_PURPOSES = (("_shift_profile", "static maps: rigid-body error refits"),
                 ("_delta_profile", "static maps: Stribeck exponent profile"),
@@ -112,7 +112,8 @@ def optimiser_times(run) -> tuple[float, dict]:
     """CPU time of ``run()`` and, per purpose of a ``least_squares`` run (:data:`LSQ_PURPOSES`), the runs,
     residual and Jacobian evaluations, the CPU time inside ``least_squares`` and, of it, inside the
     residual and Jacobian callbacks (the rest is the optimiser's own loop: trust-region steps, SVDs, scaling
-    and bound handling, finite differences' bookkeeping)."""
+    and bound handling, finite differences' bookkeeping); and the row :data:`SOLVES`, every static map's
+    solve as a whole (``identify.static._Branch.search``)."""
     rows: dict = collections.defaultdict(lambda: {"runs": 0, "nfev": 0, "njev": 0, "cpu": 0.0, "callbacks": 0.0})
     undo = []
 
@@ -131,7 +132,8 @@ def optimiser_times(run) -> tuple[float, dict]:
 
         def timed(fun, x0, *a, _lsq=lsq, **kw):
             caller = sys._getframe(1)
-            smap = getattr(caller.f_locals.get("self"), "smap", None)  # a static map's branch: its name too
+            own = caller.f_locals.get("self")  # a static map's branch (its projection's): its name too
+            smap = getattr(own, "smap", None) or getattr(getattr(own, "pb", None), "smap", None)
             row = rows[_purpose(caller) + (f", {smap.name}" if smap is not None else "")]
             if callable(kw.get("jac")):
                 kw["jac"] = clocked(kw["jac"], row)
@@ -145,18 +147,38 @@ def optimiser_times(run) -> tuple[float, dict]:
             row["njev"] += int(res.njev or 0)
             return res
         mod.least_squares = timed
-        undo.append((mod, lsq))
+        undo.append((mod, "least_squares", lsq))
+    # every static map's solve as a whole (frictid.identify.varpro: the scan, the refinements, the linear
+    # solves), whatever runs inside it; a row of its own, not summed with the least_squares rows
+    from frictid.identify.static import _Branch
+    search, solves = _Branch.search, rows[SOLVES]
+
+    def timed_search(self, *a, **kw):
+        t0 = time.process_time()
+        try:
+            return search(self, *a, **kw)
+        finally:
+            solves["cpu"] += time.process_time() - t0
+            solves["runs"] += 1
+    _Branch.search = timed_search
+    undo.append((_Branch, "search", search))
     try:
         t0 = time.process_time()
         run()
         total = time.process_time() - t0
     finally:
-        for mod, lsq in undo:
-            mod.least_squares = lsq
+        for mod, attr, fn in undo:
+            setattr(mod, attr, fn)
     return total, dict(rows)
 
 
+#: The row of :func:`optimiser_times` that times every static map's solve as a whole.
+SOLVES = "static-map solves as a whole (scan, refinements, linear solves)"
+
+
 def print_optimiser(total: float, rows: dict) -> None:
+    rows = dict(rows)
+    whole = rows.pop(SOLVES, None)
     cpu = sum(r["cpu"] for r in rows.values())
     cb = sum(r["callbacks"] for r in rows.values())
     print(f"least_squares (CPU time of one fit without the diagnosis, {total:.2f} s): {cpu:.2f} s "
@@ -165,6 +187,9 @@ def print_optimiser(total: float, rows: dict) -> None:
     for name, r in sorted(rows.items(), key=lambda kv: -kv[1]["cpu"]):
         print(f"  {name:<62} {r['runs']:4d} runs  {r['nfev']:6d} residuals  {r['njev']:6d} Jacobians  "
               f"{r['cpu']:6.2f} s  (callbacks {r['callbacks']:5.2f} s, loop {r['cpu'] - r['callbacks']:5.2f} s)")
+    if whole:
+        print(f"{SOLVES}: {whole['runs']} solves, {whole['cpu']:.2f} s ({100 * whole['cpu'] / total:.0f} % of the fit, "
+              "the static rows above included)")
 
 
 def print_stages(total: float, spent: dict) -> None:
@@ -221,8 +246,17 @@ def main(argv=None) -> int:
                            ("fit+diagnosis", lambda p: fit(p, True))):
                 times[k].append(run(path))
                 cpu[k].append(CPU[-1])
+        print_ratios(a, rows, times, cpu)
         stages = stage_times(lambda: fit(path, True)) if a.stages else None
         optim = optimiser_times(lambda: fit(path, False)) if a.optimiser else None
+    if stages is not None:
+        print_stages(*stages)
+    if optim is not None:
+        print_optimiser(*optim)
+    return 0
+
+
+def print_ratios(a, rows: int, times: dict, cpu: dict) -> None:
     med = {k: statistics.median(v) for k, v in times.items()}
     mcpu = {k: statistics.median(v) for k, v in cpu.items()}
     print(f"fit against its floor: {a.joints} joints x {a.minutes:g} min at 1 kHz ({rows} rows), "
@@ -234,12 +268,7 @@ def main(argv=None) -> int:
         print(f"{k:<14} {med[k]:6.2f} s  = {r:4.1f}x the floor  (target <= {TARGET:g}x: "
               f"{'met' if r <= TARGET else 'not met'}; runs {', '.join(f'{x:.2f}' for x in times[k])})")
     ratio = {k: "" if k == "floor" else f" ({mcpu[k] / mcpu['floor']:.1f}x)" for k in mcpu}
-    print("CPU time, medians: " + ", ".join(f"{k} {mcpu[k]:.2f} s{ratio[k]}" for k in mcpu))
-    if stages is not None:
-        print_stages(*stages)
-    if optim is not None:
-        print_optimiser(*optim)
-    return 0
+    print("CPU time, medians: " + ", ".join(f"{k} {mcpu[k]:.2f} s{ratio[k]}" for k in mcpu), flush=True)
 
 
 if __name__ == "__main__":

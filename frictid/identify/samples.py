@@ -10,9 +10,9 @@ sample::
 
 J, the gravity terms and the offset come from the linear stage (:mod:`.regression`, with the polynomial
 friction, linear in all its parameters). Each static map is then fitted to the friction samples
-``F = tau - J a - G(q) - offset`` by the same bounded, multi-start least squares as on plateau points
+``F = tau - J a - G(q) - offset`` by the same bounded least squares (variable projection) as on plateau points
 (:func:`.static.fit_static`): linear maps (``coulomb_viscous``, ``polynomial`` and their ``_asym``
-variants) have a unique optimum; the Stribeck maps get the same variable-projection starts.
+variants) have a unique optimum; the Stribeck maps get the same scan of their shape parameters.
 
 Held out by time blocks, never by sample: the moving samples of all logs, laid end to end in time, are cut
 into ``BLOCKS_PER_FOLD * n_folds`` blocks of equal duration and block ``k`` goes to fold ``k mod n_folds``
@@ -340,15 +340,17 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary", heldout: bool = True)
         s2_bins = float(np.sum(nb * rb**2)) / max(wb.size - k, 1)
         s2_samples = rss / max(n - k, 1)
         if s2_bins > 0:
+            first = mf.notes  # why the first pass held what the second holds again (e.g. delta at 2)
             mf = _fit_binned(name, bins, axis, start=warm_start(mf),
                              var_inflation=S.inflation * s2_samples / s2_bins)
+            mf.notes = first + [nt for nt in mf.notes if nt not in first]
             vals = mf.values()
         if heldout:
             held = heldout_map(name, S, mf, axis)
     mf.metrics = sample_metrics(rss, n, k, held, S)
     mf.method = ("bounded least squares on the moving samples (velocity-bin means), F = tau - J a - G(q) - "
                  "offset with J, gravity and offset from the linear stage"
-                 + ("" if mf.map.startswith(("coulomb", "polynomial")) else ", multi-start"))
+                 + ("" if mf.map.startswith(("coulomb", "polynomial")) else ", variable projection"))
     mf.extra["basis"] = "moving samples"
     return mf
 

@@ -110,7 +110,10 @@ def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None) -> None:
         share = np.exp(-((v / p["vs"].value) ** p["delta"].value))
         inside = v[(share >= DROP_INSIDE[0]) & (share <= DROP_INSIDE[1])]
         have = speed_levels(inside, LEVEL_TOLERANCE) + int(bool((share > DROP_INSIDE[1]).any()))
-        need = sum(1 for n in ("Fs", "vs", "delta") if not p[n].fixed)
+        # a shape parameter the fit held because the data could not place it (fixed and not identifiable,
+        # e.g. a rank-deficient speed held at its guess) is still a guess of the drop the plateaus must span:
+        # only one held by choice (the user's, or a profiled exponent) is not
+        need = sum(1 for n in ("Fs", "vs", "delta") if not p[n].fixed or not p[n].identifiable)
         if have >= need:
             continue
         lo = p["vs"].value * (-np.log(DROP_INSIDE[1])) ** (1.0 / p["delta"].value)
@@ -123,6 +126,8 @@ def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None) -> None:
             pe = p[n]
             if pe.identifiable and not pe.fixed:
                 pe.identifiable, pe.reason = False, why
+            elif pe.fixed and not pe.identifiable:  # held at the fit's guess: the missing plateaus are why
+                pe.reason = f"{why}; {pe.reason}"
         _level_spread(mf, without_drop, suf)
 
 

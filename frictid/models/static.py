@@ -132,10 +132,86 @@ def stribeck_2exp_jac(w, alpha0, alpha1, alpha2, alpha3, alpha4, ws1, ws2):
                             -s * alpha2 * e2 * v / ws2**2])
 
 
+def stribeck_2exp_swapped(alpha0, alpha1, alpha2, alpha3, alpha4, ws1, ws2) -> dict:
+    """The same two-exponential map with its speeds swapped: ``alpha0 + alpha1 e1 + alpha2 (1 - e2)`` equals
+    ``(alpha0 + alpha1 + alpha2) - alpha2 e2 - alpha1 (1 - e1)`` (``e = exp(-|w|/ws)``), the map's other,
+    mirror-image optimum; the fit reports the one with ws1 <= ws2 (the Stribeck drop at the lower speed)."""
+    return {"alpha0": alpha0 + alpha1 + alpha2, "alpha1": -alpha2, "alpha2": -alpha1, "alpha3": alpha3,
+            "alpha4": alpha4, "ws1": ws2, "ws2": ws1}
+
+
 def polynomial_jac(w, c0, c1, c2, c3):
     """d polynomial / d (c0, c1, c2, c3), shape (n, 4)."""
     w = np.asarray(w, dtype=float)
     return np.column_stack([np.sign(w), w, w * np.abs(w), w**3])
+
+
+# Separable forms (variable projection): each map is linear in some parameters given the others (its shape).
+# ``*_columns(w, **shape)`` returns the regressors of the linear parameters, shape (..., n, L), and their
+# derivatives by each shape parameter, shape (..., S, n, L); shape values may be arrays of shape (G, 1) (a
+# grid of G shapes) or numbers. The map is ``columns @ linear parameters``.
+
+
+def stribeck_columns(w, vs, delta):
+    """Regressors of (Fc, Fs, sigma2) of :func:`stribeck` and their derivatives by (vs, delta)."""
+    w = np.asarray(w, dtype=float)
+    s = np.sign(w)
+    x = np.abs(w) / vs
+    u = np.power(x, delta)
+    e = np.exp(-u)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        logx = np.where(x > 0, np.log(np.where(x > 0, x, 1.0)), 0.0)
+    cols = np.empty(e.shape + (3,))
+    cols[..., 0] = s - s * e
+    cols[..., 1] = s * e
+    cols[..., 2] = w
+    dcols = np.zeros(e.shape[:-1] + (2,) + e.shape[-1:] + (3,))
+    dv = s * e * u * delta / vs  # s d e / d vs
+    dd = -s * e * u * logx  # s d e / d delta
+    dcols[..., 0, :, 0], dcols[..., 0, :, 1] = -dv, dv
+    dcols[..., 1, :, 0], dcols[..., 1, :, 1] = -dd, dd
+    return cols, dcols
+
+
+def stribeck_2exp_columns(w, ws1, ws2):
+    """Regressors of (alpha0 .. alpha4) of :func:`stribeck_2exp` and their derivatives by (ws1, ws2)."""
+    w = np.asarray(w, dtype=float)
+    s = np.sign(w)
+    v = np.abs(w)
+    e1 = np.exp(-v / ws1)
+    e2 = np.exp(-v / ws2)
+    shape = np.broadcast_shapes(e1.shape, e2.shape)
+    cols = np.empty(shape + (5,))
+    cols[..., 0] = s
+    cols[..., 1] = s * e1
+    cols[..., 2] = s - s * e2
+    cols[..., 3] = w
+    cols[..., 4] = w * v
+    dcols = np.zeros(shape[:-1] + (2,) + shape[-1:] + (5,))
+    dcols[..., 0, :, 1] = s * e1 * v / ws1**2
+    dcols[..., 1, :, 2] = -s * e2 * v / ws2**2
+    return cols, dcols
+
+
+def coulomb_viscous_columns(w):
+    """Regressors of (Fc, sigma2) of :func:`coulomb_viscous` (no shape parameter)."""
+    cols = coulomb_viscous_jac(w, 0.0, 0.0)
+    return cols, np.zeros((0,) + cols.shape)
+
+
+def polynomial_columns(w):
+    """Regressors of (c0, c1, c2, c3) of :func:`polynomial` (no shape parameter)."""
+    cols = polynomial_jac(w, 0.0, 0.0, 0.0, 0.0)
+    return cols, np.zeros((0,) + cols.shape)
+
+
+#: Per map: its linear parameters, its shape parameters (in the order of the columns' derivatives) and its
+#: separable form.
+SEPARABLE = {"coulomb_viscous": (("Fc", "sigma2"), (), coulomb_viscous_columns),
+             "polynomial": (("c0", "c1", "c2", "c3"), (), polynomial_columns),
+             "stribeck": (("Fc", "Fs", "sigma2"), ("vs", "delta"), stribeck_columns),
+             "stribeck_2exp": (("alpha0", "alpha1", "alpha2", "alpha3", "alpha4"), ("ws1", "ws2"),
+                               stribeck_2exp_columns)}
 
 
 # Canonical conversions: named parameters -> 9-vector.

@@ -1,0 +1,372 @@
+"""Variable projection (Golub and Pereyra 1973) for the separable static maps.
+
+Every static map of :mod:`frictid.models.static` is linear in its levels and slopes (Fc, Fs, sigma2, the
+alphas, the polynomial's c) once its shape parameters (Stribeck speed and exponent, the two-exponential
+speeds) are given; the map's Jacobian columns of the linear parameters are then the regressors. For each
+value ``theta`` of the free shape parameters the linear ones are solved exactly (weighted least squares,
+within their bounds: a bounded-variable solve only where the plain one leaves them), and the optimiser
+works on ``theta`` alone (1-2 parameters) against the reduced residual, with Kaufman's Jacobian (the shape
+columns projected off the regressors' span: the exact gradient of the reduced cost). A cold fit first scans
+the reduced cost over a grid of shape values spread over the points' speeds (one batched SVD for the whole
+grid) and refines the best point of each of its lowest valleys (:data:`N_VALLEYS`) briefly, and the best of
+these to convergence; a warm start (a held-out fold or a profile refit from the full-data
+optimum) refines from where it is. The stationary points of the reduced problem are those of the full one,
+so this replaces the multi-start on all parameters without changing what a converged fit finds; the
+standard errors still come from the full problem's Jacobian at the optimum (:func:`.static._branch_errors`).
+"""
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import lsq_linear
+
+from frictid.models import static as sm
+
+#: Grid points per shape parameter of a cold scan (speeds log-spaced over the points' speeds) and the
+#: exponents tried for a free Stribeck exponent (000/003 hold it at 2; 1 is 001/004's exponential).
+SCAN_POINTS = {1: 16, 2: 8}
+DELTA_SCAN = (1.0, 2.0, 3.0)
+#: Exponents scanned along a speed's upper bound (:func:`_edge_lines`): log-spaced over the exponent's
+#: bounds (0.3-5), a step of 13 %.
+EDGE_DELTA_POINTS = 24
+#: Stribeck speeds scanned in each gap between neighbouring point speeds with a step-like drop
+#: (:func:`_step_line`).
+STEP_PER_GAP = 4
+#: Valleys of the scan refined per map (the best grid point of each), and how far apart (a ratio of some shape
+#: value, about one step of the speed grids) two grid points must be to count as two valleys: a Stribeck map
+#: that drops at a low speed and one that rises at a high speed can fit equally well, and the better one is
+#: not always the better grid point. The two-exponential map gets more: where its speeds meet it has a
+#: degenerate valley (amplitudes that cancel and run to their bounds, a bump of a third shape) that holds the
+#: scan's best points more often than not: with 6 valleys 2 of 34 random fits (tests/test_fit_varpro.py's
+#: family) ended a unit of chi-square or more above the old multi-start, with 10 none.
+N_VALLEYS = {"stribeck": 3, "stribeck_2exp": 10}
+APART = 2.0
+#: First trust radius of a refinement, in the logarithm of the shape values (a factor 1.28): the scan (or a
+#: warm start) has put the start in its valley, and a first step as long as the grid's spacing (a factor 2
+#: for 8 speeds) jumped from a Stribeck drop's valley into the two-exponential map's degenerate one.
+RADIUS = 0.25
+#: Relative tolerance of an active bound (scipy's ``find_active_constraints`` with ``ftol``).
+ACTIVE_RTOL = 1e-8
+#: Tolerances of the refinement (:func:`levenberg_marquardt`): relative cost decrease, relative step, and
+#: the largest gradient component in the parameters' scales. scipy's default 1e-8 stopped a Stribeck exponent
+#: that drifts along a drop of nearly no amplitude half-way to its bound, 1 % above the full problem's cost.
+FTOL = XTOL = GTOL = 1e-10
+
+
+@dataclass
+class Solution:
+    """What :func:`.static.fit_branch` reads of a solve, named as scipy's ``OptimizeResult``: the free
+    parameters ``x``, the residual ``fun`` and cost, the full problem's Jacobian at ``x`` (free columns,
+    weighted), the bounds each parameter is at (-1 lower, 1 upper), and how the refinement ended."""
+
+    x: np.ndarray
+    fun: np.ndarray
+    cost: float
+    jac: np.ndarray
+    active_mask: np.ndarray
+    status: int
+    success: bool
+    message: str
+    #: a Stribeck search's rise that fits as well as this drop (name -> value; :meth:`.static._Branch.search`)
+    rival: dict | None = None
+
+
+class Projection:
+    """The reduced problem of one branch (:class:`.static._Branch` ``pb``) by the map's separable form
+    (:data:`frictid.models.static.SEPARABLE`): ``nl`` are the indices, into the free parameters, of the free
+    shape parameters, ``lin`` those of the free linear ones; held parameters of either kind stay held."""
+
+    def __init__(self, pb):
+        self.pb = pb
+        lin_names, self.shape_names, self.columns = sm.SEPARABLE[pb.smap.name]
+        free_names = [pb.names[k] for k in pb.free]
+        self.nl = [free_names.index(nm) for nm in self.shape_names if nm in free_names]
+        self.lin = [free_names.index(nm) for nm in lin_names if nm in free_names]
+        self.free_lin = np.array([nm in free_names for nm in lin_names])
+        self.free_shape = np.array([nm in free_names for nm in self.shape_names], dtype=bool)
+        self.b_held = np.array([pb.fixed.get(nm, 0.0) for nm in lin_names])
+        self.shape_held = {nm: pb.fixed[nm] for nm in self.shape_names if nm in pb.fixed}
+        self.lo, self.hi = pb.lo_f[self.lin], pb.hi_f[self.lin]
+        self._memo = (None, None)
+
+    def _x(self, theta, b):
+        xf = np.empty(len(self.pb.free))
+        xf[self.nl] = theta
+        xf[self.lin] = b
+        return xf
+
+    def _shapes(self, theta):
+        """Keyword arguments of the columns: free shape values from ``theta`` (last axis), held ones."""
+        theta = np.asarray(theta, dtype=float)
+        kw = dict(self.shape_held)
+        free = [nm for nm, f in zip(self.shape_names, self.free_shape) if f]
+        kw.update({nm: (theta[..., i, None] if theta.ndim > 1 else float(theta[i])) for i, nm in enumerate(free)})
+        return kw
+
+    def regressors(self, theta):
+        """Weighted regressors of the free linear parameters, the weighted target (the held linear
+        parameters' part taken off the points) and the weighted columns' shape derivatives, at ``theta``
+        (or a grid of them, rows)."""
+        pb = self.pb
+        cols, dcols = self.columns(pb.w, **self._shapes(theta))
+        wt = pb.wts[:, None]
+        A = cols[..., self.free_lin] * wt
+        y = (pb.F - cols[..., ~self.free_lin] @ self.b_held[~self.free_lin]) * pb.wts
+        return A, y, dcols[..., self.free_shape, :, :] * wt
+
+    def linear(self, A, y):
+        """The linear parameters' weighted least-squares values within their bounds, and the orthonormal
+        basis of the regressors that are not at a bound (for the projection)."""
+        if A.shape[1] == 0:
+            return np.zeros(0), A[:, :0]
+        norms = np.sqrt(np.einsum("ij,ij->j", A, A))
+        norms[norms == 0] = 1.0
+        U, sv, Vt = np.linalg.svd(A / norms, full_matrices=False)
+        ok = sv > sv[0] * max(A.shape) * np.finfo(float).eps
+        b = (Vt[ok].T @ ((U[:, ok].T @ y) / sv[ok])) / norms
+        if np.all(b >= self.lo) and np.all(b <= self.hi):
+            return b, U[:, ok]
+        r = lsq_linear(A / norms, y, bounds=(self.lo * norms, self.hi * norms), method="bvls")
+        b = np.clip(r.x / norms, self.lo, self.hi)
+        # bvls's own active set: its solution at a bound may sit a rounding error inside it, and a column
+        # counted free there would be projected off the shape columns (a wrong reduced gradient)
+        inside = (r.active_mask == 0) & (b > self.lo) & (b < self.hi)
+        b = np.where(r.active_mask < 0, self.lo, np.where(r.active_mask > 0, self.hi, b))
+        if not inside.any():
+            return b, A[:, :0]
+        U, sv, _ = np.linalg.svd(A[:, inside], full_matrices=False)
+        return b, U[:, sv > sv[0] * max(A.shape) * np.finfo(float).eps]
+
+    def _eval(self, theta):
+        """(linear parameters, reduced residual, Kaufman's Jacobian) at ``theta``: the shape columns of the
+        full Jacobian at the projected linear parameters, with their part in the span of the free
+        regressors removed (the exact gradient of the reduced cost)."""
+        theta = np.asarray(theta, dtype=float)
+        key = theta.tobytes()
+        if self._memo[0] == key:
+            return self._memo[1]
+        A, y, dA = self.regressors(theta)
+        b, U = self.linear(A, y)
+        r = A @ b - y
+        b_all = self.b_held.copy()
+        b_all[self.free_lin] = b
+        Jn = (dA @ b_all).T  # (n, free shapes): d model / d shape at the projected linear parameters
+        Jn = Jn - U @ (U.T @ Jn)
+        out = (b, r, Jn)
+        self._memo = (key, out)
+        return out
+
+    def resid(self, theta):
+        return self._eval(theta)[1]
+
+    def jac(self, theta):
+        return self._eval(theta)[2]
+
+    def scan(self, grid: np.ndarray, n_best: int = 1) -> np.ndarray:
+        """The ``n_best`` grid points (rows of shape values) with the lowest reduced cost, best first, each
+        apart from the better ones (:func:`_apart`: distinct valleys, not neighbours of one). One batched SVD
+        solves every grid point; a point whose solution leaves the bounds is solved again within them when it
+        could be picked."""
+        A, y, _ = self.regressors(grid)
+        y = np.broadcast_to(y, A.shape[:-1])
+        norms = np.linalg.norm(A, axis=1, keepdims=True)
+        norms[norms == 0] = 1.0
+        U, sv, Vt = np.linalg.svd(A / norms, full_matrices=False)
+        cut = sv > sv[:, :1] * max(A.shape[1:]) * np.finfo(float).eps
+        inv = np.where(cut, 1.0 / np.where(cut, sv, 1.0), 0.0)
+        coef = np.einsum("gji,gj,gkj,gk->gi", Vt, inv, U, y) / norms[:, 0, :]
+        cost = np.sum((np.einsum("gki,gi->gk", A, coef) - y) ** 2, axis=1)
+        cost[~np.isfinite(cost)] = np.inf
+        # best first; a point whose unbounded solution leaves the bounds has its unbounded cost as a lower
+        # bound, and is solved within the bounds (a bounded solve each) only when that bound reaches the top
+        # of the queue and the point is apart from the valleys already picked: the same picks as solving all
+        outside = np.any((coef < self.lo) | (coef > self.hi), axis=1)
+        queue = [(float(c), g, not out) for g, (c, out) in enumerate(zip(cost, outside)) if np.isfinite(c)]
+        heapq.heapify(queue)
+        picked: list[int] = []
+        while queue and len(picked) < n_best:
+            c, g, exact = heapq.heappop(queue)
+            if not all(_apart(grid[g], grid[h]) for h in picked):
+                continue
+            if exact:
+                picked.append(g)
+                continue
+            b, _ = self.linear(A[g], y[g])
+            c = float(np.sum((A[g] @ b - y[g]) ** 2))
+            if np.isfinite(c):
+                heapq.heappush(queue, (c, g, True))
+        return grid[picked]
+
+    def refine(self, theta0, budget: int) -> Solution:
+        """Bounded least squares on the shape parameters from ``theta0`` (``budget`` residual evaluations),
+        then the full solution with the full problem's Jacobian at it."""
+        pb = self.pb
+        lo, hi = pb.lo_f[self.nl], pb.hi_f[self.nl]
+        status, message = 1, "linear least squares (no free shape parameter)"
+        theta = np.zeros(0)
+        if self.nl:
+            margin = 1e-9 * (hi - lo)
+            t0 = np.clip(np.asarray(theta0, dtype=float), lo + margin, hi - margin)
+            # in the logarithms of the shape values (speeds and exponents are positive and act by ratio: a
+            # step of one is a factor e, and a flat direction cannot throw a speed onto its bound in one step)
+            z, status, message = levenberg_marquardt(lambda z: self.resid(np.exp(z)),
+                                                     lambda z: self.jac(np.exp(z)) * np.exp(z), np.log(t0),
+                                                     np.log(lo), np.log(hi), np.ones(len(self.nl)), budget,
+                                                     RADIUS)
+            theta = np.clip(np.exp(z), lo, hi)
+        b, _, _ = self._eval(theta)
+        return self.solution(self._x(theta, b), status, message)
+
+    def solution(self, xf, status: int = 1, message: str = "") -> Solution:
+        """The :class:`Solution` at free parameters ``xf``: residual, cost, the full problem's Jacobian."""
+        pb = self.pb
+        fun = pb.resid(xf)
+        return Solution(xf, fun, 0.5 * float(fun @ fun), pb.jac(xf), _active(xf, pb.lo_f, pb.hi_f),
+                        status, status > 0, message)
+
+
+def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: float = 1.0
+                        ) -> tuple[np.ndarray, int, str]:
+    """Levenberg-Marquardt on the 1-2 bounded shape parameters of a reduced problem: ``resid(x)`` and
+    ``jac(x)`` the residual and its Jacobian, ``scale`` the parameters' typical sizes, ``budget`` residual
+    evaluations. Returns x, a status (scipy's codes: 0 budget spent, 1 gradient, 2 cost, 3 step test met)
+    and a message.
+
+    What it shares with scipy's ``least_squares``: Marquardt's damping by the diagonal of J^T J in the
+    parameters' scales, a step accepted only when it lowers the cost, scipy's tests on the gradient
+    (:data:`GTOL`), the cost's relative decrease (:data:`FTOL`) and the step (:data:`XTOL`), an evaluation
+    budget, a trust radius in the scaled parameters (``radius`` at first, quartered on a rejected step,
+    doubled past an accepted one) that caps the damped step. What it does not do: no trust-region
+    subproblem solved by SVD and no Coleman-Li scaling near the bounds; a step that leaves the box is cut
+    back onto it, and a parameter at a bound whose gradient points out of the box is held there for the
+    step. For two parameters that is enough, and it saves scipy's set-up of each iteration (the problems are
+    7-30 points: the arithmetic is microseconds, scipy's loop was 0.3-0.5 ms an iteration)."""
+    x = np.clip(np.asarray(x0, dtype=float), lo, hi)
+    r = resid(x)
+    cost, nfev, lam = 0.5 * float(r @ r), 1, None
+    while True:
+        J = jac(x) * scale
+        g = J.T @ r
+        held = ((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0))
+        gf = np.where(held, 0.0, g)
+        if np.max(np.abs(gf)) <= GTOL:
+            return x, 1, "gradient below GTOL"
+        # Marquardt's diagonal of J^T J, floored (a column the residual does not feel, e.g. an exponent
+        # along a drop of no amplitude, would leave the damped system singular)
+        d = np.sum(J * J, axis=0)
+        d = np.maximum(d, 1e-12 * max(float(d.max()), np.finfo(float).tiny))
+        lam = 1e-3 * float(d.max()) if lam is None else lam
+        free = ~held
+        while True:
+            if nfev >= budget:
+                return x, 0, "the evaluation budget is spent"
+            dz = np.zeros_like(x)
+            dz[free] = _damped_step(J[:, free], r, gf[free], lam * d[free])
+            dz *= min(1.0, radius / max(float(np.max(np.abs(dz))), np.finfo(float).tiny))
+            x_new = np.clip(x + scale * dz, lo, hi)
+            r_new = resid(x_new)
+            nfev += 1
+            c_new = 0.5 * float(r_new @ r_new)
+            if np.isfinite(c_new) and c_new < cost:
+                break
+            lam, radius = lam * 4.0, float(np.max(np.abs(dz))) / 4.0
+            if radius <= XTOL * (XTOL + float(np.max(np.abs(x / scale)))):
+                return x, 3, "step below XTOL"
+        step = float(np.max(np.abs((x_new - x) / scale)))
+        done = (cost - c_new <= FTOL * cost, step <= XTOL * (XTOL + float(np.max(np.abs(x_new / scale)))))
+        x, r, cost, lam, radius = x_new, r_new, c_new, lam / 3.0, max(radius, 2.0 * step)
+        if done[0] or done[1]:
+            return x, 2 if done[0] else 3, "cost decrease below FTOL" if done[0] else "step below XTOL"
+
+
+def _damped_step(J, r, g, damp) -> np.ndarray:
+    """The Levenberg-Marquardt step: (J^T J + diag(damp)) dz = -g by the normal equations, or, where their
+    matrix is singular in floating point (two nearly parallel shape columns: the normal equations square
+    the conditioning), as the least-squares solution of [J; sqrt(damp)] dz = [-r; 0]."""
+    try:
+        return np.linalg.solve(J.T @ J + np.diag(damp), -g)
+    except np.linalg.LinAlgError:
+        Jd = np.vstack([J, np.diag(np.sqrt(damp))])
+        return np.linalg.lstsq(Jd, np.concatenate([-r, np.zeros(J.shape[1])]), rcond=None)[0]
+
+
+def _apart(a, b) -> bool:
+    """Two shape vectors in different valleys of the scan: some shape value differs by more than a factor
+    :data:`APART` (speeds and exponents alike are compared by ratio)."""
+    return bool(np.any(np.abs(np.log(np.asarray(a) / np.asarray(b))) > np.log(APART)))
+
+
+def _active(x, lo, hi) -> np.ndarray:
+    """-1 where x is at its lower bound, 1 at its upper, else 0 (scipy's rule for a bounded solve)."""
+    out = np.zeros(x.shape[0], dtype=int)
+    out[x - lo <= ACTIVE_RTOL * np.maximum(1.0, np.abs(lo))] = -1
+    out[hi - x <= ACTIVE_RTOL * np.maximum(1.0, np.abs(hi))] = 1
+    return out
+
+
+def shape_grid(names: list[str], w, lo, hi, extra: list[dict]) -> np.ndarray:
+    """Shape values a cold fit scans: each speed log-spaced from half the slowest point's speed to 0.7 of
+    the fastest (:data:`SCAN_POINTS` per speed; the two-exponential speeds with ws1 < ws2 only, the other
+    half the same curves), a Stribeck exponent over :data:`DELTA_SCAN`, the lines along each speed's upper
+    bound (:func:`_edge_lines`), a step-like drop in each gap between the points (:func:`_step_line`) and
+    the ``extra`` starts (name -> value); clipped to the bounds ``lo``, ``hi`` (arrays over ``names``).
+    The two-exponential map's speeds start at a tenth of the slowest point's: a term that has died out by
+    the slowest point with its amplitude at the bound still bends the first point (a 16-point curve ended 2
+    chi-square units above the old multi-start with half, 0.4 at worst of 150 random ones with a tenth)."""
+    v = np.abs(np.asarray(w, dtype=float))
+    vmin = max(float(v.min()), 1e-9)
+    vmax = max(float(v.max()), vmin * 10)
+    n_speed = SCAN_POINTS[min(sum(nm != "delta" for nm in names), 2) or 1]
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    axes = [np.asarray(DELTA_SCAN) if nm == "delta" else
+            np.geomspace(max(vmin * (0.5 if "delta" in names else 0.1), lo[i]),
+                        max(min(hi[i], vmax * 0.7), lo[i]), n_speed)
+            for i, nm in enumerate(names)]
+    grid = np.vstack([_mesh(axes)] + _edge_lines(names, axes, lo, hi) + _step_line(names, v, lo, hi))
+    if "ws1" in names and "ws2" in names:  # the two-exponential map's mirror images: one half of the grid
+        grid = grid[grid[:, names.index("ws1")] < grid[:, names.index("ws2")]]  # (models.static.stribeck_2exp_swapped)
+    more = np.array([[st[nm] for nm in names] for st in extra], dtype=float).reshape(-1, len(names))
+    return np.clip(np.vstack([grid, more]), lo, hi)
+
+
+def _mesh(axes) -> np.ndarray:
+    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(axes))
+
+
+def _step_line(names, v, lo, hi) -> list[np.ndarray]:
+    """Grid points with the Stribeck exponent at its upper bound (a step-like drop) and the Stribeck speed
+    at :data:`STEP_PER_GAP` log-spaced places between each two neighbouring point speeds: on a few points
+    a step between two of them can fit better than any smooth drop, each gap its own valley, narrow in the
+    speed (where in the gap the step sits sets how much of it the slower point sees: a factor 1.15 in vs
+    doubled the cost on a 7-point curve), which the main grid's exponents (:data:`DELTA_SCAN`) and speeds
+    are too coarse to start in (that curve ended 0.05 chi-square units above the old multi-start, whose
+    refinement had crossed over into the step)."""
+    if "delta" not in names or "vs" not in names:
+        return []
+    u = np.unique(v[v > 0])
+    frac = np.arange(1, STEP_PER_GAP + 1) / (STEP_PER_GAP + 1)
+    mids = (u[:-1, None] * (u[1:, None] / u[:-1, None]) ** frac).ravel()
+    out = np.empty((mids.size, len(names)))
+    out[:, names.index("vs")] = mids
+    out[:, names.index("delta")] = hi[names.index("delta")]
+    return [out]
+
+
+def _edge_lines(names, axes, lo, hi) -> list[np.ndarray]:
+    """Grid lines with one speed at its upper bound (twice the fastest point's speed) and a Stribeck
+    exponent on a fine axis (:data:`EDGE_DELTA_POINTS` over its bounds). A drop whose speed lies beyond
+    every point is a power law of the speed with the exponent as its power (``Fs + (Fc - Fs) (v/vs)^delta``
+    for v << vs), a valley that runs out to the bound, narrow in the exponent (0.06 of a unit of
+    exponent wide on random 10-point curves) and fitting better than any drop within the points on a few
+    noisy points: the coarse exponents of the main grid step over it."""
+    out = []
+    for i, nm in enumerate(names):
+        if nm == "delta":
+            continue
+        ax = [np.array([hi[i]]) if j == i else
+              (np.geomspace(lo[j], hi[j], EDGE_DELTA_POINTS) if other == "delta" else axes[j])
+              for j, other in enumerate(names)]
+        out.append(_mesh(ax))
+    return out
