@@ -137,14 +137,15 @@ def _local_top(w: np.ndarray, half: int) -> np.ndarray:
 def _resting(log: JointLog, q: np.ndarray, h: int, sc: Scales, moving: np.ndarray) -> np.ndarray:
     """Per sample: the joint is still to its sensors over ``T_MIN`` (docs/segments.md, "What a rest is"):
     a window of ``2h`` samples (``T_MIN``) holds the sample over each half of which the logged position
-    moves by at most ``K_NOISE`` standard errors of a position difference, ``sqrt(2) sigma_q`` (``sigma_q``
-    the position's white-noise level, at least the encoder's ``step / sqrt(12)``; halves: a reversal
-    returns to where it was, but moves). Without a logged position: the mean velocity within
-    ``K_NOISE`` of its noise (not ``moving``)."""
+    moves by at most ``K_NOISE`` standard errors of a position difference, ``sqrt(2) sigma_q`` (halves: a
+    reversal returns to where it was, but moves). ``sigma_q``: the position's noise at the scale of a
+    half, :func:`hold_scatter`. Without a logged position: the mean velocity within ``K_NOISE`` of its
+    noise (not ``moving``)."""
     n = q.size
     if log.q is None or n <= 2 * h:
         return ~moving
-    thr = K_NOISE * math.sqrt(2.0) * max(sc.sigma_q, sc.q_step / math.sqrt(12.0))
+    thr = hold_scatter(q, h, sc)
+    thr *= K_NOISE * math.sqrt(2.0)
     # both halves of the window centred on a sample: a reversal returns to where it was, but moves
     half = np.abs(q[np.minimum(np.arange(n) + h, n - 1)] - q) <= thr  # |q[i + h] - q[i]|, clipped at the end
     centre = half.copy()
@@ -154,6 +155,21 @@ def _resting(log: JointLog, q: np.ndarray, h: int, sc: Scales, moving: np.ndarra
     c = count_prefix(centre)
     i = np.arange(n)
     return c[np.minimum(i + h + 1, n)] > c[np.maximum(i - h, 0)]
+
+
+def hold_scatter(q: np.ndarray, h: int, sc: Scales) -> np.ndarray:
+    """Per sample: the logged position's noise [q] at the scale a rest's stillness reads, a half window of
+    ``h`` samples: the largest of its white-noise level ``sigma_q``, the encoder's ``step / sqrt(12)`` and
+    the scatter about a cubic over ``h`` samples per block of ``T_MIN`` (:func:`.scales.local_noise` at
+    lag ``h / 4``; the larger of a block and its neighbours). The last is a hold's own jitter: a position
+    loop that answers its velocity noise hunts a few to tens of encoder steps over ``0.05-0.1 s`` and back,
+    which the fourth difference of neighbouring samples does not see; a crawl (a line) or a smooth move
+    (a cubic over ``h``) has none, so they stay motion at the encoder's resolution."""
+    floor = max(sc.sigma_q, sc.q_step / math.sqrt(12.0))
+    lag = max(1, int(round(h / 4)))
+    if lag == 1:
+        return np.full(q.size, floor)
+    return np.maximum(local_noise(q, 2 * h, lag), floor)
 
 
 def features(log: JointLog, sc: Scales | None = None) -> Features:
