@@ -526,3 +526,40 @@ def test_a_hold_that_hunts_is_a_rest_a_crawl_is_not(seed):
     assert not any(s.i0 < nh + nc - 0.45 * fs and s.i1 > nh + 0.45 * fs for s in rests), found
     assert any(s.i0 <= 0.1 * fs and s.i1 >= nh - 0.15 * fs for s in rests), found
     assert any(s.i0 <= nh + nc + 0.45 * fs and s.i1 >= q.size - 0.1 * fs for s in rests), found
+
+
+def _sweep_with_uneven_edges(seed: int) -> tuple[JointLog, list[tuple[int, int]]]:
+    """A back-and-forth sweep at five slow speeds whose + plateaus start and stop over 0.6 s and - plateaus
+    within 30 ms, logged with qd as the drive's backward difference of an 18-bit encoder (a noisy velocity:
+    the plateaus' bands reach well into the slow ramps)."""
+    rng = np.random.default_rng(seed)
+    fs, step = 1000.0, 2 * np.pi / 2 ** 18
+
+    def ramp(v0, v1, dur):
+        x = np.linspace(0.0, 1.0, max(2, int(dur * fs)))
+        return v0 + (v1 - v0) * (3 * x ** 2 - 2 * x ** 3)
+
+    parts, truth = [], []
+    for v in np.geomspace(0.04, 0.12, 5) * rng.uniform(0.9, 1.1):
+        for sign, dur in ((1, 0.6), (-1, 0.03)):
+            parts += [np.zeros(int(0.6 * fs)), ramp(0.0, sign * v, dur)]
+            i0 = sum(p.size for p in parts)
+            truth.append((i0, i0 + int(1.2 * fs)))
+            parts += [np.full(int(1.2 * fs), sign * v), ramp(sign * v, 0.0, dur)]
+    w = np.concatenate(parts + [np.zeros(int(0.6 * fs))])
+    q = np.floor(np.cumsum(w) / fs / step + rng.uniform()) * step
+    qd = np.concatenate(([0.0], np.diff(q) * fs))
+    tau = 0.5 * np.sign(w) + 0.2 * w + rng.normal(0, 0.01, q.size)
+    return JointLog("1", np.arange(q.size) / fs, tau, q=q, qd=qd), truth
+
+
+@pytest.mark.parametrize("seed", [61, 62, 63])
+def test_mirror_plateaus_are_linked_by_their_settled_speed(seed):
+    """A sweep's plateaus are linked by their mirror speed (within R_MIRROR = 0.5 %), read over the middle
+    half of each plateau, where the loop has settled: the end-to-end mean of a plateau whose band reaches
+    into a slow start and stop (the + plateaus here) is 0.5-1 % low, and no plateau of this sweep was
+    linked (foreign sweep draw 100066: its 10 slowest plateaus dropped)."""
+    lg, truth = _sweep_with_uneven_edges(seed)
+    cv = [(s.i0, s.i1) for s in find_segments(lg) if s.kind == "constant_velocity"]
+    for a, b in truth:
+        assert any(min(b, e) - max(a, s) > 0.8 * (b - a) for s, e in cv), (a, b, cv)
