@@ -581,7 +581,13 @@ def _mean_speed(f: Features, a: int, b: int) -> tuple[float, float]:
     a, b = a + quarter, b - quarter
     span = max(1, b - 1 - a) * f.sc.dt
     sq = max(f.sc.sigma_q, f.sc.q_step / math.sqrt(12.0))
-    return float(f.q[b - 1] - f.q[a]) / span, math.sqrt(2.0) * sq / span
+    mean = float(f.q[b - 1] - f.q[a]) / span
+    # and the loop's own speed ripple (a load that changes along the plateau): the spread of the mean
+    # speeds over the four quarters of the middle half, as a standard error of their mean
+    k = np.linspace(a, b - 1, 5).round().astype(np.int64)
+    parts = np.diff(f.q[k]) / np.maximum(np.diff(k), 1) / f.sc.dt
+    ripple = float(np.std(parts, ddof=1)) / 2.0 if np.all(np.diff(k) > 0) else 0.0
+    return mean, math.hypot(math.sqrt(2.0) * sq / span, ripple)
 
 
 def _mirror(a: tuple[float, float], b: tuple[float, float]) -> bool:
