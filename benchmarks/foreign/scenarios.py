@@ -258,17 +258,37 @@ def _duty_cycles_by_definition(lab: np.ndarray, out: dict, q_step: float) -> Non
                 break
 
 
+def hold_scatter(x: np.ndarray, h: int) -> np.ndarray:
+    """Per sample: the scatter of ``x`` about a cubic over ``h`` samples (docs/segments.md, "What a rest
+    is"): median |fourth difference of samples ``h / 4`` apart| / 0.6745 / sqrt(70) per block of ``2 h``
+    samples, the larger of a block and its neighbours (0 where ``h / 4`` rounds to one sample)."""
+    n, lag = x.size, int(round(h / 4))
+    if lag <= 1 or n <= 4 * lag + 8:
+        return np.zeros(n)
+    m = n - 4 * lag
+    d = np.abs(x[4 * lag:] - 4 * x[3 * lag:n - lag] + 6 * x[2 * lag:n - 2 * lag] - 4 * x[lag:n - 3 * lag] + x[:m])
+    d = np.concatenate((np.full(2 * lag, d[0]), d, np.full(2 * lag, d[-1])))
+    block = max(8, 2 * h)
+    nb = -(-n // block)
+    level = np.array([np.median(d[k * block:(k + 1) * block]) for k in range(nb)]) / 0.6745 / math.sqrt(70.0)
+    if nb > 1 and n - (nb - 1) * block < 8:  # a tail too short for a median takes the block before
+        level[-1] = level[-2]
+    padded = np.concatenate(([level[0]], level, [level[-1]]))
+    return np.repeat(np.maximum(np.maximum(padded[:-2], padded[1:-1]), padded[2:]), block)[:n]
+
+
 def still_to_encoder(q: np.ndarray, fs: float, q_step: float) -> np.ndarray:
     """Per sample: the joint is still to its encoder (docs/segments.md, "What a rest is": stillness is what
     the sensors resolve, not a fraction of a speed): the true position ``q`` [q] moves over each half of a
     window of ``T_REST`` that holds the sample by at most ``K_STEADY`` standard errors of a difference of two logged
-    positions, ``sqrt(2) sigma_q``, ``sigma_q`` the white-noise level of the encoder's reading (median
-    |fourth difference| / 0.6745 / sqrt(70): the joint's jitter in a hold), at least ``q_step /
-    sqrt(12)`` (quantisation)."""
+    positions, ``sqrt(2) sigma_q``, ``sigma_q`` the noise of the encoder's reading at the scale of a half:
+    its white-noise level (median |fourth difference| / 0.6745 / sqrt(70)), its scatter about a cubic over
+    a half (:func:`hold_scatter`: a loop's jitter in a hold, correlated over more than one sample), at
+    least ``q_step / sqrt(12)`` (quantisation)."""
     n, h = q.size, max(1, int(round(0.5 * T_REST * fs)))
     read = np.round(q / q_step) * q_step
     jitter = float(np.median(np.abs(np.diff(read, 4)))) / 0.6745 / math.sqrt(70.0) if n > 8 else 0.0
-    sigma = max(jitter, q_step / math.sqrt(12.0))
+    sigma = np.maximum(hold_scatter(read, h), max(jitter, q_step / math.sqrt(12.0)))
     i = np.arange(n)
     half = np.abs(q[np.minimum(i + h, n - 1)] - q) <= K_STEADY * math.sqrt(2.0) * sigma  # each half: a reversal moves
     half[h:] &= half[:n - h].copy()

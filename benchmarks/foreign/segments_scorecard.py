@@ -2,6 +2,13 @@
 
     python benchmarks/foreign/segments_scorecard.py                     # 300 draws, seeds 100000..100299
     python benchmarks/foreign/segments_scorecard.py --draws 1 --seed-base 100042   # reproduce one draw
+    python benchmarks/foreign/segments_scorecard.py --draws 150 --out a.jsonl   # save each draw as it ends
+    python benchmarks/foreign/segments_scorecard.py --draws 150 --seed-base 100150 --out b.jsonl
+    python benchmarks/foreign/segments_scorecard.py --rescore a.jsonl b.jsonl   # one card of both
+
+``--out`` appends one JSON line per finished draw (a draw already in the file is not run again, so an
+interrupted run resumes where it stopped); ``--rescore`` prints the card of saved draws without running
+anything, so disjoint seed ranges run in separate processes make one card.
 
 Each draw (``scenarios.make_log``: plant, controller, sensors and layout from one seed) is written as a
 joint log, read back with ``frictid.io.logs.read_logs`` and segmented. A found segment is a true positive
@@ -15,6 +22,7 @@ Seeds: scorecards use seeds >= 100000; the tests use seeds < 1000, so nothing he
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import tempfile
@@ -110,42 +118,104 @@ def main(argv=None) -> int:
     ap.add_argument("--family", choices=scenarios.FAMILIES, default=None, help="only this layout family")
     ap.add_argument("--examples", type=int, default=4, help="draws listed per failure class")
     ap.add_argument("--minutes", type=float, default=None, help="stop starting draws after this many minutes")
+    ap.add_argument("--out", default=None, help="append each finished draw to this JSON-lines file "
+                    "(draws already in it are not run again)")
+    ap.add_argument("--rescore", nargs="+", default=None, metavar="FILE",
+                    help="print the card of the draws saved in these files (no draw is run)")
     args = ap.parse_args(argv)
     if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
         args.draws, args.minutes = 1, None
+    if args.rescore:
+        return rescore(args)
     if args.seed_base < 100000 and args.draws > 1:
         print("note: seeds below 100000 may be seeds the tests use", file=sys.stderr)
-    total, fams, rows, errors, ptp_fp = Tally(), {}, [], [], 0
-    t_start = time.time()
+    done = {d["seed"]: d for d in load(args.out)} if args.out and Path(args.out).exists() else {}
+    draws, t_start = [], time.time()
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(args.draws):
             if args.minutes is not None and time.time() - t_start > 60 * args.minutes:
                 print(f"stopped after {i} draws ({args.minutes} min)", file=sys.stderr)
                 break
             seed = args.seed_base + i
+            if seed in done:
+                draws.append(done[seed])
+                continue
             try:
                 d = run_draw(seed, args.family, Path(tmp))
             except Exception as exc:  # a crash is a finding, not the end of the card
-                errors.append((seed, f"{type(exc).__name__}: {exc}".splitlines()[0][:200]))
+                d = {"seed": seed, "error": f"{type(exc).__name__}: {exc}".splitlines()[0][:200]}
                 traceback.print_exc(limit=2, file=sys.stderr)
-                continue
-            row = total.add(d["truth"], d["found"])
-            fams.setdefault(d["family"], Tally()).add(d["truth"], d["found"])
-            if d["family"] == "ptp":
-                ptp_fp += sum(1 for k, _, _ in d["found"] if k in EXPERIMENT_KINDS)
-            rows.append((d, row))
-            if args.draws <= 5:
-                print(describe(d, row))
-                print(f"  sim {d['sim_s']:.1f} s, segments {d['seg_s']:.1f} s, {d['n']} samples")
+            draws.append(d)
+            if args.out:
+                with open(args.out, "a") as f:
+                    f.write(json.dumps(d) + "\n")
+    total, fams, rows, errors, ptp_fp = score(draws, verbose=args.draws <= 5)
     report(args, total, fams, rows, errors, ptp_fp, time.time() - t_start)
     return 0
 
 
-def report(args, total, fams, rows, errors, ptp_fp, wall):
+def load(path) -> list[dict]:
+    """The draws saved by ``--out`` (JSON lines; a line cut by an interrupted write is skipped)."""
+    out = []
+    for line in Path(path).read_text().splitlines():
+        try:
+            d = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        d["truth"] = [tuple(x) for x in d.get("truth", [])]
+        d["found"] = [tuple(x) for x in d.get("found", [])]
+        out.append(d)
+    return out
+
+
+def score(draws, verbose=False):
+    """Tally draws: overall and per family, the rows, the errors and the ptp false positives."""
+    total, fams, rows, errors, ptp_fp = Tally(), {}, [], [], 0
+    for d in draws:
+        if "error" in d:
+            errors.append((d["seed"], d["error"]))
+            continue
+        row = total.add(d["truth"], d["found"])
+        fams.setdefault(d["family"], Tally()).add(d["truth"], d["found"])
+        if d["family"] == "ptp":
+            ptp_fp += sum(1 for k, _, _ in d["found"] if k in EXPERIMENT_KINDS)
+        rows.append((d, row))
+        if verbose:
+            print(describe(d, row))
+            print(f"  sim {d['sim_s']:.1f} s, segments {d['seg_s']:.1f} s, {d['n']} samples")
+    return total, fams, rows, errors, ptp_fp
+
+
+def rescore(args) -> int:
+    """The card of saved draws: each seed once (the last saved), in seed order; wall = summed draw time."""
+    by_seed = {}
+    for path in args.rescore:
+        if not Path(path).exists():
+            print(f"error: {path}: no such file", file=sys.stderr)
+            return 2
+        for d in load(path):
+            by_seed[d["seed"]] = d
+    draws = [by_seed[s] for s in sorted(by_seed)]
+    if args.family:
+        draws = [d for d in draws if d.get("family") == args.family]
+    if not draws:
+        print("error: no saved draws", file=sys.stderr)
+        return 2
+    args.seed_base = draws[0]["seed"]
+    total, fams, rows, errors, ptp_fp = score(draws)
+    wall = sum(d.get("sim_s", 0) + d.get("seg_s", 0) for d in draws)
+    report(args, total, fams, rows, errors, ptp_fp, wall, seeds=[d["seed"] for d in draws])
+    return 0
+
+
+def report(args, total, fams, rows, errors, ptp_fp, wall, seeds=None):
     """Print the card: overall, per family, ptp false positives, failure classes, errors."""
     n = len(rows) + len(errors)
-    print(f"\nforeign segments scorecard: {len(rows)} draws (seeds {args.seed_base}..{args.seed_base + n - 1}"
-          f"{', family ' + args.family if args.family else ''}), IoU >= {IOU}, {wall:.0f} s wall")
+    span = (f"seeds {args.seed_base}..{args.seed_base + n - 1}" if seeds is None else
+            f"seeds {min(seeds)}..{max(seeds)}, {len(seeds)} saved")
+    clock = "s wall" if seeds is None else "s of draw time summed"
+    print(f"\nforeign segments scorecard: {len(rows)} draws ({span}"
+          f"{', family ' + args.family if args.family else ''}), IoU >= {IOU}, {wall:.0f} {clock}")
     print(total.table())
     print("(other is the complement, not a target: moves, transitions and the fragments between segments;"
           " docs/segments.md)")

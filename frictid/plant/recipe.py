@@ -532,16 +532,39 @@ def white_noise(x: np.ndarray) -> float:
     return float(np.median(np.abs(np.diff(x, 4)))) / 0.6745 / math.sqrt(70.0) if x.size > 8 else 0.0
 
 
+def hold_scatter(x: np.ndarray, h: int) -> np.ndarray:
+    """Per sample: the scatter of ``x`` about a cubic over ``h`` samples (docs/segments.md, "What a rest
+    is": a hold's own jitter at the scale of half a window of ``T_REST``), median |fourth difference of
+    samples ``h / 4`` apart| / 0.6745 / sqrt(70) per block of ``2 h`` samples, the larger of a block and its
+    neighbours (0 where ``h / 4`` rounds to one sample: the white-noise level covers that)."""
+    n, lag = x.size, int(round(h / 4))
+    if lag <= 1 or n <= 4 * lag + 8:
+        return np.zeros(n)
+    d = np.empty(n)
+    m = n - 4 * lag
+    d[2 * lag:2 * lag + m] = np.abs(x[4 * lag:] - 4 * x[3 * lag:n - lag] + 6 * x[2 * lag:n - 2 * lag]
+                                    - 4 * x[lag:n - 3 * lag] + x[:m])
+    d[:2 * lag], d[2 * lag + m:] = d[2 * lag], d[2 * lag + m - 1]
+    block = max(8, 2 * h)
+    nb = -(-n // block)
+    blocks = np.array([np.median(d[k * block:(k + 1) * block]) for k in range(nb)]) / 0.6745 / math.sqrt(70.0)
+    if nb > 1 and n - (nb - 1) * block < 8:  # a tail too short for a median takes the block before
+        blocks[-1] = blocks[-2]
+    padded = np.concatenate(([blocks[0]], blocks, [blocks[-1]]))
+    return np.repeat(np.maximum(np.maximum(padded[:-2], padded[1:-1]), padded[2:]), block)[:n]
+
+
 def still_to_sensors(q: np.ndarray, fs: float, q_logged: np.ndarray, q_step: float) -> np.ndarray:
     """Per sample: the joint is still to its sensors (docs/segments.md, "What a rest is"): the true
     position ``q`` [q] moves over each half of a window of ``T_REST`` that holds the sample by at most ``K_LOAD`` standard errors
-    of a logged position difference, ``sqrt(2) sigma_q``, ``sigma_q`` the logged position's white-noise
-    level (``q_logged``: sensor noise and jitter), at least the encoder's ``q_step / sqrt(12)`` [q].
+    of a logged position difference, ``sqrt(2) sigma_q``, ``sigma_q`` the logged position's noise at the
+    scale of a half (``q_logged``): its white-noise level, its scatter about a cubic over a half
+    (:func:`hold_scatter`: a loop's jitter in a hold), at least the encoder's ``q_step / sqrt(12)`` [q].
     Nothing relative to a speed of the log or of the joint."""
     n, h = q.size, max(1, int(round(0.5 * T_REST * fs)))
     logged = q if q_logged is None else np.asarray(q_logged, dtype=float)
-    sigma = max(white_noise(logged), q_step / math.sqrt(12.0),
-                1e-9 * max(float(np.ptp(q)) if n else 0.0, 1e-300))
+    sigma = np.maximum(hold_scatter(logged, h), max(white_noise(logged), q_step / math.sqrt(12.0),
+                                                     1e-9 * max(float(np.ptp(q)) if n else 0.0, 1e-300)))
     i = np.arange(n)
     half = np.abs(q[np.minimum(i + h, n - 1)] - q) <= K_LOAD * math.sqrt(2.0) * sigma  # each half: a reversal moves
     half[h:] &= half[:n - h].copy()

@@ -137,14 +137,15 @@ def _local_top(w: np.ndarray, half: int) -> np.ndarray:
 def _resting(log: JointLog, q: np.ndarray, h: int, sc: Scales, moving: np.ndarray) -> np.ndarray:
     """Per sample: the joint is still to its sensors over ``T_MIN`` (docs/segments.md, "What a rest is"):
     a window of ``2h`` samples (``T_MIN``) holds the sample over each half of which the logged position
-    moves by at most ``K_NOISE`` standard errors of a position difference, ``sqrt(2) sigma_q`` (``sigma_q``
-    the position's white-noise level, at least the encoder's ``step / sqrt(12)``; halves: a reversal
-    returns to where it was, but moves). Without a logged position: the mean velocity within
-    ``K_NOISE`` of its noise (not ``moving``)."""
+    moves by at most ``K_NOISE`` standard errors of a position difference, ``sqrt(2) sigma_q`` (halves: a
+    reversal returns to where it was, but moves). ``sigma_q``: the position's noise at the scale of a
+    half, :func:`hold_scatter`. Without a logged position: the mean velocity within ``K_NOISE`` of its
+    noise (not ``moving``)."""
     n = q.size
     if log.q is None or n <= 2 * h:
         return ~moving
-    thr = K_NOISE * math.sqrt(2.0) * max(sc.sigma_q, sc.q_step / math.sqrt(12.0))
+    thr = hold_scatter(q, h, sc)
+    thr *= K_NOISE * math.sqrt(2.0)
     # both halves of the window centred on a sample: a reversal returns to where it was, but moves
     half = np.abs(q[np.minimum(np.arange(n) + h, n - 1)] - q) <= thr  # |q[i + h] - q[i]|, clipped at the end
     centre = half.copy()
@@ -154,6 +155,21 @@ def _resting(log: JointLog, q: np.ndarray, h: int, sc: Scales, moving: np.ndarra
     c = count_prefix(centre)
     i = np.arange(n)
     return c[np.minimum(i + h + 1, n)] > c[np.maximum(i - h, 0)]
+
+
+def hold_scatter(q: np.ndarray, h: int, sc: Scales) -> np.ndarray:
+    """Per sample: the logged position's noise [q] at the scale a rest's stillness reads, a half window of
+    ``h`` samples: the largest of its white-noise level ``sigma_q``, the encoder's ``step / sqrt(12)`` and
+    the scatter about a cubic over ``h`` samples per block of ``T_MIN`` (:func:`.scales.local_noise` at
+    lag ``h / 4``; the larger of a block and its neighbours). The last is a hold's own jitter: a position
+    loop that answers its velocity noise hunts a few to tens of encoder steps over ``0.05-0.1 s`` and back,
+    which the fourth difference of neighbouring samples does not see; a crawl (a line) or a smooth move
+    (a cubic over ``h``) has none, so they stay motion at the encoder's resolution."""
+    floor = max(sc.sigma_q, sc.q_step / math.sqrt(12.0))
+    lag = max(1, int(round(h / 4)))
+    if lag == 1:
+        return np.full(q.size, floor)
+    return np.maximum(local_noise(q, 2 * h, lag), floor)
 
 
 def features(log: JointLog, sc: Scales | None = None) -> Features:
@@ -556,11 +572,22 @@ def _chained(f: Features, a: tuple[int, int, float], b: tuple[int, int, float], 
 
 
 def _mean_speed(f: Features, a: int, b: int) -> tuple[float, float]:
-    """Mean velocity [q/s] of the plateau ``[a, b)`` from its end positions, and its standard error (the
-    position noise, at least the encoder's quantisation, at both ends)."""
+    """Mean velocity [q/s] of the plateau ``[a, b)`` over its middle half, from the positions at its ends,
+    and its standard error (the position noise, at least the encoder's quantisation, at both ends). The
+    middle half: a plateau's edges reach into the loop's settling within the plateau's band (``R_STEADY``),
+    which moves an end-to-end mean by up to a per cent (foreign sweep draw 100066: mirror speeds 0.0707
+    and -0.0712 end to end, 0.07097 and -0.07098 over the middle halves), more than ``R_MIRROR``."""
+    quarter = (b - a) // 4
+    a, b = a + quarter, b - quarter
     span = max(1, b - 1 - a) * f.sc.dt
     sq = max(f.sc.sigma_q, f.sc.q_step / math.sqrt(12.0))
-    return float(f.q[b - 1] - f.q[a]) / span, math.sqrt(2.0) * sq / span
+    mean = float(f.q[b - 1] - f.q[a]) / span
+    # and the loop's own speed ripple (a load that changes along the plateau): the spread of the mean
+    # speeds over the four quarters of the middle half, as a standard error of their mean
+    k = np.linspace(a, b - 1, 5).round().astype(np.int64)
+    parts = np.diff(f.q[k]) / np.maximum(np.diff(k), 1) / f.sc.dt
+    ripple = float(np.std(parts, ddof=1)) / 2.0 if np.all(np.diff(k) > 0) else 0.0
+    return mean, math.hypot(math.sqrt(2.0) * sq / span, ripple)
 
 
 def _mirror(a: tuple[float, float], b: tuple[float, float]) -> bool:

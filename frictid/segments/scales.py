@@ -90,16 +90,33 @@ def noise_sigma(x: np.ndarray) -> float:
     return float(MAD_TO_SIGMA * np.median(np.abs(d, out=d), overwrite_input=True) / math.sqrt(DIFF4_GAIN))
 
 
-def local_noise(x: np.ndarray, block: int) -> np.ndarray:
+def local_noise(x: np.ndarray, block: int, lag: int = 1) -> np.ndarray:
     """Per-sample robust noise standard deviation of ``x`` (noise that changes along the log, e.g. a
     controller switched on): the MAD of the fourth difference in blocks of ``block`` samples, the larger
-    of each block's and its neighbours' values (so a boundary is covered from both sides)."""
+    of each block's and its neighbours' values (so a boundary is covered from both sides).
+
+    ``lag`` > 1: the fourth difference of samples ``lag`` apart (spanning ``4 lag`` samples), placed at
+    its centre, edges repeated: the scatter of ``x`` about any cubic over ``4 lag`` samples, white noise
+    as at lag 1 and a jitter correlated over fewer than ``lag`` samples too (a position loop hunting in
+    a hold, which the first difference of neighbouring samples does not see)."""
     x = np.asarray(x, dtype=float)
     n = x.size
     block = max(8, int(block))
-    if n < 2 * block:
-        return np.full(n, noise_sigma(x))
-    d = np.diff(x, 4)
+    lag = max(1, int(lag))
+    if n < 2 * block or n <= 4 * lag + 8:
+        return np.full(n, noise_sigma(x[::lag]))
+    if lag == 1:
+        d = np.diff(x, 4)
+    else:
+        d = np.empty(n)
+        m = n - 4 * lag
+        c = d[2 * lag:2 * lag + m]
+        np.subtract(x[4 * lag:], 4.0 * x[3 * lag:n - lag], out=c)
+        c += 6.0 * x[2 * lag:n - 2 * lag]
+        c -= 4.0 * x[lag:n - 3 * lag]
+        c += x[:m]
+        d[:2 * lag] = c[0]
+        d[2 * lag + m:] = c[-1]
     np.abs(d, out=d)
     nb = d.size // block
     sig = (MAD_TO_SIGMA * np.median(d[:nb * block].reshape(nb, block), axis=1, overwrite_input=True)
