@@ -169,3 +169,28 @@ def test_a_drop_out_of_view_at_an_exponent_that_fits_as_well_is_not_identified()
                 if not seen:
                     assert "at exponent" in mf.params["Fs" + s].reason
                     assert mf.params["Fc" + s].identifiable and mf.params["sigma2" + s].identifiable
+
+
+def test_a_drop_free_map_carries_the_drop_it_misses_in_its_errors():
+    """By hand: plateau points with a Stribeck drop whose tail reaches into them (vs 0.05, exponent 0.9,
+    slowest plateau 0.03): the drop-free map's Fc and sigma2 read the tail as level and slope; the data
+    reject that map (F-test), so their change to the Stribeck map's enters their errors. Competing
+    explanation: points with no drop leave the drop-free map's errors as they are."""
+    from frictid.identify.static import fit_static
+    from frictid.identify.validity import drop_spanned
+    from frictid.models.static import stribeck
+    rng = np.random.default_rng(3)
+    v = np.geomspace(0.03, 2.0, 10)
+    w = np.concatenate([v, -v])
+    se = np.full(w.size, 0.002)
+    for Fs, grows in ((1.3, True), (1.0, False)):
+        F = stribeck(w, 1.0, Fs, 0.05, 0.9, 0.2) + rng.normal(0, 0.002, w.size)
+        st, cv = fit_static("stribeck", w, F, se), fit_static("coulomb_viscous", w, F, se)
+        before = {n: cv.params[n].stderr for n in ("Fc", "sigma2")}
+        drop_spanned(st, w, cv, points=(w, F, se))
+        for n in ("Fc", "sigma2"):
+            if grows:
+                assert np.isclose(cv.params[n].stderr, np.hypot(before[n], st.params[n].value - cv.params[n].value))
+                assert cv.params[n].stderr > before[n]
+            else:
+                assert cv.params[n].stderr == before[n]
