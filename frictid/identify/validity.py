@@ -240,11 +240,13 @@ def _drop_significant(mf, points, without_drop) -> None:
         n_pts += bw.size
         flag += [pe[n] for n in ("Fs", "vs", "delta") if pe[n].identifiable and not pe[n].fixed]
     dof = n_pts - n_free
-    if not flag or k == 0 or dof < 1 or not (rss1 > 0 and np.isfinite(rss0)):
+    if k == 0 or dof < 1 or not (rss1 > 0 and np.isfinite(rss0)):
         return
     p = float(f_dist.sf(max(rss0 - rss1, 0.0) / k / (rss1 / dof), k, dof))
     if p <= DROP_P:
         _drop_free_spread(mf, without_drop)
+        return
+    if not flag:
         return
     v_min = float(np.min(np.abs(np.asarray(points[0], dtype=float))))
     why = (f"no Stribeck drop above the slowest plateau speed ({v_min:.3g}): the map fits the plateaus no better "
