@@ -353,11 +353,14 @@ def ur10e_heldout(data: Path, tmp: str) -> list[str]:
     """Each jointwise file cut in time: frictid fits the first 70 % (``frictid fit``, its chosen model) and
     replays the last 30 % (``frictid simulate --replay``); RMS of the measured torque low-passed at 20 Hz
     minus the model's, over the whole held-out part and over its moving samples (|qd| above 1 % of the file's
-    top speed), next to AURT's figures of issue 19."""
+    top speed), next to AURT's figures of issue 19. The moving samples are also split at the stops and
+    reversals (within :data:`UR_REVERSAL` s of a change of the logged velocity's sign) and away from them:
+    where the error sits."""
     base = data / "ur10e_mamedov2020" / "jointwise_motion"
     rows = ["### UR10e held out in time (jointwise files: first 70 % fitted, last 30 % predicted)", "",
-            "| joint | chosen | whole run: frictid / AURT [N m] | | moving: frictid / AURT [N m] | |",
-            "| --- | --- | --- | --- | --- | --- |"]
+            "| joint | chosen | whole run: frictid / AURT [N m] | | moving: frictid / AURT [N m] | | "
+            "moving near stops and reversals / away [N m] (share of the moving samples near) |",
+            "| --- | --- | --- | --- | --- | --- | --- |"]
     for k in range(1, 7):
         raw = pd.read_csv(base / f"ur-20_01_22-joint_{k}.csv", header=None)
         cut = int((1 - UR_HELD) * len(raw))
@@ -372,12 +375,29 @@ def ur10e_heldout(data: Path, tmp: str) -> list[str]:
         qd = np.abs(raw.iloc[cut:, 6 + k].to_numpy())
         moving = qd > 0.01 * np.percentile(np.abs(raw.iloc[:, 6 + k].to_numpy()), 99.5)
         whole, mov = float(np.sqrt(np.mean(r**2))), float(np.sqrt(np.mean(r[moving] ** 2)))
+        near = _near_reversals(raw.iloc[cut:, 6 + k].to_numpy(), dt) & moving
+        split = (f"{float(np.sqrt(np.mean(r[near] ** 2))):.2f} / {float(np.sqrt(np.mean(r[moving & ~near] ** 2))):.2f} "
+                 f"({100 * near.sum() / max(moving.sum(), 1):.0f} %)" if near.any() and (moving & ~near).any() else "-")
         aw, am = UR_AURT[k]
         cw = check("UR10e held out", f"joint {k} whole run below AURT", f"{whole:.2f}", f"< {aw}", whole < aw)
         cm = check("UR10e held out", f"joint {k} moving below AURT", f"{mov:.2f}", f"< {am}", mov < am)
         rows.append(f"| {k} | {chosen(next(iter(P['joints'].values())))} | {whole:.2f} / {aw} | {cw} | "
-                    f"{mov:.2f} / {am} | {cm} |")
+                    f"{mov:.2f} / {am} | {cm} | {split} |")
     return rows + [""]
+
+
+#: Half-width [s] of the stretch around a change of the velocity's sign counted as a stop or reversal.
+UR_REVERSAL = 0.3
+
+
+def _near_reversals(qd: np.ndarray, dt: float) -> np.ndarray:
+    """Samples within :data:`UR_REVERSAL` s of a change of the sign of ``qd`` (a stop or a reversal)."""
+    sgn = np.sign(qd)
+    near = np.zeros(qd.size, bool)
+    h = int(round(UR_REVERSAL / dt))
+    for c in np.flatnonzero(np.diff(sgn) != 0):
+        near[max(0, c - h):c + h + 1] = True
+    return near
 
 
 # ---------------------------------------------------------------------------------------------------
