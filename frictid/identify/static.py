@@ -627,9 +627,9 @@ def _pinned_delta(bw, bF, bse, bfixed: dict, suf: str, start: dict | None, scale
                   notes: list[str], bf: BranchFit) -> BranchFit:
     """A free Stribeck exponent (delta "auto") that the data do not pin down held at 2 (000/003), the branch
     refitted: one not identifiable by its own error, or, on a cold fit, one whose profile reaches a bound of
-    its table: the fit with delta held at that bound is within :data:`DELTA_CHI2` of chi-square of the free
-    fit (the profile's "fits as well", as :func:`_delta_profile` judges the exponents around a held one), so
-    no interval of exponents the data support closes. The linearised error misses it: at a step-like drop
+    its table: the fit with delta held at that bound (from the free optimum, as :func:`_delta_profile` refits
+    at each exponent around a held one) is within :data:`DELTA_CHI2` of chi-square of the free fit (the
+    profile's "fits as well"), so no interval of exponents the data support closes. The linearised error misses it: at a step-like drop
     between two plateau speeds the chi-square is flat from 1.5 to the bound 5 while the Jacobian gives
     3.8 +- 2.2. ``bfixed`` is changed in place; returns the fit to keep."""
     if "delta" in bf.reasons:
@@ -642,7 +642,7 @@ def _pinned_delta(bw, bF, bse, bfixed: dict, suf: str, start: dict | None, scale
         open_at = None
         for d in (prm.upper, prm.lower) if s2 > 0 else ():
             alt = fit_branch("stribeck", bw, bF, bse, dict(bfixed, delta=d), scales=scales,
-                             var_inflation=var_inflation)
+                             start=dict(bf.values, delta=d), var_inflation=var_inflation)
             if math.isfinite(alt.cost) and 2.0 * (alt.cost - bf.cost) / s2 <= DELTA_CHI2:
                 open_at = d
                 break
