@@ -310,3 +310,23 @@ def test_an_exponent_whose_profile_reaches_its_bound_is_held_at_two():
     assert not d.fixed and d.identifiable and d.value != 2.0 and abs(d.value - 2.0) < 3 * d.stderr
     assert not any("do not pin it" in n for n in mf.notes)
 
+
+def test_bvls_is_scipys_bvls_step_for_step():
+    """Two implementations agreeing: varpro.bvls against scipy's lsq_linear(method="bvls") on random
+    bounded problems of the maps' sizes (2-5 columns, 7-40 points, bounds that cut the unbounded solution),
+    from the same unbounded start: the same solution to the last bit and the same active set."""
+    rng = np.random.default_rng(7)
+    cut = 0
+    for _ in range(200):
+        n, p = int(rng.integers(7, 41)), int(rng.integers(2, 6))
+        A = rng.standard_normal((n, p)) * rng.uniform(0.1, 10, p)
+        y = rng.standard_normal(n)
+        x_lsq = np.linalg.lstsq(A, y, rcond=-1)[0]
+        lo = x_lsq - rng.uniform(-0.5, 1.0, p) * np.abs(x_lsq)
+        hi = np.maximum(lo + 1e-3, x_lsq + rng.uniform(-0.5, 1.0, p) * np.abs(x_lsq))
+        ref = lsq_linear(A, y, bounds=(lo, hi), method="bvls")
+        x, on_bound = vp.bvls(A, y, x_lsq, lo, hi)
+        cut += int(np.any((x_lsq < lo) | (x_lsq > hi)))
+        np.testing.assert_array_equal(x, ref.x)
+        np.testing.assert_array_equal(on_bound, ref.active_mask)
+    assert cut > 100
