@@ -263,8 +263,9 @@ def test_levenberg_marquardt_reaches_interior_and_bound_minima():
 def test_a_drop_that_fits_as_well_as_a_rise_is_reported_with_the_rise_noted():
     """No drop (Fs = Fc) and noise of 1/32 on 7 points (the 0.0505 case above): the best valley is a rise
     (Fs below Fc), and a drop fits within DELTA_CHI2 of it. The fit reports the drop (the Stribeck map is
-    003's drop), keeps the rise as its rival and notes it; the drop's parameters keep their own verdicts
-    (here the drop is within its errors of none, so its shape is held by static._shapeless). Competing
+    003's drop), keeps the rise as its rival and notes it, and its levels and slope carry their change to the
+    rise in their errors (here the drop is also within its errors of none, so its shape is held by
+    static._shapeless). Competing
     explanation, a rise the data show clearly, stays a rise:
     tests/test_fit_shape.py::test_rising_friction_is_not_called_a_stribeck_drop."""
     rng = np.random.default_rng(38)
@@ -279,6 +280,11 @@ def test_a_drop_that_fits_as_well_as_a_rise_is_reported_with_the_rise_noted():
     bf = fs.fit_branch("stribeck", w, F)
     assert bf.rival is not None and bf.values["Fs"] >= bf.values["Fc"]
     assert f"Fs {bf.rival['Fs']:.4g} below Fc" in fs._rival_note(bf.rival, "")
+    se = dict(bf.stderr)
+    fs._rival_spread(bf, bf.rival)  # the levels and slope carry their change to the rise, the shape does not
+    for nm in fs.SHARED_WITH_A_RISE:
+        assert np.isclose(bf.stderr[nm], np.hypot(se[nm], bf.rival[nm] - bf.values[nm]))
+    assert bf.stderr["vs"] == se["vs"]
     mf = fs.fit_static("stribeck", w, F, delta="free")
     for nm in ("vs", "delta"):
         pe = mf.params[nm]
@@ -303,3 +309,24 @@ def test_an_exponent_whose_profile_reaches_its_bound_is_held_at_two():
     d = mf.params["delta"]
     assert not d.fixed and d.identifiable and d.value != 2.0 and abs(d.value - 2.0) < 3 * d.stderr
     assert not any("do not pin it" in n for n in mf.notes)
+
+
+def test_bvls_is_scipys_bvls_step_for_step():
+    """Two implementations agreeing: varpro.bvls against scipy's lsq_linear(method="bvls") on random
+    bounded problems of the maps' sizes (2-5 columns, 7-40 points, bounds that cut the unbounded solution),
+    from the same unbounded start: the same solution to the last bit and the same active set."""
+    rng = np.random.default_rng(7)
+    cut = 0
+    for _ in range(200):
+        n, p = int(rng.integers(7, 41)), int(rng.integers(2, 6))
+        A = rng.standard_normal((n, p)) * rng.uniform(0.1, 10, p)
+        y = rng.standard_normal(n)
+        x_lsq = np.linalg.lstsq(A, y, rcond=-1)[0]
+        lo = x_lsq - rng.uniform(-0.5, 1.0, p) * np.abs(x_lsq)
+        hi = np.maximum(lo + 1e-3, x_lsq + rng.uniform(-0.5, 1.0, p) * np.abs(x_lsq))
+        ref = lsq_linear(A, y, bounds=(lo, hi), method="bvls")
+        x, on_bound = vp.bvls(A, y, x_lsq, lo, hi)
+        cut += int(np.any((x_lsq < lo) | (x_lsq > hi)))
+        np.testing.assert_array_equal(x, ref.x)
+        np.testing.assert_array_equal(on_bound, ref.active_mask)
+    assert cut > 100

@@ -613,7 +613,8 @@ def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict 
         shapeless.update({nm + suf: why for nm, why in held.items()})
     if base == "stribeck" and delta == "auto" and "delta" not in bfixed:
         bf = _pinned_delta(bw, bF, bse, bfixed, suf, bstart, scales, var_inflation, notes, bf)
-    if bf.rival and start is None:
+    if bf.rival:  # a rise fits as well: the drop stands, its levels and slope carry the difference
+        _rival_spread(bf, bf.rival)
         notes.append(_rival_note(bf.rival, suf))
     if base == "stribeck" and delta == "auto" and "delta" in bfixed and start is None and bf.cov is not None:
         _delta_profile(bw, bF, bse, bfixed, scales, var_inflation, bf)
@@ -626,9 +627,9 @@ def _pinned_delta(bw, bF, bse, bfixed: dict, suf: str, start: dict | None, scale
                   notes: list[str], bf: BranchFit) -> BranchFit:
     """A free Stribeck exponent (delta "auto") that the data do not pin down held at 2 (000/003), the branch
     refitted: one not identifiable by its own error, or, on a cold fit, one whose profile reaches a bound of
-    its table: the fit with delta held at that bound is within :data:`DELTA_CHI2` of chi-square of the free
-    fit (the profile's "fits as well", as :func:`_delta_profile` judges the exponents around a held one), so
-    no interval of exponents the data support closes. The linearised error misses it: at a step-like drop
+    its table: the fit with delta held at that bound (from the free optimum, as :func:`_delta_profile` refits
+    at each exponent around a held one) is within :data:`DELTA_CHI2` of chi-square of the free fit (the
+    profile's "fits as well"), so no interval of exponents the data support closes. The linearised error misses it: at a step-like drop
     between two plateau speeds the chi-square is flat from 1.5 to the bound 5 while the Jacobian gives
     3.8 +- 2.2. ``bfixed`` is changed in place; returns the fit to keep."""
     if "delta" in bf.reasons:
@@ -641,7 +642,7 @@ def _pinned_delta(bw, bF, bse, bfixed: dict, suf: str, start: dict | None, scale
         open_at = None
         for d in (prm.upper, prm.lower) if s2 > 0 else ():
             alt = fit_branch("stribeck", bw, bF, bse, dict(bfixed, delta=d), scales=scales,
-                             var_inflation=var_inflation)
+                             start=dict(bf.values, delta=d), var_inflation=var_inflation)
             if math.isfinite(alt.cost) and 2.0 * (alt.cost - bf.cost) / s2 <= DELTA_CHI2:
                 open_at = d
                 break
@@ -655,14 +656,36 @@ def _pinned_delta(bw, bF, bse, bfixed: dict, suf: str, start: dict | None, scale
 
 
 def _rival_note(r: dict, suf: str) -> str:
-    """The note on a Stribeck drop that a rise ``r`` (:meth:`_Branch._drop_first`) fits as well as. The drop
-    stands with its own errors: the map is 003's drop (Fs >= Fc), a rise is outside it, and a rise that fits
-    only as well is no evidence against the drop (one that fits clearly better is reported, flagged by
-    :func:`.maps.physical_shape`). Holding the drop's shape for it took the break-away level with it
-    (:func:`.validity.drop_spanned`: a held speed is a drop not seen), and with it a map that follows the points
-    (the real screw drive 3: 1.3 % of the range against 2.3-2.9 % for the maps left)."""
+    """The note on a Stribeck drop that a rise ``r`` (:meth:`_Branch._drop_first`) fits as well as (see
+    :func:`_rival_spread`)."""
     return (f"branch{suf or ' (symmetric)'}: a rise (Fs {r['Fs']:.4g} below Fc {r['Fc']:.4g}, vs {r['vs']:.3g}, "
             f"delta {r['delta']:.3g}) fits the points within {DELTA_CHI2:g} of chi-square of this drop")
+
+
+#: The parameters a Stribeck drop and a rise share as physical quantities: the levels at zero and at high
+#: speed and the viscous slope (a drop's speed is where it stops falling, a rise's where it stops rising).
+SHARED_WITH_A_RISE = ("Fc", "Fs", "sigma2")
+
+
+def _rival_spread(bf: BranchFit, rival: dict) -> None:
+    """A Stribeck drop that a rise ``rival`` fits as well as (:meth:`_Branch._drop_first`): the drop stands
+    (the map is 003's drop, Fs >= Fc; a rise outside it that fits only as well is no evidence against it,
+    one that fits clearly better is reported and flagged by :func:`.maps.physical_shape`), and the
+    quantities the two share (:data:`SHARED_WITH_A_RISE`) carry their change to the rise in their standard
+    errors (added in quadrature, as :func:`_delta_profile` does for the exponents that fit as well); one
+    whose error so exceeds its value is not identifiable. The drop's speed and exponent keep their own
+    errors: holding them as not identifiable read as a drop not seen (:func:`.validity.drop_spanned`) and
+    took the break-away level, and with it the map that follows the points, out of the choice (the real
+    screw drive 3: 1.3 % of the range against 2.3-2.9 % for the maps left). ``bf`` is changed in place."""
+    for n in SHARED_WITH_A_RISE:
+        se, v, r = bf.stderr.get(n), bf.values.get(n), rival.get(n)
+        if n not in bf.free or se is None or v is None or r is None or r == v:
+            continue
+        sp = abs(r - v)
+        bf.stderr[n] = math.hypot(se, sp)
+        if n not in bf.reasons and bf.stderr[n] > abs(v):
+            bf.reasons[n] = (f"moves by {sp:.3g} to a rise (Fs below Fc) that fits the points as well as this drop: "
+                             "the data cannot tell the drop from a rise")
 
 
 def _shift_profile(base: str, bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: BranchFit,
