@@ -13,6 +13,7 @@ import numpy as np
 from ..identify.select import base_model_name
 from ..models import static as sm
 from ..result import JointFit, ModelFit, ParamEstimate
+from .causes import REPAIRS
 from .chain import ALPHA, EXPLAINED_MIN, GAIN_MIN, Chain, Trial
 from .evidence import evidence, fmt
 from .model import OUTSIDE_MODEL, Structure, Term, model_values
@@ -123,9 +124,13 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
             continue
         mf = _step_model(jf, step, tr, S, base, rigid)
         jf.models[mf.name] = mf
+        text = evidence(tr, S, step, units, rigid)
+        if tr.cause in REPAIRS:
+            _repair(jf, rec, tr, text, mf.name)
         findings.append({
             "cause": tr.cause,
-            "evidence": evidence(tr, S, step, units, rigid),
+            "kind": "repair" if tr.cause in REPAIRS else "effect",
+            "evidence": text,
             "statistic": {"test": "one-sided paired t over held-out groups of sum(r_before^2 - r_after^2)",
                           "t": tr.t, "p": tr.p, "groups": tr.groups,
                           "threshold_p": ALPHA / max(step["m"], 1)},
@@ -137,6 +142,17 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
             "heldout": heldout,
         })
     return findings
+
+
+def _repair(jf: JointFit, rec: dict, tr: Trial, text: str, model: str) -> None:
+    """A step that repairs the fit's own estimate (:data:`frictid.diagnose.causes.REPAIRS`: its inertia,
+    gravity or base map): listed in ``rec['repairs']`` and the warnings apart from the causes found in the
+    plant. Its model and finding stay (``kind: repair``), so the chain's later models and the fit's check
+    are unchanged; what it says is that the fit's base should have carried the term."""
+    rec.setdefault("repairs", []).append(
+        {"repair": tr.cause, "extension": tr.ext, "model": model, "evidence": text, "rms_before": tr.rms_before,
+         "rms_after": tr.rms_after, "heldout_gain": tr.gain})
+    jf.warnings.append(f"repair of the fit's {tr.cause} (not a cause found in the plant): {text}")
 
 
 def _ambiguous(jf: JointFit, rec: dict, tr: Trial, text: str) -> None:
