@@ -114,12 +114,17 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
             continue
         if tr.ext in OUTSIDE_MODEL:   # named with its numbers, never a friction model of the file
             text = evidence(tr, S, step, units, rigid)
+            if tr.moving:   # a delay, judged on every moving sample too (chain.Chain.worth_it)
+                text += (f"; on every moving sample (transients included) the shift cuts the held-out RMS from "
+                         f"{fmt(tr.moving['rms_before'])} to {fmt(tr.moving['rms_after'])} {units['F']} "
+                         f"(t = {tr.moving['t']:.1f})")
             rec.setdefault("outside_model", []).append(
                 {"cause": tr.cause, "evidence": text, "extension": tr.ext, "settings": {k: v for k, v in step["term"].settings.items() if k != "beta"},
                  "coefficients": [float(x) for x in np.atleast_1d(
                      step["coef"].gamma.get(len(step["structure"].terms) - 1, np.zeros(0)))],
                  "rms_before": tr.rms_before, "rms_after": tr.rms_after, "gain": tr.gain,
-                 "statistic": {"t": tr.t, "p": tr.p, "groups": tr.groups, "threshold_p": ALPHA / max(step["m"], 1)}})
+                 "statistic": {"t": tr.t, "p": tr.p, "groups": tr.groups, "threshold_p": ALPHA / max(step["m"], 1)},
+                 **({"moving_samples": dict(tr.moving)} if tr.moving else {})})
             jf.warnings.append(f"{tr.cause} (outside the friction model): {text}")
             continue
         mf = _step_model(jf, step, tr, S, base, rigid)
