@@ -85,7 +85,7 @@ def run(c):
                                c["s"], c["size"], c["seed"], c["noise"], with_effect_size=True)
     top, gain = ds.top_cause(jf)
     return dict(c, effect=es, top=top, gain=gain, selected=jf.selected,
-                findings=[list(x) for x in ds.named_causes(jf)],
+                findings=[list(x) for x in ds.named_causes(jf)], repairs=[list(x) for x in ds.repairs(jf)],
                 unexplained=(jf.selection.get("diagnosis") or {}).get("unexplained") or [],
                 seconds=time.time() - t0, samples=sum(lg.n for lg in logs))
 
@@ -141,6 +141,10 @@ def card(rows):
         une = [r for r in nulls if r.get("unexplained")]
         lines.append(f"unexplained-structure statements with nothing hidden: {len(une)}/{len(nulls)}"
                      + ("; " + "; ".join(f"{r['plant']}: {r['unexplained'][0][:90]}" for r in une[:4]) if une else ""))
+    rep = [r for r in rows if r.get("repairs")]
+    lines.append(f"repairs of the fit's own estimate (reported apart, not causes): {len(rep)}/{len(rows)} runs"
+                 + ("; " + ", ".join(f"{r['plant']}:{r['cause']}:{r['repairs'][0][0]} ({100 * r['repairs'][0][2]:.0f} %)"
+                                     for r in rep[:8]) if rep else ""))
     wrong = [r for r in rows if r["cause"] != "none" and r["top"] not in ("none", r["cause"]) and r["gain"] >= GAIN]
     lines.append(f"wrong first cause (an injected effect named as another cause): {len(wrong)}/"
                  f"{sum(1 for r in rows if r['cause'] != 'none')}"

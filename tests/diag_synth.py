@@ -183,21 +183,28 @@ def declare_horizontal(logs, plant: dict) -> None:
 
 def named_causes(jf) -> list[tuple[str, str, float]]:
     """(cause, extension, gain) of every cause the diagnosis named, in the chain's order: its findings and
-    the causes outside the friction model (``selection.diagnosis.outside_model``), then presliding."""
+    the causes outside the friction model (``selection.diagnosis.outside_model``), then presliding. Repairs of
+    the fit's own estimate (``kind: repair``, ``selection.diagnosis.repairs``) are no cause found in the plant
+    and are left out (:func:`repairs`)."""
     d = jf.selection.get("diagnosis") or {}
-    outside = list(d.get("outside_model") or [])
-    findings = [f for f in jf.diagnosis if f["cause"] != "presliding"]
+    found = [f for f in jf.diagnosis if f["cause"] != "presliding"] + list(d.get("outside_model") or [])
     out = []
     for st in d.get("steps") or []:
         ext = st.get("chosen")
-        if ext is None:
+        f = next((f for f in found if f["extension"] == ext), None)
+        if ext is None or f is None:   # nothing chosen, or an ambiguous step (its term kept, no cause named)
             continue
-        src = outside if outside and outside[0]["extension"] == ext else findings
-        if src:
-            f = src.pop(0)
+        found.remove(f)
+        if f.get("kind") != "repair":
             out.append((f["cause"], f["extension"], float(f["gain"])))
     out += [(f["cause"], f["extension"], float(f["gain"])) for f in jf.diagnosis if f["cause"] == "presliding"]
     return out
+
+
+def repairs(jf) -> list[tuple[str, str, float]]:
+    """(cause, extension, held-out gain) of the diagnosis' repairs of the fit's own estimate, in order."""
+    return [(r["repair"], r["extension"], float(r["heldout_gain"]))
+            for r in (jf.selection.get("diagnosis") or {}).get("repairs") or []]
 
 
 def top_cause(jf) -> tuple[str, float]:

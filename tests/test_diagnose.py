@@ -262,6 +262,21 @@ def test_nothing_hidden_ends_with_the_base_model():
     assert d["base"] == "stribeck" and d["steps"] and d["steps"][0]["chosen"] is None
 
 
+def test_a_repair_of_the_fit_is_reported_apart_from_the_causes():
+    """The fit hands over a Coulomb + viscous base on a plant with a Stribeck hump, and the plant hides a
+    torque offset: the hump is a repair of the fit's base (``kind: repair``, ``selection.diagnosis.repairs``,
+    its own warning), not a cause found in the plant; the offset is the one cause named."""
+    def offset(t, q, w, F):
+        return np.asarray(F) + 0.25
+
+    jf, findings = _run([plateau_log(offset, seed=3)], fake_fit({"Fc": 2.0, "sigma2": 1.2}, "coulomb_viscous"))
+    d = jf.selection["diagnosis"]
+    assert [r["repair"] for r in d["repairs"]] == ["stribeck"], d["steps"]
+    assert {f["cause"]: f["kind"] for f in findings} == {"stribeck": "repair", "offset": "effect"}, findings
+    assert [c for c, _, _ in ds.named_causes(jf)] == ["offset"] and ds.repairs(jf)[0][0] == "stribeck"
+    assert any(w.startswith("repair of the fit's stribeck (not a cause found in the plant)") for w in jf.warnings)
+
+
 def test_position_dependence_is_found_with_its_period_and_replays():
     P = 0.83
     def eff(t, q, w, F):

@@ -84,16 +84,20 @@ def diagnosis_of(jf) -> dict:
                     - {""})
     return {"findings": named_in_order(jf, rec), "tested": tested, "unexplained": unexplained(jf), "skipped": rec.get("skipped"),
             "ambiguous": [list(a.get("causes", [])) for a in rec.get("ambiguous", []) if isinstance(a, dict)],
+            "repairs": [(str(r.get("repair")), float(r.get("heldout_gain") or 0.0)) for r in rec.get("repairs", [])
+                        if isinstance(r, dict)],
             "selected": jf.selected, "warnings": [w for w in jf.warnings if "diagnos" in w.lower()][:3]}
 
 
 def named_in_order(jf, rec: dict) -> list:
     """(cause, extension, gain) of every cause the diagnosis named, in the chain's order: its findings
     (``jf.diagnosis``) and causes it names without exporting them (any list of findings in the diagnosis
-    record, e.g. ``outside_model``), ordered by the chain step that chose them."""
-    found = [f for f in jf.diagnosis] + [f for k, v in rec.items() if k not in ("steps", "unexplained")
-                                         and isinstance(v, list) for f in v
-                                         if isinstance(f, dict) and "cause" in f and "gain" in f]
+    record, e.g. ``outside_model``), ordered by the chain step that chose them. Repairs of the fit's own
+    estimate (``kind: repair``, ``selection.diagnosis.repairs``: its inertia, gravity, a Stribeck hump its
+    base lacks) are no cause found in the plant: they are read apart (:func:`diagnosis_of`)."""
+    found = [f for f in jf.diagnosis if f.get("kind") != "repair"] + [
+        f for k, v in rec.items() if k not in ("steps", "unexplained", "repairs") and isinstance(v, list) for f in v
+        if isinstance(f, dict) and "cause" in f and "gain" in f]
     chosen = [st.get("chosen") for st in rec.get("steps", [])]
     place = {ext: i for i, ext in enumerate(chosen) if ext}
     found.sort(key=lambda f: place.get(f.get("extension"), len(chosen)))
@@ -267,6 +271,7 @@ def summary(rows, singles, clean, pairs) -> list:
     out.append(f"a step left ambiguous (a candidate of another cause makes the same held-out correction; its term kept, nothing named): "
                f"{_pct(len(amb), len(rows))}" + (f"; e.g. {', '.join(' or '.join(a) for a in amb[0]['diag']['ambiguous'])} "
                                                  f"(seed {amb[0]['seed']})" if amb else ""))
+    out.append(repairs_line(rows))
     out.append(f"effects outside the list: no cause of gain >= {GAIN} named {_pct(len(quiet), len(outs))} (target >= 95 %); "
                f"'unexplained' statement {_pct(len(unexp), len(outs))} (target >= 80 %)")
     for k in effects.OUTSIDE:
@@ -276,6 +281,17 @@ def summary(rows, singles, clean, pairs) -> list:
             out.append(f"    {k:10} quiet {_pct(sum(1 for r in rk if r in quiet), len(rk)):>12}, unexplained "
                        f"{_pct(sum(1 for r in rk if r in unexp), len(rk)):>12}" + (f"; named: {', '.join(names)}" if names else ""))
     return out
+
+
+def repairs_line(rows: list) -> str:
+    """How many draws carried a repair of the fit's own estimate, and of what (not counted as causes)."""
+    rep = [r for r in rows if r["diag"].get("repairs")]
+    count: dict = {}
+    for r in rep:
+        for c in {c for c, _ in r["diag"]["repairs"]}:
+            count[c] = count.get(c, 0) + 1
+    return (f"repairs of the fit's own estimate (reported apart, not counted as causes): {_pct(len(rep), len(rows))}"
+            + ("; " + ", ".join(f"{c} {n}" for c, n in sorted(count.items())) if rep else ""))
 
 
 def failures(rows: list, examples: int) -> list:
@@ -310,6 +326,7 @@ def line(r: dict) -> str:
     t = r["truth"]
     return (f"seed {r['seed']} {t['family']} size {100 * t['size']:.1f} % {t['fs']:.0f} Hz: "
             + (", ".join(f"{c} {g:.2f}" for c, _, g in r["diag"]["findings"]) or "no finding")
+            + "".join(f", repair {c} {g:.2f}" for c, g in r["diag"].get("repairs", []))
             + f"; {command(r)}")
 
 
@@ -348,6 +365,8 @@ def describe(r: dict) -> str:
     d = r["diag"]
     lines.append("  named: " + ("; ".join(f"{c} ({x}) gain {g:.3f}" for c, x, g in d["findings"]) or "nothing")
                  + f"; selected {d['selected']}")
+    if d.get("repairs"):
+        lines.append("  repairs of the fit (not causes): " + "; ".join(f"{c} gain {g:.3f}" for c, g in d["repairs"]))
     if d.get("ambiguous"):
         lines.append("  ambiguous (nothing named): " + "; ".join(" or ".join(a) for a in d["ambiguous"]))
     lines.append(f"  tested: {', '.join(d['tested']) or '-'}; unexplained: {d['unexplained'] or '-'}"

@@ -13,6 +13,7 @@ import numpy as np
 from ..identify.select import base_model_name
 from ..models import static as sm
 from ..result import JointFit, ModelFit, ParamEstimate
+from .causes import REPAIRS
 from .chain import ALPHA, EXPLAINED_MIN, GAIN_MIN, Chain, Trial
 from .evidence import evidence, fmt
 from .model import OUTSIDE_MODEL, Structure, Term, model_values
@@ -113,19 +114,28 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
             continue
         if tr.ext in OUTSIDE_MODEL:   # named with its numbers, never a friction model of the file
             text = evidence(tr, S, step, units, rigid)
+            if tr.moving:   # a delay, judged on every moving sample too (chain.Chain.worth_it)
+                text += (f"; on every moving sample (transients included) the shift cuts the held-out RMS from "
+                         f"{fmt(tr.moving['rms_before'])} to {fmt(tr.moving['rms_after'])} {units['F']} "
+                         f"(t = {tr.moving['t']:.1f})")
             rec.setdefault("outside_model", []).append(
                 {"cause": tr.cause, "evidence": text, "extension": tr.ext, "settings": {k: v for k, v in step["term"].settings.items() if k != "beta"},
                  "coefficients": [float(x) for x in np.atleast_1d(
                      step["coef"].gamma.get(len(step["structure"].terms) - 1, np.zeros(0)))],
                  "rms_before": tr.rms_before, "rms_after": tr.rms_after, "gain": tr.gain,
-                 "statistic": {"t": tr.t, "p": tr.p, "groups": tr.groups, "threshold_p": ALPHA / max(step["m"], 1)}})
+                 "statistic": {"t": tr.t, "p": tr.p, "groups": tr.groups, "threshold_p": ALPHA / max(step["m"], 1)},
+                 **({"moving_samples": dict(tr.moving)} if tr.moving else {})})
             jf.warnings.append(f"{tr.cause} (outside the friction model): {text}")
             continue
         mf = _step_model(jf, step, tr, S, base, rigid)
         jf.models[mf.name] = mf
+        text = evidence(tr, S, step, units, rigid)
+        if tr.cause in REPAIRS:
+            _repair(jf, rec, tr, text, mf.name)
         findings.append({
             "cause": tr.cause,
-            "evidence": evidence(tr, S, step, units, rigid),
+            "kind": "repair" if tr.cause in REPAIRS else "effect",
+            "evidence": text,
             "statistic": {"test": "one-sided paired t over held-out groups of sum(r_before^2 - r_after^2)",
                           "t": tr.t, "p": tr.p, "groups": tr.groups,
                           "threshold_p": ALPHA / max(step["m"], 1)},
@@ -137,6 +147,17 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
             "heldout": heldout,
         })
     return findings
+
+
+def _repair(jf: JointFit, rec: dict, tr: Trial, text: str, model: str) -> None:
+    """A step that repairs the fit's own estimate (:data:`frictid.diagnose.causes.REPAIRS`: its inertia,
+    gravity or base map): listed in ``rec['repairs']`` and the warnings apart from the causes found in the
+    plant. Its model and finding stay (``kind: repair``), so the chain's later models and the fit's check
+    are unchanged; what it says is that the fit's base should have carried the term."""
+    rec.setdefault("repairs", []).append(
+        {"repair": tr.cause, "extension": tr.ext, "model": model, "evidence": text, "rms_before": tr.rms_before,
+         "rms_after": tr.rms_after, "heldout_gain": tr.gain})
+    jf.warnings.append(f"repair of the fit's {tr.cause} (not a cause found in the plant): {text}")
 
 
 def _ambiguous(jf: JointFit, rec: dict, tr: Trial, text: str) -> None:
