@@ -6,8 +6,11 @@ feed-forward.
 - Compensation with a good model reduces the tracking error and the true friction reduces it most.
 - The LuGre friction observer of 000 on a model 20 % low beats the model's feed-forward; without a presliding
   stiffness there is no observer run.
+- The static map fed forward from the measured velocity: the kernel's map equals ``FrictionModel.friction``
+  at the filtered velocity, and in closed loop it reduces the error too.
 - ``recipes/tracking_slow.yaml`` runs on every shipped plant; the CLI writes the runs and prints JSON with
-  ``runs: {none, model, true}`` (and ``observer`` for a LuGre model); a joint the plant lacks is refused.
+  ``runs: {none, model, measured, true}`` (and ``observer`` for a LuGre model); a joint the plant lacks is
+  refused.
 """
 from __future__ import annotations
 
@@ -66,7 +69,7 @@ def test_no_observer_without_a_presliding_stiffness():
     m = true_model("hydraulic", "j1")
     m.sigma0 = None
     runs = compensation_runs({"j1": m}, RECIPE, str(PLANTS / "hydraulic.yaml"), seed=4, duration_scale=0.1)["j1"]
-    assert set(runs) == {"none", "model", "true"}
+    assert set(runs) == {"none", "model", "measured", "true"}
 
 
 #: The tracking recipes and the duration scale their test runs them at.
@@ -112,12 +115,12 @@ def test_cli_writes_the_runs_and_json(tmp_path):
     assert r.returncode == 0, r.stderr
     doc = json.loads(r.stdout)
     runs = doc["joints"]["j1"]["runs"]
-    assert set(runs) == {"none", "model", "true"}
+    assert set(runs) == {"none", "model", "measured", "true"}
     for v in runs.values():
         assert {"rms_error", "peak_error", "stick_slip_episodes"} <= set(v)
     import pandas as pd
     df = pd.read_parquet(out)
-    assert set(df["run"]) == {"none", "model", "true"} and set(df["joint"]) == {"j1"}
+    assert set(df["run"]) == {"none", "model", "measured", "true"} and set(df["joint"]) == {"j1"}
     jf.joint = "j9"
     frictid.write_params(FitResult(joints={"j9": jf}), tmp_path / "p9.yaml")
     bad = subprocess.run([sys.executable, "-m", "frictid", "simulate", "--compensate", str(tmp_path / "p9.yaml"),
@@ -131,7 +134,7 @@ def test_cli_writes_the_runs_and_json(tmp_path):
     html = (tmp_path / "r.html").read_text()
     part = html[html.index('data-section="compensation"'):]
     part = part[:part.index("</section>")]
-    assert part.count("<tr><td>") == 3 and "<svg" in part and "no compensation" in part
+    assert part.count("<tr><td>") == 4 and "<svg" in part and "no compensation" in part
     wrong = subprocess.run([sys.executable, "-m", "frictid", "report", str(tmp_path / "p.yaml"), "--compensation",
                             str(tmp_path / "p.yaml"), "-o", str(tmp_path / "r2.html")], capture_output=True, text=True)
     assert wrong.returncode == 2 and "not a runs file" in wrong.stderr and not (tmp_path / "r2.html").exists()
@@ -174,3 +177,31 @@ def test_the_error_after_a_warm_up_needs_the_thermal_law():
     T = runs["none"].T
     assert T[runs["none"].part >= 1].mean() > T[0] + 5.0     # the duty cycles warmed the joint
     assert after["warm"] < 0.5 * after["cold"], after
+
+
+def test_measured_velocity_feedforward_is_the_models_map_at_the_filtered_velocity():
+    """The kernel's feed-forward from the measured velocity (``_measured_map``) against the model's own
+    friction: its first-order filter by hand, and g(wf) sgn(wf) + f(wf) equal to FrictionModel.friction
+    at the filtered velocity, both signs and at zero."""
+    from frictid.plant.kernel import _branch, _measured_map
+    m = true_model("direct_drive", "j1")   # per-sign Stribeck map: both branches checked
+    m.sigma0 = None
+    cp, dp = _branch(np.asarray(m.c_pos, float), np.asarray(m.c_pos, float))
+    cn, dn = _branch(np.asarray(m.c_neg, float), np.asarray(m.c_neg, float))
+    h, band = 1e-3, 30.0
+    for w, wf0 in ((0.02, 0.0), (-0.3, 0.1), (1.5, 1.4), (0.0, 0.0)):
+        F, wf = _measured_map(w, wf0, h, band, cp, cn, dp, dn)
+        assert wf == pytest.approx(w + (wf0 - w) * np.exp(-band * h), rel=1e-12, abs=1e-15)
+        assert F == pytest.approx(float(m.friction(np.array([wf]))[0]), rel=1e-9, abs=1e-12)
+
+
+def test_measured_velocity_feedforward_reduces_the_error():
+    """The plant's own static map fed forward from the measured velocity on the direct drive's joint 2:
+    the error falls to under a third of the uncompensated one (the reference's feed-forward of the same
+    map does likewise); the true friction along the reference stays the best."""
+    m = true_model("direct_drive", "j2")
+    m.sigma0 = None
+    runs = compensation_runs({"j2": m}, RECIPE, str(PLANTS / "direct_drive.yaml"), seed=4, duration_scale=0.3)["j2"]
+    none, meas, true = (runs[k].metrics.rms_error for k in ("none", "measured", "true"))
+    assert true < meas < none / 3
+    assert np.all(runs["measured"].ff == 0.0) and np.all(np.isfinite(runs["measured"].q))

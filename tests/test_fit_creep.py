@@ -59,30 +59,35 @@ def test_no_creep_leaves_the_ramps_alone():
     assert s0.identifiable and s0.value == pytest.approx(true, rel=0.2)
 
 
-def _hold(rate_se, duration):
-    """A hold whose drift is below detection (as _hold_drift returns it)."""
+def _hold(rate_se, duration, shown=0.0):
+    """A hold whose drift is below detection (as _hold_drift returns it), showing ``shown`` [q/s] in the
+    load's direction."""
     return {"rate": 0.0, "rate_se": rate_se, "loading": True, "duration": duration, "drift": 0.0,
-            "load_sign": 1.0}
+            "load_sign": 1.0, "shown": shown}
 
 
-def test_a_hold_too_short_to_rule_out_creep_drops_its_ramp():
-    """A 0.3 s hold seen by a 2e-5 rad encoder cannot show a creep below 3 steps / 0.3 s = 2e-4 rad/s; over
-    a 4 s ramp of 1e-3 rad (50 steps) half of that creep is 4e-4 rad: the ramp is dropped. A 3 s hold
-    (limit 2e-5 rad/s, 4e-5 rad: 4 % of the ramp) keeps it, with that error."""
+def test_a_short_still_hold_keeps_its_ramp_a_drifting_one_drops_it():
+    """A 0.3 s hold seen by a 2e-5 rad encoder that stays on its count rules out a creep faster than one
+    step over the hold, 6.7e-5 rad/s; over a 4 s ramp of 1e-3 rad (50 steps) half of that is 1.3e-4 rad,
+    13 %: the ramp is kept with that error. The same hold drifting by 1.5 steps in the load's direction (1e-4
+    rad/s, below the 3 steps that claim a creep) may hide 1.7e-4 rad/s, 33 % of the ramp: dropped. A 3 s
+    hold (limit 6.7e-6 rad/s, 1.3e-5 rad: 1.3 % of the ramp) keeps it, with that error."""
     t = np.linspace(0.0, 4.0, 401)
     q = 1e-3 * t / 4.0
     out = dynamics.Presliding()
-    assert not dynamics._unseen_creep(_hold(1e-6, 0.3), q, t, 2e-5, out)
+    assert dynamics._unseen_creep(_hold(1e-6, 0.3), q, t, 2e-5, out)
+    assert out.creep[-1]["correction_se"] == pytest.approx(0.5 * 2e-5 / 0.3 * 4.0)
+    assert not dynamics._unseen_creep(_hold(1e-6, 0.3, shown=1e-4), q, t, 2e-5, out)
     assert dynamics._unseen_creep(_hold(1e-6, 3.0), q, t, 2e-5, out)
     kept = out.creep[-1]
-    assert kept["kept"] and kept["correction_se"] == pytest.approx(0.5 * 2e-5 * 4.0)
+    assert kept["kept"] and kept["correction_se"] == pytest.approx(0.5 * 2e-5 / 3.0 * 4.0)
     s0 = dynamics._creep_inflated(DynamicEstimate(1e5, 1e3, True, "", "ramps", 1), out)
-    assert s0.stderr == pytest.approx(np.hypot(1e3, 1e5 * 0.04), rel=1e-6)
+    assert s0.stderr == pytest.approx(np.hypot(1e3, 1e5 * 0.5 * 2e-5 / 0.3 * 4.0 / 1e-3), rel=1e-6)
 
 
 def test_no_ramp_left_for_unseen_creep_says_why(monkeypatch):
     """Every hold too short to rule creep out: sigma0 not identifiable, and the reason says so."""
-    monkeypatch.setattr(dynamics, "CREEP_COUNTS", 1e6)   # no hold can see anything: every limit is huge
+    monkeypatch.setattr(dynamics, "UNSEEN_COUNTS", 1e6)   # no hold can see anything: every limit is huge
     s0, _ = _sigma0(_creeping_logs(0.0))
     assert not s0.identifiable and "cannot rule out creep" in s0.reason
 
@@ -95,3 +100,19 @@ def test_unresolved_ramps_keep_the_encoders_reason():
                       models="stribeck_asym,lugre", diagnose=False)
     s0 = next(iter(res.joints.values())).models["lugre"].params["sigma0"]
     assert not s0.identifiable and "encoder does not resolve" in s0.reason
+
+
+def test_short_holds_without_creep_keep_their_ramps(monkeypatch):
+    """The hydraulic plant's ramps at 0.3 of their duration (holds of 0.3 s) on a joint that does not creep:
+    each hold stays within an encoder step or two, so every ramp is a presliding ramp and is kept (a short
+    hold is not a creeping one); the creep they cannot rule out enters sigma0's error."""
+    kept = []
+
+    def spy(jd, orig=dynamics.presliding_data):
+        pd = orig(jd)
+        kept.append((len(pd.ramps), len(pd.creep)))
+        return pd
+    monkeypatch.setattr(dynamics, "presliding_data", spy)
+    s0, true = _sigma0(_creeping_logs(0.0))
+    assert kept and kept[0][0] == kept[0][1] == 8
+    assert s0.identifiable and abs(s0.value - true) <= 2 * s0.stderr

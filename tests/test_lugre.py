@@ -161,3 +161,42 @@ def test_per_sign_presliding_of_003s_joint_1_is_recovered():
         p = params[k]
         assert p.identifiable and "steps" in p.source if k.startswith("sigma1") else p.identifiable
         assert abs(p.value - truth[k]) < 3 * p.stderr and p.stderr < 0.15 * truth[k], (k, p.value, p.stderr)
+
+
+def _synthetic_ramps(s0_pos, s0_neg, seed, g=10.0, noise=0.005):
+    """Presliding ramps (q, F) to 30 % and 60 % of the level ``g`` [N m], one per entry of ``s0_pos`` /
+    ``s0_neg`` (each ramp with its own sigma0 [N m/rad]: a scatter from ramp to ramp), the torque with white
+    noise of ``noise`` [N m]."""
+    from frictid.identify import presliding as pre
+    from frictid.identify.dynamics import Presliding
+    rng = np.random.default_rng(seed)
+    pd = Presliding()
+    for sign, s0s in ((1.0, s0_pos), (-1.0, s0_neg)):
+        for k, s0 in enumerate(s0s):
+            peak = (0.3, 0.6)[k % 2] * g
+            qmax = -g / s0 * np.log(1.0 - peak / g)
+            q = sign * np.linspace(0.0, qmax, 400)
+            F = s0 * pre.bristle_path(q, 0.0, s0, g) + noise * rng.standard_normal(q.size)
+            pd.ramps.append((q, F))
+    return pd, [g] * len(pd.ramps)
+
+
+@pytest.mark.parametrize("seed", [21, 22])
+def test_per_sign_split_is_judged_against_the_ramp_to_ramp_spread(seed):
+    """A symmetric joint whose z > 0 ramps scatter from ramp to ramp (sigma0 8000 and 12000, then again)
+    while the torque noise is small: each sign's fit error is far smaller than that scatter, and judged
+    by it the signs would differ (the old rule split them). Judged against the ramp-to-ramp spread they
+    do not: one sigma0. A joint whose signs do differ (20000 / 10000, the same scatter of 2 %) is split,
+    each sign within its errors."""
+    from frictid.identify import dynamics, presliding as pre
+    pd, g = _synthetic_ramps([8000.0, 12000.0, 8000.0, 12000.0], [11000.0] * 4, seed)
+    s0 = pre.fit_sigma0(pd.ramps, g)
+    by_sign = [pre.fit_sigma0(pd.ramps[i:i + 4], g[i:i + 4]) for i in (0, 4)]
+    assert abs(by_sign[0].value - by_sign[1].value) > 3 * np.hypot(by_sign[0].stderr, by_sign[1].stderr)
+    assert dynamics._per_sign(pd, g, s0) is None
+    pd, g = _synthetic_ramps([20000.0, 20400.0, 19600.0, 20000.0], [10000.0, 10200.0, 9800.0, 10000.0], seed)
+    sides = dynamics._per_sign(pd, g, pre.fit_sigma0(pd.ramps, g))
+    assert sides is not None
+    for e, true in zip(sides, (20000.0, 10000.0)):
+        assert e.identifiable and abs(e.value - true) < 3 * e.stderr
+        assert e.details["ramp_spread_se"] >= e.details["fit_se"]

@@ -40,7 +40,8 @@ def simulate(
                         "model).")] = None,
     compensate: Annotated[Optional[str], typer.Option(
         "--compensate", help="Parameter YAML from frictid fit: run the recipe in closed loop without friction "
-                             "compensation, with the model as feed-forward, with the LuGre friction observer of "
+                             "compensation, with the model as feed-forward (along the reference; its static map from "
+                             "the measured velocity), with the LuGre friction observer of "
                              "000 on it (when its sigma0 is identified) and with the plant's true friction; "
                              "-o gets the runs (Parquet or CSV).")] = None,
     robot: Annotated[Optional[str], typer.Option(

@@ -104,6 +104,8 @@ HOLD_BAND = 4.0
 #: CREEP_Z standard errors of its rate (consecutive samples are correlated: 5, not 2).
 HOLD_MIN_SAMPLES = 20
 CREEP_COUNTS = 3.0
+#: A creep slower than this many encoder steps over a hold may leave the count where it is (quantisation).
+UNSEEN_COUNTS = 1.0
 CREEP_Z = 5.0
 #: The creep runs at the held load's rate; below it, whether it runs at all is not known: this share of the
 #: ramp's creep is the uncertainty of its profile.
@@ -158,10 +160,14 @@ def _hold_drift(p, s) -> dict | None:
     late, se_late = _drift_rate(t[mid:], p.log.q[a + mid:b + 1], F[a + mid:b + 1] - F_end)
     # creep runs on while the load is held; a drift that dies out within the hold is the bristles settling
     # (LuGre drifts towards its steady deflection under a held load), and the ramp fit follows that itself
-    if abs(rate) <= CREEP_Z * se_rate or abs(late) <= CREEP_Z * se_late or np.sign(late) != np.sign(rate):
+    settles = abs(late) <= CREEP_Z * se_late or np.sign(late) != np.sign(rate)
+    # what the hold shows in the load's direction, significant or not: the late half's rate where the drift
+    # settles (creep keeps its rate to the end of the hold), else the whole hold's
+    shown = max(0.0, float(np.sign(F_end)) * (late if settles else rate))
+    if abs(rate) <= CREEP_Z * se_rate or settles:
         rate = 0.0
     return {"rate": rate, "rate_se": CREEP_Z * se_rate, "loading": bool(end == s.i1 - 1), "duration": float(t[-1] - t[0]), "drift": rate * float(t[-1] - t[0]),
-            "load_sign": float(np.sign(F_end))}
+            "load_sign": float(np.sign(F_end)), "shown": shown if np.isfinite(shown) else 0.0}
 
 
 def _without_creep(out: Presliding, jd: JointData) -> None:
@@ -217,14 +223,19 @@ def _without_creep(out: Presliding, jd: JointData) -> None:
 
 
 def _unseen_creep(h: dict, q: np.ndarray, t: np.ndarray, res: float, out: Presliding) -> bool:
-    """Whether a ramp whose hold shows no creep is kept. The hold rules creep out only down to its
-    detection limit (CREEP_Z standard errors of the rate, or CREEP_COUNTS encoder steps over the hold): a
-    creep below it, running through the ramp, is displacement the bristles did not make. Its uncertainty
-    (CREEP_PROFILE of that limit over the ramp's duration: it may run at any rate up to the limit) is
-    recorded like a creep correction's; above CREEP_SHARE of the ramp's displacement the ramp is dropped
-    (a short or coarse hold cannot tell a creeping joint from a still one), below it enters sigma0's
-    error (:func:`_creep_inflated`)."""
-    limit = max(h["rate_se"], CREEP_COUNTS * res / max(h["duration"], 1e-300))
+    """Whether a ramp whose hold shows no creep is kept. Creep is displacement that keeps growing at
+    constant load; the hold rules out a creep faster than what it shows plus what it cannot resolve: the
+    drift rate it shows in the load's direction (``shown``, significant or not) and the larger of its
+    statistical limit (CREEP_Z standard errors of the rate) and one encoder step over the hold (a creep
+    slower than that may leave the count unchanged; a faster one turns it over at least once, and that is
+    in ``shown``). A creep below that limit, running through the ramp, is displacement the bristles did
+    not make. Its uncertainty (CREEP_PROFILE of the limit over the ramp's duration: it may run at any rate
+    up to the limit) is recorded like a creep correction's; above CREEP_SHARE of the ramp's displacement
+    the ramp is dropped (a hold too short or too coarse to tell a creeping joint from a still one), below it
+    enters sigma0's error (:func:`_creep_inflated`). CREEP_COUNTS is the rule for *claiming* a creep (a
+    drift must exceed it), not the size of one a still hold may hide."""
+    step = UNSEEN_COUNTS * res / max(h["duration"], 1e-300)
+    limit = max(h["rate_se"], h.get("shown", 0.0) + step)
     unseen = CREEP_PROFILE * limit * float(t[-1] - t[0])
     h.update(rate=0.0, unseen_limit=float(limit), ramp_creep=0.0, ramp_bristle=float(np.ptp(q)),
              correction_se=float(unseen))
@@ -236,10 +247,10 @@ def _unseen_creep(h: dict, q: np.ndarray, t: np.ndarray, res: float, out: Presli
 def _creep_inflated(s0: pre.DynamicEstimate, pd: Presliding) -> pre.DynamicEstimate:
     """sigma0's standard error with the uncertainty of the creep taken out of its ramps (relative: the
     correction's error over the bristle displacement left, the largest of the kept ramps)."""
-    rel = [h["correction_se"] / h["ramp_bristle"] for h in pd.creep if h.get("kept") and h["ramp_bristle"] > 0]
+    rel = _creep_share(pd)
     if not rel or s0.value is None or s0.stderr is None:
         return s0
-    se = math.hypot(s0.stderr, s0.value * max(rel))
+    se = math.hypot(s0.stderr, s0.value * rel)
     reason = s0.reason or ("" if se <= s0.value else f"relative error {100 * se / s0.value:.0f} % (above 100 %)")
     return pre.DynamicEstimate(s0.value, se, not reason, reason, s0.source + "; creep taken out of the ramps",
                                s0.n_segments, s0.rms, s0.details)
@@ -311,10 +322,32 @@ def fit_lugre(jd: JointData, selected: str | None) -> None:
 PER_SIGN_Z = 3.0
 
 
+def _ramp_spread(ramps: list, g_of: list[float], resolution: float) -> float:
+    """The standard error of a sign's sigma0 [F/q] from the ramp-to-ramp spread: the scatter of the ramps'
+    own sigma0 (each ramp fitted alone) over the root of their number; 0 with fewer than two that identify
+    it. Ramps of one sign that scatter more than the fit's residuals say (a drift between ramps, bristles
+    not quite at rest) make the fit's own error too small."""
+    vals = []
+    for r, g in zip(ramps, g_of):
+        e = pre.fit_sigma0([r], [g], resolution)
+        if e.identifiable:
+            vals.append(e.value)
+    return float(np.std(vals, ddof=1) / math.sqrt(len(vals))) if len(vals) >= 2 else 0.0
+
+
+def _creep_share(pd: Presliding) -> float:
+    """The largest relative uncertainty the creep leaves in a kept ramp (what :func:`_creep_inflated` adds)."""
+    rel = [h["correction_se"] / h["ramp_bristle"] for h in pd.creep if h.get("kept") and h["ramp_bristle"] > 0]
+    return max(rel, default=0.0)
+
+
 def _per_sign(pd: Presliding, g_of: list[float], s0: pre.DynamicEstimate):
     """sigma0 per bristle sign (z > 0, z < 0: the ramps' load sign), when each sign's ramps identify it
-    and the two differ by more than PER_SIGN_Z combined standard errors (a per-sign plant, as 001's joint
-    1); None otherwise (one sigma0 for both)."""
+    and the two differ by more than PER_SIGN_Z combined standard errors plus what the creep may shift one
+    sign against the other (a per-sign plant, as 001's joint 1); None otherwise (one sigma0 for both).
+    Each sign's standard error is the larger of its fit's and its ramp-to-ramp spread's
+    (:func:`_ramp_spread`); the creep's share is a bound on a bias, not a random error, so it is added
+    once, not scaled with PER_SIGN_Z."""
     if not s0.identifiable:
         return None
     sides = []
@@ -322,14 +355,20 @@ def _per_sign(pd: Presliding, g_of: list[float], s0: pre.DynamicEstimate):
         idx = [i for i, (_, F) in enumerate(pd.ramps) if (np.mean(F) >= 0) == positive]
         if len(idx) < 2:
             return None
-        e = _creep_inflated(pre.fit_sigma0([pd.ramps[i] for i in idx], [g_of[i] for i in idx], pd.resolution), pd)
+        ramps, gs = [pd.ramps[i] for i in idx], [g_of[i] for i in idx]
+        e = pre.fit_sigma0(ramps, gs, pd.resolution)
         if not e.identifiable:
             return None
+        spread = _ramp_spread(ramps, gs, pd.resolution)
+        e.details = dict(e.details or {}, fit_se=e.stderr, ramp_spread_se=spread)
+        e.stderr = max(e.stderr, spread)
         e.source += f"; {'z > 0' if positive else 'z < 0'} ramps (per sign)"
         sides.append(e)
-    if abs(sides[0].value - sides[1].value) <= PER_SIGN_Z * math.hypot(sides[0].stderr, sides[1].stderr):
+    bias = _creep_share(pd) * max(sides[0].value, sides[1].value)
+    if abs(sides[0].value - sides[1].value) <= PER_SIGN_Z * math.hypot(sides[0].stderr, sides[1].stderr) + bias:
         return None
-    return sides
+    sides = [_creep_inflated(e, pd) for e in sides]
+    return sides if all(e.identifiable for e in sides) else None
 
 
 def _step_sign(u: np.ndarray) -> int:

@@ -236,6 +236,20 @@ def _observer(w, e, zh, h, gain, ocp, ocn, odp, odn, s0p, s0n, s1p, s1n):
     return F, zh + a * h
 
 
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+def _measured_map(w, wf, h, band, ocp, ocn, odp, odn):
+    """A static friction map as feed-forward from the measured velocity w, low-passed to the loop's
+    bandwidth ``band`` [rad/s] (first order, exact over the step: wf its state): ``g(wf) sgn(wf) + f(wf)``.
+    Returns (the feed-forward, wf after the step)."""
+    wf = w + (wf - w) * math.exp(-band * h)
+    g, _, f, _ = _map_at(wf, ocp, ocn, odp, odn, 1.0, 0.0)
+    if wf > 0.0:
+        return g + f, wf
+    if wf < 0.0:
+        return f - g, wf
+    return f, wf
+
+
 #: The outputs of :func:`simulate_joint`, in order.
 OUTPUTS = ("q", "w", "z", "F", "T", "u", "qm", "qdm")
 
@@ -253,7 +267,9 @@ def simulate_joint(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T,
     dc_pos, dc_neg thermal6 slopes; th_code, theta thermal law; state0 = (q, w, z, T).
 
     observer : None, or (gain, sigma0 (pos, neg), sigma1 (pos, neg), c_pos, c_neg) of an identified LuGre model:
-    its friction observer (:func:`_observer`) adds its estimate to the torque wherever the loop is closed.
+    its friction observer (:func:`_observer`) adds its estimate to the torque wherever the loop is closed;
+    with both sigma0 zero, the map's steady state at the measured velocity low-passed to ``gain`` [rad/s]
+    (:func:`_measured_map`: a static map fed forward from the measured velocity) instead.
 
     mode, Tenv, payload, reset_T, gmul, fmul, nq and nqd may be one value long, a constant for every
     sample (a replay's closed loop: no array of the log's length for what does not change); q_ref sets n.
@@ -381,7 +397,10 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
             integ_new = integ + kvi * e * h
             u = tau_ff[k] + kv * e + integ_new
         if obs_on and md != MODE_TORQUE:
-            Fh, zh = _observer(qdm, qm - q_ref[k], zh, h, obs[0], ocp, ocn, odp, odn, obs[1], obs[2], obs[3], obs[4])
+            if obs[1] > 0.0 or obs[2] > 0.0:
+                Fh, zh = _observer(qdm, qm - q_ref[k], zh, h, obs[0], ocp, ocn, odp, odn, obs[1], obs[2], obs[3], obs[4])
+            else:   # zh: the filtered velocity
+                Fh, zh = _measured_map(qdm, zh, h, obs[0], ocp, ocn, odp, odn)
             u += Fh
         if u > tmax:
             u = tmax

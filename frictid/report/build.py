@@ -1090,6 +1090,7 @@ def build_report(params: dict, logs: Iterable[JointLog] | None = None, *, params
 
 #: The compensation runs' names as the report shows them.
 RUN_LABELS = {"none": "no compensation", "model": "the identified model as feed-forward",
+              "measured": "the identified model's static map from the measured velocity",
               "observer": "the LuGre friction observer (seed 000, eq. 17) on the identified model",
               "true": "the plant's true friction as feed-forward (ideal)"}
 
