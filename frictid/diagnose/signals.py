@@ -131,6 +131,17 @@ def shifted_torque(tau: np.ndarray, k: np.ndarray, shift: float) -> np.ndarray:
     return tau[j0] * (1.0 - fr) + tau[j0 + 1] * fr
 
 
+def _nearest(k: np.ndarray, label: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """The ``label`` of the sample of ``k`` (sample indices, any order) nearest to each of ``at`` (the
+    earlier one on a tie)."""
+    order = np.argsort(k)
+    ks, ls = k[order], label[order]
+    if ks.size < 2:
+        return np.broadcast_to(ls[:1], at.shape).copy() if ks.size else np.zeros(at.size, np.int64)
+    j = np.clip(np.searchsorted(ks, at), 1, ks.size - 1)
+    return ls[np.where(np.abs(ks[j - 1] - at) <= np.abs(ks[j] - at), j - 1, j)]
+
+
 def _moving_rows(S: Samples) -> list:
     """Per log: (indices of its moving samples, their fold: that of the nearest sliding sample in time)."""
     def compute():
@@ -143,12 +154,7 @@ def _moving_rows(S: Samples) -> list:
             if km.size < 8 or not sel.any() or lg.n < 3:
                 out.append((np.zeros(0, np.int64), np.zeros(0, np.int64)))
                 continue
-            order = np.argsort(S.k[sel])
-            ks, fs = S.k[sel][order], S.fold[sel][order]
-            j = np.clip(np.searchsorted(ks, km), 1, ks.size - 1) if ks.size > 1 else np.zeros(km.size, np.int64)
-            if ks.size > 1:
-                j = np.where(np.abs(ks[j - 1] - km) <= np.abs(ks[j] - km), j - 1, j)
-            out.append((km, fs[j]))
+            out.append((km, _nearest(S.k[sel], S.fold[sel], km)))
         return out
     return S.cached("moving_rows", compute)
 
@@ -341,12 +347,7 @@ def _moving_groups(S: Samples) -> list:
             if not km.size:
                 out.append(np.zeros(0, np.int64))
                 continue
-            order = np.argsort(S.k[sel])
-            ks, gs = S.k[sel][order], S.group[sel][order]
-            j = np.clip(np.searchsorted(ks, km), 1, ks.size - 1) if ks.size > 1 else np.zeros(km.size, np.int64)
-            if ks.size > 1:
-                j = np.where(np.abs(ks[j - 1] - km) <= np.abs(ks[j] - km), j - 1, j)
-            out.append(gs[j])
+            out.append(_nearest(S.k[sel], S.group[sel], km))
         return out
     return S.cached("moving_groups", compute)
 
