@@ -124,7 +124,7 @@ def _fit_robot(logs, robot, output, mapping, units, con, as_json, friction, diag
     for j, f in rs["friction"].items():
         sel = summary[j]["selected"] if friction == "models" else "coulomb_viscous"
         fh = f.get("fh", {})
-        held = f", standing {fh['value']:.3g} N m" if fh.get("identifiable", True) and fh.get("stderr") else ""
+        held = f", standing {fh['value']:.3g} N m" if "value" in fh and fh.get("identifiable", True) else ""
         con.info(f"frictid: joint {j}: Fc {f['fc']['value']:.4g} +- {f['fc']['stderr']:.2g}, sigma2 "
                  f"{f['fv']['value']:.4g} +- {f['fv']['stderr']:.2g}, offset {f['fo']['value']:.4g} N m{held} "
                  f"(joint estimate); selected on the friction torque: {sel or 'no model'}")

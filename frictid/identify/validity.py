@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from frictid.models.static import coulomb_viscous, stribeck
-
+from ..models.static import coulomb_viscous, stribeck
 from .samples import LEVEL_TOLERANCE, speed_levels
 
 #: Share of the moving samples left out at each end of a range measured on samples (a stray sample at a
@@ -173,25 +172,22 @@ def _no_drop_seen(p: dict, v: np.ndarray) -> None:
 def _drop_free_spread(mf, without_drop) -> None:
     """The data show a drop (:func:`_drop_significant`): the drop-free map's level and slope are those of a
     map the data reject, and read the drop's tail as Coulomb level and slope. Their change to the Stribeck
-    map's (``mf``) enters their standard errors (added in quadrature), the mirror of :func:`_level_spread`
-    (a foreign sweep with a slow drop, exponent 0.86, whose break-away lay below the slowest plateau:
-    `coulomb_viscous` selected with sigma2 0.1776 +- 0.0073 against 0.1939, the Stribeck map's 0.1936)."""
-    sufs = ("_pos", "_neg") if mf.name.endswith("_asym") else ("",)
-    for suf in sufs:
-        for n in ("Fc", "sigma2"):
-            pe, alt = mf.params.get(n + suf), without_drop.params.get(n + suf)
-            if pe is None or alt is None or pe.value is None or alt.value is None or alt.stderr is None:
-                continue
-            alt.stderr = float(np.hypot(alt.stderr, pe.value - alt.value))
+    map's (``mf``) enters their standard errors (added in quadrature), the mirror of the Stribeck map's
+    own spread in :func:`drop_spanned` (a foreign sweep with a slow drop, exponent 0.86, whose break-away
+    lay below the slowest plateau: `coulomb_viscous` selected with sigma2 0.1776 +- 0.0073 against 0.1939,
+    the Stribeck map's 0.1936)."""
+    for suf in ("_pos", "_neg") if mf.name.endswith("_asym") else ("",):
+        _level_spread(without_drop, mf, suf)
 
 
-def _level_spread(mf, without_drop, suf: str) -> None:
-    """``Fc`` and ``sigma2`` of branch ``suf`` of ``mf`` with their change to the drop-free map
-    ``without_drop`` added to their standard errors (:func:`drop_spanned`)."""
-    if without_drop is None:
+def _level_spread(into, other, suf: str) -> None:
+    """``Fc`` and ``sigma2`` of branch ``suf`` of map ``into`` with their change to map ``other``'s added to
+    their standard errors (the Stribeck map's by the drop-free map in :func:`drop_spanned`, and the mirror
+    in :func:`_drop_free_spread`)."""
+    if into is None or other is None:
         return
     for n in ("Fc", "sigma2"):
-        pe, alt = mf.params.get(n + suf), without_drop.params.get(n + suf)
+        pe, alt = into.params.get(n + suf), other.params.get(n + suf)
         if pe is None or alt is None or pe.value is None or alt.value is None or pe.stderr is None:
             continue
         pe.stderr = float(np.hypot(pe.stderr, alt.value - pe.value))
