@@ -439,6 +439,13 @@ def test_simulate_replays_a_robot_identification_on_a_held_out_log(arm_files, cl
     r = cli("simulate", "--params", tmp / "p.yaml", "--replay", tmp / "b.parquet", "--robot", tmp / "arm2.yaml",
             "-o", tmp / "x.parquet")
     assert r.code == 2 and "joints" in r.err and "Traceback" not in r.err and not (tmp / "x.parquet").exists()
+    broken = yaml.safe_load((tmp / "p.yaml").read_text())
+    del broken["settings"]["robot"]["friction"][robot.joints[0]]["fh"]["value"]   # an entry edited by hand
+    (tmp / "broken.yaml").write_text(yaml.safe_dump(broken))
+    r = cli("simulate", "--params", tmp / "broken.yaml", "--replay", tmp / "b.parquet", "--robot", tmp / "arm.yaml",
+            "-o", tmp / "x.parquet")
+    assert r.code == 2 and f"friction.{robot.joints[0]}.fh" in r.err and "Traceback" not in r.err
+    assert not (tmp / "x.parquet").exists()
 
 
 def test_the_report_of_a_robot_has_its_page_and_draws_friction_torques(arm_files, cli):

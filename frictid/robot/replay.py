@@ -19,6 +19,15 @@ from .identify import RobotFit, predict
 from .regressor import base_parameters
 
 
+def _number(entry, where: str) -> float:
+    """The ``value`` of a parameter file's entry, or a clear error naming it."""
+    try:
+        return float(entry["value"])
+    except (KeyError, TypeError, ValueError):
+        raise FrictidInputError(f"the parameter file's {where} has no numeric value; write it again with "
+                                "frictid fit LOG --robot ROBOT") from None
+
+
 def fit_from_params(robot: Robot, res) -> RobotFit:
     """The :class:`RobotFit` a parameter file of ``frictid fit --robot`` describes, for ``robot``."""
     rs = (res.settings or {}).get("robot")
@@ -38,16 +47,17 @@ def fit_from_params(robot: Robot, res) -> RobotFit:
     if names != bp.names(robot) or (cols is not None and list(cols) != bp.columns.tolist()):
         raise FrictidInputError(f"robot {robot.name}: its base parameters ({bp.n}) are not those of the parameter "
                                 f"file ({len(names)}); give the robot description it was identified with")
-    x = [float(p["value"]) for p in rs["base_parameters"]]
+    x = [_number(p, f"settings.robot.base_parameters.{p.get('name', '?')}") for p in rs["base_parameters"]]
     fr = rs.get("friction") or {}
     held = {}
     for j in robot.joints:
         if str(j) in fr:  # the joint estimate's own friction
-            x += [float(fr[str(j)][k]["value"]) for k in ("fv", "fc", "fo")]
-            if "fh" in fr[str(j)]:  # the friction held at standstill (frictid.robot.hold)
-                h = fr[str(j)]["fh"]
-                held[j] = {"fh": ParamEstimate("fh", h["value"], h.get("stderr"), "N m", h.get("identifiable", True),
-                                               h.get("reason", ""))}
+            f = fr[str(j)]
+            x += [_number(f.get(k), f"settings.robot.friction.{j}.{k}") for k in ("fv", "fc", "fo")]
+            if "fh" in f:  # the friction held at standstill (frictid.robot.hold)
+                h = f["fh"]
+                held[j] = {"fh": ParamEstimate("fh", _number(h, f"settings.robot.friction.{j}.fh"), h.get("stderr"),
+                                               "N m", h.get("identifiable", True), h.get("reason", ""))}
             continue
         cv = res[j].models.get("coulomb_viscous")
         if cv is None:
