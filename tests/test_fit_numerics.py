@@ -77,3 +77,79 @@ def test_one_map_failing_leaves_the_others(monkeypatch):
     assert "stribeck_2exp" not in jf.models and {"coulomb_viscous", "stribeck"} <= set(jf.models)
     assert any(e["what"] == "stribeck_2exp" and "numerically" in e["reason"] for e in jf.not_identified)
     assert jf.selected in ("coulomb_viscous", "stribeck")
+
+
+# frictid.identify.smallsq: the least squares of the LuGre fits, against scipy's on random small problems
+
+def _decay_problem(rng, n_par):
+    """A decaying exponential plus an offset and (for 3 parameters) a slope, on 30 noisy points; the rate
+    is the nonlinear parameter. Returns residual(p), its Jacobian, a start and the truth."""
+    t = np.linspace(0.0, 3.0, 30)
+    truth = np.array([rng.uniform(0.5, 2.0), rng.uniform(0.3, 3.0), rng.uniform(-1, 1), rng.uniform(-0.3, 0.3)])[:n_par]
+    noise = rng.normal(0.0, rng.choice([1e-3, 3e-2]), t.size)
+
+    def model(p):
+        out = p[0] * np.exp(-p[1] * t) if n_par > 1 else np.exp(-p[0] * t)
+        return out + (p[2] if n_par > 2 else 0.0) + (p[3] * t if n_par > 3 else 0.0)
+
+    y = model(truth) + noise
+
+    def resid(p):
+        return model(p) - y
+
+    def jac(p):
+        if n_par == 1:
+            return (-t * np.exp(-p[0] * t))[:, None]
+        e = np.exp(-p[1] * t)
+        cols = [e, -p[0] * t * e, np.ones_like(t), t][:n_par]
+        return np.column_stack(cols)
+
+    start = truth * rng.uniform(0.5, 1.6, n_par)
+    return resid, jac, start, truth
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_small_least_squares_reaches_scipys_optimum(seed):
+    """Unbounded and with a bound that binds (the rate capped below its optimum), analytic Jacobian and
+    forward differences: the same optimum as scipy's trf at tight tolerances, within a thousandth of each
+    parameter's standard error (the problem's conditioning), the same active bounds, and within the box."""
+    from scipy.optimize import least_squares as scipy_lsq
+
+    from frictid.identify.smallsq import least_squares
+
+    rng = np.random.default_rng(seed)
+    n_par = 1 + seed % 4
+    resid, jac, start, truth = _decay_problem(rng, n_par)
+    free = scipy_lsq(resid, start, jac=jac, method="trf", ftol=1e-14, xtol=1e-14, gtol=1e-14)
+    cap = np.full(n_par, np.inf)
+    rate = 0 if n_par == 1 else 1
+    cap[rate] = 0.8 * free.x[rate]  # binds
+    for bounds in ((-np.inf, np.inf), (np.zeros(n_par) - 10.0, cap)):
+        ref = scipy_lsq(resid, np.minimum(start, 0.99 * cap), jac=jac, bounds=bounds, method="trf",
+                        ftol=1e-14, xtol=1e-14, gtol=1e-14)
+        J = ref.jac
+        s2 = 2 * ref.cost / max(J.shape[0] - n_par, 1)
+        se = np.sqrt(s2 * np.diag(np.linalg.pinv(J.T @ J)))
+        for use_jac in (jac, None):
+            got = least_squares(resid, np.minimum(start, 0.99 * cap), jac=use_jac, bounds=bounds)
+            assert got.success and got.status > 0
+            assert np.all(got.x >= bounds[0]) and np.all(got.x <= bounds[1])
+            assert got.cost <= ref.cost * (1 + 1e-7) + 1e-15
+            assert got.active_mask.tolist() == ref.active_mask.tolist()
+            assert np.all(np.abs(got.x - ref.x) <= 1e-3 * se + 1e-9 * np.abs(ref.x)), (got.x, ref.x, se)
+            assert np.allclose(got.fun, resid(got.x)) and got.jac.shape == (30, n_par)
+
+
+def test_small_least_squares_reports_failures_as_scipy():
+    """A start with residuals that are not finite, or outside the bounds, is a ValueError (the LuGre fits
+    skip that start); a budget spent is status 0, not success."""
+    from frictid.identify.smallsq import least_squares
+
+    t = np.linspace(0.0, 1.0, 20)
+    y = np.exp(-2.0 * t)
+    with pytest.raises(ValueError), np.errstate(divide="ignore"):
+        least_squares(lambda p: np.exp(-p[0] * t) / (p[0] - 1.0) - y, [1.0])
+    with pytest.raises(ValueError):
+        least_squares(lambda p: np.exp(-p[0] * t) - y, [3.0], bounds=([0.0], [2.5]))
+    out = least_squares(lambda p: np.exp(-p[0] * t) - y, [9.0], max_nfev=2)
+    assert out.status == 0 and not out.success and out.nfev <= 2

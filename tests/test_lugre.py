@@ -200,3 +200,27 @@ def test_per_sign_split_is_judged_against_the_ramp_to_ramp_spread(seed):
     for e, true in zip(sides, (20000.0, 10000.0)):
         assert e.identifiable and abs(e.value - true) < 3 * e.stderr
         assert e.details["ramp_spread_se"] >= e.details["fit_se"]
+
+
+def test_sigma0_and_sigma1_as_scipys_optimisers_find_them(monkeypatch):
+    """The LuGre fits run :mod:`frictid.identify.smallsq` (scipy's loop was most of their time): sigma0 on
+    noisy ramps and sigma1 on noisy steps are scipy's (MINPACK's Levenberg-Marquardt and trf, its defaults)
+    within a hundredth of their standard errors, with the same verdicts."""
+    from scipy.optimize import least_squares as scipy_lsq
+
+    from frictid.identify import presliding as pre
+    pd, g = _synthetic_ramps([8000.0, 12000.0, 8000.0, 12000.0], [11000.0] * 4, 23)
+    steps, c_pos, c_neg = _noisy_torque_steps(70.0, 0.05, 13)
+    clean = [(t, q, pre.step_input(u)) for t, q, u in steps]
+    ours = [pre.fit_sigma0(pd.ramps, g), pre.fit_sigma1_steps(clean, 0.15, 12600.0, c_pos, c_neg, 0.1)]
+
+    def scipy_adapter(fun, x0, jac=None, bounds=(-np.inf, np.inf), x_scale=1.0, **kw):
+        method = "lm" if jac is not None else "trf"
+        return scipy_lsq(fun, x0, jac=jac if jac is not None else "2-point", bounds=bounds, x_scale=x_scale,
+                         method=method)
+    monkeypatch.setattr(pre, "least_squares", scipy_adapter)
+    theirs = [pre.fit_sigma0(pd.ramps, g), pre.fit_sigma1_steps(clean, 0.15, 12600.0, c_pos, c_neg, 0.1)]
+    for a, b in zip(ours, theirs):
+        assert a.identifiable == b.identifiable and a.reason == b.reason
+        assert abs(a.value - b.value) < 0.01 * b.stderr, (a.value, b.value, b.stderr)
+        assert a.stderr == pytest.approx(b.stderr, rel=1e-3)

@@ -28,10 +28,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
-from scipy.optimize import least_squares
 
 from frictid.models.lugre import _FM, dviscous_nb, level_slope_nb, lugre_core, lugre_step, lugre_step_ref, viscous_nb
 from frictid.models.static import canonical_level, canonical_viscous
+
+from .smallsq import least_squares
 
 #: Minimum presliding displacement, in encoder counts, for sigma0 to be identifiable.
 MIN_COUNTS = 20
@@ -182,7 +183,7 @@ class _RampForces:
         best = None
         for s_init in starts:
             try:
-                r = least_squares(self.resid, [math.log(s_init)], jac=self.jac, method="lm", x_scale=1.0)
+                r = least_squares(self.resid, [math.log(s_init)], jac=self.jac, ftol=1e-10, xtol=1e-10)
             except ValueError:
                 continue
             if best is None or r.cost < best.cost:
@@ -230,7 +231,7 @@ def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float
     s2 = 2 * best.cost / max(n - 1, 1)
     # consecutive samples are correlated: count each ramp as ~ span/resolution (or 50) independent points
     n_eff = sum(min(q.size, max(10, int(np.ptp(q) / resolution) if resolution > 0 else 50)) for q, _ in ramps)
-    JtJ = float(best.jac[:, 0] @ best.jac[:, 0])
+    JtJ = float(np.einsum("i,i->", best.jac[:, 0], best.jac[:, 0]))  # not a BLAS dot: see smallsq
     se_log = math.sqrt(s2 / JtJ * n / max(n_eff, 1)) if JtJ > 0 else math.inf
     se = s0 * se_log
     rms = math.sqrt(2 * best.cost / n)
@@ -428,7 +429,7 @@ def fit_sigma1_steps(steps: list[tuple[np.ndarray, np.ndarray, np.ndarray]], J: 
     n = best.fun.size
     n_eff = max(len(usable) * 20, 2)
     s2 = 2 * best.cost / max(n - 1, 1)
-    JtJ = float(best.jac[:, 0] @ best.jac[:, 0])
+    JtJ = float(np.einsum("i,i->", best.jac[:, 0], best.jac[:, 0]))  # not a BLAS dot: see smallsq
     se = math.sqrt(s2 / JtJ * n / n_eff) if JtJ > 0 else math.inf
     spread = None
     if len(usable) >= 3:  # step-to-step spread: honest when quantisation or noise bias single steps
