@@ -237,13 +237,21 @@ def test_prepare_matches_plain_per_sample_formulas(run_and_truth):
         np.testing.assert_allclose(run.cycle_L[k] @ run.cycle_L[k].T, M, rtol=1e-9, atol=1e-12 * np.trace(M))
 
 
-def test_power_bins_in_place_equal_the_plain_products():
-    """_power_bins forms |w|^3 and w^4 in the memory of |w| and w^2; the same products, summed per bin."""
+def test_bin_sums_equal_numpys_bincounts():
+    """The heat balance's bins are summed in one compiled pass (:func:`thermal._bin_sums`): the samples, the
+    friction power basis (a non-finite speed counted as 0), the ambient and the joint temperatures per bin
+    are numpy's bincounts of them to the last bit, and a bin without samples stays 0 (NaN for the joint's)."""
+    from frictid.identify.thermal import _bin_sums
     rng = np.random.default_rng(5)
     w = rng.normal(0.0, 2.0, 5000)
+    w[[7, 300]] = np.nan, np.inf
     b = np.sort(rng.integers(0, 40, w.size))
-    v, w2 = np.abs(w), w * w
-    ref = np.column_stack([np.bincount(b, weights=p, minlength=40) for p in (v, w2, v * w2, w2 * w2)])
-    w_before = w.copy()
-    np.testing.assert_array_equal(_power_bins(b, w, 40), ref)
-    np.testing.assert_array_equal(w, w_before)
+    b[b == 13] = 14  # an empty bin
+    te, tj = rng.normal(20.0, 3.0, w.size), rng.normal(40.0, 5.0, w.size)
+    counts, P, s_te, s_tj = _bin_sums(b, w, te, tj, 41)
+    np.testing.assert_array_equal(counts, np.bincount(b, minlength=41).astype(float))
+    np.testing.assert_array_equal(P, _power_bins(b, w, 41))
+    np.testing.assert_array_equal(s_te, np.bincount(b, weights=te, minlength=41))
+    np.testing.assert_array_equal(s_tj, np.bincount(b, weights=tj, minlength=41))
+    assert counts[13] == 0 and counts[40] == 0 and np.all(P[13] == 0)
+    assert np.isnan(_bin_sums(b, w, te, None, 41)[3]).all()

@@ -42,10 +42,11 @@ def _log_runs(p: Prep, duty: list[Segment], min_speed: float) -> list:
         cur.append(c)
     blocks.append(cur)
     runs = []
+    dt = p.log.dt  # a median over the whole log: once, not twice per run
     for blk in blocks:
         run = th.prepare(p.log.t, p.w, p.F, blk, p.log.channels["temp_env"],
                          p.log.channels.get("temp_joint"), min_speed,
-                         bin_s=max(med * p.log.dt / th.BINS_PER_CYCLE, p.log.dt), a=p.a)
+                         bin_s=max(med * dt / th.BINS_PER_CYCLE, dt), a=p.a)
         if run is not None:
             runs.append(run)
     return runs
