@@ -187,7 +187,9 @@ def prepare(t, w, F, cycles: list[tuple[int, int, int]], temp_env=None, temp_joi
         G = X.T @ X / n
         d = np.sqrt(np.diag(G))  # column scales (RMS) of the least squares
         d[d == 0] = 1
-        c = _cycle_solve(X, ff[m], G, d)[:4]
+        X /= d
+        c, *_ = np.linalg.lstsq(X, ff[m], rcond=None)
+        c = (c / d)[:4]
         if a is not None and G[4, 4] > 0:  # Schur complement: information on c with dJ profiled out
             M = G[:4, :4] - np.outer(G[:4, 4], G[4, :4]) / G[4, 4]
         else:
@@ -208,24 +210,6 @@ def prepare(t, w, F, cycles: list[tuple[int, int, int]], temp_env=None, temp_joi
                       np.array([r[2] for r in rows]), np.array([r[3] for r in rows]),
                       np.array([r[4] for r in rows]), np.array([r[5] for r in rows]),
                       np.array([r[6] for r in rows]), T_init, has_T)
-
-
-#: Smallest eigenvalue ratio of a cycle's scaled normal equations solved as they are (a condition number
-#: of the scaled regressors below 1e5: the normal equations' rounding, cond^2 eps, stays below 1e-6 relative,
-#: typically 1e-11); below it the cycle is solved by SVD (``lstsq``).
-NORMAL_EQ_MIN_EIG = 1e-10
-
-
-def _cycle_solve(X, y, G, d) -> np.ndarray:
-    """Least-squares coefficients of ``X c = y`` with ``G = X^T X / n`` and the columns' RMS ``d``: the
-    column-scaled normal equations when they are well conditioned (:data:`NORMAL_EQ_MIN_EIG`), else
-    ``lstsq`` on the scaled columns. The normal equations reuse G; an SVD of the cycle's thousands of
-    samples was 2 ms a cycle, 5 % of a 2 x 15 min fit."""
-    Gs = G / np.outer(d, d)
-    eig = np.linalg.eigvalsh(Gs)
-    if eig[0] > NORMAL_EQ_MIN_EIG * eig[-1]:
-        return np.linalg.solve(Gs, (X.T @ y) / (X.shape[0] * d)) / d
-    return np.linalg.lstsq(X / d, y, rcond=None)[0] / d
 
 
 def simulate_temperature(run: ThermalRun, c0, s_alpha, s_beta, dc, C, K, T0):
