@@ -257,9 +257,12 @@ def _residuals(x, lay: _Layout, runs, T0, use, T_scale, F_scale):
     for r, u in zip(runs, use):
         Tb = simulate_temperature(r, c0, sa, sb, dc, C, K, T0)
         Tc = r.cycle_W @ Tb
-        for k in np.flatnonzero(u):
-            cm = _coef_at(c0, sa, sb, dc, Tc[k] - T0)
-            out.append(r.cycle_L[k].T @ (cm - r.cycle_c[k]) / F_scale)
+        ks = np.flatnonzero(u)
+        # every used cycle at once: L_k^T (c(T_k) - c_k), the same products as cycle by cycle (a stacked
+        # matmul runs the per-slice one; einsum would sum in another order)
+        cm = _coef_at(c0, sa, sb, dc, (Tc[ks] - T0)[:, None])
+        out.append((np.matmul(r.cycle_L[ks].transpose(0, 2, 1), (cm - r.cycle_c[ks])[:, :, None])[:, :, 0]
+                    / F_scale).ravel())
         if lay.fit_K and r.has_T:
             ok = np.isfinite(r.cycle_T_meas) & u
             out.append((Tc[ok] - r.cycle_T_meas[ok]) / T_scale)
