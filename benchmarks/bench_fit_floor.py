@@ -269,6 +269,7 @@ def print_ratios(a, rows: int, times: dict, cpu: dict) -> None:
               f"{'met' if r <= TARGET else 'not met'}; runs {', '.join(f'{x:.2f}' for x in times[k])})")
     ratio = {k: "" if k == "floor" else f" ({mcpu[k] / mcpu['floor']:.1f}x)" for k in mcpu}
     print("CPU time, medians: " + ", ".join(f"{k} {mcpu[k]:.2f} s{ratio[k]}" for k in mcpu), flush=True)
+    print("CPU time, runs: " + "; ".join(f"{k} {', '.join(f'{x:.2f}' for x in cpu[k])}" for k in cpu), flush=True)
 
 
 if __name__ == "__main__":
