@@ -130,3 +130,26 @@ def test_read_warnings_reach_the_parameter_file(cli, tmp_path):
     for words in ("dropped 2 rows", "jitters"):
         assert any(words in w for w in jd["warnings"]), (words, jd["warnings"])
         assert words in res.err
+
+
+@pytest.mark.parametrize("n_steps", [0, 3])
+def test_sigma1_with_a_negative_inertia_is_not_identifiable(n_steps):
+    """The regression's inertia can come out negative (not identifiable) on poor excitation; sigma1's
+    damping rule and step fit take its square root, so a negative J crashed the fit (foreign fit card,
+    seed 200439: ValueError from ``sqrt(sigma0 J)``). sigma1 is then not identifiable, with the reason."""
+    from types import SimpleNamespace
+
+    from frictid.identify import dynamics
+    from frictid.identify.presliding import DynamicEstimate
+    from frictid.result import ParamEstimate
+
+    jf = SimpleNamespace(inertia=ParamEstimate("J", -0.0073, 0.002, "kg m^2", False, "not positive"))
+    jd = SimpleNamespace(jf=jf, used={})
+    t = np.arange(200) * DT
+    step = (t, 1e-3 * (1 - np.exp(-t / 0.02)), np.full(t.size, 0.5), None, 0)
+    pd_ = dynamics.Presliding(steps=[step] * n_steps, resolution=0.0)
+    s0 = DynamicEstimate(1000.0, 50.0, True, "", "ramps", 2)
+    c = np.zeros(9)
+    c[0], c[6] = FC, SIGMA2
+    s1 = dynamics._sigma1(jd, pd_, s0, c, c)
+    assert not s1.identifiable and "positive inertia" in s1.reason
