@@ -124,12 +124,23 @@ def segments_from_list(entry: dict, t: np.ndarray) -> list[Segment]:
             for k, a, b, c in zip(entry["kind"], entry["i0"], entry["i1"], entry["cycle"])]
 
 
+def logged_velocity_too_noisy(sc) -> bool:
+    """Whether a log's logged velocity is too noisy to use sample by sample: its noise (at least its
+    quantisation step over root 12) above the speed that tells a moving sample from a still one
+    (:data:`MIN_SPEED_FRACTION` of the motion's speed scale). A drive's backward difference of a coarse
+    encoder at a high rate is 0 or one count per sample period (12 bits at 8 kHz: 12 rad/s), so every
+    non-zero sample would pass for fast motion and the friction columns would see only +-one count per
+    period; the fit then takes the logged velocity smoothed by the velocity window, as segmentation does
+    (:func:`frictid.segments.velocity`)."""
+    return bool(sc.qd_logged and np.isfinite(sc.sigma_qd) and sc.sigma_qd > MIN_SPEED_FRACTION * sc.w_scale)
+
+
 def _prep(lg: JointLog, source: int, segmenter: Callable, differentiate: Callable) -> tuple[Prep, bool]:
     """One log ready for fitting, and whether it is a single steady run (:func:`steady_run`)."""
     scales = None
     if differentiate is seg.derivatives:  # the default: keep the scales it measures (segment_list)
         scales = seg.estimate_scales(lg)
-        w, a = seg.derivatives(lg, scales)
+        w, a = seg.derivatives(lg, scales, smooth_logged=logged_velocity_too_noisy(scales))
     else:
         w, a = differentiate(lg)
     w, a = np.asarray(w, float), np.asarray(a, float)
