@@ -137,14 +137,17 @@ def logged_velocity_too_noisy(sc) -> bool:
 
 def _prep(lg: JointLog, source: int, segmenter: Callable, differentiate: Callable) -> tuple[Prep, bool]:
     """One log ready for fitting, and whether it is a single steady run (:func:`steady_run`)."""
-    scales = None
+    scales, smooth = None, False
     if differentiate is seg.derivatives:  # the default: keep the scales it measures (segment_list)
         scales = seg.estimate_scales(lg)
-        w, a = seg.derivatives(lg, scales, smooth_logged=logged_velocity_too_noisy(scales))
+        smooth = logged_velocity_too_noisy(scales)
+        w, a = seg.derivatives(lg, scales, smooth_logged=smooth)
     else:
         w, a = differentiate(lg)
     w, a = np.asarray(w, float), np.asarray(a, float)
-    segs = steady_run(lg, w)
+    # a steady run is judged on the velocity as logged: its mean is the run's, and a coarse one dithers
+    # between 0 and one count without changing sign, where the smoothed one overshoots at each count
+    segs = steady_run(lg, np.asarray(lg.qd, float) if smooth else w)
     steady = segs is not None
     if segs is None:  # the default segmenter takes the scales already measured
         segs = seg.find_segments(lg, scales) if segmenter is seg.find_segments and scales else segmenter(lg)
