@@ -348,3 +348,22 @@ def test_the_offset_is_the_steady_friction_s_even_part():
     assert abs(off.value - TRUE["offset"]) <= 2 * off.stderr
     p = jf.models["stribeck_asym"].params
     assert p["Fc_pos"].value == pytest.approx(p["Fc_neg"].value, abs=0.01)
+
+
+def test_gravity_and_offset_carry_their_bandwidth_change_by_hand():
+    """Px, Py and the offset are solved with J on the same samples: their change under the bandwidth
+    check's filter, beyond the two fits' errors combined, enters their standard errors (mechanics.
+    _bandwidth_spread); a change within those errors leaves them, and J's own verdict is the inertia check's."""
+    import math
+
+    from frictid.identify.mechanics import BANDWIDTH_TERMS, _bandwidth_spread
+
+    assert set(BANDWIDTH_TERMS) == {"Px", "Py", "offset"}
+    bw = {"J": 0.044, "se": 0.01, "window": 21, "terms": {"Px": (0.081, 0.05), "Py": (-0.049, 0.06)}}
+    # a foreign sweep at 138 Hz: Px -0.166 +- 0.032 where the plant has none, +0.081 under the filter
+    se = _bandwidth_spread("Px", 0.032, -0.166, bw)
+    assert se == pytest.approx(math.hypot(0.032, math.sqrt(0.247**2 - 0.032**2 - 0.05**2)))
+    assert se > 0.166  # now above 100 %: not identifiable by the precision rule
+    assert _bandwidth_spread("Py", 0.059, -0.0487, bw) == 0.059  # the same value under the filter
+    assert _bandwidth_spread("offset", 0.054, 0.0, bw) == 0.054  # no filtered value for it
+    assert _bandwidth_spread("Px", 0.032, -0.166, None) == 0.032
