@@ -42,6 +42,7 @@ class Prep:
     G: np.ndarray | None = None
     warnings: list[str] = field(default_factory=list)
     scales: object = None  # the log's frictid.segments.Scales when the default derivatives measured them
+    smoothed: bool = False  # w is the logged velocity smoothed (:func:`logged_velocity_too_noisy`)
     _trig: tuple | None = None
 
     def trig(self) -> tuple[np.ndarray, np.ndarray]:
@@ -135,6 +136,20 @@ def logged_velocity_too_noisy(sc) -> bool:
     return bool(sc.qd_logged and np.isfinite(sc.sigma_qd) and sc.sigma_qd > MIN_SPEED_FRACTION * sc.w_scale)
 
 
+def velocity_noise(p: Prep, sc) -> float:
+    """The noise [q/s] of a log's velocity as the fit uses it: the scales' ``sigma_w``, or, for a logged
+    velocity the fit smoothed (a coarse encoder's backward difference) of a log with positions, at most
+    the position's noise through the same window: the smoothed count is the position's derivative over
+    the window, whose noise is the position's quantisation, not one count per sample (a 12-bit, 2 kHz log
+    moving at 0.5 rad/s read as "no motion" with the count's 0.9 rad/s noise)."""
+    if not p.smoothed or p.log.q is None:
+        return sc.sigma_w
+    from scipy.signal import savgol_coeffs
+
+    c = savgol_coeffs(sc.window_w, 2, deriv=1, delta=sc.dt)
+    return min(sc.sigma_w, sc.sigma_q * float(np.sqrt(np.sum(c * c))))
+
+
 def _prep(lg: JointLog, source: int, segmenter: Callable, differentiate: Callable) -> tuple[Prep, bool]:
     """One log ready for fitting, and whether it is a single steady run (:func:`steady_run`)."""
     scales, smooth = None, False
@@ -151,7 +166,7 @@ def _prep(lg: JointLog, source: int, segmenter: Callable, differentiate: Callabl
     steady = segs is not None
     if segs is None:  # the default segmenter takes the scales already measured
         segs = seg.find_segments(lg, scales) if segmenter is seg.find_segments and scales else segmenter(lg)
-    return Prep(lg, source, w, a, list(segs), scales=scales), steady
+    return Prep(lg, source, w, a, list(segs), scales=scales, smoothed=smooth), steady
 
 
 def prepare(jlogs: list[JointLog], sources: list[int], segmenter: Callable, differentiate: Callable
@@ -209,7 +224,7 @@ def unidentifiable(preps: list[Prep]) -> str | None:
     flat = True
     for p in preps:
         sc = p.scales or seg.estimate_scales(p.log)
-        moving += int(np.sum(np.abs(p.w) > K_NOISE * sc.sigma_w))
+        moving += int(np.sum(np.abs(p.w) > K_NOISE * velocity_noise(p, sc)))
         need = max(need, int(round(T_MIN / sc.dt)))
         flat &= sc.tau_range <= sc.tau_step
     if moving < need:
