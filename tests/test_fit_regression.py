@@ -348,3 +348,55 @@ def test_the_offset_is_the_steady_friction_s_even_part():
     assert abs(off.value - TRUE["offset"]) <= 2 * off.stderr
     p = jf.models["stribeck_asym"].params
     assert p["Fc_pos"].value == pytest.approx(p["Fc_neg"].value, abs=0.01)
+
+
+def test_gravity_and_offset_carry_their_bandwidth_change_by_hand():
+    """Px, Py and the offset are solved with J on the same samples: their change under the bandwidth
+    check's filter, beyond the two fits' errors combined, enters their standard errors (mechanics.
+    _bandwidth_spread); a change within those errors leaves them, and J's own verdict is the inertia check's."""
+    import math
+
+    from frictid.identify.mechanics import BANDWIDTH_TERMS, _bandwidth_spread
+
+    assert set(BANDWIDTH_TERMS) == {"Px", "Py", "offset"}
+    bw = {"J": 0.044, "se": 0.01, "window": 21, "terms": {"Px": (0.081, 0.05), "Py": (-0.049, 0.06)}}
+    # a foreign sweep at 138 Hz: Px -0.166 +- 0.032 where the plant has none, +0.081 under the filter
+    se = _bandwidth_spread("Px", 0.032, -0.166, bw)
+    assert se == pytest.approx(math.hypot(0.032, math.sqrt(0.247**2 - 0.032**2 - 0.05**2)))
+    assert se > 0.166  # now above 100 %: not identifiable by the precision rule
+    assert _bandwidth_spread("Py", 0.059, -0.0487, bw) == 0.059  # the same value under the filter
+    assert _bandwidth_spread("offset", 0.054, 0.0, bw) == 0.054  # no filtered value for it
+    assert _bandwidth_spread("Px", 0.032, -0.166, None) == 0.032
+
+
+def test_holds_that_travel_less_than_the_presliding_ramps_are_not_plateau_points():
+    """A constant-velocity segment whose travel (speed x duration) stays within the joint's presliding
+    travel (the median range of its ramp segments) is a hold under load, creeping: its torque is the load,
+    not the sliding friction (foreign card: 0.2 mrad/s holds after each slow plateau pulled Fs 15 % low).
+    mechanics._sliding_only leaves them out and says so once; without ramps every plateau stays."""
+    from types import SimpleNamespace
+
+    from frictid.data import Segment
+    from frictid.identify.mechanics import _sliding_only, presliding_travel
+    from frictid.identify.static import Plateaus
+
+    t = np.arange(4000) * 1e-3
+    q = np.zeros(t.size)
+    q[100:600] = np.linspace(0, 2e-3, 500)  # a ramp that deflects the bristles by 2 mrad
+    q[600:1100] = 2e-3 + np.linspace(0, 3e-3, 500)  # and one of 3 mrad
+    ramps = [Segment("ramp_presliding", 100, 600, t[100], t[599]),
+             Segment("ramp_presliding", 600, 1100, t[600], t[1099])]
+    jf = SimpleNamespace(warnings=[])
+    jd = SimpleNamespace(jf=jf, preps=[SimpleNamespace(log=SimpleNamespace(q=q), segments=ramps)])
+    assert presliding_travel(jd) == pytest.approx(2.5e-3, rel=1e-9)
+    # three plateaus: 0.02 rad/s for 3 s (60 mrad), a hold at 0.2 mrad/s for 0.4 s (0.08 mrad), -0.02 for 3 s
+    pl = Plateaus(np.array([0.02, 2e-4, -0.02]), np.array([3.0, 2.97, -3.0]), np.full(3, 1e-3), np.full(3, 1e-5),
+                  np.array([3000, 400, 3000]), np.array([0.0, 3.0, 4.0]), np.array([3.0, 3.4, 7.0]), np.arange(3))
+    (pi_, kept), = _sliding_only(jd, [(0, pl)])
+    np.testing.assert_array_equal(kept.w, [0.02, -0.02])
+    assert len(jf.warnings) == 1 and "1 constant-velocity segment(s)" in jf.warnings[0]
+    _sliding_only(jd, [(0, pl)])
+    assert len(jf.warnings) == 1  # once
+    jd.preps[0].segments = []
+    (pi_, kept), = _sliding_only(jd, [(0, pl)])
+    assert len(kept) == 3

@@ -165,3 +165,39 @@ def test_two_recordings_that_differ_widen_the_errors_to_their_difference():
     S1 = SampleSet(w[one], F[one], block[one], block[one] % n_folds, log[one], 1, n, n_folds)
     mf1 = fit_map("coulomb_viscous", S1)
     assert mf1.params["Fc"].stderr < 0.01
+
+
+def _drop_samples(stribeck: bool, n=40_000, n_folds=5, seed=3):
+    """Moving samples of both signs at speeds 0.02..1, friction Fc + sigma2 |w| plus (``stribeck``) a slow
+    drop (Fs/Fc 1.5, vs 0.1, exponent 0.8) that a line cannot follow, with correlated-free noise."""
+    rng = np.random.default_rng(seed)
+    v = np.exp(rng.uniform(np.log(0.02), np.log(1.0), n))
+    w = v * rng.choice([-1.0, 1.0], n)
+    level = 2.0 + (1.0 * np.exp(-((v / 0.1) ** 0.8)) if stribeck else 0.0)
+    F = np.sign(w) * (level + 0.5 * v) + rng.normal(0, 0.05, n)
+    block = np.sort(rng.integers(0, BLOCKS_PER_FOLD * n_folds, n))
+    return SampleSet(w, F, block, block % n_folds, np.zeros(n, int), 1, n, n_folds)
+
+
+@pytest.mark.parametrize("stribeck", [False, True])
+def test_the_line_carries_its_change_to_the_faster_half_in_its_errors(stribeck):
+    """coulomb_viscous on the moving samples: a drop it cannot follow bends the line through the slower
+    samples (Fc high, sigma2 low, each with an error of a fraction of a percent: the foreign card's
+    point-to-point excitations). The refit on the faster half moves both, and the change enters their
+    errors, so the truth (Fc 2.0, sigma2 0.5 away from the drop) is within 2 of them; on a true line the
+    errors stay near the fit's own."""
+    from frictid.identify.samples import fit_map, speed_split_spread
+
+    S = _drop_samples(stribeck)
+    mf = fit_map("coulomb_viscous", S, heldout=False)
+    before = {n: mf.params[n].stderr for n in ("Fc", "sigma2")}
+    if stribeck:  # the line's own errors exclude the truth by far
+        assert abs(mf.params["Fc"].value - 2.0) > 5 * before["Fc"]
+    speed_split_spread(mf, "coulomb_viscous", S)
+    assert set(mf.extra["speed_split"]) == {"Fc", "sigma2"}
+    for n, truth in (("Fc", 2.0), ("sigma2", 0.5)):
+        pe = mf.params[n]
+        if stribeck:
+            assert abs(pe.value - truth) < 2 * pe.stderr, (n, pe)
+        else:
+            assert abs(pe.value - truth) < 3 * before[n] and pe.stderr < 3 * before[n], (n, pe, before[n])

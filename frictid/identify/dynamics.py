@@ -381,10 +381,11 @@ def _sigma1(jd: JointData, pd: Presliding, s0: pre.DynamicEstimate, c_pos, c_neg
     """sigma1 from the steps (those loading the bristles with ``sign`` when not 0), else by the
     critical-damping rule (records the steps used)."""
     jf = jd.jf
-    J = jf.inertia.value if jf.inertia and jf.inertia.value else None
+    # a J that is not positive (the regression's, not identifiable) has no damping ratio to go with
+    J = jf.inertia.value if jf.inertia and jf.inertia.value and jf.inertia.value > 0 else None
     sig2 = c_pos[6] if abs(c_pos[6]) > 0 else 0.0
     if not (s0.identifiable and J):
-        why = "needs sigma0" if not s0.identifiable else "needs the inertia J"
+        why = "needs sigma0" if not s0.identifiable else "needs a positive inertia J"
         return pre.DynamicEstimate(None, None, False, f"{why}, which is not identifiable", "")
     steps = [st for st in pd.steps if not sign or _step_sign(st[2]) == sign]
     s1 = pre.fit_sigma1_steps([(t, q, u) for t, q, u, *_ in steps], J, s0.value, c_pos, c_neg, sig2,

@@ -142,6 +142,8 @@ def _sample_maps(jd: JointData, rb: RigidBody, fr: Friction, names: list[str], n
         S.inflation = smp.variance_factor(S.F - sm.polynomial(S.w, **{c: reg_fit.value(c) for c in POLY_COEFS}))
     for name in names:
         _guarded(jd.jf, name, lambda n=name: smp.fit_map(n, S, jd.axis, heldout=False))
+        if name in jd.jf.models:
+            smp.speed_split_spread(jd.jf.models[name], name, S, jd.axis)
 
 
 #: Numerical failures of one map's fit (LAPACK not converging on a degenerate Jacobian, a floating-point

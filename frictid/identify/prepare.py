@@ -42,6 +42,7 @@ class Prep:
     G: np.ndarray | None = None
     warnings: list[str] = field(default_factory=list)
     scales: object = None  # the log's frictid.segments.Scales when the default derivatives measured them
+    smoothed: bool = False  # w is the logged velocity smoothed (:func:`logged_velocity_too_noisy`)
     _trig: tuple | None = None
 
     def trig(self) -> tuple[np.ndarray, np.ndarray]:
@@ -124,20 +125,48 @@ def segments_from_list(entry: dict, t: np.ndarray) -> list[Segment]:
             for k, a, b, c in zip(entry["kind"], entry["i0"], entry["i1"], entry["cycle"])]
 
 
+def logged_velocity_too_noisy(sc) -> bool:
+    """Whether a log's logged velocity is too noisy to use sample by sample: its noise (at least its
+    quantisation step over root 12) above the speed that tells a moving sample from a still one
+    (:data:`MIN_SPEED_FRACTION` of the motion's speed scale). A drive's backward difference of a coarse
+    encoder at a high rate is 0 or one count per sample period (12 bits at 8 kHz: 12 rad/s), so every
+    non-zero sample would pass for fast motion and the friction columns would see only +-one count per
+    period; the fit then takes the logged velocity smoothed by the velocity window, as segmentation does
+    (:func:`frictid.segments.velocity`)."""
+    return bool(sc.qd_logged and np.isfinite(sc.sigma_qd) and sc.sigma_qd > MIN_SPEED_FRACTION * sc.w_scale)
+
+
+def velocity_noise(p: Prep, sc) -> float:
+    """The noise [q/s] of a log's velocity as the fit uses it: the scales' ``sigma_w``, or, for a logged
+    velocity the fit smoothed (a coarse encoder's backward difference) of a log with positions, at most
+    the position's noise through the same window: the smoothed count is the position's derivative over
+    the window, whose noise is the position's quantisation, not one count per sample (a 12-bit, 2 kHz log
+    moving at 0.5 rad/s read as "no motion" with the count's 0.9 rad/s noise)."""
+    if not p.smoothed or p.log.q is None:
+        return sc.sigma_w
+    from scipy.signal import savgol_coeffs
+
+    c = savgol_coeffs(sc.window_w, 2, deriv=1, delta=sc.dt)
+    return min(sc.sigma_w, sc.sigma_q * float(np.sqrt(np.sum(c * c))))
+
+
 def _prep(lg: JointLog, source: int, segmenter: Callable, differentiate: Callable) -> tuple[Prep, bool]:
     """One log ready for fitting, and whether it is a single steady run (:func:`steady_run`)."""
-    scales = None
+    scales, smooth = None, False
     if differentiate is seg.derivatives:  # the default: keep the scales it measures (segment_list)
         scales = seg.estimate_scales(lg)
-        w, a = seg.derivatives(lg, scales)
+        smooth = logged_velocity_too_noisy(scales)
+        w, a = seg.derivatives(lg, scales, smooth_logged=smooth)
     else:
         w, a = differentiate(lg)
     w, a = np.asarray(w, float), np.asarray(a, float)
-    segs = steady_run(lg, w)
+    # a steady run is judged on the velocity as logged: its mean is the run's, and a coarse one dithers
+    # between 0 and one count without changing sign, where the smoothed one overshoots at each count
+    segs = steady_run(lg, np.asarray(lg.qd, float) if smooth else w)
     steady = segs is not None
     if segs is None:  # the default segmenter takes the scales already measured
         segs = seg.find_segments(lg, scales) if segmenter is seg.find_segments and scales else segmenter(lg)
-    return Prep(lg, source, w, a, list(segs), scales=scales), steady
+    return Prep(lg, source, w, a, list(segs), scales=scales, smoothed=smooth), steady
 
 
 def prepare(jlogs: list[JointLog], sources: list[int], segmenter: Callable, differentiate: Callable
@@ -195,7 +224,7 @@ def unidentifiable(preps: list[Prep]) -> str | None:
     flat = True
     for p in preps:
         sc = p.scales or seg.estimate_scales(p.log)
-        moving += int(np.sum(np.abs(p.w) > K_NOISE * sc.sigma_w))
+        moving += int(np.sum(np.abs(p.w) > K_NOISE * velocity_noise(p, sc)))
         need = max(need, int(round(T_MIN / sc.dt)))
         flat &= sc.tau_range <= sc.tau_step
     if moving < need:
