@@ -35,7 +35,7 @@ Then, in order (each sample gets one kind; earlier kinds win):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -44,7 +44,7 @@ from . import stats as _stats
 from .duty import duty_cycles
 from .runs import (any_in_runs, box_mean, box_slope, chunks, closed_runs, count_prefix, drop_short, fill_short,
                    paint, prefix_sum, runs)
-from .scales import Scales, estimate_scales, local_noise, log_position, velocity
+from .scales import Scales, estimate_scales, local_noise, log_position, qd_is_difference, velocity
 
 #: Noise multiple for "clearly nonzero".
 K_NOISE = 5.0
@@ -467,6 +467,8 @@ def classify(log: JointLog, scales: Scales | None = None) -> tuple[np.ndarray, l
     The kinds are found in the order of the module's description, each among the samples the earlier
     ones left: duty cycles, steps, ramps, constant velocity, rest; what remains is *other*."""
     n = log.n
+    if qd_is_difference(log):  # the position says it all, and its quantisation is not white noise in qd
+        log, scales = replace(log, qd=None), None
     sc = scales or estimate_scales(log)
     n_min = max(10, int(round(T_MIN / sc.dt)))
     if n < 2 * n_min:
@@ -514,8 +516,15 @@ def _constant_velocity(f: Features, code: np.ndarray, n_min: int) -> list[tuple[
     # n_min: cores of h / 2 are grown into their band (short plateaus of 0.25-0.4 s, chained sweeps)
     for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), max(2, f.h // 2))):
         got = _plateau(f, int(i0), int(i1), code, n_min)
-        if got is not None:
-            plateaus.append(got)
+        if got is None:
+            continue
+        if plateaus and got[0] < plateaus[-1][1]:
+            # two steady cores of one plateau (a gap in the steady mask) grow into the same band: one
+            # plateau, not two overlapping segments (a sample has one kind)
+            a, b, _ = plateaus.pop()
+            b = max(b, got[1])
+            got = (a, b, float(np.median(f.w[a:b])))
+        plateaus.append(got)
     return [(i0, i1) for i0, i1, _ in _sweeps(f, plateaus, code)]
 
 
