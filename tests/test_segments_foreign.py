@@ -208,6 +208,8 @@ def test_plateaus_with_qd_as_the_backward_difference_of_a_coarse_encoder(seed, t
     tr, fo = _of("constant_velocity", truth, segs)
     assert int(np.sum(_iou_best(tr, fo) >= IOU)) >= 0.8 * len(tr), (len(tr), len(fo))
     assert np.mean(_iou_best(fo, tr) >= IOU) >= 0.8
+    # the segments tile the log: a sample has one kind (two steady cores grown into one band overlapped)
+    assert all(b.i0 == a.i1 for a, b in zip(segs[:-1], segs[1:]))
 
 
 def test_a_qd_that_is_the_position_difference_is_recognised():

@@ -516,16 +516,24 @@ def _constant_velocity(f: Features, code: np.ndarray, n_min: int) -> list[tuple[
     # n_min: cores of h / 2 are grown into their band (short plateaus of 0.25-0.4 s, chained sweeps)
     for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), max(2, f.h // 2))):
         got = _plateau(f, int(i0), int(i1), code, n_min)
-        if got is None:
-            continue
-        if plateaus and got[0] < plateaus[-1][1]:
-            # two steady cores of one plateau (a gap in the steady mask) grow into the same band: one
-            # plateau, not two overlapping segments (a sample has one kind)
-            a, b, _ = plateaus.pop()
+        if got is not None:
+            _add_plateau(f, plateaus, got)
+    return [(i0, i1) for i0, i1, _ in _sweeps(f, plateaus, code)]
+
+
+def _add_plateau(f: Features, plateaus: list[tuple[int, int, float]], got: tuple[int, int, float]) -> None:
+    """Append the plateau ``got`` to ``plateaus`` (time order). Where it overlaps the last one (a sample
+    has one kind): two steady cores of one plateau (a gap in the steady mask) grown into the same band are
+    one plateau; two levels of a chain that each grew into the other's edge by a sample or two meet where
+    the second starts."""
+    if plateaus and got[0] < plateaus[-1][1]:
+        a, b, v = plateaus.pop()
+        if abs(got[2] - v) <= max(K_NOISE * f.sc.sigma_w, R_STEADY * max(abs(v), abs(got[2]))):
             b = max(b, got[1])
             got = (a, b, float(np.median(f.w[a:b])))
-        plateaus.append(got)
-    return [(i0, i1) for i0, i1, _ in _sweeps(f, plateaus, code)]
+        elif got[0] - a >= f.n_min:
+            plateaus.append((a, got[0], v))
+    plateaus.append(got)
 
 
 def _sweeps(f: Features, plateaus: list[tuple[int, int, float]], code: np.ndarray
@@ -631,8 +639,52 @@ def _plateau(f: Features, i0: int, i1: int, code: np.ndarray, n_min: int) -> tup
     for w, off in ((f.w[lo:min(f.t.size, i1 + 2 * f.h)], lo), _plateau_velocity(f, i0, i1)):
         a, b = _extend_plateau(f, i0, i1, code, w, off)
         if b - a >= n_min and _same_sign(w[a - off:b - off]) and _level(f, w[a - off:b - off]):
-            return a, b, float(np.median(w[a - off:b - off]))
+            a, b = _one_speed(f, a, b, n_min)
+            if b - a >= n_min and _in_band(f, w[a - off:b - off]):
+                return a, b, float(np.median(w[a - off:b - off]))
     return None
+
+
+def _in_band(f: Features, w: np.ndarray) -> bool:
+    """True if most samples of the velocity ``w`` [q/s] over a candidate plateau lie within its band
+    (:func:`_extend_plateau`'s): the median distance from the median velocity is within the band. A
+    joint in stick-slip under a slow reference (sticking, then slipping at several times the mean speed,
+    tens of times a second) has a steady mean over every 0.1 s, a steady position trend, and almost no
+    sample near its mean speed (foreign issue-19 sweep 100569: 7 such stretches read as plateaus)."""
+    wm = float(np.median(w))
+    return float(np.median(np.abs(w - wm))) <= max(K_NOISE * f.sc.sigma_w, R_STEADY * abs(wm))
+
+
+def _one_speed(f: Features, a: int, b: int, n_min: int) -> tuple[int, int]:
+    """``[a, b)`` trimmed at its ends until the joint holds one speed over it: the mean speeds of its first
+    and last quarters (from the positions: the sample velocity's noise hides a slow change) differ by no
+    more than the plateau's band allows (``2 R_STEADY`` of its speed: each end within ``R_STEADY`` of the
+    level) or ``K_NOISE`` standard errors (the position noise, at least the encoder's quantisation, at the
+    quarters' ends). The end farther from the middle half's speed goes first, an eighth at a time: a loop
+    still settling at one end (a slow integrator) keeps its settled part, a joint crawling out of
+    stiction while its controller winds up, speeding up steadily a few times over a second and "steady"
+    within the noise over every 0.1 s, would have to lose more than half of itself and is no plateau
+    (foreign issue-19 sweeps on 17-23-bit encoders at 100-3500 Hz: crawls of 0.004 -> 0.012 rad/s read as
+    plateaus, in mirror pairs)."""
+    sq = max(f.sc.sigma_q, f.sc.q_step / math.sqrt(12.0))
+    keep = max(n_min, (b - a) // 2)
+    while True:
+        k = np.linspace(a, b - 1, 5).round().astype(np.int64)
+        if np.any(np.diff(k) <= 0):
+            return a, b
+        span = np.diff(k) * f.sc.dt
+        v = np.diff(f.q[k]) / span
+        se = math.sqrt(2.0) * sq * math.hypot(1.0 / span[0], 1.0 / span[-1])
+        level = float(f.q[k[3]] - f.q[k[1]]) / float(span[1] + span[2])
+        if abs(float(v[-1] - v[0])) <= max(2.0 * R_STEADY * abs(level), K_NOISE * se):
+            return a, b
+        cut = max(1, (b - a) // 8)
+        if b - a - cut < keep:  # a speed that changes throughout: no plateau
+            return a, a
+        if abs(float(v[0]) - level) >= abs(float(v[-1]) - level):
+            a += cut
+        else:
+            b -= cut
 
 
 def _level(f: Features, w: np.ndarray) -> bool:
