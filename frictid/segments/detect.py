@@ -602,6 +602,14 @@ def _mean_speed(f: Features, a: int, b: int) -> tuple[float, float]:
     # and the loop's own speed ripple (a load that changes along the plateau): the spread of the mean
     # speeds over the four quarters of the middle half, as a standard error of their mean
     k = np.linspace(a, b - 1, 5).round().astype(np.int64)
+    if f.sc.qd_logged and np.all(np.diff(k) > 0):
+        # a logged velocity (a sensor of its own, not the position's difference: classify) resolves the
+        # speed where a coarse encoder does not: its mean over each quarter, the noise of a mean of
+        # (b - a) / window_w independent smoothed values, and the quarters' spread
+        c = np.concatenate(([0.0], np.cumsum(f.w[a:b])))
+        parts = np.diff(c[k - a]) / np.diff(k)
+        noise = f.sc.sigma_w * math.sqrt(f.sc.window_w / max(1, b - a))
+        return float(np.mean(parts)), math.hypot(noise, float(np.std(parts, ddof=1)) / 2.0)
     parts = np.diff(f.q[k]) / np.maximum(np.diff(k), 1) / f.sc.dt
     ripple = float(np.std(parts, ddof=1)) / 2.0 if np.all(np.diff(k) > 0) else 0.0
     return mean, math.hypot(math.sqrt(2.0) * sq / span, ripple)
