@@ -516,9 +516,35 @@ def _constant_velocity(f: Features, code: np.ndarray, n_min: int) -> list[tuple[
     # n_min: cores of h / 2 are grown into their band (short plateaus of 0.25-0.4 s, chained sweeps)
     for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), max(2, f.h // 2))):
         got = _plateau(f, int(i0), int(i1), code, n_min)
-        if got is not None:
-            _add_plateau(f, plateaus, got)
+        if got is None:
+            continue
+        levels = _levels(f, int(i0), int(i1), code, n_min, got)
+        apart = all(abs(u[2] - v[2]) > R_STEADY * (abs(u[2]) + abs(v[2])) for u, v in zip(levels[:-1], levels[1:]))
+        for p in (levels if len(levels) >= MIN_PLATEAUS and apart else [got]):
+            _add_plateau(f, plateaus, p)
     return [(i0, i1) for i0, i1, _ in _sweeps(f, plateaus, code)]
+
+
+def _levels(f: Features, i0: int, i1: int, code: np.ndarray, n_min: int, got: tuple[int, int, float] | None
+            ) -> list[tuple[int, int, float]]:
+    """The plateaus (start, end, velocity) of the steady run ``[i0, i1)`` in time order: ``got`` (the one
+    grown around the run's median velocity; None: look for it), then those of what the run holds before
+    and after it. A chained sweep whose speed steps are smaller than the steady test's noise over ``h``
+    (slow plateaus on a 12-13-bit encoder: 0.1 -> 0.007 rad/s in steps of 30 %) is one steady run
+    holding several levels, of which only the median one was kept (foreign sweeps 100346, 100556). The
+    caller keeps them only when they are at least ``MIN_PLATEAUS`` (a sweep in itself) and each two
+    neighbours' bands (``R_STEADY``) are apart: a cruise phase whose speed drifts a little under gravity
+    splits into levels 2 % apart, which would then chain (foreign session 100405)."""
+    got = got or _plateau(f, i0, i1, code, n_min)
+    if got is None:
+        return []
+    core = max(2, f.h // 2)
+    left = _levels(f, i0, got[0], code, n_min, None) if got[0] - i0 >= core else []
+    right = _levels(f, got[1], i1, code, n_min, None) if i1 - got[1] >= core else []
+    # a level grown from what is left stops where this one starts
+    left = [(a, min(b, got[0]), v) for a, b, v in left if min(b, got[0]) - a >= n_min]
+    right = [(max(a, got[1]), b, v) for a, b, v in right if b - max(a, got[1]) >= n_min]
+    return left + [got] + right
 
 
 def _add_plateau(f: Features, plateaus: list[tuple[int, int, float]], got: tuple[int, int, float]) -> None:
