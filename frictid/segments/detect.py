@@ -35,7 +35,7 @@ Then, in order (each sample gets one kind; earlier kinds win):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -44,7 +44,7 @@ from . import stats as _stats
 from .duty import duty_cycles
 from .runs import (any_in_runs, box_mean, box_slope, chunks, closed_runs, count_prefix, drop_short, fill_short,
                    paint, prefix_sum, runs)
-from .scales import Scales, estimate_scales, local_noise, log_position, velocity
+from .scales import Scales, estimate_scales, local_noise, log_position, qd_is_difference, velocity
 
 #: Noise multiple for "clearly nonzero".
 K_NOISE = 5.0
@@ -467,6 +467,8 @@ def classify(log: JointLog, scales: Scales | None = None) -> tuple[np.ndarray, l
     The kinds are found in the order of the module's description, each among the samples the earlier
     ones left: duty cycles, steps, ramps, constant velocity, rest; what remains is *other*."""
     n = log.n
+    if qd_is_difference(log):  # the position says it all, and its quantisation is not white noise in qd
+        log, scales = replace(log, qd=None), None
     sc = scales or estimate_scales(log)
     n_min = max(10, int(round(T_MIN / sc.dt)))
     if n < 2 * n_min:
@@ -514,9 +516,50 @@ def _constant_velocity(f: Features, code: np.ndarray, n_min: int) -> list[tuple[
     # n_min: cores of h / 2 are grown into their band (short plateaus of 0.25-0.4 s, chained sweeps)
     for i0, i1 in zip(*closed_runs(cv, max(2, f.h // 4), max(2, f.h // 2))):
         got = _plateau(f, int(i0), int(i1), code, n_min)
-        if got is not None:
-            plateaus.append(got)
+        if got is None:
+            continue
+        levels = _levels(f, int(i0), int(i1), code, n_min, got)
+        apart = all(abs(u[2] - v[2]) > R_STEADY * (abs(u[2]) + abs(v[2])) for u, v in zip(levels[:-1], levels[1:]))
+        for p in (levels if len(levels) >= MIN_PLATEAUS and apart else [got]):
+            _add_plateau(f, plateaus, p)
     return [(i0, i1) for i0, i1, _ in _sweeps(f, plateaus, code)]
+
+
+def _levels(f: Features, i0: int, i1: int, code: np.ndarray, n_min: int, got: tuple[int, int, float] | None
+            ) -> list[tuple[int, int, float]]:
+    """The plateaus (start, end, velocity) of the steady run ``[i0, i1)`` in time order: ``got`` (the one
+    grown around the run's median velocity; None: look for it), then those of what the run holds before
+    and after it. A chained sweep whose speed steps are smaller than the steady test's noise over ``h``
+    (slow plateaus on a 12-13-bit encoder: 0.1 -> 0.007 rad/s in steps of 30 %) is one steady run
+    holding several levels, of which only the median one was kept (foreign sweeps 100346, 100556). The
+    caller keeps them only when they are at least ``MIN_PLATEAUS`` (a sweep in itself) and each two
+    neighbours' bands (``R_STEADY``) are apart: a cruise phase whose speed drifts a little under gravity
+    splits into levels 2 % apart, which would then chain (foreign session 100405)."""
+    got = got or _plateau(f, i0, i1, code, n_min)
+    if got is None:
+        return []
+    core = max(2, f.h // 2)
+    left = _levels(f, i0, got[0], code, n_min, None) if got[0] - i0 >= core else []
+    right = _levels(f, got[1], i1, code, n_min, None) if i1 - got[1] >= core else []
+    # a level grown from what is left stops where this one starts
+    left = [(a, min(b, got[0]), v) for a, b, v in left if min(b, got[0]) - a >= n_min]
+    right = [(max(a, got[1]), b, v) for a, b, v in right if b - max(a, got[1]) >= n_min]
+    return left + [got] + right
+
+
+def _add_plateau(f: Features, plateaus: list[tuple[int, int, float]], got: tuple[int, int, float]) -> None:
+    """Append the plateau ``got`` to ``plateaus`` (time order). Where it overlaps the last one (a sample
+    has one kind): two steady cores of one plateau (a gap in the steady mask) grown into the same band are
+    one plateau; two levels of a chain that each grew into the other's edge by a sample or two meet where
+    the second starts."""
+    if plateaus and got[0] < plateaus[-1][1]:
+        a, b, v = plateaus.pop()
+        if abs(got[2] - v) <= max(K_NOISE * f.sc.sigma_w, R_STEADY * max(abs(v), abs(got[2]))):
+            b = max(b, got[1])
+            got = (a, b, float(np.median(f.w[a:b])))
+        elif got[0] - a >= f.n_min:
+            plateaus.append((a, got[0], v))
+    plateaus.append(got)
 
 
 def _sweeps(f: Features, plateaus: list[tuple[int, int, float]], code: np.ndarray
@@ -585,6 +628,14 @@ def _mean_speed(f: Features, a: int, b: int) -> tuple[float, float]:
     # and the loop's own speed ripple (a load that changes along the plateau): the spread of the mean
     # speeds over the four quarters of the middle half, as a standard error of their mean
     k = np.linspace(a, b - 1, 5).round().astype(np.int64)
+    if f.sc.qd_logged and np.all(np.diff(k) > 0):
+        # a logged velocity (a sensor of its own, not the position's difference: classify) resolves the
+        # speed where a coarse encoder does not: its mean over each quarter, the noise of a mean of
+        # (b - a) / window_w independent smoothed values, and the quarters' spread
+        c = np.concatenate(([0.0], np.cumsum(f.w[a:b])))
+        parts = np.diff(c[k - a]) / np.diff(k)
+        noise = f.sc.sigma_w * math.sqrt(f.sc.window_w / max(1, b - a))
+        return float(np.mean(parts)), math.hypot(noise, float(np.std(parts, ddof=1)) / 2.0)
     parts = np.diff(f.q[k]) / np.maximum(np.diff(k), 1) / f.sc.dt
     ripple = float(np.std(parts, ddof=1)) / 2.0 if np.all(np.diff(k) > 0) else 0.0
     return mean, math.hypot(math.sqrt(2.0) * sq / span, ripple)
@@ -622,8 +673,52 @@ def _plateau(f: Features, i0: int, i1: int, code: np.ndarray, n_min: int) -> tup
     for w, off in ((f.w[lo:min(f.t.size, i1 + 2 * f.h)], lo), _plateau_velocity(f, i0, i1)):
         a, b = _extend_plateau(f, i0, i1, code, w, off)
         if b - a >= n_min and _same_sign(w[a - off:b - off]) and _level(f, w[a - off:b - off]):
-            return a, b, float(np.median(w[a - off:b - off]))
+            a, b = _one_speed(f, a, b, n_min)
+            if b - a >= n_min and _in_band(f, w[a - off:b - off]):
+                return a, b, float(np.median(w[a - off:b - off]))
     return None
+
+
+def _in_band(f: Features, w: np.ndarray) -> bool:
+    """True if most samples of the velocity ``w`` [q/s] over a candidate plateau lie within its band
+    (:func:`_extend_plateau`'s): the median distance from the median velocity is within the band. A
+    joint in stick-slip under a slow reference (sticking, then slipping at several times the mean speed,
+    tens of times a second) has a steady mean over every 0.1 s, a steady position trend, and almost no
+    sample near its mean speed (foreign issue-19 sweep 100569: 7 such stretches read as plateaus)."""
+    wm = float(np.median(w))
+    return float(np.median(np.abs(w - wm))) <= max(K_NOISE * f.sc.sigma_w, R_STEADY * abs(wm))
+
+
+def _one_speed(f: Features, a: int, b: int, n_min: int) -> tuple[int, int]:
+    """``[a, b)`` trimmed at its ends until the joint holds one speed over it: the mean speeds of its first
+    and last quarters (from the positions: the sample velocity's noise hides a slow change) differ by no
+    more than the plateau's band allows (``2 R_STEADY`` of its speed: each end within ``R_STEADY`` of the
+    level) or ``K_NOISE`` standard errors (the position noise, at least the encoder's quantisation, at the
+    quarters' ends). The end farther from the middle half's speed goes first, an eighth at a time: a loop
+    still settling at one end (a slow integrator) keeps its settled part, a joint crawling out of
+    stiction while its controller winds up, speeding up steadily a few times over a second and "steady"
+    within the noise over every 0.1 s, would have to lose more than half of itself and is no plateau
+    (foreign issue-19 sweeps on 17-23-bit encoders at 100-3500 Hz: crawls of 0.004 -> 0.012 rad/s read as
+    plateaus, in mirror pairs)."""
+    sq = max(f.sc.sigma_q, f.sc.q_step / math.sqrt(12.0))
+    keep = max(n_min, (b - a) // 2)
+    while True:
+        k = np.linspace(a, b - 1, 5).round().astype(np.int64)
+        if np.any(np.diff(k) <= 0):
+            return a, b
+        span = np.diff(k) * f.sc.dt
+        v = np.diff(f.q[k]) / span
+        se = math.sqrt(2.0) * sq * math.hypot(1.0 / span[0], 1.0 / span[-1])
+        level = float(f.q[k[3]] - f.q[k[1]]) / float(span[1] + span[2])
+        if abs(float(v[-1] - v[0])) <= max(2.0 * R_STEADY * abs(level), K_NOISE * se):
+            return a, b
+        cut = max(1, (b - a) // 8)
+        if b - a - cut < keep:  # a speed that changes throughout: no plateau
+            return a, a
+        if abs(float(v[0]) - level) >= abs(float(v[-1]) - level):
+            a += cut
+        else:
+            b -= cut
 
 
 def _level(f: Features, w: np.ndarray) -> bool:
