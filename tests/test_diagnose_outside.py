@@ -378,3 +378,27 @@ def test_a_delay_is_judged_on_every_moving_sample():
             assert ra > 0.95 * rb, (rb, ra)
         r0b, r0a, d0 = delay_heldout(S, [0.0] * 5)
         assert r0a == pytest.approx(r0b, rel=1e-12) and np.allclose(d0, 0.0, atol=1e-12 * r0b * r0b * S.n)
+
+
+def test_the_delay_sums_of_several_shifts_at_once_are_those_of_each_shift_alone():
+    """:func:`frictid.diagnose.signals._delay_prefetch` computes the moving samples' sums of many shifts in
+    one pass (the columns once per block, the torque read at whole shifts without interpolation): per fold,
+    X'y and y'y equal the sums over the samples of each shift's own ``y = F - tau + tau(t - shift)``
+    (interpolated), for whole and fractional shifts of either sign, and X'X that of the columns."""
+    from frictid.diagnose.signals import _delay_columns, _delay_sums, _moving_rows, shifted_torque
+
+    dt = 2e-3
+    S = build_samples([plateau_log(None, seed=3, reps=1, dt=dt, noise=0.002)], 5)
+    shifts = [-7 * dt, -dt, 0.0, 2 * dt, 13 * dt, 2.37 * dt, -0.6 * dt]
+    got = [_delay_sums(S, s) for s in shifts[:5]]   # whole shifts, in one pass after the first
+    got += [_delay_sums(S, s) for s in shifts[5:]]
+    lg = S.logs[0]
+    (km, fk), = _moving_rows(S)
+    X = _delay_columns(S, 0, km)
+    for s, (XtX, XtY, yty) in zip(shifts, got):
+        y = lg.F[km] - lg.tau[km] + shifted_torque(lg.tau, km.astype(float), s / S.dt(0))
+        for f in range(5):
+            m = fk == f
+            assert np.allclose(XtX[f], X[m].T @ X[m], rtol=1e-10, atol=0)
+            assert np.allclose(XtY[f], X[m].T @ y[m], rtol=1e-9, atol=1e-9 * np.abs(XtY[f]).max())
+            assert yty[f] == pytest.approx(float(y[m] @ y[m]), rel=1e-10)

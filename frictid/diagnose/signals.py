@@ -194,33 +194,67 @@ def _delay_gram(S: Samples):
     return S.cached("delay_gram", compute)
 
 
+def _sums_key(shift_s: float) -> tuple:
+    return ("delay_sums", round(float(shift_s), 12))
+
+
 def _delay_sums(S: Samples, shift_s: float):
     """Per fold: (X'X, X'y, y'y) of the moving samples, ``y`` the friction torque with the measured torque
     taken ``shift_s`` seconds earlier (``F - tau(t) + tau(t - shift)``), X :func:`_delay_columns` (cached;
-    X'X from :func:`_delay_gram`)."""
-    key = ("delay_sums", round(float(shift_s), 12))
+    X'X from :func:`_delay_gram`; several shifts at once by :func:`_delay_prefetch`)."""
+    _delay_prefetch(S, [shift_s])
+    return S.cached(_sums_key(shift_s), lambda: None)
 
-    def compute():
-        nf = S.n_folds
-        XtX, XtY = _delay_gram(S), None
-        yty = np.zeros(nf)
-        for i, (km, fk) in enumerate(_moving_rows(S)):
-            lg = S.logs[i]
-            tau = finite(lg.tau)
-            sh = shift_s / S.dt(i)
-            for b in range(0, km.size, BLOCK):
-                k, f = km[b:b + BLOCK], fk[b:b + BLOCK]
-                X = _delay_columns(S, i, k)
-                y = lg.F[k] - tau[k] + shifted_torque(tau, k.astype(float), sh)
-                if XtY is None:
-                    XtY = np.zeros((nf, X.shape[1]))
-                for g in np.unique(f):
-                    m = f == g
-                    Xg, yg = X[m], y[m]
-                    XtY[g] += np.einsum("ij,i->j", Xg, yg)
-                    yty[g] += float(np.einsum("i,i->", yg, yg))
-        return XtX, XtY, yty
-    return S.cached(key, compute)
+
+#: Rows per block of the sums of several shifts at once (:func:`_delay_prefetch`: a block's columns and its
+#: shifted torques, rows x shifts, stay in cache).
+BATCH_ROWS = 1 << 13
+#: The ternary search of :func:`delay_estimate` fetches every shift of its interval at once when it spans at
+#: most this many samples (a shift costs a gather and a product there, a pass of the search the columns).
+PREFETCH_SPAN = 64
+
+
+def _fold_blocks(km: np.ndarray, fk: np.ndarray, rows: int):
+    """(fold, sample indices) of the moving samples km of one log, fold by fold, in blocks of at most
+    ``rows`` (each fold's samples in their order in the log)."""
+    order = np.argsort(fk, kind="stable")
+    ks, fs = km[order], fk[order]
+    edges = np.flatnonzero(np.diff(fs)) + 1
+    for s, e in zip(np.concatenate(([0], edges)), np.concatenate((edges, [fs.size]))):
+        for b in range(s, e, rows):
+            yield int(fs[s]), ks[b:min(b + rows, e)]
+
+
+def _delay_prefetch(S: Samples, shifts) -> None:
+    """:func:`_delay_sums` of every shift of ``shifts`` not yet cached, in one pass over the moving samples:
+    the columns X of a block are computed once for all the shifts (they do not depend on the shift; only
+    ``y`` does), each shift adding a gather of the torque and a product with X."""
+    todo = sorted({_sums_key(s)[1] for s in shifts if not S.has(_sums_key(s))})
+    if not todo:
+        return
+    nf, ns = S.n_folds, len(todo)
+    XtX, XtY = _delay_gram(S), None
+    yty = np.zeros((nf, ns))
+    for i, (km, fk) in enumerate(_moving_rows(S)):
+        lg = S.logs[i]
+        tau = finite(lg.tau)
+        sh = np.asarray(todo) / S.dt(i)
+        # whole samples (up to the rounding of the shift in seconds): the torque read, not interpolated
+        whole = bool(np.all(np.abs(sh - np.round(sh)) < 1e-6))
+        for g, k in _fold_blocks(km, fk, BATCH_ROWS):
+            X = _delay_columns(S, i, k)
+            if whole:   # shifted_torque at a whole shift, without its interpolation (the same numbers)
+                Y = tau[np.clip(k[:, None] - np.round(sh).astype(np.int64)[None, :], 0, lg.n - 1)]
+            else:
+                Y = shifted_torque(tau, k.astype(float)[:, None] - sh[None, :], 0.0)
+            Y += (lg.F[k] - tau[k])[:, None]
+            if XtY is None:
+                XtY = np.zeros((nf, X.shape[1], ns))
+            XtY[g] += np.einsum("ij,ik->jk", X, Y)   # not BLAS: its threads spin on a loaded machine
+            yty[g] += np.einsum("ij,ij->j", Y, Y)
+    for n, s in enumerate(todo):
+        val = (XtX, None if XtY is None else XtY[:, :, n].copy(), yty[:, n].copy())
+        S.cached(("delay_sums", s), lambda v=val: v)
 
 
 def _delay_fit(S: Samples, shift_s: float, folds):
@@ -265,15 +299,21 @@ def delay_estimate(S: Samples, folds=None) -> float:
             rss[g] = _delay_rss(S, g * dt, folds)
         return rss[g]
 
+    def fetch(gs) -> None:   # the sums of several shifts in one pass over the moving samples
+        _delay_prefetch(S, [g * dt for g in gs if g not in rss])
+
+    fetch(grid)
     best = min(grid, key=at)
     i = grid.index(best)
     lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
     while hi - lo > 2:   # ternary search on the samples between the grid's neighbours of its best
         m1, m2 = lo + (hi - lo) // 3, hi - (hi - lo) // 3
+        fetch(range(max(lo - 1, -kmax), min(hi + 1, kmax) + 1) if hi - lo <= PREFETCH_SPAN else (m1, m2))
         if at(m1) <= at(m2):
             hi = m2
         else:
             lo = m1
+    fetch(range(max(lo - 1, -kmax), min(hi + 1, kmax) + 1))
     best = min(range(lo, hi + 1), key=at)
     if -kmax < best < kmax:
         a, b, c = at(best - 1), at(best), at(best + 1)
@@ -327,11 +367,19 @@ def delay_column(S: Samples, shift_s: float, beta: tuple = ()) -> np.ndarray:
                 continue
             h = 0.5 * shift_s / S.dt(i)
             k = S.k[sel].astype(float)
-            ends = []
+            js = []
             for pos in (k + h, k - h):
                 j0 = np.clip(np.floor(pos).astype(np.int64), 0, lg.n - 2)
-                fr = np.clip(pos - j0, 0.0, 1.0)
-                ends.append(_torque_model(S, i, j0, beta) * (1 - fr) + _torque_model(S, i, j0 + 1, beta) * fr)
+                js.append((j0, np.clip(pos - j0, 0.0, 1.0)))
+            # the torque model once at each sample the two ends interpolate between (they overlap: the
+            # sliding samples come in runs), then read at both ends
+            mark = np.zeros(lg.n, bool)
+            for j0, _ in js:
+                mark[j0] = True
+                mark[j0 + 1] = True
+            T = _torque_model(S, i, np.flatnonzero(mark), beta)
+            at = np.cumsum(mark) - 1
+            ends = [T[at[j0]] * (1 - fr) + T[at[j0 + 1]] * fr for j0, fr in js]
             out[sel] = (ends[0] - ends[1]) / shift_s
         return out
     return S.cached(("delay_column", round(float(shift_s), 12), beta), compute)
@@ -363,6 +411,7 @@ def delay_heldout(S: Samples, shifts: list) -> tuple[float, float, np.ndarray]:
     without and with the shift and, per held-out group (that of the nearest sliding sample), the sum of
     ``r_before^2 - r_after^2``."""
     nf = S.n_folds
+    _delay_prefetch(S, [0.0] + [float(x) for x in shifts])
     fits = []
     for f in range(nf):
         train = [g for g in range(nf) if g != f]
