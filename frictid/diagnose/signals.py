@@ -65,6 +65,10 @@ def rest_scales(S: Samples) -> tuple[np.ndarray, np.ndarray] | None:
     """The settings tried for the dwell variable: ``t0`` [s] (the shortest and the median rest before a move)
     and ``s_c`` [q] (1 % to 30 % of the median travel of a move, 4 values); None when the moves follow
     fewer than 3 rests of at least two different lengths (nothing to tell a dwell effect by)."""
+    return S.cached("rest_scales", lambda: _rest_scales(S))
+
+
+def _rest_scales(S: Samples) -> tuple[np.ndarray, np.ndarray] | None:
     tr, sd = rests(S)
     # a rest shorter than the sliding samples' edge at the ends of a run (50 ms, samples.py) is a dip of
     # the measured velocity at a reversal, not a rest
@@ -164,15 +168,21 @@ def _delay_columns(S: Samples, i: int, k: np.ndarray) -> np.ndarray:
     i: per sign 1, sqrt|w|, |w|, w^2; the acceleration (an inertia error); cos q, sin q (a gravity error)."""
     w = S.log_w(i)[k]
     v = np.abs(w)
-    cols = []
-    for m in ((w > 0).astype(float), (w < 0).astype(float)):
-        cols += [m, m * np.sqrt(v), m * v, m * v * v]
-    cols.append(S.log_a(i)[k])
+    sv, v2 = np.sqrt(v), v * v
     q = S.logs[i].q
-    if S.axis_rotary and q is not None:
+    rot = S.axis_rotary and q is not None
+    X = np.empty((11 if rot else 9, k.size))   # rows filled in place: the columns of the F-ordered X.T
+    for r, m in ((0, w > 0), (4, w < 0)):
+        X[r] = m
+        np.multiply(m, sv, out=X[r + 1])
+        np.multiply(m, v, out=X[r + 2])
+        np.multiply(m, v2, out=X[r + 3])
+    X[8] = S.log_a(i)[k]
+    if rot:
         qk = finite(q[k])
-        cols += [np.cos(qk), np.sin(qk)]
-    return np.array(cols).T
+        np.cos(qk, out=X[9])
+        np.sin(qk, out=X[10])
+    return X.T
 
 
 def _delay_gram(S: Samples):
@@ -281,6 +291,37 @@ def delay_map(S: Samples, shift_s: float, folds) -> tuple:
     return () if beta is None else tuple(float(x) for x in beta)
 
 
+def delay_estimates(S: Samples) -> list:
+    """:func:`delay_estimate` of each fold's training folds (cached), and the moving samples' sums at those
+    shifts fetched in one pass (each fold's map, :func:`delay_map`, is fitted at its own shift)."""
+    def compute():
+        nf = S.n_folds
+        sets = [[g for g in range(nf) if g != f] for f in range(nf)]
+        dt, kmax, grid = _delay_grid(S)
+        _delay_prefetch(S, [g * dt for g in grid])
+        # the samples between each set's best grid shift and its neighbours, for all sets in one pass
+        near = set()
+        for folds in sets:
+            i = min(range(len(grid)), key=lambda n: _delay_rss(S, grid[n] * dt, folds))
+            lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+            if hi - lo <= PREFETCH_SPAN:
+                near.update(range(max(lo - 1, -kmax), min(hi + 1, kmax) + 1))
+        _delay_prefetch(S, [g * dt for g in near])
+        out = [delay_estimate(S, folds) for folds in sets]
+        _delay_prefetch(S, out)
+        return out
+    return S.cached("delay_estimates", compute)
+
+
+def _delay_grid(S: Samples) -> tuple[float, int, list]:
+    """(sample period, longest shift in samples, the shifts first tried): 0, 1, 2, 3 samples and two per
+    octave up to :func:`delay_limit`, of either sign."""
+    dt = S.dt(0)
+    kmax = max(1, int(delay_limit(S) / dt))
+    pos = sorted({1, 2, 3} | {int(round(v)) for v in np.geomspace(1, kmax, max(2, int(2 * math.log2(kmax + 1))))})
+    return dt, kmax, sorted({-g for g in pos if g <= kmax} | {0} | {g for g in pos if g <= kmax})
+
+
 def delay_estimate(S: Samples, folds=None) -> float:
     """The delay [s] between the measured torque and the motion, positive when the torque leads: the shift
     of the torque that best fits the friction torque of every moving sample of the given folds (all when
@@ -288,10 +329,7 @@ def delay_estimate(S: Samples, folds=None) -> float:
     0, 1, 2, 3 samples and two per octave up to :func:`delay_limit`, refined to the sample between the best
     one's neighbours (ternary search), then to a fraction of a sample by a parabola."""
     folds = tuple(range(S.n_folds)) if folds is None else tuple(folds)
-    dt = S.dt(0)
-    kmax = max(1, int(delay_limit(S) / dt))
-    pos = sorted({1, 2, 3} | {int(round(v)) for v in np.geomspace(1, kmax, max(2, int(2 * math.log2(kmax + 1))))})
-    grid = sorted({-g for g in pos if g <= kmax} | {0} | {g for g in pos if g <= kmax})
+    dt, kmax, grid = _delay_grid(S)
     rss: dict = {}
 
     def at(g: int) -> float:
@@ -340,12 +378,24 @@ def _run_time(S: Samples) -> float:
 
 def _torque_model(S: Samples, i: int, j: np.ndarray, beta: tuple) -> np.ndarray:
     """The torque at samples j of log i as the motion explains it, free of the torque sensor's noise:
-    ``J a + G`` (``tau - F``, in which the sensor's noise cancels) plus the delay fit's map and corrections."""
+    ``J a + G`` (``tau - F``, in which the sensor's noise cancels) plus the delay fit's map and corrections
+    (:func:`_delay_columns` times ``beta``, summed column by column without forming them)."""
     lg = S.logs[i]
-    rigid = finite(lg.tau[j]) - finite(lg.F[j])
+    out = finite(lg.tau[j]) - finite(lg.F[j])
     if not beta:
-        return rigid
-    return rigid + _delay_columns(S, i, j) @ np.asarray(beta)
+        return out
+    b = np.asarray(beta, float)
+    w = S.log_w(i)[j]
+    v = np.abs(w)
+    sv = np.sqrt(v)
+    for m, c in (((w > 0), b[0:4]), ((w < 0), b[4:8])):
+        out += m * (c[0] + c[1] * sv + c[2] * v + c[3] * v * v)
+    out += b[8] * S.log_a(i)[j]
+    q = S.logs[i].q
+    if S.axis_rotary and q is not None and b.size > 9:
+        qk = finite(q[j])
+        out += b[9] * np.cos(qk) + b[10] * np.sin(qk)
+    return out
 
 
 def delay_column(S: Samples, shift_s: float, beta: tuple = ()) -> np.ndarray:
