@@ -223,6 +223,11 @@ def test_a_cause_that_does_not_beat_a_competing_explanation_is_not_named():
     worse.rms_after = float(np.sqrt(np.mean((S.F - worse.pred_after) ** 2)))
     best = chain.choose([off, worse], 2)
     assert best.ext == "offset" and best.unresolved == []
+    # an explanation that is not a candidate competes too: a per-direction level (asym_level) against an
+    # offset, evaluated on the same folds; here the base has a Stribeck part, and the true offset beats it
+    # at low speed
+    comp = chain._competitors(off, 2)
+    assert [t.ext for t in comp] == ["asym_level"] and not chain.same_correction(off, comp[0])
 
 
 def _rest_plateau_log(seed: int, amp: float, values: dict, dt: float = 2e-3, noise: float = 0.01,
@@ -378,3 +383,50 @@ def test_a_delay_is_judged_on_every_moving_sample():
             assert ra > 0.95 * rb, (rb, ra)
         r0b, r0a, d0 = delay_heldout(S, [0.0] * 5)
         assert r0a == pytest.approx(r0b, rel=1e-12) and np.allclose(d0, 0.0, atol=1e-12 * r0b * r0b * S.n)
+
+
+def test_the_delay_sums_of_several_shifts_at_once_are_those_of_each_shift_alone():
+    """:func:`frictid.diagnose.signals._delay_prefetch` computes the moving samples' sums of many shifts in
+    one pass (the columns once per block, the torque read at whole shifts without interpolation): per fold,
+    X'y and y'y equal the sums over the samples of each shift's own ``y = F - tau + tau(t - shift)``
+    (interpolated), for whole and fractional shifts of either sign, and X'X that of the columns."""
+    from frictid.diagnose.signals import _delay_columns, _delay_sums, _moving_rows, shifted_torque
+
+    dt = 2e-3
+    S = build_samples([plateau_log(None, seed=3, reps=1, dt=dt, noise=0.002)], 5)
+    shifts = [-7 * dt, -dt, 0.0, 2 * dt, 13 * dt, 2.37 * dt, -0.6 * dt]
+    got = [_delay_sums(S, s) for s in shifts[:5]]   # whole shifts, in one pass after the first
+    got += [_delay_sums(S, s) for s in shifts[5:]]
+    lg = S.logs[0]
+    (km, fk), = _moving_rows(S)
+    X = _delay_columns(S, 0, km)
+    for s, (XtX, XtY, yty) in zip(shifts, got):
+        y = lg.F[km] - lg.tau[km] + shifted_torque(lg.tau, km.astype(float), s / S.dt(0))
+        for f in range(5):
+            m = fk == f
+            assert np.allclose(XtX[f], X[m].T @ X[m], rtol=1e-10, atol=0)
+            assert np.allclose(XtY[f], X[m].T @ y[m], rtol=1e-9, atol=1e-9 * np.abs(XtY[f]).max())
+            assert yty[f] == pytest.approx(float(y[m] @ y[m]), rel=1e-10)
+
+
+def test_an_inertia_repair_that_leaves_a_negative_inertia_is_no_repair():
+    """A torque delay biases the fit's inertia, even below zero (the foreign card's seed 301004: a 50 ms
+    delay, the fit's J -2.6 against the plant's 0.48, the inertia "repair" to -0.61 chosen ahead of the
+    delay): an inertia repair that leaves the fit's inertia at zero or below is refused
+    (:func:`frictid.diagnose.chain.unphysical`); one that leaves it positive stands, and so does any other
+    term, or an inertia repair when the fit's inertia is unknown."""
+    from frictid.diagnose.chain import unphysical
+    from frictid.diagnose.model import Coef, Term
+
+    cp = np.array([0.0, 1.0, 0.0, 0.0, 0.0, 0.0])
+    st = Structure("coulomb_viscous", cp, (Term("offset", "offset", "additive", ()),
+                                           Term("inertia", "inertia", "additive", ())))
+    coef = Coef({0: 1.0}, {0: 1.0}, gamma={0: np.array([0.1]), 1: np.array([2.0])})
+    why = unphysical(st, coef, -2.6)
+    assert why is not None and "-2.6 -> -0.6" in why, why
+    assert unphysical(st, coef, -1.0) is None            # -1 + 2 = 1 kg m^2
+    assert unphysical(st, coef, None) is None
+    coef.gamma[1] = np.array([-0.5])
+    assert unphysical(st, coef, 0.4) is not None          # a positive inertia repaired below zero
+    other = Structure("coulomb_viscous", cp, (Term("offset", "offset", "additive", ()),))
+    assert unphysical(other, Coef({0: 1.0}, {0: 1.0}, gamma={0: np.array([-5.0])}), 0.1) is None

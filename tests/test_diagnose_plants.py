@@ -27,10 +27,18 @@ MATRIX = [
 @pytest.mark.slow
 @pytest.mark.parametrize("cause,plant,size,noise", MATRIX)
 def test_hidden_effect_is_found(cause, plant, size, noise):
+    """The hidden cause named first; or, for an offset or a per-direction level, the honest answer where the
+    data cannot tell them apart (a base without a Stribeck part: the same correction of the sliding samples,
+    ``diagnose.chain.COMPETITORS``): a step ambiguous between exactly those two, and no cause named."""
     jf, es, logs = ds.run_case(plant, cause, 0.15, size, seed=7, noise=noise, with_effect_size=True)
     top, gain = ds.top_cause(jf)
     assert es > 0.08, f"the injected effect is {100 * es:.0f} % of the friction RMS"
-    assert top == cause, (top, jf.diagnosis)
+    amb = (jf.selection.get("diagnosis") or {}).get("ambiguous") or []
+    if cause in ("offset", "asymmetry") and top != cause and amb:
+        assert sorted(amb[0]["causes"]) == ["asymmetry", "offset"] and top == "none", (amb, jf.diagnosis)
+        gain = amb[0]["heldout_gain"]
+    else:
+        assert top == cause, (top, jf.diagnosis)
     assert gain >= (GAIN_FOUND_PLANT if noise <= 1.0 else GAIN_FOUND_NOISY)
 
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from .model import OUTSIDE_MODEL, Coef, Context, Evaluator, Structure, Term, load_variable
 from .samples import Samples
-from .signals import delay_estimate, delay_map, moving_samples, rest_scales
+from .signals import delay_estimate, delay_estimates, delay_map, moving_samples, rest_scales
 
 #: The causes, in the order the issue names them (``presliding`` is judged on ramp and step segments).
 CAUSES = ("temperature", "position", "load", "asymmetry", "stribeck", "presliding", "inertia", "gravity",
@@ -281,7 +281,9 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
         return min(terms, key=lambda term: _fit_rms(ctx, st.plus(term), idx))
     if ext == "delay":   # the shift estimated on the training folds' moving samples
         folds = np.unique(S.fold[idx])
-        d = delay_estimate(S, folds)
+        left = np.setdiff1d(np.arange(S.n_folds), folds)
+        # a training set of all folds but one: the estimates of every such set at once (one pass for their maps)
+        d = delay_estimates(S)[int(left[0])] if left.size == 1 else delay_estimate(S, folds)
         return Term(cause, ext, role, (("shift", d), ("beta", delay_map(S, d, folds))))
     if ext == "position_smooth":
         q0 = float(0.5 * (S.q.max() + S.q.min()))

@@ -24,7 +24,8 @@ absorb an offset, with more coefficients). A cause is *named* only when it beats
 explanation of another cause that makes the same correction on the held-out residual (:meth:`Chain.same_correction`:
 the same column space on these data, as an offset and a level-only asymmetry on a Coulomb + viscous map); otherwise
 its term enters the model (the residual the next steps search stays clean) but no cause is named: the
-step is recorded as ambiguous between the causes (``Trial.unresolved``).
+step is recorded as ambiguous between the causes (``Trial.unresolved``). Explanations that are not
+candidates compete too (:data:`COMPETITORS`: a per-direction level for an offset).
 """
 from __future__ import annotations
 
@@ -46,6 +47,14 @@ ALPHA = 0.01
 GAIN_MIN = 0.05
 #: Smallest RMS a term must explain, as a fraction of the friction RMS.
 EXPLAINED_MIN = 0.02
+#: Competing explanations that are not candidates (their models are not exported) but must be beaten before
+#: the candidate is named: a torque offset is, on sliding data of a map without a Stribeck part, the same
+#: column space as a per-direction Coulomb level (``asym_level``); where the map has a Stribeck part the
+#: two differ at low speed, where the level asymmetry scales the hump and the offset does not. Where they
+#: make the same correction the step is ambiguous (offset or asymmetry): the data cannot tell a torque
+#: sensor's bias from a Coulomb level that differs by direction, and the rest torque after a move does not
+#: either (the bristles hold the sliding level; foreign seed 300017, docs/scorecards.md).
+COMPETITORS = {"offset": ("asym_level",)}
 #: Longest chain.
 MAX_STEPS = 6
 #: Two candidates make the same correction when their held-out corrections differ by at most this share of
@@ -107,8 +116,10 @@ def paired_t(d: np.ndarray) -> tuple[float, float]:
 class Chain:
     """Runs the diagnosis on one joint's samples from a base structure."""
 
-    def __init__(self, S: Samples, base: Structure):
+    def __init__(self, S: Samples, base: Structure, J: float | None = None):
         self.S = S
+        #: the fit's inertia (None: unknown), which an inertia repair corrects (:func:`unphysical`)
+        self.J = J
         self.ctx = Context(S)
         self.st = base
         self.idx_all = np.arange(S.n)
@@ -215,7 +226,7 @@ class Chain:
             if p >= ALPHA / max(m, 1):
                 best = t
         best = _speed_only_last(best, ok)
-        self._rivals(best, ok, m)
+        self._rivals(best, ok + self._competitors(best, m), m)
         return best
 
     def _rivals(self, best: Trial, others: list[Trial], m: int) -> None:
@@ -237,6 +248,16 @@ class Chain:
             # space on these data, whichever wins by rounding)
             if t.k <= best.k and t.cause not in best.unresolved and self.same_correction(best, t):
                 best.unresolved.append(t.cause)
+
+    def _competitors(self, best: Trial, m: int) -> list[Trial]:
+        """The competing explanations of the chosen candidate that are not candidates themselves
+        (:data:`COMPETITORS`), judged on the same held-out folds."""
+        out = []
+        for ext in COMPETITORS.get(best.ext, ()):
+            tr = self.evaluate(ext, m)
+            if tr is not None:
+                out.append(tr)
+        return out
 
     def same_correction(self, a: Trial, b: Trial) -> bool:
         """Whether two candidates make the same held-out correction: their corrections differ by an RMS of
@@ -283,7 +304,8 @@ class Chain:
             ev0 = Evaluator(self.st, self.ctx)
             term = propose(best.ext, self.ctx, self.st, self.idx_all, res, ev0.level(self.coef, self.idx_all), self.coef)
             st_new = self.st.plus(term)
-            why = degenerate(self.coef, st_new, Evaluator(st_new, self.ctx).fit(self.idx_all))
+            after = Evaluator(st_new, self.ctx).fit(self.idx_all)
+            why = degenerate(self.coef, st_new, after) or unphysical(st_new, after, self.J)
             if why is None:
                 return best, term, st_new
             step.setdefault("rejected", []).append({"extension": best.ext, "reason": why})
@@ -497,6 +519,21 @@ def _unresolved_delay(S: Samples, tr: Trial) -> str | None:
     if max(abs(x) for x in shifts) >= delay_limit(S) - S.dt(0):
         return (f"delay: the shift reaches the longest searched ({1e3 * delay_limit(S):.3g} ms): not a delay of "
                 f"the torque against the same motion")
+    return None
+
+
+def unphysical(st: Structure, after: Coef, J: float | None) -> str | None:
+    """Why the extended model (its last term new, coefficients ``after`` on all samples) is no physical
+    repair of the fit, or None: an inertia repair that leaves the fit's inertia ``J`` at zero or below (no
+    rigid body has one; the acceleration's share of the residual then belongs to something else, a torque
+    that leads the motion most often: a delay biases the fit's inertia, even to a negative value)."""
+    i = len(st.terms) - 1
+    if st.terms[i].ext != "inertia" or J is None:
+        return None
+    new = J + float(np.atleast_1d(after.gamma.get(i, np.zeros(1)))[0])
+    if new <= 0:
+        return (f"inertia {J:.3g} -> {new:.3g}: not a rigid body's (at most zero); the acceleration's share of "
+                f"the residual is another cause's")
     return None
 
 

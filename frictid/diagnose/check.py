@@ -8,6 +8,7 @@ replayed along the logs (:func:`frictid.replay.replay`).
 """
 from __future__ import annotations
 
+import contextlib
 import math
 from types import SimpleNamespace
 
@@ -57,7 +58,19 @@ def diagnose_fit(jf: JointFit, preps: list[Prep]) -> None:
                             segments=p.segments, channels=p.log.channels, start=log_start_time(p.log),
                             source=p.index))
     if logs:
-        diagnose_joint(jf, logs)
+        with _one_blas_thread():
+            diagnose_joint(jf, logs)
+
+
+def _one_blas_thread():
+    """The diagnosis' matrix products are small (a few columns by a block of 4 096 samples): one BLAS thread
+    (``threadpoolctl``, as the fit's worker processes have); more gave nothing, and on a loaded machine their
+    threads spun for most of their CPU time. Without threadpoolctl BLAS keeps its own count."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # optional, as in frictid.parallel
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _static_targets(jf: JointFit, preps: list[Prep], name: str):

@@ -75,7 +75,8 @@ def diagnose_joint(jf: JointFit, logs: list[DiagLog], n_folds: int = N_FOLDS) ->
         jf.warnings.append(f"not diagnosed: {rec['skipped']}")
         jf.diagnosis = []
         return []
-    chain = Chain(S, _base_structure(jf, base, S))
+    chain = Chain(S, _base_structure(jf, base, S),
+                  J=jf.inertia.value if jf.inertia is not None and jf.inertia.value is not None else None)
     rec["rms_heldout_base"] = chain.rms_heldout
     rec["samples"] = int(S.n)
     rec["groups"] = int(S.n_groups)

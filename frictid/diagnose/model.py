@@ -144,14 +144,25 @@ def load_variable(S: Samples, ext: str, nl: dict) -> np.ndarray:
     fit's gravity, and ``|G|`` of the fit then crosses zero at the wrong angles)."""
     if ext == "load_payload":
         return S.payload
+    # the last variable is kept: a proposal scales it, and the candidate's column is the same variable
+    key = (ext,) + tuple(float(nl.get(k, 0.0)) for k in ("dPx", "dPy", "dJ"))
+    last = S.cached("load_variable_last", lambda: {})
+    if key in last:
+        return last[key]
     corr = 0.0
     if S.q is not None and (nl.get("dPx", 0.0) or nl.get("dPy", 0.0)):
-        corr = nl.get("dPx", 0.0) * np.cos(S.q) + nl.get("dPy", 0.0) * np.sin(S.q)
+        cq = S.cached("cos_q", lambda: np.cos(S.q))
+        sq = S.cached("sin_q", lambda: np.sin(S.q))
+        corr = nl.get("dPx", 0.0) * cq + nl.get("dPy", 0.0) * sq
     if ext == "load_gravity":
-        return np.abs(S.G + corr)
-    if nl.get("dJ", 0.0):
-        corr = corr + nl["dJ"] * S.a
-    return np.abs(S.tau - S.F + corr)
+        out = np.abs(S.G + corr)
+    else:
+        if nl.get("dJ", 0.0):
+            corr = corr + nl["dJ"] * S.a
+        out = np.abs(S.cached("rigid_torque", lambda: S.tau - S.F) + corr)
+    last.clear()
+    last[key] = out
+    return out
 
 class Context:
     """Column cache for one :class:`Samples` (columns of the base map and of each term)."""

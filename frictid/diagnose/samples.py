@@ -141,6 +141,10 @@ class Samples:
             self._memo[key] = compute()
         return self._memo[key]
 
+    def has(self, key) -> bool:
+        """Whether :meth:`cached` holds ``key``."""
+        return key in self._memo
+
     def dt(self, i: int = 0) -> float:
         """Sample period [s] of log i (the median step of its clock; 1 for a log of one sample)."""
         lg = self.logs[i]

@@ -65,6 +65,10 @@ def rest_scales(S: Samples) -> tuple[np.ndarray, np.ndarray] | None:
     """The settings tried for the dwell variable: ``t0`` [s] (the shortest and the median rest before a move)
     and ``s_c`` [q] (1 % to 30 % of the median travel of a move, 4 values); None when the moves follow
     fewer than 3 rests of at least two different lengths (nothing to tell a dwell effect by)."""
+    return S.cached("rest_scales", lambda: _rest_scales(S))
+
+
+def _rest_scales(S: Samples) -> tuple[np.ndarray, np.ndarray] | None:
     tr, sd = rests(S)
     # a rest shorter than the sliding samples' edge at the ends of a run (50 ms, samples.py) is a dip of
     # the measured velocity at a reversal, not a rest
@@ -164,15 +168,21 @@ def _delay_columns(S: Samples, i: int, k: np.ndarray) -> np.ndarray:
     i: per sign 1, sqrt|w|, |w|, w^2; the acceleration (an inertia error); cos q, sin q (a gravity error)."""
     w = S.log_w(i)[k]
     v = np.abs(w)
-    cols = []
-    for m in ((w > 0).astype(float), (w < 0).astype(float)):
-        cols += [m, m * np.sqrt(v), m * v, m * v * v]
-    cols.append(S.log_a(i)[k])
+    sv, v2 = np.sqrt(v), v * v
     q = S.logs[i].q
-    if S.axis_rotary and q is not None:
+    rot = S.axis_rotary and q is not None
+    X = np.empty((11 if rot else 9, k.size))   # rows filled in place: the columns of the F-ordered X.T
+    for r, m in ((0, w > 0), (4, w < 0)):
+        X[r] = m
+        np.multiply(m, sv, out=X[r + 1])
+        np.multiply(m, v, out=X[r + 2])
+        np.multiply(m, v2, out=X[r + 3])
+    X[8] = S.log_a(i)[k]
+    if rot:
         qk = finite(q[k])
-        cols += [np.cos(qk), np.sin(qk)]
-    return np.array(cols).T
+        np.cos(qk, out=X[9])
+        np.sin(qk, out=X[10])
+    return X.T
 
 
 def _delay_gram(S: Samples):
@@ -194,33 +204,67 @@ def _delay_gram(S: Samples):
     return S.cached("delay_gram", compute)
 
 
+def _sums_key(shift_s: float) -> tuple:
+    return ("delay_sums", round(float(shift_s), 12))
+
+
 def _delay_sums(S: Samples, shift_s: float):
     """Per fold: (X'X, X'y, y'y) of the moving samples, ``y`` the friction torque with the measured torque
     taken ``shift_s`` seconds earlier (``F - tau(t) + tau(t - shift)``), X :func:`_delay_columns` (cached;
-    X'X from :func:`_delay_gram`)."""
-    key = ("delay_sums", round(float(shift_s), 12))
+    X'X from :func:`_delay_gram`; several shifts at once by :func:`_delay_prefetch`)."""
+    _delay_prefetch(S, [shift_s])
+    return S.cached(_sums_key(shift_s), lambda: None)
 
-    def compute():
-        nf = S.n_folds
-        XtX, XtY = _delay_gram(S), None
-        yty = np.zeros(nf)
-        for i, (km, fk) in enumerate(_moving_rows(S)):
-            lg = S.logs[i]
-            tau = finite(lg.tau)
-            sh = shift_s / S.dt(i)
-            for b in range(0, km.size, BLOCK):
-                k, f = km[b:b + BLOCK], fk[b:b + BLOCK]
-                X = _delay_columns(S, i, k)
-                y = lg.F[k] - tau[k] + shifted_torque(tau, k.astype(float), sh)
-                if XtY is None:
-                    XtY = np.zeros((nf, X.shape[1]))
-                for g in np.unique(f):
-                    m = f == g
-                    Xg, yg = X[m], y[m]
-                    XtY[g] += np.einsum("ij,i->j", Xg, yg)
-                    yty[g] += float(np.einsum("i,i->", yg, yg))
-        return XtX, XtY, yty
-    return S.cached(key, compute)
+
+#: Rows per block of the sums of several shifts at once (:func:`_delay_prefetch`: a block's columns and its
+#: shifted torques, rows x shifts, stay in cache).
+BATCH_ROWS = 1 << 13
+#: The ternary search of :func:`delay_estimate` fetches every shift of its interval at once when it spans at
+#: most this many samples (a shift costs a gather and a product there, a pass of the search the columns).
+PREFETCH_SPAN = 64
+
+
+def _fold_blocks(km: np.ndarray, fk: np.ndarray, rows: int):
+    """(fold, sample indices) of the moving samples km of one log, fold by fold, in blocks of at most
+    ``rows`` (each fold's samples in their order in the log)."""
+    order = np.argsort(fk, kind="stable")
+    ks, fs = km[order], fk[order]
+    edges = np.flatnonzero(np.diff(fs)) + 1
+    for s, e in zip(np.concatenate(([0], edges)), np.concatenate((edges, [fs.size]))):
+        for b in range(s, e, rows):
+            yield int(fs[s]), ks[b:min(b + rows, e)]
+
+
+def _delay_prefetch(S: Samples, shifts) -> None:
+    """:func:`_delay_sums` of every shift of ``shifts`` not yet cached, in one pass over the moving samples:
+    the columns X of a block are computed once for all the shifts (they do not depend on the shift; only
+    ``y`` does), each shift adding a gather of the torque and a product with X."""
+    todo = sorted({_sums_key(s)[1] for s in shifts if not S.has(_sums_key(s))})
+    if not todo:
+        return
+    nf, ns = S.n_folds, len(todo)
+    XtX, XtY = _delay_gram(S), None
+    yty = np.zeros((nf, ns))
+    for i, (km, fk) in enumerate(_moving_rows(S)):
+        lg = S.logs[i]
+        tau = finite(lg.tau)
+        sh = np.asarray(todo) / S.dt(i)
+        # whole samples (up to the rounding of the shift in seconds): the torque read, not interpolated
+        whole = bool(np.all(np.abs(sh - np.round(sh)) < 1e-6))
+        for g, k in _fold_blocks(km, fk, BATCH_ROWS):
+            X = _delay_columns(S, i, k)
+            if whole:   # shifted_torque at a whole shift, without its interpolation (the same numbers)
+                Y = tau[np.clip(k[:, None] - np.round(sh).astype(np.int64)[None, :], 0, lg.n - 1)]
+            else:
+                Y = shifted_torque(tau, k.astype(float)[:, None] - sh[None, :], 0.0)
+            Y += (lg.F[k] - tau[k])[:, None]
+            if XtY is None:
+                XtY = np.zeros((nf, X.shape[1], ns))
+            XtY[g] += np.einsum("ij,ik->jk", X, Y)   # not BLAS: its threads spin on a loaded machine
+            yty[g] += np.einsum("ij,ij->j", Y, Y)
+    for n, s in enumerate(todo):
+        val = (XtX, None if XtY is None else XtY[:, :, n].copy(), yty[:, n].copy())
+        S.cached(("delay_sums", s), lambda v=val: v)
 
 
 def _delay_fit(S: Samples, shift_s: float, folds):
@@ -247,6 +291,37 @@ def delay_map(S: Samples, shift_s: float, folds) -> tuple:
     return () if beta is None else tuple(float(x) for x in beta)
 
 
+def delay_estimates(S: Samples) -> list:
+    """:func:`delay_estimate` of each fold's training folds (cached), and the moving samples' sums at those
+    shifts fetched in one pass (each fold's map, :func:`delay_map`, is fitted at its own shift)."""
+    def compute():
+        nf = S.n_folds
+        sets = [[g for g in range(nf) if g != f] for f in range(nf)]
+        dt, kmax, grid = _delay_grid(S)
+        _delay_prefetch(S, [g * dt for g in grid])
+        # the samples between each set's best grid shift and its neighbours, for all sets in one pass
+        near = set()
+        for folds in sets:
+            i = min(range(len(grid)), key=lambda n: _delay_rss(S, grid[n] * dt, folds))
+            lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+            if hi - lo <= PREFETCH_SPAN:
+                near.update(range(max(lo - 1, -kmax), min(hi + 1, kmax) + 1))
+        _delay_prefetch(S, [g * dt for g in near])
+        out = [delay_estimate(S, folds) for folds in sets]
+        _delay_prefetch(S, out)
+        return out
+    return S.cached("delay_estimates", compute)
+
+
+def _delay_grid(S: Samples) -> tuple[float, int, list]:
+    """(sample period, longest shift in samples, the shifts first tried): 0, 1, 2, 3 samples and two per
+    octave up to :func:`delay_limit`, of either sign."""
+    dt = S.dt(0)
+    kmax = max(1, int(delay_limit(S) / dt))
+    pos = sorted({1, 2, 3} | {int(round(v)) for v in np.geomspace(1, kmax, max(2, int(2 * math.log2(kmax + 1))))})
+    return dt, kmax, sorted({-g for g in pos if g <= kmax} | {0} | {g for g in pos if g <= kmax})
+
+
 def delay_estimate(S: Samples, folds=None) -> float:
     """The delay [s] between the measured torque and the motion, positive when the torque leads: the shift
     of the torque that best fits the friction torque of every moving sample of the given folds (all when
@@ -254,10 +329,7 @@ def delay_estimate(S: Samples, folds=None) -> float:
     0, 1, 2, 3 samples and two per octave up to :func:`delay_limit`, refined to the sample between the best
     one's neighbours (ternary search), then to a fraction of a sample by a parabola."""
     folds = tuple(range(S.n_folds)) if folds is None else tuple(folds)
-    dt = S.dt(0)
-    kmax = max(1, int(delay_limit(S) / dt))
-    pos = sorted({1, 2, 3} | {int(round(v)) for v in np.geomspace(1, kmax, max(2, int(2 * math.log2(kmax + 1))))})
-    grid = sorted({-g for g in pos if g <= kmax} | {0} | {g for g in pos if g <= kmax})
+    dt, kmax, grid = _delay_grid(S)
     rss: dict = {}
 
     def at(g: int) -> float:
@@ -265,15 +337,21 @@ def delay_estimate(S: Samples, folds=None) -> float:
             rss[g] = _delay_rss(S, g * dt, folds)
         return rss[g]
 
+    def fetch(gs) -> None:   # the sums of several shifts in one pass over the moving samples
+        _delay_prefetch(S, [g * dt for g in gs if g not in rss])
+
+    fetch(grid)
     best = min(grid, key=at)
     i = grid.index(best)
     lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
     while hi - lo > 2:   # ternary search on the samples between the grid's neighbours of its best
         m1, m2 = lo + (hi - lo) // 3, hi - (hi - lo) // 3
+        fetch(range(max(lo - 1, -kmax), min(hi + 1, kmax) + 1) if hi - lo <= PREFETCH_SPAN else (m1, m2))
         if at(m1) <= at(m2):
             hi = m2
         else:
             lo = m1
+    fetch(range(max(lo - 1, -kmax), min(hi + 1, kmax) + 1))
     best = min(range(lo, hi + 1), key=at)
     if -kmax < best < kmax:
         a, b, c = at(best - 1), at(best), at(best + 1)
@@ -300,12 +378,24 @@ def _run_time(S: Samples) -> float:
 
 def _torque_model(S: Samples, i: int, j: np.ndarray, beta: tuple) -> np.ndarray:
     """The torque at samples j of log i as the motion explains it, free of the torque sensor's noise:
-    ``J a + G`` (``tau - F``, in which the sensor's noise cancels) plus the delay fit's map and corrections."""
+    ``J a + G`` (``tau - F``, in which the sensor's noise cancels) plus the delay fit's map and corrections
+    (:func:`_delay_columns` times ``beta``, summed column by column without forming them)."""
     lg = S.logs[i]
-    rigid = finite(lg.tau[j]) - finite(lg.F[j])
+    out = finite(lg.tau[j]) - finite(lg.F[j])
     if not beta:
-        return rigid
-    return rigid + _delay_columns(S, i, j) @ np.asarray(beta)
+        return out
+    b = np.asarray(beta, float)
+    w = S.log_w(i)[j]
+    v = np.abs(w)
+    sv = np.sqrt(v)
+    for m, c in (((w > 0), b[0:4]), ((w < 0), b[4:8])):
+        out += m * (c[0] + c[1] * sv + c[2] * v + c[3] * v * v)
+    out += b[8] * S.log_a(i)[j]
+    q = S.logs[i].q
+    if S.axis_rotary and q is not None and b.size > 9:
+        qk = finite(q[j])
+        out += b[9] * np.cos(qk) + b[10] * np.sin(qk)
+    return out
 
 
 def delay_column(S: Samples, shift_s: float, beta: tuple = ()) -> np.ndarray:
@@ -327,11 +417,19 @@ def delay_column(S: Samples, shift_s: float, beta: tuple = ()) -> np.ndarray:
                 continue
             h = 0.5 * shift_s / S.dt(i)
             k = S.k[sel].astype(float)
-            ends = []
+            js = []
             for pos in (k + h, k - h):
                 j0 = np.clip(np.floor(pos).astype(np.int64), 0, lg.n - 2)
-                fr = np.clip(pos - j0, 0.0, 1.0)
-                ends.append(_torque_model(S, i, j0, beta) * (1 - fr) + _torque_model(S, i, j0 + 1, beta) * fr)
+                js.append((j0, np.clip(pos - j0, 0.0, 1.0)))
+            # the torque model once at each sample the two ends interpolate between (they overlap: the
+            # sliding samples come in runs), then read at both ends
+            mark = np.zeros(lg.n, bool)
+            for j0, _ in js:
+                mark[j0] = True
+                mark[j0 + 1] = True
+            T = _torque_model(S, i, np.flatnonzero(mark), beta)
+            at = np.cumsum(mark) - 1
+            ends = [T[at[j0]] * (1 - fr) + T[at[j0 + 1]] * fr for j0, fr in js]
             out[sel] = (ends[0] - ends[1]) / shift_s
         return out
     return S.cached(("delay_column", round(float(shift_s), 12), beta), compute)
@@ -363,6 +461,7 @@ def delay_heldout(S: Samples, shifts: list) -> tuple[float, float, np.ndarray]:
     without and with the shift and, per held-out group (that of the nearest sliding sample), the sum of
     ``r_before^2 - r_after^2``."""
     nf = S.n_folds
+    _delay_prefetch(S, [0.0] + [float(x) for x in shifts])
     fits = []
     for f in range(nf):
         train = [g for g in range(nf) if g != f]
