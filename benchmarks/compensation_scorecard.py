@@ -26,8 +26,13 @@ Printed per joint: the RMS tracking error of each run, the reduction (none / mod
 share the plant's own friction reaches as a static map (column ``static``, and its reduction ``st.red``: the
 ceiling of a model without bristle dynamics), stick episodes, and the observer's reduction.
 
-Targets (issue 23): hydraulic error down >= 3x; direct drive >= 8x with stick-slip removed; the model
->= 90 % of the true friction's reduction. Seeds >= 300000 (the tests use < 1000). With FRICTID_SMOKE=1:
+Targets (issue 23, "reproduce the seeds' results"), each judged as its paper ran it: 000 (hydraulic), the
+model-based compensation, error down >= 3x; 003 (direct drive, LV test), its scheme C2: the static LuGre
+map computed from the *measured* velocity inside the inner loop (the reference-velocity variant was 003's
+repeat), error down >= 8x with the stick-slip removed on the joint 003 reports it for, joint 2 (joint 1 is
+printed, with the ceiling of a static map, against no target: 003 claims nothing for it); the model
+>= 90 % of the true friction's reduction. The slower recipe and the 23-bit what-if are beyond the papers
+and printed against the same figures. Seeds >= 300000 (the tests use < 1000). With FRICTID_SMOKE=1:
 one seed, short identification logs, the hydraulic plant and the warm-up case with a short warm-up.
 """
 from __future__ import annotations
@@ -56,6 +61,12 @@ SETTINGS = {
     "fine_encoder/lv": ("direct_drive@23bit", "tracking_lv", "what-if", 8.0, True),
     "fine_encoder/slow": ("direct_drive@23bit", "tracking_slow", "what-if", 8.0, True),
 }
+#: what a paper claims, as it ran it: setting -> (the run its scheme is, the joints it reports the result for).
+#: 000 compensated with the identified LuGre model (the feed-forward along the reference; its observer is
+#: printed too). 003's C2 computes the static LuGre map from the measured q, qd in the inner loop (the
+#: reference-velocity variant was its repeat, joint 2's maximum error 3.2 -> 4.7 mrad) and reports "an
+#: entire order of magnitude for the second joint" and that joint's stick-slip removed; no claim for joint 1.
+PAPER = {"hydraulic": ("model", None), "direct_drive/lv": ("measured", ("j2",))}
 #: identification experiments: 000's (sweep and presliding ramps; sigma1 by its critical-damping rule) on the
 #: hydraulic plant, 001's (the same and torque steps, whose transient carries sigma1) on the direct drive
 IDENTIFY = {"hydraulic": ("constant_velocity_sweep", "ramp_presliding"),
@@ -114,12 +125,17 @@ def score(setting: str, res, seed: int) -> list[dict]:
         row["static"], row["static_red"] = static_share(plant, j, seed, recipe)
         mv = by["measured"].metrics
         row["measured"] = (n.rms_error / mv.rms_error, mv.stick_slip_episodes)
-        row["measured_ok"] = (row["measured"][0] >= reduction and (not stick_free or mv.stick_slip_episodes == 0))
+        row["measured_share"] = (n.rms_error - mv.rms_error) / (n.rms_error - t.rms_error)
+        row["measured_ok"] = (row["measured"][0] >= reduction and row["measured_share"] >= SHARE
+                              and (not stick_free or mv.stick_slip_episodes == 0))
         o = by["observer"].metrics if "observer" in by else None
         row["observer"] = None if o is None else (n.rms_error / o.rms_error, o.stick_slip_episodes)
         row["ok"] = (row["reduction"] >= reduction and row["share"] >= SHARE
                      and (not stick_free or m.stick_slip_episodes == 0))
         row["observer_ok"] = o is not None and row["observer"][0] >= reduction and (not stick_free or o.stick_slip_episodes == 0)
+        run, claimed = PAPER.get(setting, (None, None))
+        row["paper"] = (None if run is None or (claimed is not None and j not in claimed)
+                        else row["ok"] if run == "model" else row["measured_ok"])
         rows.append(row)
     return rows
 
@@ -197,13 +213,14 @@ def warm_score(seed: int, scale: float, warm_scale: float, recipe_scale: float =
 def print_rows(rows: list[dict]) -> None:
     print(f"{'plant':<19} {'recipe':<13} {'setting':<8} {'seed':>6} {'joint':<5} {'model':<31} {'none':>9} "
           f"{'model':>9} {'true':>9} {'reduct.':>7} {'ideal':>7} {'share':>6} {'static':>6} {'st.red':>6}  "
-          f"stick none/model/true  target  measured (stick)  observer (stick)")
+          f"stick none/model/true  target  measured (stick)  observer (stick)  paper")
     for r in rows:
         obs = "-" if r["observer"] is None else f"{r['observer'][0]:6.1f}x ({r['observer'][1]})"
         print(f"{r['plant']:<19} {r['recipe']:<13} {r['what']:<8} {r['seed']:>6} {r['joint']:<5} {r['model']:<31} "
               f"{r['none']:9.3g} {r['with_model']:9.3g} {r['true']:9.3g} {r['reduction']:6.1f}x {r['ideal']:6.1f}x "
               f"{r['share']:6.2f} {r['static']:6.2f} {r['static_red']:5.1f}x  {'/'.join(map(str, r['stick'])):<20}  "
-              f"{'met' if r['ok'] else 'MISSED':<7} {r['measured'][0]:7.1f}x ({r['measured'][1]:>2})     {obs}")
+              f"{'met' if r['ok'] else 'MISSED':<7} {r['measured'][0]:7.1f}x ({r['measured'][1]:>2})     {obs:<16}  "
+              f"{'-' if r['paper'] is None else 'met' if r['paper'] else 'MISSED'}")
 
 
 def print_warm(rows: list[dict]) -> None:
@@ -265,6 +282,13 @@ def main(argv=None) -> int:
                  f"{len(obs)}" if obs else ""))
     print(f"(reduction >= 3x hydraulic, >= 8x direct drive and no stick episode with the model there; share of "
           f"the ideal reduction >= {SHARE:.0%})")
+    for s, (run, claimed) in PAPER.items():
+        sub = [r for r in rows if r["what"] == SETTINGS[s][2] and r["paper"] is not None]
+        if not sub:
+            continue
+        print(f"the paper's result ({SETTINGS[s][2]}, {'the feed-forward along the reference' if run == 'model' else 'the static map from the measured velocity'}"
+              f"{', joint ' + ', '.join(claimed) if claimed else ''}): {sum(r['paper'] for r in sub)} of {len(sub)} "
+              f"(column paper)")
     if abl:
         print_ablation(abl)
     print_warm(warm)
