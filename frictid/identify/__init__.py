@@ -9,7 +9,8 @@ returns a :class:`~frictid.result.FitResult`). The modules:
 - :mod:`.mechanics`: inertia, gravity and offset (:mod:`.regression`), the friction torque and plateaus;
 - :mod:`.maps`: the static maps (:mod:`.static` on plateaus, :mod:`.samples` on moving samples) and the
   choice (:mod:`.select`, which also holds what the diagnosis shares: ``BASE_MODELS``, ``base_model_name``);
-- :mod:`.dynamics`: LuGre (:mod:`.presliding`); :mod:`.thermal_fit`: thermal4 / thermal6 (:mod:`.thermal`);
+- :mod:`.dynamics`: LuGre (:mod:`.presliding`, on :mod:`.smallsq`'s least squares for small problems);
+  :mod:`.thermal_fit`: thermal4 / thermal6 (:mod:`.thermal`);
 - :mod:`.pipeline`: the model names and the last step.
 """
 from __future__ import annotations
