@@ -538,9 +538,13 @@ def _levels(f: Features, i0: int, i1: int, code: np.ndarray, n_min: int, got: tu
     got = got or _plateau(f, i0, i1, code, n_min)
     if got is None:
         return []
+    # what is left of the run on each side (the plateau may have grown beyond it, or lie outside it)
+    g0, g1 = max(got[0], i0), min(got[1], i1)
+    if g1 <= g0:
+        return [got]
     core = max(2, f.h // 2)
-    left = _levels(f, i0, got[0], code, n_min, None) if got[0] - i0 >= core else []
-    right = _levels(f, got[1], i1, code, n_min, None) if i1 - got[1] >= core else []
+    left = _levels(f, i0, g0, code, n_min, None) if g0 - i0 >= core else []
+    right = _levels(f, g1, i1, code, n_min, None) if i1 - g1 >= core else []
     # a level grown from what is left stops where this one starts
     left = [(a, min(b, got[0]), v) for a, b, v in left if min(b, got[0]) - a >= n_min]
     right = [(max(a, got[1]), b, v) for a, b, v in right if b - max(a, got[1]) >= n_min]
