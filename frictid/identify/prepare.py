@@ -161,8 +161,13 @@ def _prep(lg: JointLog, source: int, segmenter: Callable, differentiate: Callabl
         w, a = differentiate(lg)
     w, a = np.asarray(w, float), np.asarray(a, float)
     # a steady run is judged on the velocity as logged: its mean is the run's, and a coarse one dithers
-    # between 0 and one count without changing sign, where the smoothed one overshoots at each count
+    # between 0 and one count without changing sign, where the smoothed one overshoots at each count;
+    # such a run is one plateau whose mean is all the fit takes, so it keeps the velocity as logged (the
+    # real screw drives' 1-rpm counts: smoothed, the diagnosis read the overshoots as a 30 ms delay)
     segs = steady_run(lg, np.asarray(lg.qd, float) if smooth else w)
+    if segs is not None and smooth:
+        smooth = False
+        w, a = (np.asarray(x, float) for x in seg.derivatives(lg, scales))
     steady = segs is not None
     if segs is None:  # the default segmenter takes the scales already measured
         segs = seg.find_segments(lg, scales) if segmenter is seg.find_segments and scales else segmenter(lg)
