@@ -265,15 +265,19 @@ def test_nothing_hidden_ends_with_the_base_model():
 def test_a_repair_of_the_fit_is_reported_apart_from_the_causes():
     """The fit hands over a Coulomb + viscous base on a plant with a Stribeck hump, and the plant hides a
     torque offset: the hump is a repair of the fit's base (``kind: repair``, ``selection.diagnosis.repairs``,
-    its own warning), not a cause found in the plant; the offset is the one cause named."""
+    its own warning), not a cause found in the plant. The offset is chosen first, on the base without a
+    hump, where a per-direction Coulomb level makes the same correction (``chain.COMPETITORS``): that step
+    is ambiguous, offset or asymmetry, and no cause is named (on the final model with the hump the two still
+    do not differ significantly: held-out RMS 0.0148 and 0.0150, paired t 1.2)."""
     def offset(t, q, w, F):
         return np.asarray(F) + 0.25
 
     jf, findings = _run([plateau_log(offset, seed=3)], fake_fit({"Fc": 2.0, "sigma2": 1.2}, "coulomb_viscous"))
     d = jf.selection["diagnosis"]
     assert [r["repair"] for r in d["repairs"]] == ["stribeck"], d["steps"]
-    assert {f["cause"]: f["kind"] for f in findings} == {"stribeck": "repair", "offset": "effect"}, findings
-    assert [c for c, _, _ in ds.named_causes(jf)] == ["offset"] and ds.repairs(jf)[0][0] == "stribeck"
+    assert {f["cause"]: f["kind"] for f in findings} == {"stribeck": "repair"}, findings
+    assert [a["causes"] for a in d["ambiguous"]] == [["offset", "asymmetry"]], d.get("ambiguous")
+    assert ds.named_causes(jf) == [] and ds.repairs(jf)[0][0] == "stribeck"
     assert any(w.startswith("repair of the fit's stribeck (not a cause found in the plant)") for w in jf.warnings)
 
 

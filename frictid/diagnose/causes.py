@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from .model import OUTSIDE_MODEL, Coef, Context, Evaluator, Structure, Term, load_variable
+from .model import Coef, Context, Evaluator, Structure, Term, load_variable
 from .samples import Samples
 from .signals import delay_estimate, delay_estimates, delay_map, moving_samples, rest_scales
 

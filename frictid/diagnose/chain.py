@@ -37,7 +37,7 @@ from scipy.special import ndtri, stdtr
 
 from .binned import heldout_binned
 from .causes import EXTENSIONS, candidates, n_coef, propose
-from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure, Term
+from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure
 from .samples import Samples
 from .signals import delay_heldout
 

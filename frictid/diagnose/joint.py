@@ -84,12 +84,23 @@ def diagnose_joint(jf: JointFit, logs: list[DiagLog], n_folds: int = N_FOLDS) ->
     steps = chain.run()
     findings = _findings(jf, steps, S, base, n_folds, rec)
     _structure(jf, chain, S, rec)
-    pres = _presliding(jf, findings[-1]["model"] if findings else base)
+    last = _last_model(rec, findings) or base
+    pres = _presliding(jf, last)
     if pres is not None:
         findings.append(pres)
+        last = pres["model"]
     jf.diagnosis = findings
-    jf.selected = findings[-1]["model"] if findings else base
+    jf.selected = last
     return findings
+
+
+def _last_model(rec: dict, findings: list[dict]) -> str | None:
+    """The model at the end of the chain: the last step's, whether it named a cause (a finding) or not (an
+    ambiguous step keeps its term: the correction is measured on held-out data, only its name is not)."""
+    last = None
+    for step in rec.get("steps", []):
+        last = step.get("model", last)
+    return last if last is not None else (findings[-1]["model"] if findings else None)
 
 
 def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: int, rec: dict) -> list[dict]:
@@ -110,8 +121,11 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
         tr: Trial | None = step.get("chosen")
         if tr is None:
             continue
-        if tr.unresolved:   # it does not beat a competing explanation: its term kept, no cause named
-            _ambiguous(jf, rec, tr, evidence(tr, S, step, units, rigid))
+        if tr.unresolved:   # it does not beat a competing explanation: its term and model kept, no cause named
+            mf = _step_model(jf, step, tr, S, base, rigid)
+            jf.models[mf.name] = mf
+            rec["steps"][-1]["model"] = mf.name
+            _ambiguous(jf, rec, tr, evidence(tr, S, step, units, rigid), mf.name)
             continue
         if tr.ext in OUTSIDE_MODEL:   # named with its numbers, never a friction model of the file
             text = evidence(tr, S, step, units, rigid)
@@ -130,6 +144,7 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
             continue
         mf = _step_model(jf, step, tr, S, base, rigid)
         jf.models[mf.name] = mf
+        rec["steps"][-1]["model"] = mf.name
         text = evidence(tr, S, step, units, rigid)
         if tr.cause in REPAIRS:
             _repair(jf, rec, tr, text, mf.name)
@@ -161,17 +176,21 @@ def _repair(jf: JointFit, rec: dict, tr: Trial, text: str, model: str) -> None:
     jf.warnings.append(f"repair of the fit's {tr.cause} (not a cause found in the plant): {text}")
 
 
-def _ambiguous(jf: JointFit, rec: dict, tr: Trial, text: str) -> None:
+def _ambiguous(jf: JointFit, rec: dict, tr: Trial, text: str, model: str) -> None:
     """A step whose best candidate does not beat a competing explanation of another cause on held-out data:
     recorded in ``rec['ambiguous']`` and the warnings with the causes the data cannot tell apart; no cause
-    is named (its term stays in the chain's model, so the next steps search a clean residual)."""
+    is named. Its term stays in the chain's model (the next steps search a clean residual) and its model in
+    ``jf.models``: the correction is measured on held-out data and the model at the end of the chain carries
+    it (an offset and a per-direction level make the same prediction on sliding samples); what is withheld
+    is the name."""
     causes = [tr.cause] + list(tr.unresolved)
     rec.setdefault("ambiguous", []).append(
-        {"causes": causes, "extension": tr.ext, "evidence": text, "rms_before": tr.rms_before,
+        {"causes": causes, "extension": tr.ext, "model": model, "evidence": text, "rms_before": tr.rms_before,
          "rms_after": tr.rms_after, "heldout_gain": tr.gain})
     jf.warnings.append(f"ambiguous: {' or '.join(causes)} explain the residual about as well on held-out data "
                        f"(held-out RMS {fmt(tr.rms_before)} -> {fmt(tr.rms_after)} with {tr.ext}, which does not "
-                       f"beat the others significantly): the data cannot tell them apart, no cause is named")
+                       f"beat the others significantly): the data cannot tell them apart, no cause is named; "
+                       f"the model {model} carries the correction")
 
 
 def _step_model(jf: JointFit, step: dict, tr: Trial, S: Samples, base: str, rigid: dict) -> ModelFit:

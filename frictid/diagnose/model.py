@@ -28,7 +28,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..identify.regression import NormalEquations, solve
-from ..models import static as sm
 from . import moments as mo
 from .samples import Samples
 from .signals import delay_column, dwell_state
@@ -498,7 +497,6 @@ class Evaluator:
         self.st, self.ctx = st, ctx
         self._excl: set = set()
         self._held: set = set()
-        S = ctx.S
         strib = next((t for t in st.terms if t.role == "stribeck"), None)
         self.slots = st.slots()
         cols, bkeys = {}, {}
