@@ -16,7 +16,6 @@ import shlex
 import subprocess
 import sys
 import threading
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
