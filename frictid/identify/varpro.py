@@ -46,6 +46,7 @@ APART = 2.0
 #: warm start) has put the start in its valley, and a first step as long as the grid's spacing (a factor 2
 #: for 8 speeds) jumped from a Stribeck drop's valley into the two-exponential map's degenerate one.
 RADIUS = 0.25
+EPS, TINY = float(np.finfo(float).eps), float(np.finfo(float).tiny)
 #: Relative tolerance of an active bound (scipy's ``find_active_constraints`` with ``ftol``).
 ACTIVE_RTOL = 1e-8
 #: Tolerances of the refinement (:func:`levenberg_marquardt`): relative cost decrease, relative step, and
@@ -89,6 +90,15 @@ class Projection:
         self.shape_held = {nm: pb.fixed[nm] for nm in self.shape_names if nm in pb.fixed}
         self.lo, self.hi = pb.lo_f[self.lin], pb.hi_f[self.lin]
         self._memo = (None, None)
+        # what every evaluation reuses: the free shape names, the columns' indices, and the weighted target
+        # when no linear parameter is held (it does not depend on the shape then)
+        self._free_shapes = [nm for nm, f in zip(self.shape_names, self.free_shape) if f]
+        self._lin_cols = np.flatnonzero(self.free_lin)
+        self._held_cols = np.flatnonzero(~self.free_lin)
+        self._b_held_part = self.b_held[self._held_cols]
+        self._shape_rows = np.flatnonzero(self.free_shape)
+        self._y_free = pb.F * pb.wts if self._held_cols.size == 0 else None
+        self._wt = pb.wts[:, None]
 
     def _x(self, theta, b):
         xf = np.empty(len(self.pb.free))
@@ -100,8 +110,10 @@ class Projection:
         """Keyword arguments of the columns: free shape values from ``theta`` (last axis), held ones."""
         theta = np.asarray(theta, dtype=float)
         kw = dict(self.shape_held)
-        free = [nm for nm, f in zip(self.shape_names, self.free_shape) if f]
-        kw.update({nm: (theta[..., i, None] if theta.ndim > 1 else float(theta[i])) for i, nm in enumerate(free)})
+        if theta.ndim > 1:
+            kw.update({nm: theta[..., i, None] for i, nm in enumerate(self._free_shapes)})
+        else:
+            kw.update(zip(self._free_shapes, theta.tolist()))
         return kw
 
     def regressors(self, theta):
@@ -110,10 +122,11 @@ class Projection:
         (or a grid of them, rows)."""
         pb = self.pb
         cols, dcols = self.columns(pb.w, **self._shapes(theta))
-        wt = pb.wts[:, None]
-        A = cols[..., self.free_lin] * wt
-        y = (pb.F - cols[..., ~self.free_lin] @ self.b_held[~self.free_lin]) * pb.wts
-        return A, y, dcols[..., self.free_shape, :, :] * wt
+        wt = self._wt
+        A = cols[..., self._lin_cols] * wt
+        y = self._y_free if self._y_free is not None else \
+            (pb.F - cols[..., self._held_cols] @ self._b_held_part) * pb.wts
+        return A, y, dcols[..., self._shape_rows, :, :] * wt
 
     def linear(self, A, y):
         """The linear parameters' weighted least-squares values within their bounds, and the orthonormal
@@ -123,10 +136,11 @@ class Projection:
         norms = np.sqrt(np.einsum("ij,ij->j", A, A))
         norms[norms == 0] = 1.0
         U, sv, Vt = np.linalg.svd(A / norms, full_matrices=False)
-        ok = sv > sv[0] * max(A.shape) * np.finfo(float).eps
-        b = (Vt[ok].T @ ((U[:, ok].T @ y) / sv[ok])) / norms
-        if np.all(b >= self.lo) and np.all(b <= self.hi):
-            return b, U[:, ok]
+        ok = sv > sv[0] * max(A.shape) * EPS
+        U = U[:, ok]  # a copy in Fortran order, which the products below (and their rounding) are of
+        b = (Vt[ok].T @ ((U.T @ y) / sv[ok])) / norms
+        if (b >= self.lo).all() and (b <= self.hi).all():
+            return b, U
         x, on_bound = bvls(A / norms, y, b * norms, self.lo * norms, self.hi * norms)
         b = np.clip(x / norms, self.lo, self.hi)
         # bvls's own active set: its solution at a bound may sit a rounding error inside it, and a column
@@ -169,7 +183,7 @@ class Projection:
         solves every grid point; a point whose solution leaves the bounds is solved again within them when it
         could be picked."""
         A, y, _ = self.regressors(grid)
-        y = np.broadcast_to(y, A.shape[:-1])
+        y = np.ascontiguousarray(np.broadcast_to(y, A.shape[:-1]))
         norms = np.linalg.norm(A, axis=1, keepdims=True)
         norms[norms == 0] = 1.0
         U, sv, Vt = np.linalg.svd(A / norms, full_matrices=False)
@@ -250,11 +264,11 @@ def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: floa
         g = J.T @ r
         held = ((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0))
         gf = np.where(held, 0.0, g)
-        if np.max(np.abs(gf)) <= GTOL:
+        if abs(gf).max() <= GTOL:
             return x, 1, "gradient below GTOL"
         # Marquardt's diagonal of J^T J, floored (a column the residual does not feel, e.g. an exponent
         # along a drop of no amplitude, would leave the damped system singular)
-        d = np.sum(J * J, axis=0)
+        d = (J * J).sum(axis=0)
         d = np.maximum(d, 1e-12 * max(float(d.max()), np.finfo(float).tiny))
         lam = 1e-3 * float(d.max()) if lam is None else lam
         free = ~held
@@ -263,18 +277,18 @@ def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: floa
                 return x, 0, "the evaluation budget is spent"
             dz = np.zeros_like(x)
             dz[free] = _damped_step(J[:, free], r, gf[free], lam * d[free])
-            dz *= min(1.0, radius / max(float(np.max(np.abs(dz))), np.finfo(float).tiny))
-            x_new = np.clip(x + scale * dz, lo, hi)
+            dz *= min(1.0, radius / max(float(abs(dz).max()), TINY))
+            x_new = np.minimum(np.maximum(x + scale * dz, lo), hi)
             r_new = resid(x_new)
             nfev += 1
             c_new = 0.5 * float(r_new @ r_new)
             if np.isfinite(c_new) and c_new < cost:
                 break
-            lam, radius = lam * 4.0, float(np.max(np.abs(dz))) / 4.0
-            if radius <= XTOL * (XTOL + float(np.max(np.abs(x / scale)))):
+            lam, radius = lam * 4.0, float(abs(dz).max()) / 4.0
+            if radius <= XTOL * (XTOL + float(abs(x / scale).max())):
                 return x, 3, "step below XTOL"
-        step = float(np.max(np.abs((x_new - x) / scale)))
-        done = (cost - c_new <= FTOL * cost, step <= XTOL * (XTOL + float(np.max(np.abs(x_new / scale)))))
+        step = float(abs((x_new - x) / scale).max())
+        done = (cost - c_new <= FTOL * cost, step <= XTOL * (XTOL + float(abs(x_new / scale).max())))
         x, r, cost, lam, radius = x_new, r_new, c_new, lam / 3.0, max(radius, 2.0 * step)
         if done[0] or done[1]:
             return x, 2 if done[0] else 3, "cost decrease below FTOL" if done[0] else "step below XTOL"
