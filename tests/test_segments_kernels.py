@@ -101,3 +101,22 @@ def test_chunks_cover_the_range_in_order():
         got = [i for k in runs_module.chunks(n, size) for i in range(n)[k]]
         assert got == list(range(n))
         assert all(k.stop - k.start <= size for k in runs_module.chunks(n, size))
+
+
+def test_one_partition_median_equals_numpy():
+    from frictid.segments.scales import median_inplace
+    rng = np.random.default_rng(5)
+    for t in range(600):
+        rows, n = int(rng.integers(1, 5)), int(rng.integers(1, 50))
+        x = rng.standard_normal((rows, n)) if t % 2 else rng.integers(0, 4, (rows, n)).astype(float)
+        if t % 5 == 0:
+            x[rng.random(x.shape) < 0.1] = np.nan
+        if t % 7 == 0:
+            x[rng.random(x.shape) < 0.2] = -np.inf if t % 3 else np.inf
+        for arr in (x, x[0]):
+            ref, got = np.median(arr.copy(), axis=-1), median_inplace(arr.copy())
+            assert np.shape(got) == np.shape(ref)
+            assert np.array_equal(got, ref, equal_nan=True)
+    big = np.abs(rng.standard_normal(100_001))
+    for arr in (big, big[:-1], big[:-1].reshape(-1, 100)):
+        assert np.array_equal(median_inplace(arr.copy()), np.median(arr, axis=-1))

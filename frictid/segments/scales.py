@@ -75,6 +75,22 @@ class Scales:
         return {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in asdict(self).items()}
 
 
+def median_inplace(d: np.ndarray):
+    """``np.median(d, axis=-1, overwrite_input=True)`` of a non-empty float array, the same numbers (the
+    middle value, or the mean of the two middle ones, NaN where a NaN is present), ``d`` reordered.
+    numpy partitions at the two middle places and at the last one (to find a NaN) in one call, which on a
+    log's million samples is ten times one partition at the upper middle place followed by the maxima of
+    the halves on either side of it."""
+    n = d.shape[-1]
+    h = n // 2
+    d.partition(h, axis=-1)
+    mid = d[..., h]
+    top = d[..., h:].max(axis=-1)  # NaN wherever a NaN is: partition puts NaNs after every number
+    if n % 2 == 0:
+        mid = (d[..., :h].max(axis=-1) + mid) / 2.0
+    return np.where(np.isnan(top), top, mid) if d.ndim > 1 else (top if np.isnan(top) else mid)
+
+
 def noise_sigma(x: np.ndarray) -> float:
     """Robust white-noise standard deviation of ``x``: MAD of its fourth difference / sqrt(70)."""
     x = np.asarray(x, dtype=float)
@@ -87,7 +103,7 @@ def noise_sigma(x: np.ndarray) -> float:
         d = np.concatenate([np.diff(x[s:s + step], 4) for s in starts])
     else:
         d = np.diff(x, 4)
-    return float(MAD_TO_SIGMA * np.median(np.abs(d, out=d), overwrite_input=True) / math.sqrt(DIFF4_GAIN))
+    return float(MAD_TO_SIGMA * median_inplace(np.abs(d, out=d)) / math.sqrt(DIFF4_GAIN))
 
 
 def local_noise(x: np.ndarray, block: int, lag: int = 1) -> np.ndarray:
@@ -119,10 +135,9 @@ def local_noise(x: np.ndarray, block: int, lag: int = 1) -> np.ndarray:
         d[2 * lag + m:] = c[-1]
     np.abs(d, out=d)
     nb = d.size // block
-    sig = (MAD_TO_SIGMA * np.median(d[:nb * block].reshape(nb, block), axis=1, overwrite_input=True)
-           / math.sqrt(DIFF4_GAIN))
+    sig = MAD_TO_SIGMA * median_inplace(d[:nb * block].reshape(nb, block)) / math.sqrt(DIFF4_GAIN)
     if d.size > nb * block:
-        sig = np.append(sig, MAD_TO_SIGMA * np.median(d[nb * block:]) / math.sqrt(DIFF4_GAIN)
+        sig = np.append(sig, MAD_TO_SIGMA * median_inplace(d[nb * block:]) / math.sqrt(DIFF4_GAIN)
                         if d.size - nb * block >= 8 else sig[-1])
     padded = np.concatenate(([sig[0]], sig, [sig[-1]]))
     sig = np.maximum(np.maximum(padded[:-2], padded[1:-1]), padded[2:])
