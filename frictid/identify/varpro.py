@@ -269,13 +269,13 @@ def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: floa
         # Marquardt's diagonal of J^T J, floored (a column the residual does not feel, e.g. an exponent
         # along a drop of no amplitude, would leave the damped system singular)
         d = (J * J).sum(axis=0)
-        d = np.maximum(d, 1e-12 * max(float(d.max()), np.finfo(float).tiny))
+        d = np.maximum(d, 1e-12 * max(float(d.max()), TINY))
         lam = 1e-3 * float(d.max()) if lam is None else lam
         free = ~held
         while True:
             if nfev >= budget:
                 return x, 0, "the evaluation budget is spent"
-            dz = np.zeros_like(x)
+            dz = np.zeros(x.shape)
             dz[free] = _damped_step(J[:, free], r, gf[free], lam * d[free])
             dz *= min(1.0, radius / max(float(abs(dz).max()), TINY))
             x_new = np.minimum(np.maximum(x + scale * dz, lo), hi)
