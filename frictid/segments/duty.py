@@ -20,8 +20,6 @@ and repeat the same velocity profile. The search works on onsets of motion, not 
 """
 from __future__ import annotations
 
-from bisect import bisect_left, insort
-
 import numpy as np
 from numba import njit
 
@@ -225,26 +223,44 @@ def _autocorr_periods(w: np.ndarray, a: int, b: int, p_min: int, level: float = 
 
 
 def _best_chain(onsets: np.ndarray, w: _Signal, i: int, tol_min: int, extra: list[int], p_min: int):
-    """(cover, starts, period) of the best chain from onset ``i``, or None."""
+    """(cover, starts, period) of the best chain from onset ``i``, or None: of the candidate periods (the
+    ``extra`` ones, then the distances to the next :data:`LOOKAHEAD` onsets), each not within its
+    tolerance of one tried before, the chain of at least :data:`MIN_CYCLES` cycles that covers the most
+    (the shorter period where two cover the same within twice its tolerance). The loop is compiled
+    (:func:`_best_chain_nb`: hundreds of onsets a log, dozens of periods each)."""
     start = int(onsets[i])
-    cands = list(extra) + [int(onsets[j] - start) for j in range(i + 1, min(onsets.size, i + 1 + LOOKAHEAD))]
-    best = None
-    tried: list[int] = []  # sorted
+    ahead = [int(onsets[j] - start) for j in range(i + 1, min(onsets.size, i + 1 + LOOKAHEAD))]
+    cands = np.array(list(extra) + ahead, dtype=np.int64)
+    cover, P, ch = _best_chain_nb(onsets, w.w, w.rests, w.moves, start, cands, int(p_min), int(tol_min))
+    return None if P < 0 else (int(cover), [int(v) for v in ch], int(P))
+
+
+@njit(cache=True)
+def _best_chain_nb(onsets, w, rests, moves, start, cands, p_min, tol_min):  # pragma: no cover - compiled
+    """:func:`_best_chain`'s loop: (cover, period, chain starts), the period -1 when no chain is found."""
+    tried = np.empty(cands.size, dtype=np.int64)  # sorted, the first nt
+    nt = 0
+    best_cover, best_P, best_ch = 0, -1, np.empty(0, dtype=np.int64)
     for P in cands:
         if P < p_min or start + MIN_CYCLES * P > w.size + tol_min:
             continue
         tol = max(tol_min, int(R_PERIOD * P))
-        j = bisect_left(tried, P - tol)
-        if j < len(tried) and tried[j] <= P + tol:  # a period within tol was tried already
+        j = np.searchsorted(tried[:nt], P - tol)
+        if j < nt and tried[j] <= P + tol:  # a period within tol was tried already
             continue
-        insort(tried, P)
-        ch = _chain(onsets, w, start, P, tol, True)
-        if len(ch) < MIN_CYCLES:
+        k = nt
+        while k > 0 and tried[k - 1] > P:
+            tried[k] = tried[k - 1]
+            k -= 1
+        tried[k] = P
+        nt += 1
+        ch = _chain_nb(onsets, w, rests, moves, start, P, tol, True)
+        if ch.size < MIN_CYCLES:
             continue
         cover = ch[-1] + P - start
-        if best is None or cover > best[0] + 2 * tol or (cover >= best[0] - 2 * tol and P < best[2]):
-            best = (cover, ch, P)
-    return best
+        if best_P < 0 or cover > best_cover + 2 * tol or (cover >= best_cover - 2 * tol and P < best_P):
+            best_cover, best_P, best_ch = cover, P, ch
+    return best_cover, best_P, best_ch
 
 
 def _settle(onsets: np.ndarray, gaps: np.ndarray, w: _Signal, ch: list[int], P: int, tol_min: int,
