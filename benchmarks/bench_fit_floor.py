@@ -10,10 +10,16 @@ with the diagnosis; runs alternate with the floor's, and the ratios are of media
     python benchmarks/bench_fit_floor.py --minutes 5 --joints 1 --rounds 2
     python benchmarks/bench_fit_floor.py --stages         # and the CPU time of each step of one fit
     python benchmarks/bench_fit_floor.py --optimiser      # and the CPU time inside least_squares, by purpose
+    python benchmarks/bench_fit_floor.py --against main   # the fit's CPU time, this tree against a revision
 
 ``--stages`` times one more fit with the diagnosis with every step of :data:`STAGES` wrapped (CPU time,
 steps nest: "diagnosis" holds "samples", "chain" and the rest); :func:`stage_times` is shared with
 ``bench_diagnose_whole.py``.
+
+``--against REV`` times the fit without the diagnosis of this tree and of git revision ``REV`` (exported by
+``git archive``), each in a fresh process (a warm fit, then ``--repeat`` timed ones, CPU time), the two
+alternating in every round (the order reversed every other round): the ratio of medians of a speed change
+measured under one load.
 """
 from __future__ import annotations
 
@@ -23,6 +29,7 @@ import functools
 import importlib
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -232,12 +239,16 @@ def main(argv=None) -> int:
     ap.add_argument("--stages", action="store_true", help="also the CPU time of each step of one fit")
     ap.add_argument("--optimiser", action="store_true",
                     help="also the CPU time of one fit without the diagnosis inside least_squares, by purpose")
+    ap.add_argument("--against", metavar="REV", help="time the fit of this tree against git revision REV")
+    ap.add_argument("--repeat", type=int, default=3, help="timed fits per process with --against")
     a = ap.parse_args(argv)
     if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
-        a.minutes, a.joints, a.rounds = 1.0, 1, 1
+        a.minutes, a.joints, a.rounds, a.repeat = 1.0, 1, 1, 1
     with tempfile.TemporaryDirectory() as tmp:
         path = str(Path(tmp) / "long.parquet")
         rows = build_log(path, a.minutes / 60.0, a.joints)
+        if a.against:
+            return against(a, path, rows, tmp)
         fit(path, False)  # warm: compilation caches and imports are not the fit's
         times = {"floor": [], "fit": [], "fit+diagnosis": []}
         cpu = {k: [] for k in times}
@@ -253,6 +264,44 @@ def main(argv=None) -> int:
         print_stages(*stages)
     if optim is not None:
         print_optimiser(*optim)
+    return 0
+
+
+#: A fresh process's fits of the log argv[2] with the frictid of folder argv[1]: a warm one, then argv[3] timed
+#: (CPU seconds printed).
+CHILD = """import sys, time
+import frictid
+assert frictid.__file__.startswith(sys.argv[1]), frictid.__file__
+frictid.fit(sys.argv[2], jobs=1, diagnose=False)
+for _ in range(int(sys.argv[3])):
+    t = time.process_time(); frictid.fit(sys.argv[2], jobs=1, diagnose=False); print(time.process_time() - t)
+"""
+
+
+def against(a, path: str, rows: int, tmp: str) -> int:
+    """The fit (no diagnosis) of this tree and of revision ``a.against``, alternating (module docstring)."""
+    other = Path(tmp) / "against"
+    other.mkdir()
+    rev = subprocess.run(["git", "rev-parse", "--short", a.against], cwd=ROOT, capture_output=True, text=True,
+                         check=True).stdout.strip()
+    tar = subprocess.run(["git", "archive", rev], cwd=ROOT, capture_output=True, check=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(other)], input=tar, check=True)
+    trees = [("this tree", ROOT), (rev, other)]
+    cpu: dict = {label: [] for label, _ in trees}
+    for r in range(a.rounds):
+        for label, src in (trees if r % 2 == 0 else trees[::-1]):
+            env = dict(os.environ, PYTHONPATH=str(src))
+            out = subprocess.run([sys.executable, "-c", CHILD, str(src), path, str(a.repeat)], cwd=src, env=env,
+                                 capture_output=True, text=True, check=True).stdout
+            cpu[label] += [float(x) for x in out.split()]
+    med = {k: statistics.median(v) for k, v in cpu.items()}
+    print(f"fit (no diagnosis), this tree against {rev}: {a.joints} joints x {a.minutes:g} min at 1 kHz "
+          f"({rows} rows), {a.rounds} rounds x {a.repeat} fits, CPU time medians")
+    for k, v in cpu.items():
+        print(f"  {k:<10} {med[k]:6.3f} s  (runs {', '.join(f'{x:.2f}' for x in v)})")
+    saved = med[rev] - med["this tree"]
+    print(f"saved {saved:.3f} s ({100 * saved / med[rev]:.1f} %); this tree at {med['this tree'] / med[rev]:.3f}x "
+          f"of {rev}", flush=True)
     return 0
 
 
