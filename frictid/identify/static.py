@@ -23,7 +23,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import block_diag
 
 from frictid.models import static as sm
 from frictid.models.params import Param, scaled_table, unit_of
@@ -427,6 +426,18 @@ def _aic(rss: float, n: int, k: int) -> float | None:
     return aic
 
 
+def _block_diag(mats: list) -> np.ndarray:
+    """``scipy.linalg.block_diag(*mats)`` of 2-d arrays (the same array), without its argument handling
+    (a third of a millisecond a call, once for every map of every fit)."""
+    shape = np.sum([m.shape for m in mats], axis=0)
+    out = np.zeros(shape, dtype=np.result_type(*[m.dtype for m in mats]))
+    r = c = 0
+    for m in mats:
+        out[r:r + m.shape[0], c:c + m.shape[1]] = m
+        r, c = r + m.shape[0], c + m.shape[1]
+    return out
+
+
 def metrics(name: str, values: dict, w, F, k: int) -> dict:
     """rms [F], n, k and aic of a static map's values on points (w, F)."""
     pred = predict(name, values, w)
@@ -508,7 +519,7 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
         _drop_in_view(smap.name, bw, params, suf)
     values = {k: v.value for k, v in params.items()}
     met = metrics(name, values, w, F, k_total)
-    cov = block_diag(*covs) if covs else None
+    cov = _block_diag(covs) if covs else None
     mf = ModelFit(name=name, map=name, params=params, metrics=met, notes=notes, success=success, cov=cov,
                   method="bounded nonlinear least squares on plateau points, variable projection"
                   if not smap.linear else "bounded least squares on plateau points")
