@@ -134,14 +134,18 @@ class Projection:
         if A.shape[1] == 0:
             return np.zeros(0), A[:, :0]
         norms = np.sqrt(np.einsum("ij,ij->j", A, A))
-        norms[norms == 0] = 1.0
-        U, sv, Vt = np.linalg.svd(A / norms, full_matrices=False)
+        if not norms.all():
+            norms[norms == 0] = 1.0
+        An = A / norms
+        U, sv, Vt = np.linalg.svd(An, full_matrices=False)
         ok = sv > sv[0] * max(A.shape) * EPS
         U = U[:, ok]  # a copy in Fortran order, which the products below (and their rounding) are of
-        b = (Vt[ok].T @ ((U.T @ y) / sv[ok])) / norms
+        if not ok.all():  # (Vt[ok] would be a C-ordered copy of the C-ordered Vt: the same products)
+            Vt, sv = Vt[ok], sv[ok]
+        b = (Vt.T @ ((U.T @ y) / sv)) / norms
         if (b >= self.lo).all() and (b <= self.hi).all():
             return b, U
-        x, on_bound = bvls(A / norms, y, b * norms, self.lo * norms, self.hi * norms)
+        x, on_bound = bvls(An, y, b * norms, self.lo * norms, self.hi * norms)
         b = np.clip(x / norms, self.lo, self.hi)
         # bvls's own active set: its solution at a bound may sit a rounding error inside it, and a column
         # counted free there would be projected off the shape columns (a wrong reduced gradient)
@@ -150,7 +154,7 @@ class Projection:
         if not inside.any():
             return b, A[:, :0]
         U, sv, _ = np.linalg.svd(A[:, inside], full_matrices=False)
-        return b, U[:, sv > sv[0] * max(A.shape) * np.finfo(float).eps]
+        return b, U[:, sv > sv[0] * max(A.shape) * EPS]
 
     def _eval(self, theta):
         """(linear parameters, reduced residual, Kaufman's Jacobian) at ``theta``: the shape columns of the
@@ -164,7 +168,7 @@ class Projection:
         b, U = self.linear(A, y)
         r = A @ b - y
         b_all = self.b_held.copy()
-        b_all[self.free_lin] = b
+        b_all[self._lin_cols] = b
         Jn = (dA @ b_all).T  # (n, free shapes): d model / d shape at the projected linear parameters
         Jn = Jn - U @ (U.T @ Jn)
         out = (b, r, Jn)
