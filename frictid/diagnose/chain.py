@@ -19,9 +19,7 @@ in noisy data has a small gain. A delay may instead pay for itself on every movi
 
 Choice among the worthy candidates (:func:`choose`): the lowest held-out RMS, except that a candidate
 with fewer coefficients wins when the best is not significantly better than it (the same paired test
-between the two), or when it is of another cause and its correction differs from the best's by less than a
-term must explain to enter (:meth:`Chain.nearly_same`: a smooth position torque that is an offset and a
-slight shape). This keeps a torque offset from being named an asymmetry (per-sign amplitudes can
+between the two). This keeps a torque offset from being named an asymmetry (per-sign amplitudes can
 absorb an offset, with more coefficients). A cause is *named* only when it beats every competing
 explanation of another cause that makes the same correction on the held-out residual (:meth:`Chain.same_correction`:
 the same column space on these data, as an offset and a level-only asymmetry on a Coulomb + viscous map); otherwise
@@ -225,7 +223,7 @@ class Chain:
             if t.k >= best.k:
                 continue
             _, p = paired_t(group_d(self.S, self.S.F - t.pred_after, self.S.F - best.pred_after))
-            if p >= ALPHA / max(m, 1) or self.nearly_same(best, t):
+            if p >= ALPHA / max(m, 1):
                 best = t
         best = _speed_only_last(best, ok)
         self._rivals(best, ok + self._competitors(best, m), m)
@@ -260,19 +258,6 @@ class Chain:
             if tr is not None:
                 out.append(tr)
         return out
-
-    def nearly_same(self, a: Trial, b: Trial) -> bool:
-        """Whether a candidate of another cause, ``b``, makes nearly the correction ``a`` makes: the two
-        held-out corrections differ by an RMS under :data:`EXPLAINED_MIN` of the friction RMS, less than a
-        term must explain to enter the model. What the richer one adds beyond the simpler is then no
-        finding, however significant on a long log, and cannot name its cause (foreign seed 302048: a
-        Coulomb asymmetry whose correction is a constant, which the smooth position torque carries with a
-        quadratic shape of 0.008 N m; the shape made it significantly better than the offset, and the
-        position torque was named)."""
-        if a.cause == b.cause:
-            return False
-        diff = a.pred_after - b.pred_after
-        return float(np.sqrt(np.mean(diff * diff))) < EXPLAINED_MIN * self.F_rms
 
     def same_correction(self, a: Trial, b: Trial) -> bool:
         """Whether two candidates make the same held-out correction: their corrections differ by an RMS of
