@@ -430,3 +430,32 @@ def test_an_inertia_repair_that_leaves_a_negative_inertia_is_no_repair():
     assert unphysical(st, coef, 0.4) is not None          # a positive inertia repaired below zero
     other = Structure("coulomb_viscous", cp, (Term("offset", "offset", "additive", ()),))
     assert unphysical(other, Coef({0: 1.0}, {0: 1.0}, gamma={0: np.array([-5.0])}), 0.1) is None
+
+
+def test_a_position_torque_that_is_a_constant_is_rejected():
+    """A smooth position torque carries its own constant: when what varies with the position is under the
+    2 % of the friction RMS a term must explain, its correction is an offset's or a level's by direction
+    and it is rejected (foreign seed 302048: a Coulomb asymmetry named position_torque 0.52, a constant
+    -0.60 N m and 0.008 N m over the travel); a torque that varies over the travel is kept."""
+    from types import SimpleNamespace
+
+    from frictid.diagnose.chain import Trial, _a_constant
+    from frictid.diagnose.model import Coef, Term
+
+    rng = np.random.default_rng(5)
+    q = rng.uniform(-3.0, 3.0, 4000)
+    S = SimpleNamespace(F=9.0 * np.sign(rng.standard_normal(q.size)), q=q)   # friction RMS 9
+    smooth = Term("position_torque", "position_torque", "additive", (("period", 0.0), ("q0", 0.0), ("qs", 3.0)))
+    periodic = Term("position_torque", "position_torque", "additive", (("period", 2.0),))
+
+    def trial(term, g):
+        z = np.zeros(q.size)
+        coefs = [Coef({}, {}, gamma={2: np.asarray(g, float)}) for _ in range(3)]
+        return Trial("position_torque", "position_torque", z, z, [term] * 3, coefs, 1.0, 0.5, 0.5, 9.0, 1e-9,
+                     30, 0.8, 2, index=2)
+
+    why = _a_constant(S, trial(smooth, [-0.60, 0.004, 0.0013]))
+    assert why is not None and "hardly varies with the position" in why
+    assert _a_constant(S, trial(smooth, [-0.60, 0.2, 1.0])) is None          # 1.2 N m of shape over the travel
+    assert _a_constant(S, trial(periodic, [0.05, 0.02])) is not None         # a harmonic of 0.05 N m
+    assert _a_constant(S, trial(periodic, [0.5, 0.2])) is None

@@ -89,6 +89,8 @@ class Trial:
     #: RMS before and after, t, p and the RMS it explains there; computed by :meth:`Chain.worth_it` only
     #: where it decides (None otherwise, and for other candidates)
     moving: dict | None = None
+    #: the candidate's term index in the extended structure (its coefficients' key in ``Coef.gamma``)
+    index: int = -1
 
     def record(self) -> dict:
         return {"extension": self.ext, "rms_before": self.rms_before, "rms_after": self.rms_after,
@@ -175,7 +177,7 @@ class Chain:
         expl = math.sqrt(max(rms_b ** 2 - rms_a ** 2, 0.0))
         # self.pred is replaced, never changed in place, when the model is extended: shared, not copied
         return Trial(ext, EXTENSIONS[ext][0], self.pred, after, terms, coefs, rms_b, rms_a, gain, t, p,
-                     S.n_groups, expl, n_coef(ext, self.st), d)
+                     S.n_groups, expl, n_coef(ext, self.st), d, index=len(self.st.terms))
 
     def _delay_moving(self, terms: list) -> dict:
         """A delay judged on every moving sample (:func:`frictid.diagnose.signals.delay_heldout`, each fold's
@@ -371,11 +373,45 @@ def confounded(S: Samples, tr: Trial, m: int) -> str | None:
         return _not_its_time_course(S, tr, m)
     if tr.ext not in POSITION_EXTS:
         return None
+    if tr.ext == "position_torque":
+        why = _a_constant(S, tr)
+        if why is not None:
+            return why
     rw, dw, t, p = _within_t(S, speed_cells(S), tr)
     if p >= ALPHA / max(m, 1):
         return (f"{tr.ext} does not show within segments at one speed (held-out within-cell t = {t:.2f}, "
                 f"p = {p:.2g}): the position stands in for the speed or the order of the plateaus")
     return _grows_with_speed(S, tr, rw, dw, m)
+
+
+def _a_constant(S: Samples, tr: Trial) -> str | None:
+    """Why a position torque is a constant, not a torque of the position, or None. The smooth form carries
+    its mean over the travel (1, q, q^2): its correction can be a torque offset's, or a per-direction
+    level's, with a slight shape that makes it significantly better on a long log (foreign seed 302048, a
+    Coulomb asymmetry: a constant -0.60 N m and 0.008 N m from end to end of the travel, named
+    ``position_torque``). What varies with the position, the term less its mean over the samples (the
+    training folds' coefficients, their mean RMS), must itself be worth a term: at least
+    :data:`EXPLAINED_MIN` of the friction RMS."""
+    F_rms = float(np.sqrt(np.mean(S.F ** 2)))
+    var = []
+    for term, c in zip(tr.fold_terms, tr.fold_coefs):
+        nl = dict(term.settings)
+        g = np.atleast_1d(c.gamma.get(tr.index, np.zeros(0)))
+        if nl.get("period", 0.0) == 0 and g.size == 3:
+            d = (S.q - nl["q0"]) / nl["qs"]
+            shape = g[1] * d + g[2] * d * d
+        elif g.size == 2:
+            ph = 2 * np.pi * S.q / nl["period"]
+            shape = g[0] * np.sin(ph) + g[1] * np.cos(ph)
+        else:
+            shape = np.zeros(1)
+        var.append(float(np.std(shape)))
+    v = float(np.mean(var)) if var else 0.0
+    if v < EXPLAINED_MIN * F_rms:
+        return (f"{tr.ext} hardly varies with the position: what varies over the travel has an RMS of {v:.3g}, "
+                f"under {100 * EXPLAINED_MIN:g} % of the friction RMS ({F_rms:.3g}); its correction is a constant, "
+                f"another cause's (an offset, a level by direction)")
+    return None
 
 
 #: Extensions that are functions of the speed alone: a repair of the base map, which the fit should carry.
