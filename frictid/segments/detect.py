@@ -258,15 +258,28 @@ def find_jumps(f: Features) -> np.ndarray:
     d1, d4 = change(hj), change(4 * hj)
     fine = _jumps_at(f, hj, d1, d4)
     del d1
-    coarse = _jumps_at(f, 4 * hj, d4, change(16 * hj))
-    if coarse.size and fine.size:
-        k = np.searchsorted(fine, coarse)
-        near = np.zeros(coarse.size, dtype=bool)
-        for off in (-1, 0):
-            idx = np.clip(k + off, 0, fine.size - 1)
-            near |= np.abs(fine[idx] - coarse) <= 4 * hj
-        coarse = coarse[~near]
-    return np.sort(np.concatenate((fine, coarse)))
+    coarse = _new_jumps(_jumps_at(f, 4 * hj, d4, change(16 * hj)), fine, 4 * hj)
+    found = np.sort(np.concatenate((fine, coarse)))
+    # a slow log (hj of one or two samples) averages too few samples at 4 hj for a jump of a few noise
+    # levels: once more at 16 hj, at most the half-width h of the shortest segment (a step's holds last
+    # T_MIN, so its flanks still fit in them)
+    k3 = min(16 * hj, f.h)
+    if k3 > 4 * hj:
+        slow = _new_jumps(_jumps_at(f, k3, change(k3), change(4 * k3)), found, k3)
+        found = np.sort(np.concatenate((found, slow)))
+    return found
+
+
+def _new_jumps(cand: np.ndarray, known: np.ndarray, near: int) -> np.ndarray:
+    """The jumps of ``cand`` farther than ``near`` samples from every jump of ``known`` (both sorted)."""
+    if not cand.size or not known.size:
+        return cand
+    k = np.searchsorted(known, cand)
+    close = np.zeros(cand.size, dtype=bool)
+    for off in (-1, 0):
+        idx = np.clip(k + off, 0, known.size - 1)
+        close |= np.abs(known[idx] - cand) <= near
+    return cand[~close]
 
 
 def _slope(f: Features, h: int) -> np.ndarray:
@@ -371,7 +384,9 @@ def _step_groups(f: Features, cands: list[tuple[int, int]], hj: int) -> list[tup
                 out.extend(cands[k: j + 1])
                 done = j + 1
                 break
-            if j + 1 >= len(cands) or cands[j + 1][0] - cands[j][1] > 2 * hj:
+            # contiguous: apart by at most the jump's rise and the half velocity window by which the
+            # smoothed velocity sees the next jump early (the hold's still run ends there, _step)
+            if j + 1 >= len(cands) or cands[j + 1][0] - cands[j][1] > 2 * hj + f.sc.window_w // 2:
                 break
             j += 1
         k = done
