@@ -265,9 +265,23 @@ def find_jumps(f: Features) -> np.ndarray:
     # T_MIN, so its flanks still fit in them)
     k3 = min(16 * hj, f.h)
     if k3 > 4 * hj:
-        slow = _new_jumps(_jumps_at(f, k3, change(k3), change(4 * k3)), found, k3)
+        d3 = change(k3)
+        slow = _new_jumps(_one_per(_jumps_at(f, k3, d3, change(4 * k3)), d3, k3), found, k3)
         found = np.sort(np.concatenate((found, slow)))
     return found
+
+
+def _one_per(j: np.ndarray, d: np.ndarray, near: int) -> np.ndarray:
+    """Of jumps ``j`` (sorted) closer than ``near`` samples to each other, the one of largest ``|d|``: at
+    a long scale one jump lifts ``|d|`` above the threshold over several nearby runs."""
+    out: list[int] = []
+    for i in (int(v) for v in j):
+        if out and i - out[-1] <= near:
+            if abs(d[i]) > abs(d[out[-1]]):
+                out[-1] = i
+        else:
+            out.append(i)
+    return np.asarray(out, dtype=np.int64)
 
 
 def _new_jumps(cand: np.ndarray, known: np.ndarray, near: int) -> np.ndarray:
