@@ -381,8 +381,10 @@ def _step_groups(f: Features, cands: list[tuple[int, int]], hj: int) -> list[tup
     if not cands:
         return []
     h = max(1, f.h // 2)
-    before = [float(np.mean(f.tau[max(0, a - h): a])) if a > 0 else float(f.tau[0]) for a, _ in cands]
-    after = [float(np.mean(f.tau[max(a, b - h): b])) for a, b in cands]
+    # medians: the h samples before a step's end may hold the start of the next event's rise (a jump
+    # found at the long scale is placed at its steepest sample, a controller's rise of several samples)
+    before = [float(np.median(f.tau[max(0, a - h): a])) if a > 0 else float(f.tau[0]) for a, _ in cands]
+    after = [float(np.median(f.tau[max(a, b - h): b])) for a, b in cands]
     out: list[tuple[int, int]] = []
     k = 0
     while k < len(cands):
@@ -393,7 +395,8 @@ def _step_groups(f: Features, cands: list[tuple[int, int]], hj: int) -> list[tup
             sig = float(np.median(f.sigma_tau_loc[cands[j][0]:cands[j][1]]))
             # the release returns to the level exactly (open loop): within the noise of the two means,
             # or a small fraction of the first step
-            tol = max(K_NOISE * sig * math.sqrt(2.0 / h), 0.5 * R_RETURN * abs(after[k] - level0))
+            # (a median's standard error is sqrt(pi / 2) that of the mean)
+            tol = max(K_NOISE * sig * math.sqrt(math.pi / h), 0.5 * R_RETURN * abs(after[k] - level0))
             if j > k and abs(after[j] - level0) <= tol:
                 out.extend(cands[k: j + 1])
                 done = j + 1
