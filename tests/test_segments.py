@@ -201,6 +201,15 @@ def test_random_point_to_point_motion_has_no_ramp_or_step(plant):
         assert not kinds & {"ramp_presliding", "step", "duty_cycle"}, kinds
 
 
+def test_one_torque_change_is_one_jump_at_the_long_scale():
+    """The jump search at the long scale (find_jumps at min(16 hj, h), for slow logs) sees one torque
+    change above its threshold over several nearby runs; each run's peak was a jump of its own, and two
+    "steps" 2 samples apart, the second's end the first's, made a group that returned to its level (own
+    card, random_ptp on the hydraulic joint at 0.3x noise, seed 0: 2 steps on a log without any)."""
+    lg = random_ptp_logs(plant_variant("hydraulic", 0.3), seed=0)[0]
+    assert not [s for s in find_segments(lg) if s.kind == "step"]
+
+
 def _slow_move_with_torque_ripple(axis: str, seed: int) -> JointLog:
     """A fast move (it sets the log's speed scale), then a slow steady move (0.012 [q/s], 10 s) on which
     the torque carries a trapezoidal ripple in position (cogging, a position-dependent load): monotonic

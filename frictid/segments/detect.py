@@ -258,15 +258,42 @@ def find_jumps(f: Features) -> np.ndarray:
     d1, d4 = change(hj), change(4 * hj)
     fine = _jumps_at(f, hj, d1, d4)
     del d1
-    coarse = _jumps_at(f, 4 * hj, d4, change(16 * hj))
-    if coarse.size and fine.size:
-        k = np.searchsorted(fine, coarse)
-        near = np.zeros(coarse.size, dtype=bool)
-        for off in (-1, 0):
-            idx = np.clip(k + off, 0, fine.size - 1)
-            near |= np.abs(fine[idx] - coarse) <= 4 * hj
-        coarse = coarse[~near]
-    return np.sort(np.concatenate((fine, coarse)))
+    coarse = _new_jumps(_jumps_at(f, 4 * hj, d4, change(16 * hj)), fine, 4 * hj)
+    found = np.sort(np.concatenate((fine, coarse)))
+    # a slow log (hj of one or two samples) averages too few samples at 4 hj for a jump of a few noise
+    # levels: once more at 16 hj, at most the half-width h of the shortest segment (a step's holds last
+    # T_MIN, so its flanks still fit in them)
+    k3 = min(16 * hj, f.h)
+    if k3 > 4 * hj:
+        d3 = change(k3)
+        slow = _new_jumps(_one_per(_jumps_at(f, k3, d3, change(4 * k3)), d3, k3), found, k3)
+        found = np.sort(np.concatenate((found, slow)))
+    return found
+
+
+def _one_per(j: np.ndarray, d: np.ndarray, near: int) -> np.ndarray:
+    """Of jumps ``j`` (sorted) closer than ``near`` samples to each other, the one of largest ``|d|``: at
+    a long scale one jump lifts ``|d|`` above the threshold over several nearby runs."""
+    out: list[int] = []
+    for i in (int(v) for v in j):
+        if out and i - out[-1] <= near:
+            if abs(d[i]) > abs(d[out[-1]]):
+                out[-1] = i
+        else:
+            out.append(i)
+    return np.asarray(out, dtype=np.int64)
+
+
+def _new_jumps(cand: np.ndarray, known: np.ndarray, near: int) -> np.ndarray:
+    """The jumps of ``cand`` farther than ``near`` samples from every jump of ``known`` (both sorted)."""
+    if not cand.size or not known.size:
+        return cand
+    k = np.searchsorted(known, cand)
+    close = np.zeros(cand.size, dtype=bool)
+    for off in (-1, 0):
+        idx = np.clip(k + off, 0, known.size - 1)
+        close |= np.abs(known[idx] - cand) <= near
+    return cand[~close]
 
 
 def _slope(f: Features, h: int) -> np.ndarray:
@@ -354,8 +381,10 @@ def _step_groups(f: Features, cands: list[tuple[int, int]], hj: int) -> list[tup
     if not cands:
         return []
     h = max(1, f.h // 2)
-    before = [float(np.mean(f.tau[max(0, a - h): a])) if a > 0 else float(f.tau[0]) for a, _ in cands]
-    after = [float(np.mean(f.tau[max(a, b - h): b])) for a, b in cands]
+    # medians: the h samples before a step's end may hold the start of the next event's rise (a jump
+    # found at the long scale is placed at its steepest sample, a controller's rise of several samples)
+    before = [float(np.median(f.tau[max(0, a - h): a])) if a > 0 else float(f.tau[0]) for a, _ in cands]
+    after = [float(np.median(f.tau[max(a, b - h): b])) for a, b in cands]
     out: list[tuple[int, int]] = []
     k = 0
     while k < len(cands):
@@ -366,12 +395,15 @@ def _step_groups(f: Features, cands: list[tuple[int, int]], hj: int) -> list[tup
             sig = float(np.median(f.sigma_tau_loc[cands[j][0]:cands[j][1]]))
             # the release returns to the level exactly (open loop): within the noise of the two means,
             # or a small fraction of the first step
-            tol = max(K_NOISE * sig * math.sqrt(2.0 / h), 0.5 * R_RETURN * abs(after[k] - level0))
+            # (a median's standard error is sqrt(pi / 2) that of the mean)
+            tol = max(K_NOISE * sig * math.sqrt(math.pi / h), 0.5 * R_RETURN * abs(after[k] - level0))
             if j > k and abs(after[j] - level0) <= tol:
                 out.extend(cands[k: j + 1])
                 done = j + 1
                 break
-            if j + 1 >= len(cands) or cands[j + 1][0] - cands[j][1] > 2 * hj:
+            # contiguous: apart by at most the jump's rise and the half velocity window by which the
+            # smoothed velocity sees the next jump early (the hold's still run ends there, _step)
+            if j + 1 >= len(cands) or cands[j + 1][0] - cands[j][1] > 2 * hj + f.sc.window_w // 2:
                 break
             j += 1
         k = done
