@@ -440,11 +440,14 @@ def test_a_position_torque_that_is_a_constant_is_rejected():
     from types import SimpleNamespace
 
     from frictid.diagnose.chain import Trial, _a_constant
-    from frictid.diagnose.model import Coef, Term
+    from frictid.diagnose.model import Coef, Context, Term
 
     rng = np.random.default_rng(5)
     q = rng.uniform(-3.0, 3.0, 4000)
     S = SimpleNamespace(F=9.0 * np.sign(rng.standard_normal(q.size)), q=q)   # friction RMS 9
+    ctx = SimpleNamespace(S=S, _cache={})   # the columns of the terms, as the chain's Context makes them
+    ctx.term_columns = lambda term: Context.term_columns(ctx, term)
+    F_rms = float(np.sqrt(np.mean(S.F ** 2)))
     smooth = Term("position_torque", "position_torque", "additive", (("period", 0.0), ("q0", 0.0), ("qs", 3.0)))
     periodic = Term("position_torque", "position_torque", "additive", (("period", 2.0),))
 
@@ -454,8 +457,8 @@ def test_a_position_torque_that_is_a_constant_is_rejected():
         return Trial("position_torque", "position_torque", z, z, [term] * 3, coefs, 1.0, 0.5, 0.5, 9.0, 1e-9,
                      30, 0.8, 2, index=2)
 
-    why = _a_constant(S, trial(smooth, [-0.60, 0.004, 0.0013]))
+    why = _a_constant(ctx, trial(smooth, [-0.60, 0.004, 0.0013]), F_rms)
     assert why is not None and "hardly varies with the position" in why
-    assert _a_constant(S, trial(smooth, [-0.60, 0.2, 1.0])) is None          # 1.2 N m of shape over the travel
-    assert _a_constant(S, trial(periodic, [0.05, 0.02])) is not None         # a harmonic of 0.05 N m
-    assert _a_constant(S, trial(periodic, [0.5, 0.2])) is None
+    assert _a_constant(ctx, trial(smooth, [-0.60, 0.2, 1.0]), F_rms) is None          # 1.2 N m of shape over the travel
+    assert _a_constant(ctx, trial(periodic, [0.05, 0.02]), F_rms) is not None         # a harmonic of 0.05 N m
+    assert _a_constant(ctx, trial(periodic, [0.5, 0.2]), F_rms) is None

@@ -211,7 +211,7 @@ class Chain:
     def choose(self, trials: list[Trial], m: int, rejected: list | None = None) -> Trial | None:
         ok = [t for t in trials if self.significant(t, m) and self.worth_it(t, m)]
         for t in list(ok):
-            why = confounded(self.S, t, m)
+            why = confounded(self.S, t, m, self.ctx, self.F_rms)
             if why is not None:
                 ok.remove(t)
                 if rejected is not None:
@@ -355,7 +355,7 @@ def speed_cells(S: Samples) -> np.ndarray:
     return S.cached("speed_cells", compute)
 
 
-def confounded(S: Samples, tr: Trial, m: int) -> str | None:
+def confounded(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float) -> str | None:
     """Why a position candidate is a stand-in for the speed or the order of the plateaus (EMPS: each plateau
     speed in one stretch of travel, so any function of the speed is a function of the position), or None.
     Its held-out correction and the residual, each less its mean and its line in the velocity in every cell
@@ -374,7 +374,7 @@ def confounded(S: Samples, tr: Trial, m: int) -> str | None:
     if tr.ext not in POSITION_EXTS:
         return None
     if tr.ext == "position_torque":
-        why = _a_constant(S, tr)
+        why = _a_constant(ctx, tr, F_rms)
         if why is not None:
             return why
     rw, dw, t, p = _within_t(S, speed_cells(S), tr)
@@ -384,28 +384,19 @@ def confounded(S: Samples, tr: Trial, m: int) -> str | None:
     return _grows_with_speed(S, tr, rw, dw, m)
 
 
-def _a_constant(S: Samples, tr: Trial) -> str | None:
+def _a_constant(ctx: Context, tr: Trial, F_rms: float) -> str | None:
     """Why a position torque is a constant, not a torque of the position, or None. The smooth form carries
     its mean over the travel (1, q, q^2): its correction can be a torque offset's, or a per-direction
     level's, with a slight shape that makes it significantly better on a long log (foreign seed 302048, a
     Coulomb asymmetry: a constant -0.60 N m and 0.008 N m from end to end of the travel, named
-    ``position_torque``). What varies with the position, the term less its mean over the samples (the
-    training folds' coefficients, their mean RMS), must itself be worth a term: at least
-    :data:`EXPLAINED_MIN` of the friction RMS."""
-    F_rms = float(np.sqrt(np.mean(S.F ** 2)))
+    ``position_torque``). What varies with the position, the spread of the term over the samples (its
+    columns, :meth:`Context.term_columns`, times each training fold's coefficients; their mean), must itself
+    be worth a term: at least :data:`EXPLAINED_MIN` of the friction RMS ``F_rms``."""
     var = []
     for term, c in zip(tr.fold_terms, tr.fold_coefs):
-        nl = dict(term.settings)
+        cols = ctx.term_columns(term)
         g = np.atleast_1d(c.gamma.get(tr.index, np.zeros(0)))
-        if nl.get("period", 0.0) == 0 and g.size == 3:
-            d = (S.q - nl["q0"]) / nl["qs"]
-            shape = g[1] * d + g[2] * d * d
-        elif g.size == 2:
-            ph = 2 * np.pi * S.q / nl["period"]
-            shape = g[0] * np.sin(ph) + g[1] * np.cos(ph)
-        else:
-            shape = np.zeros(1)
-        var.append(float(np.std(shape)))
+        var.append(float(np.std(cols @ g)) if g.size == cols.shape[1] else 0.0)
     v = float(np.mean(var)) if var else 0.0
     if v < EXPLAINED_MIN * F_rms:
         return (f"{tr.ext} hardly varies with the position: what varies over the travel has an RMS of {v:.3g}, "
