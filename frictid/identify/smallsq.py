@@ -116,7 +116,8 @@ def _accepted_step(fun, x, r, cost, Js, gf, d, lam, held, scale, lo, hi, budget,
     free = ~held
     while counts["nfev"] < budget:
         dz = np.zeros_like(x)
-        dz[free] = _damped(Js[:, free], r, gf[free], lam * d[free])
+        Jf = Js[:, free]
+        dz[free] = damped_step(np.einsum("ij,ik->jk", Jf, Jf), Jf, r, gf[free], lam * d[free])
         x_new = np.clip(x + scale * dz, lo, hi)
         dz = (x_new - x) / scale
         r_new = np.atleast_1d(np.asarray(fun(x_new), dtype=float))
@@ -131,11 +132,13 @@ def _accepted_step(fun, x, r, cost, Js, gf, d, lam, held, scale, lo, hi, budget,
     return None
 
 
-def _damped(J, r, g, damp) -> np.ndarray:
-    """(J^T J + diag(damp)) dz = -g, or where that matrix is singular in floating point, the
-    least-squares solution of [J; sqrt(damp)] dz = [-r; 0]."""
+def damped_step(JtJ, J, r, g, damp) -> np.ndarray:
+    """The Levenberg-Marquardt step: (J^T J + diag(damp)) dz = -g by the normal equations (``JtJ``, computed
+    by the caller: by ``einsum`` here, over long residual vectors; by ``@`` in :mod:`.varpro`, on a few
+    points), or, where their matrix is singular in floating point (nearly parallel columns: the normal
+    equations square the conditioning), as the least-squares solution of [J; sqrt(damp)] dz = [-r; 0]."""
     try:
-        return np.linalg.solve(np.einsum("ij,ik->jk", J, J) + np.diag(damp), -g)
+        return np.linalg.solve(JtJ + np.diag(damp), -g)
     except np.linalg.LinAlgError:
         Jd = np.vstack([J, np.diag(np.sqrt(damp))])
         return np.linalg.lstsq(Jd, np.concatenate([-r, np.zeros(J.shape[1])]), rcond=None)[0]

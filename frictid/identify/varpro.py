@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from frictid.models import static as sm
+from .smallsq import damped_step
 
 #: Grid points per shape parameter of a cold scan (speeds log-spaced over the points' speeds) and the
 #: exponents tried for a free Stribeck exponent (000/003 hold it at 2; 1 is 001/004's exponential).
@@ -280,7 +281,8 @@ def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: floa
             if nfev >= budget:
                 return x, 0, "the evaluation budget is spent"
             dz = np.zeros(x.shape)
-            dz[free] = _damped_step(J[:, free], r, gf[free], lam * d[free])
+            Jf = J[:, free]
+            dz[free] = damped_step(Jf.T @ Jf, Jf, r, gf[free], lam * d[free])
             dz *= min(1.0, radius / max(float(abs(dz).max()), TINY))
             x_new = np.minimum(np.maximum(x + scale * dz, lo), hi)
             r_new = resid(x_new)
@@ -296,17 +298,6 @@ def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: floa
         x, r, cost, lam, radius = x_new, r_new, c_new, lam / 3.0, max(radius, 2.0 * step)
         if done[0] or done[1]:
             return x, 2 if done[0] else 3, "cost decrease below FTOL" if done[0] else "step below XTOL"
-
-
-def _damped_step(J, r, g, damp) -> np.ndarray:
-    """The Levenberg-Marquardt step: (J^T J + diag(damp)) dz = -g by the normal equations, or, where their
-    matrix is singular in floating point (two nearly parallel shape columns: the normal equations square
-    the conditioning), as the least-squares solution of [J; sqrt(damp)] dz = [-r; 0]."""
-    try:
-        return np.linalg.solve(J.T @ J + np.diag(damp), -g)
-    except np.linalg.LinAlgError:
-        Jd = np.vstack([J, np.diag(np.sqrt(damp))])
-        return np.linalg.lstsq(Jd, np.concatenate([-r, np.zeros(J.shape[1])]), rcond=None)[0]
 
 
 def bvls(A, y, x_lsq, lo, hi, tol: float = 1e-10) -> tuple[np.ndarray, np.ndarray]:
