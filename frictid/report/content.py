@@ -464,6 +464,12 @@ def _spread(items: list, most: int) -> list:
     return [items[i] for i in idx]
 
 
+def _drawable(datas: list[LogData], kind: str) -> list[tuple[LogData, Segment]]:
+    """The (log, segment) pairs of one kind that a curve can be drawn from: logs with a position, segments of
+    at least ten samples."""
+    return [(d, s) for d in datas if d.log.q is not None for s in d.segments if s.kind == kind and s.n >= 10]
+
+
 def lugre_params(jd: dict) -> dict | None:
     """LuGre's model (:class:`FrictionModel`, None when its values are incomplete) and its sigma0 / sigma1
     entries, or None when there is no LuGre."""
@@ -489,13 +495,7 @@ def ramp_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
     s0 = pvalue(lp["sigma0"]) if lp else None
     info = {"sigma0": lp["sigma0"] if lp else None, "n_total": 0}
     m = lp["model"] if lp and s0 else None
-    items = []
-    for d in datas:
-        if d.log.q is None:
-            continue
-        for s in d.segments:
-            if s.kind == "ramp_presliding" and s.n >= 10:
-                items.append((d, s))
+    items = _drawable(datas, "ramp_presliding")
     info["n_total"] = len(items)
     curves = []
     for d, s in _spread(items, MAX_RAMPS_DRAWN):
@@ -525,13 +525,7 @@ def step_curves(datas: list[LogData], jd: dict) -> tuple[list[dict], dict]:
     info = {"sigma1": lp["sigma1"] if lp else None, "n_total": 0, "J": J}
     m = lp["model"] if lp else None
     can = bool(m is not None and J and J > 0 and s0 and s1 is not None)
-    items = []
-    for d in datas:
-        if d.log.q is None:
-            continue
-        for s in d.segments:
-            if s.kind == "step" and s.n >= 10:
-                items.append((d, s))
+    items = _drawable(datas, "step")
     info["n_total"] = len(items)
     curves = []
     for d, s in _spread(items, MAX_STEPS_DRAWN):
