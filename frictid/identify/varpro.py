@@ -17,6 +17,7 @@ standard errors still come from the full problem's Jacobian at the optimum (:fun
 from __future__ import annotations
 
 import heapq
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -262,42 +263,64 @@ def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: floa
     step. For two parameters that is enough, and it saves scipy's set-up of each iteration (the problems are
     7-30 points: the arithmetic is microseconds, scipy's loop was 0.3-0.5 ms an iteration)."""
     x = np.clip(np.asarray(x0, dtype=float), lo, hi)
+    # the 1-2 parameters' arithmetic in Python floats (numpy's calls on 2-vectors cost microseconds each; the
+    # same IEEE operations, so the same numbers), the products over the points in numpy
+    n = x.shape[0]
+    lo_, hi_, sc_ = (np.broadcast_to(np.asarray(v, dtype=float), (n,)).tolist() for v in (lo, hi, scale))
+    xl = x.tolist()
     r = resid(x)
     cost, nfev, lam = 0.5 * float(r @ r), 1, None
     while True:
         J = jac(x) * scale
-        g = J.T @ r
-        held = ((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0))
-        gf = np.where(held, 0.0, g)
-        if abs(gf).max() <= GTOL:
+        g = (J.T @ r).tolist()
+        held = [(xi <= a and gi > 0) or (xi >= b and gi < 0) for xi, gi, a, b in zip(xl, g, lo_, hi_)]
+        gf = [0.0 if h else gi for gi, h in zip(g, held)]
+        if _absmax(gf) <= GTOL:
             return x, 1, "gradient below GTOL"
         # Marquardt's diagonal of J^T J, floored (a column the residual does not feel, e.g. an exponent
         # along a drop of no amplitude, would leave the damped system singular)
         d = (J * J).sum(axis=0)
         d = np.maximum(d, 1e-12 * max(float(d.max()), TINY))
         lam = 1e-3 * float(d.max()) if lam is None else lam
-        free = ~held
+        free = [not h for h in held]
+        Jf = J if all(free) else J[:, np.array(free)]  # (J^T J: the same products either way)
+        dl = d.tolist()
+        gfree = np.array([v for v, f in zip(gf, free) if f])
         while True:
             if nfev >= budget:
                 return x, 0, "the evaluation budget is spent"
-            dz = np.zeros(x.shape)
-            Jf = J[:, free]
-            dz[free] = damped_step(Jf.T @ Jf, Jf, r, gf[free], lam * d[free])
-            dz *= min(1.0, radius / max(float(abs(dz).max()), TINY))
-            x_new = np.minimum(np.maximum(x + scale * dz, lo), hi)
+            step = iter(damped_step(Jf.T @ Jf, Jf, r, gfree, np.array([lam * v for v, f in zip(dl, free) if f]))
+                        .tolist())
+            dz = [next(step) if f else 0.0 for f in free]
+            cut = min(1.0, radius / max(_absmax(dz), TINY))
+            dz = [v * cut for v in dz]
+            xl_new = [min(max(xi + si * v, a), b) for xi, si, v, a, b in zip(xl, sc_, dz, lo_, hi_)]
+            x_new = np.array(xl_new)
             r_new = resid(x_new)
             nfev += 1
             c_new = 0.5 * float(r_new @ r_new)
-            if np.isfinite(c_new) and c_new < cost:
+            if math.isfinite(c_new) and c_new < cost:
                 break
-            lam, radius = lam * 4.0, float(abs(dz).max()) / 4.0
-            if radius <= XTOL * (XTOL + float(abs(x / scale).max())):
+            lam, radius = lam * 4.0, _absmax(dz) / 4.0
+            if radius <= XTOL * (XTOL + _absmax([xi / si for xi, si in zip(xl, sc_)])):
                 return x, 3, "step below XTOL"
-        step = float(abs((x_new - x) / scale).max())
-        done = (cost - c_new <= FTOL * cost, step <= XTOL * (XTOL + float(abs(x_new / scale).max())))
-        x, r, cost, lam, radius = x_new, r_new, c_new, lam / 3.0, max(radius, 2.0 * step)
+        step = _absmax([(b - a) / si for a, b, si in zip(xl, xl_new, sc_)])
+        done = (cost - c_new <= FTOL * cost, step <= XTOL * (XTOL + _absmax([b / si for b, si in zip(xl_new, sc_)])))
+        x, xl, r, cost, lam, radius = x_new, xl_new, r_new, c_new, lam / 3.0, max(radius, 2.0 * step)
         if done[0] or done[1]:
             return x, 2 if done[0] else 3, "cost decrease below FTOL" if done[0] else "step below XTOL"
+
+
+def _absmax(v: list) -> float:
+    """The largest |v_i| of a short list, NaN when any is NaN (as numpy's ``abs(v).max()``)."""
+    m = 0.0 if v else math.nan
+    for e in v:
+        a = abs(e)
+        if a != a:
+            return math.nan
+        if a > m:
+            m = a
+    return m
 
 
 def bvls(A, y, x_lsq, lo, hi, tol: float = 1e-10) -> tuple[np.ndarray, np.ndarray]:
