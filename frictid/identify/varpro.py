@@ -101,6 +101,10 @@ class Projection:
         self._shape_rows = np.flatnonzero(self.free_shape)
         self._y_free = pb.F * pb.wts if self._held_cols.size == 0 else None
         self._wt = pb.wts[:, None]
+        # every linear / shape column free (the usual case): the columns as they come, no index copy
+        self._all_lin = bool(self.free_lin.all())
+        self._all_shapes = bool(self.free_shape.all())
+        self._lo_l, self._hi_l = self.lo.tolist(), self.hi.tolist()
 
     def _x(self, theta, b):
         xf = np.empty(len(self.pb.free))
@@ -125,10 +129,12 @@ class Projection:
         pb = self.pb
         cols, dcols = self.columns(pb.w, **self._shapes(theta))
         wt = self._wt
-        A = cols[..., self._lin_cols] * wt
+        # (the index copy is in Fortran order, and the products and sums below are of that layout: a single
+        # shape's columns are multiplied into it directly)
+        A = np.multiply(cols, wt, order="F") if self._all_lin and cols.ndim == 2 else cols[..., self._lin_cols] * wt
         y = self._y_free if self._y_free is not None else \
             (pb.F - cols[..., self._held_cols] @ self._b_held_part) * pb.wts
-        return A, y, dcols[..., self._shape_rows, :, :] * wt
+        return A, y, (dcols if self._all_shapes else dcols[..., self._shape_rows, :, :]) * wt
 
     def linear(self, A, y):
         """The linear parameters' weighted least-squares values within their bounds, and the orthonormal
@@ -145,7 +151,7 @@ class Projection:
         if not ok.all():  # (Vt[ok] would be a C-ordered copy of the C-ordered Vt: the same products)
             Vt, sv = Vt[ok], sv[ok]
         b = (Vt.T @ ((U.T @ y) / sv)) / norms
-        if (b >= self.lo).all() and (b <= self.hi).all():
+        if all(lo <= v <= hi for v, lo, hi in zip(b.tolist(), self._lo_l, self._hi_l)):
             return b, U
         x, on_bound = bvls(An, y, b * norms, self.lo * norms, self.hi * norms)
         b = np.clip(x / norms, self.lo, self.hi)
@@ -169,8 +175,11 @@ class Projection:
         A, y, dA = self.regressors(theta)
         b, U = self.linear(A, y)
         r = A @ b - y
-        b_all = self.b_held.copy()
-        b_all[self._lin_cols] = b
+        if self._all_lin:
+            b_all = b
+        else:
+            b_all = self.b_held.copy()
+            b_all[self._lin_cols] = b
         Jn = (dA @ b_all).T  # (n, free shapes): d model / d shape at the projected linear parameters
         Jn = Jn - U @ (U.T @ Jn)
         out = (b, r, Jn)
