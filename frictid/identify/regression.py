@@ -329,7 +329,8 @@ def _add_filtered(ne: NormalEquations, names, q, w, a, tau, payload, known, min_
         y = y - val * column(nm, qq, ww, aa, pl, axis, tr)
     if friction is not None:
         y = y - friction(ww)
-    X = np.empty((ww.shape[0], len(names) + 2))
+    # in Fortran order: the filter runs along contiguous columns (its output, and so the sums below, as before)
+    X = np.empty((ww.shape[0], len(names) + 2), order="F")
     for j, nm in enumerate(names):
         X[:, j] = column(nm, qq, ww, aa, pl, axis, tr)
     X[:, -2] = y
