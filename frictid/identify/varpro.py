@@ -21,6 +21,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from frictid.models import static as sm
 from .smallsq import damped_step
@@ -173,6 +174,10 @@ class Projection:
         if self._memo[0] == key:
             return self._memo[1]
         A, y, dA = self.regressors(theta)
+        out = self._projected(A, y, dA)
+        if out is not None:
+            self._memo = (key, out)
+            return out
         b, U = self.linear(A, y)
         r = A @ b - y
         if self._all_lin:
@@ -185,6 +190,21 @@ class Projection:
         out = (b, r, Jn)
         self._memo = (key, out)
         return out
+
+    def _projected(self, A, y, dA):
+        """:meth:`_eval`'s numbers in one compiled pass (:func:`_project_nb`) when the linear parameters'
+        plain solution is within their bounds, else None (:meth:`linear` then bounds them)."""
+        if A.shape[1] == 0 or not A.flags.f_contiguous or not dA.flags.c_contiguous:
+            return None
+        norms = np.sqrt(np.einsum("ij,ij->j", A, A))
+        if not norms.all():
+            norms[norms == 0] = 1.0
+        try:
+            inside, b, r, Jn = _project_nb(A, np.ascontiguousarray(y), dA, norms, self.b_held, self._lin_cols,
+                                           self._all_lin, self.lo, self.hi)
+        except (np.linalg.LinAlgError, ValueError):  # not finite: numpy's path decides
+            return None
+        return (b, r, Jn) if inside else None
 
     def resid(self, theta):
         return self._eval(theta)[1]
@@ -253,6 +273,63 @@ class Projection:
         fun = pb.resid(xf)
         return Solution(xf, fun, 0.5 * float(fun @ fun), pb.jac(xf), _active(xf, pb.lo_f, pb.hi_f),
                         status, status > 0, message)
+
+
+@njit(cache=True, error_model="numpy")
+def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
+    """:meth:`Projection.linear` and :meth:`Projection._eval` for one shape, compiled: the regressors ``A``
+    (Fortran order) normalised by ``norms``, their SVD (LAPACK's ``gesdd``, as numpy's), the rank cut, the
+    linear parameters, and when they are within ``lo``..``hi`` the residual and Kaufman's Jacobian. The
+    products are BLAS calls on arrays laid out as numpy's (``U`` and ``Vt`` as its SVD returns them, the
+    index copies in Fortran order, a one-column Jacobian by matrix-vector products as numpy's ``matmul``
+    takes it), so the numbers are numpy's to the last bit. Returns (inside, b, r, Jn); outside the bounds
+    only ``b`` is set."""
+    n, L = A.shape
+    An = np.empty((L, n)).T
+    for j in range(L):
+        for i in range(n):
+            An[i, j] = A[i, j] / norms[j]
+    U, sv, Vt = np.linalg.svd(An, full_matrices=False)
+    cut = sv[0] * float(max(n, L)) * EPS
+    keep = np.flatnonzero(sv > cut)
+    k = keep.size
+    Uk = np.empty((k, n)).T
+    for c in range(k):
+        Uk[:, c] = U[:, keep[c]]
+    Vk = np.empty((k, L))
+    svk = np.empty(k)
+    for c in range(k):
+        Vk[c, :] = Vt[keep[c], :]
+        svk[c] = sv[keep[c]]
+    t = np.dot(Uk.T, y) / svk
+    b = np.dot(Vk.T, t) / norms
+    empty = np.empty((0, 0))
+    for j in range(L):
+        if not (lo[j] <= b[j] <= hi[j]):
+            return False, b, y, empty
+    r = np.dot(A, b) - y
+    if all_lin:
+        b_all = b
+    else:
+        b_all = b_held.copy()
+        for j in range(L):
+            b_all[lin_cols[j]] = b[j]
+    S = dA.shape[0]
+    JnT = np.empty((S, n))
+    for s_ in range(S):
+        JnT[s_, :] = np.dot(dA[s_], b_all)
+    Jn = JnT.T
+    out = np.empty((n, S))
+    if S == 1:
+        P1 = np.dot(Uk, np.dot(Uk.T, JnT[0]))
+        for i in range(n):
+            out[i, 0] = Jn[i, 0] - P1[i]
+    else:
+        P = np.dot(Uk, np.dot(Uk.T, Jn))
+        for i in range(n):
+            for s_ in range(S):
+                out[i, s_] = Jn[i, s_] - P[i, s_]
+    return True, b, r, out
 
 
 def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: float = 1.0
