@@ -175,9 +175,13 @@ class Projection:
             return self._memo[1]
         A, y, dA = self.regressors(theta)
         out = self._projected(A, y, dA)
-        if out is not None:
-            self._memo = (key, out)
-            return out
+        if out is None:
+            out = self._eval_numpy(A, y, dA)
+        self._memo = (key, out)
+        return out
+
+    def _eval_numpy(self, A, y, dA):
+        """:meth:`_eval` on numpy's calls (the reference of :func:`_project_nb`)."""
         b, U = self.linear(A, y)
         r = A @ b - y
         if self._all_lin:
@@ -187,24 +191,21 @@ class Projection:
             b_all[self._lin_cols] = b
         Jn = (dA @ b_all).T  # (n, free shapes): d model / d shape at the projected linear parameters
         Jn = Jn - U @ (U.T @ Jn)
-        out = (b, r, Jn)
-        self._memo = (key, out)
-        return out
+        return b, r, Jn
 
     def _projected(self, A, y, dA):
-        """:meth:`_eval`'s numbers in one compiled pass (:func:`_project_nb`) when the linear parameters'
-        plain solution is within their bounds, else None (:meth:`linear` then bounds them)."""
+        """:meth:`_eval`'s numbers in one compiled pass (:func:`_project_nb`), or None where numpy's path
+        decides (numbers that are not finite, a layout the pass does not take)."""
         if A.shape[1] == 0 or not A.flags.f_contiguous or not dA.flags.c_contiguous:
             return None
         norms = np.sqrt(np.einsum("ij,ij->j", A, A))
         if not norms.all():
             norms[norms == 0] = 1.0
         try:
-            inside, b, r, Jn = _project_nb(A, np.ascontiguousarray(y), dA, norms, self.b_held, self._lin_cols,
-                                           self._all_lin, self.lo, self.hi)
+            return _project_nb(A, np.ascontiguousarray(y), dA, norms, self.b_held, self._lin_cols, self._all_lin,
+                               self.lo, self.hi)
         except (np.linalg.LinAlgError, ValueError):  # not finite: numpy's path decides
             return None
-        return (b, r, Jn) if inside else None
 
     def resid(self, theta):
         return self._eval(theta)[1]
@@ -282,8 +283,8 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
     linear parameters, and when they are within ``lo``..``hi`` the residual and Kaufman's Jacobian. The
     products are BLAS calls on arrays laid out as numpy's (``U`` and ``Vt`` as its SVD returns them, the
     index copies in Fortran order, a one-column Jacobian by matrix-vector products as numpy's ``matmul``
-    takes it), so the numbers are numpy's to the last bit. Returns (inside, b, r, Jn); outside the bounds
-    only ``b`` is set."""
+    takes it), so the numbers are numpy's to the last bit; a plain solution outside the bounds is bounded by
+    :func:`_bvls_nb` and projected as :meth:`Projection.linear` does. Returns (b, r, Jn)."""
     n, L = A.shape
     An = np.empty((L, n)).T
     for j in range(L):
@@ -301,13 +302,26 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
     for c in range(k):
         Vk[c, :] = Vt[keep[c], :]
         svk[c] = sv[keep[c]]
-    t = np.dot(Uk.T, y) / svk
-    b = np.dot(Vk.T, t) / norms
-    empty = np.empty((0, 0))
-    for j in range(L):
-        if not (lo[j] <= b[j] <= hi[j]):
-            return False, b, y, empty
-    r = np.dot(A, b) - y
+    t = _mv(Uk.T, y) / svk
+    b = _mv(Vk.T, t) / norms
+    if not _within(b, lo, hi):  # the bounded solve (Projection.linear's other branch)
+        x, on_bound = _bvls_nb(An, y, b * norms, lo * norms, hi * norms, 1e-10)
+        b = _clip_nb(x / norms, lo, hi)
+        inside = np.flatnonzero((on_bound == 0) & (b > lo) & (b < hi))
+        for j in range(L):
+            if on_bound[j] != 0:
+                b[j] = lo[j] if on_bound[j] < 0 else hi[j]
+        Ai = np.empty((inside.size, n)).T
+        for c in range(inside.size):
+            Ai[:, c] = A[:, inside[c]]
+        Uk = np.empty((0, n)).T  # (Fortran order, as every Uk here: BLAS sees one layout)
+        if inside.size:
+            U, sv, _ = np.linalg.svd(Ai, full_matrices=False)
+            keep = np.flatnonzero(sv > sv[0] * float(max(n, L)) * EPS)
+            Uk = np.empty((keep.size, n)).T
+            for c in range(keep.size):
+                Uk[:, c] = U[:, keep[c]]
+    r = _mv(A, b) - y
     if all_lin:
         b_all = b
     else:
@@ -317,11 +331,15 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
     S = dA.shape[0]
     JnT = np.empty((S, n))
     for s_ in range(S):
-        JnT[s_, :] = np.dot(dA[s_], b_all)
+        JnT[s_, :] = _mv(dA[s_], b_all)
     Jn = JnT.T
     out = np.empty((n, S))
-    if S == 1:
-        P1 = np.dot(Uk, np.dot(Uk.T, JnT[0]))
+    if Uk.shape[1] == 0:  # nothing to project off (every level at a bound)
+        for i in range(n):
+            for s_ in range(S):
+                out[i, s_] = Jn[i, s_]
+    elif S == 1:
+        P1 = _mv(Uk, _mv(Uk.T, JnT[0]))
         for i in range(n):
             out[i, 0] = Jn[i, 0] - P1[i]
     else:
@@ -329,7 +347,121 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
         for i in range(n):
             for s_ in range(S):
                 out[i, s_] = Jn[i, s_] - P[i, s_]
-    return True, b, r, out
+    return b, r, out
+
+
+@njit(cache=True)
+def _mv(M, v):
+    """``M @ v`` as numpy's ``matmul`` computes it: a one-row matrix by a dot product, else by BLAS's
+    matrix-vector product."""
+    if M.shape[0] == 1:
+        out = np.empty(1)
+        out[0] = np.dot(np.ascontiguousarray(M[0]), v)  # (a copy only of a one-element row here)
+        return out
+    return np.dot(M, v)
+
+
+@njit(cache=True)
+def _within(b, lo, hi) -> bool:
+    for j in range(b.shape[0]):
+        if not (lo[j] <= b[j] <= hi[j]):
+            return False
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def _bvls_nb(A, y, x_lsq, lo, hi, tol):
+    """:func:`bvls` compiled, step for step (the same LAPACK least squares, ``gelsd`` with numpy's
+    ``rcond``, the same BLAS products on the same layouts): the same numbers."""
+    n, L = A.shape
+    x = x_lsq.copy()
+    on_bound = np.zeros(L)
+    for j in range(L):
+        on_bound[j] = -1.0 if x[j] <= lo[j] else (1.0 if x[j] >= hi[j] else 0.0)
+    x = _clip_nb(x, lo, hi)
+    free = np.flatnonzero(on_bound == 0)
+    while free.size:  # initialisation: free variables whose solution is feasible
+        z = _lstsq_free(A, y, x, on_bound, free)
+        any_out = False
+        keep = np.ones(free.size, dtype=np.bool_)
+        for c in range(free.size):
+            j = free[c]
+            if z[c] < lo[j]:
+                x[j], on_bound[j], keep[c], any_out = lo[j], -1.0, False, True
+            elif z[c] > hi[j]:
+                x[j], on_bound[j], keep[c], any_out = hi[j], 1.0, False, True
+            else:
+                x[j] = z[c]
+        if not any_out:
+            break
+        free = free[keep]
+    r = _mv(A, x) - y
+    cost, g = 0.5 * np.dot(r, r), _mv(A.T, r)
+    for _ in range(L):  # loop A: free the bound variable whose gradient points most into the box
+        if _kkt_nb(g, on_bound) < tol:
+            break
+        on_bound[np.argmax(g * on_bound)] = 0.0
+        while True:  # loop B: solve on the free set, step back to the first bound crossed
+            free = np.flatnonzero(on_bound == 0)
+            xf = x[free]
+            z = _lstsq_free(A, y, x, on_bound, free)
+            lof, hif = lo[free], hi[free]
+            lbv, ubv = np.flatnonzero(z < lof), np.flatnonzero(z > hif)
+            v = np.concatenate((lbv, ubv))
+            if not v.size:
+                x[free] = z
+                break
+            alphas = np.concatenate((lof[lbv] - xf[lbv], hif[ubv] - xf[ubv])) / (z[v] - xf[v])
+            i = np.argmin(alphas)
+            x[free] = xf * (1 - alphas[i]) + alphas[i] * z
+            on_bound[free[v[i]]] = -1.0 if i < lbv.size else 1.0
+        r = _mv(A, x) - y
+        cost_new = 0.5 * np.dot(r, r)
+        stalled = cost - cost_new < tol * cost
+        cost, g = cost_new, _mv(A.T, r)
+        if stalled:
+            break
+    return x, on_bound
+
+
+@njit(cache=True, error_model="numpy")
+def _lstsq_free(A, y, x, on_bound, free):
+    """The least-squares solution on the free columns with the bound ones' part moved to the right-hand
+    side (numpy's ``lstsq(A[:, free], y - A @ where(on_bound != 0, x, 0), rcond=None)``)."""
+    n = A.shape[0]
+    if free.size == 0:
+        return np.zeros(0)
+    xb = np.where(on_bound != 0, x, 0.0)
+    rhs = y - _mv(A, xb)
+    Af = np.empty((free.size, n)).T
+    for c in range(free.size):
+        Af[:, c] = A[:, free[c]]
+    return np.linalg.lstsq(Af, rhs, EPS * max(n, free.size))[0]
+
+
+@njit(cache=True)
+def _clip_nb(x, lo, hi):
+    """``np.clip(x, lo, hi)`` as numpy computes it (a NaN stays, a tie keeps the bound: ``clip(-0.0, 0.0)``
+    is 0.0, where ``maximum`` would keep -0.0)."""
+    out = np.empty(x.shape[0])
+    for j in range(x.shape[0]):
+        v = x[j]
+        if not np.isnan(v):
+            v = v if v > lo[j] else lo[j]
+        if not np.isnan(v):
+            v = v if v < hi[j] else hi[j]
+        out[j] = v
+    return out
+
+
+@njit(cache=True)
+def _kkt_nb(g, on_bound):
+    m = -np.inf
+    for j in range(g.shape[0]):
+        v = abs(g[j]) if on_bound[j] == 0 else g[j] * on_bound[j]
+        if v > m or v != v:
+            m = v
+    return m
 
 
 def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: float = 1.0
