@@ -156,8 +156,10 @@ def _solve_small(JtJ, damp, g) -> np.ndarray | None:
     reciprocal, back substitution by division. None where that meets a zero or non-finite pivot or result
     (``np.linalg.solve`` then decides). Checked against ``np.linalg.solve`` bit for bit on random damped
     normal equations (tests/test_smallsq_solve.py)."""
-    M = (JtJ + np.diag(damp)).tolist()
-    b = (-g).tolist()
+    M = JtJ.tolist()  # + diag(damp), as numpy adds it (0.0 off the diagonal: -0.0 + 0.0 is 0.0)
+    for i, d in enumerate(damp.tolist()):
+        M[i] = [e + (d if j == i else 0.0) for j, e in enumerate(M[i])]
+    b = [-v for v in g.tolist()]
     if not all(math.isfinite(v) for v in (*b, *(e for row in M for e in row))):
         return None
     if len(b) == 1:

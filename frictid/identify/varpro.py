@@ -210,6 +210,11 @@ class Projection:
     def resid(self, theta):
         return self._eval(theta)[1]
 
+    def _jac_log(self, z):
+        """The Jacobian in the logarithms ``z`` of the shape values."""
+        t = np.exp(z)
+        return self.jac(t) * t
+
     def jac(self, theta):
         return self._eval(theta)[2]
 
@@ -260,8 +265,7 @@ class Projection:
             t0 = np.clip(np.asarray(theta0, dtype=float), lo + margin, hi - margin)
             # in the logarithms of the shape values (speeds and exponents are positive and act by ratio: a
             # step of one is a factor e, and a flat direction cannot throw a speed onto its bound in one step)
-            z, status, message = levenberg_marquardt(lambda z: self.resid(np.exp(z)),
-                                                     lambda z: self.jac(np.exp(z)) * np.exp(z), np.log(t0),
+            z, status, message = levenberg_marquardt(lambda z: self.resid(np.exp(z)), self._jac_log, np.log(t0),
                                                      np.log(lo), np.log(hi), np.ones(len(self.nl)), budget,
                                                      RADIUS)
             theta = np.clip(np.exp(z), lo, hi)
@@ -486,10 +490,11 @@ def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: floa
     n = x.shape[0]
     lo_, hi_, sc_ = (np.broadcast_to(np.asarray(v, dtype=float), (n,)).tolist() for v in (lo, hi, scale))
     xl = x.tolist()
+    unit = all(v == 1.0 for v in sc_)  # (J * 1 is J: the product is skipped)
     r = resid(x)
     cost, nfev, lam = 0.5 * float(r @ r), 1, None
     while True:
-        J = jac(x) * scale
+        J = jac(x) if unit else jac(x) * scale
         g = (J.T @ r).tolist()
         held = [(xi <= a and gi > 0) or (xi >= b and gi < 0) for xi, gi, a, b in zip(xl, g, lo_, hi_)]
         gf = [0.0 if h else gi for gi, h in zip(g, held)]
