@@ -27,6 +27,27 @@ ALL_COLUMNS = ("J", "c0", "c1", "c2", "c3", "Px", "Py", "Mx", "My", "offset")
 CHUNK = 262_144
 
 
+#: The longest dot product, and the size (rows x columns) a matrix-vector product must stay below, that
+#: OpenBLAS computes on the calling thread (measured: 10 000 and 460 800). Past them it wakes its worker
+#: threads, which then wait for more work for tens of milliseconds, counted as the process's CPU time (about
+#: 45 ms a call on this project's 2-core machines, for a product of microseconds). The normal equations'
+#: ``X^T y`` and ``y^T y`` of a long segment are therefore summed over blocks within these sizes
+#: (:func:`_blocked`): a product within them is the same call as before, a longer one is summed in one order
+#: whatever the machine's core count (a threaded one's rounding depended on it).
+DOT_BLOCK = 10_000
+GEMV_BLOCK = 460_800
+
+
+def _blocked(product, n: int, block: int):
+    """``product(0, n)``, or for ``n`` above ``block`` the sum of ``product(a, b)`` over consecutive blocks."""
+    if n <= block:
+        return product(0, n)
+    out = product(0, block)
+    for a in range(block, n, block):
+        out = out + product(a, min(a + block, n))
+    return out
+
+
 def column(name: str, q, w, a, payload, axis: str = "rotary", trig=None) -> np.ndarray:
     """One regressor evaluated on a chunk: q [q], w [q/s], a [q/s^2], payload [kg]; ``trig``: (cos q, sin q)
     of the same samples when the caller has them (the gravity columns are then taken, not computed)."""
@@ -96,8 +117,8 @@ class NormalEquations:
 
     def add(self, X: np.ndarray, y: np.ndarray) -> None:
         self.XtX += X.T @ X
-        self.Xty += X.T @ y
-        self.yty += float(y @ y)
+        self.Xty += _blocked(lambda a, b: X[a:b].T @ y[a:b], y.shape[0], (GEMV_BLOCK - 1) // max(X.shape[1], 1))
+        self.yty += float(_blocked(lambda a, b: y[a:b] @ y[a:b], y.shape[0], DOT_BLOCK))
         self.n += int(y.shape[0])
 
     def __add__(self, other: "NormalEquations") -> "NormalEquations":
