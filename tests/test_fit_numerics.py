@@ -153,3 +153,22 @@ def test_small_least_squares_reports_failures_as_scipy():
         least_squares(lambda p: np.exp(-p[0] * t) - y, [3.0], bounds=([0.0], [2.5]))
     out = least_squares(lambda p: np.exp(-p[0] * t) - y, [9.0], max_nfev=2)
     assert out.status == 0 and not out.success and out.nfev <= 2
+
+
+def test_normal_equations_sum_long_products_in_blocks():
+    """NormalEquations.add: X^T y and y^T y of a segment longer than one block (regression.DOT_BLOCK, GEMV_BLOCK:
+    where OpenBLAS would wake its threads) are summed over blocks: the same sums to rounding, and a segment
+    within a block gives the very numbers of the plain products."""
+    from frictid.identify import regression as rg
+
+    rng = np.random.default_rng(41)
+    for n in (9_000, 25_000, 70_001):
+        X, y = rng.normal(size=(n, 7)), rng.normal(size=n)
+        ne = rg.NormalEquations(7)
+        ne.add(X, y)
+        assert ne.n == n
+        np.testing.assert_allclose(ne.Xty, X.T @ y, rtol=1e-11, atol=1e-9)
+        assert ne.yty == pytest.approx(float(y @ y), rel=1e-12)
+        if n <= rg.DOT_BLOCK:
+            assert ne.yty == float(y @ y) and ne.Xty.tobytes() == (X.T @ y).tobytes()
+    assert rg._blocked(lambda a, b: b - a, 25, 10) == 25

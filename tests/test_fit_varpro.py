@@ -330,3 +330,53 @@ def test_bvls_is_scipys_bvls_step_for_step():
         np.testing.assert_array_equal(x, ref.x)
         np.testing.assert_array_equal(on_bound, ref.active_mask)
     assert cut > 100
+
+
+def test_compiled_bvls_is_bvls_to_the_last_bit():
+    """Two implementations agreeing: the compiled bounded solve of the projection (varpro._bvls_nb) against
+    varpro.bvls on random bounded problems of the maps' sizes: the same solution and active set, bit for bit."""
+    rng = np.random.default_rng(11)
+    cut = 0
+    for _ in range(200):
+        n, p = int(rng.integers(7, 41)), int(rng.integers(2, 6))
+        A = np.asfortranarray(rng.standard_normal((n, p)) * rng.uniform(0.1, 10, p))
+        y = rng.standard_normal(n)
+        x_lsq = np.linalg.lstsq(A, y, rcond=-1)[0]
+        lo = x_lsq - rng.uniform(-0.5, 1.0, p) * np.abs(x_lsq)
+        hi = np.maximum(lo + 1e-3, x_lsq + rng.uniform(-0.5, 1.0, p) * np.abs(x_lsq))
+        x, on_bound = vp.bvls(A, y, x_lsq, lo, hi)
+        xc, on_c = vp._bvls_nb(A, y, x_lsq, lo, hi, 1e-10)
+        cut += int(np.any((x_lsq < lo) | (x_lsq > hi)))
+        assert x.tobytes() == xc.tobytes() and on_bound.tobytes() == on_c.tobytes()
+    assert cut > 100
+
+
+@pytest.mark.parametrize("base", ["stribeck", "stribeck_2exp"])
+def test_compiled_projection_is_numpys_to_the_last_bit(base):
+    """The compiled evaluation of the reduced problem (varpro._project_nb: SVD, linear parameters, bounded
+    solve, residual, Kaufman's Jacobian) against the same on numpy's calls (Projection._eval_numpy), at
+    random shapes of random curves, some levels held, many solutions at a bound: equal to the last bit."""
+    rng = np.random.default_rng(5 if base == "stribeck" else 6)
+    names = [p.name for p in sm.STATIC_MAPS[base].table]
+    shapes, held_ok = sm.SEPARABLE[base][1], sm.SEPARABLE[base][0]
+    bounded = 0
+    for k in range(60):
+        n = int(rng.integers(7, 30))
+        w = np.sort(rng.uniform(0.05, 3.0, n)) * rng.choice([-1.0, 1.0], n)
+        F = np.sign(w) * (1 + 0.5 * np.exp(-np.abs(w) / 0.3)) + 0.2 * w + 0.05 * rng.standard_normal(n)
+        fixed = {held_ok[int(rng.integers(len(held_ok)))]: 0.1} if k % 3 == 0 else {}
+        if base == "stribeck" and k % 4 == 1:
+            fixed["delta"] = 2.0
+        pb, _ = _branch(base, w, F, F_se=0.01 + 0.05 * rng.random(n), fixed=fixed)
+        pr = vp.Projection(pb)
+        for _ in range(5):
+            theta = np.exp(rng.uniform(np.log(pb.lo_f[pr.nl]), np.log(pb.hi_f[pr.nl])))
+            A, y, dA = pr.regressors(theta)
+            got = pr._projected(A, y, dA)
+            want = pr._eval_numpy(A, y, dA)
+            assert got is not None
+            for g, e in zip(got, want):
+                assert g.shape == e.shape and g.tobytes() == e.tobytes()
+            bounded += int(any(b in (lo, hi) for b, lo, hi in zip(want[0], pr.lo, pr.hi)))
+        assert all(nm in names for nm in fixed) and all(s in names for s in shapes)
+    assert bounded > 20

@@ -340,17 +340,28 @@ def _accumulate(p: Prep, pi, ranges, seg_ids, names, known_coef, min_speed, axis
     speed floor: a level of their own is immune to a map that misses the Stribeck drop)."""
     own = [k for k, si in enumerate(seg_ids) if (pi, si) in within] if "offset" in names else []
     args = (names, p.log.q, p.w, p.a, p.log.tau, p.log.channels.get("payload"), known_coef)
+    trig = _trig(p, names, known_coef)
     rest = [k for k in range(len(ranges)) if k not in set(own)]
     out = [None] * len(ranges)
     for k, ne in zip(rest, rg.accumulate([ranges[k] for k in rest], *args, min_speed, axis, friction=friction,
-                                         smooth=smooth, max_speed=max_speed)):
+                                         smooth=smooth, max_speed=max_speed, trig=trig)):
         out[k] = ne
     j = list(names).index("offset") if own else 0
     for k in own:
         ne, = rg.accumulate([ranges[k]], *args, within[(pi, seg_ids[k])], axis, friction=friction, smooth=smooth,
-                            max_speed=max_speed)
+                            max_speed=max_speed, trig=trig)
         out[k] = ne.within(j)
     return out
+
+
+def _trig(p: Prep, names, known) -> tuple | None:
+    """The prep's cos q and sin q (:meth:`.prepare.Prep.trig`, computed once) when a gravity or payload column
+    is among ``names`` or the known terms, else None (the regression then computes nothing of q)."""
+    return p.trig() if any(n in GRAVITY_COLUMNS for n in (*names, *(known or ()))) else None
+
+
+#: The regressors that are functions of the angle q.
+GRAVITY_COLUMNS = ("Px", "Py", "Mx", "My")
 
 
 def regress(preps: list[Prep], names, known_coef, min_speed, axis, friction=None, within=None):
@@ -378,7 +389,7 @@ def regress(preps: list[Prep], names, known_coef, min_speed, axis, friction=None
         ranges = [(s.i0, s.i1) for s in p.segments if s.kind not in excl] or [(0, p.log.n)]
         rho = max(rho, rg.residual_autocorrelation(fit_, ranges, p.log.q, p.w, p.a, p.log.tau,
                                                    p.log.channels.get("payload"), known_coef, min_speed, axis,
-                                                   friction=friction))
+                                                   friction=friction, trig=_trig(p, names, known_coef)))
     fit_ = rg.solve(total, names, rho=rho)
     fit_.cov = rg.robust_stderr(fit_.cov, rg.cluster_covariance(fit_, [ne for *_, ne in seg_ne]))
     fit_.bandwidth = _bandwidth_check(preps, fit_, names, known_coef, min_speed, axis, friction, excl, within,
@@ -612,8 +623,8 @@ def plateau_shifts(jd: JointData, fit_: rg.LinearFit, n_plat: int) -> list[np.nd
     Xbar = []
     for p in jd.preps:
         cols = [plateau_points(p.log.t, p.w, np.nan_to_num(rg.column(
-            n, p.log.q, p.w, p.a, p.log.channels.get("payload"), jd.axis)) * np.isfinite(p.F), p.segments).F
-            for n in names]
+            n, p.log.q, p.w, p.a, p.log.channels.get("payload"), jd.axis, _trig(p, names, {}))) * np.isfinite(p.F),
+            p.segments).F for n in names]
         if len(cols[0]):
             Xbar.append(np.column_stack(cols))
     Xbar = np.concatenate(Xbar) if Xbar else np.zeros((0, len(names)))

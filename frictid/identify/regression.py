@@ -27,8 +27,32 @@ ALL_COLUMNS = ("J", "c0", "c1", "c2", "c3", "Px", "Py", "Mx", "My", "offset")
 CHUNK = 262_144
 
 
-def column(name: str, q, w, a, payload, axis: str = "rotary") -> np.ndarray:
-    """One regressor evaluated on a chunk: q [q], w [q/s], a [q/s^2], payload [kg]."""
+#: The longest dot product, and the size (rows x columns) a matrix-vector product must stay below, that
+#: OpenBLAS computes on the calling thread (measured: 10 000 and 460 800). Past them it wakes its worker
+#: threads, which then wait for more work for tens of milliseconds, counted as the process's CPU time (about
+#: 45 ms a call on this project's 2-core machines, for a product of microseconds). The normal equations'
+#: ``X^T y`` and ``y^T y`` of a long segment are therefore summed over blocks within these sizes
+#: (:func:`_blocked`): a product within them is the same call as before, a longer one is summed in one order
+#: whatever the machine's core count (a threaded one's rounding depended on it).
+DOT_BLOCK = 10_000
+GEMV_BLOCK = 460_800
+
+
+def _blocked(product, n: int, block: int):
+    """``product(0, n)``, or for ``n`` above ``block`` the sum of ``product(a, b)`` over consecutive blocks."""
+    if n <= block:
+        return product(0, n)
+    out = product(0, block)
+    for a in range(block, n, block):
+        out = out + product(a, min(a + block, n))
+    return out
+
+
+def column(name: str, q, w, a, payload, axis: str = "rotary", trig=None) -> np.ndarray:
+    """One regressor evaluated on a chunk: q [q], w [q/s], a [q/s^2], payload [kg]; ``trig``: (cos q, sin q)
+    of the same samples when the caller has them (the gravity columns are then taken, not computed)."""
+    if trig is not None and name in ("Px", "Py", "Mx", "My"):
+        return _trig_column(name, trig, payload, axis)
     if name == "J":
         return a
     if name == "c0":
@@ -52,6 +76,28 @@ def column(name: str, q, w, a, payload, axis: str = "rotary") -> np.ndarray:
     raise KeyError(name)
 
 
+def _trig_column(name: str, trig, payload, axis: str) -> np.ndarray:
+    """A gravity column from cos q and sin q given (``np.cos`` and ``np.sin`` are elementwise: the same
+    numbers as :func:`column` computes from q)."""
+    cos_q, sin_q = trig
+    if name == "Px":
+        return cos_q
+    if name == "Py":
+        return sin_q
+    if name == "Mx":
+        return payload * (cos_q if axis == "rotary" else 1.0)
+    return payload * sin_q
+
+
+def _trig_at(trig, a0: int, a1: int, m=None):
+    """(cos q, sin q) of samples a0..a1 (and of the mask ``m`` within them), or None."""
+    if trig is None:
+        return None
+    if m is None:
+        return trig[0][a0:a1], trig[1][a0:a1]
+    return trig[0][a0:a1][m], trig[1][a0:a1][m]
+
+
 @dataclass
 class NormalEquations:
     """Sufficient statistics of a linear least-squares problem: X^T X, X^T y, y^T y and n."""
@@ -71,8 +117,8 @@ class NormalEquations:
 
     def add(self, X: np.ndarray, y: np.ndarray) -> None:
         self.XtX += X.T @ X
-        self.Xty += X.T @ y
-        self.yty += float(y @ y)
+        self.Xty += _blocked(lambda a, b: X[a:b].T @ y[a:b], y.shape[0], (GEMV_BLOCK - 1) // max(X.shape[1], 1))
+        self.yty += float(_blocked(lambda a, b: y[a:b] @ y[a:b], y.shape[0], DOT_BLOCK))
         self.n += int(y.shape[0])
 
     def __add__(self, other: "NormalEquations") -> "NormalEquations":
@@ -150,7 +196,6 @@ class LinearFit:
 
 def solve(ne: NormalEquations, names: tuple[str, ...], rcond: float = 1e-10, rho: float = 0.0) -> LinearFit:
     """Least-squares solution of the normal equations with column scaling and a rank check."""
-    p = ne.p
     d = np.sqrt(np.maximum(np.diag(ne.XtX), 0.0))
     d[d == 0] = 1.0
     A = ne.XtX / np.outer(d, d)
@@ -230,7 +275,7 @@ def sample_mask(w, a, min_speed: float) -> np.ndarray:
 
 def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = None, min_speed: float = 0.0,
                axis: str = "rotary", chunk: int = CHUNK, friction=None, smooth: int = 0,
-               max_speed: float = math.inf) -> list[NormalEquations]:
+               max_speed: float = math.inf, trig=None) -> list[NormalEquations]:
     """Normal equations of ``tau - known terms = X(names) b``, one set per index range (i0, i1).
 
     q [q] (may be None if no gravity column is asked), w [q/s], a [q/s^2], tau [F], payload [kg] or None.
@@ -240,7 +285,8 @@ def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = N
     average of ``smooth`` samples, computed per sample and then averaged: the model is linear in its
     coefficients, so the filtered equations hold exactly: Gautier's parallel filtering) before the
     moving samples are taken (:func:`bandwidth_check`). max_speed : only samples with |w| at most this
-    enter (not with ``smooth``).
+    enter (not with ``smooth``). trig : (cos q, sin q) of every sample, when the caller has them (not
+    computed again for each call and chunk).
     """
     known = dict(known or {})
     out = []
@@ -248,13 +294,15 @@ def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = N
         ne = NormalEquations(len(names))
         for a0, a1 in _chunks(i0, i1, chunk):
             if smooth > 1:
-                _add_filtered(ne, names, q, w, a, tau, payload, known, min_speed, axis, friction, a0, a1, smooth)
+                _add_filtered(ne, names, q, w, a, tau, payload, known, min_speed, axis, friction, a0, a1, smooth,
+                              trig)
                 continue
             ww = w[a0:a1]
             aa = a[a0:a1]
             m = sample_mask(ww, aa, min_speed) & np.isfinite(tau[a0:a1])
-            if max_speed < math.inf:
-                m &= np.abs(np.nan_to_num(ww)) <= max_speed
+            if max_speed < math.inf:  # (non-finite speeds are out of m already)
+                with np.errstate(invalid="ignore"):
+                    m &= np.abs(ww) <= max_speed
             if q is not None:
                 m &= np.isfinite(q[a0:a1])
             if not m.any():
@@ -262,21 +310,22 @@ def accumulate(ranges, names, q, w, a, tau, payload=None, known: dict | None = N
             ww, aa = ww[m], aa[m]
             qq = q[a0:a1][m] if q is not None else None
             pl = payload[a0:a1][m] if payload is not None else None
+            tr = _trig_at(trig, a0, a1, m)
             y = tau[a0:a1][m].astype(float)
             for nm, val in known.items():
-                y = y - val * column(nm, qq, ww, aa, pl, axis)
+                y = y - val * column(nm, qq, ww, aa, pl, axis, tr)
             if friction is not None:
                 y = y - friction(ww)
             X = np.empty((ww.shape[0], len(names)))
             for j, nm in enumerate(names):
-                X[:, j] = column(nm, qq, ww, aa, pl, axis)
+                X[:, j] = column(nm, qq, ww, aa, pl, axis, tr)
             ne.add(X, y)
         out.append(ne)
     return out
 
 
 def _add_filtered(ne: NormalEquations, names, q, w, a, tau, payload, known, min_speed, axis, friction,
-                  a0: int, a1: int, smooth: int) -> None:
+                  a0: int, a1: int, smooth: int, trig=None) -> None:
     """Add the parallel-filtered equations of samples a0..a1 to ``ne``: every column and the torque are
     evaluated per sample, averaged over ``smooth`` samples, and the samples whose whole window is finite
     and moving enter."""
@@ -294,14 +343,17 @@ def _add_filtered(ne: NormalEquations, names, q, w, a, tau, payload, known, min_
     ww, aa = np.where(fin, ww, 0.0), np.where(fin, aa, 0.0)
     qq = np.where(fin, q[a0:a1], 0.0) if q is not None else None
     pl = payload[a0:a1] if payload is not None else None
+    # cos 0 = 1 and sin 0 = 0 exactly: the columns of q set to 0 outside fin
+    tr = None if trig is None else (np.where(fin, trig[0][a0:a1], 1.0), np.where(fin, trig[1][a0:a1], 0.0))
     y = np.where(fin, tau[a0:a1], 0.0).astype(float)
     for nm, val in known.items():
-        y = y - val * column(nm, qq, ww, aa, pl, axis)
+        y = y - val * column(nm, qq, ww, aa, pl, axis, tr)
     if friction is not None:
         y = y - friction(ww)
-    X = np.empty((ww.shape[0], len(names) + 2))
+    # in Fortran order: the filter runs along contiguous columns (its output, and so the sums below, as before)
+    X = np.empty((ww.shape[0], len(names) + 2), order="F")
     for j, nm in enumerate(names):
-        X[:, j] = column(nm, qq, ww, aa, pl, axis)
+        X[:, j] = column(nm, qq, ww, aa, pl, axis, tr)
     X[:, -2] = y
     X[:, -1] = fin
     X = uniform_filter1d(X, smooth, axis=0, mode="nearest")
@@ -312,8 +364,9 @@ def _add_filtered(ne: NormalEquations, names, q, w, a, tau, payload, known, min_
 
 def residual_autocorrelation(fit: LinearFit, ranges, q, w, a, tau, payload=None, known: dict | None = None,
                              min_speed: float = 0.0, axis: str = "rotary", chunk: int = CHUNK,
-                             friction=None) -> float:
-    """Lag-1 autocorrelation of the residuals of ``fit`` over consecutive moving samples in the ranges."""
+                             friction=None, trig=None) -> float:
+    """Lag-1 autocorrelation of the residuals of ``fit`` over consecutive moving samples in the ranges
+    (``trig`` as in :func:`accumulate`)."""
     known = dict(known or {})
     s0 = s1 = 0.0
     for i0, i1 in ranges:
@@ -325,14 +378,15 @@ def residual_autocorrelation(fit: LinearFit, ranges, q, w, a, tau, payload=None,
                 m &= np.isfinite(q[a0:a1])
             qq = q[a0:a1] if q is not None else None
             pl = payload[a0:a1] if payload is not None else None
+            tr = _trig_at(trig, a0, a1)
             y = tau[a0:a1].astype(float)
             for nm, val in known.items():
-                y = y - val * column(nm, qq, ww, aa, pl, axis)
+                y = y - val * column(nm, qq, ww, aa, pl, axis, tr)
             if friction is not None:
                 y = y - np.nan_to_num(friction(np.nan_to_num(ww)))
             pred = np.zeros_like(y)
             for j, nm in enumerate(fit.names):
-                pred += fit.coef[j] * column(nm, qq, ww, aa, pl, axis)
+                pred += fit.coef[j] * column(nm, qq, ww, aa, pl, axis, tr)
             r = np.where(m, y - pred, np.nan)
             if prev is not None:
                 r = np.concatenate([[prev], r])

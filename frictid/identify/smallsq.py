@@ -136,12 +136,51 @@ def damped_step(JtJ, J, r, g, damp) -> np.ndarray:
     """The Levenberg-Marquardt step: (J^T J + diag(damp)) dz = -g by the normal equations (``JtJ``, computed
     by the caller: by ``einsum`` here, over long residual vectors; by ``@`` in :mod:`.varpro`, on a few
     points), or, where their matrix is singular in floating point (nearly parallel columns: the normal
-    equations square the conditioning), as the least-squares solution of [J; sqrt(damp)] dz = [-r; 0]."""
+    equations square the conditioning), as the least-squares solution of [J; sqrt(damp)] dz = [-r; 0].
+    One and two parameters (every call of :mod:`.varpro` and of the LuGre fits) are solved in Python floats
+    by LAPACK's own steps (:func:`_solve_small`: the same numbers as ``np.linalg.solve``, without its call)."""
+    if g.shape[0] <= 2:
+        dz = _solve_small(JtJ, damp, g)
+        if dz is not None:
+            return dz
     try:
         return np.linalg.solve(JtJ + np.diag(damp), -g)
     except np.linalg.LinAlgError:
         Jd = np.vstack([J, np.diag(np.sqrt(damp))])
         return np.linalg.lstsq(Jd, np.concatenate([-r, np.zeros(J.shape[1])]), rcond=None)[0]
+
+
+def _solve_small(JtJ, damp, g) -> np.ndarray | None:
+    """(JtJ + diag(damp)) dz = -g for one or two unknowns as LAPACK's ``dgesv`` (OpenBLAS) computes it: LU with
+    partial pivoting (a row swap only when the second row's pivot is larger), the multiplier by the pivot's
+    reciprocal, back substitution by division. None where that meets a zero or non-finite pivot or result
+    (``np.linalg.solve`` then decides). Checked against ``np.linalg.solve`` bit for bit on random damped
+    normal equations (tests/test_smallsq_solve.py)."""
+    M = JtJ.tolist()  # + diag(damp), as numpy adds it (0.0 off the diagonal: -0.0 + 0.0 is 0.0)
+    for i, d in enumerate(damp.tolist()):
+        M[i] = [e + (d if j == i else 0.0) for j, e in enumerate(M[i])]
+    b = [-v for v in g.tolist()]
+    if not all(math.isfinite(v) for v in (*b, *(e for row in M for e in row))):
+        return None
+    if len(b) == 1:
+        a = M[0][0]
+        x = [b[0] / a] if a != 0.0 else None
+    else:
+        (a11, a12), (a21, a22) = M
+        b1, b2 = b
+        if abs(a21) > abs(a11):
+            a11, a12, a21, a22, b1, b2 = a21, a22, a11, a12, b2, b1
+        if a11 == 0.0:
+            return None
+        m = a21 * (1.0 / a11)
+        u22 = a22 - m * a12
+        if u22 == 0.0:
+            return None
+        x2 = (b2 - m * b1) / u22
+        x = [(b1 - a12 * x2) / a11, x2]
+    if x is None or not all(math.isfinite(v) for v in x):
+        return None
+    return np.array(x)
 
 
 def _forward_differences(fun, x, r, lo, hi) -> np.ndarray:

@@ -17,9 +17,11 @@ standard errors still come from the full problem's Jacobian at the optimum (:fun
 from __future__ import annotations
 
 import heapq
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from frictid.models import static as sm
 from .smallsq import damped_step
@@ -100,6 +102,10 @@ class Projection:
         self._shape_rows = np.flatnonzero(self.free_shape)
         self._y_free = pb.F * pb.wts if self._held_cols.size == 0 else None
         self._wt = pb.wts[:, None]
+        # every linear / shape column free (the usual case): the columns as they come, no index copy
+        self._all_lin = bool(self.free_lin.all())
+        self._all_shapes = bool(self.free_shape.all())
+        self._lo_l, self._hi_l = self.lo.tolist(), self.hi.tolist()
 
     def _x(self, theta, b):
         xf = np.empty(len(self.pb.free))
@@ -124,10 +130,12 @@ class Projection:
         pb = self.pb
         cols, dcols = self.columns(pb.w, **self._shapes(theta))
         wt = self._wt
-        A = cols[..., self._lin_cols] * wt
+        # (the index copy is in Fortran order, and the products and sums below are of that layout: a single
+        # shape's columns are multiplied into it directly)
+        A = np.multiply(cols, wt, order="F") if self._all_lin and cols.ndim == 2 else cols[..., self._lin_cols] * wt
         y = self._y_free if self._y_free is not None else \
             (pb.F - cols[..., self._held_cols] @ self._b_held_part) * pb.wts
-        return A, y, dcols[..., self._shape_rows, :, :] * wt
+        return A, y, (dcols if self._all_shapes else dcols[..., self._shape_rows, :, :]) * wt
 
     def linear(self, A, y):
         """The linear parameters' weighted least-squares values within their bounds, and the orthonormal
@@ -144,7 +152,7 @@ class Projection:
         if not ok.all():  # (Vt[ok] would be a C-ordered copy of the C-ordered Vt: the same products)
             Vt, sv = Vt[ok], sv[ok]
         b = (Vt.T @ ((U.T @ y) / sv)) / norms
-        if (b >= self.lo).all() and (b <= self.hi).all():
+        if all(lo <= v <= hi for v, lo, hi in zip(b.tolist(), self._lo_l, self._hi_l)):
             return b, U
         x, on_bound = bvls(An, y, b * norms, self.lo * norms, self.hi * norms)
         b = np.clip(x / norms, self.lo, self.hi)
@@ -166,18 +174,46 @@ class Projection:
         if self._memo[0] == key:
             return self._memo[1]
         A, y, dA = self.regressors(theta)
-        b, U = self.linear(A, y)
-        r = A @ b - y
-        b_all = self.b_held.copy()
-        b_all[self._lin_cols] = b
-        Jn = (dA @ b_all).T  # (n, free shapes): d model / d shape at the projected linear parameters
-        Jn = Jn - U @ (U.T @ Jn)
-        out = (b, r, Jn)
+        out = self._projected(A, y, dA)
+        if out is None:
+            out = self._eval_numpy(A, y, dA)
         self._memo = (key, out)
         return out
 
+    def _eval_numpy(self, A, y, dA):
+        """:meth:`_eval` on numpy's calls (the reference of :func:`_project_nb`)."""
+        b, U = self.linear(A, y)
+        r = A @ b - y
+        if self._all_lin:
+            b_all = b
+        else:
+            b_all = self.b_held.copy()
+            b_all[self._lin_cols] = b
+        Jn = (dA @ b_all).T  # (n, free shapes): d model / d shape at the projected linear parameters
+        Jn = Jn - U @ (U.T @ Jn)
+        return b, r, Jn
+
+    def _projected(self, A, y, dA):
+        """:meth:`_eval`'s numbers in one compiled pass (:func:`_project_nb`), or None where numpy's path
+        decides (numbers that are not finite, a layout the pass does not take)."""
+        if A.shape[1] == 0 or not A.flags.f_contiguous or not dA.flags.c_contiguous:
+            return None
+        norms = np.sqrt(np.einsum("ij,ij->j", A, A))
+        if not norms.all():
+            norms[norms == 0] = 1.0
+        try:
+            return _project_nb(A, np.ascontiguousarray(y), dA, norms, self.b_held, self._lin_cols, self._all_lin,
+                               self.lo, self.hi)
+        except (np.linalg.LinAlgError, ValueError):  # not finite: numpy's path decides
+            return None
+
     def resid(self, theta):
         return self._eval(theta)[1]
+
+    def _jac_log(self, z):
+        """The Jacobian in the logarithms ``z`` of the shape values."""
+        t = np.exp(z)
+        return self.jac(t) * t
 
     def jac(self, theta):
         return self._eval(theta)[2]
@@ -229,8 +265,7 @@ class Projection:
             t0 = np.clip(np.asarray(theta0, dtype=float), lo + margin, hi - margin)
             # in the logarithms of the shape values (speeds and exponents are positive and act by ratio: a
             # step of one is a factor e, and a flat direction cannot throw a speed onto its bound in one step)
-            z, status, message = levenberg_marquardt(lambda z: self.resid(np.exp(z)),
-                                                     lambda z: self.jac(np.exp(z)) * np.exp(z), np.log(t0),
+            z, status, message = levenberg_marquardt(lambda z: self.resid(np.exp(z)), self._jac_log, np.log(t0),
                                                      np.log(lo), np.log(hi), np.ones(len(self.nl)), budget,
                                                      RADIUS)
             theta = np.clip(np.exp(z), lo, hi)
@@ -243,6 +278,194 @@ class Projection:
         fun = pb.resid(xf)
         return Solution(xf, fun, 0.5 * float(fun @ fun), pb.jac(xf), _active(xf, pb.lo_f, pb.hi_f),
                         status, status > 0, message)
+
+
+@njit(cache=True, error_model="numpy")
+def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
+    """:meth:`Projection.linear` and :meth:`Projection._eval` for one shape, compiled: the regressors ``A``
+    (Fortran order) normalised by ``norms``, their SVD (LAPACK's ``gesdd``, as numpy's), the rank cut, the
+    linear parameters, and when they are within ``lo``..``hi`` the residual and Kaufman's Jacobian. The
+    products are BLAS calls on arrays laid out as numpy's (``U`` and ``Vt`` as its SVD returns them, the
+    index copies in Fortran order, a one-column Jacobian by matrix-vector products as numpy's ``matmul``
+    takes it), so the numbers are numpy's to the last bit; a plain solution outside the bounds is bounded by
+    :func:`_bvls_nb` and projected as :meth:`Projection.linear` does. Returns (b, r, Jn)."""
+    n, L = A.shape
+    An = np.empty((L, n)).T
+    for j in range(L):
+        for i in range(n):
+            An[i, j] = A[i, j] / norms[j]
+    U, sv, Vt = np.linalg.svd(An, full_matrices=False)
+    cut = sv[0] * float(max(n, L)) * EPS
+    keep = np.flatnonzero(sv > cut)
+    k = keep.size
+    Uk = np.empty((k, n)).T
+    for c in range(k):
+        Uk[:, c] = U[:, keep[c]]
+    Vk = np.empty((k, L))
+    svk = np.empty(k)
+    for c in range(k):
+        Vk[c, :] = Vt[keep[c], :]
+        svk[c] = sv[keep[c]]
+    t = _mv(Uk.T, y) / svk
+    b = _mv(Vk.T, t) / norms
+    if not _within(b, lo, hi):  # the bounded solve (Projection.linear's other branch)
+        x, on_bound = _bvls_nb(An, y, b * norms, lo * norms, hi * norms, 1e-10)
+        b = _clip_nb(x / norms, lo, hi)
+        inside = np.flatnonzero((on_bound == 0) & (b > lo) & (b < hi))
+        for j in range(L):
+            if on_bound[j] != 0:
+                b[j] = lo[j] if on_bound[j] < 0 else hi[j]
+        Ai = np.empty((inside.size, n)).T
+        for c in range(inside.size):
+            Ai[:, c] = A[:, inside[c]]
+        Uk = np.empty((0, n)).T  # (Fortran order, as every Uk here: BLAS sees one layout)
+        if inside.size:
+            U, sv, _ = np.linalg.svd(Ai, full_matrices=False)
+            keep = np.flatnonzero(sv > sv[0] * float(max(n, L)) * EPS)
+            Uk = np.empty((keep.size, n)).T
+            for c in range(keep.size):
+                Uk[:, c] = U[:, keep[c]]
+    r = _mv(A, b) - y
+    if all_lin:
+        b_all = b
+    else:
+        b_all = b_held.copy()
+        for j in range(L):
+            b_all[lin_cols[j]] = b[j]
+    S = dA.shape[0]
+    JnT = np.empty((S, n))
+    for s_ in range(S):
+        JnT[s_, :] = _mv(dA[s_], b_all)
+    Jn = JnT.T
+    out = np.empty((n, S))
+    if Uk.shape[1] == 0:  # nothing to project off (every level at a bound)
+        for i in range(n):
+            for s_ in range(S):
+                out[i, s_] = Jn[i, s_]
+    elif S == 1:
+        P1 = _mv(Uk, _mv(Uk.T, JnT[0]))
+        for i in range(n):
+            out[i, 0] = Jn[i, 0] - P1[i]
+    else:
+        P = np.dot(Uk, np.dot(Uk.T, Jn))
+        for i in range(n):
+            for s_ in range(S):
+                out[i, s_] = Jn[i, s_] - P[i, s_]
+    return b, r, out
+
+
+@njit(cache=True)
+def _mv(M, v):
+    """``M @ v`` as numpy's ``matmul`` computes it: a one-row matrix by a dot product, else by BLAS's
+    matrix-vector product."""
+    if M.shape[0] == 1:
+        out = np.empty(1)
+        out[0] = np.dot(np.ascontiguousarray(M[0]), v)  # (a copy only of a one-element row here)
+        return out
+    return np.dot(M, v)
+
+
+@njit(cache=True)
+def _within(b, lo, hi) -> bool:
+    for j in range(b.shape[0]):
+        if not (lo[j] <= b[j] <= hi[j]):
+            return False
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def _bvls_nb(A, y, x_lsq, lo, hi, tol):
+    """:func:`bvls` compiled, step for step (the same LAPACK least squares, ``gelsd`` with numpy's
+    ``rcond``, the same BLAS products on the same layouts): the same numbers."""
+    n, L = A.shape
+    x = x_lsq.copy()
+    on_bound = np.zeros(L)
+    for j in range(L):
+        on_bound[j] = -1.0 if x[j] <= lo[j] else (1.0 if x[j] >= hi[j] else 0.0)
+    x = _clip_nb(x, lo, hi)
+    free = np.flatnonzero(on_bound == 0)
+    while free.size:  # initialisation: free variables whose solution is feasible
+        z = _lstsq_free(A, y, x, on_bound, free)
+        any_out = False
+        keep = np.ones(free.size, dtype=np.bool_)
+        for c in range(free.size):
+            j = free[c]
+            if z[c] < lo[j]:
+                x[j], on_bound[j], keep[c], any_out = lo[j], -1.0, False, True
+            elif z[c] > hi[j]:
+                x[j], on_bound[j], keep[c], any_out = hi[j], 1.0, False, True
+            else:
+                x[j] = z[c]
+        if not any_out:
+            break
+        free = free[keep]
+    r = _mv(A, x) - y
+    cost, g = 0.5 * np.dot(r, r), _mv(A.T, r)
+    for _ in range(L):  # loop A: free the bound variable whose gradient points most into the box
+        if _kkt_nb(g, on_bound) < tol:
+            break
+        on_bound[np.argmax(g * on_bound)] = 0.0
+        while True:  # loop B: solve on the free set, step back to the first bound crossed
+            free = np.flatnonzero(on_bound == 0)
+            xf = x[free]
+            z = _lstsq_free(A, y, x, on_bound, free)
+            lof, hif = lo[free], hi[free]
+            lbv, ubv = np.flatnonzero(z < lof), np.flatnonzero(z > hif)
+            v = np.concatenate((lbv, ubv))
+            if not v.size:
+                x[free] = z
+                break
+            alphas = np.concatenate((lof[lbv] - xf[lbv], hif[ubv] - xf[ubv])) / (z[v] - xf[v])
+            i = np.argmin(alphas)
+            x[free] = xf * (1 - alphas[i]) + alphas[i] * z
+            on_bound[free[v[i]]] = -1.0 if i < lbv.size else 1.0
+        r = _mv(A, x) - y
+        cost_new = 0.5 * np.dot(r, r)
+        stalled = cost - cost_new < tol * cost
+        cost, g = cost_new, _mv(A.T, r)
+        if stalled:
+            break
+    return x, on_bound
+
+
+@njit(cache=True, error_model="numpy")
+def _lstsq_free(A, y, x, on_bound, free):
+    """The least-squares solution on the free columns with the bound ones' part moved to the right-hand
+    side (numpy's ``lstsq(A[:, free], y - A @ where(on_bound != 0, x, 0), rcond=None)``)."""
+    n = A.shape[0]
+    if free.size == 0:
+        return np.zeros(0)
+    xb = np.where(on_bound != 0, x, 0.0)
+    rhs = y - _mv(A, xb)
+    Af = np.empty((free.size, n)).T
+    for c in range(free.size):
+        Af[:, c] = A[:, free[c]]
+    return np.linalg.lstsq(Af, rhs, EPS * max(n, free.size))[0]
+
+
+@njit(cache=True)
+def _clip_nb(x, lo, hi):
+    """``np.clip(x, lo, hi)`` as numpy computes it (a NaN stays, a tie keeps the bound: ``clip(-0.0, 0.0)``
+    is 0.0, where ``maximum`` would keep -0.0)."""
+    out = np.empty(x.shape[0])
+    for j in range(x.shape[0]):
+        v = x[j]
+        if not np.isnan(v):
+            v = v if v > lo[j] else lo[j]
+        if not np.isnan(v):
+            v = v if v < hi[j] else hi[j]
+        out[j] = v
+    return out
+
+
+@njit(cache=True)
+def _kkt_nb(g, on_bound):
+    m = -np.inf
+    for j in range(g.shape[0]):
+        v = abs(g[j]) if on_bound[j] == 0 else g[j] * on_bound[j]
+        if v > m or v != v:
+            m = v
+    return m
 
 
 def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: float = 1.0
@@ -262,42 +485,65 @@ def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: floa
     step. For two parameters that is enough, and it saves scipy's set-up of each iteration (the problems are
     7-30 points: the arithmetic is microseconds, scipy's loop was 0.3-0.5 ms an iteration)."""
     x = np.clip(np.asarray(x0, dtype=float), lo, hi)
+    # the 1-2 parameters' arithmetic in Python floats (numpy's calls on 2-vectors cost microseconds each; the
+    # same IEEE operations, so the same numbers), the products over the points in numpy
+    n = x.shape[0]
+    lo_, hi_, sc_ = (np.broadcast_to(np.asarray(v, dtype=float), (n,)).tolist() for v in (lo, hi, scale))
+    xl = x.tolist()
+    unit = all(v == 1.0 for v in sc_)  # (J * 1 is J: the product is skipped)
     r = resid(x)
     cost, nfev, lam = 0.5 * float(r @ r), 1, None
     while True:
-        J = jac(x) * scale
-        g = J.T @ r
-        held = ((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0))
-        gf = np.where(held, 0.0, g)
-        if abs(gf).max() <= GTOL:
+        J = jac(x) if unit else jac(x) * scale
+        g = (J.T @ r).tolist()
+        held = [(xi <= a and gi > 0) or (xi >= b and gi < 0) for xi, gi, a, b in zip(xl, g, lo_, hi_)]
+        gf = [0.0 if h else gi for gi, h in zip(g, held)]
+        if _absmax(gf) <= GTOL:
             return x, 1, "gradient below GTOL"
         # Marquardt's diagonal of J^T J, floored (a column the residual does not feel, e.g. an exponent
         # along a drop of no amplitude, would leave the damped system singular)
         d = (J * J).sum(axis=0)
         d = np.maximum(d, 1e-12 * max(float(d.max()), TINY))
         lam = 1e-3 * float(d.max()) if lam is None else lam
-        free = ~held
+        free = [not h for h in held]
+        Jf = J if all(free) else J[:, np.array(free)]  # (J^T J: the same products either way)
+        dl = d.tolist()
+        gfree = np.array([v for v, f in zip(gf, free) if f])
         while True:
             if nfev >= budget:
                 return x, 0, "the evaluation budget is spent"
-            dz = np.zeros(x.shape)
-            Jf = J[:, free]
-            dz[free] = damped_step(Jf.T @ Jf, Jf, r, gf[free], lam * d[free])
-            dz *= min(1.0, radius / max(float(abs(dz).max()), TINY))
-            x_new = np.minimum(np.maximum(x + scale * dz, lo), hi)
+            step = iter(damped_step(Jf.T @ Jf, Jf, r, gfree, np.array([lam * v for v, f in zip(dl, free) if f]))
+                        .tolist())
+            dz = [next(step) if f else 0.0 for f in free]
+            cut = min(1.0, radius / max(_absmax(dz), TINY))
+            dz = [v * cut for v in dz]
+            xl_new = [min(max(xi + si * v, a), b) for xi, si, v, a, b in zip(xl, sc_, dz, lo_, hi_)]
+            x_new = np.array(xl_new)
             r_new = resid(x_new)
             nfev += 1
             c_new = 0.5 * float(r_new @ r_new)
-            if np.isfinite(c_new) and c_new < cost:
+            if math.isfinite(c_new) and c_new < cost:
                 break
-            lam, radius = lam * 4.0, float(abs(dz).max()) / 4.0
-            if radius <= XTOL * (XTOL + float(abs(x / scale).max())):
+            lam, radius = lam * 4.0, _absmax(dz) / 4.0
+            if radius <= XTOL * (XTOL + _absmax([xi / si for xi, si in zip(xl, sc_)])):
                 return x, 3, "step below XTOL"
-        step = float(abs((x_new - x) / scale).max())
-        done = (cost - c_new <= FTOL * cost, step <= XTOL * (XTOL + float(abs(x_new / scale).max())))
-        x, r, cost, lam, radius = x_new, r_new, c_new, lam / 3.0, max(radius, 2.0 * step)
+        step = _absmax([(b - a) / si for a, b, si in zip(xl, xl_new, sc_)])
+        done = (cost - c_new <= FTOL * cost, step <= XTOL * (XTOL + _absmax([b / si for b, si in zip(xl_new, sc_)])))
+        x, xl, r, cost, lam, radius = x_new, xl_new, r_new, c_new, lam / 3.0, max(radius, 2.0 * step)
         if done[0] or done[1]:
             return x, 2 if done[0] else 3, "cost decrease below FTOL" if done[0] else "step below XTOL"
+
+
+def _absmax(v: list) -> float:
+    """The largest |v_i| of a short list, NaN when any is NaN (as numpy's ``abs(v).max()``)."""
+    m = 0.0 if v else math.nan
+    for e in v:
+        a = abs(e)
+        if a != a:
+            return math.nan
+        if a > m:
+            m = a
+    return m
 
 
 def bvls(A, y, x_lsq, lo, hi, tol: float = 1e-10) -> tuple[np.ndarray, np.ndarray]:

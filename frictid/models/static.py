@@ -161,13 +161,14 @@ def stribeck_columns(w, vs, delta):
     e = np.exp(-u)
     with np.errstate(divide="ignore", invalid="ignore"):
         logx = np.where(x > 0, np.log(np.where(x > 0, x, 1.0)), 0.0)
+    se = s * e
     cols = np.empty(e.shape + (3,))
-    cols[..., 0] = s - s * e
-    cols[..., 1] = s * e
+    cols[..., 0] = s - se
+    cols[..., 1] = se
     cols[..., 2] = w
     dcols = np.zeros(e.shape[:-1] + (2,) + e.shape[-1:] + (3,))
-    dv = s * e * u * delta / vs  # s d e / d vs
-    dd = -s * e * u * logx  # s d e / d delta
+    dv = se * u * delta / vs  # s d e / d vs
+    dd = -se * u * logx  # s d e / d delta (-s e = -(s e) exactly)
     dcols[..., 0, :, 0], dcols[..., 0, :, 1] = -dv, dv
     dcols[..., 1, :, 0], dcols[..., 1, :, 1] = -dd, dd
     return cols, dcols
@@ -180,16 +181,17 @@ def stribeck_2exp_columns(w, ws1, ws2):
     v = np.abs(w)
     e1 = np.exp(-v / ws1)
     e2 = np.exp(-v / ws2)
-    shape = np.broadcast_shapes(e1.shape, e2.shape)
+    shape = e1.shape if e1.shape == e2.shape else np.broadcast_shapes(e1.shape, e2.shape)
+    se1, se2 = s * e1, s * e2
     cols = np.empty(shape + (5,))
     cols[..., 0] = s
-    cols[..., 1] = s * e1
-    cols[..., 2] = s - s * e2
+    cols[..., 1] = se1
+    cols[..., 2] = s - se2
     cols[..., 3] = w
     cols[..., 4] = w * v
     dcols = np.zeros(shape[:-1] + (2,) + shape[-1:] + (5,))
-    dcols[..., 0, :, 1] = s * e1 * v / ws1**2
-    dcols[..., 1, :, 2] = -s * e2 * v / ws2**2
+    dcols[..., 0, :, 1] = se1 * v / ws1**2
+    dcols[..., 1, :, 2] = -se2 * v / ws2**2  # (-s e2 = -(s e2) exactly)
     return cols, dcols
 
 

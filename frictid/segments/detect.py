@@ -147,14 +147,18 @@ def _resting(log: JointLog, q: np.ndarray, h: int, sc: Scales, moving: np.ndarra
     thr = hold_scatter(q, h, sc)
     thr *= K_NOISE * math.sqrt(2.0)
     # both halves of the window centred on a sample: a reversal returns to where it was, but moves
-    half = np.abs(q[np.minimum(np.arange(n) + h, n - 1)] - q) <= thr  # |q[i + h] - q[i]|, clipped at the end
+    ahead = np.empty(n)  # q[min(i + h, n - 1)], by slices
+    ahead[:n - h], ahead[n - h:] = q[h:], q[n - 1]
+    half = np.abs(ahead - q) <= thr  # |q[i + h] - q[i]|, clipped at the end
     centre = half.copy()
     centre[h:] &= half[:n - h]
     # a sample is still when a still window of T_MIN holds it (the window centred on it reaches h
-    # samples into the move before a stop and after a start)
+    # samples into the move before a stop and after a start): c[min(i + h + 1, n)] > c[max(i - h, 0)]
     c = count_prefix(centre)
-    i = np.arange(n)
-    return c[np.minimum(i + h + 1, n)] > c[np.maximum(i - h, 0)]
+    hi, lo = np.empty(n, c.dtype), np.empty(n, c.dtype)
+    hi[:n - h - 1], hi[n - h - 1:] = c[h + 1:n], c[n]
+    lo[:h], lo[h:] = c[0], c[:n - h]
+    return hi > lo
 
 
 def hold_scatter(q: np.ndarray, h: int, sc: Scales) -> np.ndarray:
