@@ -375,8 +375,8 @@ def _within(b, lo, hi) -> bool:
 
 @njit(cache=True, error_model="numpy")
 def _bvls_nb(A, y, x_lsq, lo, hi, tol):
-    """:func:`bvls` compiled, step for step (the same LAPACK least squares, ``gelsd`` with numpy's
-    ``rcond``, the same BLAS products on the same layouts): the same numbers."""
+    """The work of :func:`bvls` (``A`` in Fortran order): scipy's bounded-variable least squares step for
+    step, with LAPACK's least squares (``gelsd`` at numpy's ``rcond``) on each free set."""
     n, L = A.shape
     x = x_lsq.copy()
     on_bound = np.zeros(L)
@@ -551,52 +551,12 @@ def bvls(A, y, x_lsq, lo, hi, tol: float = 1e-10) -> tuple[np.ndarray, np.ndarra
     the unbounded solution ``x_lsq``: scipy's ``lsq_linear(method="bvls")`` step for step (its
     initialisation, then loops A and B, the same tolerance ``tol``), without its argument checks, its second
     unbounded solve and its result object, which were 60 % of its time on the maps' 2-5 columns (it runs at
-    every evaluation of a reduced residual whose levels leave their bounds). Returns x and the bound each
-    parameter is at (-1 lower, 1 upper, 0 free)."""
-    n = A.shape[1]
-    x = x_lsq.copy()
-    on_bound = np.where(x <= lo, -1.0, np.where(x >= hi, 1.0, 0.0))
-    x = np.clip(x, lo, hi)
-    free = np.flatnonzero(on_bound == 0)
-    while free.size:  # initialisation: free variables whose solution is feasible
-        z = np.linalg.lstsq(A[:, free], y - A @ np.where(on_bound != 0, x, 0.0), rcond=None)[0]
-        low, up = z < lo[free], z > hi[free]
-        x[free] = np.where(low, lo[free], np.where(up, hi[free], z))
-        on_bound[free[low]], on_bound[free[up]] = -1.0, 1.0
-        if not (low.any() or up.any()):
-            break
-        free = free[~(low | up)]
-    r = A @ x - y
-    cost, g = 0.5 * float(r @ r), A.T @ r
-    for _ in range(n):  # loop A: free the bound variable whose gradient points most into the box
-        if _kkt(g, on_bound) < tol:
-            break
-        on_bound[np.argmax(g * on_bound)] = 0.0
-        while True:  # loop B: solve on the free set, step back to the first bound crossed
-            free = np.flatnonzero(on_bound == 0)
-            xf = x[free]
-            z = np.linalg.lstsq(A[:, free], y - A @ np.where(on_bound != 0, x, 0.0), rcond=None)[0]
-            lbv, ubv = np.flatnonzero(z < lo[free]), np.flatnonzero(z > hi[free])
-            v = np.concatenate((lbv, ubv))
-            if not v.size:
-                x[free] = z
-                break
-            alphas = np.concatenate((lo[free][lbv] - xf[lbv], hi[free][ubv] - xf[ubv])) / (z[v] - xf[v])
-            i = int(np.argmin(alphas))
-            x[free] = xf * (1 - alphas[i]) + alphas[i] * z
-            on_bound[free[v[i]]] = -1.0 if i < lbv.size else 1.0
-        r = A @ x - y
-        cost_new = 0.5 * float(r @ r)
-        stalled = cost - cost_new < tol * cost
-        cost, g = cost_new, A.T @ r
-        if stalled:
-            break
-    return x, on_bound
-
-
-def _kkt(g, on_bound) -> float:
-    """The largest violation of the Karush-Kuhn-Tucker conditions (scipy's ``compute_kkt_optimality``)."""
-    return float(np.max(np.where(on_bound == 0, np.abs(g), g * on_bound)))
+    every evaluation of a reduced residual whose levels leave their bounds), compiled (:func:`_bvls_nb`, which
+    the projection's compiled pass calls directly). Returns x and the bound each parameter is at (-1 lower,
+    1 upper, 0 free)."""
+    return _bvls_nb(np.asfortranarray(A, dtype=float), np.ascontiguousarray(y, dtype=float),
+                    np.array(x_lsq, dtype=float), np.ascontiguousarray(lo, dtype=float),
+                    np.ascontiguousarray(hi, dtype=float), tol)
 
 
 def _apart(a, b) -> bool:
