@@ -299,11 +299,17 @@ class Context:
         """Drop the cached columns that no term of st uses: those of a candidate's settings (time constants,
         Stribeck velocities, periods) once it is judged. Their sums of products stay cached (small); a
         column needed again is computed again. Keeps the diagnosis' memory to the current model's columns
-        plus one candidate's (on a one-hour log, 1.1 GB above the fit without it before)."""
+        plus one candidate's (on a one-hour log, 1.1 GB above the fit without it before).
+
+        The thermal states stay while st has no thermal term: the grid's states serve the time-constant
+        check (:func:`frictid.diagnose.causes.tau_grid`), both thermal candidates and the chosen one's
+        proposal on all samples (each a recursion over the whole logs, computed four times before); fewer
+        than the thermal6 candidate holds besides (four columns per state), so the peak does not rise."""
         terms = {(t.ext, t.nl) for t in st.terms}
         strib = {(t.settings["vs"], t.settings["delta"]) for t in st.terms if t.role == "stribeck"}
         thermal = {(round(float(t.settings["tau_c"]), 9), t.settings.get("source", "heat_balance"))
                    for t in st.terms if t.ext in ("thermal4", "thermal6")}
+        keep_states = not thermal
 
         def stale(k) -> bool:
             kind = k[0]
@@ -314,7 +320,7 @@ class Context:
             if kind == "signed":
                 return stale(k[1])
             if kind == "thermal":
-                return (k[1], k[2]) not in thermal
+                return not keep_states and (k[1], k[2]) not in thermal
             return False
 
         for k in [k for k in self._cache if isinstance(k, tuple) and k and stale(k)]:
