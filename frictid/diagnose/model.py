@@ -725,27 +725,25 @@ class Evaluator:
             else:
                 c.gamma[a][b] += v
 
-    def _moment_problem(self, c: Coef):
-        """The monomials of this structure (:mod:`.moments`), each with its key and a callable returning
-        its column, the items' amplitudes in c, the factors' coefficients, the free items and factor
-        coefficients, and the keys of the free coefficients (in the order of the Jacobian's columns)."""
+    def _moment_layout(self):
+        """The monomials of this structure (:mod:`.moments`), each with its key and the vectors whose
+        product it is, the entries (linear items, then held base columns), the factors, the free items and
+        factor coefficients, and the keys of the free coefficients (in the order of the Jacobian's columns).
+        It does not depend on the coefficients: built once per Gauss-Newton run (:meth:`_moment_values`
+        reads the coefficients at each iteration)."""
         items, held = self._linear_items()
         factors = self.lf + self.af
         n_lf = len(self.lf)
         entries = [(k, v, ck) for k, v, ck in items] + [(k, v, None) for k, v, _ in held]
-        amp, applies = [], []
+        applies = []
         for k, v, ck in entries:
             if ck is None:                       # a held base column: its value is fixed
                 level = k[1] in LEVEL_SLOTS
-                amp.append(float(self.st.shapes[k[1]]))
             elif ck[0] in ("b", "p", "n"):
                 level = ck[1] in LEVEL_SLOTS
-                amp.append((c.base_neg if ck[0] == "n" else c.base_pos).get(ck[1], 0.0))
             elif ck[0] == "dc":
                 level = ck[1] == 0
-                amp.append(float(c.dc[ck[1]]))
             else:                                # additive: no factor multiplies it
-                amp.append(float(np.atleast_1d(c.gamma[ck[1]])[ck[2]]))
                 applies.append(())
                 continue
             applies.append(tuple(range(len(factors))) if level else tuple(range(n_lf, len(factors))))
@@ -761,35 +759,45 @@ class Evaluator:
             key = (entries[m.item][0], tuple(sorted((fkeys[f], j) for f, j in zip(m.factors, m.choice) if j >= 0)))
             return key, (vecs[0] if len(vecs) == 1 else vecs)
 
-        gam = [np.atleast_1d(c.gamma[i]).astype(float) for i, _, _ in factors]
         free_items = [n for n, e in enumerate(entries) if e[2] is not None]
         free_gamma = [(f, j) for f, (i, _, X) in enumerate(factors) for j in range(X.shape[1])
                       if ("g", i, j) not in self._excl]
         keys = [entries[n][2] for n in free_items] + [("g", factors[f][0], j) for f, j in free_gamma]
-        return monos, [column(m) for m in monos], np.array(amp), gam, free_items, free_gamma, keys
+        return monos, [column(m) for m in monos], entries, factors, free_items, free_gamma, keys
+
+    def _moment_values(self, c: Coef, layout) -> tuple[np.ndarray, np.ndarray]:
+        """The monomials' coefficients c and the Jacobian's C (:func:`.moments.coefficients`) at the
+        coefficients c of :meth:`_moment_layout`'s entries and factors."""
+        monos, _, entries, factors, free_items, free_gamma, _ = layout
+        amp = []
+        for k, v, ck in entries:
+            if ck is None:
+                amp.append(float(self.st.shapes[k[1]]))
+            elif ck[0] in ("b", "p", "n"):
+                amp.append((c.base_neg if ck[0] == "n" else c.base_pos).get(ck[1], 0.0))
+            elif ck[0] == "dc":
+                amp.append(float(c.dc[ck[1]]))
+            else:
+                amp.append(float(np.atleast_1d(c.gamma[ck[1]])[ck[2]]))
+        gam = [np.atleast_1d(c.gamma[i]).astype(float) for i, _, _ in factors]
+        return mo.coefficients(monos, np.array(amp), gam, free_items, free_gamma)
 
     def _gauss_newton_moments(self, c: Coef, fold, max_iter: int, tol: float) -> tuple[float, int]:
         """Gauss-Newton of the factor terms from the per-fold moments (:mod:`.moments`), from c (updated in
         place); the same iterates as :meth:`_gauss_newton` on the samples. Returns (RSS at the end, n)."""
-        monos, cols, *_ = self._moment_problem(c)
-        ne = self.ctx.normal_equations(cols, fold)
+        layout = self._moment_layout()
+        ne = self.ctx.normal_equations(layout[1], fold)
         G, b, yty, n = ne.XtX, ne.Xty, ne.yty, ne.n
+        keys = layout[6]
         prev = np.inf
         for _ in range(max_iter):
-            _, _, amp, gam, free_items, free_gamma, keys = self._moment_problem(c)
-            cv, C = mo.coefficients(monos, amp, gam, free_items, free_gamma)
+            cv, C = self._moment_values(c, layout)
             step, cost = mo.gauss_newton_step(G, b, yty, n, cv, C)
             self._apply(c, keys, step)
             if abs(prev - cost) <= tol * max(cost, 1e-300):
                 break
             prev = cost
-        return self._moment_rss(c, (monos, G, b, yty)), n
-
-    def _moment_rss(self, c: Coef, problem) -> float:
-        monos, G, b, yty = problem
-        _, _, amp, gam, free_items, free_gamma, _ = self._moment_problem(c)
-        cv, _ = mo.coefficients(monos, amp, gam, free_items, free_gamma)
-        return mo.rss(G, b, yty, cv)
+        return mo.rss(G, b, yty, self._moment_values(c, layout)[0]), n
 
     def _gauss_newton(self, c: Coef, rows: _At, y: np.ndarray, max_iter: int, tol: float) -> None:
         """Gauss-Newton of the factor terms on the samples of rows, from c (updated in place)."""
