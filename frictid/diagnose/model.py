@@ -130,7 +130,7 @@ def _block(out: np.ndarray, vecs: list, s: int, e: int) -> np.ndarray:
 #: Samples per block of the streamed sums of products (:meth:`Context.fold_products`): 32 kB per column,
 #: so a block's columns stay in the second-level cache between their copy and their product (blocks of
 #: 65 k samples, 4 MB per 8 columns, made the copies and the product go through memory twice).
-BLOCK_ROWS = 1 << 12
+BLOCK_ROWS = 1 << 14
 
 
 
