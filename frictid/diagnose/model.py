@@ -290,8 +290,11 @@ class Context:
         of the position or q and q^2 are, holds nearly all of them)."""
         key = ("extremes", term.ext, term.nl, cols)
         if key not in self._cache:
-            X = self.term_columns(term)
-            X = X if cols is None else X[:, list(cols)]
+            if term.ext == "thermal6" and cols is not None and len(cols) == 1:   # one product, not all four
+                X = _product(self.term_vectors(term)[cols[0]])[:, None]
+            else:
+                X = self.term_columns(term)
+                X = X if cols is None else X[:, list(cols)]
             self._cache[key] = np.vstack([X.min(axis=0), X.max(axis=0)]) if X.shape[1] == 1 and X.size else X
         return self._cache[key]
 
@@ -431,11 +434,28 @@ class Context:
         return self._cache[key]
 
     def term_vectors(self, term: Term) -> list:
-        """The columns of :meth:`term_columns` as contiguous vectors (cached)."""
+        """The columns of :meth:`term_columns` as contiguous vectors (cached); thermal6's as the products that
+        form them (:meth:`_thermal6_vectors`)."""
         key = ("term_vectors", term.ext, term.nl)
         if key not in self._cache:
-            self._cache[key] = [np.ascontiguousarray(x) for x in self.term_columns(term).T]   # views when F-ordered
+            if term.ext == "thermal6":
+                self._cache[key] = self._thermal6_vectors(term)
+            else:   # views when F-ordered
+                self._cache[key] = [np.ascontiguousarray(x) for x in self.term_columns(term).T]
         return self._cache[key]
+
+    def _thermal6_vectors(self, term: Term) -> list:
+        """thermal6's columns ``x sgn w, x w, x w |w|, x w^3`` as tuples of the vectors whose product they
+        are (the same factors in the same order as :meth:`term_columns`), multiplied where they are used:
+        block by block in the sums (:meth:`fold_products`), on the samples of a prediction (:class:`_At`).
+        Four columns per time constant tried are never stored (12 time constants on a one-hour log: 0.45 GB
+        and a third of the thermal6 candidate's time)."""
+        nl = term.settings
+        x = self.thermal(nl["tau_c"], nl.get("source", "heat_balance"))
+        if "w2" not in self._cache:
+            self._cache["w2"] = self.S.w * self.S.w
+        w, w2 = self.S.w, self._cache["w2"]
+        return [(self.sgn, x), (w, x), (w, x, self.v), (w, x, w2)]
 
     def thermal(self, tau_c: float, source: str = "heat_balance") -> np.ndarray:
         key = ("thermal", round(float(tau_c), 9), source)
@@ -482,6 +502,16 @@ def _combination(cols, coef) -> np.ndarray:
     return out
 
 
+def _product(vecs) -> np.ndarray:
+    """The product of a tuple of vectors, left to right (as :func:`_block` forms it); a vector itself."""
+    if not isinstance(vecs, tuple):
+        return vecs
+    out = np.multiply(vecs[0], vecs[1])
+    for x in vecs[2:]:
+        out *= x
+    return out
+
+
 class _At:
     """The columns of an :class:`Evaluator` at samples idx (all samples when idx is None), gathered once
     for a whole fit or prediction. base : {slot: column}; vec : {term index: columns}; pos : w >= 0."""
@@ -489,7 +519,10 @@ class _At:
     def __init__(self, ev: "Evaluator", idx):
         if idx is not None and idx.size and idx[-1] - idx[0] + 1 == idx.size and np.all(np.diff(idx) == 1):
             idx = slice(int(idx[0]), int(idx[-1]) + 1)   # a fold's samples are consecutive: views, no gather
-        take = (lambda x: x) if idx is None else (lambda x: x[idx])
+        pick = (lambda x: x) if idx is None else (lambda x: x[idx])
+
+        def take(x):
+            return _product(tuple(pick(v) for v in x)) if isinstance(x, tuple) else pick(x)
         self.n = ev.ctx.S.n if idx is None else (idx.stop - idx.start if isinstance(idx, slice) else int(idx.size))
         self.pos = take(ev.pos)
         self.base = {sl: take(col) for sl, col in ev.base_cols.items()}
@@ -517,7 +550,8 @@ class Evaluator:
         self.lf = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "level_factor"]
         self.af = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "whole_factor"]
         self.add = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "additive"]
-        self.t6 = next(((i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "thermal6"), None)
+        # thermal6's columns are products formed where they are used (Context.term_vectors): none stored here
+        self.t6 = next(((i, t, None) for i, t in enumerate(st.terms) if t.role == "thermal6"), None)
         #: each term's columns as contiguous vectors, by term index
         self.vec = {i: ctx.term_vectors(t)
                     for i, t, _ in self.lf + self.af + self.add + ([self.t6] if self.t6 is not None else [])}
@@ -754,8 +788,9 @@ class Evaluator:
         def column(m):
             # the monomial as the tuple of vectors whose product it is (multiplied block by block when its
             # sums are accumulated: Context.fold_products)
-            vecs = (entries[m.item][1],) + tuple(self.vec[factors[f][0]][j]
-                                                 for f, j in zip(m.factors, m.choice) if j >= 0)
+            head = entries[m.item][1]   # a product itself (thermal6's columns): its factors first
+            vecs = (head if isinstance(head, tuple) else (head,)) + tuple(
+                self.vec[factors[f][0]][j] for f, j in zip(m.factors, m.choice) if j >= 0)
             key = (entries[m.item][0], tuple(sorted((fkeys[f], j) for f, j in zip(m.factors, m.choice) if j >= 0)))
             return key, (vecs[0] if len(vecs) == 1 else vecs)
 
