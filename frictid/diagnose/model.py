@@ -388,11 +388,13 @@ class Context:
             return self._cache[key]
         S, nl = self.S, term.settings
         if term.ext == "position_periodic":
-            ph = 2 * np.pi * S.q / nl["period"]
-            c = np.array([np.sin(ph), np.cos(ph)]).T
+            c = self._sin_cos(nl["period"])
         elif term.ext == "position_smooth":
             d = (S.q - nl["q0"]) / nl["qs"]
-            c = np.array([d, d * d]).T
+            c = np.empty((2, S.n))
+            c[0] = d
+            np.multiply(d, d, out=c[1])
+            c = c.T
         elif term.ext.startswith("load_"):
             c = (load_variable(S, term.ext, nl) / nl["scale"])[:, None]
         elif term.ext == "drift":
@@ -419,10 +421,13 @@ class Context:
             c = np.array([np.cos(S.q), np.sin(S.q)]).T
         elif term.ext == "position_torque" and nl["period"] == 0:   # smooth over the travel
             d = (S.q - nl["q0"]) / nl["qs"]
-            c = np.array([np.ones_like(d), d, d * d]).T
+            c = np.empty((3, S.n))
+            c[0] = 1.0
+            c[1] = d
+            np.multiply(d, d, out=c[2])
+            c = c.T
         elif term.ext == "position_torque":
-            ph = 2 * np.pi * S.q / nl["period"]
-            c = np.array([np.sin(ph), np.cos(ph)]).T
+            c = self._sin_cos(nl["period"])
         elif term.ext == "delay":
             c = delay_column(S, nl.get("shift", 0.0), nl.get("beta", ()))[:, None]
         elif term.ext == "dwell":
@@ -432,6 +437,17 @@ class Context:
         # columns stored contiguously (Fortran order, np.array(...).T): the fits use them one by one
         self._cache[key] = c if c.shape[1] == 1 else np.asfortranarray(c)
         return self._cache[key]
+
+    def _sin_cos(self, period: float) -> np.ndarray:
+        """``sin`` and ``cos`` of ``2 pi q / period`` as the columns of an F-ordered array (filled in place;
+        ``2 pi q`` cached: every period tried shares it)."""
+        if "q2pi" not in self._cache:
+            self._cache["q2pi"] = 2 * np.pi * self.S.q
+        ph = self._cache["q2pi"] / period
+        c = np.empty((2, self.S.n))
+        np.sin(ph, out=c[0])
+        np.cos(ph, out=c[1])
+        return c.T
 
     def term_vectors(self, term: Term) -> list:
         """The columns of :meth:`term_columns` as contiguous vectors (cached); thermal6's as the products that
