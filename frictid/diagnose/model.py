@@ -368,11 +368,19 @@ class Context:
             w, v, s = self.S.w, self.v, self.sgn
             if slot == 0:
                 c = s
-            elif slot == 1:
+            elif slot == 1:   # s exp(-(v / vs)^d), in place (a Stribeck grid makes 16 of them)
                 vs, d = (shapes[2], shapes[3]) if term_nl is None else term_nl
-                c = s * np.exp(-np.power(v / vs, d))
-            elif slot == 4:
-                c = s * (1.0 - np.exp(-v / shapes[5]))
+                c = np.divide(v, vs)
+                np.power(c, d, out=c)
+                np.negative(c, out=c)
+                np.exp(c, out=c)
+                np.multiply(s, c, out=c)
+            elif slot == 4:   # s (1 - exp(-v / vs2)), in place
+                c = np.negative(v)
+                np.divide(c, shapes[5], out=c)
+                np.exp(c, out=c)
+                np.subtract(1.0, c, out=c)
+                np.multiply(s, c, out=c)
             elif slot == 6:
                 c = w
             elif slot == 7:
