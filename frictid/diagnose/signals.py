@@ -187,21 +187,12 @@ def _delay_columns(S: Samples, i: int, k: np.ndarray) -> np.ndarray:
 
 def _delay_gram(S: Samples):
     """Per fold: X'X of the moving samples, X :func:`_delay_columns` (None without moving samples; cached).
-    It does not depend on the shift: computed once for every shift :func:`_delay_sums` tries (the largest
-    share of their time, 11 x 11 products per row against 11)."""
-    def compute():
-        XtX = None
-        for i, (km, fk) in enumerate(_moving_rows(S)):
-            for b in range(0, km.size, BLOCK):
-                k, f = km[b:b + BLOCK], fk[b:b + BLOCK]
-                X = _delay_columns(S, i, k)
-                if XtX is None:
-                    XtX = np.zeros((S.n_folds, X.shape[1], X.shape[1]))
-                for g in np.unique(f):
-                    Xg = X[f == g]
-                    XtX[g] += np.einsum("ij,ik->jk", Xg, Xg)
-        return XtX
-    return S.cached("delay_gram", compute)
+    It does not depend on the shift: summed once, in the first pass of :func:`_delay_prefetch` (the columns
+    it builds for the shifts' sums serve it too), for every shift tried (the largest share of their time,
+    11 x 11 products per row against 11)."""
+    if not S.has("delay_gram"):
+        _delay_prefetch(S, [])
+    return S.cached("delay_gram", lambda: None)
 
 
 def _sums_key(shift_s: float) -> tuple:
@@ -240,10 +231,12 @@ def _delay_prefetch(S: Samples, shifts) -> None:
     the columns X of a block are computed once for all the shifts (they do not depend on the shift; only
     ``y`` does), each shift adding a gather of the torque and a product with X."""
     todo = sorted({_sums_key(s)[1] for s in shifts if not S.has(_sums_key(s))})
-    if not todo:
+    gram = not S.has("delay_gram")   # X'X in the same pass, the first one
+    if not todo and not gram:
         return
     nf, ns = S.n_folds, len(todo)
-    XtX, XtY = _delay_gram(S), None
+    XtX = None if gram else S.cached("delay_gram", lambda: None)
+    XtY = None
     yty = np.zeros((nf, ns))
     for i, (km, fk) in enumerate(_moving_rows(S)):
         lg = S.logs[i]
@@ -253,6 +246,12 @@ def _delay_prefetch(S: Samples, shifts) -> None:
         whole = bool(np.all(np.abs(sh - np.round(sh)) < 1e-6))
         for g, k in _fold_blocks(km, fk, BATCH_ROWS):
             X = _delay_columns(S, i, k)
+            if gram:
+                if XtX is None:
+                    XtX = np.zeros((nf, X.shape[1], X.shape[1]))
+                XtX[g] += X.T @ X
+            if not ns:
+                continue
             if whole:   # shifted_torque at a whole shift, without its interpolation (the same numbers)
                 Y = tau[np.clip(k[:, None] - np.round(sh).astype(np.int64)[None, :], 0, lg.n - 1)]
             else:
@@ -262,6 +261,8 @@ def _delay_prefetch(S: Samples, shifts) -> None:
                 XtY = np.zeros((nf, X.shape[1], ns))
             XtY[g] += X.T @ Y   # BLAS with one thread (frictid.diagnose.check: the diagnosis' own limit)
             yty[g] += np.einsum("ij,ij->j", Y, Y)
+    if gram:
+        S.cached("delay_gram", lambda: XtX)
     for n, s in enumerate(todo):
         val = (XtX, None if XtY is None else XtY[:, :, n].copy(), yty[:, n].copy())
         S.cached(("delay_sums", s), lambda v=val: v)
@@ -441,9 +442,11 @@ def _delay_columns_at(S: Samples, items: list) -> list:
             for j0, _ in _ends(S, i, k, shift_s, lg.n):
                 mark[j0] = True
                 mark[j0 + 1] = True
-        feats = _torque_features(S, i, np.flatnonzero(mark))
-        at = np.cumsum(mark) - 1
+        idx = np.flatnonzero(mark)
         del mark
+        feats = _torque_features(S, i, idx)
+        at = np.empty(lg.n, np.int64)   # the position of each marked sample in idx (only those are read)
+        at[idx] = np.arange(idx.size)
         for (shift_s, beta), out in zip(items, outs):
             T = _torque_model(feats, beta)
             ends = [T[at[j0]] * (1 - fr) + T[at[j0 + 1]] * fr for j0, fr in _ends(S, i, k, shift_s, lg.n)]
