@@ -240,6 +240,65 @@ class Context:
                 out[f] += A @ B.T
         return out
 
+    def prefetch(self, structures: list) -> None:
+        """Cache the per-fold sums that fits of several structures will ask for (the settings of one
+        candidate's grid: Stribeck velocities, time constants, rest scales, periods, each on top of the same
+        current model) in one pass over the samples: the current model's columns, which every setting's
+        border meets, are read once for all of them (:meth:`_border_products`), not once per setting. The
+        sums are those :meth:`_fill_pairs` would accumulate setting by setting."""
+        if not self.use_normal_equations:
+            return
+        groups = [Evaluator(st, self)._sum_items() + [(("y",), self.S.F)] for st in structures]
+        vec, missing = {}, []
+        for items in groups:
+            for i in range(len(items)):
+                for j in range(i, len(items)):
+                    ka, kb = items[i][0], items[j][0]
+                    if self._cached_pair(ka, kb) is None:
+                        missing.append((ka, kb))
+                        vec[ka], vec[kb] = items[i][1], items[j][1]
+        if not missing:
+            return
+        new = {a for a, b in missing if a == b}   # a column whose own sum is missing has none cached
+        if any(a not in new and b not in new for a, b in missing):   # two old columns never met
+            for items in groups:
+                self._fill_pairs(items)
+            return
+        old = [k for k in vec if k not in new]
+        order, spans = [], []   # the new columns group by group (a group's rows one slice of the block)
+        for items in groups:
+            mine = [k for k in dict.fromkeys(x[0] for x in items) if k in new and k not in order]
+            spans.append((len(order), len(order) + len(mine)))
+            order += mine
+        P, Q = self._border_products([vec[k] for k in old], [vec[k] for k in order], spans)
+        for a, ka in enumerate(old):
+            for b, kb in enumerate(order):
+                self._cache[("pair", ka, kb)] = P[:, a, b].copy()
+        for (s0, s1), q in zip(spans, Q):
+            for a in range(s1 - s0):
+                for b in range(a, s1 - s0):
+                    self._cache[("pair", order[s0 + a], order[s0 + b])] = q[:, a, b].copy()
+
+    def _border_products(self, olds: list, news: list, spans: list) -> tuple[np.ndarray, list]:
+        """Per-fold sums of the products of every old vector with every new one, and of the new ones of each
+        span with each other (:meth:`fold_products`' blocks)."""
+        bounds = self._fold_bounds()
+        nf, m, k = self.S.n_folds, len(olds), len(news)
+        P = np.zeros((nf, m, k))
+        Q = [np.zeros((nf, s1 - s0, s1 - s0)) for s0, s1 in spans]
+        rows = min(BLOCK_ROWS, max(self.S.n, 1))
+        V, W = np.empty((m, rows)), np.empty((k, rows))
+        for f in range(nf):
+            for s in range(bounds[f], bounds[f + 1], BLOCK_ROWS):
+                e = min(s + BLOCK_ROWS, bounds[f + 1])
+                A = _block(V[:, :e - s], olds, s, e)
+                B = _block(W[:, :e - s], news, s, e)
+                P[f] += A @ B.T
+                for (s0, s1), q in zip(spans, Q):
+                    if s1 > s0:
+                        q[f] += B[s0:s1] @ B[s0:s1].T
+        return P, Q
+
     def _fill_pairs(self, items) -> None:
         """Cache the per-fold sums of every pair of items (list of (key, vector or callable)) not cached yet.
         A candidate's system is the current one bordered by new columns: only the border is accumulated
@@ -579,6 +638,15 @@ class Evaluator:
         #: each term's columns as contiguous vectors, by term index
         self.vec = {i: ctx.term_vectors(t)
                     for i, t, _ in self.lf + self.af + self.add + ([self.t6] if self.t6 is not None else [])}
+
+    def _sum_items(self) -> list:
+        """(key, vector) of every column whose sums a fit of this structure asks for (nothing excluded yet):
+        the monomials of its Gauss-Newton (factor terms), else its linear items (:meth:`Context.prefetch`)."""
+        self._excl, self._held = set(), set()
+        if self.lf or self.af:
+            return list(self._moment_layout()[1])
+        items, held = self._linear_items()
+        return [(k, v) for k, v, _ in items] + [(k, v) for k, v, _ in held]
 
     # pieces -----------------------------------------------------------------------------------------
     def _gf(self, c: Coef, a: _At):
