@@ -282,7 +282,9 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
         ctx.prefetch([st.plus(term) for term in terms])   # the grid's sums in one pass
         return min(terms, key=lambda term: _fit_rms(ctx, st.plus(term), idx))
     if ext == "delay":   # the shift estimated on the training folds' moving samples
-        folds = np.unique(S.fold[idx])
+        f = ctx.fold_of(idx)   # a training set's fold is remembered: no gather of its folds
+        folds = ([g for g in range(S.n_folds) if g != f] if f is not None and f is not False
+                 else np.unique(S.fold[idx]))
         left = np.setdiff1d(np.arange(S.n_folds), folds)
         # a training set of all folds but one: the estimates of every such set at once (one pass for their maps)
         d = delay_estimates(S)[int(left[0])] if left.size == 1 else delay_estimate(S, folds)
