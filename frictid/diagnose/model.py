@@ -248,7 +248,11 @@ class Context:
         sums are those :meth:`_fill_pairs` would accumulate setting by setting."""
         if not self.use_normal_equations:
             return
-        groups = [Evaluator(st, self)._sum_items() + [(("y",), self.S.F)] for st in structures]
+        self._prefetch_groups([g + [(("y",), self.S.F)] for st in structures
+                               for g in Evaluator(st, self)._sum_groups()])
+
+    def _prefetch_groups(self, groups: list) -> None:
+        """:meth:`prefetch` of lists of (key, vector), each list's pairs wanted."""
         vec, missing = {}, []
         for items in groups:
             for i in range(len(items)):
@@ -260,14 +264,22 @@ class Context:
         if not missing:
             return
         new = {a for a, b in missing if a == b}   # a column whose own sum is missing has none cached
+        seen: dict = {}
+        for items in groups:
+            for k in dict.fromkeys(x[0] for x in items):
+                seen[k] = seen.get(k, 0) + (k in new)
+        shared = [k for k, c in seen.items() if c > 1]
+        if shared:   # new columns that several lists share (no current model summed yet): theirs first
+            self._fill_pairs([(k, vec[k]) for k in shared])
+            return self._prefetch_groups(groups)
         if any(a not in new and b not in new for a, b in missing):   # two old columns never met
             for items in groups:
                 self._fill_pairs(items)
             return
         old = [k for k in vec if k not in new]
-        order, spans = [], []   # the new columns group by group (a group's rows one slice of the block)
+        order, spans = [], []   # the new columns list by list (a list's rows one slice of the block)
         for items in groups:
-            mine = [k for k in dict.fromkeys(x[0] for x in items) if k in new and k not in order]
+            mine = [k for k in dict.fromkeys(x[0] for x in items) if k in new]
             spans.append((len(order), len(order) + len(mine)))
             order += mine
         P, Q = self._border_products([vec[k] for k in old], [vec[k] for k in order], spans)
@@ -639,14 +651,16 @@ class Evaluator:
         self.vec = {i: ctx.term_vectors(t)
                     for i, t, _ in self.lf + self.af + self.add + ([self.t6] if self.t6 is not None else [])}
 
-    def _sum_items(self) -> list:
-        """(key, vector) of every column whose sums a fit of this structure asks for (nothing excluded yet):
-        the monomials of its Gauss-Newton (factor terms), else its linear items (:meth:`Context.prefetch`)."""
+    def _sum_groups(self) -> list:
+        """The lists of (key, vector) whose sums of products a fit of this structure asks for (nothing
+        excluded yet): its linear items (the first, linear solve) and, with factor terms, the monomials of
+        its Gauss-Newton (:meth:`Context.prefetch`)."""
         self._excl, self._held = set(), set()
-        if self.lf or self.af:
-            return list(self._moment_layout()[1])
         items, held = self._linear_items()
-        return [(k, v) for k, v, _ in items] + [(k, v) for k, v, _ in held]
+        out = [[(k, v) for k, v, _ in items] + [(k, v) for k, v, _ in held]]
+        if self.lf or self.af:
+            out.append(list(self._moment_layout()[1]))
+        return out
 
     # pieces -----------------------------------------------------------------------------------------
     def _gf(self, c: Coef, a: _At):
