@@ -4,6 +4,8 @@ measured by ``benchmarks/bench_diagnose_whole.py``): a candidate's grid of setti
 thermal6's columns formed where they are used, the training sets' delay columns computed together."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -87,3 +89,17 @@ def test_the_delay_columns_of_several_shifts_at_once_equal_one_at_a_time(S):
     for shift, beta in terms:
         if shift:
             np.testing.assert_array_equal(sg.delay_column(S, shift, beta), sg._delay_columns_at(S, [(shift, beta)])[0])
+
+
+def test_position_columns_of_an_encoder_grid_are_the_direct_ones(S):
+    # quantised positions (an encoder's steps) take the distinct-position path, continuous ones the direct
+    # path: both the numbers of sin and cos of 2 pi q / P at every sample
+    for q in (np.round(S.q / 1e-3) * 1e-3, S.q):
+        Sq = replace(S, q=q)
+        ctx = Context(Sq)
+        for P in (0.31, np.pi):
+            X = ctx.term_columns(Term("position_torque", "position_torque", "additive", (("period", P),)))
+            ph = 2 * np.pi * q / P
+            np.testing.assert_array_equal(X[:, 0], np.sin(ph))
+            np.testing.assert_array_equal(X[:, 1], np.cos(ph))
+        assert (ctx._cache["q2pi"][1] is None) == (np.unique(q).size * 2 > q.size)
