@@ -467,10 +467,10 @@ class Context:
             return self._cache[key]
         S, nl = self.S, term.settings
         if term.ext == "position_periodic":
-            c = self._sin_cos(nl["period"])
+            c = sin_cos(self._cache, S.q, nl["period"])
         elif term.ext == "position_smooth":
             d = (S.q - nl["q0"]) / nl["qs"]
-            c = np.empty((2, S.n))
+            c = np.empty((2, d.size))
             c[0] = d
             np.multiply(d, d, out=c[1])
             c = c.T
@@ -500,13 +500,13 @@ class Context:
             c = np.array([np.cos(S.q), np.sin(S.q)]).T
         elif term.ext == "position_torque" and nl["period"] == 0:   # smooth over the travel
             d = (S.q - nl["q0"]) / nl["qs"]
-            c = np.empty((3, S.n))
+            c = np.empty((3, d.size))
             c[0] = 1.0
             c[1] = d
             np.multiply(d, d, out=c[2])
             c = c.T
         elif term.ext == "position_torque":
-            c = self._sin_cos(nl["period"])
+            c = sin_cos(self._cache, S.q, nl["period"])
         elif term.ext == "delay":
             c = delay_column(S, nl.get("shift", 0.0), nl.get("beta", ()))[:, None]
         elif term.ext == "dwell":
@@ -516,26 +516,6 @@ class Context:
         # columns stored contiguously (Fortran order, np.array(...).T): the fits use them one by one
         self._cache[key] = c if c.shape[1] == 1 else np.asfortranarray(c)
         return self._cache[key]
-
-    def _sin_cos(self, period: float) -> np.ndarray:
-        """``sin`` and ``cos`` of ``2 pi q / period`` as the columns of an F-ordered array (filled in place).
-        An encoder's positions repeat (208 000 distinct among 1.16 M sliding samples on the one-hour bench
-        log): where at most half of them are distinct, the two functions are evaluated once per distinct
-        position and read back per sample, the same numbers (``2 pi q`` and the distinct positions cached:
-        every period tried shares them)."""
-        if "q2pi" not in self._cache:
-            u, inv = np.unique(self.S.q, return_inverse=True)
-            self._cache["q2pi"] = (2 * np.pi * u, inv) if 2 * u.size <= self.S.n else (2 * np.pi * self.S.q, None)
-        q2pi, inv = self._cache["q2pi"]
-        ph = q2pi / period
-        c = np.empty((2, self.S.n))
-        if inv is None:
-            np.sin(ph, out=c[0])
-            np.cos(ph, out=c[1])
-        else:
-            np.take(np.sin(ph), inv, out=c[0])
-            np.take(np.cos(ph), inv, out=c[1])
-        return c.T
 
     def term_vectors(self, term: Term) -> list:
         """The columns of :meth:`term_columns` as contiguous vectors (cached); thermal6's as the products that
@@ -566,6 +546,27 @@ class Context:
         if key not in self._cache:
             self._cache[key] = self.S.thermal_state(tau_c, measured=(source == "temp_joint"))
         return self._cache[key]
+
+
+def sin_cos(cache: dict, q: np.ndarray, period: float) -> np.ndarray:
+    """``sin`` and ``cos`` of ``2 pi q / period`` as the columns of an F-ordered array (filled in place).
+    An encoder's positions repeat (208 000 distinct among 1.16 M sliding samples on the one-hour bench
+    log): where at most half of them are distinct, the two functions are evaluated once per distinct
+    position and read back per sample, the same numbers (``2 pi q`` and the distinct positions kept in
+    ``cache``, a :class:`Context`'s: every period tried shares them)."""
+    if "q2pi" not in cache:
+        u, inv = np.unique(q, return_inverse=True)
+        cache["q2pi"] = (2 * np.pi * u, inv) if 2 * u.size <= q.size else (2 * np.pi * q, None)
+    q2pi, inv = cache["q2pi"]
+    ph = q2pi / period
+    c = np.empty((2, q.size))
+    if inv is None:
+        np.sin(ph, out=c[0])
+        np.cos(ph, out=c[1])
+    else:
+        np.take(np.sin(ph), inv, out=c[0])
+        np.take(np.cos(ph), inv, out=c[1])
+    return c.T
 
 
 def _lstsq(cols: list, y: np.ndarray) -> np.ndarray:
