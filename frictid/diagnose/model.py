@@ -377,8 +377,9 @@ class Context:
 
         The thermal states stay while st has no thermal term: the grid's states serve the time-constant
         check (:func:`frictid.diagnose.causes.tau_grid`), both thermal candidates and the chosen one's
-        proposal on all samples (each a recursion over the whole logs, computed four times before); fewer
-        than the thermal6 candidate holds besides (four columns per state), so the peak does not rise."""
+        proposal on all samples (each a recursion over the whole logs, computed up to four times before;
+        12 states, 110 MB on the one-hour bench log, where thermal6 no longer stores its four columns per
+        state: :meth:`_thermal6_vectors`; the diagnosis' measured peak did not rise)."""
         terms = {(t.ext, t.nl) for t in st.terms}
         strib = {(t.settings["vs"], t.settings["delta"]) for t in st.terms if t.role == "stribeck"}
         thermal = {(round(float(t.settings["tau_c"]), 9), t.settings.get("source", "heat_balance"))
