@@ -248,11 +248,17 @@ class Context:
         sums are those :meth:`_fill_pairs` would accumulate setting by setting."""
         if not self.use_normal_equations:
             return
-        self._prefetch_groups([g + [(("y",), self.S.F)] for st in structures
-                               for g in Evaluator(st, self)._sum_groups()])
+        groups = {}   # the same setting in several folds (an offset, a load term) is one list
+        for st in structures:
+            for g in Evaluator(st, self)._sum_groups():
+                groups.setdefault(tuple(k for k, _ in g), g + [(("y",), self.S.F)])
+        self._prefetch_groups(list(groups.values()))
 
     def _prefetch_groups(self, groups: list) -> None:
-        """:meth:`prefetch` of lists of (key, vector), each list's pairs wanted."""
+        """:meth:`prefetch` of lists of (key, vector), each list's pairs wanted; one list is summed as a fit
+        would sum it (:meth:`_fill_pairs`, the same numbers)."""
+        if len(groups) == 1:
+            return self._fill_pairs(groups[0])
         vec, missing = {}, []
         for items in groups:
             for i in range(len(items)):
