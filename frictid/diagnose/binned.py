@@ -18,18 +18,30 @@ def _bins(x: np.ndarray, nb: int) -> np.ndarray:
     return np.searchsorted(edges, x, side="right")
 
 
+def _fold_parts(S: Samples) -> list:
+    """Each fold's samples: a slice when the samples are ordered by fold (:func:`.samples._fold_major`), else
+    a mask (cached)."""
+    def compute():
+        f = S.fold
+        if f.size and np.any(np.diff(f) < 0):
+            return [f == k for k in range(S.n_folds)]
+        b = np.concatenate([[0], np.cumsum(np.bincount(f, minlength=S.n_folds))])
+        return [slice(int(b[k]), int(b[k + 1])) for k in range(S.n_folds)]
+    return S.cached("fold_parts", compute)
+
+
 def heldout_binned(S: Samples, r: np.ndarray, x: np.ndarray) -> np.ndarray:
     """The held-out prediction of r by the training folds' mean of r in bins of x (0 in a bin without
     training samples)."""
     nb = int(np.clip(S.n // PER_BIN, MIN_BINS, MAX_BINS))
     b = _bins(x, nb)
     m = int(b.max()) + 1
-    sums = np.array([np.bincount(b[S.fold == f], weights=r[S.fold == f], minlength=m) for f in range(S.n_folds)])
-    cnts = np.array([np.bincount(b[S.fold == f], minlength=m) for f in range(S.n_folds)])
+    parts = _fold_parts(S)
+    cnts = np.array([np.bincount(b[te], minlength=m) for te in parts])
+    sums = np.array([np.bincount(b[te], weights=r[te], minlength=m) for te in parts])
     pred = np.empty(S.n)
-    for f in range(S.n_folds):
+    for f, te in enumerate(parts):
         s, c = sums.sum(0) - sums[f], cnts.sum(0) - cnts[f]
         mean = np.where(c > 0, s / np.maximum(c, 1), 0.0)
-        te = S.fold == f
         pred[te] = mean[b[te]]
     return pred

@@ -261,6 +261,7 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
                 grid = tau_grid(S, ctx)
                 if not grid.size:
                     continue
+                ctx.prefetch([st.plus(Term(cause, ext, role, (("source", src), ("tau_c", float(tc))))) for tc in grid])
                 cand = [trial(src, tc) for tc in grid]
                 k = int(np.argmin([c[0] for c in cand]))
                 step = 10.0 ** (1.0 / TAU_PER_DECADE)
@@ -278,9 +279,12 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
         t0s, scs = rest_scales(S)
         trials = [(t0, sc) for t0 in t0s for sc in scs]
         terms = [Term(cause, ext, role, (("t0", float(t0)), ("s_c", float(sc)))) for t0, sc in trials]
+        ctx.prefetch([st.plus(term) for term in terms])   # the grid's sums in one pass
         return min(terms, key=lambda term: _fit_rms(ctx, st.plus(term), idx))
     if ext == "delay":   # the shift estimated on the training folds' moving samples
-        folds = np.unique(S.fold[idx])
+        f = ctx.fold_of(idx)   # a training set's fold is remembered: no gather of its folds
+        folds = ([g for g in range(S.n_folds) if g != f] if f is not None and f is not False
+                 else np.unique(S.fold[idx]))
         left = np.setdiff1d(np.arange(S.n_folds), folds)
         # a training set of all folds but one: the estimates of every such set at once (one pass for their maps)
         d = delay_estimates(S)[int(left[0])] if left.size == 1 else delay_estimate(S, folds)
@@ -296,12 +300,13 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
         return Term(cause, ext, role, (("scale", sc),) + fix)
     if ext == "stribeck":
         best = None
-        for vs in np.geomspace(max(S.v_min, 1e-12), S.w0 / 3.0, 8):
-            for d in (1.0, 2.0):
-                term = Term(cause, ext, role, (("vs", float(vs)), ("delta", d)))
-                r = _fit_rms(ctx, st.plus(term), idx)
-                if best is None or r < best[0]:
-                    best = (r, term)
+        grid = [Term(cause, ext, role, (("vs", float(vs)), ("delta", d)))
+                for vs in np.geomspace(max(S.v_min, 1e-12), S.w0 / 3.0, 8) for d in (1.0, 2.0)]
+        ctx.prefetch([st.plus(term) for term in grid])   # the grid's sums in one pass
+        for term in grid:
+            r = _fit_rms(ctx, st.plus(term), idx)
+            if best is None or r < best[0]:
+                best = (r, term)
         return best[1]
     return Term(cause, ext, role, ())
 
@@ -336,6 +341,7 @@ def _position_torque(ctx: Context, st: Structure, idx: np.ndarray, resid: np.nda
     # it: without the constant, a harmonic of a short travel was split into an offset and a shape)
     q0, qs = float(0.5 * (S.q.max() + S.q.min())), float(0.5 * np.ptp(S.q)) or 1.0
     terms.append(Term("position_torque", "position_torque", "additive", (("period", 0.0), ("q0", q0), ("qs", qs))))
+    ctx.prefetch([st.plus(term) for term in terms])   # their sums in one pass
     return min(terms, key=lambda term: _fit_rms(ctx, st.plus(term), idx))
 
 

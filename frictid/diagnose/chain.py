@@ -161,10 +161,13 @@ class Chain:
             if term is None:
                 self.ctx.release(self.st)
                 return None
+            terms.append(term)
+        # the folds' own settings (a period, a shift) summed in one pass, then each fold's fit from its sums
+        self.ctx.prefetch([self.st.plus(term) for term in terms])
+        for (tr, te, *_), term in zip(self.train_info, terms):
             ev = Evaluator(self.st.plus(term), self.ctx)
             c = ev.fit(tr)
             after[te] = ev.predict(c, te)
-            terms.append(term)
             coefs.append(c)
         self.ctx.release(self.st)   # the candidate's columns (its sums of products stay cached)
         rb = S.F - self.pred

@@ -130,7 +130,7 @@ def _block(out: np.ndarray, vecs: list, s: int, e: int) -> np.ndarray:
 #: Samples per block of the streamed sums of products (:meth:`Context.fold_products`): 32 kB per column,
 #: so a block's columns stay in the second-level cache between their copy and their product (blocks of
 #: 65 k samples, 4 MB per 8 columns, made the copies and the product go through memory twice).
-BLOCK_ROWS = 1 << 12
+BLOCK_ROWS = 1 << 14
 
 
 
@@ -240,6 +240,83 @@ class Context:
                 out[f] += A @ B.T
         return out
 
+    def prefetch(self, structures: list) -> None:
+        """Cache the per-fold sums that fits of several structures will ask for (the settings of one
+        candidate's grid: Stribeck velocities, time constants, rest scales, periods, each on top of the same
+        current model) in one pass over the samples: the current model's columns, which every setting's
+        border meets, are read once for all of them (:meth:`_border_products`), not once per setting. The
+        sums are those :meth:`_fill_pairs` would accumulate setting by setting."""
+        if not self.use_normal_equations:
+            return
+        groups = {}   # the same setting in several folds (an offset, a load term) is one list
+        for st in structures:
+            for g in Evaluator(st, self)._sum_groups():
+                groups.setdefault(tuple(k for k, _ in g), g + [(("y",), self.S.F)])
+        self._prefetch_groups(list(groups.values()))
+
+    def _prefetch_groups(self, groups: list) -> None:
+        """:meth:`prefetch` of lists of (key, vector), each list's pairs wanted; one list is summed as a fit
+        would sum it (:meth:`_fill_pairs`, the same numbers)."""
+        if len(groups) == 1:
+            return self._fill_pairs(groups[0])
+        vec, missing = {}, []
+        for items in groups:
+            for i in range(len(items)):
+                for j in range(i, len(items)):
+                    ka, kb = items[i][0], items[j][0]
+                    if self._cached_pair(ka, kb) is None:
+                        missing.append((ka, kb))
+                        vec[ka], vec[kb] = items[i][1], items[j][1]
+        if not missing:
+            return
+        new = {a for a, b in missing if a == b}   # a column whose own sum is missing has none cached
+        seen: dict = {}
+        for items in groups:
+            for k in dict.fromkeys(x[0] for x in items):
+                seen[k] = seen.get(k, 0) + (k in new)
+        shared = [k for k, c in seen.items() if c > 1]
+        if shared:   # new columns that several lists share (no current model summed yet): theirs first
+            self._fill_pairs([(k, vec[k]) for k in shared])
+            return self._prefetch_groups(groups)
+        if any(a not in new and b not in new for a, b in missing):   # two old columns never met
+            for items in groups:
+                self._fill_pairs(items)
+            return
+        old = [k for k in vec if k not in new]
+        order, spans = [], []   # the new columns list by list (a list's rows one slice of the block)
+        for items in groups:
+            mine = [k for k in dict.fromkeys(x[0] for x in items) if k in new]
+            spans.append((len(order), len(order) + len(mine)))
+            order += mine
+        P, Q = self._border_products([vec[k] for k in old], [vec[k] for k in order], spans)
+        for a, ka in enumerate(old):
+            for b, kb in enumerate(order):
+                self._cache[("pair", ka, kb)] = P[:, a, b].copy()
+        for (s0, s1), q in zip(spans, Q):
+            for a in range(s1 - s0):
+                for b in range(a, s1 - s0):
+                    self._cache[("pair", order[s0 + a], order[s0 + b])] = q[:, a, b].copy()
+
+    def _border_products(self, olds: list, news: list, spans: list) -> tuple[np.ndarray, list]:
+        """Per-fold sums of the products of every old vector with every new one, and of the new ones of each
+        span with each other (:meth:`fold_products`' blocks)."""
+        bounds = self._fold_bounds()
+        nf, m, k = self.S.n_folds, len(olds), len(news)
+        P = np.zeros((nf, m, k))
+        Q = [np.zeros((nf, s1 - s0, s1 - s0)) for s0, s1 in spans]
+        rows = min(BLOCK_ROWS, max(self.S.n, 1))
+        V, W = np.empty((m, rows)), np.empty((k, rows))
+        for f in range(nf):
+            for s in range(bounds[f], bounds[f + 1], BLOCK_ROWS):
+                e = min(s + BLOCK_ROWS, bounds[f + 1])
+                A = _block(V[:, :e - s], olds, s, e)
+                B = _block(W[:, :e - s], news, s, e)
+                P[f] += A @ B.T
+                for (s0, s1), q in zip(spans, Q):
+                    if s1 > s0:
+                        q[f] += B[s0:s1] @ B[s0:s1].T
+        return P, Q
+
     def _fill_pairs(self, items) -> None:
         """Cache the per-fold sums of every pair of items (list of (key, vector or callable)) not cached yet.
         A candidate's system is the current one bordered by new columns: only the border is accumulated
@@ -290,8 +367,11 @@ class Context:
         of the position or q and q^2 are, holds nearly all of them)."""
         key = ("extremes", term.ext, term.nl, cols)
         if key not in self._cache:
-            X = self.term_columns(term)
-            X = X if cols is None else X[:, list(cols)]
+            if term.ext == "thermal6" and cols is not None and len(cols) == 1:   # one product, not all four
+                X = _product(self.term_vectors(term)[cols[0]])[:, None]
+            else:
+                X = self.term_columns(term)
+                X = X if cols is None else X[:, list(cols)]
             self._cache[key] = np.vstack([X.min(axis=0), X.max(axis=0)]) if X.shape[1] == 1 and X.size else X
         return self._cache[key]
 
@@ -299,11 +379,18 @@ class Context:
         """Drop the cached columns that no term of st uses: those of a candidate's settings (time constants,
         Stribeck velocities, periods) once it is judged. Their sums of products stay cached (small); a
         column needed again is computed again. Keeps the diagnosis' memory to the current model's columns
-        plus one candidate's (on a one-hour log, 1.1 GB above the fit without it before)."""
+        plus one candidate's (on a one-hour log, 1.1 GB above the fit without it before).
+
+        The thermal states stay while st has no thermal term: the grid's states serve the time-constant
+        check (:func:`frictid.diagnose.causes.tau_grid`), both thermal candidates and the chosen one's
+        proposal on all samples (each a recursion over the whole logs, computed up to four times before;
+        12 states, 110 MB on the one-hour bench log, where thermal6 no longer stores its four columns per
+        state: :meth:`_thermal6_vectors`; the diagnosis' measured peak did not rise)."""
         terms = {(t.ext, t.nl) for t in st.terms}
         strib = {(t.settings["vs"], t.settings["delta"]) for t in st.terms if t.role == "stribeck"}
         thermal = {(round(float(t.settings["tau_c"]), 9), t.settings.get("source", "heat_balance"))
                    for t in st.terms if t.ext in ("thermal4", "thermal6")}
+        keep_states = not thermal
 
         def stale(k) -> bool:
             kind = k[0]
@@ -314,7 +401,7 @@ class Context:
             if kind == "signed":
                 return stale(k[1])
             if kind == "thermal":
-                return (k[1], k[2]) not in thermal
+                return not keep_states and (k[1], k[2]) not in thermal
             return False
 
         for k in [k for k in self._cache if isinstance(k, tuple) and k and stale(k)]:
@@ -359,11 +446,19 @@ class Context:
             w, v, s = self.S.w, self.v, self.sgn
             if slot == 0:
                 c = s
-            elif slot == 1:
+            elif slot == 1:   # s exp(-(v / vs)^d), in place (a Stribeck grid makes 16 of them)
                 vs, d = (shapes[2], shapes[3]) if term_nl is None else term_nl
-                c = s * np.exp(-np.power(v / vs, d))
-            elif slot == 4:
-                c = s * (1.0 - np.exp(-v / shapes[5]))
+                c = np.divide(v, vs)
+                np.power(c, d, out=c)
+                np.negative(c, out=c)
+                np.exp(c, out=c)
+                np.multiply(s, c, out=c)
+            elif slot == 4:   # s (1 - exp(-v / vs2)), in place
+                c = np.negative(v)
+                np.divide(c, shapes[5], out=c)
+                np.exp(c, out=c)
+                np.subtract(1.0, c, out=c)
+                np.multiply(s, c, out=c)
             elif slot == 6:
                 c = w
             elif slot == 7:
@@ -379,11 +474,13 @@ class Context:
             return self._cache[key]
         S, nl = self.S, term.settings
         if term.ext == "position_periodic":
-            ph = 2 * np.pi * S.q / nl["period"]
-            c = np.array([np.sin(ph), np.cos(ph)]).T
+            c = sin_cos(self._cache, S.q, nl["period"])
         elif term.ext == "position_smooth":
             d = (S.q - nl["q0"]) / nl["qs"]
-            c = np.array([d, d * d]).T
+            c = np.empty((2, d.size))
+            c[0] = d
+            np.multiply(d, d, out=c[1])
+            c = c.T
         elif term.ext.startswith("load_"):
             c = (load_variable(S, term.ext, nl) / nl["scale"])[:, None]
         elif term.ext == "drift":
@@ -410,10 +507,13 @@ class Context:
             c = np.array([np.cos(S.q), np.sin(S.q)]).T
         elif term.ext == "position_torque" and nl["period"] == 0:   # smooth over the travel
             d = (S.q - nl["q0"]) / nl["qs"]
-            c = np.array([np.ones_like(d), d, d * d]).T
+            c = np.empty((3, d.size))
+            c[0] = 1.0
+            c[1] = d
+            np.multiply(d, d, out=c[2])
+            c = c.T
         elif term.ext == "position_torque":
-            ph = 2 * np.pi * S.q / nl["period"]
-            c = np.array([np.sin(ph), np.cos(ph)]).T
+            c = sin_cos(self._cache, S.q, nl["period"])
         elif term.ext == "delay":
             c = delay_column(S, nl.get("shift", 0.0), nl.get("beta", ()))[:, None]
         elif term.ext == "dwell":
@@ -425,17 +525,55 @@ class Context:
         return self._cache[key]
 
     def term_vectors(self, term: Term) -> list:
-        """The columns of :meth:`term_columns` as contiguous vectors (cached)."""
+        """The columns of :meth:`term_columns` as contiguous vectors (cached); thermal6's as the products that
+        form them (:meth:`_thermal6_vectors`)."""
         key = ("term_vectors", term.ext, term.nl)
         if key not in self._cache:
-            self._cache[key] = [np.ascontiguousarray(x) for x in self.term_columns(term).T]   # views when F-ordered
+            if term.ext == "thermal6":
+                self._cache[key] = self._thermal6_vectors(term)
+            else:   # views when F-ordered
+                self._cache[key] = [np.ascontiguousarray(x) for x in self.term_columns(term).T]
         return self._cache[key]
+
+    def _thermal6_vectors(self, term: Term) -> list:
+        """thermal6's columns ``x sgn w, x w, x w |w|, x w^3`` as tuples of the vectors whose product they
+        are (the same factors in the same order as :meth:`term_columns`), multiplied where they are used:
+        block by block in the sums (:meth:`fold_products`), on the samples of a prediction (:class:`_At`).
+        Four columns per time constant tried are never stored (12 time constants on a one-hour log: 0.45 GB
+        and a third of the thermal6 candidate's time)."""
+        nl = term.settings
+        x = self.thermal(nl["tau_c"], nl.get("source", "heat_balance"))
+        if "w2" not in self._cache:
+            self._cache["w2"] = self.S.w * self.S.w
+        w, w2 = self.S.w, self._cache["w2"]
+        return [(self.sgn, x), (w, x), (w, x, self.v), (w, x, w2)]
 
     def thermal(self, tau_c: float, source: str = "heat_balance") -> np.ndarray:
         key = ("thermal", round(float(tau_c), 9), source)
         if key not in self._cache:
             self._cache[key] = self.S.thermal_state(tau_c, measured=(source == "temp_joint"))
         return self._cache[key]
+
+
+def sin_cos(cache: dict, q: np.ndarray, period: float) -> np.ndarray:
+    """``sin`` and ``cos`` of ``2 pi q / period`` as the columns of an F-ordered array (filled in place).
+    An encoder's positions repeat (208 000 distinct among 1.16 M sliding samples on the one-hour bench
+    log): where at most half of them are distinct, the two functions are evaluated once per distinct
+    position and read back per sample, the same numbers (``2 pi q`` and the distinct positions kept in
+    ``cache``, a :class:`Context`'s: every period tried shares them)."""
+    if "q2pi" not in cache:
+        u, inv = np.unique(q, return_inverse=True)
+        cache["q2pi"] = (2 * np.pi * u, inv) if 2 * u.size <= q.size else (2 * np.pi * q, None)
+    q2pi, inv = cache["q2pi"]
+    ph = q2pi / period
+    c = np.empty((2, q.size))
+    if inv is None:
+        np.sin(ph, out=c[0])
+        np.cos(ph, out=c[1])
+    else:
+        np.take(np.sin(ph), inv, out=c[0])
+        np.take(np.cos(ph), inv, out=c[1])
+    return c.T
 
 
 def _lstsq(cols: list, y: np.ndarray) -> np.ndarray:
@@ -476,6 +614,16 @@ def _combination(cols, coef) -> np.ndarray:
     return out
 
 
+def _product(vecs) -> np.ndarray:
+    """The product of a tuple of vectors, left to right (as :func:`_block` forms it); a vector itself."""
+    if not isinstance(vecs, tuple):
+        return vecs
+    out = np.multiply(vecs[0], vecs[1])
+    for x in vecs[2:]:
+        out *= x
+    return out
+
+
 class _At:
     """The columns of an :class:`Evaluator` at samples idx (all samples when idx is None), gathered once
     for a whole fit or prediction. base : {slot: column}; vec : {term index: columns}; pos : w >= 0."""
@@ -483,7 +631,10 @@ class _At:
     def __init__(self, ev: "Evaluator", idx):
         if idx is not None and idx.size and idx[-1] - idx[0] + 1 == idx.size and np.all(np.diff(idx) == 1):
             idx = slice(int(idx[0]), int(idx[-1]) + 1)   # a fold's samples are consecutive: views, no gather
-        take = (lambda x: x) if idx is None else (lambda x: x[idx])
+        pick = (lambda x: x) if idx is None else (lambda x: x[idx])
+
+        def take(x):
+            return _product(tuple(pick(v) for v in x)) if isinstance(x, tuple) else pick(x)
         self.n = ev.ctx.S.n if idx is None else (idx.stop - idx.start if isinstance(idx, slice) else int(idx.size))
         self.pos = take(ev.pos)
         self.base = {sl: take(col) for sl, col in ev.base_cols.items()}
@@ -511,10 +662,22 @@ class Evaluator:
         self.lf = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "level_factor"]
         self.af = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "whole_factor"]
         self.add = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "additive"]
-        self.t6 = next(((i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "thermal6"), None)
+        # thermal6's columns are products formed where they are used (Context.term_vectors): none stored here
+        self.t6 = next(((i, t, None) for i, t in enumerate(st.terms) if t.role == "thermal6"), None)
         #: each term's columns as contiguous vectors, by term index
         self.vec = {i: ctx.term_vectors(t)
                     for i, t, _ in self.lf + self.af + self.add + ([self.t6] if self.t6 is not None else [])}
+
+    def _sum_groups(self) -> list:
+        """The lists of (key, vector) whose sums of products a fit of this structure asks for (nothing
+        excluded yet): its linear items (the first, linear solve) and, with factor terms, the monomials of
+        its Gauss-Newton (:meth:`Context.prefetch`)."""
+        self._excl, self._held = set(), set()
+        items, held = self._linear_items()
+        out = [[(k, v) for k, v, _ in items] + [(k, v) for k, v, _ in held]]
+        if self.lf or self.af:
+            out.append(list(self._moment_layout()[1]))
+        return out
 
     # pieces -----------------------------------------------------------------------------------------
     def _gf(self, c: Coef, a: _At):
@@ -719,27 +882,25 @@ class Evaluator:
             else:
                 c.gamma[a][b] += v
 
-    def _moment_problem(self, c: Coef):
-        """The monomials of this structure (:mod:`.moments`), each with its key and a callable returning
-        its column, the items' amplitudes in c, the factors' coefficients, the free items and factor
-        coefficients, and the keys of the free coefficients (in the order of the Jacobian's columns)."""
+    def _moment_layout(self):
+        """The monomials of this structure (:mod:`.moments`), each with its key and the vectors whose
+        product it is, the entries (linear items, then held base columns), the factors, the free items and
+        factor coefficients, and the keys of the free coefficients (in the order of the Jacobian's columns).
+        It does not depend on the coefficients: built once per Gauss-Newton run (:meth:`_moment_values`
+        reads the coefficients at each iteration)."""
         items, held = self._linear_items()
         factors = self.lf + self.af
         n_lf = len(self.lf)
         entries = [(k, v, ck) for k, v, ck in items] + [(k, v, None) for k, v, _ in held]
-        amp, applies = [], []
+        applies = []
         for k, v, ck in entries:
             if ck is None:                       # a held base column: its value is fixed
                 level = k[1] in LEVEL_SLOTS
-                amp.append(float(self.st.shapes[k[1]]))
             elif ck[0] in ("b", "p", "n"):
                 level = ck[1] in LEVEL_SLOTS
-                amp.append((c.base_neg if ck[0] == "n" else c.base_pos).get(ck[1], 0.0))
             elif ck[0] == "dc":
                 level = ck[1] == 0
-                amp.append(float(c.dc[ck[1]]))
             else:                                # additive: no factor multiplies it
-                amp.append(float(np.atleast_1d(c.gamma[ck[1]])[ck[2]]))
                 applies.append(())
                 continue
             applies.append(tuple(range(len(factors))) if level else tuple(range(n_lf, len(factors))))
@@ -750,40 +911,51 @@ class Evaluator:
         def column(m):
             # the monomial as the tuple of vectors whose product it is (multiplied block by block when its
             # sums are accumulated: Context.fold_products)
-            vecs = (entries[m.item][1],) + tuple(self.vec[factors[f][0]][j]
-                                                 for f, j in zip(m.factors, m.choice) if j >= 0)
+            head = entries[m.item][1]   # a product itself (thermal6's columns): its factors first
+            vecs = (head if isinstance(head, tuple) else (head,)) + tuple(
+                self.vec[factors[f][0]][j] for f, j in zip(m.factors, m.choice) if j >= 0)
             key = (entries[m.item][0], tuple(sorted((fkeys[f], j) for f, j in zip(m.factors, m.choice) if j >= 0)))
             return key, (vecs[0] if len(vecs) == 1 else vecs)
 
-        gam = [np.atleast_1d(c.gamma[i]).astype(float) for i, _, _ in factors]
         free_items = [n for n, e in enumerate(entries) if e[2] is not None]
         free_gamma = [(f, j) for f, (i, _, X) in enumerate(factors) for j in range(X.shape[1])
                       if ("g", i, j) not in self._excl]
         keys = [entries[n][2] for n in free_items] + [("g", factors[f][0], j) for f, j in free_gamma]
-        return monos, [column(m) for m in monos], np.array(amp), gam, free_items, free_gamma, keys
+        return monos, [column(m) for m in monos], entries, factors, free_items, free_gamma, keys
+
+    def _moment_values(self, c: Coef, layout) -> tuple[np.ndarray, np.ndarray]:
+        """The monomials' coefficients c and the Jacobian's C (:func:`.moments.coefficients`) at the
+        coefficients c of :meth:`_moment_layout`'s entries and factors."""
+        monos, _, entries, factors, free_items, free_gamma, _ = layout
+        amp = []
+        for k, v, ck in entries:
+            if ck is None:
+                amp.append(float(self.st.shapes[k[1]]))
+            elif ck[0] in ("b", "p", "n"):
+                amp.append((c.base_neg if ck[0] == "n" else c.base_pos).get(ck[1], 0.0))
+            elif ck[0] == "dc":
+                amp.append(float(c.dc[ck[1]]))
+            else:
+                amp.append(float(np.atleast_1d(c.gamma[ck[1]])[ck[2]]))
+        gam = [np.atleast_1d(c.gamma[i]).astype(float) for i, _, _ in factors]
+        return mo.coefficients(monos, np.array(amp), gam, free_items, free_gamma)
 
     def _gauss_newton_moments(self, c: Coef, fold, max_iter: int, tol: float) -> tuple[float, int]:
         """Gauss-Newton of the factor terms from the per-fold moments (:mod:`.moments`), from c (updated in
         place); the same iterates as :meth:`_gauss_newton` on the samples. Returns (RSS at the end, n)."""
-        monos, cols, *_ = self._moment_problem(c)
-        ne = self.ctx.normal_equations(cols, fold)
+        layout = self._moment_layout()
+        ne = self.ctx.normal_equations(layout[1], fold)
         G, b, yty, n = ne.XtX, ne.Xty, ne.yty, ne.n
+        keys = layout[6]
         prev = np.inf
         for _ in range(max_iter):
-            _, _, amp, gam, free_items, free_gamma, keys = self._moment_problem(c)
-            cv, C = mo.coefficients(monos, amp, gam, free_items, free_gamma)
+            cv, C = self._moment_values(c, layout)
             step, cost = mo.gauss_newton_step(G, b, yty, n, cv, C)
             self._apply(c, keys, step)
             if abs(prev - cost) <= tol * max(cost, 1e-300):
                 break
             prev = cost
-        return self._moment_rss(c, (monos, G, b, yty)), n
-
-    def _moment_rss(self, c: Coef, problem) -> float:
-        monos, G, b, yty = problem
-        _, _, amp, gam, free_items, free_gamma, _ = self._moment_problem(c)
-        cv, _ = mo.coefficients(monos, amp, gam, free_items, free_gamma)
-        return mo.rss(G, b, yty, cv)
+        return mo.rss(G, b, yty, self._moment_values(c, layout)[0]), n
 
     def _gauss_newton(self, c: Coef, rows: _At, y: np.ndarray, max_iter: int, tol: float) -> None:
         """Gauss-Newton of the factor terms on the samples of rows, from c (updated in place)."""

@@ -187,21 +187,12 @@ def _delay_columns(S: Samples, i: int, k: np.ndarray) -> np.ndarray:
 
 def _delay_gram(S: Samples):
     """Per fold: X'X of the moving samples, X :func:`_delay_columns` (None without moving samples; cached).
-    It does not depend on the shift: computed once for every shift :func:`_delay_sums` tries (the largest
-    share of their time, 11 x 11 products per row against 11)."""
-    def compute():
-        XtX = None
-        for i, (km, fk) in enumerate(_moving_rows(S)):
-            for b in range(0, km.size, BLOCK):
-                k, f = km[b:b + BLOCK], fk[b:b + BLOCK]
-                X = _delay_columns(S, i, k)
-                if XtX is None:
-                    XtX = np.zeros((S.n_folds, X.shape[1], X.shape[1]))
-                for g in np.unique(f):
-                    Xg = X[f == g]
-                    XtX[g] += np.einsum("ij,ik->jk", Xg, Xg)
-        return XtX
-    return S.cached("delay_gram", compute)
+    It does not depend on the shift: summed once, in the first pass of :func:`_delay_prefetch` (the columns
+    it builds for the shifts' sums serve it too), for every shift tried (the largest share of their time,
+    11 x 11 products per row against 11)."""
+    if not S.has("delay_gram"):
+        _delay_prefetch(S, [])
+    return S.cached("delay_gram", lambda: None)
 
 
 def _sums_key(shift_s: float) -> tuple:
@@ -240,10 +231,12 @@ def _delay_prefetch(S: Samples, shifts) -> None:
     the columns X of a block are computed once for all the shifts (they do not depend on the shift; only
     ``y`` does), each shift adding a gather of the torque and a product with X."""
     todo = sorted({_sums_key(s)[1] for s in shifts if not S.has(_sums_key(s))})
-    if not todo:
+    gram = not S.has("delay_gram")   # X'X in the same pass, the first one
+    if not todo and not gram:
         return
     nf, ns = S.n_folds, len(todo)
-    XtX, XtY = _delay_gram(S), None
+    XtX = None if gram else S.cached("delay_gram", lambda: None)
+    XtY = None
     yty = np.zeros((nf, ns))
     for i, (km, fk) in enumerate(_moving_rows(S)):
         lg = S.logs[i]
@@ -253,6 +246,12 @@ def _delay_prefetch(S: Samples, shifts) -> None:
         whole = bool(np.all(np.abs(sh - np.round(sh)) < 1e-6))
         for g, k in _fold_blocks(km, fk, BATCH_ROWS):
             X = _delay_columns(S, i, k)
+            if gram:
+                if XtX is None:
+                    XtX = np.zeros((nf, X.shape[1], X.shape[1]))
+                XtX[g] += X.T @ X
+            if not ns:
+                continue
             if whole:   # shifted_torque at a whole shift, without its interpolation (the same numbers)
                 Y = tau[np.clip(k[:, None] - np.round(sh).astype(np.int64)[None, :], 0, lg.n - 1)]
             else:
@@ -260,8 +259,10 @@ def _delay_prefetch(S: Samples, shifts) -> None:
             Y += (lg.F[k] - tau[k])[:, None]
             if XtY is None:
                 XtY = np.zeros((nf, X.shape[1], ns))
-            XtY[g] += np.einsum("ij,ik->jk", X, Y)   # not BLAS: its threads spin on a loaded machine
+            XtY[g] += X.T @ Y   # BLAS with one thread (frictid.diagnose.check: the diagnosis' own limit)
             yty[g] += np.einsum("ij,ij->j", Y, Y)
+    if gram:
+        S.cached("delay_gram", lambda: XtX)
     for n, s in enumerate(todo):
         val = (XtX, None if XtY is None else XtY[:, :, n].copy(), yty[:, n].copy())
         S.cached(("delay_sums", s), lambda v=val: v)
@@ -376,26 +377,91 @@ def _run_time(S: Samples) -> float:
     return S.cached("run_time_moving", compute)
 
 
-def _torque_model(S: Samples, i: int, j: np.ndarray, beta: tuple) -> np.ndarray:
-    """The torque at samples j of log i as the motion explains it, free of the torque sensor's noise:
-    ``J a + G`` (``tau - F``, in which the sensor's noise cancels) plus the delay fit's map and corrections
-    (:func:`_delay_columns` times ``beta``, summed column by column without forming them)."""
+def _torque_features(S: Samples, i: int, j: np.ndarray) -> tuple:
+    """What :func:`_torque_model` reads at samples j of log i, whatever its map: ``tau - F``, the speed
+    |w|, its square root, the masks w > 0 and w < 0, the acceleration, cos q and sin q (None off a rotary
+    axis)."""
     lg = S.logs[i]
-    out = finite(lg.tau[j]) - finite(lg.F[j])
+    base = finite(lg.tau[j]) - finite(lg.F[j])
+    w = S.log_w(i)[j]
+    v = np.abs(w)
+    trig = None
+    q = S.logs[i].q
+    if S.axis_rotary and q is not None:
+        qk = finite(q[j])
+        trig = (np.cos(qk), np.sin(qk))
+    return base, v, np.sqrt(v), w > 0, w < 0, S.log_a(i)[j], trig
+
+
+def _torque_model(feats: tuple, beta: tuple) -> np.ndarray:
+    """The torque at the samples of ``feats`` (:func:`_torque_features`) as the motion explains it, free of
+    the torque sensor's noise: ``J a + G`` (``tau - F``, in which the sensor's noise cancels) plus the delay
+    fit's map and corrections (:func:`_delay_columns` times ``beta``, summed column by column without
+    forming them)."""
+    base, v, sv, pos, neg, a, trig = feats
+    out = base.copy()
     if not beta:
         return out
     b = np.asarray(beta, float)
-    w = S.log_w(i)[j]
-    v = np.abs(w)
-    sv = np.sqrt(v)
-    for m, c in (((w > 0), b[0:4]), ((w < 0), b[4:8])):
+    for m, c in ((pos, b[0:4]), (neg, b[4:8])):
         out += m * (c[0] + c[1] * sv + c[2] * v + c[3] * v * v)
-    out += b[8] * S.log_a(i)[j]
-    q = S.logs[i].q
-    if S.axis_rotary and q is not None and b.size > 9:
-        qk = finite(q[j])
-        out += b[9] * np.cos(qk) + b[10] * np.sin(qk)
+    out += b[8] * a
+    if trig is not None and b.size > 9:
+        out += b[9] * trig[0] + b[10] * trig[1]
     return out
+
+
+def _column_key(shift_s: float, beta: tuple) -> tuple:
+    return ("delay_column", round(float(shift_s), 12), beta)
+
+
+def _ends(S: Samples, i: int, k: np.ndarray, shift_s: float, n: int) -> list:
+    """The two ends ``k +- shift / 2`` [samples] of log i (n samples): (sample below, fraction) of each."""
+    h = 0.5 * shift_s / S.dt(i)
+    out = []
+    for pos in (k + h, k - h):
+        j0 = np.clip(np.floor(pos).astype(np.int64), 0, n - 2)
+        out.append((j0, np.clip(pos - j0, 0.0, 1.0)))
+    return out
+
+
+def _delay_columns_at(S: Samples, items: list) -> list:
+    """:func:`delay_column` of every (shift, beta) of items, in one pass over each log: the samples the ends
+    interpolate between marked for all of them, what the torque model reads there gathered once
+    (:func:`_torque_features`), each item's model and ends from it (the same numbers as one at a time)."""
+    outs = [np.empty(S.n) for _ in items]
+    for i, lg in enumerate(S.logs):
+        sel = S.li == i
+        if not sel.any():
+            continue
+        k = S.k[sel].astype(float)
+        # the torque model once at each sample the two ends interpolate between (they overlap: the
+        # sliding samples come in runs, and the shifts of the folds are close), then read at both ends
+        mark = np.zeros(lg.n, bool)
+        for shift_s, _ in items:
+            for j0, _ in _ends(S, i, k, shift_s, lg.n):
+                mark[j0] = True
+                mark[j0 + 1] = True
+        idx = np.flatnonzero(mark)
+        del mark
+        feats = _torque_features(S, i, idx)
+        at = np.empty(lg.n, np.int64)   # the position of each marked sample in idx (only those are read)
+        at[idx] = np.arange(idx.size)
+        for (shift_s, beta), out in zip(items, outs):
+            T = _torque_model(feats, beta)
+            ends = [T[at[j0]] * (1 - fr) + T[at[j0 + 1]] * fr for j0, fr in _ends(S, i, k, shift_s, lg.n)]
+            out[sel] = (ends[0] - ends[1]) / shift_s
+    return outs
+
+
+def _fold_delay_terms(S: Samples) -> list:
+    """The (shift, map) of each training set's delay term (:func:`delay_estimates`, :func:`delay_map`), as
+    :func:`frictid.diagnose.causes.propose` makes them (cached)."""
+    def compute():
+        nf = S.n_folds
+        return [(float(d), delay_map(S, d, [g for g in range(nf) if g != f]))
+                for f, d in enumerate(delay_estimates(S))]
+    return S.cached("delay_fold_terms", compute)
 
 
 def delay_column(S: Samples, shift_s: float, beta: tuple = ()) -> np.ndarray:
@@ -405,34 +471,23 @@ def delay_column(S: Samples, shift_s: float, beta: tuple = ()) -> np.ndarray:
     first order). Not the measured torque's own rate: the friction torque it is fitted to carries the
     torque sensor's noise, and a difference of measured torques would explain part of that noise and pass
     for a delay on a clean log (or, centred, be attenuated by it). The Savitzky-Golay rate of the measured
-    torque when the shift is zero."""
+    torque when the shift is zero.
+
+    The training sets' columns (:func:`_fold_delay_terms`) are computed together when one of them is asked
+    for (:func:`_delay_columns_at`): the folds' proposals ask for each in turn."""
     if shift_s == 0:
         return torque_rate(S)
-
-    def compute():
-        out = np.empty(S.n)
-        for i, lg in enumerate(S.logs):
-            sel = S.li == i
-            if not sel.any():
-                continue
-            h = 0.5 * shift_s / S.dt(i)
-            k = S.k[sel].astype(float)
-            js = []
-            for pos in (k + h, k - h):
-                j0 = np.clip(np.floor(pos).astype(np.int64), 0, lg.n - 2)
-                js.append((j0, np.clip(pos - j0, 0.0, 1.0)))
-            # the torque model once at each sample the two ends interpolate between (they overlap: the
-            # sliding samples come in runs), then read at both ends
-            mark = np.zeros(lg.n, bool)
-            for j0, _ in js:
-                mark[j0] = True
-                mark[j0 + 1] = True
-            T = _torque_model(S, i, np.flatnonzero(mark), beta)
-            at = np.cumsum(mark) - 1
-            ends = [T[at[j0]] * (1 - fr) + T[at[j0 + 1]] * fr for j0, fr in js]
-            out[sel] = (ends[0] - ends[1]) / shift_s
-        return out
-    return S.cached(("delay_column", round(float(shift_s), 12), beta), compute)
+    key = _column_key(shift_s, beta)
+    if S.has(key):
+        return S.cached(key, lambda: None)
+    items = [(shift_s, beta)]
+    if S.has("delay_estimates"):
+        folds = [x for x in _fold_delay_terms(S) if x[0] != 0 and not S.has(_column_key(*x))]
+        if any(_column_key(*x) == key for x in folds):
+            items = folds
+    for x, col in zip(items, _delay_columns_at(S, items)):
+        S.cached(_column_key(*x), lambda c=col: c)
+    return S.cached(key, lambda: None)
 
 
 def _moving_groups(S: Samples) -> list:

@@ -1,0 +1,105 @@
+"""The diagnosis' shortcuts for long logs give the numbers of the plain computations they replace (issue 20,
+"a 1-hour 1 kHz log is diagnosed on all its samples in at most 3x the time of the fit"; the speed itself is
+measured by ``benchmarks/bench_diagnose_whole.py``): a candidate's grid of settings summed in one pass,
+thermal6's columns formed where they are used, the training sets' delay columns computed together."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from frictid.diagnose import signals as sg
+from frictid.diagnose.model import Context, Evaluator, Structure, Term
+from frictid.diagnose.samples import build_samples
+from frictid.models import static as sm
+
+from test_diagnose import TRUE, plateau_log
+
+
+@pytest.fixture(scope="module")
+def S():
+    eff = lambda t, q, w, F: F * (1 + 0.1 * np.sin(2 * np.pi * q / 0.9)) * (1 - 0.002 * t) + 0.05
+    return build_samples([plateau_log(eff, seed=4, dt=5e-3), plateau_log(eff, seed=5, t0=200.0, dt=5e-3)], 5)
+
+
+def _current():
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    return Structure("stribeck", cp, (Term("position", "position_periodic", "level_factor", (("period", 0.9),)),
+                                      Term("offset", "offset", "additive", ())))
+
+
+def _grid():
+    th = [Term("temperature", "thermal4", "whole_factor", (("source", "heat_balance"), ("tau_c", tc)))
+          for tc in (10.0, 25.0, 60.0)]
+    pt = [Term("position_torque", "position_torque", "additive", (("period", p),)) for p in (0.31, 0.55)]
+    return th + pt
+
+
+def test_a_grid_summed_in_one_pass_fits_as_setting_by_setting(S):
+    st = _current()
+    grid = [st.plus(t) for t in _grid()]
+    one, plain = Context(S), Context(S)
+    one.prefetch(grid)
+    calls = []
+    one.fold_products = lambda *a, **k: calls.append(a)   # every sum must be there already
+    for f in (None, 0, 3):
+        idx = np.arange(S.n) if f is None else np.flatnonzero(S.fold != f)
+        for s in grid:
+            a, b = Evaluator(s, one).fit(idx), Evaluator(s, plain).fit(idx)
+            assert a.rms == pytest.approx(b.rms, rel=1e-12)
+            for i in b.gamma:
+                np.testing.assert_allclose(a.gamma[i], b.gamma[i], rtol=1e-10, atol=1e-14)
+            assert all(a.base_pos[k] == pytest.approx(b.base_pos[k], rel=1e-10) for k in b.base_pos)
+    assert not calls
+
+
+def test_thermal6_columns_formed_where_used_equal_the_stored_ones(S):
+    t6 = Term("temperature", "thermal6", "thermal6", (("source", "heat_balance"), ("tau_c", 20.0)))
+    ctx = Context(S)
+    prods = ctx.term_vectors(t6)
+    assert all(isinstance(p, tuple) for p in prods)
+    X = ctx.term_columns(t6)
+    for j, p in enumerate(prods):
+        out = np.multiply(p[0], p[1])
+        for x in p[2:]:
+            out *= x
+        np.testing.assert_array_equal(out, X[:, j])
+    ext = ctx.extremes(t6, (0,))
+    assert ext.ravel().tolist() == [X[:, 0].min(), X[:, 0].max()]
+    # a fit and a held-out prediction with the products, against the dense least squares on the samples
+    st = Structure("stribeck", _current().shapes, (t6,))
+    te = np.flatnonzero(S.fold == 2)
+    tr = np.flatnonzero(S.fold != 2)
+    a = Evaluator(st, ctx)
+    b = Evaluator(st, Context(S, use_normal_equations=False))
+    ca, cb = a.fit(tr), b.fit(tr)
+    np.testing.assert_allclose(ca.dc, cb.dc, rtol=1e-7, atol=1e-12)
+    np.testing.assert_allclose(a.predict(ca, te), b.predict(cb, te), rtol=1e-7, atol=1e-9)
+
+
+def test_the_delay_columns_of_several_shifts_at_once_equal_one_at_a_time(S):
+    rng = np.random.default_rng(2)
+    items = [(0.004, tuple(rng.standard_normal(11))), (0.0065, tuple(rng.standard_normal(11))), (0.01, ())]
+    together = sg._delay_columns_at(S, items)
+    for it, col in zip(items, together):
+        np.testing.assert_array_equal(col, sg._delay_columns_at(S, [it])[0])
+    # the training sets' terms, as the proposals ask for them one by one: computed together, the same numbers
+    terms = sg._fold_delay_terms(S)
+    for shift, beta in terms:
+        if shift:
+            np.testing.assert_array_equal(sg.delay_column(S, shift, beta), sg._delay_columns_at(S, [(shift, beta)])[0])
+
+
+def test_position_columns_of_an_encoder_grid_are_the_direct_ones(S):
+    # quantised positions (an encoder's steps) take the distinct-position path, continuous ones the direct
+    # path: both the numbers of sin and cos of 2 pi q / P at every sample
+    for q in (np.round(S.q / 1e-3) * 1e-3, S.q):
+        Sq = replace(S, q=q)
+        ctx = Context(Sq)
+        for P in (0.31, np.pi):
+            X = ctx.term_columns(Term("position_torque", "position_torque", "additive", (("period", P),)))
+            ph = 2 * np.pi * q / P
+            np.testing.assert_array_equal(X[:, 0], np.sin(ph))
+            np.testing.assert_array_equal(X[:, 1], np.cos(ph))
+        assert (ctx._cache["q2pi"][1] is None) == (np.unique(q).size * 2 > q.size)
