@@ -1106,9 +1106,12 @@ def find_duty_cycles(f: Features) -> list[tuple[int, int, int]]:
     # moves are judged against the whole log, not against the motion around them
     rest = fill_short(np.abs(f.w) < max(K_NOISE * f.sc.sigma_w, R_QUIET * f.sc.w_scale), f.sc.window_w, False)
     cycles = duty_cycles(f.w, ~rest, gap_min, f.n_min, tol, f.sc.sigma_w)
-    # a cycle's motion moves the logged position (by more than an encoder step and the position noise):
-    # presliding seen in a logged qd, with an encoder that never changes its count, is no duty cycle
-    floor = max(f.sc.q_step, K_NOISE * f.sc.sigma_q)
+    # a cycle's motion slides the joint: its logged position moves by more than an encoder step, the
+    # position noise and a presliding displacement (D_PRESLIDE). Presliding seen in a logged qd, with an
+    # encoder that never changes its count, is no duty cycle, nor are repeated torque ramps or steps
+    # below break-away that deflect the joint by 0.02-0.3 mrad (foreign card 100677, 100777): a duty
+    # cycle contains no experiment of another kind
+    floor = max(f.sc.q_step, K_NOISE * f.sc.sigma_q, f.d_preslide)
     return [(a, b, c) for a, b, c in cycles if float(np.ptp(f.q[a:b])) > floor]
 
 
