@@ -184,7 +184,7 @@ def test_back_and_forth_moves_without_a_rest_are_no_duty_cycle(seed, tmp_path):
     not report one. (The seeds: the shortest such logs among seeds 0-999 of the duty family.) Seed 681
     (the class of draw 100751): the truth read its 0.19 s dwells, the joint turning at up to 70 % of its
     speed, as 0.2 s of still joint (the encoder's scatter about a cubic next to a move is the move's own
-    curvature) and kept the cycles; a rest is still and steady, and the turn's torque is not steady."""
+    curvature) and kept the cycles; a stopped joint is also below 1 % of its cycle's top speed."""
     truth, segs = _draw(seed, "duty", tmp_path)
     assert not [k for k, _, _, _ in truth["segments"] if k == "duty_cycle"]
     assert not [s for s in segs if s.kind == "duty_cycle"]
