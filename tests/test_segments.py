@@ -372,8 +372,9 @@ def test_repeated_torque_ramps_below_break_away_are_ramps_not_duty_cycles():
     """A duty cycle contains no experiment of another kind (foreign card, ramps 100677 and steps 100777:
     3 duty cycles each, no ramp or step found). In a log without sliding, the joint's presliding
     deflection under each ramp (0.2 mrad on a 20-bit encoder) is its fastest motion, so it passed as the
-    motion of cycles of motion and rest. A cycle slides the joint farther than a presliding displacement
-    (``D_PRESLIDE``), as a ramp may not."""
+    motion of cycles of motion and rest, and the duty cycles, found first, took the ramps' samples. The
+    ramps are now looked for as if no duty cycle had claimed them, and a cycle that holds one (moving the
+    joint no farther than ``D_PRESLIDE``: only such a cycle can be made of experiments) is dropped."""
     rng = np.random.default_rng(8)
     fs, sigma0, q_step = 500.0, 4000.0, 2 * np.pi / 2 ** 20
     one = np.concatenate((np.zeros(int(1.0 * fs)), np.linspace(0.0, 0.8, int(3.0 * fs)), np.full(int(0.7 * fs), 0.8),

@@ -199,6 +199,19 @@ def test_duty_cycles_with_their_rests_stay_duty_cycles(tmp_path):
     assert np.sum(_iou_best(tr, fo) >= IOU) == len(tr)
 
 
+
+@pytest.mark.parametrize("seed", [13, 18])
+def test_ramps_that_turn_without_a_hold_are_ramps(seed, tmp_path):
+    """Ramps (foreign card 101041: 0 of 12 ramps): a ramp up and down with no hold at the peak leaves a
+    gap of a few tens of ms between the two ramps' straight parts, the corner, where the presliding
+    joint is at its fastest; taken as a hold that must be no faster than the ramps, it cut every
+    group. Between two ramps only a hold of at least T_MIN is one (as for rests). Seeds 13 and 18 (the
+    ramps family, no hold, among seeds 0-50): 10 of 16 and 2 of 8 ramps before."""
+    truth, segs = _draw(seed, "ramps", tmp_path)
+    tr, fo = _of("ramp_presliding", truth, segs)
+    assert truth["layout"]["hold"] == 0.0 and len(tr) >= 8
+    assert np.sum(_iou_best(tr, fo) >= IOU) == len(tr)
+
 def test_torque_steps_of_a_few_noise_levels_in_a_slow_log_are_steps(tmp_path):
     """Steps (foreign card, draws 100744, 100811: 0 of 12 and 0 of 8 steps): at 100-130 Hz the longest
     rise of a jump, T_JUMP, is one sample, and the jump tests over 1 and 4 samples average too little
