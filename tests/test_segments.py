@@ -302,6 +302,93 @@ def test_duty_cycles_inside_a_repeated_session_are_found_not_the_session(seed):
         assert sum(c.size for c, _ in chains) == (12 if runs_expected == 3 else 6)
 
 
+def _nested_cycles(fs: float, rng, blips: bool) -> tuple[np.ndarray, np.ndarray, int]:
+    """Velocity of a duty-cycle run whose cycle is ``k`` back-and-forth moves with short dwells, then a
+    long rest: the foreign duty layout. The period is not a whole number of samples (the moves start at
+    real times), so the onsets jitter by a sample. With ``blips``, the rest holds stick-slip blips of a
+    hunting loop (4 % of the top speed, 30 ms, 0.5 mrad each at 1 rad/s). Returns (w, cycle starts,
+    period in samples)."""
+    T_move, T_dwell = rng.uniform(1.2, 1.8), rng.uniform(0.21, 0.3)
+    k = int(rng.integers(3, 6)) if not blips else 1
+    T_rest = rng.uniform(4.0, 8.0)
+    period = 2 * k * (T_move + T_dwell) + T_rest
+    n_cyc, lead = int(rng.integers(4, 6)), 2.0
+    t = np.arange(int((lead + n_cyc * period + 3.0) * fs)) / fs
+    w = np.zeros(t.size)
+    starts = []
+    for c in range(n_cyc):
+        t0 = lead + c * period
+        starts.append(int(np.ceil(t0 * fs)))
+        for m in range(2 * k):
+            a = t0 + m * (T_move + T_dwell)
+            on = (t >= a) & (t < a + T_move)
+            w[on] = (1.0 if m % 2 == 0 else -1.0) * np.sin(np.pi * (t[on] - a) / T_move) ** 2
+        if blips:  # at irregular times in the rest, after the last move's dwell
+            for b in t0 + 2 * k * (T_move + T_dwell) + np.sort(rng.uniform(0.3, T_rest - 0.3, 6)):
+                on = (t >= b) & (t < b + 0.03)
+                w[on] = 0.04 * np.sin(np.pi * (t[on] - b) / 0.03) ** 2
+    return w, np.array(starts), int(round(period * fs))
+
+
+@pytest.mark.parametrize("seed", [4, 5, 6])
+def test_a_cycle_of_repeated_moves_and_a_rest_is_one_duty_cycle(seed):
+    """Duty cycles (foreign card, draw 100835: 4 cycles of 31.8 s, each five back-and-forth moves with
+    0.22 s dwells and a 10 s rest, were 19 cycles of 4.28 s): the run of the moves inside one cycle is
+    no session of experiments, the cycle is all its repetitions. Each cycle is searched on its own from
+    where the chain puts it, a sample before its motion when the period is not a whole number of
+    samples, and that first motion was no onset (the still stretch before it, cut by the window, was
+    "too short"): the inner run started one move late, left motion outside, and made a session."""
+    from frictid.segments.duty import duty_cycles
+
+    rng = np.random.default_rng(seed)
+    fs = float(rng.choice([500.0, 1000.0, 3000.0]))
+    w, starts, period = _nested_cycles(fs, rng, blips=False)
+    w += np.random.default_rng(seed + 100).normal(0.0, 1e-3, w.size)  # a virtual cycle start may fall before an onset
+    found = duty_cycles(w, np.abs(w) > 5e-3, 3, int(0.2 * fs), 10, 0.0)
+    got = np.array([a for a, _, _ in found])
+    assert got.size == starts.size, (got / fs, starts / fs)
+    assert np.all(np.abs(got - starts) <= 0.05 * fs), (got / fs, starts / fs)
+    assert all(b - a == pytest.approx(period, abs=0.01 * period) for a, b, _ in found)
+
+
+@pytest.mark.parametrize("seed", [0, 4, 6])
+def test_a_duty_cycle_starts_after_its_rest_whatever_blips_split_it(seed):
+    """Duty cycles (foreign card, draw 100821: 0 of 8 cycles at IoU 0.8): a PID hunting in stick-slip
+    blips splits the cycle's rest into stops shorter than the dwell between its two moves; the cycles
+    started at a blip. A stop is read by how far the joint goes (within 1 % of the cycle's travel), so
+    each cycle starts at its first move."""
+    from frictid.segments.duty import duty_cycles
+
+    rng = np.random.default_rng(seed)
+    fs = float(rng.choice([500.0, 1000.0]))
+    w, starts, period = _nested_cycles(fs, rng, blips=True)
+    found = duty_cycles(w, np.abs(w) > 1e-3, 3, int(0.2 * fs), 10, 0.0)
+    got = np.array([a for a, _, _ in found])
+    assert got.size == starts.size, (got / fs, starts / fs)
+    assert np.all(np.abs(got - starts) <= 0.05 * fs), (got / fs, starts / fs)
+
+
+def test_repeated_torque_ramps_below_break_away_are_ramps_not_duty_cycles():
+    """A duty cycle contains no experiment of another kind (foreign card, ramps 100677 and steps 100777:
+    3 duty cycles each, no ramp or step found). In a log without sliding, the joint's presliding
+    deflection under each ramp (0.2 mrad on a 20-bit encoder) is its fastest motion, so it passed as the
+    motion of cycles of motion and rest, and the duty cycles, found first, took the ramps' samples. The
+    ramps are now looked for as if no duty cycle had claimed them, and a cycle that holds one (moving the
+    joint no farther than ``D_PRESLIDE``: only such a cycle can be made of experiments) is dropped."""
+    rng = np.random.default_rng(8)
+    fs, sigma0, q_step = 500.0, 4000.0, 2 * np.pi / 2 ** 20
+    one = np.concatenate((np.zeros(int(1.0 * fs)), np.linspace(0.0, 0.8, int(3.0 * fs)), np.full(int(0.7 * fs), 0.8),
+                          np.linspace(0.8, 0.0, int(3.0 * fs)), np.zeros(int(1.0 * fs))))
+    tau = np.concatenate((np.tile(one, 3), np.zeros(int(1.0 * fs))))
+    t = np.arange(tau.size) / fs
+    x = tau / sigma0 + 1e-6 * np.sin(2 * np.pi * 0.37 * t)  # the bristles' deflection and a little jitter
+    lg = JointLog("1", t, tau + rng.normal(0.0, 0.002, tau.size), q=np.round(x / q_step) * q_step,
+                  qd=np.gradient(x, t))  # qd logged exactly (the draws' qd)
+    kinds = [s.kind for s in find_segments(lg)]
+    assert "duty_cycle" not in kinds
+    assert kinds.count("ramp_presliding") == 6, kinds
+
+
 # ---------------------------------------------------------------------------------------------------
 # 100 Hz and 10 kHz, with qd logged or not
 

@@ -151,6 +151,8 @@ def make_log(seed: int, family: str | None = None, outdir=".", families=FAMILIES
 T_STEADY, K_STEADY = 0.1, 5.0
 #: The longest rise of a torque jump [s] (frictid's T_JUMP).
 T_JUMP = 0.01
+#: A duty cycle's joint stops below this share of the cycle's top speed (frictid's R_STILL).
+R_STOP = 0.01
 
 
 def _close_gaps(mask: np.ndarray, n: int) -> np.ndarray:
@@ -237,20 +239,25 @@ def refine_labels(out: dict, tau_noise: float, q_step: float) -> tuple[np.ndarra
 
 def _duty_cycles_by_definition(lab: np.ndarray, out: dict, q_step: float) -> None:
     """A duty cycle is a repeated motion-and-rest pattern (docs/segments.md): a run of ``duty_cycle``
-    cycles one of which never holds the joint still (:func:`still_to_encoder`) for ``T_REST`` (the moves
-    fill the drawn period, the dwells between them are shorter than a rest) is back-and-forth motion,
-    not a duty cycle: its samples become ``other`` (and, where still and steady, ``rest``), their
-    index -1 (in place)."""
+    cycles one of which never stops the joint for ``T_REST`` (the moves fill the drawn period, the dwells
+    between them are shorter than a rest) is back-and-forth motion, not a duty cycle: its samples become
+    ``other`` (and, where still and steady, ``rest``), their index -1 (in place). Stopped: still to the
+    encoder (:func:`still_to_encoder`) and the true speed at most ``R_STOP`` of the cycle's fastest
+    (frictid's ``R_STILL``: the tail of a move is still below 1 % of its speed). Stillness to the encoder
+    alone is not enough next to a move: the encoder's scatter about a cubic over half of ``T_REST`` is
+    then the move's own curvature, and a 0.09 s dwell between two moves at 0.26 rad/s read as 0.21 s of
+    still joint turning at up to 0.18 rad/s (foreign card 100751, until 2026-11-27, session 18)."""
     fs = 1.0 / float(out["t"][1] - out["t"][0])
     duty = np.concatenate(([False], lab == sim.CODE["duty_cycle"], [False]))
     edge = np.flatnonzero(duty[1:] != duty[:-1])
-    still = np.concatenate(([False], still_to_encoder(out["q"], fs, q_step), [False]))
+    still = still_to_encoder(out["q"], fs, q_step)
+    speed = np.abs(out["w"])
     n_min = int(round(T_REST * fs))
     for a, b in zip(edge[::2], edge[1::2]):
         idx = out["index"][a:b]
         cut = np.flatnonzero(idx[1:] != idx[:-1]) + 1
-        for c0, c1 in zip(np.concatenate(([0], cut)), np.concatenate((cut, [b - a]))):
-            st = still[a + c0 + 1:a + c1 + 1]
+        for c0, c1 in zip(np.concatenate(([0], cut)) + a, np.concatenate((cut, [b - a])) + a):
+            st = still[c0:c1] & (speed[c0:c1] <= R_STOP * float(speed[c0:c1].max()))
             e = np.flatnonzero(np.diff(np.concatenate(([0], st.astype(np.int8), [0]))))
             if not np.any(e[1::2] - e[::2] >= n_min):
                 lab[a:b] = sim.CODE["other"]

@@ -39,17 +39,22 @@ R_AUTOCORR = 0.8
 R_AUTOCORR_LOG = 0.3
 #: Points per cycle compared (the velocity is decimated to this many).
 N_PROFILE = 2000
+#: A stop: the joint stays within this share of its cycle's travel (``detect.R_STILL`` for speeds).
+R_STOP = 0.01
 
 
 def motion_onsets(moving: np.ndarray, gap_min: int) -> tuple[np.ndarray, np.ndarray]:
-    """Onsets (sample indices) of motion after a still stretch of at least ``gap_min`` samples, or at
-    the start of the log, and the length of that still stretch."""
+    """Onsets (sample indices) of motion after a still stretch of at least ``gap_min`` samples, and the
+    length of that still stretch. The first motion is an onset however few still samples precede it:
+    the stretch before it is cut by the start of the record (a cycle searched on its own starts where a
+    chain put it, a sample or two before its motion), so its length is unknown, not short."""
     s, e = runs(moving)
     if s.size == 0:
         return s, s
     prev_end = np.concatenate(([0], e[:-1]))
     gap = s - prev_end
-    keep = (gap >= gap_min) | (s == 0)
+    keep = gap >= gap_min
+    keep[0] = True
     return s[keep], gap[keep]
 
 
@@ -66,6 +71,17 @@ class _Signal:
         paint(resting, s[long], e[long], True)
         self.rests = count_prefix(resting)
         self.moves = count_prefix(moving)
+        self.x = np.cumsum(w)  # position in units of the velocity times a sample period
+
+    def stop_before(self, o: int, c: int) -> int:
+        """Samples before ``o`` (back to ``c`` at most) over which the joint stays within ``R_STOP`` of
+        the travel of ``[c, o)`` from where it is at ``o``: a stop is read by how far the joint goes,
+        whatever small jerks it makes on the spot."""
+        x = self.x[c:o + 1]
+        if x.size < 2:
+            return 0
+        far = np.flatnonzero(np.abs(x[:-1] - x[-1]) > R_STOP * float(np.ptp(x)))
+        return int(x.size - 1 - (far[-1] + 1 if far.size else 0))
 
     def rest_and_motion(self, a: int, b: int) -> bool:
         """The window ``[a, b)`` holds part of a rest and some motion."""
@@ -263,8 +279,7 @@ def _best_chain_nb(onsets, w, rests, moves, start, cands, p_min, tol_min):  # pr
     return best_cover, best_P, best_ch
 
 
-def _settle(onsets: np.ndarray, gaps: np.ndarray, w: _Signal, ch: list[int], P: int, tol_min: int,
-            p_min: int) -> tuple[list[int], int]:
+def _settle(onsets: np.ndarray, w: _Signal, ch: list[int], P: int, tol_min: int, p_min: int) -> tuple[list[int], int]:
     """Fundamental period and phase of a chain. Period: the shortest P / m that chains as far from the
     second cycle on (the first may hold the run's approach). Phase: of the onsets within the first
     period from which the next period repeats about as well as it does from the best such onset, the
@@ -292,25 +307,27 @@ def _settle(onsets: np.ndarray, gaps: np.ndarray, w: _Signal, ch: list[int], P: 
     best = float(np.nanmin(diffs))
     ok = np.flatnonzero(diffs <= max(2.0 * best, best + 0.05))
     tol = max(tol_min, int(R_PERIOD * P))
-    start = cands[int(ok[_after_longest_rest(onsets, gaps, [cands[k] for k in ok], P, tol)])]
+    start = cands[int(ok[_after_longest_rest(onsets, w, [cands[k] for k in ok], P, tol)])]
     out = _chain(onsets, w, start, P, tol, True)
     if len(out) < MIN_CYCLES:
         return ch, P
     return out, P
 
 
-def _after_longest_rest(onsets: np.ndarray, gaps: np.ndarray, cands: list[int], P: int, tol: int) -> int:
+def _after_longest_rest(onsets: np.ndarray, w: _Signal, cands: list[int], P: int, tol: int) -> int:
     """Index into ``cands`` (onsets within a chain's first period) of the one where a cycle starts: a duty
     cycle is motion, then rest, so it starts where the motion starts after the cycle's longest stop. The
     stop is read one period later (the first cycle may follow the run's own approach and its dwell):
-    the still stretch before the onset within ``tol`` of ``c + P``, 0 where no onset is there. The
-    earliest of the candidates whose stop is within ``2 tol`` of the longest (a cycle with two equal
-    stops: the run starts where the repetition starts)."""
+    before the onset within ``tol`` of ``c + P`` (0 where no onset is there), as far back as the joint
+    stays where that motion starts (:meth:`_Signal.stop_before`), not the contiguous still samples: a
+    loop hunting in stick-slip blips of a fraction of a mrad splits a rest into stops shorter than the
+    cycle's dwell (foreign card 100821). The earliest of the candidates whose stop is within ``2 tol``
+    of the longest (a cycle with two equal stops: the run starts where the repetition starts)."""
     rest = np.zeros(len(cands), dtype=np.int64)
     for k, c in enumerate(cands):
         j = int(np.searchsorted(onsets, c + P - tol))
         if j < onsets.size and abs(int(onsets[j]) - (c + P)) <= tol:
-            rest[k] = gaps[j]
+            rest[k] = w.stop_before(int(onsets[j]), c)
     return int(np.flatnonzero(rest >= rest.max() - 2 * tol)[0])
 
 
@@ -415,7 +432,7 @@ def _search_chains(w: np.ndarray, moving: np.ndarray, gap_min: int, rest_min: in
             i += 1
             continue
         _, ch, P = best
-        ch, P = _settle(onsets, gaps, w, ch, P, tol_min, 2 * gap_min)
+        ch, P = _settle(onsets, w, ch, P, tol_min, 2 * gap_min)
         ch = _extend_back(onsets, w, ch, P, max(tol_min, int(R_PERIOD * P)), claimed)
         starts = np.asarray(ch, dtype=np.int64)
         period = int(round((starts[-1] - starts[0]) / (starts.size - 1)))
