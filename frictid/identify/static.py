@@ -810,33 +810,40 @@ def _free_delta_profile(bw, bF, bse, bfixed: dict, scales, var_inflation: float,
     """With a free Stribeck exponent the Jacobian's errors are those of a map linear in delta; the
     break-away level and the drop's speed are not (the level at zero speed extrapolated from the slowest
     plateaus moves faster with the exponent the further the drop's top lies below them). The branch is
-    refitted with delta held at each of :data:`DELTA_GRID` and 2; among the fits within :data:`DELTA_CHI2`
-    of chi-square of the free one (a profile interval of about two standard errors), half the largest
-    change of each parameter is its standard error when that is larger than the Jacobian's. Foreign card:
-    a sweep whose slowest useful plateau held a third of the drop gave delta 1.73 +- 0.41 (truth 1.13)
-    and Fs 0.02925 +- 0.00051 against 0.03078 (3 errors). ``bf`` is changed in place."""
+    refitted with delta held at one and two of its standard errors either side (within the table's
+    bounds); each refit within :data:`DELTA_CHI2` of chi-square of the free fit gives each parameter's
+    change over that many standard errors, and the largest such change per standard error is the
+    parameter's standard error when it is larger than the Jacobian's (a profile error). Foreign card: a
+    sweep whose slowest useful plateau held a third of the drop gave delta 1.73 +- 0.41 (truth 1.13) and
+    Fs 0.02925 +- 0.00051 against 0.03078 (3 errors; at delta 1.0, 3.9 of chi-square worse, Fs is 0.0320).
+    ``bf`` is changed in place."""
     dof = max(len(bw) - len(bf.free), 1)
     s2 = 2.0 * bf.cost / dof
-    if not (s2 > 0 and math.isfinite(s2)) or bf.values.get("delta") is None:
+    d0, sd = bf.values.get("delta"), bf.stderr.get("delta")
+    if not (s2 > 0 and math.isfinite(s2)) or d0 is None or not sd or not math.isfinite(sd):
         return
-    spread: dict[str, float] = {n: 0.0 for n in bf.free if n != "delta"}
-    for d in sorted(set(DELTA_GRID) | {2.0}):
-        alt = fit_branch("stribeck", bw, bF, bse, dict(bfixed, delta=d), scales=scales,
-                         start=dict(bf.values, delta=d), var_inflation=var_inflation)
-        if not math.isfinite(alt.cost) or 2.0 * (alt.cost - bf.cost) / s2 > DELTA_CHI2:
-            continue
-        for n in spread:
-            if alt.values.get(n) is not None and bf.values.get(n) is not None:
-                spread[n] = max(spread[n], abs(alt.values[n] - bf.values[n]))
-    for n, sp in spread.items():
+    prm = next(p for p in sm.STATIC_MAPS["stribeck"].table if p.name == "delta")
+    per_se: dict[str, float] = {n: 0.0 for n in bf.free if n != "delta"}
+    for m in (1.0, 2.0):
+        for d in (d0 - m * sd, d0 + m * sd):
+            if not prm.lower <= d <= prm.upper:
+                continue
+            alt = fit_branch("stribeck", bw, bF, bse, dict(bfixed, delta=d), scales=scales,
+                             start=dict(bf.values, delta=d), var_inflation=var_inflation)
+            if not math.isfinite(alt.cost) or 2.0 * (alt.cost - bf.cost) / s2 > DELTA_CHI2:
+                continue
+            for n in per_se:
+                if alt.values.get(n) is not None and bf.values.get(n) is not None:
+                    per_se[n] = max(per_se[n], abs(alt.values[n] - bf.values[n]) / m)
+    for n, sp in per_se.items():
         se = bf.stderr.get(n)
-        if se is None or 0.5 * sp <= se:
+        if se is None or sp <= se:
             continue
-        bf.stderr[n] = 0.5 * sp
+        bf.stderr[n] = sp
         v = bf.values[n]
-        if n not in bf.reasons and bf.stderr[n] > abs(v):
-            bf.reasons[n] = (f"relative error {100 * bf.stderr[n] / abs(v):.0f} % (above 100 %) over the Stribeck "
-                             "exponents that fit as well")
+        if n not in bf.reasons and sp > abs(v):
+            bf.reasons[n] = (f"relative error {100 * sp / abs(v):.0f} % (above 100 %) over the Stribeck exponents "
+                             "that fit as well")
 
 
 def _branch_params(smap, suf: str, bf: BranchFit, shapeless: dict[str, str], axis: str, scales
