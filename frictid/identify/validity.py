@@ -253,7 +253,8 @@ def _drop_significant(mf, points, without_drop, shifts=None) -> None:
             return
         bw, bF, _, wts, _, D = _branch_points(points, side, shifts if shifts is not None else [])
         parts.append((stribeck(bw, **{n: pe[n].value for n in names}) - bF,
-                      coulomb_viscous(bw, fc0.value, s0.value) - bF, 1.0 / wts**2, D))
+                      coulomb_viscous(bw, fc0.value, s0.value) - bF, 1.0 / wts**2, D,
+                      (bw, bF, pe["vs"].value, pe["delta"].value)))
         k += sum(1 for n in ("Fs", "vs", "delta") if not pe[n].fixed)
         n_free += sum(1 for n in names if not pe[n].fixed)
         n_pts += bw.size
@@ -285,28 +286,59 @@ def _gls_chi2(r: np.ndarray, S: np.ndarray, D: np.ndarray | None) -> float:
     return float(r @ a - b @ np.linalg.solve(M, b))
 
 
+def _gls_residuals(part, s2: float) -> tuple[np.ndarray, np.ndarray]:
+    """The Stribeck map (its shape held where the fit put it) and the drop-free map refitted in their
+    levels and slope by generalised least squares under ``s2 diag(S) + D D^T``: their residuals. The maps
+    fitted with the points' own errors alone take up part of the shifts' pattern in their levels and
+    slope; refitted under the full covariance they do not."""
+    _, _, S, D, (bw, bF, vs, dl) = part
+    C = np.diag(s2 * S) + D @ D.T
+    L = np.linalg.cholesky(C)
+    sg = np.sign(bw)
+    e = np.exp(-((np.abs(bw) / vs) ** dl))
+    out = []
+    for X in (np.column_stack([sg * (1.0 - e), sg * e, bw]), np.column_stack([sg, bw])):
+        Xw, yw = np.linalg.solve(L, X), np.linalg.solve(L, bF)
+        b = np.linalg.lstsq(Xw, yw, rcond=None)[0]
+        out.append(bF - X @ b)
+    return out[0], out[1]
+
+
 def _drop_gain(parts: list, dof: int) -> float | None:
     """The drop's gain in chi-square over the drop-free map, in units of the points' noise: ``parts`` are
-    per branch (Stribeck residuals, drop-free residuals, the points' squared errors, the shifts or None).
-    Without shifts it is the weighted residual sum of squares' drop over the Stribeck map's reduced
-    chi-square (the F statistic times its degrees of freedom). With shifts the points' own errors are
-    scaled by the factor that gives the Stribeck map's residuals a chi-square of ``dof`` under the full
-    covariance (:func:`_gls_chi2`), and the gain is the drop in that chi-square. None when undefined."""
+    per branch (Stribeck residuals, drop-free residuals, the points' squared errors, the shifts or None,
+    the branch's points and the drop's shape). Without shifts it is the weighted residual sum of squares'
+    drop over the Stribeck map's reduced chi-square (the F statistic times its degrees of freedom). With
+    shifts the two maps' levels and slope are refitted under the full covariance
+    (:func:`_gls_residuals`), the points' own errors scaled by the factor that gives the Stribeck map a
+    chi-square of ``dof`` (:func:`_gls_chi2`), and the gain is the drop in that chi-square. None when
+    undefined."""
     from scipy.optimize import brentq
 
-    rss1 = sum(float(np.sum(r1**2 / S)) for r1, _, S, _ in parts)
-    rss0 = sum(float(np.sum(r0**2 / S)) for _, r0, S, _ in parts)
+    rss1 = sum(float(np.sum(pt[0] ** 2 / pt[2])) for pt in parts)
+    rss0 = sum(float(np.sum(pt[1] ** 2 / pt[2])) for pt in parts)
     if not (rss1 > 0 and np.isfinite(rss0)):
         return None
-    if all(D is None for *_, D in parts):
+    if all(pt[3] is None for pt in parts):
         return (rss0 - rss1) / (rss1 / dof)
-    chi = lambda s2, j: sum(_gls_chi2(pt[j], s2 * pt[2], pt[3]) for pt in parts)  # noqa: E731
+
+    def chi(s2: float) -> tuple[float, float]:
+        c1 = c0 = 0.0
+        for pt in parts:
+            D = pt[3] if pt[3] is not None else np.zeros((pt[2].size, 0))
+            r1, r0 = _gls_residuals(pt[:3] + (D, pt[4]), s2)
+            c1 += _gls_chi2(r1, s2 * pt[2], D)
+            c0 += _gls_chi2(r0, s2 * pt[2], D)
+        return c1, c0
+
     s2 = rss1 / dof
     try:
-        s2 = math.exp(brentq(lambda ls: chi(math.exp(ls), 0) - dof, math.log(s2) - 40.0, math.log(s2) + 5.0))
-    except ValueError:  # the shifts alone explain the residuals (or none of them): keep the plain scale
+        s2 = math.exp(brentq(lambda ls: chi(math.exp(ls))[0] - dof, math.log(s2) - 12.0, math.log(s2) + 5.0,
+                             xtol=1e-3))
+    except (ValueError, np.linalg.LinAlgError):  # the shifts alone explain the residuals: keep the plain scale
         pass
-    return chi(s2, 1) - chi(s2, 0)
+    c1, c0 = chi(s2)
+    return c0 - c1
 
 
 #: Exponents at which a branch's Stribeck drop is refitted (:func:`_drop_in_view_at_every_exponent`; the
