@@ -62,8 +62,8 @@ class Plateaus:
     """Averaged steady-state points, one per constant-velocity segment.
 
     w [q/s], F [F]: plateau means; F_se, w_se: their standard errors (batch means, robust to the
-    autocorrelation of samples; F_se at least the friction's settling along the plateau,
-    :func:`_settled_se`); n: samples used; t_start, t_end [s]; seg: index into the segment list.
+    autocorrelation of samples; a plateau whose friction still settles gives its later half,
+    :func:`_settled_mean`); n: samples used; t_start, t_end [s]; seg: index into the segment list.
     """
 
     w: np.ndarray
@@ -95,30 +95,33 @@ def _batch_se(x: np.ndarray, n_batches: int) -> float:
     return float(np.std(means, ddof=1) / math.sqrt(nb))
 
 
-def _settled_se(x: np.ndarray, n_batches: int) -> float:
-    """Standard error of a plateau's mean friction as an estimate of its *steady* level: the batch-means
-    error (:func:`_batch_se`, which assumes the friction is stationary along the plateau), or half the
-    difference between the means of the plateau's later and earlier halves when that is larger. A friction
-    still settling along the plateau (the bristles or the loop approaching their steady state after the
-    speed change, exponentially with a time constant tau well inside the plateau's duration T) biases the
-    whole plateau's mean by about ``A tau / T`` against the level it settles at, and half the difference
-    of the halves measures that bias (``A tau / T`` again), while on a stationary plateau it is noise of
-    the size of the batch-means error. When it is beyond :data:`SETTLING_Z` of that error (a drift, not
-    noise: a stationary plateau keeps its batch-means error, so the weights of the points do not take on
-    the halves' noise), the error is ``sqrt(se^2 + (d^2 - se^2)) = |d|``: the bias's part beyond its own
-    scatter added. Foreign card: on a sweep whose slowest plateaus settled for a third of their 0.75 s,
-    the slowest point was 3.7 of its batch-means errors below the steady friction and pulled the
-    break-away level 1.6 % low, trusted."""
-    se = _batch_se(x, n_batches)
+def _settled_mean(x: np.ndarray, n_batches: int) -> tuple[float, float]:
+    """A plateau's friction as an estimate of its *steady* level, and its standard error: the mean with
+    its batch-means error (:func:`_batch_se`, which assumes the friction is stationary along the plateau),
+    unless the friction is still settling. After a speed change the bristles (or the loop) approach their
+    steady state, exponentially with some time constant tau; inside a plateau of duration T that biases the
+    whole mean against the level it settles at by about ``A tau / T``, and half the difference ``d`` of the
+    means of the plateau's later and earlier halves measures the same bias (on a stationary plateau it is
+    noise of the size of the batch-means error). Beyond :data:`SETTLING_Z` of that error (a drift, not
+    noise: stationary plateaus keep their mean and error, so the points' weights do not take on the
+    halves' noise), the point is the later half's mean, nearer the settled level, with the error
+    ``max(|d|, its batch-means error)``: what the later half may still carry of the settling is at most
+    what the halves differ by. Foreign card: a sweep's slowest plateaus (0.01 rad/s, 0.75 s) settled for a
+    third of their length; the whole mean sat 3.7 of its batch-means errors (0.94 N m) below the steady
+    friction and pulled Fs 1.6 % low, trusted; the later half is 0.31 N m below, within its error 0.63."""
+    m, se = float(x.mean()), _batch_se(x, n_batches)
     h = x.shape[0] // 2
-    if h < 2 or not math.isfinite(se):
-        return se
-    d = 0.5 * float(x[h:].mean() - x[:h].mean())
-    return abs(d) if abs(d) > SETTLING_Z * se else se
+    if h < 4 or not math.isfinite(se):
+        return m, se
+    late = float(x[h:].mean())
+    d = 0.5 * (late - float(x[:h].mean()))
+    if abs(d) <= SETTLING_Z * se:
+        return m, se
+    return late, max(abs(d), _batch_se(x[h:], n_batches))
 
 
 #: A plateau's friction counts as still settling when half the difference of its halves' means exceeds
-#: this many batch-means errors (:func:`_settled_se`).
+#: this many batch-means errors (:func:`_settled_mean`).
 SETTLING_Z = 2.0
 
 
@@ -149,7 +152,7 @@ def plateau_points(t, w, F, segments, trim: float = 0.1, n_batches: int = 10,
         wm = float(ww.mean())
         if abs(wm) <= min_speed or np.mean(np.sign(ww) == np.sign(wm)) < 0.95:
             continue
-        rows.append((wm, float(ff.mean()), _settled_se(ff, n_batches), _batch_se(ww, n_batches),
+        rows.append((wm, *_settled_mean(ff, n_batches), _batch_se(ww, n_batches),
                      ww.shape[0], float(t[s.i0]), float(t[s.i1 - 1]), k))
     if not rows:
         z = np.zeros(0)
