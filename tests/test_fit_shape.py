@@ -201,7 +201,8 @@ def test_a_plateau_still_settling_gives_its_settled_part():
     its mean 3.7 of its batch-means errors below the steady friction, Fs 1.6 % low, trusted): a plateau
     whose friction still settles gives the mean of its later half, with half the difference of its halves'
     means as the error, and that covers the settled level where the whole mean did not. Competing
-    explanation: a stationary plateau with the same noise keeps its mean and batch-means error."""
+    explanations: a stationary plateau with the same noise, and one whose torque drifts linearly along it,
+    keep their mean and batch-means error."""
     from frictid.identify.static import SETTLING_Z, _batch_se, _settled_mean
     rng = np.random.default_rng(5)
     t = np.linspace(0.0, 0.75, 3000)
@@ -215,6 +216,10 @@ def test_a_plateau_still_settling_gives_its_settled_part():
     m, se = _settled_mean(settling, 10)
     assert m == settling[h:].mean() and se == max(abs(d), _batch_se(settling[h:], 10))
     assert abs(94.0 - settling.mean()) > 2 * _batch_se(settling, 10) and abs(94.0 - m) < se
+    # a drift that does not slow down (the torque of a gravity error along the travel) is not settling: the
+    # whole mean is the level at the mean position, the later half would move it by half the drift
+    drift = 94.0 + 1.0 * (t - t.mean()) + noise
+    assert _settled_mean(drift, 10) == (drift.mean(), _batch_se(drift, 10))
 
 
 def _sweep_with_a_pattern(drop: float, seed: int = 11):

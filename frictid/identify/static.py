@@ -104,7 +104,7 @@ def _settled_mean(x: np.ndarray, n_batches: int) -> tuple[float, float]:
     means of the plateau's later and earlier halves measures the same bias (on a stationary plateau it is
     noise of the size of the batch-means error). Beyond :data:`SETTLING_Z` of that error (a drift, not
     noise: stationary plateaus keep their mean and error, so the points' weights do not take on the
-    halves' noise), the point is the later half's mean, nearer the settled level, with the error
+    halves' noise) and slowing down (:data:`SETTLING_DECAY`), the point is the later half's mean, nearer the settled level, with the error
     ``max(|d|, its batch-means error)``: what the later half may still carry of the settling is at most
     what the halves differ by. Foreign card: a sweep's slowest plateaus (0.01 rad/s, 0.75 s) settled for a
     third of their length; the whole mean sat 3.7 of its batch-means errors (0.94 N m) below the steady
@@ -115,14 +115,22 @@ def _settled_mean(x: np.ndarray, n_batches: int) -> tuple[float, float]:
         return m, se
     late = float(x[h:].mean())
     d = 0.5 * (late - float(x[:h].mean()))
-    if abs(d) <= SETTLING_Z * se:
+    q = [float(c.mean()) for c in np.array_split(x, 4)]
+    early_change, late_change = q[1] - q[0], q[3] - q[2]
+    decays = early_change * late_change >= 0.0 and abs(late_change) < SETTLING_DECAY * abs(early_change)
+    if abs(d) <= SETTLING_Z * se or not decays:
         return m, se
     return late, max(abs(d), _batch_se(x[h:], n_batches))
 
 
 #: A plateau's friction counts as still settling when half the difference of its halves' means exceeds
-#: this many batch-means errors (:func:`_settled_mean`).
+#: SETTLING_Z batch-means errors and the change slows down: the last quarter's change (against the third)
+#: is below SETTLING_DECAY of the first's (the second against the first), with the same sign
+#: (:func:`_settled_mean`). A drift that does not slow down (a torque that depends on the position the
+#: plateau travels through, a thermal drift) is not settling: the whole mean is the plateau's level at its
+#: mean position, and the later half would move it by half the drift.
 SETTLING_Z = 2.0
+SETTLING_DECAY = 0.5
 
 
 def plateau_points(t, w, F, segments, trim: float = 0.1, n_batches: int = 10,
