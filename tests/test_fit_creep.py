@@ -116,3 +116,30 @@ def test_short_holds_without_creep_keep_their_ramps(monkeypatch):
     s0, true = _sigma0(_creeping_logs(0.0))
     assert kept and kept[0][0] == kept[0][1] == 8
     assert s0.identifiable and abs(s0.value - true) <= 2 * s0.stderr
+
+
+def _ramp(sigma0: float, g: float, span: float, rng, n: int = 400):
+    """A loading ramp by hand: the bristles' steady LuGre deflection along a monotonic displacement,
+    ``F = g (1 - exp(-sigma0 x / g))``, with torque noise."""
+    x = np.linspace(0.0, span, n)
+    return x, g * (1.0 - np.exp(-sigma0 * x / g)) + rng.normal(0.0, 2e-3 * g, n)
+
+
+def test_the_pooled_sigma0_error_is_no_smaller_than_its_ramp_to_ramp_spread():
+    """Issue 19's coverage: ramps whose stiffness differs from one to the next (a drift between ramps,
+    bristles not quite at rest) scatter more than each fit's residuals say; the pooled sigma0 takes their
+    spread as its error, as each sign's already did. Competing explanation: ramps of one stiffness keep an
+    error of the fit's size (their spread is its noise)."""
+    from frictid.identify.dynamics import Presliding, _ramp_spread, _spread_floor
+    from frictid.identify.presliding import fit_sigma0
+    rng = np.random.default_rng(4)
+    g = 2.0
+    for stiffness, floored in (((1.0e4, 1.4e4, 0.8e4, 1.2e4), True), ((1.1e4,) * 4, False)):
+        pd = Presliding(ramps=[_ramp(s, g, 2e-4, rng) for s in stiffness])
+        pooled = fit_sigma0(pd.ramps, [g] * 4, pd.resolution)
+        spread = _ramp_spread(pd.ramps, [g] * 4, pd.resolution)
+        out = _spread_floor(pooled, pd, [g] * 4)
+        assert out.value == pooled.value
+        assert out.stderr == pytest.approx(max(pooled.stderr, spread))
+        # stiffnesses 20 % apart: the spread is far above the fit's error; one stiffness: the same size
+        assert (out.stderr > 5 * pooled.stderr) == floored

@@ -287,7 +287,7 @@ def fit_lugre(jd: JointData, selected: str | None) -> None:
             f"the joint creeps under load: it drifts at {abs(c['rate']):.3g} per s while the load is held "
             f"({c['ramp_creep']:.3g} over a ramp): the ramps' displacement is creep, not presliding deflection, "
             "and what the creep leaves is not known well enough to carry sigma0"), "ramps", len(pd.creep))
-    s0 = _creep_inflated(s0, pd)
+    s0 = _creep_inflated(_spread_floor(s0, pd, g_of), pd)
     sides = _per_sign(pd, g_of, s0)
     jd.used.pop("step", None)
     est = {"": (s0, _sigma1(jd, pd, s0, c_pos, c_neg))} if sides is None else {
@@ -333,6 +333,21 @@ def _ramp_spread(ramps: list, g_of: list[float], resolution: float) -> float:
         if e.identifiable:
             vals.append(e.value)
     return float(np.std(vals, ddof=1) / math.sqrt(len(vals))) if len(vals) >= 2 else 0.0
+
+
+def _spread_floor(s0: pre.DynamicEstimate, pd: Presliding, g_of: list[float]) -> pre.DynamicEstimate:
+    """The pooled sigma0 with a standard error no smaller than its ramp-to-ramp spread (:func:`_ramp_spread`
+    over every ramp), as each sign's is in :func:`_per_sign`: the fit's error counts the residuals along
+    the ramps, not what differs from one ramp to the next (a drift between ramps, bristles not quite at
+    rest: the reason :func:`_per_sign` floors each sign's error so, which held only for per-sign joints)."""
+    if not s0.identifiable or s0.value is None or s0.stderr is None or len(pd.ramps) < 2:
+        return s0
+    spread = _ramp_spread(pd.ramps, g_of, pd.resolution)
+    if spread <= s0.stderr:
+        return s0
+    reason = "" if spread <= s0.value else f"relative error {100 * spread / s0.value:.0f} % (above 100 %)"
+    return pre.DynamicEstimate(s0.value, spread, not reason, reason, s0.source, s0.n_segments, s0.rms,
+                               dict(s0.details or {}, fit_se=s0.stderr, ramp_spread_se=spread))
 
 
 def _creep_share(pd: Presliding) -> float:

@@ -57,7 +57,8 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
     for n in fitted:
         physical_shape(jf.models[n], jd.w0, jd.F0)
         validity.drop_spanned(jf.models[n], fr.plat.w, jf.models.get(n.replace("stribeck", "coulomb_viscous")),
-                              points=(fr.plat.w, fr.plat.F, fr.plat.F_se) if fr.basis == "plateaus" else None)
+                              points=(fr.plat.w, fr.plat.F, fr.plat.F_se) if fr.basis == "plateaus" else None,
+                              shifts=fr.shifts)
     # held-out errors of the maps the choice can take (the identifiable ones, unless none gets one)
     if fr.basis == "samples":
         sel.heldout_for_choice(jf.models, fitted, lambda n: smp.heldout_map(n, fr.S, jf.models[n], jd.axis),

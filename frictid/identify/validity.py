@@ -7,6 +7,8 @@ maps were fitted on, the joint temperatures and the positions the joint went thr
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..models.static import coulomb_viscous, stribeck
@@ -80,7 +82,7 @@ DROP_INSIDE = (0.05, 0.95)
 NO_DROP_Z = 2.0
 
 
-def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None, points=None) -> None:
+def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None, points=None, shifts=None) -> None:
     """Shape parameters identifiable only when enough distinct plateau speeds span them (issue 19): a
     Stribeck drop's level, speed and exponent are measured by steady runs inside the drop (plateaus where
     the fitted drop holds :data:`DROP_INSIDE` of its amplitude; one on its top counts for the level). With
@@ -97,14 +99,16 @@ def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None, points=None) -> N
     in quadrature), as the held exponent's profile does.
 
     ``points`` (the plateau points (w, F, F_se) the map was fitted on, on the plateau basis): the drop must
-    stay in view at every exponent that fits as well (:func:`_drop_in_view_at_every_exponent`)."""
+    stay in view at every exponent that fits as well (:func:`_drop_in_view_at_every_exponent`), and the
+    drop must be significant (:func:`_drop_significant`) under the points' errors and ``shifts`` (their
+    common errors from the inertia, gravity and offset, :func:`.mechanics.plateau_shifts`)."""
     base = mf.name[:-5] if mf.name.endswith("_asym") else mf.name
     if base != "stribeck":
         return
     w = np.asarray(plateau_w, dtype=float)
     w = w[np.isfinite(w)]
     if points is not None:
-        _drop_significant(mf, points, without_drop)
+        _drop_significant(mf, points, without_drop, shifts)
     for suf, side in ((("_pos", 1.0), ("_neg", -1.0)) if mf.name.endswith("_asym") else (("", 0.0),)):
         p = {n: mf.params.get(n + suf) for n in ("Fc", "Fs", "vs", "delta")}
         if any(pe is None or pe.value is None for pe in p.values()) or p["vs"].value <= 0:
@@ -198,34 +202,48 @@ def _level_spread(into, other, suf: str) -> None:
 DROP_P = 0.05
 
 
-def _branch_points(points, side: float):
+def _branch_points(points, side: float, shifts=None):
     """One branch's plateau points (speeds > 0, friction of the branch's sign), their weights and the
-    data scales of the whole set (as :func:`.static.fit_static` weighs them)."""
+    data scales of the whole set (as :func:`.static.fit_static` weighs them); with ``shifts``, also the
+    branch's rows of them as the columns of a matrix (None without)."""
     from .static import _scales, _weights
 
     w, F, se = (np.asarray(x, dtype=float) for x in points)
     keep = (np.sign(w) == side) if side else np.isfinite(w)
     bw, bF, bse = (side or 1.0) * w[keep], (side or 1.0) * F[keep], se[keep]
     scales = _scales(w, F)
-    return bw, bF, bse, _weights(bse, scales[0], bw.size), scales
+    out = bw, bF, bse, _weights(bse, scales[0], bw.size), scales
+    if shifts is None:
+        return out
+    D = np.column_stack([(side or 1.0) * np.asarray(d, dtype=float)[keep] for d in shifts]) if len(shifts) else None
+    return (*out, D)
 
 
-def _drop_significant(mf, points, without_drop) -> None:
+def _drop_significant(mf, points, without_drop, shifts=None) -> None:
     """A Stribeck drop is seen only when the map fits the plateau points significantly better than the
     drop-free map of the same points (``without_drop``, Coulomb + viscous, per sign for a per-sign map: the
-    nested model Fs = Fc): the F-test of their weighted residuals over the map's branches, with as many
-    degrees of freedom as the drops have free parameters, must reject "no drop" at :data:`DROP_P`.
+    nested model Fs = Fc): the F-test of their residuals over the map's branches, with as many degrees of
+    freedom as the drops have free parameters, must reject "no drop" at :data:`DROP_P`.
     Otherwise ``Fs``, ``vs`` and ``delta`` describe noise: a drop of 0.003 N m (Fs 2.00007 +- 0.0005 over
     Fc 1.9968 +- 0.0025, vs 0.82 +- 0.23) fitted on plateaus ten Stribeck velocities above a true
     break-away passes the other tests, as its amplitude is clear of zero with its shape held where it came
     out. The test is of the map as a whole: a per-sign map keeps a branch without a drop of its own when the
-    other branch's drop is significant (the real screw drive 3: F-test p = 0.12 on its positive side)."""
+    other branch's drop is significant (the real screw drive 3: F-test p = 0.12 on its positive side).
+
+    The points' errors are not independent: the inertia, gravity and offset subtracted from the torque
+    move them all at once (``shifts``, one column per independent direction of their error, as
+    :func:`.static._shift_profile` propagates it). With them, the residuals are weighed by the points'
+    full covariance (generalised least squares, :func:`_gls_chi2`: the points' own errors, scaled so that
+    the Stribeck map's residuals have their expected chi-square, plus the shifts): a drop the shifts'
+    pattern can make is no evidence of one (foreign card: a sweep whose break-away lay below its slowest
+    plateau, plateau points 3-15 of their own errors off along the gravity error's pattern, gave a "drop"
+    of 0.0026 N m at p = 3e-5 and Fs 2.3 % low with an error of 0.06 %; under the full covariance p = 1)."""
     from scipy.stats import f as f_dist
 
     if without_drop is None:
         return
     names = ("Fc", "Fs", "vs", "delta", "sigma2")
-    rss1 = rss0 = 0.0
+    parts = []
     k = n_free = n_pts = 0
     flag = []
     for suf, side in (("_pos", 1.0), ("_neg", -1.0)) if mf.name.endswith("_asym") else (("", 0.0),):
@@ -233,17 +251,19 @@ def _drop_significant(mf, points, without_drop) -> None:
         fc0, s0 = (without_drop.params.get(n + suf) for n in ("Fc", "sigma2"))
         if any(x is None or x.value is None for x in (*pe.values(), fc0, s0)):
             return
-        bw, bF, _, wts, _ = _branch_points(points, side)
-        rss1 += float(np.sum(((stribeck(bw, **{n: pe[n].value for n in names}) - bF) * wts) ** 2))
-        rss0 += float(np.sum(((coulomb_viscous(bw, fc0.value, s0.value) - bF) * wts) ** 2))
+        bw, bF, _, wts, _, D = _branch_points(points, side, shifts if shifts is not None else [])
+        parts.append((stribeck(bw, **{n: pe[n].value for n in names}) - bF,
+                      coulomb_viscous(bw, fc0.value, s0.value) - bF, 1.0 / wts**2, D,
+                      (bw, bF, pe["vs"].value, pe["delta"].value)))
         k += sum(1 for n in ("Fs", "vs", "delta") if not pe[n].fixed)
         n_free += sum(1 for n in names if not pe[n].fixed)
         n_pts += bw.size
         flag += [pe[n] for n in ("Fs", "vs", "delta") if pe[n].identifiable and not pe[n].fixed]
     dof = n_pts - n_free
-    if k == 0 or dof < 1 or not (rss1 > 0 and np.isfinite(rss0)):
+    gain = _drop_gain(parts, dof) if k and dof >= 1 else None
+    if gain is None:
         return
-    p = float(f_dist.sf(max(rss0 - rss1, 0.0) / k / (rss1 / dof), k, dof))
+    p = float(f_dist.sf(max(gain, 0.0) / k, k, dof))
     if p <= DROP_P:
         _drop_free_spread(mf, without_drop)
         return
@@ -254,6 +274,71 @@ def _drop_significant(mf, points, without_drop) -> None:
            f"than Coulomb + viscous (F-test p = {p:.2g}); the break-away, if any, lies below it")
     for pe in flag:
         pe.identifiable, pe.reason = False, why
+
+
+def _gls_chi2(r: np.ndarray, S: np.ndarray, D: np.ndarray | None) -> float:
+    """``r^T (diag(S) + D D^T)^-1 r`` (Woodbury's identity: D has a few columns)."""
+    a = r / S
+    if D is None or D.shape[1] == 0:
+        return float(r @ a)
+    b = D.T @ a
+    M = np.eye(D.shape[1]) + D.T @ (D / S[:, None])
+    return float(r @ a - b @ np.linalg.solve(M, b))
+
+
+def _gls_residuals(part, s2: float) -> tuple[np.ndarray, np.ndarray]:
+    """The Stribeck map (its shape held where the fit put it) and the drop-free map refitted in their
+    levels and slope by generalised least squares under ``s2 diag(S) + D D^T``: their residuals. The maps
+    fitted with the points' own errors alone take up part of the shifts' pattern in their levels and
+    slope; refitted under the full covariance they do not."""
+    _, _, S, D, (bw, bF, vs, dl) = part
+    C = np.diag(s2 * S) + D @ D.T
+    L = np.linalg.cholesky(C)
+    sg = np.sign(bw)
+    e = np.exp(-((np.abs(bw) / vs) ** dl))
+    out = []
+    for X in (np.column_stack([sg * (1.0 - e), sg * e, bw]), np.column_stack([sg, bw])):
+        Xw, yw = np.linalg.solve(L, X), np.linalg.solve(L, bF)
+        b = np.linalg.lstsq(Xw, yw, rcond=None)[0]
+        out.append(bF - X @ b)
+    return out[0], out[1]
+
+
+def _drop_gain(parts: list, dof: int) -> float | None:
+    """The drop's gain in chi-square over the drop-free map, in units of the points' noise: ``parts`` are
+    per branch (Stribeck residuals, drop-free residuals, the points' squared errors, the shifts or None,
+    the branch's points and the drop's shape). Without shifts it is the weighted residual sum of squares'
+    drop over the Stribeck map's reduced chi-square (the F statistic times its degrees of freedom). With
+    shifts the two maps' levels and slope are refitted under the full covariance
+    (:func:`_gls_residuals`), the points' own errors scaled by the factor that gives the Stribeck map a
+    chi-square of ``dof`` (:func:`_gls_chi2`), and the gain is the drop in that chi-square. None when
+    undefined."""
+    from scipy.optimize import brentq
+
+    rss1 = sum(float(np.sum(pt[0] ** 2 / pt[2])) for pt in parts)
+    rss0 = sum(float(np.sum(pt[1] ** 2 / pt[2])) for pt in parts)
+    if not (rss1 > 0 and np.isfinite(rss0)):
+        return None
+    if all(pt[3] is None for pt in parts):
+        return (rss0 - rss1) / (rss1 / dof)
+
+    def chi(s2: float) -> tuple[float, float]:
+        c1 = c0 = 0.0
+        for pt in parts:
+            D = pt[3] if pt[3] is not None else np.zeros((pt[2].size, 0))
+            r1, r0 = _gls_residuals(pt[:3] + (D, pt[4]), s2)
+            c1 += _gls_chi2(r1, s2 * pt[2], D)
+            c0 += _gls_chi2(r0, s2 * pt[2], D)
+        return c1, c0
+
+    s2 = rss1 / dof
+    try:
+        s2 = math.exp(brentq(lambda ls: chi(math.exp(ls))[0] - dof, math.log(s2) - 12.0, math.log(s2) + 5.0,
+                             xtol=1e-3))
+    except (ValueError, np.linalg.LinAlgError):  # the shifts alone explain the residuals: keep the plain scale
+        pass
+    c1, c0 = chi(s2)
+    return c0 - c1
 
 
 #: Exponents at which a branch's Stribeck drop is refitted (:func:`_drop_in_view_at_every_exponent`; the
