@@ -152,7 +152,8 @@ def test_a_plateau_is_labelled_from_where_it_settled_when_long_enough_to_average
     w[n_rest:n_rest + n_cv] = w0 * (1.0 + 0.2 * ramp * (ramp > 0.05 / 0.2))
     code = np.concatenate((np.full(n_rest, sim.CODE["rest"]), np.full(n_cv, sim.CODE["constant_velocity"]),
                            np.full(n_rest, sim.CODE["rest"])))
-    out = {"t": t, "w": w, "wr": wr, "label": code, "index": np.concatenate(([-1] * n_rest, [0] * n_cv, [-1] * n_rest)),
+    index = np.concatenate(([-1] * n_rest, [0] * n_cv, [-1] * n_rest))
+    out = {"t": t, "w": w, "wr": wr, "label": code, "index": index,
            "q": np.cumsum(w) / fs, "tau": np.where(w != 0, 1.0, 0.0), "mode": np.full(t.size, sim.CLOSED)}
     labels, demoted = scenarios.refine_labels(out, 1e-3, 1e-6)
     cv = np.flatnonzero(labels == sim.CODE["constant_velocity"])
