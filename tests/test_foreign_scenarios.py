@@ -53,7 +53,9 @@ def test_friction_dissipates_in_sliding(seed):
 @pytest.mark.parametrize("seed", [3, 4])
 def test_plateaus_reach_the_stribeck_map(seed):
     """On every labelled plateau the true friction, and the applied torque minus gravity, average to the
-    static map g(w) sgn(w) + sigma2 w at the reference speed (a = 0 there)."""
+    static map g(w) sgn(w) + sigma2 w at the reference speed (a = 0 there): within 0.2 % on a plateau held
+    for a second, within 2 % on a short one (a plateau counts from where the velocity settled, if 0.2 s
+    remain: at 0.01 rad/s, below vs, the bristles still lag the break-away by 1.4 % over such a stretch)."""
     sc, _, out = _run(seed, "issue19_sweep")
     p = sc.plant
     labels, _ = scenarios.refine_labels(out, sc.sensors.tau_noise, sc.sensors.q_step)
@@ -62,7 +64,8 @@ def test_plateaus_reach_the_stribeck_map(seed):
     assert len(plateaus) >= 20
     for a, b in plateaus:
         F_ss = float(p.static(out["wr"][a]))
-        assert np.mean(out["F"][a:b]) == pytest.approx(F_ss, rel=2e-3)
+        long = (b - a) >= sc.sensors.fs
+        assert np.mean(out["F"][a:b]) == pytest.approx(F_ss, rel=2e-3 if long else 2e-2)
         G = p.Px * np.cos(out["q"][a:b]) + p.Py * np.sin(out["q"][a:b])
         assert np.mean(out["tau"][a:b] - G) == pytest.approx(F_ss, rel=2e-2)
 
@@ -131,3 +134,31 @@ def test_issue19_family_runs_through_frictid_fit(seed, family, tmp_path):
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     assert out.exists()
+
+
+@pytest.mark.parametrize("settle, kept", [(0.37, True), (0.45, False)])
+def test_a_plateau_is_labelled_from_where_it_settled_when_long_enough_to_average(settle, kept):
+    """The truth's plateau (docs/segments.md: near-constant velocity long enough to average, 0.2 s): a
+    0.5 s plateau whose loop settles within 5 % after its middle is ``constant_velocity`` from there when
+    at least 0.2 s remain (a short plateau of a sweep, foreign card 101154), ``other`` when less remain."""
+    fs, w0 = 1000.0, 0.05
+    n_rest, n_cv = int(0.5 * fs), int(0.5 * fs)
+    t = np.arange(2 * n_rest + n_cv) / fs
+    wr = np.concatenate((np.zeros(n_rest), np.full(n_cv, w0), np.zeros(n_rest)))
+    # the speed overshoots by 20 % and decays linearly to the reference at ``settle`` s, within 5 % from
+    # 0.75 settle: 0.28 s (0.22 s remain) or 0.34 s (0.16 s remain)
+    ramp = np.clip(1.0 - np.arange(n_cv) / fs / settle, 0.0, 1.0)
+    w = wr.copy()
+    w[n_rest:n_rest + n_cv] = w0 * (1.0 + 0.2 * ramp * (ramp > 0.05 / 0.2))
+    code = np.concatenate((np.full(n_rest, sim.CODE["rest"]), np.full(n_cv, sim.CODE["constant_velocity"]),
+                           np.full(n_rest, sim.CODE["rest"])))
+    index = np.concatenate(([-1] * n_rest, [0] * n_cv, [-1] * n_rest))
+    out = {"t": t, "w": w, "wr": wr, "label": code, "index": index,
+           "q": np.cumsum(w) / fs, "tau": np.where(w != 0, 1.0, 0.0), "mode": np.full(t.size, sim.CLOSED)}
+    labels, demoted = scenarios.refine_labels(out, 1e-3, 1e-6)
+    cv = np.flatnonzero(labels == sim.CODE["constant_velocity"])
+    settled = n_rest + int(np.flatnonzero(np.abs(w[n_rest:n_rest + n_cv] - w0) > 0.05 * w0)[-1]) + 1
+    if kept:
+        assert demoted == 0 and cv[0] == settled and cv[-1] == n_rest + n_cv - 1
+    else:
+        assert demoted == 1 and cv.size == 0

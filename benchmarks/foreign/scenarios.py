@@ -206,8 +206,12 @@ def steady_torque(tau: np.ndarray, fs: float, noise: float, moving: np.ndarray |
 def refine_labels(out: dict, tau_noise: float, q_step: float) -> tuple[np.ndarray, int]:
     """The program's labels made physical: a constant-velocity piece starts where the true velocity has
     settled for good within 5 % of its reference (the samples before are ``other``: the loop still
-    settling); a piece that has not settled by its middle (a slow transient, stick-slip, a ripple) is
-    ``other`` altogether. A ``rest`` right after a step is the step's still tail (nothing in the data
+    settling); a piece whose settled remainder is shorter than ``T_REST`` (0.2 s, frictid's ``T_MIN``: a
+    plateau is near-constant velocity long enough to average, docs/segments.md) is ``other`` altogether
+    (a slow transient, stick-slip, a ripple, a drift that never settles). Until 2026-11-27 (session 18) a
+    piece not settled by its middle was ``other``: a 0.53 s plateau whose loop settled 0.26 s before its
+    end (foreign card 101154, a PID overshooting at 0.04 rad/s) was no plateau, though it held its speed
+    within 0.1 % over that stretch. A ``rest`` right after a step is the step's still tail (nothing in the data
     marks where one ends: a step lasts until the next input). Dwells and moves (closed-loop ``rest`` and
     ``other``) are relabelled by docs/segments.md's definition of a rest: ``rest`` where the joint is
     still to the encoder of step ``q_step`` [q] (:func:`still_to_encoder`) and its torque steady
@@ -221,11 +225,12 @@ def refine_labels(out: dict, tau_noise: float, q_step: float) -> tuple[np.ndarra
     starts = np.concatenate(([0], change))
     ends = np.concatenate((change, [lab.size]))
     demoted = 0
+    n_plateau = int(round(T_REST / float(out["t"][1] - out["t"][0])))
     for a, b in zip(starts, ends):
         if lab[a] == sim.CODE["constant_velocity"]:
             bad = np.flatnonzero(np.abs(w[a:b] - wr[a:b]) > 0.05 * np.abs(wr[a:b]))
             s = int(bad[-1]) + 1 if bad.size else 0
-            if s > (b - a) // 2:
+            if b - a - s < n_plateau:
                 s = b - a
                 demoted += 1
             lab[a:a + s] = sim.CODE["other"]
