@@ -13,6 +13,7 @@ With FRICTID_SMOKE=1 (the test of the documented commands) it runs 2 partitions 
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import resource
 import sys
@@ -51,7 +52,8 @@ def busy_seconds(store: Path) -> float:
 def run_dask(data: Path, store: Path, workers: int, first: str) -> tuple[float, float, list[float]]:
     """(start-up and warm-up time, fit time, each worker's peak RSS [MB])."""
     t0 = time.perf_counter()
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                      silence_logs=logging.CRITICAL) as cluster:  # (as frictid.fleet.run's cluster)
         with Client(cluster) as client:
             client.run(warm, first)
         t1 = time.perf_counter()

@@ -7,6 +7,7 @@ the same numbers. A partition that fails to read or fit is recorded with its rea
 from __future__ import annotations
 
 import contextlib
+import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -139,8 +140,10 @@ def _outcomes_dask(todo, options, scheduler: str | None, workers: int):
         if scheduler:
             client = stack.enter_context(Client(scheduler))
         else:
+            # (its workers' and scheduler's own log lines off: a task's failure reaches the user as its outcome,
+            # and a heartbeat that meets the closing scheduler at shutdown logs a traceback that means nothing)
             cluster = stack.enter_context(LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                                       dashboard_address=":0"))
+                                                       dashboard_address=":0", silence_logs=logging.CRITICAL))
             client = stack.enter_context(Client(cluster))
         futures = client.map(fit_partition, [p for p, _ in todo], [d for _, d in todo], options=options,
                              key=[f"frictid-fit-{d}-{i}" for i, (_, d) in enumerate(todo)], pure=False)
