@@ -432,6 +432,20 @@ def test_an_inertia_repair_that_leaves_a_negative_inertia_is_no_repair():
     assert unphysical(other, Coef({0: 1.0}, {0: 1.0}, gamma={0: np.array([-5.0])}), 0.1) is None
 
 
+def test_a_dwell_whose_level_falls_with_the_rest_is_no_dwell():
+    """Contacts that age at rest hold more, never less: a dwell term whose coefficient makes the level fall
+    with the rest before a move is refused (:func:`frictid.diagnose.chain.unphysical`; the foreign card's
+    seed 304500, a 50 ms torque delay named a dwell of -146 % after a 58 s rest); a rising one stands."""
+    from frictid.diagnose.chain import unphysical
+    from frictid.diagnose.model import Coef, Term
+
+    cp = np.array([0.0, 1.0, 0.0, 0.0, 0.0, 0.0])
+    st = Structure("coulomb_viscous", cp, (Term("dwell", "dwell", "level_factor", (("t0", 0.05), ("s_c", 0.1))),))
+    why = unphysical(st, Coef({0: 1.0}, {0: 1.0}, gamma={0: np.array([-0.4])}), 0.1)
+    assert why is not None and "falls with the rest" in why, why
+    assert unphysical(st, Coef({0: 1.0}, {0: 1.0}, gamma={0: np.array([0.4])}), 0.1) is None
+
+
 def test_a_position_torque_that_is_a_constant_is_rejected():
     """A smooth position torque carries its own constant: when what varies with the position is under the
     2 % of the friction RMS a term must explain, its correction is an offset's or a level's by direction
