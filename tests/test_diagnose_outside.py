@@ -354,8 +354,9 @@ def test_a_candidate_that_follows_part_of_a_slow_cycle_is_not_named(seed):
 def test_a_candidate_that_follows_the_rests_is_not_named():
     """The foreign card's seed 302046 (a dwell, 14 %, sweeps): a heat balance with a 12 s time constant, which
     cools in every rest, was named temperature first (before it, a position torque, as the moves start at
-    the same places). Their competitor is a free function of the time since the last rest (times the
-    velocity's sign): a candidate whose correction is the dwell explains nothing beyond it and is rejected
+    the same places). Their competitor is a free function of the travel since a rest (times the velocity's
+    sign; moves after no rest share one value): a candidate whose correction is the dwell explains nothing
+    beyond it and is rejected
     (:func:`frictid.diagnose.chain._not_beyond_rests`); one whose correction is a slow change of the level
     over the log (a warm-up's shape) still explains what that function leaves, and stands."""
     from dataclasses import replace
@@ -378,7 +379,7 @@ def test_a_candidate_that_follows_the_rests_is_not_named():
             why = _not_beyond_rests(S, tr, 1)
             assert (why is not None) == rejected, why
             if rejected:
-                assert "nothing beyond a free function of the time since the last rest" in why, why
+                assert "nothing beyond a free function of the travel since a rest" in why, why
 
 
 def test_a_delay_is_judged_on_every_moving_sample():

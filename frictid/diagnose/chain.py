@@ -39,7 +39,7 @@ from .binned import heldout_binned
 from .causes import EXTENSIONS, candidates, n_coef, propose
 from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure
 from .samples import Samples
-from .signals import delay_heldout
+from .signals import REST_MIN, delay_heldout, rests
 
 #: Family-wise false-finding level of one step of the chain (split over its candidates).
 ALPHA = 0.01
@@ -495,46 +495,40 @@ def _not_its_time_course(S: Samples, tr: Trial, m: int) -> str | None:
     return None
 
 
-def since_rest(S: Samples) -> np.ndarray:
-    """Time [s] since the joint last rested (moved slower than ``v_min``), per sample; since the start of
-    its log when it never rested before."""
+def after_rest_travel(S: Samples) -> np.ndarray:
+    """Per sample: the travel [q] since the current move started when a rest (slower than ``v_min`` for at
+    least :data:`frictid.diagnose.signals.REST_MIN`) came before it, and -1 for every sample of a move that
+    followed no rest (a reversal without one): the variable of a dwell effect's fade, which a log without
+    rests does not turn into a clock of the whole log."""
     def compute():
-        out = np.empty(S.n)
-        for i, lg in enumerate(S.logs):
-            sel = S.li == i
-            if not sel.any():
-                continue
-            rest = np.abs(S.log_w(i)) <= S.v_min
-            last = np.where(rest, np.arange(lg.n), 0)
-            np.maximum.accumulate(last, out=last)
-            k = S.k[sel]
-            out[sel] = lg.t[k] - lg.t[last[k]]
-        return out
-    return S.cached("since_rest", compute)
+        t_rest, s = rests(S)
+        return np.where(t_rest >= REST_MIN, s, -1.0)
+    return S.cached("after_rest_travel", compute)
 
 
-#: Extensions a free function of the time since the last rest competes with: a heat balance with a time
-#: constant of seconds cools in every rest and a torque of the position shows where the moves start, so
-#: both can follow what the rests do (a dwell effect: static friction that grows with the rest and fades
-#: over the move).
+#: Extensions a free function of the travel since a rest competes with: a heat balance with a time constant
+#: of seconds cools in every rest and a torque of the position shows where the moves start, so both can
+#: follow what the rests do (a dwell effect: static friction that grows with the rest and fades over the
+#: move).
 REST_COURSE_EXTS = ("thermal4", "thermal6", "position_torque")
 
 
 def _not_beyond_rests(S: Samples, tr: Trial, m: int) -> str | None:
-    """Why a candidate explains nothing beyond a free function of the time since the last rest, or None. The
-    competitor: the training folds' mean of ``r sgn w`` in bins of :func:`since_rest`, predicting the held-out
-    fold times ``sgn w`` (a level that changes with the rests, as a dwell effect does). The candidate's
-    held-out correction must still explain part of what that leaves, significantly at the step's level
-    (the one-sided paired t over held-out groups, the candidate's own test): a warm-up, slow against the
-    rests, and a torque of the position at every position do; a thermal state of a few seconds that follows
-    the rests does not (foreign seed 302046, a dwell: thermal4 with a 12 s time constant named first)."""
+    """Why a candidate explains nothing beyond a free function of the travel since a rest, or None. The
+    competitor: the training folds' mean of ``r sgn w`` in bins of :func:`after_rest_travel` (moves after
+    no rest share one bin), predicting the held-out fold times ``sgn w`` (a level that changes over the
+    moves that follow rests, as a dwell effect's does). The candidate's held-out correction must still
+    explain part of what that leaves, significantly at the step's level (the one-sided paired t over
+    held-out groups, the candidate's own test): a warm-up, slow against the moves, and a torque of the
+    position at every position do; a thermal state of a few seconds that follows the rests does not
+    (foreign seed 302046, a dwell: thermal4 with a 12 s time constant named first)."""
     rb = S.F - tr.pred_before
     sg = np.sign(S.w)
-    e = rb - sg * heldout_binned(S, rb * sg, since_rest(S))
+    e = rb - sg * heldout_binned(S, rb * sg, after_rest_travel(S))
     t, p = paired_t(group_d(S, e, e - (tr.pred_after - tr.pred_before)))
     if p < ALPHA / max(m, 1):
         return None
-    return (f"{tr.ext} explains nothing beyond a free function of the time since the last rest (held-out t = "
+    return (f"{tr.ext} explains nothing beyond a free function of the travel since a rest (held-out t = "
             f"{t:.2f}, p = {p:.2g} on what that function leaves): the rests, not "
             f"{'the position' if tr.ext == 'position_torque' else 'a warm-up'}, shape what it follows")
 

@@ -27,7 +27,7 @@ import numpy as np
 from ..data import finite
 from ..segments import noise_sigma
 from .binned import heldout_binned
-from .chain import ALPHA, EXPLAINED_MIN, group_d, paired_t, since_rest
+from .chain import ALPHA, EXPLAINED_MIN, group_d, paired_t
 from .samples import Samples
 from .signals import torque_rate
 
@@ -47,6 +47,24 @@ def torque_noise(S: Samples) -> float:
     log's F (MAD of its fourth difference)."""
     return S.cached("torque_noise", lambda: max((noise_sigma(finite(lg.F)) for lg in S.logs if lg.n > 10),
                                                 default=0.0))
+
+
+def since_rest(S: Samples) -> np.ndarray:
+    """Time [s] since the joint last rested (moved slower than ``v_min``), per sample; since the start of
+    its log when it never rested before."""
+    def compute():
+        out = np.empty(S.n)
+        for i, lg in enumerate(S.logs):
+            sel = S.li == i
+            if not sel.any():
+                continue
+            rest = np.abs(S.log_w(i)) <= S.v_min
+            last = np.where(rest, np.arange(lg.n), 0)
+            np.maximum.accumulate(last, out=last)
+            k = S.k[sel]
+            out[sel] = lg.t[k] - lg.t[last[k]]
+        return out
+    return S.cached("since_rest", compute)
 
 
 def variable(S: Samples, name: str) -> np.ndarray | None:
