@@ -39,7 +39,7 @@ from .binned import heldout_binned
 from .causes import EXTENSIONS, candidates, n_coef, propose
 from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure
 from .samples import Samples
-from .signals import REST_MIN, delay_heldout, rests
+from .signals import REST_MIN, delay_heldout, rest_scales, rests
 
 #: Family-wise false-finding level of one step of the chain (split over its candidates).
 ALPHA = 0.01
@@ -495,14 +495,26 @@ def _not_its_time_course(S: Samples, tr: Trial, m: int) -> str | None:
     return None
 
 
-def after_rest_travel(S: Samples) -> np.ndarray:
+#: Fading travels (the longest tried, :func:`frictid.diagnose.signals.rest_scales`) after which a dwell has
+#: faded (e^-3 = 5 % of it left).
+DWELL_FADES = 3.0
+
+
+def after_rest_travel(S: Samples) -> np.ndarray | None:
     """Per sample: the travel [q] since the current move started when a rest (slower than ``v_min`` for at
-    least :data:`frictid.diagnose.signals.REST_MIN`) came before it, and -1 for every sample of a move that
-    followed no rest (a reversal without one): the variable of a dwell effect's fade, which a log without
-    rests does not turn into a clock of the whole log."""
+    least :data:`frictid.diagnose.signals.REST_MIN`) came before it and the travel is within
+    :data:`DWELL_FADES` of the longest fading travel tried, and -1 elsewhere (a move after no rest, the rest
+    of a long move): the variable of a dwell effect's fade, which neither a log without rests nor a long
+    sweep turns into a clock. None when the logs hold no rests to tell a dwell by
+    (:func:`frictid.diagnose.signals.rest_scales`)."""
     def compute():
         t_rest, s = rests(S)
-        return np.where(t_rest >= REST_MIN, s, -1.0)
+        scales = rest_scales(S)
+        if scales is None:
+            return None
+        # a dwell has faded after a few of the longest fading travels tried: beyond, the travel of a long
+        # move would be a clock (a warm-up in a sweep's first move)
+        return np.where((t_rest >= REST_MIN) & (s <= DWELL_FADES * float(np.max(scales[1]))), s, -1.0)
     return S.cached("after_rest_travel", compute)
 
 
@@ -522,9 +534,12 @@ def _not_beyond_rests(S: Samples, tr: Trial, m: int) -> str | None:
     held-out groups, the candidate's own test): a warm-up, slow against the moves, and a torque of the
     position at every position do; a thermal state of a few seconds that follows the rests does not
     (foreign seed 302046, a dwell: thermal4 with a 12 s time constant named first)."""
+    x = after_rest_travel(S)
+    if x is None:   # no rests of two lengths: no dwell to follow
+        return None
     rb = S.F - tr.pred_before
     sg = np.sign(S.w)
-    e = rb - sg * heldout_binned(S, rb * sg, after_rest_travel(S))
+    e = rb - sg * heldout_binned(S, rb * sg, x)
     t, p = paired_t(group_d(S, e, e - (tr.pred_after - tr.pred_before)))
     if p < ALPHA / max(m, 1):
         return None
