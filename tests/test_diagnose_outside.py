@@ -351,6 +351,37 @@ def test_a_candidate_that_follows_part_of_a_slow_cycle_is_not_named(seed):
         assert _not_its_time_course(S, all_of_it, 1) is None
 
 
+def test_a_candidate_that_follows_the_rests_is_not_named():
+    """The foreign card's seed 302046 (a dwell, 14 %, sweeps): a heat balance with a 12 s time constant, which
+    cools in every rest, was named temperature first (before it, a position torque, as the moves start at
+    the same places). Their competitor is a free function of the travel since a rest (times the velocity's
+    sign; moves after no rest share one value): a candidate whose correction is the dwell explains nothing
+    beyond it and is rejected
+    (:func:`frictid.diagnose.chain._not_beyond_rests`); one whose correction is a slow change of the level
+    over the log (a warm-up's shape) still explains what that function leaves, and stands."""
+    from dataclasses import replace
+
+    from frictid.diagnose.chain import Chain, _not_beyond_rests
+
+    def truth(amp, cycle=(0.0, 1.0)):
+        return _rest_plateau_log(3, amp, TRUE, noise=0.0, cycle=cycle).F
+
+    for amp, cycle, rejected in ((0.3, (0.0, 1.0), True), (0.0, (0.15, 600.0), False)):
+        lg = _rest_plateau_log(3, amp, TRUE, cycle=cycle)
+        S = build_samples([lg], 5)
+        cp, _ = sm.canonical_pair("stribeck", TRUE)
+        chain = Chain(S, Structure("stribeck", cp))
+        effect = (truth(amp, cycle) - truth(0.0))[S.k]      # the hidden correction at the sliding samples
+        X = np.column_stack([np.sign(S.w), S.w])            # less what the base's level and slope take
+        effect = effect - X @ np.linalg.lstsq(X, effect, rcond=None)[0]
+        for ext in ("thermal4", "position_torque"):
+            tr = replace(chain.evaluate("offset", 1), ext=ext, pred_after=chain.pred + effect)
+            why = _not_beyond_rests(S, tr, 1)
+            assert (why is not None) == rejected, why
+            if rejected:
+                assert "nothing beyond a free function of the travel since a rest" in why, why
+
+
 def test_a_delay_is_judged_on_every_moving_sample():
     """The held-out judgement of a delay on the moving samples (transients included, where a delay shows
     most; :func:`frictid.diagnose.signals.delay_heldout`): on a plateau log whose logged torque is 10 ms
@@ -430,6 +461,20 @@ def test_an_inertia_repair_that_leaves_a_negative_inertia_is_no_repair():
     assert unphysical(st, coef, 0.4) is not None          # a positive inertia repaired below zero
     other = Structure("coulomb_viscous", cp, (Term("offset", "offset", "additive", ()),))
     assert unphysical(other, Coef({0: 1.0}, {0: 1.0}, gamma={0: np.array([-5.0])}), 0.1) is None
+
+
+def test_a_dwell_whose_level_falls_with_the_rest_is_no_dwell():
+    """Contacts that age at rest hold more, never less: a dwell term whose coefficient makes the level fall
+    with the rest before a move is refused (:func:`frictid.diagnose.chain.unphysical`; the foreign card's
+    seed 304500, a 50 ms torque delay named a dwell of -146 % after a 58 s rest); a rising one stands."""
+    from frictid.diagnose.chain import unphysical
+    from frictid.diagnose.model import Coef, Term
+
+    cp = np.array([0.0, 1.0, 0.0, 0.0, 0.0, 0.0])
+    st = Structure("coulomb_viscous", cp, (Term("dwell", "dwell", "level_factor", (("t0", 0.05), ("s_c", 0.1))),))
+    why = unphysical(st, Coef({0: 1.0}, {0: 1.0}, gamma={0: np.array([-0.4])}), 0.1)
+    assert why is not None and "falls with the rest" in why, why
+    assert unphysical(st, Coef({0: 1.0}, {0: 1.0}, gamma={0: np.array([0.4])}), 0.1) is None
 
 
 def test_a_position_torque_that_is_a_constant_is_rejected():

@@ -276,11 +276,7 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
     if ext == "position_torque":
         return _position_torque(ctx, st, idx, resid)
     if ext == "dwell":
-        t0s, scs = rest_scales(S)
-        trials = [(t0, sc) for t0 in t0s for sc in scs]
-        terms = [Term(cause, ext, role, (("t0", float(t0)), ("s_c", float(sc)))) for t0, sc in trials]
-        ctx.prefetch([st.plus(term) for term in terms])   # the grid's sums in one pass
-        return min(terms, key=lambda term: _fit_rms(ctx, st.plus(term), idx))
+        return _dwell(ctx, st, idx)
     if ext == "delay":   # the shift estimated on the training folds' moving samples
         f = ctx.fold_of(idx)   # a training set's fold is remembered: no gather of its folds
         folds = ([g for g in range(S.n_folds) if g != f] if f is not None and f is not False
@@ -309,6 +305,31 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
                 best = (r, term)
         return best[1]
     return Term(cause, ext, role, ())
+
+
+#: Refinements of the dwell's fading travel ``s_c`` between the grid's neighbours (factors of the grid step).
+DWELL_REFINE = (-0.5, -0.25, 0.25, 0.5)
+
+
+def _dwell(ctx: Context, st: Structure, idx: np.ndarray) -> Term:
+    """The dwell term, its ``t0`` and fading travel ``s_c`` chosen on the training samples idx: the grid of
+    :func:`frictid.diagnose.signals.rest_scales` (``s_c`` a factor of 3 apart), then ``s_c`` refined between
+    the best one's neighbours (:data:`DWELL_REFINE`). On the coarse grid a dwell that fades over half the
+    grid step leaves a residual shaped by the rests, which a fast thermal state follows (foreign seed
+    304007: ``s_c`` 0.67 rad for the plant's 0.35, then thermal6 with a 54 s time constant named after it)."""
+    S = ctx.S
+    t0s, scs = rest_scales(S)
+
+    def term(t0, sc):
+        return Term("dwell", "dwell", "level_factor", (("t0", float(t0)), ("s_c", float(sc))))
+    grid = [(t0, sc) for t0 in t0s for sc in scs]
+    ctx.prefetch([st.plus(term(t0, sc)) for t0, sc in grid])   # the grid's sums in one pass
+    scored = [(_fit_rms(ctx, st.plus(term(t0, sc)), idx), t0, sc) for t0, sc in grid]
+    _, t0, sc = min(scored, key=lambda x: x[0])
+    step = float(scs[1] / scs[0]) if scs.size > 1 else 1.0
+    scored += [(_fit_rms(ctx, st.plus(term(t0, sc * step ** f)), idx), t0, sc * step ** f) for f in DWELL_REFINE]
+    _, t0, sc = min(scored, key=lambda x: x[0])
+    return term(t0, sc)
 
 
 def _rigid_fix(st: Structure, coef: Coef | None) -> tuple:

@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..identify.select import base_model_name
+from ..identify.select import BASE_MODELS, base_model_name, choose
 from ..models import static as sm
 from ..result import JointFit, ModelFit, ParamEstimate
 from .causes import REPAIRS
 from .chain import ALPHA, EXPLAINED_MIN, GAIN_MIN, Chain, Trial
 from .evidence import evidence, fmt
-from .model import OUTSIDE_MODEL, Structure, Term, model_values
+from .model import MAP_SLOTS, OUTSIDE_MODEL, Coef, Evaluator, Structure, Term, model_values
 from .params import param_entries
 from .samples import DiagLog, Samples, build_samples
 from .structure import X_NOISE, torque_noise, unexplained
@@ -75,8 +75,7 @@ def diagnose_joint(jf: JointFit, logs: list[DiagLog], n_folds: int = N_FOLDS) ->
         jf.warnings.append(f"not diagnosed: {rec['skipped']}")
         jf.diagnosis = []
         return []
-    chain = Chain(S, _base_structure(jf, base, S),
-                  J=jf.inertia.value if jf.inertia is not None and jf.inertia.value is not None else None)
+    chain, base = _chain(jf, S, base, rec)
     rec["rms_heldout_base"] = chain.rms_heldout
     rec["samples"] = int(S.n)
     rec["groups"] = int(S.n_groups)
@@ -92,6 +91,46 @@ def diagnose_joint(jf: JointFit, logs: list[DiagLog], n_folds: int = N_FOLDS) ->
     jf.diagnosis = findings
     jf.selected = last
     return findings
+
+
+def _chain(jf: JointFit, S: Samples, base: str, rec: dict) -> tuple[Chain, str]:
+    """The chain from the fit's base model, or, when the sliding samples cannot refit that base
+    (:func:`_not_refitted`), from the next velocity-only model by the same choice rule; each refused base
+    in ``rec['base_refused']`` with why."""
+    J = jf.inertia.value if jf.inertia is not None and jf.inertia.value is not None else None
+    left = [m for m in BASE_MODELS if not m.endswith("_asym") and m in jf.models
+            and all(v is not None for v in jf.models[m].values().values())]
+    while True:
+        chain = Chain(S, _base_structure(jf, base, S), J=J)
+        why = _not_refitted(chain)
+        left = [m for m in left if m != base]
+        nxt = choose(jf.models, left)[0] if why is not None and left else None
+        if nxt is None:
+            return chain, base
+        rec.setdefault("base_refused", []).append({"model": base, "reason": why})
+        base = rec["base"] = nxt
+
+
+def _not_refitted(chain: Chain) -> str | None:
+    """Why the chain's base, refitted on the sliding samples, is not the fit's map, or None. Refitted by least
+    squares it can only fit them better than with the fit's own amplitudes, unless the refit must hold or drop
+    amplitudes (a Stribeck term the samples do not reach, an amplitude over ten times the friction): a map
+    whose terms cancel (two Stribeck exponentials of nearly one velocity and opposite amplitudes of 30 times
+    the friction, foreign seeds 304005 and 304007) then loses its shape, and every candidate "explains" the
+    friction the broken base leaves (a thermal factor 72 %). Refused when the refit leaves more than the fit's
+    own amplitudes by an RMS worth a term (:data:`EXPLAINED_MIN` of the friction RMS)."""
+    st, S = chain.st, chain.S
+    own = Coef({sl: float(st.shapes[sl]) for sl in MAP_SLOTS[st.map]},
+               {sl: float(st.shapes[sl]) for sl in MAP_SLOTS[st.map]},
+               gamma={i: np.zeros(2 if t.ext == "gravity" else 1) for i, t in enumerate(st.terms)})
+    r = S.F - Evaluator(st, chain.ctx).predict(own, chain.idx_all)
+    rms_own = float(np.sqrt(np.mean(r * r)))
+    worse = np.sqrt(max(chain.coef.rms ** 2 - rms_own ** 2, 0.0))
+    if worse < EXPLAINED_MIN * chain.F_rms:
+        return None
+    return (f"{st.map} refitted on the sliding samples leaves an RMS of {fmt(chain.coef.rms)} against "
+            f"{fmt(rms_own)} with the fit's own amplitudes (amplitudes held or dropped: "
+            f"{', '.join(str(k) for k in chain.coef.excluded) or 'held'}): its terms cancel, the refit loses its shape")
 
 
 def _last_model(rec: dict, findings: list[dict]) -> str | None:
