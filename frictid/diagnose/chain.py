@@ -386,6 +386,16 @@ def speed_cells(S: Samples) -> np.ndarray:
 
 
 def confounded(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float) -> str | None:
+    """Why a candidate is not named (its confound checks, :func:`_stand_in`), or None; a candidate that
+    passes them and could follow the rests (:data:`REST_COURSE_EXTS`) must also explain something beyond a
+    free function of the travel since a rest (:func:`_not_beyond_rests`)."""
+    why = _stand_in(S, tr, m, ctx, F_rms)
+    if why is None and tr.ext in REST_COURSE_EXTS:
+        why = _not_beyond_rests(S, tr, m)
+    return why
+
+
+def _stand_in(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float) -> str | None:
     """Why a position candidate is a stand-in for the speed or the order of the plateaus (EMPS: each plateau
     speed in one stretch of travel, so any function of the speed is a function of the position), or None.
     Its held-out correction and the residual, each less its mean and its line in the velocity in every cell
@@ -402,7 +412,7 @@ def confounded(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float) -> str
     if tr.ext in TIME_COURSE_EXTS:
         why = _not_its_time_course(S, tr, m)
         if why is not None or tr.ext not in POSITION_EXTS:
-            return why or (_not_beyond_rests(S, tr, m) if tr.ext in REST_COURSE_EXTS else None)
+            return why
     if tr.ext not in POSITION_EXTS:
         return None
     if tr.ext == "position_torque":
@@ -413,8 +423,7 @@ def confounded(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float) -> str
     if p >= ALPHA / max(m, 1):
         return (f"{tr.ext} does not show within segments at one speed (held-out within-cell t = {t:.2f}, "
                 f"p = {p:.2g}): the position stands in for the speed or the order of the plateaus")
-    why = _grows_with_speed(S, tr, rw, dw, m)
-    return why or (_not_beyond_rests(S, tr, m) if tr.ext in REST_COURSE_EXTS else None)
+    return _grows_with_speed(S, tr, rw, dw, m)
 
 
 def _a_constant(ctx: Context, tr: Trial, F_rms: float) -> str | None:
