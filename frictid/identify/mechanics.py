@@ -504,6 +504,7 @@ def rigid_body(jd: JointData, regs: Regressors, n_folds: int) -> tuple[RigidBody
     reg_fit, seg_ne = regress(jd.preps, regs.free, regs.known_coef, jd.min_speed, jd.axis)
     rb = RigidBody(regs, reg_fit, seg_ne, "no moving samples" if reg_fit is None else "")
     set_mechanics(jd, reg_fit, regs, rb.why, "")
+    confound_warning(jd.jf, angle_share(seg_ne, regs.free, reg_fit))
     plat, keys = plateaus(jd)
     # the basis of the static maps: plateau points, or every moving sample when the plateaus give too few
     # distinct speeds (an excitation run; see samples.py)
@@ -518,6 +519,51 @@ def rigid_body(jd: JointData, regs: Regressors, n_folds: int) -> tuple[RigidBody
         p._trig = None
     mechanics_not_identified(jd.jf)
     return rb, fr
+
+
+#: The share of the acceleration's variance that the angle explains on the regression's samples beyond
+#: which the fit warns that the inertia and the gravity trade off: more than half of J's column is then the
+#: gravity columns' and the offset's (their collinearity alone more than doubles J's variance).
+CONFOUND_SHARE = 0.5
+
+
+def angle_share(seg_ne, names, fit_: rg.LinearFit | None) -> float | None:
+    """The share of the acceleration's variance (about its mean) that the gravity columns and the offset
+    explain over the regression's samples, from its normal equations (no pass over the samples): on an
+    oscillation ``a = -w^2 (q - q_c)`` it is near 1, and J and gravity are then separated only by the rest of
+    the motion. None unless J, Px, Py and the offset are all solved and separable."""
+    need = ("J", "Px", "Py", "offset")
+    if fit_ is None or not seg_ne or any(n not in names or n in fit_.dependent for n in need):
+        return None
+    ne = rg.NormalEquations.total(e for *_, e in seg_ne)
+    names = list(names)
+    j, o = names.index("J"), names.index("offset")
+    g = [names.index(n) for n in ("Px", "Py", "offset")]
+    if ne.n < 2 * len(g):
+        return None
+    aa, ga = ne.XtX[j, j], ne.XtX[g, j]
+    tss = aa - ne.XtX[o, j] ** 2 / ne.n
+    if not tss > 0:
+        return None
+    rss = aa - ga @ np.linalg.lstsq(ne.XtX[np.ix_(g, g)], ga, rcond=None)[0]
+    return float(min(max(1.0 - rss / tss, 0.0), 1.0))
+
+
+def confound_warning(jf: JointFit, share: float | None) -> None:
+    """Warn when the angle explains more than :data:`CONFOUND_SHARE` of the acceleration (:func:`angle_share`):
+    J and gravity then trade off, and a friction the model misses at the reversals (where an oscillation's
+    acceleration peaks) biases both together (UR10e joint 5 in its jointwise run, an oscillation about a
+    vertical axis: 82 % of the acceleration is the angle's; J 1.07 with a gravity of 0.36 N m the pose does
+    not have, 0.48 without it, which the run's last 30 % confirms; docs/realdata.md "UR10e joints 5 and 6:
+    the inertia")."""
+    if share is None or share <= CONFOUND_SHARE:
+        return
+    jf.warnings.append(
+        f"inertia and gravity trade off: the angle explains {100 * share:.0f} % of the acceleration on the moving "
+        "samples (an oscillation's acceleration follows its angle), so J and Px, Py rest on the rest of the "
+        "motion and take up the friction's misfit at the reversals together; declare the gravity in the "
+        "mapping file's meta where the pose fixes it (an axis vertical in this pose: gravity: [0, 0]), or add "
+        "moves with other accelerations at the same angles")
 
 
 def _stage2(jd: JointData, rb: RigidBody, fr: Friction) -> rg.LinearFit | None:
