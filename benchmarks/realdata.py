@@ -561,9 +561,10 @@ def ur10e_inertia(data: Path, tmp: str) -> list[str]:
     rows = ["### UR10e joints 4-6: the inertia of the first 70 % and of the last 30 %", "",
             "| joint | max \\|a\\| first / last [rad/s^2] | held out, static: moving RMS [N m] / without the stop "
             "(its share of the squared error, samples) | a explained by the angle (R^2): first / last | J with "
-            "gravity: first / last [kg m^2] | J without gravity: first / last | held-out moving RMS with / "
-            "without gravity: static; Dahl + low-speed [N m] | controller's J (last 30 %) |",
-            "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+            "gravity: first / last [kg m^2] | J without gravity: first / last | first 70 %'s own moving RMS with / "
+            "without gravity, static [N m] | held-out moving RMS with / without gravity: static; Dahl + "
+            "low-speed [N m] | controller's J (last 30 %) | controller's mean \\|moment\\| at \\|a\\| < 0.05 "
+            "rad/s^2 [N m] |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     lags = ["", "Competing explanations (static structure with gravity): the torque shifted by d samples against "
             "the kinematics (J first / last, moving RMS of the first 70 %), and a jerk term (its coefficient "
             "as a lag of J a, first / last):", "",
@@ -597,7 +598,7 @@ def _inertia_row(k: int, parts: list[dict]) -> str:
         b0, b1 = (_lsq(X[i][:, c], parts[i]["tau"], parts[i]["mov"]) for i in (0, 1))
         J[g] = (b0[-1], b1[-1])
         e1 = p1["tau"] - X[1][:, c] @ b0
-        held[g] = (_rms(e1, p1["mov"]), _dahl_held(parts, c))
+        held[g] = (_rms(e1, p1["mov"]), _dahl_held(parts, c), _rms(p0["tau"] - X[0][:, c] @ b0, p0["mov"]))
         if g == "with":
             out = np.convolve(np.abs(p1["a"]) > 2 * amax[0], np.ones(2 * int(UR_STOP / p1["dt"]) + 1), "same") > 0
             at, mov = p1["mov"] & out, p1["mov"]
@@ -611,10 +612,12 @@ def _inertia_row(k: int, parts: list[dict]) -> str:
         r2.append(1 - np.sum(e[p["mov"]] ** 2) / np.sum((a_m - a_m.mean()) ** 2))
     A = np.column_stack([p1["a_qd"], np.ones_like(p1["a_qd"])])
     j_ctrl = _lsq(A, lowpass(p1["tdem"], p1["dt"], 20.0), np.ones(A.shape[0], bool))[0]
+    still = np.concatenate([np.abs(p["tdem"][np.abs(p["a_qd"]) < 0.05]) for p in parts])
     return (f"| {k} | {amax[0]:.2f} / {amax[1]:.2f} | {stop} | {r2[0]:.2f} / {r2[1]:.2f} | "
             f"{J['with'][0]:.3f} / {J['with'][1]:.3f} | {J['without'][0]:.3f} / {J['without'][1]:.3f} | "
+            f"{held['with'][2]:.3f} / {held['without'][2]:.3f} | "
             f"{held['with'][0]:.3f} / {held['without'][0]:.3f}; {held['with'][1]:.3f} / {held['without'][1]:.3f} | "
-            f"{j_ctrl:.3f} |")
+            f"{j_ctrl:.3f} | {float(np.mean(still)):.2f} |")
 
 
 def _dahl_held(parts: list[dict], c: list[int]) -> float:
@@ -655,33 +658,37 @@ def _lag_row(k: int, parts: list[dict]) -> str:
 
 def _declared_gravity(data: Path, tmp: str) -> list[str]:
     """frictid's fit of the first 70 % and replay of the last 30 % of joints 5 and 6 (the held-out table's
-    scoring) with the gravity of their jointwise pose declared in the mapping file: zero (joints 2-4 stand at
-    -pi/2, 0, -pi/2, which puts joint 5's axis vertical; joint 6 carries only the flange, whose centre of
-    mass is on its axis). The identification run moves joints 2-4, so the shipped mapping files leave
-    gravity to the fit."""
-    rows = ["frictid with the jointwise pose's gravity declared (`meta: {gravity: [0, 0]}` in a copy of the "
-            "mapping file), first 70 % fitted, last 30 % replayed:", "",
-            "| joint | chosen | whole run [N m] | moving [N m] | J [kg m^2] | AURT whole / moving |",
-            "| --- | --- | --- | --- | --- | --- |"]
+    scoring), with the mapping file as shipped and with the gravity of their jointwise pose declared in it:
+    zero (joints 2-4 stand at -pi/2, 0, -pi/2, which puts joint 5's axis vertical; joint 6 carries only the
+    flange, whose centre of mass is on its axis). The identification run moves joints 2-4, so the shipped
+    mapping files leave gravity to the fit."""
+    rows = ["frictid as shipped and with the jointwise pose's gravity declared (`meta: {gravity: [0, 0]}` in a "
+            "copy of the mapping file), first 70 % fitted, last 30 % replayed:", "",
+            "| joint | mapping | chosen | whole run [N m] | moving [N m] | J [kg m^2] | gravity amplitude [N m] | "
+            "AURT whole / moving |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
     base = data / "ur10e_mamedov2020" / "jointwise_motion"
     for k in (5, 6):
-        spec = yaml.safe_load((MAPS / f"ur10e_joint{k}.yaml").read_text())
-        spec.setdefault("meta", {})["gravity"] = [0, 0]
-        mp = Path(tmp) / f"urg{k}.yaml"
-        mp.write_text(yaml.safe_dump(spec))
         raw = pd.read_csv(base / f"ur-20_01_22-joint_{k}.csv", header=None)
         cut = int((1 - UR_HELD) * len(raw))
         first, last = Path(tmp) / f"urg{k}_first.csv", Path(tmp) / f"urg{k}_last.csv"
         raw.iloc[:cut].to_csv(first, header=False, index=False)
         raw.iloc[cut:].to_csv(last, header=False, index=False)
-        P = fit(first, mp, Path(tmp) / f"urg{k}_first.yaml")
-        d = replay(str(Path(tmp) / f"urg{k}_first.yaml"), last, mp, tmp, f"urg{k}_held")
-        *_, whole, mov = _heldout_errors(d, raw, cut, k)
-        j = next(iter(P["joints"].values()))
-        inertia = j.get("inertia") or {}
-        flag = "" if inertia.get("identifiable") else " (not identifiable)"
-        rows.append(f"| {k} | {chosen(j)} | {whole:.2f} | {mov:.2f} | {fmt(inertia.get('value'), 3)}{flag} | "
-                    f"{UR_AURT[k][0]} / {UR_AURT[k][1]} |")
+        for label in ("as shipped", "gravity declared"):
+            spec = yaml.safe_load((MAPS / f"ur10e_joint{k}.yaml").read_text())
+            if label != "as shipped":
+                spec.setdefault("meta", {})["gravity"] = [0, 0]
+            mp = Path(tmp) / f"urg{k}.yaml"
+            mp.write_text(yaml.safe_dump(spec))
+            P = fit(first, mp, Path(tmp) / f"urg{k}_first.yaml")
+            d = replay(str(Path(tmp) / f"urg{k}_first.yaml"), last, mp, tmp, f"urg{k}_held")
+            *_, whole, mov = _heldout_errors(d, raw, cut, k)
+            j = next(iter(P["joints"].values()))
+            inertia, amp = j.get("inertia") or {}, (j.get("gravity") or {}).get("amplitude") or {}
+            flag = lambda e: "" if e.get("identifiable") else " (not identifiable)"  # noqa: E731
+            g = (f"{pm(amp['value'], amp.get('stderr'), 2)}{flag(amp)}" if amp.get("value") is not None
+                 else "declared")
+            rows.append(f"| {k} | {label} | {chosen(j)} | {whole:.2f} | {mov:.2f} | "
+                        f"{fmt(inertia.get('value'), 3)}{flag(inertia)} | {g} | {UR_AURT[k][0]} / {UR_AURT[k][1]} |")
     return rows
 
 
