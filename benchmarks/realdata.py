@@ -570,11 +570,19 @@ def ur10e_inertia(data: Path, tmp: str) -> list[str]:
             "as a lag of J a, first / last):", "",
             "| joint | " + " | ".join(f"d = {d:+d}" for d in UR_SHIFTS) + " | jerk: lag of J a [ms] |",
             "| --- | " + " | ".join("---" for _ in UR_SHIFTS) + " | --- |"]
+    filt = ["", "The Dahl + low-speed structure's held-out moving RMS [N m] with its columns as frictid replays "
+            "them and low-passed at 20 Hz like the torque (parallel filtering, AURT's processing):", "",
+            "| joint | with gravity: replayed / filtered | without gravity: replayed / filtered | AURT moving |",
+            "| --- | --- | --- | --- |"]
     for k in (4, 5, 6):
         parts = _ur_parts(data, tmp, k)
         rows.append(_inertia_row(k, parts))
         lags.append(_lag_row(k, parts))
-    return rows + lags + [""] + _declared_gravity(data, tmp) + [""]
+        n = _ur_columns(parts[0], "frictid", None, None).shape[1]
+        cells = [" / ".join(f"{_dahl_held(parts, c, f):.3f}" for f in (False, True))
+                 for c in (list(range(n)), [i for i in range(n) if i not in (n - 3, n - 2)])]
+        filt.append(f"| {k} | {cells[0]} | {cells[1]} | {UR_AURT[k][1]} |")
+    return rows + lags + filt + [""] + _declared_gravity(data, tmp) + [""]
 
 
 def _lsq(X: np.ndarray, y: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -620,14 +628,18 @@ def _inertia_row(k: int, parts: list[dict]) -> str:
             f"{j_ctrl:.3f} | {float(np.mean(still)):.2f} |")
 
 
-def _dahl_held(parts: list[dict], c: list[int]) -> float:
+def _dahl_held(parts: list[dict], c: list[int], filtered: bool = False) -> float:
     """Held-out moving RMS of the Dahl + low-speed structure on columns ``c`` of the static one (the Dahl
     state and the low-speed term take the sign term's place), its length and speed chosen on the grid by the
-    first 70 %'s own moving RMS."""
+    first 70 %'s own moving RMS. ``filtered``: every column low-passed at 20 Hz like the torque (parallel
+    filtering, AURT's processing), else the columns as frictid replays them."""
     best = None
     for length in UR_DAHL[1:]:
         for vs in UR_LOWSPEED[1:]:
             X = [_ur_columns(p, "frictid", length, vs) for p in parts]
+            if filtered:
+                X = [np.column_stack([lowpass(x[:, i], p["dt"], 20.0) for i in range(x.shape[1])])
+                     for x, p in zip(X, parts)]
             cc = [0] + [i + 1 for i in c]  # the low-speed column shifts the static ones by one
             b = _lsq(X[0][:, cc], parts[0]["tau"], parts[0]["mov"])
             e0, e1 = (p["tau"] - x[:, cc] @ b for p, x in zip(parts, X))
