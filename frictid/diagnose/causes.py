@@ -265,8 +265,9 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
                 cand = [trial(src, tc) for tc in grid]
                 k = int(np.argmin([c[0] for c in cand]))
                 step = 10.0 ** (1.0 / TAU_PER_DECADE)
-                cand += [trial(src, grid[k] * step ** f) for f in (-1 / 3, 1 / 3)
-                         if grid[0] <= grid[k] * step ** f <= grid[-1]]
+                near = [grid[k] * step ** f for f in (-1 / 3, 1 / 3) if grid[0] <= grid[k] * step ** f <= grid[-1]]
+                ctx.prefetch([st.plus(Term(cause, ext, role, (("source", src), ("tau_c", float(tc))))) for tc in near])
+                cand += [trial(src, tc) for tc in near]
             per_source[src] = min(cand, key=lambda c: c[0])
         return _thermal_source(per_source, S, idx)
 
@@ -327,6 +328,7 @@ def _dwell(ctx: Context, st: Structure, idx: np.ndarray) -> Term:
     scored = [(_fit_rms(ctx, st.plus(term(t0, sc)), idx), t0, sc) for t0, sc in grid]
     _, t0, sc = min(scored, key=lambda x: x[0])
     step = float(scs[1] / scs[0]) if scs.size > 1 else 1.0
+    ctx.prefetch([st.plus(term(t0, sc * step ** f)) for f in DWELL_REFINE])   # the refinements in one pass
     scored += [(_fit_rms(ctx, st.plus(term(t0, sc * step ** f)), idx), t0, sc * step ** f) for f in DWELL_REFINE]
     _, t0, sc = min(scored, key=lambda x: x[0])
     return term(t0, sc)

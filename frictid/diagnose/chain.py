@@ -99,7 +99,7 @@ class Trial:
 
 def group_d(S: Samples, rb: np.ndarray, ra: np.ndarray) -> np.ndarray:
     """Per held-out group: sum of (r_before^2 - r_after^2)."""
-    return np.bincount(S.group, weights=rb * rb - ra * ra, minlength=S.n_groups)
+    return S.group_sums(rb * rb - ra * ra)
 
 
 def paired_t(d: np.ndarray) -> tuple[float, float]:
@@ -193,21 +193,31 @@ class Chain:
             after[te] = ev.predict(c, te)
             coefs.append(c)
         self.ctx.release(self.st)   # the candidate's columns (its sums of products stay cached)
-        out = ~self.inside   # the map extrapolated: the candidate is not judged there, the current model stands
-        after[out] = self.pred[out]
-        rb = S.F - self.pred
+        rb, rms_b, out, n_in = self._before_numbers()
+        after[out] = self.pred[out]   # the map extrapolated: the candidate is not judged there, the current model stands
         ra = S.F - after
         d = group_d(S, rb, ra)
         t, p = paired_t(d)
-        n_in = max(int(np.count_nonzero(self.inside)), 1)
-        rb_in, ra_in = rb[self.inside], ra[self.inside]
-        rms_b = float(np.sqrt(np.dot(rb_in, rb_in) / n_in))
+        ra_in = ra[self.inside]
         rms_a = float(np.sqrt(np.dot(ra_in, ra_in) / n_in))
         gain = 1.0 - rms_a / rms_b if rms_b > 0 else 0.0
         expl = math.sqrt(max(rms_b ** 2 - rms_a ** 2, 0.0))
         # self.pred is replaced, never changed in place, when the model is extended: shared, not copied
         return Trial(ext, EXTENSIONS[ext][0], self.pred, after, terms, coefs, rms_b, rms_a, gain, t, p,
                      S.n_groups, expl, n_coef(ext, self.st), d, index=len(self.st.terms))
+
+    def _before_numbers(self) -> tuple:
+        """The current model's held-out residual, its RMS over the scored samples, the samples not scored
+        (indices) and the number scored: the same for every candidate of a step (kept while ``self.pred`` is
+        the step's)."""
+        memo = getattr(self, "_memo_before", None)
+        if memo is None or memo[0] is not self.pred:
+            out = np.flatnonzero(~self.inside)
+            n_in = max(self.S.n - out.size, 1)
+            rb = self.S.F - self.pred
+            rb_in = rb[self.inside]
+            memo = self._memo_before = (self.pred, rb, float(np.sqrt(np.dot(rb_in, rb_in) / n_in)), out, n_in)
+        return memo[1:]
 
     def _delay_moving(self, terms: list) -> dict:
         """A delay judged on every moving sample (:func:`frictid.diagnose.signals.delay_heldout`, each fold's

@@ -85,9 +85,14 @@ def _rest_scales(S: Samples) -> tuple[np.ndarray, np.ndarray] | None:
 
 def dwell_state(S: Samples, t0: float, s_c: float) -> np.ndarray:
     """``ln(1 + t_rest / t0) exp(-s / s_c)`` at the sliding samples (rests shorter than :data:`REST_MIN`: 0)."""
-    tr, sd = rests(S)
-    tr = np.where(tr >= REST_MIN, tr, 0.0)
-    return np.log1p(tr / t0) * np.exp(-sd / s_c)
+    def scale():   # the rest's part, per t0 (the grid has two), and -s: cached, the same numbers
+        tr, _ = rests(S)
+        return np.log1p(np.where(tr >= REST_MIN, tr, 0.0) / t0)
+    lt = S.cached(("dwell_rest", float(t0)), scale)
+    out = np.divide(S.cached("dwell_minus_s", lambda: -rests(S)[1]), s_c)
+    np.exp(out, out=out)
+    np.multiply(lt, out, out=out)
+    return out
 
 
 def _log_rate(S: Samples, i: int) -> np.ndarray:
@@ -416,30 +421,45 @@ def _column_key(shift_s: float, beta: tuple) -> tuple:
 
 
 def _ends(S: Samples, i: int, k: np.ndarray, shift_s: float, n: int) -> list:
-    """The two ends ``k +- shift / 2`` [samples] of log i (n samples): (sample below, fraction) of each."""
+    """The two ends ``k +- shift / 2`` [samples] of log i (n samples, k whole sample indices): (sample below,
+    fraction) of each. The fraction is that of the half shift, one number for every sample, except where an
+    end leaves the log (clipped there, per sample)."""
     h = 0.5 * shift_s / S.dt(i)
     out = []
-    for pos in (k + h, k - h):
-        j0 = np.clip(np.floor(pos).astype(np.int64), 0, n - 2)
-        out.append((j0, np.clip(pos - j0, 0.0, 1.0)))
+    for hh in (h, -h):
+        base = math.floor(hh)
+        j0 = k + base
+        fr = hh - base
+        bad = (j0 < 0) | (j0 > n - 2)
+        if bad.any():   # clipped to the log: the fraction per sample
+            pos = k[bad] + hh
+            jb = np.clip(np.floor(pos).astype(np.int64), 0, n - 2)
+            j0[bad] = jb
+            frs = np.full(k.size, fr)
+            frs[bad] = np.clip(pos - jb, 0.0, 1.0)
+            fr = frs
+        out.append((j0, fr))
     return out
 
 
 def _delay_columns_at(S: Samples, items: list) -> list:
     """:func:`delay_column` of every (shift, beta) of items, in one pass over each log: the samples the ends
     interpolate between marked for all of them, what the torque model reads there gathered once
-    (:func:`_torque_features`), each item's model and ends from it (the same numbers as one at a time)."""
+    (:func:`_torque_features`), each item's model and ends from it. The ends of a sample are its index plus
+    a whole offset and a fraction common to all samples (:func:`_ends`): the folds' shifts are close, so the
+    positions of the few distinct offsets among the marked samples are looked up once for all items."""
     outs = [np.empty(S.n) for _ in items]
     for i, lg in enumerate(S.logs):
         sel = S.li == i
         if not sel.any():
             continue
-        k = S.k[sel].astype(float)
+        k = S.k[sel].astype(np.int64)
+        ends = [_ends(S, i, k, shift_s, lg.n) for shift_s, _ in items]
         # the torque model once at each sample the two ends interpolate between (they overlap: the
         # sliding samples come in runs, and the shifts of the folds are close), then read at both ends
         mark = np.zeros(lg.n, bool)
-        for shift_s, _ in items:
-            for j0, _ in _ends(S, i, k, shift_s, lg.n):
+        for e in ends:
+            for j0, _ in e:
                 mark[j0] = True
                 mark[j0 + 1] = True
         idx = np.flatnonzero(mark)
@@ -447,10 +467,32 @@ def _delay_columns_at(S: Samples, items: list) -> list:
         feats = _torque_features(S, i, idx)
         at = np.empty(lg.n, np.int64)   # the position of each marked sample in idx (only those are read)
         at[idx] = np.arange(idx.size)
-        for (shift_s, beta), out in zip(items, outs):
+        pos: dict = {}   # the positions in idx of j0 and j0 + 1, by the ends' arrays (shared by offset)
+
+        def where(j0):
+            if id(j0) not in pos:   # the arrays live in ``ends`` while pos does
+                pos[id(j0)] = (at[j0], at[j0 + 1])
+            return pos[id(j0)]
+
+        by_offset: dict = {}   # ends with the same whole offset and no clipped sample share their positions
+        for e in ends:
+            for n, (j0, fr) in enumerate(e):
+                if np.ndim(fr) == 0:
+                    off = int(j0[0] - k[0])
+                    e[n] = (by_offset.setdefault(off, j0), fr)
+        for (shift_s, beta), out, e in zip(items, outs, ends):
             T = _torque_model(feats, beta)
-            ends = [T[at[j0]] * (1 - fr) + T[at[j0 + 1]] * fr for j0, fr in _ends(S, i, k, shift_s, lg.n)]
-            out[sel] = (ends[0] - ends[1]) / shift_s
+            val = []
+            for j0, fr in e:
+                p0, p1 = where(j0)
+                a, b = T[p0], T[p1]
+                a *= 1 - fr
+                b *= fr
+                a += b
+                val.append(a)
+            val[0] -= val[1]
+            val[0] /= shift_s
+            out[sel] = val[0]
     return outs
 
 
