@@ -141,6 +141,10 @@ class Samples:
             self._memo[key] = compute()
         return self._memo[key]
 
+    def forget(self, key) -> None:
+        """Drop ``key`` from what :meth:`cached` holds."""
+        self._memo.pop(key, None)
+
     def has(self, key) -> bool:
         """Whether :meth:`cached` holds ``key``."""
         return key in self._memo

@@ -204,12 +204,19 @@ def _sums_key(shift_s: float) -> tuple:
     return ("delay_sums", round(float(shift_s), 12))
 
 
-def _delay_sums(S: Samples, shift_s: float):
+def _delay_sums(S: Samples, shift_s: float, rss: bool = True):
     """Per fold: (X'X, X'y, y'y) of the moving samples, ``y`` the friction torque with the measured torque
     taken ``shift_s`` seconds earlier (``F - tau(t) + tau(t - shift)``), X :func:`_delay_columns` (cached;
-    X'X from :func:`_delay_gram`; several shifts at once by :func:`_delay_prefetch`)."""
+    X'X from :func:`_delay_gram`; several shifts at once by :func:`_delay_prefetch`). ``rss`` False: y'y
+    may be NaN (a fraction of a sample's sums derived from its whole neighbours', :func:`_derived`)."""
     _delay_prefetch(S, [shift_s])
-    return S.cached(_sums_key(shift_s), lambda: None)
+    key = _sums_key(shift_s)
+    out = S.cached(key, lambda: None)
+    if rss and out[2] is not None and np.isnan(out[2]).any():   # derived: summed over the moving samples
+        S.forget(key)
+        _delay_prefetch_pass(S, [key[1]])
+        out = S.cached(key, lambda: None)
+    return out
 
 
 #: Rows per block of the sums of several shifts at once (:func:`_delay_prefetch`: a block's columns and its
@@ -236,6 +243,12 @@ def _delay_prefetch(S: Samples, shifts) -> None:
     the columns X of a block are computed once for all the shifts (they do not depend on the shift; only
     ``y`` does), each shift adding a gather of the torque and a product with X."""
     todo = sorted({_sums_key(s)[1] for s in shifts if not S.has(_sums_key(s))})
+    _delay_prefetch_pass(S, [s for s in todo if not _derived(S, s)])
+
+
+def _delay_prefetch_pass(S: Samples, todo: list) -> None:
+    """The pass of :func:`_delay_prefetch` over the moving samples for the shifts ``todo`` (rounded keys,
+    none cached), X'X with them when it is not cached."""
     gram = not S.has("delay_gram")   # X'X in the same pass, the first one
     if not todo and not gram:
         return
@@ -273,10 +286,40 @@ def _delay_prefetch(S: Samples, shifts) -> None:
         S.cached(("delay_sums", s), lambda v=val: v)
 
 
-def _delay_fit(S: Samples, shift_s: float, folds):
+def _derived(S: Samples, shift_s: float) -> bool:
+    """Cache the sums of a shift of a fraction of a sample from those of the two whole shifts around it, when
+    both are cached (the search's parabola is fitted between them) and every log has one sample period:
+    the interpolated torque is ``(1 - fr) y_c + fr y_(c-1)`` (``c`` the whole shift above, ``fr = c - shift``),
+    so ``X'y`` is that combination of theirs (up to rounding; at the ends of a log both clip to the same
+    sample), without a pass over the moving samples. ``y'y`` needs their cross product and is not derived:
+    NaN (the fits at such shifts ask for the map only; :func:`_delay_sums` sums such a shift itself when
+    y'y is asked for).
+    Returns whether the sums are cached now."""
+    dt = S.dt(0)
+    if any(S.dt(i) != dt for i in range(1, len(S.logs))):
+        return False
+    sh = shift_s / dt
+    if abs(sh - round(sh)) < 1e-6:
+        return False
+    c = math.ceil(sh)
+    hi, lo = _sums_key(c * dt), _sums_key((c - 1) * dt)
+    if not (S.has(hi) and S.has(lo)):
+        return False
+    XtX, a, _ = S.cached(hi, lambda: None)
+    _, b, _ = S.cached(lo, lambda: None)
+    if XtX is None or a is None or b is None:
+        return False
+    fr = c - sh
+    val = (XtX, a * (1.0 - fr) + b * fr, np.full(XtX.shape[0], np.nan))
+    S.cached(_sums_key(shift_s), lambda: val)
+    return True
+
+
+def _delay_fit(S: Samples, shift_s: float, folds, rss: bool = True):
     """(coefficients of :func:`_delay_columns`, residual sum of squares) of the least-squares fit of
-    :func:`_delay_sums` on the given folds ((None, inf) without moving samples)."""
-    XtX, XtY, yty = _delay_sums(S, shift_s)
+    :func:`_delay_sums` on the given folds ((None, inf) without moving samples; ``rss`` False: the
+    coefficients are what is asked for, the sum may be NaN)."""
+    XtX, XtY, yty = _delay_sums(S, shift_s, rss)
     if XtX is None:
         return None, math.inf
     f = list(folds)
@@ -293,7 +336,7 @@ def _delay_rss(S: Samples, shift_s: float, folds) -> float:
 def delay_map(S: Samples, shift_s: float, folds) -> tuple:
     """The coefficients of the velocity-only map with inertia and gravity corrections fitted with the delay
     (:func:`_delay_fit`), as a tuple (a term's setting)."""
-    beta = _delay_fit(S, shift_s, folds)[0]
+    beta = _delay_fit(S, shift_s, folds, rss=False)[0]
     return () if beta is None else tuple(float(x) for x in beta)
 
 
@@ -562,7 +605,8 @@ def delay_heldout(S: Samples, shifts: list) -> tuple[float, float, np.ndarray]:
     fits = []
     for f in range(nf):
         train = [g for g in range(nf) if g != f]
-        fits.append((_delay_fit(S, 0.0, train)[0], _delay_fit(S, float(shifts[f]), train)[0]))
+        fits.append((_delay_fit(S, 0.0, train, rss=False)[0],
+                     _delay_fit(S, float(shifts[f]), train, rss=False)[0]))
     if any(b0 is None or b1 is None for b0, b1 in fits):
         return math.nan, math.nan, np.zeros(S.n_groups)
     d = np.zeros(S.n_groups)
