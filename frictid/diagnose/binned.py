@@ -38,7 +38,7 @@ def _bins_of(S: Samples, x: np.ndarray, nb: int) -> np.ndarray:
     return b
 
 
-def _fold_parts(S: Samples) -> list:
+def fold_parts(S: Samples) -> list:
     """Each fold's samples: a slice when the samples are ordered by fold (:func:`.samples._fold_major`), else
     a mask (cached)."""
     def compute():
@@ -56,7 +56,7 @@ def heldout_binned(S: Samples, r: np.ndarray, x: np.ndarray) -> np.ndarray:
     nb = int(np.clip(S.n // PER_BIN, MIN_BINS, MAX_BINS))
     b = _bins_of(S, x, nb)
     m = int(b.max()) + 1
-    parts = _fold_parts(S)
+    parts = fold_parts(S)
     cnts = np.array([np.bincount(b[te], minlength=m) for te in parts])
     sums = np.array([np.bincount(b[te], weights=r[te], minlength=m) for te in parts])
     pred = np.empty(S.n)

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import ndtri, stdtr
 
-from .binned import heldout_binned
+from .binned import fold_parts, heldout_binned
 from .causes import EXTENSIONS, candidates, n_coef, propose
 from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure
 from .samples import Samples
@@ -124,14 +124,28 @@ def supported(S: Samples) -> np.ndarray:
     the residual of every other fold (foreign seed 302012). What the data cannot test is not scored: the
     candidate's prediction there is the current model's (no difference), and the RMS are over the rest."""
     def compute():
+        # each fold's smallest and largest velocity of each sign (exact), then each training set's from them
+        sgn = np.sign(S.w)
+        lo = np.full((S.n_folds, 2), np.inf)
+        hi = np.full((S.n_folds, 2), -np.inf)
+        parts = fold_parts(S)   # a slice per fold (the samples are in folds)
+        for f, part in enumerate(parts):
+            w, s = S.w[part], sgn[part]
+            for j, sg in enumerate((1.0, -1.0)):
+                x = w[s == sg]
+                if x.size:
+                    lo[f, j], hi[f, j] = x.min(), x.max()
         inside = np.zeros(S.n, bool)
-        for f in range(S.n_folds):
-            te = S.fold == f
-            for sg in (1.0, -1.0):
-                tr_w = S.w[(S.fold != f) & (np.sign(S.w) == sg)]
-                if tr_w.size:
-                    sel = te & (np.sign(S.w) == sg)
-                    inside[sel] = (S.w[sel] >= tr_w.min()) & (S.w[sel] <= tr_w.max())
+        for f, part in enumerate(parts):
+            w, s = S.w[part], sgn[part]
+            out = inside[part] if isinstance(part, slice) else np.zeros(w.size, bool)
+            for j, sg in enumerate((1.0, -1.0)):
+                a, b = np.delete(lo[:, j], f).min(), np.delete(hi[:, j], f).max()
+                if a <= b:   # the training folds hold samples of this sign
+                    sel = s == sg
+                    out[sel] = (w[sel] >= a) & (w[sel] <= b)
+            if not isinstance(part, slice):
+                inside[part] = out
         return inside
     return S.cached("supported", compute)
 
