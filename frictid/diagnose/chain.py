@@ -150,6 +150,17 @@ def supported(S: Samples) -> np.ndarray:
     return S.cached("supported", compute)
 
 
+def _on_training(fn, c, tr: np.ndarray, te: np.ndarray) -> np.ndarray:
+    """``fn(c, tr)`` (a prediction or a level on a training set ``tr``, the samples outside the held-out fold
+    ``te``, both in increasing order), on the runs of samples before and after the held-out fold when it is
+    one run (the samples are in folds): views of the columns, not a gather of them, the same numbers."""
+    n = tr.size + te.size
+    if not te.size or te[-1] - te[0] + 1 != te.size:
+        return fn(c, tr)
+    parts = [fn(c, slice(a, b)) for a, b in ((0, int(te[0])), (int(te[-1]) + 1, n)) if b > a]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
 class Chain:
     """Runs the diagnosis on one joint's samples from a base structure."""
 
@@ -178,7 +189,8 @@ class Chain:
             te = np.flatnonzero(S.fold == f)
             c = ev.fit(tr)
             pred[te] = ev.predict(c, te)
-            self.train_info.append((tr, te, S.F[tr] - ev.predict(c, tr), ev.level(c, tr), c))
+            self.train_info.append((tr, te, S.F[tr] - _on_training(ev.predict, c, tr, te),
+                                    _on_training(ev.level, c, tr, te), c))
         self.pred = pred
         self.coef = ev.fit(self.idx_all)
         self.history.append((st, self.coef, pred))

@@ -633,7 +633,9 @@ class _At:
     for a whole fit or prediction. base : {slot: column}; vec : {term index: columns}; pos : w >= 0."""
 
     def __init__(self, ev: "Evaluator", idx):
-        if idx is not None and idx.size and idx[-1] - idx[0] + 1 == idx.size and np.all(np.diff(idx) == 1):
+        if isinstance(idx, slice):   # a run of samples, given as one
+            pass
+        elif idx is not None and idx.size and idx[-1] - idx[0] + 1 == idx.size and np.all(np.diff(idx) == 1):
             idx = slice(int(idx[0]), int(idx[-1]) + 1)   # a fold's samples are consecutive: views, no gather
         pick = (lambda x: x) if idx is None else (lambda x: x[idx])
 
