@@ -440,6 +440,32 @@ def test_the_delay_sums_of_several_shifts_at_once_are_those_of_each_shift_alone(
             assert yty[f] == pytest.approx(float(y[m] @ y[m]), rel=1e-10)
 
 
+def test_the_delay_sums_of_a_fraction_of_a_sample_follow_from_its_whole_neighbours():
+    """A shift between two whole shifts whose sums are cached (the search's parabola) has its X'y derived from
+    theirs (:func:`frictid.diagnose.signals._derived`, no pass over the moving samples): the sums of the
+    interpolated torque; y'y is not derived (NaN), and asking for it sums the shift over the samples."""
+    from frictid.diagnose.signals import _delay_columns, _delay_prefetch, _delay_sums, _moving_rows, shifted_torque
+
+    dt = 2e-3
+    S = build_samples([plateau_log(None, seed=3, reps=1, dt=dt, noise=0.002)], 5)
+    _delay_prefetch(S, [-3 * dt, -2 * dt, 4 * dt, 5 * dt])
+    lg = S.logs[0]
+    (km, fk), = _moving_rows(S)
+    X = _delay_columns(S, 0, km)
+    for s in (-2.3 * dt, 4.6 * dt):
+        XtX, XtY, yty = _delay_sums(S, s, rss=False)
+        assert np.isnan(yty).all()   # derived: no pass
+        y = lg.F[km] - lg.tau[km] + shifted_torque(lg.tau, km.astype(float), s / S.dt(0))
+        for f in range(5):
+            m = fk == f
+            assert np.allclose(XtY[f], X[m].T @ y[m], rtol=1e-9, atol=1e-9 * np.abs(XtY[f]).max())
+        _, XtY2, yty2 = _delay_sums(S, s)   # y'y asked for: summed
+        assert np.allclose(XtY2, XtY, rtol=1e-9, atol=1e-9 * np.abs(XtY).max())
+        for f in range(5):
+            m = fk == f
+            assert yty2[f] == pytest.approx(float(y[m] @ y[m]), rel=1e-10)
+
+
 def test_an_inertia_repair_that_leaves_a_negative_inertia_is_no_repair():
     """A torque delay biases the fit's inertia, even below zero (the foreign card's seed 301004: a 50 ms
     delay, the fit's J -2.6 against the plant's 0.48, the inertia "repair" to -0.61 chosen ahead of the

@@ -1,7 +1,9 @@
 """The diagnosis' shortcuts for long logs give the numbers of the plain computations they replace (issue 20,
 "a 1-hour 1 kHz log is diagnosed on all its samples in at most 3x the time of the fit"; the speed itself is
 measured by ``benchmarks/bench_diagnose_whole.py``): a candidate's grid of settings summed in one pass,
-thermal6's columns formed where they are used, the training sets' delay columns computed together."""
+thermal6's columns formed where they are used, the training sets' delay columns computed together (and
+equal to their definition), per-group sums by runs, the training sets' predictions on runs, the scored
+samples from per-fold extremes."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -103,3 +105,51 @@ def test_position_columns_of_an_encoder_grid_are_the_direct_ones(S):
             np.testing.assert_array_equal(X[:, 0], np.sin(ph))
             np.testing.assert_array_equal(X[:, 1], np.cos(ph))
         assert (ctx._cache["q2pi"][1] is None) == (np.unique(q).size * 2 > q.size)
+
+
+def test_group_sums_by_runs_are_the_bincount(S):
+    x = np.random.default_rng(3).standard_normal(S.n)
+    ref = np.bincount(S.group, weights=x, minlength=S.n_groups)
+    assert S.group_sums(x) == pytest.approx(ref, rel=1e-12, abs=1e-12 * np.abs(x).sum())
+    assert S.cached("group_runs", lambda: None) is not None   # the fold-ordered samples: one run per group
+    # groups that are not runs (the samples shuffled): the bincount itself
+    order = np.random.default_rng(4).permutation(S.n)
+    Sp = replace(S, group=S.group[order])
+    np.testing.assert_array_equal(Sp.group_sums(x), np.bincount(Sp.group, weights=x, minlength=S.n_groups))
+    assert Sp.cached("group_runs", lambda: 0) is None
+
+
+def test_delay_columns_are_the_centred_rate_of_the_interpolated_torque_model(S):
+    # the definition, sample by sample: (T(k + h) - T(k - h)) / shift, T linearly interpolated between the
+    # samples of the log and held at its ends, h half the shift in samples
+    rng = np.random.default_rng(5)
+    for shift in (0.004, 0.0065, -0.0123):
+        beta = tuple(rng.standard_normal(11))
+        col = sg._delay_columns_at(S, [(shift, beta)])[0]
+        for i, lg in enumerate(S.logs):
+            sel = S.li == i
+            T = sg._torque_model(sg._torque_features(S, i, np.arange(lg.n)), beta)
+            k = S.k[sel].astype(float)
+            h = 0.5 * shift / S.dt(i)
+            ref = (np.interp(k + h, np.arange(lg.n), T) - np.interp(k - h, np.arange(lg.n), T)) / shift
+            assert col[sel] == pytest.approx(ref, rel=1e-9, abs=1e-9 * np.abs(ref).max())
+
+
+def test_training_predictions_on_runs_and_the_scored_samples_are_the_plain_ones(S):
+    from frictid.diagnose.chain import _on_training, supported
+
+    st = _current()
+    ev = Evaluator(st, Context(S))
+    for f in range(S.n_folds):
+        tr, te = np.flatnonzero(S.fold != f), np.flatnonzero(S.fold == f)
+        c = ev.fit(tr)
+        np.testing.assert_array_equal(_on_training(ev.predict, c, tr, te), ev.predict(c, tr))
+        np.testing.assert_array_equal(_on_training(ev.level, c, tr, te), ev.level(c, tr))
+    inside = np.zeros(S.n, bool)   # the definition: held-out speeds within the training folds' of that sign
+    for f in range(S.n_folds):
+        for sgn in (1.0, -1.0):
+            tr_w = S.w[(S.fold != f) & (np.sign(S.w) == sgn)]
+            sel = (S.fold == f) & (np.sign(S.w) == sgn)
+            if tr_w.size:
+                inside[sel] = (S.w[sel] >= tr_w.min()) & (S.w[sel] <= tr_w.max())
+    np.testing.assert_array_equal(supported(S), inside)

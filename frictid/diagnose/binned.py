@@ -18,7 +18,27 @@ def _bins(x: np.ndarray, nb: int) -> np.ndarray:
     return np.searchsorted(edges, x, side="right")
 
 
-def _fold_parts(S: Samples) -> list:
+#: Variables whose bins are kept (the last ones binned: the time is binned by a structure test and by the
+#: time-course confound check of every candidate that has one).
+KEEP_BINS = 3
+
+
+def _bins_of(S: Samples, x: np.ndarray, nb: int) -> np.ndarray:
+    """:func:`_bins` of x, kept for the last :data:`KEEP_BINS` variables (x compared value by value: a
+    variable formed again, ``S.th * 3600``, is found)."""
+    kept = S.cached("binned_kept", lambda: [])
+    for i, (x0, nb0, b) in enumerate(kept):
+        if nb0 == nb and x0.shape == x.shape and np.array_equal(x0, x):
+            kept.insert(0, kept.pop(i))
+            return b
+    b = _bins(x, nb)
+    b = b.astype(np.min_scalar_type(max(int(b.max()), 0))) if b.size else b
+    kept.insert(0, (x.copy(), nb, b))
+    del kept[KEEP_BINS:]
+    return b
+
+
+def fold_parts(S: Samples) -> list:
     """Each fold's samples: a slice when the samples are ordered by fold (:func:`.samples._fold_major`), else
     a mask (cached)."""
     def compute():
@@ -34,9 +54,9 @@ def heldout_binned(S: Samples, r: np.ndarray, x: np.ndarray) -> np.ndarray:
     """The held-out prediction of r by the training folds' mean of r in bins of x (0 in a bin without
     training samples)."""
     nb = int(np.clip(S.n // PER_BIN, MIN_BINS, MAX_BINS))
-    b = _bins(x, nb)
+    b = _bins_of(S, x, nb)
     m = int(b.max()) + 1
-    parts = _fold_parts(S)
+    parts = fold_parts(S)
     cnts = np.array([np.bincount(b[te], minlength=m) for te in parts])
     sums = np.array([np.bincount(b[te], weights=r[te], minlength=m) for te in parts])
     pred = np.empty(S.n)

@@ -265,8 +265,9 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
                 cand = [trial(src, tc) for tc in grid]
                 k = int(np.argmin([c[0] for c in cand]))
                 step = 10.0 ** (1.0 / TAU_PER_DECADE)
-                cand += [trial(src, grid[k] * step ** f) for f in (-1 / 3, 1 / 3)
-                         if grid[0] <= grid[k] * step ** f <= grid[-1]]
+                near = [grid[k] * step ** f for f in (-1 / 3, 1 / 3) if grid[0] <= grid[k] * step ** f <= grid[-1]]
+                ctx.prefetch([st.plus(Term(cause, ext, role, (("source", src), ("tau_c", float(tc))))) for tc in near])
+                cand += [trial(src, tc) for tc in near]
             per_source[src] = min(cand, key=lambda c: c[0])
         return _thermal_source(per_source, S, idx)
 
@@ -327,6 +328,7 @@ def _dwell(ctx: Context, st: Structure, idx: np.ndarray) -> Term:
     scored = [(_fit_rms(ctx, st.plus(term(t0, sc)), idx), t0, sc) for t0, sc in grid]
     _, t0, sc = min(scored, key=lambda x: x[0])
     step = float(scs[1] / scs[0]) if scs.size > 1 else 1.0
+    ctx.prefetch([st.plus(term(t0, sc * step ** f)) for f in DWELL_REFINE])   # the refinements in one pass
     scored += [(_fit_rms(ctx, st.plus(term(t0, sc * step ** f)), idx), t0, sc * step ** f) for f in DWELL_REFINE]
     _, t0, sc = min(scored, key=lambda x: x[0])
     return term(t0, sc)
@@ -415,9 +417,14 @@ def best_period(q, resid, level, prange, n_keep: int = 3) -> float | None:
     rng = float(np.ptp(q))
     h = p_min / 8.0
     nb = int(rng / h) + 1
-    j = np.minimum(((q - q0) / h).astype(np.int64), nb - 1)
-    A = np.bincount(j, weights=rr, minlength=nb)
-    B = np.bincount(j, weights=gg, minlength=nb)
+    # the fine bins of the refinement (below, P_min / 32) first: a coarse bin is four of them exactly (the
+    # widths differ by a power of two, so (q - q0) / h2 is 4 (q - q0) / h to the last bit), its sums theirs
+    h2 = p_min / 32.0
+    nb2 = int(rng / h2) + 1
+    j2 = np.minimum(((q - q0) / h2).astype(np.int64), nb2 - 1)
+    A2 = np.bincount(j2, weights=rr, minlength=nb2)
+    B2 = np.bincount(j2, weights=gg, minlength=nb2)
+    A, B = (np.pad(x, (0, max(4 * nb - nb2, 0)))[:4 * nb].reshape(nb, 4).sum(axis=1) for x in (A2, B2))
     N = 1 << int(math.ceil(math.log2(max(8 * nb, 16))))
     FA = np.fft.rfft(A, N)
     FB = np.fft.rfft(B, N)
@@ -435,11 +442,6 @@ def best_period(q, resid, level, prange, n_keep: int = 3) -> float | None:
     df = 1.0 / (N * h)
     # the refinement: the same score on a fine frequency grid from sums over fine position bins of every
     # sample (width P_min / 32: a phase error of at most pi / 32 within a bin at the shortest period)
-    h2 = p_min / 32.0
-    nb2 = int(rng / h2) + 1
-    j2 = np.minimum(((q - q0) / h2).astype(np.int64), nb2 - 1)
-    A2 = np.bincount(j2, weights=rr, minlength=nb2)
-    B2 = np.bincount(j2, weights=gg, minlength=nb2)
     used = np.flatnonzero((A2 != 0) | (B2 != 0))   # bins without samples add nothing
     qb, A2, B2 = q0 + (used + 0.5) * h2, A2[used], B2[used]
 

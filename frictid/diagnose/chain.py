@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import ndtri, stdtr
 
-from .binned import heldout_binned
+from .binned import fold_parts, heldout_binned
 from .causes import EXTENSIONS, candidates, n_coef, propose
 from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure
 from .samples import Samples
@@ -99,7 +99,7 @@ class Trial:
 
 def group_d(S: Samples, rb: np.ndarray, ra: np.ndarray) -> np.ndarray:
     """Per held-out group: sum of (r_before^2 - r_after^2)."""
-    return np.bincount(S.group, weights=rb * rb - ra * ra, minlength=S.n_groups)
+    return S.group_sums(rb * rb - ra * ra)
 
 
 def paired_t(d: np.ndarray) -> tuple[float, float]:
@@ -124,16 +124,41 @@ def supported(S: Samples) -> np.ndarray:
     the residual of every other fold (foreign seed 302012). What the data cannot test is not scored: the
     candidate's prediction there is the current model's (no difference), and the RMS are over the rest."""
     def compute():
+        # each fold's smallest and largest velocity of each sign (exact), then each training set's from them
+        sgn = np.sign(S.w)
+        lo = np.full((S.n_folds, 2), np.inf)
+        hi = np.full((S.n_folds, 2), -np.inf)
+        parts = fold_parts(S)   # a slice per fold (the samples are in folds)
+        for f, part in enumerate(parts):
+            w, s = S.w[part], sgn[part]
+            for j, sg in enumerate((1.0, -1.0)):
+                x = w[s == sg]
+                if x.size:
+                    lo[f, j], hi[f, j] = x.min(), x.max()
         inside = np.zeros(S.n, bool)
-        for f in range(S.n_folds):
-            te = S.fold == f
-            for sg in (1.0, -1.0):
-                tr_w = S.w[(S.fold != f) & (np.sign(S.w) == sg)]
-                if tr_w.size:
-                    sel = te & (np.sign(S.w) == sg)
-                    inside[sel] = (S.w[sel] >= tr_w.min()) & (S.w[sel] <= tr_w.max())
+        for f, part in enumerate(parts):
+            w, s = S.w[part], sgn[part]
+            out = inside[part] if isinstance(part, slice) else np.zeros(w.size, bool)
+            for j, sg in enumerate((1.0, -1.0)):
+                a, b = np.delete(lo[:, j], f).min(), np.delete(hi[:, j], f).max()
+                if a <= b:   # the training folds hold samples of this sign
+                    sel = s == sg
+                    out[sel] = (w[sel] >= a) & (w[sel] <= b)
+            if not isinstance(part, slice):
+                inside[part] = out
         return inside
     return S.cached("supported", compute)
+
+
+def _on_training(fn, c, tr: np.ndarray, te: np.ndarray) -> np.ndarray:
+    """``fn(c, tr)`` (a prediction or a level on a training set ``tr``, the samples outside the held-out fold
+    ``te``, both in increasing order), on the runs of samples before and after the held-out fold when it is
+    one run (the samples are in folds): views of the columns, not a gather of them, the same numbers."""
+    n = tr.size + te.size
+    if not te.size or te[-1] - te[0] + 1 != te.size:
+        return fn(c, tr)
+    parts = [fn(c, slice(a, b)) for a, b in ((0, int(te[0])), (int(te[-1]) + 1, n)) if b > a]
+    return np.concatenate(parts) if parts else np.zeros(0)
 
 
 class Chain:
@@ -164,7 +189,8 @@ class Chain:
             te = np.flatnonzero(S.fold == f)
             c = ev.fit(tr)
             pred[te] = ev.predict(c, te)
-            self.train_info.append((tr, te, S.F[tr] - ev.predict(c, tr), ev.level(c, tr), c))
+            self.train_info.append((tr, te, S.F[tr] - _on_training(ev.predict, c, tr, te),
+                                    _on_training(ev.level, c, tr, te), c))
         self.pred = pred
         self.coef = ev.fit(self.idx_all)
         self.history.append((st, self.coef, pred))
@@ -193,21 +219,31 @@ class Chain:
             after[te] = ev.predict(c, te)
             coefs.append(c)
         self.ctx.release(self.st)   # the candidate's columns (its sums of products stay cached)
-        out = ~self.inside   # the map extrapolated: the candidate is not judged there, the current model stands
-        after[out] = self.pred[out]
-        rb = S.F - self.pred
+        rb, rms_b, out, n_in = self._before_numbers()
+        after[out] = self.pred[out]   # the map extrapolated: the candidate is not judged there, the current model stands
         ra = S.F - after
         d = group_d(S, rb, ra)
         t, p = paired_t(d)
-        n_in = max(int(np.count_nonzero(self.inside)), 1)
-        rb_in, ra_in = rb[self.inside], ra[self.inside]
-        rms_b = float(np.sqrt(np.dot(rb_in, rb_in) / n_in))
+        ra_in = ra[self.inside]
         rms_a = float(np.sqrt(np.dot(ra_in, ra_in) / n_in))
         gain = 1.0 - rms_a / rms_b if rms_b > 0 else 0.0
         expl = math.sqrt(max(rms_b ** 2 - rms_a ** 2, 0.0))
         # self.pred is replaced, never changed in place, when the model is extended: shared, not copied
         return Trial(ext, EXTENSIONS[ext][0], self.pred, after, terms, coefs, rms_b, rms_a, gain, t, p,
                      S.n_groups, expl, n_coef(ext, self.st), d, index=len(self.st.terms))
+
+    def _before_numbers(self) -> tuple:
+        """The current model's held-out residual, its RMS over the scored samples, the samples not scored
+        (indices) and the number scored: the same for every candidate of a step (kept while ``self.pred`` is
+        the step's)."""
+        memo = getattr(self, "_memo_before", None)
+        if memo is None or memo[0] is not self.pred:
+            out = np.flatnonzero(~self.inside)
+            n_in = max(self.S.n - out.size, 1)
+            rb = self.S.F - self.pred
+            rb_in = rb[self.inside]
+            memo = self._memo_before = (self.pred, rb, float(np.sqrt(np.dot(rb_in, rb_in) / n_in)), out, n_in)
+        return memo[1:]
 
     def _delay_moving(self, terms: list) -> dict:
         """A delay judged on every moving sample (:func:`frictid.diagnose.signals.delay_heldout`, each fold's

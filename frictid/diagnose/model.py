@@ -143,10 +143,13 @@ def load_variable(S: Samples, ext: str, nl: dict) -> np.ndarray:
     fit's gravity, and ``|G|`` of the fit then crosses zero at the wrong angles)."""
     if ext == "load_payload":
         return S.payload
-    # the last variable is kept: a proposal scales it, and the candidate's column is the same variable
+    # the last variables are kept, one per training set and one for all samples: each fold's proposal scales
+    # its own (the current model's gravity and inertia corrections differ by fold), and the candidate's
+    # columns, formed after the proposals, are the same variables
     key = (ext,) + tuple(float(nl.get(k, 0.0)) for k in ("dPx", "dPy", "dJ"))
     last = S.cached("load_variable_last", lambda: {})
     if key in last:
+        last[key] = last.pop(key)   # the most recent last
         return last[key]
     corr = 0.0
     if S.q is not None and (nl.get("dPx", 0.0) or nl.get("dPy", 0.0)):
@@ -159,7 +162,8 @@ def load_variable(S: Samples, ext: str, nl: dict) -> np.ndarray:
         if nl.get("dJ", 0.0):
             corr = corr + nl["dJ"] * S.a
         out = np.abs(S.cached("rigid_torque", lambda: S.tau - S.F) + corr)
-    last.clear()
+    while len(last) > S.n_folds:
+        del last[next(iter(last))]
     last[key] = out
     return out
 
@@ -629,7 +633,9 @@ class _At:
     for a whole fit or prediction. base : {slot: column}; vec : {term index: columns}; pos : w >= 0."""
 
     def __init__(self, ev: "Evaluator", idx):
-        if idx is not None and idx.size and idx[-1] - idx[0] + 1 == idx.size and np.all(np.diff(idx) == 1):
+        if isinstance(idx, slice):   # a run of samples, given as one
+            pass
+        elif idx is not None and idx.size and idx[-1] - idx[0] + 1 == idx.size and np.all(np.diff(idx) == 1):
             idx = slice(int(idx[0]), int(idx[-1]) + 1)   # a fold's samples are consecutive: views, no gather
         pick = (lambda x: x) if idx is None else (lambda x: x[idx])
 

@@ -141,9 +141,32 @@ class Samples:
             self._memo[key] = compute()
         return self._memo[key]
 
+    def forget(self, key) -> None:
+        """Drop ``key`` from what :meth:`cached` holds."""
+        self._memo.pop(key, None)
+
     def has(self, key) -> bool:
         """Whether :meth:`cached` holds ``key``."""
         return key in self._memo
+
+    def group_sums(self, x: np.ndarray) -> np.ndarray:
+        """Per group: the sum of x over its samples (``np.bincount(group, weights=x)``). A group's samples are
+        one run in the samples' order (:func:`_fold_major`: a fold's samples in time, a group in one fold):
+        then summed run by run (``np.add.reduceat``, ten times faster on the one-hour bench log; the same
+        sums but for the order of the additions)."""
+        def runs():
+            g = self.group
+            if not g.size:
+                return None
+            st = np.concatenate(([0], np.flatnonzero(np.diff(g)) + 1))
+            ids = g[st]
+            return (st, ids) if np.unique(ids).size == ids.size else None   # one run per group, or none
+        r = self.cached("group_runs", runs)
+        if r is None:
+            return np.bincount(self.group, weights=x, minlength=self.n_groups)
+        out = np.zeros(self.n_groups)
+        out[r[1]] = np.add.reduceat(x, r[0])
+        return out
 
     def dt(self, i: int = 0) -> float:
         """Sample period [s] of log i (the median step of its clock; 1 for a log of one sample)."""

@@ -85,9 +85,14 @@ def _rest_scales(S: Samples) -> tuple[np.ndarray, np.ndarray] | None:
 
 def dwell_state(S: Samples, t0: float, s_c: float) -> np.ndarray:
     """``ln(1 + t_rest / t0) exp(-s / s_c)`` at the sliding samples (rests shorter than :data:`REST_MIN`: 0)."""
-    tr, sd = rests(S)
-    tr = np.where(tr >= REST_MIN, tr, 0.0)
-    return np.log1p(tr / t0) * np.exp(-sd / s_c)
+    def scale():   # the rest's part, per t0 (the grid has two), and -s: cached, the same numbers
+        tr, _ = rests(S)
+        return np.log1p(np.where(tr >= REST_MIN, tr, 0.0) / t0)
+    lt = S.cached(("dwell_rest", float(t0)), scale)
+    out = np.divide(S.cached("dwell_minus_s", lambda: -rests(S)[1]), s_c)
+    np.exp(out, out=out)
+    np.multiply(lt, out, out=out)
+    return out
 
 
 def _log_rate(S: Samples, i: int) -> np.ndarray:
@@ -199,12 +204,19 @@ def _sums_key(shift_s: float) -> tuple:
     return ("delay_sums", round(float(shift_s), 12))
 
 
-def _delay_sums(S: Samples, shift_s: float):
+def _delay_sums(S: Samples, shift_s: float, rss: bool = True):
     """Per fold: (X'X, X'y, y'y) of the moving samples, ``y`` the friction torque with the measured torque
     taken ``shift_s`` seconds earlier (``F - tau(t) + tau(t - shift)``), X :func:`_delay_columns` (cached;
-    X'X from :func:`_delay_gram`; several shifts at once by :func:`_delay_prefetch`)."""
+    X'X from :func:`_delay_gram`; several shifts at once by :func:`_delay_prefetch`). ``rss`` False: y'y
+    may be NaN (a fraction of a sample's sums derived from its whole neighbours', :func:`_derived`)."""
     _delay_prefetch(S, [shift_s])
-    return S.cached(_sums_key(shift_s), lambda: None)
+    key = _sums_key(shift_s)
+    out = S.cached(key, lambda: None)
+    if rss and out[2] is not None and np.isnan(out[2]).any():   # derived: summed over the moving samples
+        S.forget(key)
+        _delay_prefetch_pass(S, [key[1]])
+        out = S.cached(key, lambda: None)
+    return out
 
 
 #: Rows per block of the sums of several shifts at once (:func:`_delay_prefetch`: a block's columns and its
@@ -231,6 +243,12 @@ def _delay_prefetch(S: Samples, shifts) -> None:
     the columns X of a block are computed once for all the shifts (they do not depend on the shift; only
     ``y`` does), each shift adding a gather of the torque and a product with X."""
     todo = sorted({_sums_key(s)[1] for s in shifts if not S.has(_sums_key(s))})
+    _delay_prefetch_pass(S, [s for s in todo if not _derived(S, s)])
+
+
+def _delay_prefetch_pass(S: Samples, todo: list) -> None:
+    """The pass of :func:`_delay_prefetch` over the moving samples for the shifts ``todo`` (rounded keys,
+    none cached), X'X with them when it is not cached."""
     gram = not S.has("delay_gram")   # X'X in the same pass, the first one
     if not todo and not gram:
         return
@@ -268,10 +286,40 @@ def _delay_prefetch(S: Samples, shifts) -> None:
         S.cached(("delay_sums", s), lambda v=val: v)
 
 
-def _delay_fit(S: Samples, shift_s: float, folds):
+def _derived(S: Samples, shift_s: float) -> bool:
+    """Cache the sums of a shift of a fraction of a sample from those of the two whole shifts around it, when
+    both are cached (the search's parabola is fitted between them) and every log has one sample period:
+    the interpolated torque is ``(1 - fr) y_c + fr y_(c-1)`` (``c`` the whole shift above, ``fr = c - shift``),
+    so ``X'y`` is that combination of theirs (up to rounding; at the ends of a log both clip to the same
+    sample), without a pass over the moving samples. ``y'y`` needs their cross product and is not derived:
+    NaN (the fits at such shifts ask for the map only; :func:`_delay_sums` sums such a shift itself when
+    y'y is asked for).
+    Returns whether the sums are cached now."""
+    dt = S.dt(0)
+    if any(S.dt(i) != dt for i in range(1, len(S.logs))):
+        return False
+    sh = shift_s / dt
+    if abs(sh - round(sh)) < 1e-6:
+        return False
+    c = math.ceil(sh)
+    hi, lo = _sums_key(c * dt), _sums_key((c - 1) * dt)
+    if not (S.has(hi) and S.has(lo)):
+        return False
+    XtX, a, _ = S.cached(hi, lambda: None)
+    _, b, _ = S.cached(lo, lambda: None)
+    if XtX is None or a is None or b is None:
+        return False
+    fr = c - sh
+    val = (XtX, a * (1.0 - fr) + b * fr, np.full(XtX.shape[0], np.nan))
+    S.cached(_sums_key(shift_s), lambda: val)
+    return True
+
+
+def _delay_fit(S: Samples, shift_s: float, folds, rss: bool = True):
     """(coefficients of :func:`_delay_columns`, residual sum of squares) of the least-squares fit of
-    :func:`_delay_sums` on the given folds ((None, inf) without moving samples)."""
-    XtX, XtY, yty = _delay_sums(S, shift_s)
+    :func:`_delay_sums` on the given folds ((None, inf) without moving samples; ``rss`` False: the
+    coefficients are what is asked for, the sum may be NaN)."""
+    XtX, XtY, yty = _delay_sums(S, shift_s, rss)
     if XtX is None:
         return None, math.inf
     f = list(folds)
@@ -288,7 +336,7 @@ def _delay_rss(S: Samples, shift_s: float, folds) -> float:
 def delay_map(S: Samples, shift_s: float, folds) -> tuple:
     """The coefficients of the velocity-only map with inertia and gravity corrections fitted with the delay
     (:func:`_delay_fit`), as a tuple (a term's setting)."""
-    beta = _delay_fit(S, shift_s, folds)[0]
+    beta = _delay_fit(S, shift_s, folds, rss=False)[0]
     return () if beta is None else tuple(float(x) for x in beta)
 
 
@@ -416,30 +464,45 @@ def _column_key(shift_s: float, beta: tuple) -> tuple:
 
 
 def _ends(S: Samples, i: int, k: np.ndarray, shift_s: float, n: int) -> list:
-    """The two ends ``k +- shift / 2`` [samples] of log i (n samples): (sample below, fraction) of each."""
+    """The two ends ``k +- shift / 2`` [samples] of log i (n samples, k whole sample indices): (sample below,
+    fraction) of each. The fraction is that of the half shift, one number for every sample, except where an
+    end leaves the log (clipped there, per sample)."""
     h = 0.5 * shift_s / S.dt(i)
     out = []
-    for pos in (k + h, k - h):
-        j0 = np.clip(np.floor(pos).astype(np.int64), 0, n - 2)
-        out.append((j0, np.clip(pos - j0, 0.0, 1.0)))
+    for hh in (h, -h):
+        base = math.floor(hh)
+        j0 = k + base
+        fr = hh - base
+        bad = (j0 < 0) | (j0 > n - 2)
+        if bad.any():   # clipped to the log: the fraction per sample
+            pos = k[bad] + hh
+            jb = np.clip(np.floor(pos).astype(np.int64), 0, n - 2)
+            j0[bad] = jb
+            frs = np.full(k.size, fr)
+            frs[bad] = np.clip(pos - jb, 0.0, 1.0)
+            fr = frs
+        out.append((j0, fr))
     return out
 
 
 def _delay_columns_at(S: Samples, items: list) -> list:
     """:func:`delay_column` of every (shift, beta) of items, in one pass over each log: the samples the ends
     interpolate between marked for all of them, what the torque model reads there gathered once
-    (:func:`_torque_features`), each item's model and ends from it (the same numbers as one at a time)."""
+    (:func:`_torque_features`), each item's model and ends from it. The ends of a sample are its index plus
+    a whole offset and a fraction common to all samples (:func:`_ends`): the folds' shifts are close, so the
+    positions of the few distinct offsets among the marked samples are looked up once for all items."""
     outs = [np.empty(S.n) for _ in items]
     for i, lg in enumerate(S.logs):
         sel = S.li == i
         if not sel.any():
             continue
-        k = S.k[sel].astype(float)
+        k = S.k[sel].astype(np.int64)
+        ends = [_ends(S, i, k, shift_s, lg.n) for shift_s, _ in items]
         # the torque model once at each sample the two ends interpolate between (they overlap: the
         # sliding samples come in runs, and the shifts of the folds are close), then read at both ends
         mark = np.zeros(lg.n, bool)
-        for shift_s, _ in items:
-            for j0, _ in _ends(S, i, k, shift_s, lg.n):
+        for e in ends:
+            for j0, _ in e:
                 mark[j0] = True
                 mark[j0 + 1] = True
         idx = np.flatnonzero(mark)
@@ -447,10 +510,32 @@ def _delay_columns_at(S: Samples, items: list) -> list:
         feats = _torque_features(S, i, idx)
         at = np.empty(lg.n, np.int64)   # the position of each marked sample in idx (only those are read)
         at[idx] = np.arange(idx.size)
-        for (shift_s, beta), out in zip(items, outs):
+        pos: dict = {}   # the positions in idx of j0 and j0 + 1, by the ends' arrays (shared by offset)
+
+        def where(j0):
+            if id(j0) not in pos:   # the arrays live in ``ends`` while pos does
+                pos[id(j0)] = (at[j0], at[j0 + 1])
+            return pos[id(j0)]
+
+        by_offset: dict = {}   # ends with the same whole offset and no clipped sample share their positions
+        for e in ends:
+            for n, (j0, fr) in enumerate(e):
+                if np.ndim(fr) == 0:
+                    off = int(j0[0] - k[0])
+                    e[n] = (by_offset.setdefault(off, j0), fr)
+        for (shift_s, beta), out, e in zip(items, outs, ends):
             T = _torque_model(feats, beta)
-            ends = [T[at[j0]] * (1 - fr) + T[at[j0 + 1]] * fr for j0, fr in _ends(S, i, k, shift_s, lg.n)]
-            out[sel] = (ends[0] - ends[1]) / shift_s
+            val = []
+            for j0, fr in e:
+                p0, p1 = where(j0)
+                a, b = T[p0], T[p1]
+                a *= 1 - fr
+                b *= fr
+                a += b
+                val.append(a)
+            val[0] -= val[1]
+            val[0] /= shift_s
+            out[sel] = val[0]
     return outs
 
 
@@ -520,7 +605,8 @@ def delay_heldout(S: Samples, shifts: list) -> tuple[float, float, np.ndarray]:
     fits = []
     for f in range(nf):
         train = [g for g in range(nf) if g != f]
-        fits.append((_delay_fit(S, 0.0, train)[0], _delay_fit(S, float(shifts[f]), train)[0]))
+        fits.append((_delay_fit(S, 0.0, train, rss=False)[0],
+                     _delay_fit(S, float(shifts[f]), train, rss=False)[0]))
     if any(b0 is None or b1 is None for b0, b1 in fits):
         return math.nan, math.nan, np.zeros(S.n_groups)
     d = np.zeros(S.n_groups)
