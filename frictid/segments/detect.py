@@ -665,11 +665,12 @@ def _chained(f: Features, a: tuple[int, int, float], b: tuple[int, int, float], 
     if a[1] >= b[0]:
         return True
     # the velocity in between as the plateaus' own is read on a coarse encoder (averaged over at most a
-    # quarter of T_MIN: a stop without a dwell still shows): the sample velocity's noise took a slow
-    # chain's 10 ms speed change below half the slower level (foreign sweep 101330, 0.0079 rad/s)
+    # quarter of T_MIN: a stop without a dwell still shows): the staircase of the position's derivative
+    # took a slow chain's 10 ms speed change below half the slower level (foreign sweep 101330,
+    # 0.0079 rad/s, 17 bits, qd absent)
     k = max(1, f.h // 2)
     lo, hi = max(0, a[1] - k), min(f.t.size, b[0] + k)
-    w, _ = _averaged(f, f.w[lo:hi], slower, k)
+    w = _averaged(f, f.w[lo:hi], slower, k)[0]
     gap = w[a[1] - lo:b[0] - lo] * math.copysign(1.0, va)
     return bool(np.all(code[a[1]:b[0]] < 0)) and float(gap.min()) > 0.5 * slower
 
@@ -818,7 +819,7 @@ def _plateau_velocity(f: Features, i0: int, i1: int) -> tuple[np.ndarray, int, f
     its noise to resolve the plateau's band (``K_NOISE`` noise levels within ``R_STEADY`` of the run's
     speed) and at least the time of two encoder steps, at most ``h``. Its noise is then that of a
     position difference over ``k`` samples (``sqrt(2) sigma_q / (k dt)``, ``sigma_q`` at least the
-    quantisation's), or of ``k`` samples of a logged velocity: the sample velocity's noise ``sigma_w``,
+    quantisation's; a logged velocity keeps its own, :func:`_averaged`): the sample velocity's noise ``sigma_w``,
     against which the band was judged before (2026-11-27, session 19), is some ten times larger, and a
     chain of slow levels 23 % apart on a 17-bit encoder (foreign sweep 101330: 0.017 -> 0.0078 rad/s)
     was one band from which no plateau could be cut."""
@@ -830,18 +831,23 @@ def _plateau_velocity(f: Features, i0: int, i1: int) -> tuple[np.ndarray, int, f
 
 def _averaged(f: Features, w: np.ndarray, speed: float, k_max: int) -> tuple[np.ndarray, float]:
     """The velocity ``w`` [q/s] of a stretch at about ``speed`` [q/s] on a coarse encoder, box-averaged over
-    ``k`` samples (at most ``k_max``) so that ``K_NOISE`` noise levels are within ``R_STEADY`` of the
-    speed and ``k`` covers two encoder steps, and its noise level [q/s] (:func:`_plateau_velocity`); as
-    it is, with ``sigma_w``, when the encoder is fine enough."""
+    ``k`` samples (at most ``k_max``): the time of two encoder steps and, without a logged velocity (the
+    position's derivative is a staircase), enough that ``K_NOISE`` of its noise lie within ``R_STEADY``
+    of the speed; and its noise level [q/s] (:func:`_plateau_velocity`). As it is, with ``sigma_w``,
+    when the encoder is fine enough; a logged velocity keeps ``sigma_w`` (its band as before session 19:
+    a band from the average's noise made the hydraulic sample sweep's stuck joint, creeping at
+    0.0017 rad/s under a reversing torque, a plateau)."""
     sigma, dt = f.sc.sigma_w, f.sc.dt
     if f.sc.q_step > 0 and speed > 0:
         sq = max(f.sc.sigma_q, f.sc.q_step / math.sqrt(12.0))
-        resolve = K_NOISE * math.sqrt(2.0) * sq / (R_STEADY * speed * dt)
-        k = int(min(k_max, math.ceil(max(2.0 * f.sc.q_step / (speed * dt), resolve))))
+        k = 2.0 * f.sc.q_step / (speed * dt)
+        if not f.sc.qd_logged:  # a logged velocity is no staircase: its band stays that of its samples
+            k = max(k, K_NOISE * math.sqrt(2.0) * sq / (R_STEADY * speed * dt))
+        k = int(min(k_max, math.ceil(k)))
         if k > f.sc.window_w:
             w = box_mean(w, k)
-            own = f.sc.sigma_w * math.sqrt(f.sc.window_w / k)
-            sigma = min(sigma, own if f.sc.qd_logged else math.sqrt(2.0) * sq / (k * dt))
+            if not f.sc.qd_logged:
+                sigma = min(sigma, math.sqrt(2.0) * sq / (k * dt))
     return w, sigma
 
 
