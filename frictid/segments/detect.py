@@ -526,7 +526,7 @@ def classify(log: JointLog, scales: Scales | None = None) -> tuple[np.ndarray, l
         lab.mark("rest", i0, i1)
     for i0, i1 in _constant_velocity(f, lab.code, n_min):
         lab.mark("constant_velocity", i0, i1)
-    for i0, i1 in zip(*runs(_rest(f, lab.code, _loading(f, hj), n_min))):
+    for i0, i1 in zip(*runs(_rest(f, lab.code, _loading(f, jumps, hj), n_min))):
         lab.mark("rest", int(i0), int(i1))
     for i0, i1 in zip(*runs(lab.code < 0)):
         lab.mark("other", int(i0), int(i1))
@@ -886,10 +886,11 @@ def _fine_width(f: Features) -> int:
     return max(f.sc.window_w, f.h // 4)
 
 
-def _loading(f: Features, hj: int) -> np.ndarray:
+def _loading(f: Features, jumps: np.ndarray, hj: int) -> np.ndarray:
     """Where the torque on a still joint is not steady (per sample): a controller winding up before a
-    move, a transient settling after one. A change that is a torque jump (:func:`_is_jump`) after which
-    the joint is not moving (still to the sensors from ``h / 2`` to ``h`` samples after it: a jolt the
+    move, a transient settling after one. A change that holds a torque jump (one of ``jumps``) and is
+    one (:func:`_is_jump`: a slow drift whose start edges short near the threshold holds none) after
+    which the joint is not moving (still to the sensors from ``h / 2`` to ``h`` samples after it: a jolt the
     jump gives the joint is over by then) is not a loading: a jump alone does not end a rest (the
     definition, docs/segments.md "What a rest is", as both truths apply it). A torque that settles after
     a stop for longer than a jump is a change (foreign card 100907: a PID's torque rising 7.5 -> 9.6 N m
@@ -901,7 +902,9 @@ def _loading(f: Features, hj: int) -> np.ndarray:
     h2 = f.h // 2
     moves_after = moving_c[np.minimum(le + f.h, n)] - moving_c[np.minimum(le + h2, n)] > 0
     # only a change no longer than a jump seen through the wide mean can be one
-    cand = np.flatnonzero((le - ls <= 2 * hf + hj) & ~moves_after)
+    js = np.sort(jumps)
+    has_jump = np.searchsorted(js, le) > np.searchsorted(js, ls)
+    cand = np.flatnonzero((le - ls <= 2 * hf + hj) & has_jump & ~moves_after)
     relax = [k for k in cand.tolist() if _is_jump(f, int(ls[k]), int(le[k]), hj)]
     if relax:
         paint(loading, ls[relax], le[relax], False)
