@@ -184,15 +184,16 @@ def _synthetic_ramps(s0_pos, s0_neg, seed, g=10.0, noise=0.005):
 @pytest.mark.parametrize("seed", [21, 22])
 def test_per_sign_split_is_judged_against_the_ramp_to_ramp_spread(seed):
     """A symmetric joint whose z > 0 ramps scatter from ramp to ramp (sigma0 8000 and 12000, then again)
-    while the torque noise is small: each sign's fit error is far smaller than that scatter, and judged
-    by it the signs would differ (the old rule split them). Judged against the ramp-to-ramp spread they
-    do not: one sigma0. A joint whose signs do differ (20000 / 10000, the same scatter of 2 %) is split,
-    each sign within its errors."""
+    while the torque noise is small: judged by the fits' errors alone the signs would differ (the old
+    rule split them). Judged against the ramp-to-ramp spread they do not: one sigma0. The z > 0 fit's own
+    error counts its smooth misfit (the residuals' variance factor, session 19): a hundred times the
+    error of the z < 0 ramps, which agree. A joint whose signs do differ (20000 / 10000, the same scatter
+    of 2 %) is split, each sign within its errors."""
     from frictid.identify import dynamics, presliding as pre
     pd, g = _synthetic_ramps([8000.0, 12000.0, 8000.0, 12000.0], [11000.0] * 4, seed)
     s0 = pre.fit_sigma0(pd.ramps, g)
     by_sign = [pre.fit_sigma0(pd.ramps[i:i + 4], g[i:i + 4]) for i in (0, 4)]
-    assert abs(by_sign[0].value - by_sign[1].value) > 3 * np.hypot(by_sign[0].stderr, by_sign[1].stderr)
+    assert by_sign[0].stderr > 30 * by_sign[1].stderr
     assert dynamics._per_sign(pd, g, s0) is None
     pd, g = _synthetic_ramps([20000.0, 20400.0, 19600.0, 20000.0], [10000.0, 10200.0, 9800.0, 10000.0], seed)
     sides = dynamics._per_sign(pd, g, pre.fit_sigma0(pd.ramps, g))
