@@ -6,10 +6,12 @@ bristle state ``z`` follows the LuGre equation written in the displacement domai
 
     dz/dq = 1 - sigma0 sgn(dq) z / g
 
-so along the measured position path ``F = sigma0 z`` (plus a negligible ``sigma1 dz/dt``). For small
+so along the measured position path ``F = sigma0 z`` (``sigma1 dz/dt + sigma2 w`` is taken out of the
+torque by the caller once sigma1 is known, :func:`.dynamics._without_damping`). For small
 deflections ``z ~ q - q0`` and ``sigma0`` is the slope of torque against displacement (000 eq 12-15); the
 displacement-domain integration keeps that slope exact when the bristles start to saturate. The start
-state is the equilibrium ``z0 = F(t0) / sigma0``. ``g`` is the static map's level at zero speed.
+state is the equilibrium ``z0 = F(t0) / sigma0``. ``g`` is the static map's level at zero speed, or (with
+``free_limit``) fitted on the ramps' curvature with sigma0 (:func:`_with_free_limit`).
 
 sigma1. Each step segment is simulated (joint + LuGre, the exact linearised step of
 :func:`frictid.models.lugre.lugre_step`, stable for the stiff bristle dynamics) from the measured torque, and ``sigma1`` minimises the squared difference between
