@@ -401,21 +401,3 @@ def test_holds_that_travel_less_than_the_presliding_ramps_are_not_plateau_points
     (pi_, kept), = _sliding_only(jd, [(0, pl)])
     assert len(kept) == 3
 
-
-def test_the_offset_move_takes_the_shifts_even_part():
-    """After the plateau points' even part is moved into the offset (``mechanics._offset_from_plateaus``),
-    a rigid-body error direction that moves every point alike (an offset, gravity at a joint that hardly
-    turns) no longer moves them: its even part goes with the move and only the even part's own error is
-    left (one constant direction). An odd direction (one that changes sign with the velocity) is kept."""
-    from frictid.identify.mechanics import _even_part_moved
-    from frictid.identify.static import Plateaus
-    v = np.array([0.05, 0.1, 0.2, 0.5, 1.0])
-    w = np.concatenate([v, -v])
-    F = np.sign(w) * (1.0 + 0.2 * np.abs(w)) + 0.03
-    n = w.size
-    plat = Plateaus(w, F, np.full(n, 0.01), np.zeros(n), np.full(n, 100), np.zeros(n), np.ones(n), np.arange(n))
-    even, odd = np.full(n, 0.05), 0.02 * np.sign(w)
-    out = _even_part_moved([even, odd], plat, 0.004)
-    assert np.max(np.abs(out[0])) < 1e-12
-    assert np.allclose(out[1], odd)
-    assert len(out) == 3 and np.allclose(out[2], 0.004)
