@@ -400,4 +400,3 @@ def test_holds_that_travel_less_than_the_presliding_ramps_are_not_plateau_points
     jd.preps[0].segments = []
     (pi_, kept), = _sliding_only(jd, [(0, pl)])
     assert len(kept) == 3
-
