@@ -184,15 +184,16 @@ def _synthetic_ramps(s0_pos, s0_neg, seed, g=10.0, noise=0.005):
 @pytest.mark.parametrize("seed", [21, 22])
 def test_per_sign_split_is_judged_against_the_ramp_to_ramp_spread(seed):
     """A symmetric joint whose z > 0 ramps scatter from ramp to ramp (sigma0 8000 and 12000, then again)
-    while the torque noise is small: each sign's fit error is far smaller than that scatter, and judged
-    by it the signs would differ (the old rule split them). Judged against the ramp-to-ramp spread they
-    do not: one sigma0. A joint whose signs do differ (20000 / 10000, the same scatter of 2 %) is split,
-    each sign within its errors."""
+    while the torque noise is small: judged by the fits' errors alone the signs would differ (the old
+    rule split them). Judged against the ramp-to-ramp spread they do not: one sigma0. The z > 0 fit's own
+    error counts its smooth misfit (the residuals' variance factor, session 19): a hundred times the
+    error of the z < 0 ramps, which agree. A joint whose signs do differ (20000 / 10000, the same scatter
+    of 2 %) is split, each sign within its errors."""
     from frictid.identify import dynamics, presliding as pre
     pd, g = _synthetic_ramps([8000.0, 12000.0, 8000.0, 12000.0], [11000.0] * 4, seed)
     s0 = pre.fit_sigma0(pd.ramps, g)
     by_sign = [pre.fit_sigma0(pd.ramps[i:i + 4], g[i:i + 4]) for i in (0, 4)]
-    assert abs(by_sign[0].value - by_sign[1].value) > 3 * np.hypot(by_sign[0].stderr, by_sign[1].stderr)
+    assert by_sign[0].stderr > 30 * by_sign[1].stderr
     assert dynamics._per_sign(pd, g, s0) is None
     pd, g = _synthetic_ramps([20000.0, 20400.0, 19600.0, 20000.0], [10000.0, 10200.0, 9800.0, 10000.0], seed)
     sides = dynamics._per_sign(pd, g, pre.fit_sigma0(pd.ramps, g))
@@ -224,3 +225,49 @@ def test_sigma0_and_sigma1_as_scipys_optimisers_find_them(monkeypatch):
         assert a.identifiable == b.identifiable and a.reason == b.reason
         assert abs(a.value - b.value) < 0.01 * b.stderr, (a.value, b.value, b.stderr)
         assert a.stderr == pytest.approx(b.stderr, rel=1e-3)
+
+
+@pytest.mark.parametrize("seed", [31, 32])
+def test_the_bristle_limit_is_fitted_on_the_ramps_curvature(seed):
+    """Ramps to 45 % and 75 % of a bristle limit of 10 N m fitted with the limit at 7.5 (a Coulomb level
+    taken for it, session 19): with the limit held the curvature reads as stiffness and sigma0 comes out
+    high by many of its errors; with the limit fitted too, sigma0 is within 2.5 errors of the truth and
+    the limit within 3 % of 10."""
+    from frictid.identify import presliding as pre
+    rng = np.random.default_rng(seed)
+    ramps, g, s0 = [], 10.0, 12000.0
+    for sign in (1.0, -1.0):
+        for peak in (0.45, 0.75):
+            q = sign * np.linspace(0.0, -g / s0 * np.log(1.0 - peak), 400)
+            ramps.append((q, s0 * pre.bristle_path(q, 0.0, s0, g) + 0.005 * rng.standard_normal(q.size)))
+    held = pre.fit_sigma0(ramps, [7.5] * 4)
+    free = pre.fit_sigma0(ramps, [7.5] * 4, free_limit=True)
+    assert held.value - s0 > 5 * held.stderr
+    assert free.identifiable and abs(free.value - s0) < 2.5 * free.stderr
+    assert all(abs(x - g) < 0.03 * g for x in free.details["g_ramps"])
+
+
+def test_the_damping_torque_is_taken_out_of_the_ramps():
+    """A ramp's friction with LuGre's damping (sigma1 dz/dt, dz/dt = w (1 - z / zmax), and sigma2 w), the
+    creeping speed rising as the bristles give: the fit of sigma0 z alone reads the damping as stiffness;
+    with the damping of a known sigma1 taken out (:func:`dynamics._without_damping`) it is within 0.3 %."""
+    from frictid.identify import dynamics, presliding as pre
+    g, s0, s1, s2 = 10.0, 12000.0, 600.0, 5.0
+    pd = dynamics.Presliding()
+    for sign in (1.0, -1.0):
+        t = np.linspace(0.0, 4.0, 2000)
+        F_target = sign * 0.8 * g * t / t[-1]              # the bristle force the torque ramp builds
+        q = sign * -g / s0 * np.log(1.0 - np.abs(F_target) / g)
+        w = np.gradient(q, t)
+        dz = w * (1.0 - np.sign(w) * F_target / g)
+        pd.ramps.append((q, F_target + s1 * dz + s2 * w))
+        pd.ramp_w.append(w)
+    plain = pre.fit_sigma0(pd.ramps, [g, g])
+    assert plain.value > 1.005 * s0
+    known = pre.DynamicEstimate(s1, 0.1 * s1, True)
+    c = np.zeros(9)
+    c[6] = s2
+    damped = dynamics._without_damping(pd, {"": (plain, known)}, [g, g], c, c)
+    assert abs(pre.fit_sigma0(damped.ramps, [g, g]).value - s0) < 0.003 * s0
+    unknown = pre.DynamicEstimate(None, None, False, "no steps")
+    assert dynamics._without_damping(pd, {"": (plain, unknown)}, [g, g], c, c) is None

@@ -6,10 +6,12 @@ bristle state ``z`` follows the LuGre equation written in the displacement domai
 
     dz/dq = 1 - sigma0 sgn(dq) z / g
 
-so along the measured position path ``F = sigma0 z`` (plus a negligible ``sigma1 dz/dt``). For small
+so along the measured position path ``F = sigma0 z`` (``sigma1 dz/dt + sigma2 w`` is taken out of the
+torque by the caller once sigma1 is known, :func:`.dynamics._without_damping`). For small
 deflections ``z ~ q - q0`` and ``sigma0`` is the slope of torque against displacement (000 eq 12-15); the
 displacement-domain integration keeps that slope exact when the bristles start to saturate. The start
-state is the equilibrium ``z0 = F(t0) / sigma0``. ``g`` is the static map's level at zero speed.
+state is the equilibrium ``z0 = F(t0) / sigma0``. ``g`` is the static map's level at zero speed, or (with
+``free_limit``) fitted on the ramps' curvature with sigma0 (:func:`_with_free_limit`).
 
 sigma1. Each step segment is simulated (joint + LuGre, the exact linearised step of
 :func:`frictid.models.lugre.lugre_step`, stable for the stiff bristle dynamics) from the measured torque, and ``sigma1`` minimises the squared difference between
@@ -178,6 +180,12 @@ class _RampForces:
         self._eval(p)
         return self.dy.reshape(-1, 1).copy()
 
+    def with_limits(self, gs) -> "_RampForces":
+        """The same ramps with the bristle limits ``gs`` [F]."""
+        self.gs = np.asarray(gs, dtype=float)
+        self.at = None
+        return self
+
     def fit(self, starts):
         """The best Levenberg-Marquardt result in log(sigma0) over the starts [F/q], or None."""
         best = None
@@ -192,7 +200,7 @@ class _RampForces:
 
 
 def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float = 0.0,
-               starts: tuple[float, ...] | None = None) -> DynamicEstimate:
+               starts: tuple[float, ...] | None = None, free_limit: bool = False) -> DynamicEstimate:
     """sigma0 [F/q] from ramp-presliding segments.
 
     ramps : list of (q [q], F [F]) per segment, F the friction torque ``tau - G - offset`` (a ~ 0).
@@ -200,6 +208,8 @@ def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float
     resolution : encoder step [q] (0 when continuous).
     starts : initial sigma0 values [F/q] (e.g. a held-out refit from the full-data optimum); default the
     median slope of torque against displacement over the lower half of the ramps, times 1, 0.3 and 3.
+    free_limit : fit the bristle limits too (one factor on ``g0``, :func:`_with_free_limit`); sigma0's
+    error then carries the trade-off between the two, and ``details["g_ramps"]`` the limits found.
     """
     if not ramps:
         return DynamicEstimate(None, None, False, "no ramp-presliding segments", "ramps")
@@ -223,26 +233,87 @@ def fit_sigma0(ramps: list[tuple[np.ndarray, np.ndarray]], g0, resolution: float
         starts = (s_start, 0.3 * s_start, 3.0 * s_start)
     else:
         s_start = float(starts[0])
-    best = _RampForces(ramps, g0s).fit(starts)
+    rf = _RampForces(ramps, g0s)
+    best = rf.fit(starts)
     if best is None:
         return DynamicEstimate(None, None, False, "optimiser failed", "ramps", len(ramps))
+    det = {"span": span, "start_slope": s_start, "g0": g0s}
+    if free_limit:
+        best = _with_free_limit(rf, best, ramps, g0s, det)
     s0 = math.exp(best.x[0])
     n = best.fun.size
-    s2 = 2 * best.cost / max(n - 1, 1)
-    # consecutive samples are correlated: count each ramp as ~ span/resolution (or 50) independent points
-    n_eff = sum(min(q.size, max(10, int(np.ptp(q) / resolution) if resolution > 0 else 50)) for q, _ in ramps)
-    JtJ = float(np.einsum("i,i->", best.jac[:, 0], best.jac[:, 0]))  # not a BLAS dot: see smallsq
-    se_log = math.sqrt(s2 / JtJ * n / max(n_eff, 1)) if JtJ > 0 else math.inf
+    s2 = 2 * best.cost / max(n - best.x.size, 1)
+    n_eff = _effective_points(ramps, rf.bounds, best.fun, resolution)
+    JtJ = np.einsum("ij,ik->jk", best.jac, best.jac)  # not a BLAS product: see smallsq
+    if JtJ.shape == (1, 1):
+        inv00 = 1.0 / JtJ[0, 0] if JtJ[0, 0] > 0 else math.inf
+    else:  # sigma0's variance with the limit free: 1 / (JtJ_00 - JtJ_01^2 / JtJ_11)
+        det_ = JtJ[0, 0] * JtJ[1, 1] - JtJ[0, 1] ** 2
+        inv00 = JtJ[1, 1] / det_ if det_ > 0 else math.inf
+    se_log = math.sqrt(s2 * inv00 * n / max(n_eff, 1)) if math.isfinite(inv00) else math.inf
     se = s0 * se_log
     rms = math.sqrt(2 * best.cost / n)
     reason = ""
     if not np.isfinite(se) or se > s0:
         reason = f"relative error {100 * se / s0:.0f} % (above 100 %)" if np.isfinite(se) else "no sensitivity"
-    det = {"span": span, "start_slope": s_start, "g0": g0s}
     if resolution > 0:
         det["span_counts"] = span / resolution
     return DynamicEstimate(s0, se, not reason, reason, "ramps: torque against displacement "
                            "(LuGre in the displacement domain)", len(ramps), rms, det)
+
+
+def _effective_points(ramps, bounds, resid: np.ndarray, resolution: float) -> float:
+    """Independent points of the ramps' residuals. Consecutive samples are correlated: each ramp counts as
+    ~ span/resolution (or 50) points, and no more than its samples over the variance factor of its
+    residuals (:func:`.samples.variance_factor`: a misfit that is smooth along the ramp, such as a bristle
+    model that does not quite hold, is one error shared by its samples, not many independent ones)."""
+    from .samples import variance_factor
+
+    n_eff = 0.0
+    for r, (q, _) in enumerate(ramps):
+        counts = min(q.size, max(10, int(np.ptp(q) / resolution) if resolution > 0 else 50))
+        part = resid[bounds[r]:bounds[r + 1]]
+        n_eff += min(counts, part.size / variance_factor(part))
+    return n_eff
+
+
+#: The bristle limit fitted on the ramps stays above their largest load by this factor (the ramps are
+#: below break-away: the bristles never reach the limit).
+LIMIT_MARGIN = 1.02
+
+
+def _with_free_limit(rf: _RampForces, best, ramps, g0s: list[float], det: dict):
+    """sigma0 and the bristle limits fitted together: the limits ``k g0`` (one factor k for all ramps, at
+    least :data:`LIMIT_MARGIN` times each ramp's largest load). In LuGre the limit is the static map's level
+    at the ramp's speed; the map's level at zero speed is an extrapolation when the map has no measured
+    drop (a Coulomb level, a polynomial's constant) and the ramps' curvature measures it instead: with the
+    limit too low the fitted sigma0 comes out too high, and the reverse (foreign card: a `coulomb_viscous`
+    base put it at the Coulomb level, 24 % below the break-away, and sigma0 came out 16 % high). Returns the
+    joint least-squares result (x: log sigma0, log k) with ``det`` updated, or the fixed-limit one when the
+    joint fit fails."""
+    k_min = LIMIT_MARGIN * max(float(np.max(np.abs(F))) / g for (_, F), g in zip(ramps, g0s))
+    lo = math.log(max(k_min, 1e-12))
+    g = np.asarray(g0s, dtype=float)
+
+    def resid(p):
+        return rf.with_limits(g * math.exp(p[1])).resid(p[:1])
+
+    out = None
+    for lk in sorted({max(0.0, lo), lo + 0.5}):
+        try:
+            r = least_squares(resid, [best.x[0], lk], bounds=([-np.inf, lo], [np.inf, np.inf]),
+                              ftol=1e-10, xtol=1e-10)
+        except ValueError:
+            continue
+        if out is None or r.cost < out.cost:
+            out = r
+    rf.with_limits(g)
+    if out is None or not np.all(np.isfinite(out.jac)):
+        return best
+    k = math.exp(out.x[1])
+    det["limit_scale"] = k
+    det["g_ramps"] = [float(x) for x in g * k]
+    return out
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM)
