@@ -55,6 +55,11 @@ EXPLAINED_MIN = 0.02
 #: sensor's bias from a Coulomb level that differs by direction, and the rest torque after a move does not
 #: either (the bristles hold the sliding level; foreign seed 300017, docs/scorecards.md).
 COMPETITORS = {"offset": ("asym_level",)}
+def _competing_causes(tr: Trial) -> set:
+    """The causes of a candidate's competing explanations (:data:`COMPETITORS`)."""
+    return {EXTENSIONS[x][0] for x in COMPETITORS.get(tr.ext, ())}
+
+
 #: Longest chain.
 MAX_STEPS = 6
 #: Two candidates make the same correction when their held-out corrections differ by at most this share of
@@ -262,6 +267,11 @@ class Chain:
             if p >= ALPHA / max(m, 1):
                 best = t
         best = self._delay_before_dwell(_speed_only_last(best, ok), ok, m)
+        # a candidate with a competing explanation that explains something beyond it, while it explains
+        # nothing beyond that one, yields to it (an offset to a per-direction level, foreign seed 309534)
+        over = [t for t in ok if t.cause in _competing_causes(best)
+                and self.beyond(t, best, m) and not self.beyond(best, t, m)]
+        best = min(over, key=lambda t: t.rms_after) if over else best
         self._rivals(best, ok + self._competitors(best, m), m)
         return best
 
@@ -287,7 +297,8 @@ class Chain:
         """Other causes the data cannot tell from the chosen one (``best.rivals``: not significantly worse on
         held-out data, named in its sentence), and those that make its correction (``best.unresolved``: a
         competing explanation of another cause with no more coefficients whose held-out correction is the
-        chosen one's, :meth:`same_correction`). Such a step names no cause. (A rival that is merely not
+        chosen one's, :meth:`same_correction`; for a candidate with :data:`COMPETITORS`, also one of their
+        causes beyond which it explains nothing, :meth:`beyond`). Such a step names no cause. (A rival that is merely not
         significantly worse is not enough: two real effects of similar size, a warm-up and a position
         ripple, explain different parts of the residual and each is not significantly worse than the other.)"""
         best.rivals, best.unresolved = [], []
@@ -302,6 +313,9 @@ class Chain:
             # space on these data, whichever wins by rounding)
             if t.k <= best.k and t.cause not in best.unresolved and self.same_correction(best, t):
                 best.unresolved.append(t.cause)
+            elif (t.cause in _competing_causes(best) and t.cause not in best.unresolved
+                  and not self.beyond(best, t, m)):
+                best.unresolved.append(t.cause)
 
     def _competitors(self, best: Trial, m: int) -> list[Trial]:
         """The competing explanations of the chosen candidate that are not candidates themselves
@@ -312,6 +326,21 @@ class Chain:
             if tr is not None:
                 out.append(tr)
         return out
+
+    def beyond(self, a: Trial, b: Trial, m: int) -> bool:
+        """Whether candidate ``a`` explains something beyond candidate ``b`` on held-out data: the residual
+        ``b`` leaves co-varies with the part of ``a``'s correction that ``b``'s does not contain (``a``'s
+        correction less its least-squares multiple of ``b``'s), the one-sided t over held-out groups of
+        their products significant at the step's level. An offset and a per-direction level on a map with a
+        Stribeck part differ by a hair at the lowest speeds (their corrections are not the same), yet
+        neither may explain anything of what the other leaves (foreign seeds 306002, 309534: a Coulomb-level
+        asymmetry named ``offset``): then the data cannot tell them apart either."""
+        ca, cb = a.pred_after - a.pred_before, b.pred_after - b.pred_before
+        ss = float(cb @ cb)
+        perp = ca - (float(ca @ cb) / ss) * cb if ss > 0 else ca
+        e = self.S.F - b.pred_after
+        _, p = paired_t(np.bincount(self.S.group, weights=e * perp, minlength=self.S.n_groups))
+        return p < ALPHA / max(m, 1)
 
     def same_correction(self, a: Trial, b: Trial) -> bool:
         """Whether two candidates make the same held-out correction: their corrections differ by an RMS of
