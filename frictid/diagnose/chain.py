@@ -313,7 +313,7 @@ class Chain:
             # space on these data, whichever wins by rounding)
             if t.k <= best.k and t.cause not in best.unresolved and self.same_correction(best, t):
                 best.unresolved.append(t.cause)
-            elif (t.cause in _competing_causes(best) and t.cause not in best.unresolved
+            elif (t.k <= best.k and t.cause in _competing_causes(best) and t.cause not in best.unresolved
                   and not self.beyond(best, t, m)):
                 best.unresolved.append(t.cause)
 
