@@ -533,3 +533,34 @@ def test_a_position_torque_that_is_a_constant_is_rejected():
     assert _a_constant(ctx, trial(smooth, [-0.60, 0.2, 1.0]), F_rms) is None          # 1.2 N m of shape over the travel
     assert _a_constant(ctx, trial(periodic, [0.05, 0.02]), F_rms) is not None         # a harmonic of 0.05 N m
     assert _a_constant(ctx, trial(periodic, [0.5, 0.2]), F_rms) is None
+
+
+@pytest.mark.parametrize("lagged", ["friction", "torque"])
+def test_a_delay_must_beat_a_lag_of_the_friction(lagged):
+    """A torque logged late shifts the whole torque (the inertial part too), a friction that lags the
+    velocity (the bristles' dynamics) only the friction: on the moving samples of a plateau program with
+    an inertia, the delay's held-out correction beats the friction map taken earlier only where the torque
+    itself was shifted (foreign seed 307721, a clean 131 Hz log named ``delay`` for the bristles' lag)."""
+    from frictid.diagnose.chain import ALPHA, paired_t
+    from frictid.diagnose.lag import friction_lag_heldout
+    from frictid.diagnose.signals import delay_estimates, delay_heldout
+
+    J, L = 2.0, 5   # inertia [kg m^2], lag [samples]
+    lg = plateau_log(seed=11, reps=3, noise=0.0, move=0.1)
+    F0 = lg.F.copy()   # the map, noise-free
+    noise = 0.005 * np.random.default_rng(12).standard_normal(lg.n)
+    if lagged == "friction":
+        tau = J * lg.a + np.concatenate([np.full(L, F0[0]), F0[:-L]]) + noise
+    else:
+        tau0 = J * lg.a + F0
+        tau = np.concatenate([np.full(L, tau0[0]), tau0[:-L]]) + noise
+    lg.tau, lg.F = tau, tau - J * lg.a
+    S = build_samples([lg], 5, axis="rotary", J=J)
+    shifts = delay_estimates(S)
+    _, ra, d = delay_heldout(S, shifts)
+    lag = friction_lag_heldout(S, float(np.mean(shifts)))
+    t, p = paired_t(d - (lag["ss0"] - lag["ss1"]))
+    if lagged == "friction":
+        assert p >= ALPHA and lag["rms_after"] < 1.1 * ra, (t, shifts, lag)
+    else:   # the gain sits in the moves (a few of the groups): t about 3
+        assert p < ALPHA and lag["rms_after"] > 5 * ra and abs(np.mean(shifts) / 2e-3 + L) < 1.0, (t, shifts, lag)

@@ -55,6 +55,11 @@ EXPLAINED_MIN = 0.02
 #: sensor's bias from a Coulomb level that differs by direction, and the rest torque after a move does not
 #: either (the bristles hold the sliding level; foreign seed 300017, docs/scorecards.md).
 COMPETITORS = {"offset": ("asym_level",)}
+def _competing_causes(tr: Trial) -> set:
+    """The causes of a candidate's competing explanations (:data:`COMPETITORS`)."""
+    return {EXTENSIONS[x][0] for x in COMPETITORS.get(tr.ext, ())}
+
+
 #: Longest chain.
 MAX_STEPS = 6
 #: Two candidates make the same correction when their held-out corrections differ by at most this share of
@@ -264,7 +269,10 @@ class Chain:
         fastest: a 33 ms delay of which the sliding samples' small residual holds under 2 % of the friction RMS),
         provided it takes at least :data:`GAIN_MIN` of the sliding samples' held-out residual: a shift of a
         fraction of a sample that a sampled log's timing convention leaves (frictid's slide: 0.5 ms at
-        1 kHz, 0.7 % of that residual) is no finding."""
+        1 kHz, 0.7 % of that residual) is no finding. (A shift of two samples or more without that share was
+        tried and withdrawn: it named the 50 ms delay of foreign seed 306509, 1.3 % of the sliding residual,
+        and a 34 ms shift on seed 309007, an asymmetry and a drift with no delay hidden, whose moving samples
+        it cut from 0.030 to 0.015 N m in each of its four recordings.)"""
         if tr.gain > 0 and tr.explained >= EXPLAINED_MIN * self.F_rms:
             return True
         if tr.ext != "delay" or tr.gain < GAIN_MIN:
@@ -277,7 +285,8 @@ class Chain:
     def choose(self, trials: list[Trial], m: int, rejected: list | None = None) -> Trial | None:
         ok = [t for t in trials if self.significant(t, m) and self.worth_it(t, m)]
         for t in list(ok):
-            why = confounded(self.S, t, m, self.ctx, self.F_rms)
+            why = confounded(self.S, t, m, self.ctx, self.F_rms,
+                             delayed=any(x.ext == "delay" for x in self.st.terms))
             if why is not None:
                 ok.remove(t)
                 if rejected is not None:
@@ -293,15 +302,39 @@ class Chain:
             _, p = paired_t(group_d(self.S, self.S.F - t.pred_after, self.S.F - best.pred_after))
             if p >= ALPHA / max(m, 1):
                 best = t
-        best = _speed_only_last(best, ok)
+        best = self._delay_before_dwell(_speed_only_last(best, ok), ok, m)
+        # a candidate with a competing explanation that explains something beyond it, while it explains
+        # nothing beyond that one, yields to it (an offset to a per-direction level, foreign seed 309534)
+        over = [t for t in ok if t.cause in _competing_causes(best)
+                and self.beyond(t, best, m) and not self.beyond(best, t, m)]
+        best = min(over, key=lambda t: t.rms_after) if over else best
         self._rivals(best, ok + self._competitors(best, m), m)
         return best
+
+    def _delay_before_dwell(self, best: Trial, ok: list[Trial], m: int) -> Trial:
+        """The chosen candidate, except that a dwell yields to a worthy delay that explains more torque where
+        it shows, on every moving sample (:meth:`_delay_moving`, significant at the step's level), than the
+        dwell explains on the sliding samples. A delay's residual is largest in the transients, which the
+        sliding samples leave out but for the start of each move, where the dwell's variable is largest
+        too: the dwell then takes the part of the delay the sliding samples see and wins on their RMS
+        (foreign seed 307707: a 25 ms delay named ``dwell`` first; on the moving samples the shift cuts the
+        held-out RMS from 0.96 to 0.39 N m, the dwell explains 0.17 of the sliding samples')."""
+        if best.ext not in AT_ONE_SPEED_EXTS:
+            return best
+        d = next((t for t in ok if t.ext == "delay"), None)
+        if d is None:
+            return best
+        if d.moving is None:
+            d.moving = self._delay_moving(d.fold_terms)
+        mv = d.moving
+        return d if mv["p"] < ALPHA / max(m, 1) and mv["explained"] > best.explained else best
 
     def _rivals(self, best: Trial, others: list[Trial], m: int) -> None:
         """Other causes the data cannot tell from the chosen one (``best.rivals``: not significantly worse on
         held-out data, named in its sentence), and those that make its correction (``best.unresolved``: a
         competing explanation of another cause with no more coefficients whose held-out correction is the
-        chosen one's, :meth:`same_correction`). Such a step names no cause. (A rival that is merely not
+        chosen one's, :meth:`same_correction`; for a candidate with :data:`COMPETITORS`, also one of their
+        causes beyond which it explains nothing, :meth:`beyond`). Such a step names no cause. (A rival that is merely not
         significantly worse is not enough: two real effects of similar size, a warm-up and a position
         ripple, explain different parts of the residual and each is not significantly worse than the other.)"""
         best.rivals, best.unresolved = [], []
@@ -316,6 +349,9 @@ class Chain:
             # space on these data, whichever wins by rounding)
             if t.k <= best.k and t.cause not in best.unresolved and self.same_correction(best, t):
                 best.unresolved.append(t.cause)
+            elif (t.k <= best.k and t.cause in _competing_causes(best) and t.cause not in best.unresolved
+                  and not self.beyond(best, t, m)):
+                best.unresolved.append(t.cause)
 
     def _competitors(self, best: Trial, m: int) -> list[Trial]:
         """The competing explanations of the chosen candidate that are not candidates themselves
@@ -326,6 +362,21 @@ class Chain:
             if tr is not None:
                 out.append(tr)
         return out
+
+    def beyond(self, a: Trial, b: Trial, m: int) -> bool:
+        """Whether candidate ``a`` explains something beyond candidate ``b`` on held-out data: the residual
+        ``b`` leaves co-varies with the part of ``a``'s correction that ``b``'s does not contain (``a``'s
+        correction less its least-squares multiple of ``b``'s), the one-sided t over held-out groups of
+        their products significant at the step's level. An offset and a per-direction level on a map with a
+        Stribeck part differ by a hair at the lowest speeds (their corrections are not the same), yet
+        neither may explain anything of what the other leaves (foreign seeds 306002, 309534: a Coulomb-level
+        asymmetry named ``offset``): then the data cannot tell them apart either."""
+        ca, cb = a.pred_after - a.pred_before, b.pred_after - b.pred_before
+        ss = float(cb @ cb)
+        perp = ca - (float(ca @ cb) / ss) * cb if ss > 0 else ca
+        e = self.S.F - b.pred_after
+        _, p = paired_t(np.bincount(self.S.group, weights=e * perp, minlength=self.S.n_groups))
+        return p < ALPHA / max(m, 1)
 
     def same_correction(self, a: Trial, b: Trial) -> bool:
         """Whether two candidates make the same held-out correction: their corrections differ by an RMS of
@@ -421,12 +472,15 @@ def speed_cells(S: Samples) -> np.ndarray:
     return S.cached("speed_cells", compute)
 
 
-def confounded(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float) -> str | None:
+def confounded(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float, delayed: bool = False) -> str | None:
     """Why a candidate is not named (its confound checks, :func:`_stand_in`), or None; a candidate that
     passes them and could follow the rests (:data:`REST_COURSE_EXTS`) must also explain something beyond a
-    free function of the travel since a rest (:func:`_not_beyond_rests`)."""
+    free function of the travel since a rest (:func:`_not_beyond_rests`), and so must a dwell once the model
+    carries a delay (``delayed``): what the delay's column leaves of its transients at the start of every
+    move follows the travel since the move began, whatever the rest before it, and a dwell is told from it
+    only by growing with the rest (foreign seed 307707: after the delay, a dwell named second)."""
     why = _stand_in(S, tr, m, ctx, F_rms)
-    if why is None and tr.ext in REST_COURSE_EXTS:
+    if why is None and (tr.ext in REST_COURSE_EXTS or (delayed and tr.ext in AT_ONE_SPEED_EXTS)):
         why = _not_beyond_rests(S, tr, m)
     return why
 
@@ -440,7 +494,7 @@ def _stand_in(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float) -> str 
     closed loop the residual's variation within a plateau is an attenuated copy of the effect's, the
     controller's lag and the estimated acceleration share it.)"""
     if tr.ext == "delay":
-        return _unresolved_delay(S, tr)
+        return _unresolved_delay(S, tr) or _a_friction_lag(S, tr, m)
     if tr.ext in AT_ONE_SPEED_EXTS:
         why = _not_at_one_speed(S, tr, m)
         if why is not None:
@@ -592,8 +646,11 @@ def _not_beyond_rests(S: Samples, tr: Trial, m: int) -> str | None:
     if p < ALPHA / max(m, 1):
         return None
     return (f"{tr.ext} explains nothing beyond a free function of the travel since a rest (held-out t = "
-            f"{t:.2f}, p = {p:.2g} on what that function leaves): the rests, not "
-            f"{'the position' if tr.ext == 'position_torque' else 'a warm-up'}, shape what it follows")
+            f"{t:.2f}, p = {p:.2g} on what that function leaves): "
+            + ("it does not grow with the rest before the move; a transient at every move's start (a delay's) "
+               "follows the travel alone" if tr.ext == "dwell" else
+               f"the rests, not {'the position' if tr.ext == 'position_torque' else 'a warm-up'}, shape what "
+               f"it follows"))
 
 
 def _speed_only_last(best: Trial, ok: list[Trial]) -> Trial:
@@ -681,6 +738,31 @@ def _unresolved_delay(S: Samples, tr: Trial) -> str | None:
         return (f"delay: the shift reaches the longest searched ({1e3 * delay_limit(S):.3g} ms): not a delay of "
                 f"the torque against the same motion")
     return None
+
+
+def _a_friction_lag(S: Samples, tr: Trial, m: int) -> str | None:
+    """Why a delay candidate is not a delay of the torque but a lag of the friction behind the velocity, or
+    None. A delay of the signal shifts the whole measured torque (the inertial and gravity torques too), a
+    lag of the friction (the bristles' presliding dynamics, frictional memory) only the friction: on every
+    moving sample the delay's held-out correction (:func:`frictid.diagnose.signals.delay_heldout`) must beat
+    the velocity map taken a few samples earlier (:func:`frictid.diagnose.lag.friction_lag_heldout`, the lag
+    chosen on the training folds), the one-sided paired t over held-out groups significant at the step's
+    level. (Foreign seed 307721, a clean work program at 131 Hz: a 1.8-sample torque shift cut the moving
+    samples' held-out RMS from 2.59 to 2.10 N m, the map one sample earlier to 2.03.)"""
+    from .lag import friction_lag_heldout
+    shifts = [float(t.settings.get("shift", 0.0)) for t in tr.fold_terms]
+    lag = friction_lag_heldout(S, float(np.mean(shifts)))
+    if lag is None:
+        return None
+    rb, ra, d = delay_heldout(S, shifts)
+    t, p = paired_t(d - (lag["ss0"] - lag["ss1"]))
+    if p < ALPHA / max(m, 1):
+        return None
+    ms = sorted({round(1e3 * x, 3) for x in lag["lags"]})
+    return (f"delay: shifting the whole torque explains the moving samples no better than the friction lagging "
+            f"the velocity by {', '.join(f'{x:.3g}' for x in ms)} ms (the velocity map taken earlier, the inertial "
+            f"and gravity torques not: held-out RMS {rb:.3g} -> {ra:.3g} with the delay, -> {lag['rms_after']:.3g} "
+            f"with the lag; t = {t:.2f}, p = {p:.2g}): a lag of the friction, not of the signal")
 
 
 def unphysical(st: Structure, after: Coef, J: float | None) -> str | None:
