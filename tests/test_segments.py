@@ -675,11 +675,17 @@ def _chain_log(seed: int = 0, fs: float = 2330.0, bits: int = 13):
             w.append(np.full(n_lvl, s * v))
             truth.append((i0 + int(0.1 * fs), i0 + n_lvl))
         w.append(np.zeros(int(0.5 * fs)))
-    w = np.concatenate(w)
+    return _encoded_log(np.concatenate(w), fs, bits, (2.0, 5.0, 0.01), rng), truth
+
+
+def _encoded_log(w: np.ndarray, fs: float, bits: int, friction: tuple, rng) -> JointLog:
+    """The log of a joint driven at velocity ``w``: positions on a ``bits``-bit encoder, no qd, torque a
+    smoothed Coulomb level plus a viscous line plus noise (``friction`` = Fc, fv, noise)."""
+    fc, fv, noise = friction
     step = 2 * np.pi / 2 ** bits
     q = np.floor(np.cumsum(w) / fs / step + 0.37) * step
-    tau = 2.0 * np.tanh(w / 1e-3) + 5.0 * w + rng.normal(0.0, 0.01, w.size)
-    return JointLog("j", np.arange(w.size) / fs, tau, q=q), truth
+    tau = fc * np.tanh(w / 1e-3) + fv * w + rng.normal(0.0, noise, w.size)
+    return JointLog("j", np.arange(w.size) / fs, tau, q=q)
 
 
 def test_a_chain_of_slow_levels_on_a_coarse_encoder_gives_one_plateau_per_level():
@@ -713,11 +719,7 @@ def _fast_chain_log(seed: int = 0, fs: float = 5208.0, bits: int = 17):
             truth.append((i0, i0 + n_lvl))
             prev = v
         w += [np.linspace(prev, 0.0, int(abs(prev) / acc * fs) + 2), np.zeros(int(0.5 * fs))]
-    w = np.concatenate(w)
-    step = 2 * np.pi / 2 ** bits
-    q = np.floor(np.cumsum(w) / fs / step + 0.37) * step
-    tau = 60.0 * np.tanh(w / 1e-3) + 45.0 * w + rng.normal(0.0, 0.1, w.size)
-    return JointLog("j", np.arange(w.size) / fs, tau, q=q), truth
+    return _encoded_log(np.concatenate(w), fs, bits, (60.0, 45.0, 0.1), rng), truth
 
 
 def test_a_fast_chain_into_slow_levels_keeps_every_level():
