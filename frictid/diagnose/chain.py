@@ -303,9 +303,11 @@ class Chain:
             if p >= ALPHA / max(m, 1):
                 best = t
         best = self._delay_before_dwell(_speed_only_last(best, ok), ok, m)
-        # a candidate with a competing explanation that explains something beyond it, while it explains
-        # nothing beyond that one, yields to it (an offset to a per-direction level, foreign seed 309534)
-        over = [t for t in ok if t.cause in _competing_causes(best)
+        # a candidate with a competing explanation of no more coefficients that explains something beyond
+        # it, while it explains nothing beyond that one, yields to it (an offset to a per-direction level,
+        # foreign seed 309534); a rival with more coefficients may explain beyond it by its extra freedom
+        # alone (the per-branch `asym` on a position ripple's per-direction imprint, tests/test_fit_static.py)
+        over = [t for t in ok if t.cause in _competing_causes(best) and t.k <= best.k
                 and self.beyond(t, best, m) and not self.beyond(best, t, m)]
         best = min(over, key=lambda t: t.rms_after) if over else best
         self._rivals(best, ok + self._competitors(best, m), m)
