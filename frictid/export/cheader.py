@@ -117,7 +117,7 @@ def _lugre_code(n: str, model: FrictionModel) -> list[str]:
             f"static const double {n}_sigma1[2] = {_array([s1p, s1n])};",
             f"static inline double {n}_lugre_force(double z, double w, double T) {{",
             "    double g, f;",
-            f"    int k = z >= 0.0 ? 0 : 1;",
+            "    int k = z >= 0.0 ? 0 : 1;",
             f"    frictid_map(w, T, {n}_cpos, {n}_cneg, {n}_code, {n}_theta, {n}_dc, &g, &f);",
             f"    return {n}_sigma0[k] * z + {n}_sigma1[k] * (w - {n}_sigma0[k] * fabs(w) / g * z) + f"
             f" + {n}_offset;",
@@ -125,7 +125,7 @@ def _lugre_code(n: str, model: FrictionModel) -> list[str]:
             f"static inline double {n}_lugre_advance(double z, double w, double h, double T) {{",
             "    double g, f;",
             "    if (w == 0.0) return z;",
-            f"    int k = z >= 0.0 ? 0 : 1;",
+            "    int k = z >= 0.0 ? 0 : 1;",
             f"    frictid_map(w, T, {n}_cpos, {n}_cneg, {n}_code, {n}_theta, {n}_dc, &g, &f);",
             f"    double zss = (w > 0.0 ? g : -g) / {n}_sigma0[k];",
             f"    return zss + (z - zss) * exp(-{n}_sigma0[k] * fabs(w) * h / g);",
