@@ -73,32 +73,38 @@ def _one_blas_thread():
     return threadpool_limits(limits=1, user_api="blas")
 
 
-def _static_targets(jf: JointFit, preps: list[Prep], name: str):
+def _residuals(jf: JointFit, preps: list[Prep], name: str, cache: dict | None = None) -> list[np.ndarray]:
+    """Per log, model ``name``'s torque residual with its stored parameters (``tau - tau_model``, the replay
+    along the log), kept in ``cache`` by name: the check asks for each model's twice (its static targets and
+    its stored RMS), and a replay of a joint-hour is a pass over 3.6 M samples."""
+    if cache is not None and name in cache:
+        return cache[name]
+    m = joint_model(jf, name)
+    # the log's scales when the fit measured them: the replay of a static map needs its velocity noise
+    # (measured again, 0.13 s CPU per replay of a joint-hour)
+    out = [replay(p.log, m, w=p.w, a=p.a, scales=p.scales).residual for p in preps]
+    if cache is not None:
+        cache[name] = out
+    return out
+
+
+def _static_targets(jf: JointFit, preps: list[Prep], name: str, cache: dict | None = None):
     """Per log, the torque that model ``name``'s static map has to explain once the model's other terms
     (rigid body, offset, extension factors, thermal state) are replayed: ``tau - tau_model + s(w)`` [F], s
     the model's static map at the samples' velocity. For a plain static map it is the friction torque
     ``tau - J a - G - offset``. Returns (map name, static values, [array per log])."""
     mf = jf.models[name]
-    m = joint_model(jf, name)
     vals = mf.values()
-    out = []
-    for p in preps:
-        # the log's scales when the fit measured them: the replay of a static map needs its velocity noise
-        # (measured again, 0.13 s CPU per replay of a joint-hour)
-        r = replay(p.log, m, w=p.w, a=p.a, scales=p.scales).residual
-        r += predict(mf.map, vals, p.w)
-        out.append(r)
+    out = [r + predict(mf.map, vals, p.w) for p, r in zip(preps, _residuals(jf, preps, name, cache))]
     return mf.map, vals, out
 
 
-def _stored_rms(jf: JointFit, preps: list[Prep], name: str, min_speed: float) -> float:
+def _stored_rms(jf: JointFit, preps: list[Prep], name: str, min_speed: float, cache: dict | None = None) -> float:
     """RMS [F] of model ``name``'s torque residual, with its stored parameters, over the moving samples
     (faster than min_speed) of the logs; NaN when it cannot be replayed."""
     try:
-        m = joint_model(jf, name)
         ss, n = 0.0, 0
-        for p in preps:
-            r = replay(p.log, m, w=p.w, a=p.a, scales=p.scales).residual
+        for p, r in zip(preps, _residuals(jf, preps, name, cache)):
             r = r[(np.abs(p.w) > min_speed) & np.isfinite(r)]
             ss += float(np.sum(r * r))  # not BLAS: the same sum in a worker as in the parent
             n += r.size
@@ -118,13 +124,13 @@ def _target_plateaus(preps: list[Prep], Y) -> Plateaus:
                       ("w", "F", "F_se", "w_se", "n", "t_start", "t_end", "seg")))
 
 
-def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds, like=None):
+def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds, like=None, cache=None):
     """Held-out RMS [F] of model ``name`` on the fit's basis: its static map refitted without each fold
     (plateau folds, or the time blocks of the sample basis) on the targets of :func:`_static_targets`, the
     rest of the model held. Returns (rms_heldout, refit ModelFit, target Plateaus or the samples' speed
     order, :meth:`~frictid.identify.samples.SampleSet.order_key`). ``like``: that speed order from another model
     of the joint, reused when the samples are the same (one sort of up to 2 M samples less)."""
-    mapname, _, Y = _static_targets(jf, preps, name)
+    mapname, _, Y = _static_targets(jf, preps, name, cache)
     if basis == "plateaus":
         pl = _target_plateaus(preps, Y)
         if len(pl) < 4:
@@ -170,8 +176,11 @@ def check_diagnosis(jf: JointFit, preps: list[Prep], choice: str, basis: str, mi
     if has_duty:
         basis, excl = "samples", REGRESSION_EXCLUDE
     try:
-        e_diag, mf_diag, pl_diag = _heldout_on_basis(jf, preps, jf.selected, basis, min_speed, excl, n_folds)
-        e_fit, _, _ = _heldout_on_basis(jf, preps, choice, basis, min_speed, excl, n_folds, like=pl_diag)
+        cache = {}  # each model's replayed residual, read again by _stored_rms below
+        e_diag, mf_diag, pl_diag = _heldout_on_basis(jf, preps, jf.selected, basis, min_speed, excl, n_folds,
+                                                     cache=cache)
+        e_fit, _, _ = _heldout_on_basis(jf, preps, choice, basis, min_speed, excl, n_folds, like=pl_diag,
+                                        cache=cache)
     except (ConfigError, FrictidInputError, KeyError, ValueError):
         return
     what = ("plateau means" if basis == "plateaus" else
@@ -186,7 +195,8 @@ def check_diagnosis(jf: JointFit, preps: list[Prep], choice: str, basis: str, mi
         # ones, fitted by the diagnosis on sliding samples: they must predict the moving samples about as
         # well as the fit's stored choice (EMPS: a polynomial refitted on two plateau speeds, 54 % force
         # error, scored like polynomial_asym once refitted)
-        s_diag, s_fit = _stored_rms(jf, preps, jf.selected, min_speed), _stored_rms(jf, preps, choice, min_speed)
+        s_diag = _stored_rms(jf, preps, jf.selected, min_speed, cache)
+        s_fit = _stored_rms(jf, preps, choice, min_speed, cache)
         rec.update(rms_stored=s_diag, rms_stored_fit_choice=s_fit)
         worse = math.isfinite(s_diag) and math.isfinite(s_fit) and s_diag > DIAGNOSIS_TOLERANCE * s_fit
         if worse:
