@@ -55,6 +55,8 @@ EXPLAINED_MIN = 0.02
 #: sensor's bias from a Coulomb level that differs by direction, and the rest torque after a move does not
 #: either (the bristles hold the sliding level; foreign seed 300017, docs/scorecards.md).
 COMPETITORS = {"offset": ("asym_level",)}
+
+
 def _competing_causes(tr: Trial) -> set:
     """The causes of a candidate's competing explanations (:data:`COMPETITORS`)."""
     return {EXTENSIONS[x][0] for x in COMPETITORS.get(tr.ext, ())}
@@ -90,9 +92,9 @@ class Trial:
     #: other causes this one does not beat on held-out data (one-sided paired t, p >= ALPHA): it is then not
     #: named, its term kept (:func:`frictid.diagnose.joint`: ``selection.diagnosis.ambiguous``)
     unresolved: list = field(default_factory=list)
-    #: a delay judged on every moving sample too (:func:`frictid.diagnose.signals.delay_heldout`): held-out
-    #: RMS before and after, t, p and the RMS it explains there; computed by :meth:`Chain.worth_it` only
-    #: where it decides (None otherwise, and for other candidates)
+    #: a delay judged on every moving sample too (:func:`delay_moving`): held-out RMS before and after, the
+    #: per-group differences, t, p and the RMS it explains there; computed only where it decides (None
+    #: otherwise, and for other candidates)
     moving: dict | None = None
     #: the candidate's term index in the extended structure (its coefficients' key in ``Coef.gamma``)
     index: int = -1
@@ -250,15 +252,6 @@ class Chain:
             memo = self._memo_before = (self.pred, rb, float(np.sqrt(np.dot(rb_in, rb_in) / n_in)), out, n_in)
         return memo[1:]
 
-    def _delay_moving(self, terms: list) -> dict:
-        """A delay judged on every moving sample (:func:`frictid.diagnose.signals.delay_heldout`, each fold's
-        shift from its training folds), where a delay shows most: in the transients, which the sliding
-        samples leave out (the inertial torque there is large)."""
-        rb, ra, d = delay_heldout(self.S, [float(t.settings.get("shift", 0.0)) for t in terms])
-        t, p = paired_t(d)
-        return {"rms_before": rb, "rms_after": ra, "t": t, "p": p,
-                "explained": math.sqrt(max(rb * rb - ra * ra, 0.0)) if math.isfinite(rb) else 0.0}
-
     def significant(self, tr: Trial, m: int) -> bool:
         return tr.p < ALPHA / max(m, 1)
 
@@ -277,9 +270,7 @@ class Chain:
             return True
         if tr.ext != "delay" or tr.gain < GAIN_MIN:
             return False
-        if tr.moving is None:   # computed only here, where it decides (one pass over the moving samples)
-            tr.moving = self._delay_moving(tr.fold_terms)
-        mv = tr.moving
+        mv = delay_moving(self.S, tr)   # computed only here, where it decides (one pass over the moving samples)
         return bool(mv["p"] < ALPHA / max(m, 1) and mv["explained"] >= EXPLAINED_MIN * self.F_rms)
 
     def choose(self, trials: list[Trial], m: int, rejected: list | None = None) -> Trial | None:
@@ -315,7 +306,7 @@ class Chain:
 
     def _delay_before_dwell(self, best: Trial, ok: list[Trial], m: int) -> Trial:
         """The chosen candidate, except that a dwell yields to a worthy delay that explains more torque where
-        it shows, on every moving sample (:meth:`_delay_moving`, significant at the step's level), than the
+        it shows, on every moving sample (:func:`delay_moving`, significant at the step's level), than the
         dwell explains on the sliding samples. A delay's residual is largest in the transients, which the
         sliding samples leave out but for the start of each move, where the dwell's variable is largest
         too: the dwell then takes the part of the delay the sliding samples see and wins on their RMS
@@ -326,9 +317,7 @@ class Chain:
         d = next((t for t in ok if t.ext == "delay"), None)
         if d is None:
             return best
-        if d.moving is None:
-            d.moving = self._delay_moving(d.fold_terms)
-        mv = d.moving
+        mv = delay_moving(self.S, d)
         return d if mv["p"] < ALPHA / max(m, 1) and mv["explained"] > best.explained else best
 
     def _rivals(self, best: Trial, others: list[Trial], m: int) -> None:
@@ -377,7 +366,7 @@ class Chain:
         ss = float(cb @ cb)
         perp = ca - (float(ca @ cb) / ss) * cb if ss > 0 else ca
         e = self.S.F - b.pred_after
-        _, p = paired_t(np.bincount(self.S.group, weights=e * perp, minlength=self.S.n_groups))
+        _, p = paired_t(self.S.group_sums(e * perp))
         return p < ALPHA / max(m, 1)
 
     def same_correction(self, a: Trial, b: Trial) -> bool:
@@ -742,6 +731,25 @@ def _unresolved_delay(S: Samples, tr: Trial) -> str | None:
     return None
 
 
+def _fold_shifts(tr: Trial) -> list[float]:
+    """A delay trial's shift [s] per fold (each chosen on its training folds)."""
+    return [float(t.settings.get("shift", 0.0)) for t in tr.fold_terms]
+
+
+def delay_moving(S: Samples, tr: Trial) -> dict:
+    """A delay trial judged on every moving sample (:func:`frictid.diagnose.signals.delay_heldout`, each
+    fold's shift from its training folds), where a delay shows most: in the transients, which the sliding
+    samples leave out (the inertial torque there is large). Computed once and kept on the trial
+    (``tr.moving``): the moving-sample route of :meth:`Chain.worth_it`, the dwell's yield to a delay and the
+    friction-lag competitor read the same pass."""
+    if tr.moving is None:
+        rb, ra, d = delay_heldout(S, _fold_shifts(tr))
+        t, p = paired_t(d)
+        tr.moving = {"rms_before": rb, "rms_after": ra, "d": d, "t": t, "p": p,
+                     "explained": math.sqrt(max(rb * rb - ra * ra, 0.0)) if math.isfinite(rb) else 0.0}
+    return tr.moving
+
+
 def _a_friction_lag(S: Samples, tr: Trial, m: int) -> str | None:
     """Why a delay candidate is not a delay of the torque but a lag of the friction behind the velocity, or
     None. A delay of the signal shifts the whole measured torque (the inertial and gravity torques too), a
@@ -752,12 +760,12 @@ def _a_friction_lag(S: Samples, tr: Trial, m: int) -> str | None:
     level. (Foreign seed 307721, a clean work program at 131 Hz: a 1.8-sample torque shift cut the moving
     samples' held-out RMS from 2.59 to 2.10 N m, the map one sample earlier to 2.03.)"""
     from .lag import friction_lag_heldout
-    shifts = [float(t.settings.get("shift", 0.0)) for t in tr.fold_terms]
-    lag = friction_lag_heldout(S, float(np.mean(shifts)))
+    lag = friction_lag_heldout(S, float(np.mean(_fold_shifts(tr))))
     if lag is None:
         return None
-    rb, ra, d = delay_heldout(S, shifts)
-    t, p = paired_t(d - (lag["ss0"] - lag["ss1"]))
+    mv = delay_moving(S, tr)
+    rb, ra = mv["rms_before"], mv["rms_after"]
+    t, p = paired_t(mv["d"] - (lag["ss0"] - lag["ss1"]))
     if p < ALPHA / max(m, 1):
         return None
     ms = sorted({round(1e3 * x, 3) for x in lag["lags"]})
