@@ -471,6 +471,24 @@ def _closed_loop(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
         T = Tss + (T - Tss) * eK
 
 
+def command_ref(md, integ, e_q, e_qd, tff, p, h):
+    """The controller of :func:`simulate_joint` for one sample, in plain python (the twins' shared law):
+    the command and the integrator after it, from the position and velocity errors (reference minus
+    measured). Torque mode passes the feedforward; PID and PI act with conditional-integration anti-windup
+    at ``tau_max``."""
+    if md == MODE_TORQUE:
+        u, new = tff, 0.0
+    elif md == MODE_PID:
+        new = integ + p[P_KI] * e_q * h
+        u = tff + p[P_KP] * e_q + p[P_KD] * e_qd + new
+    else:
+        new = integ + p[P_KVI] * e_qd * h
+        u = tff + p[P_KV] * e_qd + new
+    if abs(u) > p[P_TMAX]:
+        return float(np.clip(u, -p[P_TMAX], p[P_TMAX])), integ
+    return u, new
+
+
 def simulate_joint_ref(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, gmul, fmul,
                        nq, nqd, p, c_pos, c_neg, dc_pos, dc_neg, th_code, theta, state0):
     """Plain-python twin of :func:`simulate_joint` (numpy map functions, scipy expm step). Slow."""
@@ -496,18 +514,7 @@ def simulate_joint_ref(h, nsub, mode, q_ref, qd_ref, tau_ff, Tenv, payload, rese
         qdm = w + nqd[k]
         if mode[k] != prev:
             integ, prev = 0.0, mode[k]
-        if mode[k] == MODE_TORQUE:
-            u, new = tau_ff[k], 0.0
-        elif mode[k] == MODE_PID:
-            new = integ + p[P_KI] * (q_ref[k] - qm) * h
-            u = tau_ff[k] + p[P_KP] * (q_ref[k] - qm) + p[P_KD] * (qd_ref[k] - qdm) + new
-        else:
-            new = integ + p[P_KVI] * (qd_ref[k] - qdm) * h
-            u = tau_ff[k] + p[P_KV] * (qd_ref[k] - qdm) + new
-        if abs(u) > p[P_TMAX]:
-            u = np.clip(u, -p[P_TMAX], p[P_TMAX])
-        else:
-            integ = new
+        u, integ = command_ref(mode[k], integ, q_ref[k] - qm, qd_ref[k] - qdm, tau_ff[k], p, h)
         for key, val in (("q", q), ("w", w), ("z", z), ("T", T), ("u", u), ("qm", qm), ("qdm", qdm)):
             out[key][k] = val
         hs = h / nsub

@@ -14,8 +14,8 @@ from scipy.integrate import solve_ivp
 
 from ..models.static import canonical_level, canonical_viscous
 from ..models.thermal import canonical_at
-from .kernel import (MODE_PID, MODE_TORQUE, P_C, P_GOFF, P_J, P_K, P_KD, P_KI, P_KP, P_KV, P_KVI, P_LOAD,
-                     P_HAMP, P_HPER, P_HPH, P_PAMP, P_PAY, P_PPER, P_PPH, P_PX, P_PY, P_QRES, P_S0N, P_S0P, P_S1N, P_S1P, P_TMAX)
+from .kernel import (P_C, P_GOFF, P_HAMP, P_HPER, P_HPH, P_J, P_K, P_LOAD, P_PAMP, P_PAY, P_PPER, P_PPH, P_PX,
+                     P_PY, P_QRES, P_S0N, P_S0P, P_S1N, P_S1P, command_ref)
 
 
 def _friction(q, w, z, T, u, k, p, c_pos, c_neg, dc_pos, dc_neg, code, theta, gmul, fmul):
@@ -52,18 +52,7 @@ def simulate_joint_ivp(h, mode, q_ref, qd_ref, tau_ff, Tenv, payload, reset_T, g
         qdm = w + nqd[k]
         if mode[k] != prev:
             integ, prev = 0.0, mode[k]
-        if mode[k] == MODE_TORQUE:
-            u, new = tau_ff[k], 0.0
-        elif mode[k] == MODE_PID:
-            new = integ + p[P_KI] * (q_ref[k] - qm) * h
-            u = tau_ff[k] + p[P_KP] * (q_ref[k] - qm) + p[P_KD] * (qd_ref[k] - qdm) + new
-        else:
-            new = integ + p[P_KVI] * (qd_ref[k] - qdm) * h
-            u = tau_ff[k] + p[P_KV] * (qd_ref[k] - qdm) + new
-        if abs(u) > p[P_TMAX]:
-            u = float(np.clip(u, -p[P_TMAX], p[P_TMAX]))
-        else:
-            integ = new
+        u, integ = command_ref(mode[k], integ, q_ref[k] - qm, qd_ref[k] - qdm, tau_ff[k], p, h)
         F, _ = _friction(q, w, z, T, u, k, p, c_pos, c_neg, dc_pos, dc_neg, code, theta, gmul, fmul)
         for key, val in (("q", q), ("w", w), ("z", z), ("T", T), ("u", u), ("F", F)):
             out[key][k] = val
