@@ -26,6 +26,8 @@ MOVING_SHARE = 0.02
 #: A joint stands over a stretch when its logged angle stays within this many of its resolution steps
 #: (the standing band of the whole-robot fit: five noise levels).
 STAND_STEPS = 5
+#: The kinematics' own rounding [rad]: a tilt below it is zero however finely the angles are logged.
+FLOAT_TILT = 1e-9
 
 
 @dataclass
@@ -85,12 +87,17 @@ def one_joint_motion(robot: Robot, logs) -> tuple[list[str], str]:
                   f"moving alone / moving: {', '.join(parts)})")
 
 
-def _resolution(q: np.ndarray) -> float:
-    """The logged angle's resolution: the smallest change between samples (an encoder step or the
-    logged digits)."""
-    d = np.abs(np.diff(np.asarray(q, float)))
-    d = d[d > 0]
-    return float(d.min()) if d.size else 0.0
+def _resolution(q: np.ndarray) -> list[float]:
+    """Each logged angle's resolution (columns of ``q``): the smallest change between its samples (an
+    encoder step or the logged digits); for an angle that never changes, the finest of the others (one
+    logger, alike encoders)."""
+    out = []
+    for col in np.asarray(q, float).T:
+        d = np.abs(np.diff(col))
+        d = d[d > 0]
+        out.append(float(d.min()) if d.size else np.nan)
+    finest = np.nanmin(out) if np.isfinite(out).any() else 0.0
+    return [finest if not np.isfinite(r) else r for r in out]
 
 
 def _axes(robot: Robot, q: np.ndarray, j: int) -> tuple[np.ndarray, bool]:
@@ -131,23 +138,27 @@ def pose_gravity(robot: Robot, logs, joint: str) -> PoseGravity:
                            "a constant force, part of the offset")
     g = np.asarray(robot.model.gravity.linear, float)
     tilt = float(np.max(np.linalg.norm(np.cross(axes, g / np.linalg.norm(g)), axis=1)[inv]))
-    res = [_resolution(q[:, i]) for i in range(q.shape[1])]
+    res = _resolution(q)
     carriers = _supporting(robot, j)
-    tol = float(sum(res[i] for i in carriers))
+    tol = max(float(sum(res[i] for i in carriers)), FLOAT_TILT)
     others = [i for i in range(q.shape[1]) if i != j]
-    moved = [(robot.joints[i], float(np.ptp(q[mov, i]))) for i in others
-             if np.ptp(q[mov, i]) > STAND_STEPS * max(res[i], 1e-12)]
+    travel = {robot.joints[i]: float(np.ptp(q[mov, i])) for i in others}
+    moved = {n: r for (n, r), i in zip(travel.items(), others) if r > STAND_STEPS * max(res[i], 1e-12)}
     if tilt <= tol:
+        by = (f"within the {tol:.2g} rad the logged angles of joints "
+              f"{', '.join(robot.joints[i] for i in carriers)} resolve" if carriers else "fixed to the base")
         return PoseGravity(joint, "none", tilt, tol, (
-            f"joint {joint}'s axis is parallel to gravity at every moving sample (tilt {tilt:.2g} rad, within the "
-            f"{tol:.2g} rad the logged angles of joints {', '.join(robot.joints[i] for i in carriers) or '-'} "
-            "resolve): its gravity torque is zero whatever the links' masses; Px, Py held at 0"))
+            f"joint {joint}'s axis is parallel to gravity at every moving sample (tilt {tilt:.2g} rad, {by}): its "
+            "gravity torque is zero whatever the links' masses; Px, Py held at 0"))
     if moved:
+        # each other joint's travel turns the carried links or the axis by at most that angle: the gravity
+        # departs from the one-pose form by at most about the sum, as a share of its amplitude
         return PoseGravity(joint, "varies", tilt, tol, (
-            f"the other joints move while joint {joint} moves ({', '.join(f'{n} over {r:.3g} rad' for n, r in moved)}): "
-            "its gravity is not a function of its angle alone; fitted as Px cos q + Py sin q"))
+            f"the other joints move while joint {joint} moves ({', '.join(f'{n} over {r:.2g} rad' for n, r in moved.items())}): "
+            f"its gravity departs from Px cos q + Py sin q by up to about {sum(moved.values()):.2g} of its "
+            "amplitude; fitted as Px cos q + Py sin q"))
     return PoseGravity(joint, "angle", tilt, tol, (
-        f"joint {joint}'s axis is tilted from gravity (|z x g| / |g| up to {tilt:.3g}) and the other joints "
+        f"joint {joint}'s axis is tilted from gravity (|z x g| / |g| up to {tilt:.2g}) and the other joints "
         "stand: its gravity is Px cos q + Py sin q, fitted"))
 
 
