@@ -87,8 +87,9 @@ def pose_logs(rb, logs: list[JointLog], joints: list[str]) -> tuple[list[JointLo
             if lg.meta.get("gravity") is not None:
                 said[j]["note"] += "; the log's metadata declares a gravity, which is kept"
             else:
-                lg.meta = {**lg.meta, "gravity": [0.0, 0.0], "gravity_source": f"robot kinematics: joint {j}'s axis is parallel to gravity in the logged pose "
-                                                     "(settings.robot_pose)"}
+                why = (f"robot kinematics: joint {j}'s axis is parallel to gravity in the logged pose "
+                       "(settings.robot_pose)")
+                lg.meta = {**lg.meta, "gravity": [0.0, 0.0], "gravity_source": why}
         out.append(lg)
     return out, said
 

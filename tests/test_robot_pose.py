@@ -150,3 +150,32 @@ def test_ur10e_jointwise_runs_gravity_from_the_pose():
     # centre of mass, which a DH table does not give, decides its gravity); joints 2-4 carry the arm
     assert forms[1] == forms[5] == "none"
     assert all(forms[k] in ("angle", "varies") for k in (2, 3, 4, 6)), forms
+
+
+def test_fit_command_with_a_robot_reads_a_one_joint_log_joint_by_joint(tmp_path, cli):
+    import json
+
+    import yaml
+
+    from frictid.io.logs import write_logs
+
+    robot = arm()
+    dh = {"name": "arm", "gravity": [0, 0, -9.81],
+          "joints": [{"name": "1", "d": 0.3, "alpha": math.pi / 2}, {"name": "2", "a": 0.4, "alpha": math.pi / 2},
+                     {"name": "3", "a": 0.3, "d": 0.05}]}
+    (tmp_path / "arm.yaml").write_text(yaml.safe_dump(dh))
+    logs = one_joint_logs(robot, 0, (0.0, 0.4, 0.3), seed=31, duration=12.0)
+    write_logs(logs, str(tmp_path / "base.parquet"))
+    write_logs(logs[:1], str(tmp_path / "joint1.parquet"))
+    r = cli("fit", tmp_path / "base.parquet", "--robot", tmp_path / "arm.yaml", "-o", tmp_path / "p.yaml",
+            "--no-diagnose", "--json")
+    assert r.code == 0, r
+    out = json.loads(r.out)
+    assert list(out["joints"]) == ["1"] and out["robot_pose"]["joints"]["1"]["form"] == "none"
+    p = yaml.safe_load((tmp_path / "p.yaml").read_text())
+    assert p["joints"]["1"]["gravity"]["Px"]["source"].startswith("robot kinematics")
+    assert "one joint moves at a time" in p["settings"]["robot_pose"]["motion"]
+    # the parameter file replays the joint's log without the robot, as any one-joint fit
+    r = cli("simulate", "--params", tmp_path / "p.yaml", "--replay", tmp_path / "joint1.parquet",
+            "-o", tmp_path / "replay.parquet")
+    assert r.code == 0, r

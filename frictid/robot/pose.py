@@ -153,8 +153,9 @@ def pose_gravity(robot: Robot, logs, joint: str) -> PoseGravity:
     if moved:
         # each other joint's travel turns the carried links or the axis by at most that angle: the gravity
         # departs from the one-pose form by at most about the sum, as a share of its amplitude
+        which = ", ".join(f"{n} over {r:.2g} rad" for n, r in moved.items())
         return PoseGravity(joint, "varies", tilt, tol, (
-            f"the other joints move while joint {joint} moves ({', '.join(f'{n} over {r:.2g} rad' for n, r in moved.items())}): "
+            f"the other joints move while joint {joint} moves ({which}): "
             f"its gravity departs from Px cos q + Py sin q by up to about {sum(moved.values()):.2g} of its "
             "amplitude; fitted as Px cos q + Py sin q"))
     return PoseGravity(joint, "angle", tilt, tol, (
