@@ -131,15 +131,18 @@ def pose_gravity(robot: Robot, logs, joint: str) -> PoseGravity:
     mov = moving_mask(robot, logs)[:, j]
     if not mov.any():
         return PoseGravity(joint, "varies", float("nan"), 0.0, f"joint {joint} does not move")
-    poses, inv = np.unique(q[mov], axis=0, return_inverse=True)
+    # the axis' direction depends only on the joints between the base and this one: each of their poses once
+    carriers = _supporting(robot, j)
+    held, inv = np.unique(q[mov][:, carriers], axis=0, return_inverse=True)
+    poses = np.zeros((held.shape[0], q.shape[1]))
+    poses[:, carriers] = held
     axes, revolute = _axes(robot, poses, j)
     if not revolute:
         return PoseGravity(joint, "offset", float("nan"), 0.0, f"joint {joint} is prismatic: gravity along it is "
                            "a constant force, part of the offset")
     g = np.asarray(robot.model.gravity.linear, float)
-    tilt = float(np.max(np.linalg.norm(np.cross(axes, g / np.linalg.norm(g)), axis=1)[inv]))
+    tilt = float(np.max(np.linalg.norm(np.cross(axes, g / np.linalg.norm(g)), axis=1)[np.ravel(inv)]))
     res = _resolution(q)
-    carriers = _supporting(robot, j)
     tol = max(float(sum(res[i] for i in carriers)), FLOAT_TILT)
     others = [i for i in range(q.shape[1]) if i != j]
     travel = {robot.joints[i]: float(np.ptp(q[mov, i])) for i in others}
