@@ -5,8 +5,15 @@ static maps, Stribeck and polynomial models, selection, diagnosis, all as for on
 
 ``friction="linear"`` stops after the first stage (each joint's Coulomb-viscous model, as the joint
 estimate gives it); ``"models"`` (the default) runs the second.
+
+A log that moves one joint at a time (:func:`frictid.robot.pose.one_joint_motion`), or a joint named with
+``joint``, is fitted one joint at a time instead (the rigid body cannot be identified from it): the robot
+gives each moving joint the form of its pose's gravity (:func:`frictid.robot.pose.pose_gravity`), none
+where its axis is parallel to gravity; ``settings.robot_pose`` of the result says what it did.
 """
 from __future__ import annotations
+
+import copy
 
 import numpy as np
 
@@ -17,6 +24,7 @@ from .io.logs import file_sha256, read_many
 from .result import FitResult
 from .robot import identify_robot, load_robot
 from .robot.identify import Prediction, cut_log, friction_log, predict
+from .robot.pose import one_joint_motion, pose_gravity
 from .robot.result import fit_result
 
 FRICTION_STAGES = ("models", "linear")
@@ -29,22 +37,28 @@ def friction_logs(logs: list[JointLog], p: Prediction) -> list[JointLog]:
 
 
 def fit_robot(paths_or_logs, robot, mapping=None, units=None, *, friction: str = "models",
-              diagnose: bool = True, jobs: int = 1, robot_file: str | None = None) -> FitResult:
+              diagnose: bool = True, jobs: int = 1, robot_file: str | None = None,
+              joint: str | None = None) -> FitResult:
     """Identify a robot from multi-joint logs (paths or :class:`JointLog` objects, one log per robot joint,
     on a common time base). robot : a :class:`~frictid.robot.description.Robot` or the path of a DH YAML or
     URDF. friction : ``"models"`` or ``"linear"`` (see the module). Returns the parameter file's
-    :class:`FitResult`: the joints' models, and the robot's base parameters under ``settings.robot``."""
+    :class:`FitResult`: the joints' models, and the robot's base parameters under ``settings.robot``; for
+    one-joint motion (or ``joint`` given) the moving joints' one-joint fits with the pose's gravity, and what
+    the kinematics said under ``settings.robot_pose`` (:func:`fit_pose`)."""
     if friction not in FRICTION_STAGES:
         raise FrictidInputError(f"fit: --robot-friction must be one of {', '.join(FRICTION_STAGES)}, not {friction!r}")
     items = [paths_or_logs] if isinstance(paths_or_logs, (str, JointLog)) else list(paths_or_logs)
     paths = [str(x) for x in items if not isinstance(x, JointLog)]
     logs = [x for x in items if isinstance(x, JointLog)] + (read_many(paths, mapping, units) if paths else [])
     rb = load_robot(robot) if isinstance(robot, (str, bytes)) or hasattr(robot, "__fspath__") else robot
-    rf = identify_robot(rb, logs)
     rows: dict[str, int] = {}
     for lg in logs:
         rows[lg.source] = max(rows.get(lg.source, 0), lg.n)
     sources = [{"path": p, "sha256": file_sha256(p), "rows": rows.get(p, 0)} for p in paths]
+    solo, why = ([str(joint)], f"joint {joint} named") if joint is not None else one_joint_motion(rb, logs)
+    if solo:
+        return fit_pose(rb, logs, solo, why, sources, robot_file, diagnose=diagnose, jobs=jobs)
+    rf = identify_robot(rb, logs)
     first = fit_result(rb, rf, sources, robot_file or str(robot if not hasattr(robot, "model") else rb.name))
     if friction == "linear":
         return first
@@ -53,6 +67,43 @@ def fit_robot(paths_or_logs, robot, mapping=None, units=None, *, friction: str =
     for s in res.sources:
         s["sha256"] = hashes.get(s["path"])
     res.settings["robot"] = dict(first.settings["robot"], friction_stage="models")
+    return res
+
+
+def pose_logs(rb, logs: list[JointLog], joints: list[str]) -> tuple[list[JointLog], dict]:
+    """The logs of ``joints`` for one-joint fits, each with its pose's gravity from the robot's kinematics
+    where they fix it (none: ``meta.gravity`` held at 0; a gravity the log's metadata declares is kept), and
+    per joint what the kinematics said (:class:`frictid.robot.pose.PoseGravity` as a dict)."""
+    by = {str(lg.joint): lg for lg in logs}
+    missing = [j for j in joints if j not in by]
+    if missing:
+        raise FrictidInputError(f"fit: joint {', '.join(missing)} is not in the logs (their joints: {', '.join(by)})")
+    out, said = [], {}
+    for j in joints:
+        pg = pose_gravity(rb, logs, j)
+        lg = copy.copy(by[j])
+        said[j] = pg.to_dict()
+        if pg.form == "none":
+            if lg.meta.get("gravity") is not None:
+                said[j]["note"] += "; the log's metadata declares a gravity, which is kept"
+            else:
+                why = (f"robot kinematics: joint {j}'s axis is parallel to gravity in the logged pose "
+                       "(settings.robot_pose)")
+                lg.meta = {**lg.meta, "gravity": [0.0, 0.0], "gravity_source": why}
+        out.append(lg)
+    return out, said
+
+
+def fit_pose(rb, logs: list[JointLog], joints: list[str], why: str, sources: list[dict], robot_file,
+             diagnose: bool = True, jobs: int = 1) -> FitResult:
+    """One-joint fits of ``joints`` (each log with its pose's gravity, :func:`pose_logs`); ``settings.robot_pose``
+    records the robot, why the log was read one joint at a time, and each joint's gravity form."""
+    jl, said = pose_logs(rb, logs, joints)
+    res = fit_joints(jl, diagnose=diagnose, jobs=jobs)
+    hashes = {s["path"]: s["sha256"] for s in sources}
+    for s in res.sources:
+        s["sha256"] = hashes.get(s["path"], s.get("sha256"))
+    res.settings["robot_pose"] = {"robot": rb.name, "file": robot_file or rb.name, "motion": why, "joints": said}
     return res
 
 

@@ -32,7 +32,8 @@ def fit(
     robot: Annotated[Optional[str], typer.Option(
         "--robot", help="A robot (DH YAML or URDF, e.g. recipes/robots/panda.yaml): identify the rigid-body base "
                         "parameters jointly with every joint's Coulomb, viscous and offset friction from "
-                        "multi-joint motion (docs/robots.md).")] = None,
+                        "multi-joint motion; a log that moves one joint at a time (or --joint J) is fitted one "
+                        "joint at a time, with the gravity form its pose has (docs/robots.md).")] = None,
     robot_friction: Annotated[str, typer.Option(
         "--robot-friction", help="With --robot: models (then every model of frictid on each joint's friction "
                                  "torque, the rigid body held) or linear (the joint estimate's Coulomb-viscous "
@@ -75,7 +76,8 @@ def fit(
         from .report import check_fit_report
         check_fit_report(report, output, logs, mapping)
     if robot:
-        return _fit_robot(logs, robot, output, mapping, units, con, as_json, robot_friction, not no_diagnose, jobs)
+        return _fit_robot(logs, robot, output, mapping, units, con, as_json, robot_friction, not no_diagnose, jobs,
+                          joint)
     parse_models(models)  # refuse unknown names before reading anything
     con.info(f"frictid: fitting {len(logs)} log{'s' if len(logs) != 1 else ''} ...")
     res = run_fit(logs, joint=joint, models=models, mapping=mapping, units=units, diagnose=not no_diagnose,
@@ -87,6 +89,11 @@ def fit(
                                          ("--map", mapping), ("--units", units), ("--no-diagnose", no_diagnose),
                                          ("--report", report)])
         report_after_fit(report, res, logs, mapping, units, output, cmd, con)
+    _summarise(res, output, con, as_json, report)
+
+
+def _summarise(res, output, con, as_json, report=None, extra=None) -> None:
+    """Each joint's choice and warnings on the console (and as JSON with ``--json``)."""
     summary = {}
     for j, jd in res.to_dict()["joints"].items():
         js = summary[j] = joint_summary(jd)
@@ -100,18 +107,25 @@ def fit(
     if output != "-":
         con.info(f"frictid: wrote {output}")
     if as_json:
-        emit_json("fit", {"output": output, "report": report, "joints": summary, "warnings": con.warnings})
+        emit_json("fit", {"output": output, "report": report, **(extra or {}), "joints": summary,
+                          "warnings": con.warnings})
 
 
-def _fit_robot(logs, robot, output, mapping, units, con, as_json, friction, diagnose, jobs) -> None:
+def _fit_robot(logs, robot, output, mapping, units, con, as_json, friction, diagnose, jobs, joint=None) -> None:
     """``frictid fit LOG... --robot ROBOT``: the whole-robot identification into a parameter file."""
     from ..io.params import write_params
     from ..robotfit import fit_robot
 
     con.info(f"frictid: identifying the robot of {robot} from {len(logs)} log{'s' if len(logs) != 1 else ''} ...")
     res = fit_robot(logs, robot, mapping, units, friction=friction, diagnose=diagnose, jobs=jobs,
-                    robot_file=str(robot))
+                    robot_file=str(robot), joint=joint)
     write_params(res, output)
+    if "robot_pose" in res.settings:
+        rp = res.settings["robot_pose"]
+        con.info(f"frictid: {rp['robot']}: fitted one joint at a time ({rp['motion']})")
+        for j, said in rp["joints"].items():
+            con.info(f"frictid: joint {j}: gravity {said['form']}: {said['note']}")
+        return _summarise(res, output, con, as_json, extra={"robot_pose": rp})
     rs = res.settings["robot"]
     con.info(f"frictid: {rs['name']}: {len(rs['base_parameters'])} base parameters, condition number "
              f"{rs['condition_number']:.3g}, relative torque error {100 * rs['relative_torque_error']:.2f} %")

@@ -37,6 +37,9 @@ class Regressors:
     names: list[str]
     known: dict[str, tuple[float, float | None]]
     has_q: bool
+    #: where a known term came from when not the log's own metadata (name -> a sentence: the gravity a
+    #: robot's kinematics fix, frictid.robot.pose)
+    sources: dict[str, str] | None = None
 
     @property
     def free(self) -> tuple[str, ...]:
@@ -116,9 +119,13 @@ def known_from_meta(meta: dict) -> dict[str, tuple[float, float | None]]:
 
 def regressors(jd: JointData) -> Regressors:
     """The rigid-body regression's terms for a joint's logs (and those its metadata gives)."""
-    known = {}
+    known, sources = {}, {}
     for p in jd.preps:
-        known.update(known_from_meta(p.log.meta or {}))
+        meta = p.log.meta or {}
+        got = known_from_meta(meta)
+        known.update(got)
+        if meta.get("gravity_source"):
+            sources.update({n: str(meta["gravity_source"]) for n in ("Px", "Py") if n in got})
     has_q = all(p.log.q is not None for p in jd.preps)
     has_payload = all("payload" in p.log.channels for p in jd.preps)
     names = ["J", *POLY_COEFS]
@@ -127,7 +134,7 @@ def regressors(jd: JointData) -> Regressors:
     if has_payload and has_q:
         names += ["Mx"] + (["My"] if jd.axis == "rotary" else [])
     names += ["offset"]
-    return Regressors(names, known, has_q)
+    return Regressors(names, known, has_q, sources)
 
 
 def _dims(name: str) -> str:
@@ -291,7 +298,8 @@ def set_mechanics(jd: JointData, reg_fit: rg.LinearFit | None, regs: Regressors,
     def est(name):
         if name in regs.known:
             v, s = regs.known[name]
-            return ParamEstimate(name, v, s, _unit(_dims(name), axis), True, "", source="log metadata")
+            return ParamEstimate(name, v, s, _unit(_dims(name), axis), True, "",
+                                 source=(regs.sources or {}).get(name, "log metadata"))
         pe = reg_estimate(name, reg_fit, jd, why_reg)
         pe.source = source
         return pe

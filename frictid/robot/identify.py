@@ -86,7 +86,8 @@ def align(robot: Robot, logs) -> tuple[np.ndarray, list]:
     missing = [j for j in robot.joints if j not in by]
     if missing:
         raise ConfigError(f"robot {robot.name}: no log for joint {', '.join(missing)} (logs: {', '.join(by)}); "
-                          "name the log's joints as the robot's")
+                          "name the log's joints as the robot's; a log of one joint moved alone needs the standing "
+                          "joints' angles too (its pose): map every joint's columns, docs/robots.md")
     extra = [j for j in by if j not in robot.joints]
     if extra:
         raise ConfigError(f"robot {robot.name}: the logs hold joint {', '.join(extra)}, which the robot does not "
