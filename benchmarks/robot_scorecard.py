@@ -17,7 +17,11 @@
    (classical least squares: every sample, the torque low-passed, the regressor not; for the UR10e exactly
    Mamedov et al.'s filterData.m), per joint; and the published friction held with the base parameters
    re-fitted, against the free fit (the residual each joint gains).
-With FRICTID_SMOKE=1: two arms, the Franka run, and part 4 on the first eighth of the Franka run.
+5. The Franka run with the rigid body known (``--rigid-body known``: the catalogue inertias of
+   recipes/robots/panda.urdf subtracted) against identified: friction against Table III, the known rigid
+   body's F test, held-out torque error of both stages (``--part known``).
+With FRICTID_SMOKE=1: two arms, the Franka run, part 4 on the first eighth of the Franka run and part 5 on
+its first quarter.
 """
 from __future__ import annotations
 
@@ -341,6 +345,45 @@ def friction_values(smoke: bool) -> None:
     published("UR10e harmonic run, whole (UR10E_parameters.txt)", ur10e, ur, MAMEDOV, rows)
 
 
+def known(smoke: bool = False) -> None:
+    """Part 5: the Franka run with the rigid body known from the shipped URDF's catalogue inertias
+    (recipes/robots/panda.urdf, example-robot-data) against the rigid body identified from the run
+    (recipes/robots/panda.yaml): per joint fc, fv, fo against Table III, the F test of the known rigid body,
+    and the held-out torque error (first 70 % fitted, last 30 % predicted, as logged) of the joint estimate
+    and of stage 2's selected models."""
+    from frictid.robot.known import identify_known
+
+    logs = read_logs(str(ROOT.parent / "shared/realdata/franka_panda_gaz2019"),
+                     str(ROOT / "recipes/realdata/franka_panda.yaml"))
+    if smoke:
+        logs = [cut_log(lg, slice(0, lg.n // 4)) for lg in logs]
+    routes = {"identify": (load_robot(ROOT / "recipes/robots/panda.yaml"), identify_robot),
+              "known": (load_robot(ROOT / "recipes/robots/panda.urdf"), identify_known)}
+    print("Franka Panda, rigid body identified (panda.yaml) vs known (panda.urdf, catalogue inertias of "
+          "example-robot-data, with the hand): friction against Table III (fc, fv: % off; fo: N m off)")
+    print(f"  {'route':<9} " + " ".join(f"fc{j:<5}" for j in TABLE3) + " | " + " ".join(f"fv{j:<5}" for j in TABLE3)
+          + " | " + " ".join(f"fo{j:<5}" for j in TABLE3) + " | torque error")
+    P = np.array([TABLE3[j] for j in TABLE3])
+    for name, (robot, estimate) in routes.items():
+        t0 = time.process_time()
+        fit = estimate(robot, logs)
+        f = np.array([[fit.friction[j][k].value for k in ("fv", "fc", "fo")] for j in TABLE3])
+        print(f"  {name:<9} " + " ".join(f"{v:+6.1f}%" for v in 100 * (f[:, 1] / P[:, 1] - 1)) + " | "
+              + " ".join(f"{v:+6.1f}%" for v in 100 * (f[:, 0] / P[:, 0] - 1)) + " | "
+              + " ".join(f"{v:+7.3f}" for v in f[:, 2] - P[:, 2])
+              + f" | {100 * fit.rel_error:.2f} % ({time.process_time() - t0:.1f} s CPU)")
+        print("    " + "; ".join(n for n in fit.notes if n.startswith("known rigid body")))
+        ses = " ".join(f"{fit.friction[j]['fc'].stderr:.3g}" for j in TABLE3)
+        print(f"    fc standard errors [N m]: {ses}")
+    print("  held out (first 70 % fitted, last 30 % predicted, as logged), RMS per joint [N m], "
+          "joint estimate | stage 2's models:")
+    for name, (robot, estimate) in routes.items():
+        lin = heldout_errors(robot, logs, 0.3, estimate=estimate)["whole"]
+        mod = heldout_models(robot, logs, 0.3, rigid_body=name)["models"]["whole"]
+        print(f"  {name:<9} " + " ".join(f"{lin[j]:.3f}" for j in TABLE3) + " | "
+              + " ".join(f"{mod[j]:.3f}" for j in TABLE3))
+
+
 #: the real runs of the standing level's lines: (run under shared/realdata, mapping file, robot file)
 REAL_RUNS = [("ur10e_mamedov2020/identification_data/ur-20_02_19_15harm50sec.csv", "recipes/realdata/ur10e_harmonic.yaml",
               "recipes/robots/ur10e.yaml"),
@@ -352,15 +395,19 @@ def main(argv=None) -> int:
     ap.add_argument("--arms", type=int, default=20)
     ap.add_argument("--ur-arms", type=int, default=5, help="6-axis arms with the UR10e's kinematics")
     ap.add_argument("--seed-base", type=int, default=400000)
-    ap.add_argument("--part", choices=("all", "published", "standing"), default="all",
+    ap.add_argument("--part", choices=("all", "published", "standing", "known"), default="all",
                     help="published: part 4 only (friction values against the published ones); standing: the "
-                         "standing level's held-out lines of the UR10e and Franka runs only")
+                         "standing level's held-out lines of the UR10e and Franka runs only; known: part 5 only "
+                         "(the Franka run with the rigid body known from recipes/robots/panda.urdf)")
     args = ap.parse_args(argv)
     smoke = bool(os.environ.get("FRICTID_SMOKE"))
     if smoke:
         args.arms, args.ur_arms = 2, 1
     if args.part == "published":
         friction_values(smoke)
+        return 0
+    if args.part == "known":
+        known(smoke)
         return 0
     if args.part == "standing":
         for run, mapping, robot in REAL_RUNS:
@@ -372,6 +419,7 @@ def main(argv=None) -> int:
     ur10e()
     franka()
     friction_values(smoke)
+    known(smoke)
     return 0
 
 
