@@ -18,7 +18,7 @@
    Mamedov et al.'s filterData.m), per joint; and the published friction held with the base parameters
    re-fitted, against the free fit (the residual each joint gains).
 5. The Franka run with the rigid body known (``--rigid-body known``: the catalogue inertias of
-   recipes/robots/panda.urdf subtracted) against identified: friction against Table III, the known rigid
+   recipes/robots/panda.urdf, with the hand, and panda_arm.urdf, without, subtracted) against identified: friction against Table III, the known rigid
    body's F test, held-out torque error of both stages (``--part known``).
 With FRICTID_SMOKE=1: two arms, the Franka run, part 4 on the first eighth of the Franka run and part 5 on
 its first quarter.
@@ -346,9 +346,9 @@ def friction_values(smoke: bool) -> None:
 
 
 def known(smoke: bool = False) -> None:
-    """Part 5: the Franka run with the rigid body known from the shipped URDF's catalogue inertias
-    (recipes/robots/panda.urdf, example-robot-data) against the rigid body identified from the run
-    (recipes/robots/panda.yaml): per joint fc, fv, fo against Table III, the F test of the known rigid body,
+    """Part 5: the Franka run with the rigid body known from the shipped URDFs' catalogue inertias
+    (example-robot-data: recipes/robots/panda.urdf with the hand, panda_arm.urdf without) against the rigid
+    body identified from the run (recipes/robots/panda.yaml): per joint fc, fv, fo against Table III, the F test of the known rigid body,
     and the held-out torque error (first 70 % fitted, last 30 % predicted, as logged) of the joint estimate
     and of stage 2's selected models."""
     from frictid.robot.known import identify_known
@@ -357,18 +357,20 @@ def known(smoke: bool = False) -> None:
                      str(ROOT / "recipes/realdata/franka_panda.yaml"))
     if smoke:
         logs = [cut_log(lg, slice(0, lg.n // 4)) for lg in logs]
-    routes = {"identify": (load_robot(ROOT / "recipes/robots/panda.yaml"), identify_robot),
-              "known": (load_robot(ROOT / "recipes/robots/panda.urdf"), identify_known)}
-    print("Franka Panda, rigid body identified (panda.yaml) vs known (panda.urdf, catalogue inertias of "
-          "example-robot-data, with the hand): friction against Table III (fc, fv: % off; fo: N m off)")
-    print(f"  {'route':<9} " + " ".join(f"fc{j:<5}" for j in TABLE3) + " | " + " ".join(f"fv{j:<5}" for j in TABLE3)
+    routes = {"identify": (load_robot(ROOT / "recipes/robots/panda.yaml"), identify_robot, "identify"),
+              "known+hand": (load_robot(ROOT / "recipes/robots/panda.urdf"), identify_known, "known"),
+              "known arm": (load_robot(ROOT / "recipes/robots/panda_arm.urdf"), identify_known, "known")}
+    print("Franka Panda, rigid body identified (panda.yaml) vs known from the catalogue inertias of "
+          "example-robot-data (known+hand: panda.urdf; known arm: panda_arm.urdf, no hand): friction against "
+          "Table III (fc, fv: % off; fo: N m off)")
+    print(f"  {'route':<10} " + " ".join(f"fc{j:<5}" for j in TABLE3) + " | " + " ".join(f"fv{j:<5}" for j in TABLE3)
           + " | " + " ".join(f"fo{j:<5}" for j in TABLE3) + " | torque error")
     P = np.array([TABLE3[j] for j in TABLE3])
-    for name, (robot, estimate) in routes.items():
+    for name, (robot, estimate, _) in routes.items():
         t0 = time.process_time()
         fit = estimate(robot, logs)
         f = np.array([[fit.friction[j][k].value for k in ("fv", "fc", "fo")] for j in TABLE3])
-        print(f"  {name:<9} " + " ".join(f"{v:+6.1f}%" for v in 100 * (f[:, 1] / P[:, 1] - 1)) + " | "
+        print(f"  {name:<10} " + " ".join(f"{v:+6.1f}%" for v in 100 * (f[:, 1] / P[:, 1] - 1)) + " | "
               + " ".join(f"{v:+6.1f}%" for v in 100 * (f[:, 0] / P[:, 0] - 1)) + " | "
               + " ".join(f"{v:+7.3f}" for v in f[:, 2] - P[:, 2])
               + f" | {100 * fit.rel_error:.2f} % ({time.process_time() - t0:.1f} s CPU)")
@@ -377,10 +379,10 @@ def known(smoke: bool = False) -> None:
         print(f"    fc standard errors [N m]: {ses}")
     print("  held out (first 70 % fitted, last 30 % predicted, as logged), RMS per joint [N m], "
           "joint estimate | stage 2's models:")
-    for name, (robot, estimate) in routes.items():
+    for name, (robot, estimate, mode) in routes.items():
         lin = heldout_errors(robot, logs, 0.3, estimate=estimate)["whole"]
-        mod = heldout_models(robot, logs, 0.3, rigid_body=name)["models"]["whole"]
-        print(f"  {name:<9} " + " ".join(f"{lin[j]:.3f}" for j in TABLE3) + " | "
+        mod = heldout_models(robot, logs, 0.3, rigid_body=mode)["models"]["whole"]
+        print(f"  {name:<10} " + " ".join(f"{lin[j]:.3f}" for j in TABLE3) + " | "
               + " ".join(f"{mod[j]:.3f}" for j in TABLE3))
 
 
