@@ -165,3 +165,35 @@ def test_a_description_without_inertias_exits_2(cli, tmp_path):
     assert r.code == 2 and "joint b" in r.err and "<inertial>" in r.err and not out.exists(), r
     r = cli("fit", franka, "--map", ROOT / "recipes/realdata/franka_panda.yaml", "--rigid-body", "known", "-o", out)
     assert r.code == 2 and "--robot" in r.err and not out.exists(), r
+
+
+def test_a_motor_current_robot_needs_its_rotor_inertias(tmp_path):
+    """armature: true (torque from motor current): each joint's rotor inertia [kg m^2] is part of the known
+    rigid body; a description without it is refused, one with it recovers the friction of torques that
+    carry ``rotor * qdd``."""
+    from frictid.errors import ConfigError
+    from frictid.robot.known import require_inertias
+
+    rng = np.random.default_rng(2405)
+    desc, friction = arm_yaml(rng, 3)
+    desc["armature"] = True
+    with pytest.raises(ConfigError, match="no rotor"):
+        require_inertias(robot_from_dh(DHRobot.model_validate(desc)))
+    rotor = rng.uniform(0.5, 2.0, 3)
+    for j, r in zip(desc["joints"], rotor):
+        j["rotor"] = float(r)
+    robot = robot_from_dh(DHRobot.model_validate(desc))
+    logs = simulate_excitation(robot, friction, rng, duration=20.0)
+    for lg, r in zip(logs, rotor):   # the drive's rotor, accelerated with its joint
+        acc = np.gradient(lg.qd, lg.t)
+        lg.tau = lg.tau + r * acc
+    res, _ = _fit(tmp_path, desc, logs)
+    rs = res.settings["robot"]
+    # the rotor's torque is orthogonal to the friction's columns on a periodic excitation (the friction alone
+    # would not show it missing); the torque fit and the check do
+    assert rs["relative_torque_error"] < 0.01 and any(n.startswith("known rigid body: the log bears it out")
+                                                      for n in rs["notes"]), rs["notes"]
+    for j, (fv, fc, fo) in friction.items():
+        got = rs["friction"][j]
+        assert got["fc"]["value"] == pytest.approx(fc, rel=0.03) and got["fv"]["value"] == pytest.approx(fv, rel=0.10)
+        assert abs(got["fo"]["value"] - fo) < 0.1, (j, got, fo)
