@@ -197,3 +197,21 @@ def test_a_motor_current_robot_needs_its_rotor_inertias(tmp_path):
         got = rs["friction"][j]
         assert got["fc"]["value"] == pytest.approx(fc, rel=0.03) and got["fv"]["value"] == pytest.approx(fv, rel=0.10)
         assert abs(got["fo"]["value"] - fo) < 0.1, (j, got, fo)
+
+
+def test_one_joint_moved_the_others_standing():
+    """The rigid body known needs no excitation of it: a log that moves one joint (test_robot_pose's arm
+    and log, 20-bit angles) gives that joint's friction; the standing joints' friction is marked not
+    identifiable with the reason, and does not spoil the moving joint's."""
+    from frictid.robot.known import identify_known
+    from test_robot_pose import arm, one_joint_logs
+
+    robot = arm()
+    robot.inertia_gaps = []   # its link inertias are set in the model (the description is a DH table)
+    fit = identify_known(robot, one_joint_logs(robot, 1, (0.3, 0.0, 0.2), seed=2406))
+    got = fit.friction["2"]
+    assert got["fc"].identifiable and got["fc"].value == pytest.approx(1.5, rel=0.03), got
+    assert got["fv"].value == pytest.approx(2.0, rel=0.10) and abs(got["fo"].value) < 0.1, got
+    for j in ("1", "3"):
+        assert not fit.friction[j]["fc"].identifiable and "does not move" in fit.friction[j]["fc"].reason
+    assert any(n.startswith("known rigid body: the log bears it out") for n in fit.notes), fit.notes

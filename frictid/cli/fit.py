@@ -148,6 +148,9 @@ def _fit_robot(logs, robot, output, mapping, units, con, as_json, friction, diag
         sel = summary[j]["selected"] if friction == "models" else "coulomb_viscous"
         fh = f.get("fh", {})
         held = f", standing {fh['value']:.3g} N m" if "value" in fh and fh.get("identifiable", True) else ""
+        if "reason" in f["fc"] and f["fc"].get("stderr") is None:  # nothing estimated (the joint does not move)
+            con.info(f"frictid: joint {j}: friction not identifiable: {f['fc']['reason']}")
+            continue
         con.info(f"frictid: joint {j}: Fc {f['fc']['value']:.4g} +- {f['fc']['stderr']:.2g}, sigma2 "
                  f"{f['fv']['value']:.4g} +- {f['fv']['stderr']:.2g}, offset {f['fo']['value']:.4g} N m{held} "
                  f"(joint estimate); selected on the friction torque: {sel or 'no model'}")

@@ -59,16 +59,41 @@ def identify_known(robot: Robot, logs) -> RobotFit:
     F = friction_columns(d)
     A, y, jid = parallel_filter(d, np.hstack([F, rb.reshape(-1, 1)]), d.tau.reshape(-1))
     yf, A = y - A[:, -1], A[:, :-1]
-    x, cov, r, cond = solve(A, yf, jid, nv)
-    friction = friction_estimates(robot, x, np.sqrt(np.maximum(np.diag(cov), 0.0)), 0)
+    idle = _idle_joints(A, jid, nv)
+    use = np.array([c for c in range(3 * nv) if c // 3 not in idle], dtype=int)
+    x, se = np.zeros(3 * nv), np.zeros(3 * nv)
+    xu, cov, r, cond = solve(A[:, use], yf, jid, nv)
+    x[use], se[use] = xu, np.sqrt(np.maximum(np.diag(cov), 0.0))
+    friction = friction_estimates(robot, x, se, 0)
+    for i, why in idle.items():
+        for p in friction[robot.joints[i]].values():
+            p.stderr, p.identifiable, p.reason = None, False, why
     _hold(friction, d, d.tau - rb - (F @ x).reshape(n, nv))
     rms = {j: float(np.sqrt(np.mean(r[jid == i] ** 2))) if np.any(jid == i) else float("nan")
            for i, j in enumerate(robot.joints)}
     out = RobotFit([], [], friction, cond, float(np.linalg.norm(r) / max(np.linalg.norm(y), 1e-300)), rms,
                    d.cutoff, int(y.size), x=x, rigid=rigid_source(robot))
-    out.notes = check(out, None, robot)
-    out.notes += rigid_body_check(robot, d, A, yf, jid, out)
+    out.notes = check(out, None, robot) + [f"joint {robot.joints[i]}: {why}" for i, why in idle.items()]
+    out.notes += rigid_body_check(robot, d, A[:, use], yf, jid, out, use)
     out.validity = validity(robot, d)
+    return out
+
+
+def _idle_joints(A: np.ndarray, jid: np.ndarray, nv: int) -> dict[int, str]:
+    """The joints whose friction the log cannot give, with the reason: no moving sample, or friction
+    columns that do not separate (a joint moved one way only: its Coulomb level and offset are one
+    column), condition number of the joint's own columns over :data:`COND_LIMIT`. Each joint's friction
+    has its own rows, so the others are fitted without them."""
+    out = {}
+    for i in range(nv):
+        B = A[jid == i][:, 3 * i:3 * i + 3]
+        if B.shape[0] <= 3:
+            out[i] = "the joint does not move in the log: its friction has no velocity to follow"
+            continue
+        c = float(np.linalg.cond(B / np.maximum(np.linalg.norm(B, axis=0), 1e-300)))
+        if not c <= COND_LIMIT:
+            out[i] = (f"the joint's motion does not separate its viscous, Coulomb and offset terms (condition "
+                      f"number {c:.3g} > {COND_LIMIT:g}; e.g. it moves one way only)")
     return out
 
 
@@ -82,16 +107,17 @@ def _weighted_rss(A: np.ndarray, y: np.ndarray, w: np.ndarray) -> tuple[np.ndarr
 
 
 def rigid_body_check(robot: Robot, d: RobotData, A: np.ndarray, y: np.ndarray, jid: np.ndarray,
-                     fit: RobotFit) -> list[str]:
+                     fit: RobotFit, use: np.ndarray) -> list[str]:
     """Does the known rigid body explain the log? (module docstring). ``A``, ``y``, ``jid``: the friction
-    fit's parallel-filtered columns, torque less the known rigid body, and rows' joints. Returns notes: one
+    fit's parallel-filtered columns (those of ``use`` among each joint's fv, fc, fo), torque less the known
+    rigid body, and rows' joints. Returns notes: one
     for the robot, and one per joint ("joint J: ...") whose friction moves beyond its standard errors when
     the rigid body is identified from the log instead."""
     nv = robot.nv
     bp = base_parameters(robot, robot.armature)
     Y = full_regressor(robot, d.q, d.qd, d.qdd, robot.armature)[:, bp.columns]
     Yf = parallel_filter(d, Y, np.zeros(Y.shape[0]))[0]
-    r0 = y - A @ fit.x
+    r0 = y - A @ fit.x[use]
     sd = np.array([max(r0[jid == j].std(), 1e-12) if np.any(jid == j) else 1.0 for j in range(nv)])
     w = 1.0 / sd[jid]
     xj, rj, rank = _weighted_rss(np.hstack([Yf, A]), y, w)
@@ -116,10 +142,12 @@ def rigid_body_check(robot: Robot, d: RobotData, A: np.ndarray, y: np.ndarray, j
     if cond > COND_LIMIT:
         return notes + [f"known rigid body: the log excites the rigid body too little to identify it instead "
                         f"(condition number {cond:.3g} > {COND_LIMIT:g}): the friction's bias is not measured"]
-    nb = Yf.shape[1]
+    nb, where = Yf.shape[1], {int(c): k for k, c in enumerate(use)}
     for i, j in enumerate(robot.joints):
         f = fit.friction[j]
-        alt = {k: float(xj[nb + 3 * i + m]) for m, k in enumerate(("fv", "fc", "fo"))}
+        if 3 * i not in where:
+            continue
+        alt = {k: float(xj[nb + where[3 * i + m]]) for m, k in enumerate(("fv", "fc", "fo"))}
         moved = [k for k in ("fc", "fv", "fo") if abs(alt[k] - f[k].value) > 2.0 * f[k].stderr]
         if moved:
             notes.append(f"joint {j}: with the rigid body identified from the log instead, "
