@@ -9,8 +9,9 @@ least squares on the parallel-filtered torque (:func:`.identify.solve`), its sta
 (:mod:`.hold`), and frictid's single-joint models run on the friction torque as in stage 2.
 
 A description is somebody's numbers, not this robot's: a catalogue's links differ from the arm at hand, a
-tool or cable changes them. What they get wrong lands in the friction, and nothing in the friction-only
-fit shows it (its standard errors describe the noise, not the rigid body's error). So the fit asks the
+tool or cable changes them. What they get wrong lands in the friction, and the friction-only fit shows
+it only in part (its standard errors grow with the residual and its correlation in time, but a gravity
+error goes into the offsets, biased far beyond them: scorecard part 5). So the fit asks the
 log whether the given rigid body explains it (:func:`rigid_body_check`): the robot's own base-parameter
 regressor is fitted to what the known rigid body leaves; if it explains more than noise would (an F test
 at the 0.1 % level, on the effective number of samples), the notes say by how much and give each joint's
