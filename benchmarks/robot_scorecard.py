@@ -17,7 +17,13 @@
    (classical least squares: every sample, the torque low-passed, the regressor not; for the UR10e exactly
    Mamedov et al.'s filterData.m), per joint; and the published friction held with the base parameters
    re-fitted, against the free fit (the residual each joint gains).
-With FRICTID_SMOKE=1: two arms, the Franka run, and part 4 on the first eighth of the Franka run.
+5. The Franka run with the rigid body known (``--rigid-body known``: the catalogue inertias of
+   recipes/robots/panda.urdf, with the hand, and panda_arm.urdf, without, subtracted) against identified:
+   friction against Table III, the known rigid body's F test, held-out torque error of both stages; and on
+   random simulated arms (seeds from --seed-base + 2000) with the true inertias and with them 10 % off
+   (``--part known``).
+With FRICTID_SMOKE=1: two arms, the Franka run, part 4 on the first eighth of the Franka run and part 5 on
+its first quarter.
 """
 from __future__ import annotations
 
@@ -341,6 +347,81 @@ def friction_values(smoke: bool) -> None:
     published("UR10e harmonic run, whole (UR10E_parameters.txt)", ur10e, ur, MAMEDOV, rows)
 
 
+def known_arms(n: int, base: int) -> None:
+    """Part 5 on simulated arms (tests/test_robot_known.py's generator: random 4-joint DH arms whose YAML
+    carries the true link inertias, friction as part 1, 500 Hz, 0.05 N m noise): the rigid body known exactly
+    and 10 % off (every mass and inertia x1.1): the share of joints within tolerance per parameter, the
+    share whose truth lies within 2 standard errors, and how often the F test says the log bears the rigid
+    body out."""
+    from frictid.robot.description import DHRobot, robot_from_dh
+    from frictid.robot.known import identify_known
+    from test_robot_known import arm_yaml, scaled
+
+    hits = {f: {k: [0, 0, 0] for k in TOL} for f in (1.0, 1.1)}
+    borne = {1.0: 0, 1.1: 0}
+    for s in range(base, base + n):
+        rng = np.random.default_rng(s)
+        desc, friction = arm_yaml(rng)
+        logs = simulate_excitation(robot_from_dh(DHRobot.model_validate(desc)), friction, rng)
+        for factor in hits:
+            fit = identify_known(robot_from_dh(DHRobot.model_validate(scaled(desc, factor))), logs)
+            borne[factor] += any(nt.startswith("known rigid body: the log bears it out") for nt in fit.notes)
+            for j, truth in friction.items():
+                for k, true in zip(("fv", "fc", "fo"), truth):
+                    got, (kind, tol) = fit.friction[j][k], TOL[k]
+                    err = abs(got.value - true) / (abs(true) if kind == "rel" else 1.0)
+                    h = hits[factor][k]
+                    h[0] += err <= tol
+                    h[1] += abs(got.value - true) <= 2 * got.stderr
+                    h[2] += 1
+    print(f"rigid body known, random arms: {n} (seeds {base}..{base + n - 1}), 4 DH joints, the YAML's inertias exact "
+          "and x1.1")
+    for factor, h in hits.items():
+        print(f"  inertias x{factor:g}: log bears the rigid body out: {borne[factor]}/{n}; " + "; ".join(
+            f"{k} within {TOL[k][1]:g}: {ok}/{cnt}, truth within 2 se: {cov}/{cnt}" for k, (ok, cov, cnt) in h.items()))
+
+
+def known(smoke: bool = False) -> None:
+    """Part 5: the Franka run with the rigid body known from the shipped URDFs' catalogue inertias
+    (example-robot-data: recipes/robots/panda.urdf with the hand, panda_arm.urdf without) against the rigid
+    body identified from the run (recipes/robots/panda.yaml): per joint fc, fv, fo against Table III, the F test of the known rigid body,
+    and the held-out torque error (first 70 % fitted, last 30 % predicted, as logged) of the joint estimate
+    and of stage 2's selected models."""
+    from frictid.robot.known import identify_known
+
+    logs = read_logs(str(ROOT.parent / "shared/realdata/franka_panda_gaz2019"),
+                     str(ROOT / "recipes/realdata/franka_panda.yaml"))
+    if smoke:
+        logs = [cut_log(lg, slice(0, lg.n // 4)) for lg in logs]
+    routes = {"identify": (load_robot(ROOT / "recipes/robots/panda.yaml"), identify_robot, "identify"),
+              "known+hand": (load_robot(ROOT / "recipes/robots/panda.urdf"), identify_known, "known"),
+              "known arm": (load_robot(ROOT / "recipes/robots/panda_arm.urdf"), identify_known, "known")}
+    print("Franka Panda, rigid body identified (panda.yaml) vs known from the catalogue inertias of "
+          "example-robot-data (known+hand: panda.urdf; known arm: panda_arm.urdf, no hand): friction against "
+          "Table III (fc, fv: % off; fo: N m off)")
+    print(f"  {'route':<10} " + " ".join(f"fc{j:<5}" for j in TABLE3) + " | " + " ".join(f"fv{j:<5}" for j in TABLE3)
+          + " | " + " ".join(f"fo{j:<5}" for j in TABLE3) + " | torque error")
+    P = np.array([TABLE3[j] for j in TABLE3])
+    for name, (robot, estimate, _) in routes.items():
+        t0 = time.process_time()
+        fit = estimate(robot, logs)
+        f = np.array([[fit.friction[j][k].value for k in ("fv", "fc", "fo")] for j in TABLE3])
+        print(f"  {name:<10} " + " ".join(f"{v:+6.1f}%" for v in 100 * (f[:, 1] / P[:, 1] - 1)) + " | "
+              + " ".join(f"{v:+6.1f}%" for v in 100 * (f[:, 0] / P[:, 0] - 1)) + " | "
+              + " ".join(f"{v:+7.3f}" for v in f[:, 2] - P[:, 2])
+              + f" | {100 * fit.rel_error:.2f} % ({time.process_time() - t0:.1f} s CPU)")
+        print("    " + "; ".join(n for n in fit.notes if n.startswith("known rigid body")))
+        ses = " ".join(f"{fit.friction[j]['fc'].stderr:.3g}" for j in TABLE3)
+        print(f"    fc standard errors [N m]: {ses}")
+    print("  held out (first 70 % fitted, last 30 % predicted, as logged), RMS per joint [N m], "
+          "joint estimate | stage 2's models:")
+    for name, (robot, estimate, mode) in routes.items():
+        lin = heldout_errors(robot, logs, 0.3, estimate=estimate)["whole"]
+        mod = heldout_models(robot, logs, 0.3, rigid_body=mode)["models"]["whole"]
+        print(f"  {name:<10} " + " ".join(f"{lin[j]:.3f}" for j in TABLE3) + " | "
+              + " ".join(f"{mod[j]:.3f}" for j in TABLE3))
+
+
 #: the real runs of the standing level's lines: (run under shared/realdata, mapping file, robot file)
 REAL_RUNS = [("ur10e_mamedov2020/identification_data/ur-20_02_19_15harm50sec.csv", "recipes/realdata/ur10e_harmonic.yaml",
               "recipes/robots/ur10e.yaml"),
@@ -352,15 +433,20 @@ def main(argv=None) -> int:
     ap.add_argument("--arms", type=int, default=20)
     ap.add_argument("--ur-arms", type=int, default=5, help="6-axis arms with the UR10e's kinematics")
     ap.add_argument("--seed-base", type=int, default=400000)
-    ap.add_argument("--part", choices=("all", "published", "standing"), default="all",
+    ap.add_argument("--part", choices=("all", "published", "standing", "known"), default="all",
                     help="published: part 4 only (friction values against the published ones); standing: the "
-                         "standing level's held-out lines of the UR10e and Franka runs only")
+                         "standing level's held-out lines of the UR10e and Franka runs only; known: part 5 only "
+                         "(the Franka run with the rigid body known from recipes/robots/panda.urdf)")
     args = ap.parse_args(argv)
     smoke = bool(os.environ.get("FRICTID_SMOKE"))
     if smoke:
         args.arms, args.ur_arms = 2, 1
     if args.part == "published":
         friction_values(smoke)
+        return 0
+    if args.part == "known":
+        known_arms(args.arms, args.seed_base + 2000)
+        known(smoke)
         return 0
     if args.part == "standing":
         for run, mapping, robot in REAL_RUNS:
@@ -372,6 +458,8 @@ def main(argv=None) -> int:
     ur10e()
     franka()
     friction_values(smoke)
+    known_arms(args.arms, args.seed_base + 2000)
+    known(smoke)
     return 0
 
 

@@ -24,10 +24,12 @@ from .io.logs import file_sha256, read_many
 from .result import FitResult
 from .robot import identify_robot, load_robot
 from .robot.identify import Prediction, cut_log, friction_log, predict
+from .robot.known import identify_known, require_inertias
 from .robot.pose import one_joint_motion, pose_gravity
 from .robot.result import fit_result
 
 FRICTION_STAGES = ("models", "linear")
+RIGID_BODY = ("identify", "known")
 
 
 def friction_logs(logs: list[JointLog], p: Prediction) -> list[JointLog]:
@@ -38,27 +40,40 @@ def friction_logs(logs: list[JointLog], p: Prediction) -> list[JointLog]:
 
 def fit_robot(paths_or_logs, robot, mapping=None, units=None, *, friction: str = "models",
               diagnose: bool = True, jobs: int = 1, robot_file: str | None = None,
-              joint: str | None = None) -> FitResult:
+              joint: str | None = None, rigid_body: str = "identify") -> FitResult:
     """Identify a robot from multi-joint logs (paths or :class:`JointLog` objects, one log per robot joint,
     on a common time base). robot : a :class:`~frictid.robot.description.Robot` or the path of a DH YAML or
     URDF. friction : ``"models"`` or ``"linear"`` (see the module). Returns the parameter file's
     :class:`FitResult`: the joints' models, and the robot's base parameters under ``settings.robot``; for
     one-joint motion (or ``joint`` given) the moving joints' one-joint fits with the pose's gravity, and what
-    the kinematics said under ``settings.robot_pose`` (:func:`fit_pose`)."""
+    the kinematics said under ``settings.robot_pose`` (:func:`fit_pose`). rigid_body : ``"identify"`` (the
+    base parameters identified with the friction) or ``"known"`` (the robot description's inertial parameters
+    subtracted, only friction identified: :mod:`frictid.robot.known`; any motion of every joint, one joint at
+    a time included)."""
     if friction not in FRICTION_STAGES:
         raise FrictidInputError(f"fit: --robot-friction must be one of {', '.join(FRICTION_STAGES)}, not {friction!r}")
+    if rigid_body not in RIGID_BODY:
+        raise FrictidInputError(f"fit: --rigid-body must be one of {', '.join(RIGID_BODY)}, not {rigid_body!r}")
+    rb = load_robot(robot) if isinstance(robot, (str, bytes)) or hasattr(robot, "__fspath__") else robot
+    if rigid_body == "known":
+        require_inertias(rb)  # before anything is read
+        if joint is not None:
+            raise FrictidInputError("fit: --joint does not combine with --rigid-body known, which fits every joint "
+                                    "of the robot (the rigid body of each joint depends on all the others' motion)")
     items = [paths_or_logs] if isinstance(paths_or_logs, (str, JointLog)) else list(paths_or_logs)
     paths = [str(x) for x in items if not isinstance(x, JointLog)]
     logs = [x for x in items if isinstance(x, JointLog)] + (read_many(paths, mapping, units) if paths else [])
-    rb = load_robot(robot) if isinstance(robot, (str, bytes)) or hasattr(robot, "__fspath__") else robot
     rows: dict[str, int] = {}
     for lg in logs:
         rows[lg.source] = max(rows.get(lg.source, 0), lg.n)
     sources = [{"path": p, "sha256": file_sha256(p), "rows": rows.get(p, 0)} for p in paths]
-    solo, why = ([str(joint)], f"joint {joint} named") if joint is not None else one_joint_motion(rb, logs)
-    if solo:
-        return fit_pose(rb, logs, solo, why, sources, robot_file, diagnose=diagnose, jobs=jobs)
-    rf = identify_robot(rb, logs)
+    if rigid_body == "known":
+        rf = identify_known(rb, logs)
+    else:
+        solo, why = ([str(joint)], f"joint {joint} named") if joint is not None else one_joint_motion(rb, logs)
+        if solo:
+            return fit_pose(rb, logs, solo, why, sources, robot_file, diagnose=diagnose, jobs=jobs)
+        rf = identify_robot(rb, logs)
     first = fit_result(rb, rf, sources, robot_file or str(robot if not hasattr(robot, "model") else rb.name))
     if friction == "linear":
         return first
@@ -123,16 +138,18 @@ def model_torque(res: FitResult, p: Prediction, logs: list[JointLog]) -> dict:
     return out
 
 
-def heldout_models(robot, logs: list[JointLog], fraction: float = 0.3, smooth_hz: float | None = None) -> dict:
+def heldout_models(robot, logs: list[JointLog], fraction: float = 0.3, smooth_hz: float | None = None,
+                   rigid_body: str = "identify") -> dict:
     """:func:`frictid.robot.identify.heldout_errors` for both stages: identify on the first ``1 - fraction``
     of the logs, predict the rest with stage 1 (``linear``) and with the rigid body of stage 1 plus each
     joint's selected velocity model of stage 2 (``models``, fitted without the diagnosis). Returns per
-    stage {'whole', 'moving'} RMS per joint [N m], at the logs' own samples."""
+    stage {'whole', 'moving'} RMS per joint [N m], at the logs' own samples; ``rigid_body="known"``: the
+    robot description's rigid body (:mod:`frictid.robot.known`) instead of stage 1's identified one."""
     from scipy.signal import butter, sosfiltfilt
 
     k = int(round((1.0 - fraction) * min(lg.n for lg in logs)))
     head, tail = [cut_log(lg, slice(0, k)) for lg in logs], [cut_log(lg, slice(k, None)) for lg in logs]
-    rf = identify_robot(robot, head)
+    rf = (identify_known if rigid_body == "known" else identify_robot)(robot, head)
     res = fit_joints(friction_logs(head, predict(robot, rf, head)), diagnose=False)
     p = predict(robot, rf, tail)
     preds = {"linear": p.tau, "models": model_torque(res, p, tail)}

@@ -38,6 +38,10 @@ def fit(
         "--robot-friction", help="With --robot: models (then every model of frictid on each joint's friction "
                                  "torque, the rigid body held) or linear (the joint estimate's Coulomb-viscous "
                                  "friction only).")] = "models",
+    rigid_body: Annotated[str, typer.Option(
+        "--rigid-body", help="With --robot: identify (the rigid-body base parameters identified with the friction) "
+                             "or known (the robot file's own link inertias subtracted, only friction identified; "
+                             "e.g. recipes/robots/panda.urdf).")] = "identify",
     engine: Annotated[str, typer.Option(
         "--engine", help="local: fit the logs together into one parameter file; dask: LOGS is a dataset (a "
                          "hive-partitioned folder or files), one task per partition into the trend store "
@@ -77,7 +81,9 @@ def fit(
         check_fit_report(report, output, logs, mapping)
     if robot:
         return _fit_robot(logs, robot, output, mapping, units, con, as_json, robot_friction, not no_diagnose, jobs,
-                          joint)
+                          joint, rigid_body)
+    if rigid_body != "identify":
+        raise FrictidInputError("fit: --rigid-body is for a whole robot: give the robot with --robot ROBOT")
     parse_models(models)  # refuse unknown names before reading anything
     con.info(f"frictid: fitting {len(logs)} log{'s' if len(logs) != 1 else ''} ...")
     res = run_fit(logs, joint=joint, models=models, mapping=mapping, units=units, diagnose=not no_diagnose,
@@ -111,14 +117,15 @@ def _summarise(res, output, con, as_json, report=None, extra=None) -> None:
                           "warnings": con.warnings})
 
 
-def _fit_robot(logs, robot, output, mapping, units, con, as_json, friction, diagnose, jobs, joint=None) -> None:
+def _fit_robot(logs, robot, output, mapping, units, con, as_json, friction, diagnose, jobs, joint=None,
+               rigid_body="identify") -> None:
     """``frictid fit LOG... --robot ROBOT``: the whole-robot identification into a parameter file."""
     from ..io.params import write_params
     from ..robotfit import fit_robot
 
     con.info(f"frictid: identifying the robot of {robot} from {len(logs)} log{'s' if len(logs) != 1 else ''} ...")
     res = fit_robot(logs, robot, mapping, units, friction=friction, diagnose=diagnose, jobs=jobs,
-                    robot_file=str(robot), joint=joint)
+                    robot_file=str(robot), joint=joint, rigid_body=rigid_body)
     write_params(res, output)
     if "robot_pose" in res.settings:
         rp = res.settings["robot_pose"]
@@ -127,10 +134,12 @@ def _fit_robot(logs, robot, output, mapping, units, con, as_json, friction, diag
             con.info(f"frictid: joint {j}: gravity {said['form']}: {said['note']}")
         return _summarise(res, output, con, as_json, extra={"robot_pose": rp})
     rs = res.settings["robot"]
-    con.info(f"frictid: {rs['name']}: {len(rs['base_parameters'])} base parameters, condition number "
-             f"{rs['condition_number']:.3g}, relative torque error {100 * rs['relative_torque_error']:.2f} %")
+    rigid = (f"rigid body known from {rs['rigid_body']['file']}" if rs["rigid_body"]["mode"] == "known"
+             else f"{len(rs['base_parameters'])} base parameters")
+    con.info(f"frictid: {rs['name']}: {rigid}, condition number {rs['condition_number']:.3g}, relative torque "
+             f"error {100 * rs['relative_torque_error']:.2f} %")
     for note in rs["notes"]:  # a passed check is said; what was marked or not shown is warned
-        if note.startswith("physical feasibility: "):
+        if note.startswith(("physical feasibility: ", "known rigid body: the log bears")):
             con.info(f"frictid: {note}")
         else:
             con.warn(note)
@@ -139,6 +148,9 @@ def _fit_robot(logs, robot, output, mapping, units, con, as_json, friction, diag
         sel = summary[j]["selected"] if friction == "models" else "coulomb_viscous"
         fh = f.get("fh", {})
         held = f", standing {fh['value']:.3g} N m" if "value" in fh and fh.get("identifiable", True) else ""
+        if "reason" in f["fc"] and f["fc"].get("stderr") is None:  # nothing estimated (the joint does not move)
+            con.info(f"frictid: joint {j}: friction not identifiable: {f['fc']['reason']}")
+            continue
         con.info(f"frictid: joint {j}: Fc {f['fc']['value']:.4g} +- {f['fc']['stderr']:.2g}, sigma2 "
                  f"{f['fv']['value']:.4g} +- {f['fv']['stderr']:.2g}, offset {f['fo']['value']:.4g} N m{held} "
                  f"(joint estimate); selected on the friction torque: {sel or 'no model'}")

@@ -34,6 +34,14 @@ def _base_rows(settings: dict, fmt_pm) -> list[dict]:
     return rows
 
 
+def _rigid_body(rs: dict) -> str:
+    """Where the page's rigid body comes from (``settings.robot.rigid_body``)."""
+    rb = rs.get("rigid_body") or {"mode": "identify"}
+    if rb.get("mode") == "known":
+        return f"known: the inertias of {rb.get('file')} (sha256 {str(rb.get('sha256'))[:12]}...), only friction fitted"
+    return "identified from the logs (the base parameters below)"
+
+
 def robot_page(params: dict, logs: list[JointLog], robot_file: str | None, fmt_pm, fmt_num
                ) -> tuple[dict | None, list[JointLog]]:
     """(the page's context, or None for a single-joint parameter file; the logs the joints' sections
@@ -47,7 +55,8 @@ def robot_page(params: dict, logs: list[JointLog], robot_file: str | None, fmt_p
                       ("relative torque error of the fit", f"{100 * float(rs.get('relative_torque_error', np.nan)):.2f} %"),
                       ("parallel-filter cut-off", f"{fmt_num(rs.get('cutoff_hz'), 3)} Hz"),
                       ("samples in the fit (joint rows)", str(rs.get("samples", "-"))),
-                      ("base parameters", str(len(rs.get("base_parameters") or [])))],
+                      ("base parameters", str(len(rs.get("base_parameters") or []))),
+                      ("rigid body", _rigid_body(rs))],
             "base": _base_rows(rs, fmt_pm), "notes": list(rs.get("notes") or []), "figures": [], "rows": [],
             "why": ""}
     if not logs:

@@ -31,7 +31,7 @@ from ..result import ParamEstimate
 from .description import Robot
 from .feasibility import feasibility_note, nearest_consistent
 from .hold import hold_level, hold_torque, last_sign
-from .regressor import BaseParameters, base_parameters, full_regressor
+from .regressor import BaseParameters, base_parameters, full_regressor, rigid_torque
 
 FRICTION = ("fv", "fc", "fo")
 #: Above this condition number (columns scaled to unit norm) the excitation does not separate the
@@ -78,6 +78,11 @@ class RobotFit:
     notes: list[str] = field(default_factory=list)
     #: per joint, the speeds [rad/s] and positions [rad] the moving samples covered ([lo, hi] each)
     validity: dict[str, dict[str, list[float]]] = field(default_factory=dict)
+    #: where the rigid body came from: {"mode": "identify"} (the base parameters above) or {"mode": "known",
+    #: ...} (the robot description's own inertial parameters, :mod:`.known`; then ``bp`` is None and ``x``
+    #: holds the friction only)
+    rigid: dict = field(default_factory=lambda: {"mode": "identify", "source": "the base parameters identified "
+                                                                         "from the logs (base_parameters)"})
 
 
 def align(robot: Robot, logs) -> tuple[np.ndarray, list]:
@@ -148,17 +153,23 @@ def parallel_filter(d: RobotData, A: np.ndarray, y: np.ndarray) -> tuple[np.ndar
     return A3.reshape(-1, A.shape[1])[keep], y2.reshape(-1)[keep], jid[keep]
 
 
-def design(robot: Robot, bp: BaseParameters, d: RobotData) -> np.ndarray:
-    """[Y_base | friction columns]: (n nv, n_base + 3 nv), rows sample-major (joint fastest)."""
+def friction_columns(d: RobotData) -> np.ndarray:
+    """Each joint's viscous, Coulomb and offset columns: (n nv, 3 nv), rows sample-major (joint fastest)."""
     n, nv = d.q.shape
-    Y = full_regressor(robot, d.q, d.qd, d.qdd, robot.armature)[:, bp.columns]
     F = np.zeros((n * nv, 3 * nv))
+    mov = d.moving()
     for j in range(nv):
         rows = np.arange(n) * nv + j
         F[rows, 3 * j] = d.qd[:, j]
-        F[rows, 3 * j + 1] = np.sign(d.qd[:, j]) * d.moving()[:, j]  # at rest the friction has no sign
+        F[rows, 3 * j + 1] = np.sign(d.qd[:, j]) * mov[:, j]  # at rest the friction has no sign
         F[rows, 3 * j + 2] = 1.0
-    return np.hstack([Y, F])
+    return F
+
+
+def design(robot: Robot, bp: BaseParameters, d: RobotData) -> np.ndarray:
+    """[Y_base | friction columns]: (n nv, n_base + 3 nv), rows sample-major (joint fastest)."""
+    Y = full_regressor(robot, d.q, d.qd, d.qdd, robot.armature)[:, bp.columns]
+    return np.hstack([Y, friction_columns(d)])
 
 
 def _lag1(r: np.ndarray) -> float:
@@ -211,22 +222,32 @@ def identify_robot(robot: Robot, logs) -> RobotFit:
     nb = bp.n
     names = bp.names(robot)
     base = [ParamEstimate(n, float(v), float(s), "") for n, v, s in zip(names, x[:nb], se[:nb])]
-    units = {"fv": "N m s/rad", "fc": "N m", "fo": "N m"}
-    friction = {}
-    for i, j in enumerate(robot.joints):
-        friction[j] = {k: ParamEstimate(k, float(x[nb + 3 * i + m]), float(se[nb + 3 * i + m]), units[k])
-                       for m, k in enumerate(FRICTION)}
+    friction = friction_estimates(robot, x, se, nb)
     _hold(friction, fit_d, fit_d.tau - (A_full @ x).reshape(fit_d.tau.shape))
     rel, rms = _errors(robot, A, y, x, jid)
     out = RobotFit(names, base, friction, cond, rel, rms, fit_d.cutoff, int(y.size), x=x, bp=bp,
                    base_cov=cov[:nb, :nb])
     out.notes = check(out, bp, robot)
-    mov = fit_d.moving()
+    out.validity = validity(robot, fit_d)
+    return out
+
+
+def friction_estimates(robot: Robot, x: np.ndarray, se: np.ndarray, nb: int) -> dict[str, dict[str, ParamEstimate]]:
+    """Each joint's fv, fc, fo from the estimate vector ``x`` (standard errors ``se``) after ``nb`` base
+    parameters."""
+    units = {"fv": "N m s/rad", "fc": "N m", "fo": "N m"}
+    return {j: {k: ParamEstimate(k, float(x[nb + 3 * i + m]), float(se[nb + 3 * i + m]), units[k])
+                for m, k in enumerate(FRICTION)} for i, j in enumerate(robot.joints)}
+
+
+def validity(robot: Robot, d: RobotData) -> dict[str, dict[str, list[float]]]:
+    """Per joint, the speeds [rad/s] and positions [rad] its moving samples covered."""
+    mov, out = d.moving(), {}
     for i, j in enumerate(robot.joints):
-        v, q = np.abs(fit_d.qd[mov[:, i], i]), fit_d.q[mov[:, i], i]
+        v, q = np.abs(d.qd[mov[:, i], i]), d.q[mov[:, i], i]
         if v.size:
-            out.validity[j] = {"speed": [float(np.quantile(v, 0.005)), float(np.quantile(v, 0.995))],
-                               "position": [float(q.min()), float(q.max())]}
+            out[j] = {"speed": [float(np.quantile(v, 0.005)), float(np.quantile(v, 0.995))],
+                      "position": [float(q.min()), float(q.max())]}
     return out
 
 
@@ -301,12 +322,18 @@ def predict(robot: Robot, fit: RobotFit, logs) -> Prediction:
     velocity spectrum reaches further into the noise) would not match them."""
     cut = fit.cutoff_hz if fit.cutoff_hz is not None and np.isfinite(fit.cutoff_hz) and fit.cutoff_hz > 0 else None
     d = prepare(robot, logs, cut)
-    A = design(robot, fit.bp, d)
-    nb, nv = fit.bp.n, robot.nv
+    nv = robot.nv
+    if fit.bp is None:  # the rigid body known: the description's own inertial parameters
+        nb, rigid = 0, rigid_torque(robot, d.q, d.qd, d.qdd)
+        A = friction_columns(d)
+    else:
+        A = design(robot, fit.bp, d)
+        nb = fit.bp.n
+        rigid = (A[:, :nb] @ fit.x[:nb]).reshape(-1, nv)
     mov = d.moving()
     held = hold_torque(holds(fit, robot.joints), last_sign(d.qd, mov), mov)
-    tau = (A @ fit.x).reshape(-1, nv) + held
     F = (A[:, nb:] @ fit.x[nb:]).reshape(-1, nv) + held
+    tau = rigid + F
     mov = mov.astype(float)
     _, ordered = align(robot, logs)
     out = Prediction({}, {}, {}, {}, {})
@@ -338,14 +365,16 @@ def friction_log(lg, tau_model: np.ndarray, F_model: np.ndarray):
     return out
 
 
-def heldout_errors(robot: Robot, logs, fraction: float = 0.3, smooth_hz: float | None = None) -> dict:
+def heldout_errors(robot: Robot, logs, fraction: float = 0.3, smooth_hz: float | None = None,
+                   estimate=identify_robot) -> dict:
     """Identify on the first ``1 - fraction`` of the joints' logs and predict the rest: per joint the RMS of
     (measured - predicted) torque at the log's own samples over the whole held-out part and over its moving
     samples, against the measured torque as logged or low-passed at ``smooth_hz`` (zero phase, at the
-    log's median rate). Returns {'fit', 'whole', 'moving'}."""
+    log's median rate); ``estimate``: :func:`identify_robot` or :func:`frictid.robot.known.identify_known`.
+    Returns {'fit', 'whole', 'moving'}."""
     n = min(lg.n for lg in logs)
     k = int(round((1.0 - fraction) * n))
-    fit = identify_robot(robot, [cut_log(lg, slice(0, k)) for lg in logs])
+    fit = estimate(robot, [cut_log(lg, slice(0, k)) for lg in logs])
     test = [cut_log(lg, slice(k, None)) for lg in logs]
     p = predict(robot, fit, test)
     _, ordered = align(robot, test)

@@ -76,3 +76,18 @@ def base_parameters(robot: Robot, armature: bool = False, seed: int = 0) -> Base
     cols, others = piv[:rank], piv[rank:]
     combine = np.linalg.solve(R[:rank, :rank], R[:rank, rank:]) if others.size else np.zeros((rank, 0))
     return BaseParameters(cols, others, combine, W.shape[1])
+
+
+def rigid_torque(robot: Robot, q, qd, qdd) -> np.ndarray:
+    """(n, nv): the rigid-body torque of the robot's own inertial parameters (its description's links, and
+    each drive's rotor inertia with ``armature``) along q [rad], qd [rad/s], qdd [rad/s^2] (n, nv), by
+    Pinocchio's recursive Newton-Euler algorithm."""
+    import pinocchio as pin
+
+    model = robot.model
+    data = model.createData()
+    out = np.stack([pin.rnea(model, data, q[k], qd[k], qdd[k]) for k in range(q.shape[0])]) if q.shape[0] else \
+        np.zeros((0, robot.nv))
+    if robot.armature and robot.rotor is not None:
+        out = out + qdd * robot.rotor[None, :]
+    return out

@@ -41,10 +41,13 @@ def fit_from_params(robot: Robot, res) -> RobotFit:
     if bool(rs.get("armature")) != bool(robot.armature):
         raise FrictidInputError(f"robot {robot.name}: armature is {robot.armature} but the parameter file was "
                                 f"identified with armature {rs.get('armature')}")
-    bp = base_parameters(robot, robot.armature)
+    known = (rs.get("rigid_body") or {}).get("mode") == "known"
+    if known:
+        _same_rigid_body(robot, rs["rigid_body"])
+    bp = None if known else base_parameters(robot, robot.armature)
     names = [p["name"] for p in rs["base_parameters"]]
     cols = rs.get("base_columns")
-    if names != bp.names(robot) or (cols is not None and list(cols) != bp.columns.tolist()):
+    if not known and (names != bp.names(robot) or (cols is not None and list(cols) != bp.columns.tolist())):
         raise FrictidInputError(f"robot {robot.name}: its base parameters ({bp.n}) are not those of the parameter "
                                 f"file ({len(names)}); give the robot description it was identified with")
     x = [_number(p, f"settings.robot.base_parameters.{p.get('name', '?')}") for p in rs["base_parameters"]]
@@ -64,9 +67,24 @@ def fit_from_params(robot: Robot, res) -> RobotFit:
             raise FrictidInputError(f"joint {j}: the parameter file has no coulomb_viscous model")
         off = res[j].offset.value if res[j].offset is not None else 0.0
         x += [cv.params["sigma2"].value, cv.params["Fc"].value, off]
-    return RobotFit(names, [], held, float(rs.get("condition_number", np.nan)),
-                    float(rs.get("relative_torque_error", np.nan)), {}, float(rs.get("cutoff_hz", np.nan)),
-                    0, x=np.array(x), bp=bp)
+    out = RobotFit(names, [], held, float(rs.get("condition_number", np.nan)),
+                   float(rs.get("relative_torque_error", np.nan)), {}, float(rs.get("cutoff_hz", np.nan)),
+                   0, x=np.array(x), bp=bp)
+    if known:
+        out.rigid = dict(rs["rigid_body"])
+    return out
+
+
+def _same_rigid_body(robot: Robot, rb: dict) -> None:
+    """Refuse a robot description other than the one whose inertias a known-rigid-body fit subtracted."""
+    if robot.inertia_gaps:
+        raise FrictidInputError(f"robot {robot.name}: the parameter file's friction was fitted with the rigid body "
+                                f"of {rb.get('file')} known, and this description lacks inertias "
+                                f"({'; '.join(robot.inertia_gaps)}); give that file")
+    if rb.get("sha256") and robot.sha256 and rb["sha256"] != robot.sha256:
+        raise FrictidInputError(f"robot {robot.name}: the parameter file's friction was fitted with the rigid body "
+                                f"of {rb.get('file')} (sha256 {rb['sha256'][:12]}...), not of {robot.file} "
+                                f"(sha256 {robot.sha256[:12]}...); give the description it was fitted with")
 
 
 def replay_robot(robot: Robot, res, logs) -> tuple[list[ReplayResult], dict]:
@@ -79,7 +97,8 @@ def replay_robot(robot: Robot, res, logs) -> tuple[list[ReplayResult], dict]:
         j = str(lg.joint)
         r = ReplayResult(F_model=p.F[j], tau_model=p.tau[j], tau=np.asarray(lg.tau, float), z=np.zeros(lg.n),
                          T=np.full(lg.n, np.nan), w=p.qd[j], a=p.qdd[j])
-        r.notes.append(f"whole-robot model of {robot.name} ({fit.bp.n} base parameters, coulomb_viscous friction)")
+        rigid = f"{fit.bp.n} base parameters" if fit.bp is not None else "its description's rigid body"
+        r.notes.append(f"whole-robot model of {robot.name} ({rigid}, coulomb_viscous friction)")
         out.append(r)
         info[j] = {"model": f"robot:{robot.name}", "rms_residual": float(np.sqrt(np.mean(r.residual ** 2))),
                    "closed_loop": False}

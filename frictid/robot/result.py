@@ -10,6 +10,9 @@ from .identify import RobotFit
 RULE = ("whole-robot identification: each joint's Coulomb, viscous and offset friction identified jointly "
         "with the robot's rigid-body base parameters (docs/robots.md); the rigid-body torque is the robot "
         "model's, not a per-joint inertia and gravity")
+RULE_KNOWN = ("whole-robot fit with the rigid body known: each joint's Coulomb, viscous and offset friction "
+              "identified on the measured torque less the rigid-body torque of the robot description's own "
+              "inertial parameters (settings.robot.rigid_body; docs/robots.md)")
 
 
 def joint_fit(name: str, fit: RobotFit) -> JointFit:
@@ -23,7 +26,7 @@ def joint_fit(name: str, fit: RobotFit) -> JointFit:
     jf = JointFit(joint=name, units={"q": "rad", "qd": "rad/s", "tau": "N m"},
                   offset=ParamEstimate("offset", fo.value, fo.stderr, "N m", fo.identifiable, fo.reason),
                   models={mf.name: mf}, selected=mf.name if ok else None,
-                  selection={"rule": RULE}, validity=fit.validity.get(name, {}))
+                  selection={"rule": RULE_KNOWN if fit.bp is None else RULE}, validity=fit.validity.get(name, {}))
     if not ok:
         bad = [p for p in mf.params.values() if not p.identifiable]
         jf.not_identified = [{"name": f"coulomb_viscous.{p.name}", "reason": p.reason} for p in bad]
@@ -43,7 +46,7 @@ def fit_result(robot: Robot, fit: RobotFit, sources: list[dict], robot_file: str
     base = [{"name": p.name, "value": p.value, "stderr": p.stderr, "identifiable": p.identifiable,
              **({"reason": p.reason} if p.reason else {})} for p in fit.base]
     settings = {"robot": {"name": robot.name, "file": robot_file, "joints": list(robot.joints),
-                          "armature": robot.armature, "condition_number": fit.condition,
+                          "armature": robot.armature, "rigid_body": dict(fit.rigid), "condition_number": fit.condition,
                           "relative_torque_error": fit.rel_error, "cutoff_hz": fit.cutoff_hz,
                           "samples": fit.n_samples, "base_parameters": base,
                           "base_columns": fit.bp.columns.tolist() if fit.bp is not None else None,
