@@ -37,7 +37,7 @@ from scipy.special import ndtri, stdtr
 
 from .binned import fold_parts, heldout_binned
 from .causes import EXTENSIONS, X_NOISE, candidates, n_coef, propose, torque_noise
-from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure
+from .model import VISCOUS_SLOTS, Coef, Context, Evaluator, Structure
 from .samples import Samples
 from .signals import REST_MIN, delay_heldout, rest_scales, rests
 
@@ -826,11 +826,18 @@ def unphysical(st: Structure, after: Coef, J: float | None) -> str | None:
     return None
 
 
+#: The parts of a base map (canonical slots): a part collapses when none of its amplitudes is left. A
+#: polynomial's cubic term held at zero beside its linear and quadratic ones leaves a viscous part (foreign
+#: seed 309218: a gravity harmonic rejected as degenerate because the refit with it held w^3 as unsupported,
+#: while w and w|w| stayed).
+MAP_PARTS = (("level amplitude", (0,)), ("Stribeck amplitude", (1, 4)), ("viscous part", VISCOUS_SLOTS))
+
+
 def degenerate(before: Coef, st: Structure, after: Coef) -> str | None:
     """Why the extended model (structure st, its last term new, coefficients ``after`` on all samples) is
     degenerate, or None: the new term collapses to zero (its coefficients held at zero as unsupported, or
-    zero), or an amplitude of the base map that the model before it had collapses to zero (a level with no
-    viscous part). Such a model is never reported: its gain compares against a model it no longer contains."""
+    zero), or a part of the base map that the model before it had (:data:`MAP_PARTS`) collapses to zero (a
+    level with no viscous part). Such a model is never reported: its gain compares against a model it no longer contains."""
     i = len(st.terms) - 1
     t = st.terms[i]
     if t.role == "thermal6":
@@ -843,10 +850,11 @@ def degenerate(before: Coef, st: Structure, after: Coef) -> str | None:
         vals = np.atleast_1d(after.gamma.get(i, np.zeros(0)))
     if vals is not None and vals.size and not np.any(vals != 0):
         return f"{t.ext} collapses to zero on all samples"
-    for sl in sorted(set(before.base_pos) | set(before.base_neg)):
-        had = before.base_pos.get(sl, 0.0) != 0 or before.base_neg.get(sl, 0.0) != 0
-        has = after.base_pos.get(sl, 0.0) != 0 or after.base_neg.get(sl, 0.0) != 0
-        if had and not has:
-            part = "level" if sl in LEVEL_SLOTS else "viscous"
-            return f"with {t.ext} the base map's {part} amplitude (canonical slot {sl}) collapses to zero"
+    def amp(c: Coef, sl: int) -> bool:
+        return c.base_pos.get(sl, 0.0) != 0 or c.base_neg.get(sl, 0.0) != 0
+    for part, slots in MAP_PARTS:
+        had = [sl for sl in slots if amp(before, sl)]
+        if had and not any(amp(after, sl) for sl in slots):
+            return (f"with {t.ext} the base map's {part} (canonical slot{'s' if len(had) > 1 else ''} "
+                    f"{', '.join(str(sl) for sl in had)}) collapses to zero")
     return None
