@@ -518,7 +518,7 @@ def _stand_in(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float) -> str 
     if tr.ext not in POSITION_EXTS:
         return None
     if tr.ext == "position_torque":
-        why = _a_constant(ctx, tr, torque_noise(S))
+        why = _a_constant(ctx, tr, F_rms, torque_noise(S))
         if why is not None:
             return why
     rw, dw, t, p = _within_t(S, speed_cells(S), tr)
@@ -528,32 +528,34 @@ def _stand_in(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float) -> str 
     return _grows_with_speed(S, tr, rw, dw, m)
 
 
-def _a_constant(ctx: Context, tr: Trial, noise: float) -> str | None:
+def _a_constant(ctx: Context, tr: Trial, F_rms: float, noise: float) -> str | None:
     """Why a position torque is a constant, not a torque of the position, or None. The smooth form carries
     its mean over the travel (1, q, q^2): its correction can be a torque offset's, or a per-direction
     level's, with a slight shape that makes it significantly better on a long log (foreign seed 302048, a
     Coulomb asymmetry: a constant -0.60 N m and 0.008 N m from end to end of the travel, named
     ``position_torque``). What varies with the position, the spread of the term over the samples (its
     columns, :meth:`Context.term_columns`, times each training fold's coefficients; their mean), must be
-    structure the noise cannot make: at least :data:`frictid.diagnose.causes.X_NOISE` times the noise of the
-    friction torque ``noise`` (:func:`frictid.diagnose.causes.torque_noise`), the floor of a structure worth
-    stating. The term as a whole pays for itself by the chain's rule (:meth:`Chain.worth_it`), and the chain's
-    choice makes it beat an offset significantly (a candidate with fewer coefficients wins otherwise).
-    (Session 20: the floor was 2 % of the friction RMS, which the varying part of a gravity harmonic on a
-    short travel cannot reach however clear it is: foreign seed 309711, a 10 % harmonic on a linear axis, a
-    mean of 7.2 N over the travel and 1.1 N RMS of shape, five times the noise; held-out RMS 7.35 -> 0.98 with
-    the position torque, 1.51 with an offset. It was rejected and the step left ambiguous, offset or
-    asymmetry.)"""
+    structure: worth a term by itself (at least :data:`EXPLAINED_MIN` of the friction RMS ``F_rms``) or
+    beyond what the noise makes (at least :data:`frictid.diagnose.causes.X_NOISE` times the noise of the
+    friction torque ``noise``, :func:`frictid.diagnose.causes.torque_noise`: the floor of a structure worth
+    stating). The term as a whole pays for itself by the chain's rule (:meth:`Chain.worth_it`), and the
+    chain's choice makes it beat an offset significantly (a candidate with fewer coefficients wins
+    otherwise). (Session 20: with the friction RMS alone, the varying part of a gravity harmonic on a short
+    travel could not pass however clear it was: foreign seed 309711, a 10 % harmonic on a linear axis, a
+    mean of 7.2 N over the travel and 1.1 N RMS of shape, 1.6 % of the friction RMS and five times the
+    noise; held-out RMS 7.35 -> 0.98 with the position torque, 1.51 with an offset. It was rejected and the
+    step left ambiguous, offset or asymmetry.)"""
     var = []
     for term, c in zip(tr.fold_terms, tr.fold_coefs):
         cols = ctx.term_columns(term)
         g = np.atleast_1d(c.gamma.get(tr.index, np.zeros(0)))
         var.append(float(np.std(cols @ g)) if g.size == cols.shape[1] else 0.0)
     v = float(np.mean(var)) if var else 0.0
-    if v <= X_NOISE * noise:
+    if v < EXPLAINED_MIN * F_rms and v <= X_NOISE * noise:
         return (f"{tr.ext} hardly varies with the position: what varies over the travel has an RMS of {v:.3g}, "
-                f"under {X_NOISE:g}x the noise of the friction torque ({noise:.3g}); its correction is a constant, "
-                f"another cause's (an offset, a level by direction)")
+                f"under {100 * EXPLAINED_MIN:g} % of the friction RMS ({F_rms:.3g}) and {X_NOISE:g}x the noise of "
+                f"the friction torque ({noise:.3g}); its correction is a constant, another cause's (an offset, a "
+                f"level by direction)")
     return None
 
 
