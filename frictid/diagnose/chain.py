@@ -839,7 +839,9 @@ def unphysical(st: Structure, after: Coef, J: float | None) -> str | None:
 #: The parts of a base map (canonical slots): a part collapses when none of its amplitudes is left. A
 #: polynomial's cubic term held at zero beside its linear and quadratic ones leaves a viscous part (foreign
 #: seed 309218: a gravity harmonic rejected as degenerate because the refit with it held w^3 as unsupported,
-#: while w and w|w| stayed).
+#: while w and w|w| stayed). The Coulomb level is a part of its own: a two-exponential base whose Coulomb and
+#: first Stribeck amplitudes cancel (+108 and -108 N m, foreign seed 311801) loses both with a gravity
+#: harmonic, and a thermal6 then rebuilds them (named temperature 0.81, nothing thermal hidden).
 MAP_PARTS = (("level amplitude", (0,)), ("Stribeck amplitude", (1, 4)), ("viscous part", VISCOUS_SLOTS))
 
 
