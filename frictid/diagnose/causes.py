@@ -10,6 +10,8 @@ import math
 
 import numpy as np
 
+from ..data import finite
+from ..segments import noise_sigma
 from .model import Coef, Context, Evaluator, Structure, Term, load_variable
 from .samples import Samples
 from .signals import delay_estimate, delay_estimates, delay_map, moving_samples, rest_scales
@@ -68,6 +70,19 @@ SPAN_MIN_TAUS = 3.0
 #: excitation (sum of a^2) of the moving samples: the fit's inertia rests on all of them, and a subset with
 #: little acceleration cannot overrule it (on a pulses run it turns transients into a 56 % inertia change).
 INERTIA_EXCITATION_MIN = 0.25
+
+#: A structure is worth stating when the RMS it explains is at least this many times the noise of the
+#: friction torque (and EXPLAINED_MIN of the friction RMS): a systematic part the size of the sample noise
+#: is what any estimated acceleration and held shape leave (clean logs of the shipped plants: 1-2x).
+X_NOISE = 3.0
+
+
+def torque_noise(S: Samples) -> float:
+    """The noise [F] the logs show on the friction torque the diagnosis fits, ``F = tau - J a - G`` (the
+    torque sensor's and that of the estimated acceleration): the largest robust white-noise level of a
+    log's F (MAD of its fourth difference)."""
+    return S.cached("torque_noise", lambda: max((noise_sigma(finite(lg.F)) for lg in S.logs if lg.n > 10),
+                                                default=0.0))
 
 
 def n_coef(ext: str, st: Structure) -> int:

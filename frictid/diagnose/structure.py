@@ -24,29 +24,16 @@ import math
 
 import numpy as np
 
-from ..data import finite
-from ..segments import noise_sigma
 from .binned import heldout_binned
+from .causes import X_NOISE, torque_noise
 from .chain import ALPHA, EXPLAINED_MIN, group_d, paired_t
 from .samples import Samples
 from .signals import torque_rate
 
-#: A structure is worth stating when the RMS it explains is at least this many times the noise of the
-#: friction torque (and EXPLAINED_MIN of the friction RMS): a systematic part the size of the sample noise
-#: is what any estimated acceleration and held shape leave (clean logs of the shipped plants: 1-2x).
-X_NOISE = 3.0
 #: The variables tested, with their label and unit key.
 VARIABLES = (("speed", "velocity", "w"), ("dwell", "time since the last rest", "s"), ("time", "time", "s"),
              ("position", "position", "q"), ("acceleration", "acceleration", "a"),
              ("torque", "measured torque", "F"), ("torque_rate", "rate of the measured torque", "F/s"))
-
-
-def torque_noise(S: Samples) -> float:
-    """The noise [F] the logs show on the friction torque the diagnosis fits, ``F = tau - J a - G`` (the
-    torque sensor's and that of the estimated acceleration): the largest robust white-noise level of a
-    log's F (MAD of its fourth difference)."""
-    return S.cached("torque_noise", lambda: max((noise_sigma(finite(lg.F)) for lg in S.logs if lg.n > 10),
-                                                default=0.0))
 
 
 def since_rest(S: Samples) -> np.ndarray:
