@@ -39,6 +39,7 @@ from .binned import fold_parts, heldout_binned
 from .causes import EXTENSIONS, candidates, n_coef, propose
 from .model import LEVEL_SLOTS, Coef, Context, Evaluator, Structure
 from .samples import Samples
+from .search import StrideSearch
 from .signals import REST_MIN, delay_heldout, rest_scales, rests
 
 #: Family-wise false-finding level of one step of the chain (split over its candidates).
@@ -181,6 +182,8 @@ class Chain:
         self.F_rms = float(np.sqrt(np.mean(S.F ** 2)))
         #: held-out samples at a speed the training folds cover (:func:`supported`): the only ones scored
         self.inside = supported(S)
+        #: a long log's stride, on which some candidates' grids of settings are ranked (:mod:`.search`)
+        self.stride = StrideSearch(S)
         self.steps: list[dict] = []
         self.history: list[tuple[Structure, Coef, np.ndarray]] = []
         self._before(base)
@@ -212,12 +215,20 @@ class Chain:
         S = self.S
         after = np.empty(S.n)
         terms, coefs = [], []
+        stride = self.stride.wants(ext)   # a long log: the grid ranked on a stride of the training samples
+        if stride:
+            self.stride.sync(self.ctx)
         for f, (tr, te, res, lev, c0) in enumerate(self.train_info):
-            term = propose(ext, self.ctx, self.st, tr, res, lev, c0)
+            term = (propose(ext, self.stride.ctx, self.st, *self.stride.training(f, tr, res, lev), c0) if stride
+                    else propose(ext, self.ctx, self.st, tr, res, lev, c0))
+            if stride and term is not None:
+                term = self.stride.full_period(term, tr, res)
             if term is None:
                 self.ctx.release(self.st)
                 return None
             terms.append(term)
+        if stride:
+            self.stride.ctx.release(self.st)
         # the folds' own settings (a period, a shift) summed in one pass, then each fold's fit from its sums
         self.ctx.prefetch([self.st.plus(term) for term in terms])
         for (tr, te, *_), term in zip(self.train_info, terms):
