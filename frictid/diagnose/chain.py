@@ -215,20 +215,12 @@ class Chain:
         S = self.S
         after = np.empty(S.n)
         terms, coefs = [], []
-        stride = self.stride.wants(ext)   # a long log: the grid ranked on a stride of the training samples
-        if stride:
-            self.stride.sync(self.ctx)
         for f, (tr, te, res, lev, c0) in enumerate(self.train_info):
-            term = (propose(ext, self.stride.ctx, self.st, *self.stride.training(f, tr, res, lev), c0) if stride
-                    else propose(ext, self.ctx, self.st, tr, res, lev, c0))
-            if stride and term is not None:
-                term = self.stride.full_period(term, tr, res)
+            term = self._propose(ext, tr, res, lev, c0, f)
             if term is None:
                 self.ctx.release(self.st)
                 return None
             terms.append(term)
-        if stride:
-            self.stride.ctx.release(self.st)
         # the folds' own settings (a period, a shift) summed in one pass, then each fold's fit from its sums
         self.ctx.prefetch([self.st.plus(term) for term in terms])
         for (tr, te, *_), term in zip(self.train_info, terms):
@@ -249,6 +241,16 @@ class Chain:
         # self.pred is replaced, never changed in place, when the model is extended: shared, not copied
         return Trial(ext, EXTENSIONS[ext][0], self.pred, after, terms, coefs, rms_b, rms_a, gain, t, p,
                      S.n_groups, expl, n_coef(ext, self.st), d, index=len(self.st.terms))
+
+    def _propose(self, ext: str, tr: np.ndarray, res: np.ndarray, lev: np.ndarray, c0: Coef, f: int | None = None):
+        """:func:`propose` on the training set ``tr`` (fold f's; None: all samples); on a long log, a
+        candidate's grid of settings ranked on a stride of it (:mod:`.search`)."""
+        if not self.stride.wants(ext):
+            return propose(ext, self.ctx, self.st, tr, res, lev, c0)
+        self.stride.sync(self.ctx)
+        term = propose(ext, self.stride.ctx, self.st, *self.stride.training(f, tr, res, lev), c0)
+        self.stride.ctx.release(self.st)
+        return None if term is None else self.stride.full_period(term, tr, res)
 
     def _before_numbers(self) -> tuple:
         """The current model's held-out residual, its RMS over the scored samples, the samples not scored
@@ -423,7 +425,7 @@ class Chain:
                 return None, None, None
             res = self.S.F - self.pred
             ev0 = Evaluator(self.st, self.ctx)
-            term = propose(best.ext, self.ctx, self.st, self.idx_all, res, ev0.level(self.coef, self.idx_all), self.coef)
+            term = self._propose(best.ext, self.idx_all, res, ev0.level(self.coef, self.idx_all), self.coef)
             st_new = self.st.plus(term)
             after = Evaluator(st_new, self.ctx).fit(self.idx_all)
             why = degenerate(self.coef, st_new, after) or unphysical(st_new, after, self.J)

@@ -79,10 +79,10 @@ class StrideSearch:
                     and isinstance(val, np.ndarray) and val.shape[:1] == (S.n,)):
                 self.ctx._cache[key] = val[self.sel]
 
-    def training(self, f: int, tr: np.ndarray, res: np.ndarray, lev: np.ndarray) -> tuple:
-        """Fold f's training set on the stride and the current model's residual and level there (``res`` and
-        ``lev`` on the full training set ``tr``)."""
-        idx = self.train[f]
+    def training(self, f: int | None, tr: np.ndarray, res: np.ndarray, lev: np.ndarray) -> tuple:
+        """Fold f's training set on the stride (None: all of the stride's samples) and the current model's
+        residual and level there (``res`` and ``lev`` on the full training set ``tr``)."""
+        idx = self.train[f] if f is not None else np.arange(self.sub.n)
         at = np.searchsorted(tr, self.sel[idx])
         return idx, res[at], lev[at]
 
