@@ -250,7 +250,7 @@ class Chain:
         self.stride.sync(self.ctx)
         term = propose(ext, self.stride.ctx, self.st, *self.stride.training(f, tr, res, lev), c0)
         self.stride.ctx.release(self.st)
-        return None if term is None else self.stride.full_period(term, tr, res)
+        return term
 
     def _before_numbers(self) -> tuple:
         """The current model's held-out residual, its RMS over the scored samples, the samples not scored

@@ -1,16 +1,19 @@
 """Settings ranked on a stride of the training samples (long logs): a candidate's grid of nonlinear settings
-(the Stribeck velocities and exponents, the dwell's rest scale and fading travel) is ranked by fits on every
-``k``-th sliding sample of the training folds, then the chosen setting's columns are summed on all of them
-(:meth:`frictid.diagnose.chain.Chain.evaluate`: the folds' own settings in one pass), so every held-out fit,
-prediction and gain is still on all sliding samples.
+(the Stribeck velocities and exponents, the dwell's rest scale and fading travel, the thermal time constants
+and the temperature's source) is ranked by fits on every ``k``-th sliding sample of the training folds;
+then the chosen settings (each fold's, in one pass: :meth:`frictid.diagnose.chain.Chain.evaluate`) are
+summed on all of them, so every held-out fit, prediction and gain is still on all sliding samples.
 
-Why. Each setting of a grid costs a pass over the samples (its columns formed and summed against the
-current model's); on a one-hour log (1.16 M sliding samples) the Stribeck grid's 16 settings and the
-dwell's 12 were a third of the candidates' trials at each step. Ranking a grid needs far fewer samples
-than judging the chosen setting: the stride keeps about :data:`STRIDE_TARGET` samples, spread over every
-group of every training fold (the samples are in folds and in time within a fold, so every ``k``-th sample
-keeps each fold's samples in each fold and about ``1/k`` of each group's). A log with fewer than
-:data:`STRIDE_MIN` sliding samples is searched on all of them, as before (every test and sample log).
+Why. A grid's settings are summed in one pass (:meth:`frictid.diagnose.model.Context.prefetch`), but each
+setting's columns are formed over all samples and enter the pass's products, and the dwell's and the
+thermal terms' refinements take a second pass; on a one-hour log (1.16 M sliding samples) that was about
+1.5 s of the 3.6 s of candidates' trials. Ranking a grid needs far fewer samples than judging the chosen
+setting: the stride keeps about :data:`STRIDE_TARGET` samples, spread over every group of every training
+fold (the samples are in folds and in time within a fold, so every ``k``-th sample keeps about ``1/k`` of
+each group's). A log with at most :data:`STRIDE_MIN` sliding samples is searched on all of them, as before
+(every test and sample log). Not on the stride: the position torque (its periods include each training
+set's periodogram peak, a continuous estimate; ranked on the stride it cost more, the peak estimated
+twice), the position ripple and the delay (one estimated setting per training set, no grid).
 
 What it may change: where two settings of a grid nearly tie on the training folds, the stride may rank them
 the other way; the held-out judgement of the chosen one is unchanged (docs/diagnosis.md, "Whole logs").
@@ -25,7 +28,7 @@ from .model import Context
 from .samples import PER_SAMPLE, Samples
 
 #: Candidates whose grid of settings is ranked on the stride.
-STRIDE_EXTS = ("stribeck", "dwell", "thermal4", "thermal6", "position_torque")
+STRIDE_EXTS = ("stribeck", "dwell", "thermal4", "thermal6")
 #: Logs with more sliding samples than this are searched on a stride ...
 STRIDE_MIN = 1 << 18
 #: ... of about this many samples.
@@ -66,14 +69,11 @@ class StrideSearch:
         a thermal term's) taken from the full samples' cache at the stride's samples."""
         from .signals import rest_scales, rests
 
-        from .causes import _period_range
-
         S, sub = self.S, self.sub
         if "rests" not in sub._memo and S.q is not None:
             tr, sd = rests(S)
             sub._memo["rests"] = (tr[self.sel], sd[self.sel])
             sub._memo["rest_scales"] = rest_scales(S)
-            sub._memo["period_range"] = _period_range(S)
         for key, val in ctx._cache.items():
             if (isinstance(key, tuple) and key and key[0] in ("thermal", "term") and key not in self.ctx._cache
                     and isinstance(val, np.ndarray) and val.shape[:1] == (S.n,)):
@@ -85,15 +85,3 @@ class StrideSearch:
         idx = self.train[f] if f is not None else np.arange(self.sub.n)
         at = np.searchsorted(tr, self.sel[idx])
         return idx, res[at], lev[at]
-
-    def full_period(self, term, tr: np.ndarray, res: np.ndarray):
-        """A position torque's term as ranked on the stride, its period the periodogram's peak of the full
-        training set when the stride chose the peak (a fixed harmonic or the smooth form as they are): a
-        period estimated on every training sample."""
-        from .causes import _period_range, _torque_periods, best_period
-
-        P = float(term.settings.get("period", 0.0))
-        if term.ext != "position_torque" or P == 0.0 or any(P == float(x) for x in _torque_periods(self.S)):
-            return term
-        P = best_period(self.S.q[tr], res, np.ones(tr.size), _period_range(self.S))
-        return term if P is None else replace(term, nl=(("period", float(P)),))
