@@ -153,3 +153,52 @@ def test_training_predictions_on_runs_and_the_scored_samples_are_the_plain_ones(
             if tr_w.size:
                 inside[sel] = (S.w[sel] >= tr_w.min()) & (S.w[sel] <= tr_w.max())
     np.testing.assert_array_equal(supported(S), inside)
+
+
+def test_a_stride_keeps_every_fold_the_logs_values_and_the_training_residual(S, monkeypatch):
+    from frictid.diagnose import search
+
+    monkeypatch.setattr(search, "STRIDE_MIN", 1 << 12)
+    monkeypatch.setattr(search, "STRIDE_TARGET", 1 << 13)
+    st = search.StrideSearch(S)
+    assert st.active and st.wants("stribeck") and not st.wants("delay")
+    k = int(np.ceil(S.n / (1 << 13)))
+    sub = st.sub
+    np.testing.assert_array_equal(st.sel, np.arange(0, S.n, k))
+    np.testing.assert_array_equal(sub.fold, S.fold[st.sel])
+    assert np.all(np.diff(sub.fold) >= 0) and set(sub.fold) == set(range(S.n_folds))   # folds contiguous, all there
+    assert sub.dt(0) == S.dt(0) and sub.log_w(1) is S.log_w(1)
+    st.sync(Context(S))
+    # the dwell's grid and the ripple's periods are the full samples' own, the rests theirs at the stride
+    assert sub.cached("rest_scales", lambda: None) is sg.rest_scales(S)
+    np.testing.assert_array_equal(sg.rests(sub)[0], sg.rests(S)[0][st.sel])
+    for f in (0, 3):
+        tr = np.flatnonzero(S.fold != f)
+        res = np.random.default_rng(f).standard_normal(tr.size)
+        idx, r, lev = st.training(f, tr, res, 2 * res)
+        np.testing.assert_array_equal(idx, np.flatnonzero(sub.fold != f))
+        full = np.full(S.n, np.nan)
+        full[tr] = res
+        np.testing.assert_array_equal(r, full[st.sel[idx]])
+        np.testing.assert_array_equal(lev, 2 * r)
+
+
+def test_a_grid_ranked_on_a_stride_chooses_the_setting_of_all_samples(S, monkeypatch):
+    # a Stribeck hump the base map lacks: its velocity and exponent ranked on every second or fourth sample
+    # of the training folds are those of all of them; the chain's trial judges them on all samples
+    from frictid.diagnose import search
+    from frictid.diagnose.causes import propose
+    from frictid.diagnose.chain import Chain
+
+    cp, _ = sm.canonical_pair("coulomb_viscous", TRUE)
+    base = Structure("coulomb_viscous", cp, ())
+    monkeypatch.setattr(search, "STRIDE_MIN", 1 << 12)
+    for target in (1 << 14, 1 << 13):
+        monkeypatch.setattr(search, "STRIDE_TARGET", target)
+        ch = Chain(S, base)
+        assert ch.stride.active
+        tr_full = ch.evaluate("stribeck", 10)
+        for f, (tr, te, res, lev, c0) in enumerate(ch.train_info):
+            full = propose("stribeck", ch.ctx, ch.st, tr, res, lev, c0)
+            assert tr_full.fold_terms[f] == full
+        assert tr_full.gain > 0 and np.all(np.isfinite(tr_full.pred_after))

@@ -39,6 +39,7 @@ from .binned import fold_parts, heldout_binned
 from .causes import EXTENSIONS, X_NOISE, candidates, n_coef, propose, torque_noise
 from .model import VISCOUS_SLOTS, Coef, Context, Evaluator, Structure
 from .samples import Samples
+from .search import StrideSearch
 from .signals import REST_MIN, delay_heldout, rest_scales, rests
 
 #: Family-wise false-finding level of one step of the chain (split over its candidates).
@@ -186,6 +187,8 @@ class Chain:
         self.F_rms = float(np.sqrt(np.mean(S.F ** 2)))
         #: held-out samples at a speed the training folds cover (:func:`supported`): the only ones scored
         self.inside = supported(S)
+        #: a long log's stride, on which some candidates' grids of settings are ranked (:mod:`.search`)
+        self.stride = StrideSearch(S)
         self.steps: list[dict] = []
         self.history: list[tuple[Structure, Coef, np.ndarray]] = []
         self._before(base)
@@ -234,7 +237,7 @@ class Chain:
         after = np.empty(S.n)
         terms, coefs = [], []
         for f, (tr, te, res, lev, c0) in enumerate(self.train_info):
-            term = propose(ext, self.ctx, self.st, tr, res, lev, c0)
+            term = self._propose(ext, tr, res, lev, c0, f)
             if term is None:
                 self.ctx.release(self.st)
                 return None
@@ -259,6 +262,16 @@ class Chain:
         # self.pred is replaced, never changed in place, when the model is extended: shared, not copied
         return Trial(ext, EXTENSIONS[ext][0], self.pred, after, terms, coefs, rms_b, rms_a, gain, t, p,
                      S.n_groups, expl, n_coef(ext, self.st), d, index=len(self.st.terms))
+
+    def _propose(self, ext: str, tr: np.ndarray, res: np.ndarray, lev: np.ndarray, c0: Coef, f: int | None = None):
+        """:func:`propose` on the training set ``tr`` (fold f's; None: all samples); on a long log, a
+        candidate's grid of settings ranked on a stride of it (:mod:`.search`)."""
+        if not self.stride.wants(ext):
+            return propose(ext, self.ctx, self.st, tr, res, lev, c0)
+        self.stride.sync(self.ctx)
+        term = propose(ext, self.stride.ctx, self.st, *self.stride.training(f, tr, res, lev), c0)
+        self.stride.ctx.release(self.st)
+        return term
 
     def _before_numbers(self) -> tuple:
         """The current model's held-out residual, its RMS over the scored samples, the samples not scored
@@ -433,7 +446,7 @@ class Chain:
                 return None, None, None
             res = self.S.F - self.pred
             ev0 = Evaluator(self.st, self.ctx)
-            term = propose(best.ext, self.ctx, self.st, self.idx_all, res, ev0.level(self.coef, self.idx_all), self.coef)
+            term = self._propose(best.ext, self.idx_all, res, ev0.level(self.coef, self.idx_all), self.coef)
             st_new = self.st.plus(term)
             after = Evaluator(st_new, self.ctx).fit(self.idx_all)
             why = degenerate(self.coef, st_new, after) or unphysical(st_new, after, self.J)
