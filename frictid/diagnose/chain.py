@@ -769,13 +769,18 @@ def _a_friction_lag(S: Samples, tr: Trial, m: int) -> str | None:
     the velocity map taken a few samples earlier (:func:`frictid.diagnose.lag.friction_lag_heldout`, the lag
     chosen on the training folds), the one-sided paired t over held-out groups significant at the step's
     level. (Foreign seed 307721, a clean work program at 131 Hz: a 1.8-sample torque shift cut the moving
-    samples' held-out RMS from 2.59 to 2.10 N m, the map one sample earlier to 2.03.)"""
+    samples' held-out RMS from 2.59 to 2.10 N m, the map one sample earlier to 2.03.) A lag whose own
+    held-out gain is not significant at that level explains nothing and is no competitor (session 20: seed
+    311500, a 24 ms delay on sweeps, gain 0.84 on the sliding samples, the lag 0.90 -> 0.92 N m on the
+    moving samples, where the delay's gain sits in a few groups, t = 1.7: it was rejected as the lag)."""
     from .lag import friction_lag_heldout
     lag = friction_lag_heldout(S, float(np.mean(_fold_shifts(tr))))
     if lag is None:
         return None
     mv = delay_moving(S, tr)
     rb, ra = mv["rms_before"], mv["rms_after"]
+    if paired_t(lag["ss0"] - lag["ss1"])[1] >= ALPHA / max(m, 1):
+        return None   # the lag explains nothing significant itself: no competing explanation
     t, p = paired_t(mv["d"] - (lag["ss0"] - lag["ss1"]))
     if p < ALPHA / max(m, 1):
         return None
