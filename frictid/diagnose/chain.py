@@ -815,7 +815,7 @@ def _not_at_speed(S: Samples, tr: Trial, m: int, F_rms: float) -> str | None:
     (:func:`frictid.diagnose.lag.delay_at_speed`, judged as on every moving sample) the delay must be
     significant at the step's level and explain at least :data:`EXPLAINED_MIN` of the friction RMS. (Foreign
     seeds 309007 and 309247, PI velocity loops, an asymmetry hidden and no delay: a 34 ms and a 43 ms shift
-    cut the moving samples' held-out RMS by half, 90-99 % of it below the slowest eighth of their speeds; at
+    cut the moving samples' held-out RMS by half, 90-99 % of that gain in the slowest eighth of their speeds; at
     speed 0.0158 -> 0.0151 N m (1.2 % of the friction RMS) and 1.26 -> 1.67 N m. True delays of 21 and 50 ms,
     309704 and 309229: 10.9 -> 2.1 and 22.9 -> 2.1 N m, 14 % and 18 % of it.)"""
     from .lag import delay_at_speed
