@@ -172,6 +172,10 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
                 text += (f"; on every moving sample (transients included) the shift cuts the held-out RMS from "
                          f"{fmt(tr.moving['rms_before'])} to {fmt(tr.moving['rms_after'])} {units['F']} "
                          f"(t = {tr.moving['t']:.1f})")
+                fast = tr.moving.get("at_speed")
+                if fast:
+                    text += (f", on the faster half of them from {fmt(fast['rms_before'])} to "
+                             f"{fmt(fast['rms_after'])} (t = {fast['t']:.1f})")
             rec.setdefault("outside_model", []).append(
                 {"cause": tr.cause, "evidence": text, "extension": tr.ext, "settings": {k: v for k, v in step["term"].settings.items() if k != "beta"},
                  "coefficients": [float(x) for x in np.atleast_1d(

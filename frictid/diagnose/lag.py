@@ -23,7 +23,7 @@ import numpy as np
 
 from ..data import finite
 from .samples import Samples
-from .signals import BATCH_ROWS, _delay_columns, _fold_blocks, _moving_groups, _moving_rows, delay_limit
+from .signals import BATCH_ROWS, _delay_columns, _fold_blocks, _moving_groups, _moving_rows, delay_limit, shifted_torque
 
 #: Most lags tried (whole samples, 1 to twice the delay found; geometric when there are more).
 LAG_GRID = 12
@@ -124,3 +124,89 @@ def friction_lag_heldout(S: Samples, delay_s: float) -> dict | None:
 def _nearest_group(km: np.ndarray, gk: np.ndarray, k: np.ndarray) -> np.ndarray:
     """The held-out group of each of the moving samples k (a subset of km, whose groups are gk)."""
     return gk[np.searchsorted(km, k)]
+
+
+# -- the delay where the friction's memory does not act: the faster half of the moving samples ------------
+
+def _fast_rows(S: Samples) -> list:
+    """Per log: (indices of its moving samples at least as fast as the median speed of all moving samples,
+    their fold, their held-out group): the moves at speed, their accelerations and decelerations included,
+    without the starts and reversals (cached)."""
+    def compute():
+        rows = _moving_rows(S)
+        speeds = [np.abs(S.log_w(i)[km]) for i, (km, _) in enumerate(rows)]
+        allv = np.concatenate(speeds) if speeds else np.zeros(0)
+        if not allv.size:
+            return []
+        v_half = float(np.median(allv))
+        out = []
+        for (km, fk), gk, v in zip(rows, _moving_groups(S), speeds):
+            sel = v >= v_half
+            out.append((km[sel], fk[sel], gk[sel]))
+        return out
+    return S.cached("fast_moving_rows", compute)
+
+
+def _fast_sums(S: Samples, whole: list[int]):
+    """Per fold over the faster moving samples (:func:`_fast_rows`): X'X of the delay's columns
+    (:func:`_delay_columns`) and, per shift in whole samples (``whole``), X'y with y the friction torque,
+    the measured torque taken that many samples earlier. None without such samples."""
+    nf = S.n_folds
+    XtX = XtY = None
+    for i, (km, fk, _) in enumerate(_fast_rows(S)):
+        if not km.size:
+            continue
+        lg = S.logs[i]
+        tau = finite(lg.tau)
+        for g, k in _fold_blocks(km, fk, BATCH_ROWS):
+            X = _delay_columns(S, i, k)
+            if XtX is None:
+                XtX = np.zeros((nf, X.shape[1], X.shape[1]))
+                XtY = np.zeros((len(whole), nf, X.shape[1]))
+            XtX[g] += X.T @ X
+            for n, L in enumerate(whole):
+                XtY[n, g] += X.T @ (lg.F[k] - tau[k] + shifted_torque(tau, k.astype(float), L))
+    return XtX, XtY
+
+
+def delay_at_speed(S: Samples, shifts: list[float]) -> dict | None:
+    """The delay judged on the faster half of the moving samples only (:func:`_fast_rows`), as
+    :func:`frictid.diagnose.signals.delay_heldout` judges it on all of them: per fold the delay's map (per sign
+    1, sqrt|w|, |w|, w^2, the acceleration, cos q, sin q) fitted on the other folds' faster samples with the
+    torque shifted by the fold's shift (whole samples) and without, both predicting the held-out fold's.
+    A delay of the signal shifts the torque at every speed (in the accelerations and decelerations at speed
+    too); the friction's own memory (presliding at the starts and reversals, a loop holding the joint in
+    its static band while its integrator builds up the torque) lives at the lowest speeds of each move. Returns
+    the held-out RMS without and with the shift and per held-out group the sums of ``r_before^2 - r_after^2``
+    (``d``); None without such samples."""
+    dt = S.dt(0)
+    per_fold = [int(round(float(x) / dt)) for x in shifts]
+    whole = sorted(set([0] + per_fold))
+    XtX, XtY = _fast_sums(S, whole)
+    if XtX is None:
+        return None
+    nf = S.n_folds
+    fits = []
+    for f in range(nf):
+        tr = [g for g in range(nf) if g != f]
+        A = XtX[tr].sum(0)
+        fits.append((_solve(A, XtY[0, tr].sum(0)), _solve(A, XtY[whole.index(per_fold[f]), tr].sum(0))))
+    d = np.zeros(S.n_groups)
+    ss0 = ss1 = 0.0
+    n = 0
+    for i, (km, fk, gk) in enumerate(_fast_rows(S)):
+        if not km.size:
+            continue
+        lg = S.logs[i]
+        tau = finite(lg.tau)
+        for g, k in _fold_blocks(km, fk, BATCH_ROWS):
+            X = _delay_columns(S, i, k)
+            grp = _nearest_group(km, gk, k)
+            b0, b1 = fits[g]
+            r0 = lg.F[k] - X @ b0
+            r1 = lg.F[k] - tau[k] + shifted_torque(tau, k.astype(float), per_fold[g]) - X @ b1
+            d += np.bincount(grp, weights=r0 * r0 - r1 * r1, minlength=S.n_groups)
+            ss0 += float(r0 @ r0)
+            ss1 += float(r1 @ r1)
+            n += k.size
+    return {"rms_before": math.sqrt(ss0 / max(n, 1)), "rms_after": math.sqrt(ss1 / max(n, 1)), "d": d, "n": n}
