@@ -116,6 +116,7 @@ def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None, points=None, shif
         v = np.abs(w[np.sign(w) == side] if side else w)
         _no_drop_seen(p, v)
         if p["Fs"].value <= p["Fc"].value:  # no drop: physical_shape's case
+            _level_spread(mf, without_drop, suf)
             continue
         if points is not None:
             _drop_in_view_at_every_exponent(mf, suf, side, points)
