@@ -74,9 +74,6 @@ class Friction:
     #: the plateau points' changes for one standard deviation of each independent error direction of the
     #: inertia, gravity and offset (:func:`plateau_shifts`)
     shifts: list[np.ndarray] | None = None
-    #: the error of the plateau points' even part when it was moved into the offset
-    #: (:func:`_offset_from_plateaus`): the offset's error as the points carry it
-    offset_points_se: float | None = None
 
 
 def _meta_value(meta: dict, *keys):
@@ -517,9 +514,7 @@ def rigid_body(jd: JointData, regs: Regressors, n_folds: int) -> tuple[RigidBody
     fr = Friction(plat, keys, S, basis, why_basis, excl)
     final = _stage2(jd, rb, fr) or reg_fit
     if final is not None and fr.basis == "plateaus":
-        fr.shifts = plateau_shifts(jd, final, len(fr.plat), fr.offset_points_se)
-        if fr.offset_points_se is not None:
-            fr.shifts = _even_part_moved(fr.shifts, fr.plat, fr.offset_points_se)
+        fr.shifts = plateau_shifts(jd, final, len(fr.plat))
     for p in jd.preps:  # the mechanics are final: cos q and sin q are not needed again (58 MB per joint-hour)
         p._trig = None
     mechanics_not_identified(jd.jf)
@@ -615,29 +610,11 @@ def _offset_from_plateaus(jd: JointData, fr: Friction) -> None:
     if even is None or pe is None or pe.value is None or pe.stderr is None:
         return
     e, se = even
-    fr.offset_points_se = se
     pe.value += e
     pe.stderr = math.sqrt(pe.stderr**2 + se**2 + e**2)
     reason = _precision_reason("offset", "F", pe.value, pe.stderr, jd)
     pe.identifiable, pe.reason = not reason, reason
     fr.plat, fr.keys = plateaus(jd)
-
-
-def _even_part_moved(shifts: list[np.ndarray], plat: Plateaus, even_se: float) -> list[np.ndarray]:
-    """The shifts of the plateau points as they are after the points' even part was moved into the offset
-    (:func:`_offset_from_plateaus`): each rigid-body error direction's even part (as :func:`plateau_even`
-    measures it) is taken out with it, and the even part's own error is one more direction (a constant)."""
-    base = plateau_even(plat)
-    if base is None:
-        return shifts
-    out = []
-    for d in shifts:
-        moved = plateau_even(Plateaus(plat.w, plat.F + d, plat.F_se, plat.w_se, plat.n, plat.t_start,
-                                      plat.t_end, plat.seg))
-        out.append(d - (moved[0] - base[0]) if moved is not None else d)
-    if np.isfinite(even_se) and even_se > 0:
-        out.append(np.full(len(plat), even_se))
-    return out
 
 
 def plateau_even(plat: Plateaus) -> tuple[float, float] | None:
@@ -667,18 +644,12 @@ def plateau_even(plat: Plateaus) -> tuple[float, float] | None:
     return e, se_e * math.sqrt(max(chi2, 1.0))
 
 
-def plateau_shifts(jd: JointData, fit_: rg.LinearFit, n_plat: int, offset_se: float | None = None
-                   ) -> list[np.ndarray]:
+def plateau_shifts(jd: JointData, fit_: rg.LinearFit, n_plat: int) -> list[np.ndarray]:
     """How the plateau points move for one standard deviation of each independent error direction of the
     rigid-body terms subtracted from the torque (inertia, gravity, payload, offset): the plateau means of
     their regressors times the eigenvectors of their covariance (correlations from the regression, standard
     errors from the reported estimates, which carry the bandwidth check's systematic term). Empty when a
-    plateau's regressors are not finite. ``offset_se`` (not None: the offset was set from the plateau
-    points' own even part, :func:`_offset_from_plateaus`): the offset is left out here, as whatever error
-    the regression's offset had, the points carry only the even part's (:func:`_even_part_moved`); the
-    offset's reported error, the regression's with the two estimates' disagreement (an error of the offset
-    as a torque bias), is not the points' (session 19: it was most of the Stribeck map's Coulomb error on
-    foreign sweeps whose truth lay 0.02-0.1 of that error off)."""
+    plateau's regressors are not finite."""
     jf = jd.jf
     est = {"J": jf.inertia, "offset": jf.offset, **jf.gravity}
     names = [n for n in fit_.names if n not in POLY_COEFS and n not in fit_.dependent and n in est]
@@ -693,11 +664,6 @@ def plateau_shifts(jd: JointData, fit_: rg.LinearFit, n_plat: int, offset_se: fl
         return []
     with np.errstate(divide="ignore", invalid="ignore"):
         corr = np.nan_to_num(C / np.outer(se_c, se_c))
-    if offset_se is not None and "offset" in names:  # the points' even part: :func:`_even_part_moved`
-        keep = [k for k, n in enumerate(names) if n != "offset"]
-        names, se, corr = [names[k] for k in keep], se[keep], corr[np.ix_(keep, keep)]
-        if not names:
-            return []
     np.fill_diagonal(corr, 1.0)
     lam, V = np.linalg.eigh(corr * np.outer(se, se))
     Xbar = []
