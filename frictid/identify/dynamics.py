@@ -277,9 +277,7 @@ def _creep_sd(holds: list[dict], res: float) -> None:
     ``step^2 / 6`` over its duration squared); their weighted mean is the rate ``r +- s``, ``s`` widened by
     the holds' spread beyond their errors. A ramp whose hold showed no creep was not corrected: the creep it
     may carry is ``c r T`` (T the ramp's duration, c the creep's unknown profile over the ramp's lower
-    loads, uniform in 0..1), of root mean square ``T sqrt((max(r, 0)^2 + s^2) / 3)``, and no more than its
-    own hold allows (r at most its limit: ``limit T / sqrt(3)``; other holds drifting more, as bristles
-    still settling at a low log rate do, took it 30 times above the bound, foreign 203183). A corrected ramp (c
+    loads, uniform in 0..1), of root mean square ``T sqrt((max(r, 0)^2 + s^2) / 3)``. A corrected ramp (c
     taken as :data:`CREEP_PROFILE`) keeps the profile's standard deviation ``|rate| T / sqrt(12)``, its
     rate's error over the ramp and an encoder step's rounding (``res / sqrt(3)``)."""
     if not holds:
@@ -305,8 +303,6 @@ def _creep_sd(holds: list[dict], res: float) -> None:
             h["correction_sd"] = math.sqrt(prof ** 2 + err ** 2 + res ** 2 / 3.0)
         else:
             h["correction_sd"] = T * math.sqrt((max(rate, 0.0) ** 2 + s * s) / 3.0)
-            if "unseen_limit" in h:  # never above what its own hold allows: c uniform, r at most its limit
-                h["correction_sd"] = min(h["correction_sd"], h["unseen_limit"] * T / math.sqrt(3.0))
         if not math.isfinite(h["correction_sd"]):  # no hold measures the creep: its bound stands
             h["correction_sd"] = h.get("correction_se", math.inf)
 
