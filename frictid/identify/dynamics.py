@@ -114,34 +114,20 @@ CREEP_PROFILE = 0.5
 CREEP_SHARE = 0.25
 
 
-def _drift_rate(t: np.ndarray, q: np.ndarray, dF: np.ndarray) -> tuple[float, float, float]:
-    """The drift of the position at constant load [q/s], its least-squares standard error and its standard
-    error with the residuals' correlation (:func:`_correlated_se`): q against time and the load's deviation
-    together (within the hold's band the load still moves a little, and the bristles follow it; that is
-    not drift)."""
+def _drift_rate(t: np.ndarray, q: np.ndarray, dF: np.ndarray) -> tuple[float, float]:
+    """The drift of the position at constant load [q/s] and its standard error: q against time and the
+    load's deviation together (within the hold's band the load still moves a little, and the bristles
+    follow it; that is not drift)."""
     if t.size < 6:
-        return 0.0, math.inf, math.inf
+        return 0.0, math.inf
     X = np.column_stack([np.ones(t.size), t - t[0], dF])
     coef, *_ = np.linalg.lstsq(X, np.asarray(q, float), rcond=None)
     r = np.asarray(q, float) - X @ coef
     try:
         cov = float(r @ r) / max(t.size - 3, 1) * np.linalg.inv(X.T @ X)
     except np.linalg.LinAlgError:
-        return float(coef[1]), math.inf, math.inf
-    se = math.sqrt(max(float(cov[1, 1]), 0.0))
-    return float(coef[1]), se, _correlated_se(se, r)
-
-
-def _correlated_se(se: float, r: np.ndarray) -> float:
-    """A least-squares standard error ``se`` with the residuals ``r``'s correlation from sample to sample
-    (an AR(1) process of lag-one correlation rho: the samples count as ``n (1 - rho) / (1 + rho)``, no fewer
-    than 3, the regression's coefficients): a held position sampled faster than it wanders (the encoder's
-    count, the bristles' slow settling) has far fewer independent samples than readings."""
-    n = r.size
-    sd = float(np.std(r))
-    rho = float(np.dot(r[:-1] - r.mean(), r[1:] - r.mean()) / (n * sd * sd)) if n > 2 and sd > 0 else 0.0
-    n_eff = max(n * (1.0 - max(rho, 0.0)) / (1.0 + max(rho, 0.0)), 3.0)
-    return se * math.sqrt(max(n / n_eff, 1.0))
+        return float(coef[1]), math.inf
+    return float(coef[1]), math.sqrt(max(float(cov[1, 1]), 0.0))
 
 
 def _hold_drift(p, s) -> dict | None:
@@ -169,9 +155,9 @@ def _hold_drift(p, s) -> dict | None:
     if b - a + 1 < HOLD_MIN_SAMPLES or not np.all(np.isfinite(p.log.q[a:b + 1])):
         return None
     t = p.log.t[a:b + 1]
-    rate, se_rate, sd_rate = _drift_rate(t, p.log.q[a:b + 1], F[a:b + 1] - F_end)
+    rate, se_rate = _drift_rate(t, p.log.q[a:b + 1], F[a:b + 1] - F_end)
     mid = t.size // 2
-    late, se_late, sd_late = _drift_rate(t[mid:], p.log.q[a + mid:b + 1], F[a + mid:b + 1] - F_end)
+    late, se_late = _drift_rate(t[mid:], p.log.q[a + mid:b + 1], F[a + mid:b + 1] - F_end)
     # creep runs on while the load is held; a drift that dies out within the hold is the bristles settling
     # (LuGre drifts towards its steady deflection under a held load), and the ramp fit follows that itself
     settles = abs(late) <= CREEP_Z * se_late or np.sign(late) != np.sign(rate)
@@ -181,11 +167,7 @@ def _hold_drift(p, s) -> dict | None:
     if abs(rate) <= CREEP_Z * se_rate or settles:
         rate = 0.0
     return {"rate": rate, "rate_se": CREEP_Z * se_rate, "loading": bool(end == s.i1 - 1), "duration": float(t[-1] - t[0]), "drift": rate * float(t[-1] - t[0]),
-            "load_sign": float(np.sign(F_end)), "shown": shown if np.isfinite(shown) else 0.0,
-            # the settled (later) half's drift in the load's direction and its standard error (random, with
-            # the samples' correlation): what the holds measure of a creep (:func:`_creep_sd`)
-            "late": float(np.sign(F_end)) * late, "late_sd": sd_late, "late_duration": float(t[-1] - t[mid]),
-            "rate_sd": sd_rate}
+            "load_sign": float(np.sign(F_end)), "shown": shown if np.isfinite(shown) else 0.0}
 
 
 def _without_creep(out: Presliding, jd: JointData) -> None:
@@ -195,8 +177,7 @@ def _without_creep(out: Presliding, jd: JointData) -> None:
     (``q - rate (t - t0)``: the creep of a loaded joint runs at about that rate through the ramp); a ramp
     whose correction is uncertain by more than CREEP_SHARE of what is left (its rate's error times the
     ramp's duration, CREEP_PROFILE of the creep for its unknown profile at lower loads, an encoder step)
-    is dropped; the kept ones' creep enters sigma0's standard error as a standard error (:func:`_creep_sd`,
-    :func:`_creep_inflated`). ``out.creep`` records each."""
+    is dropped; the kept ones' relative uncertainty enters sigma0's standard error (:func:`_creep_inflated`). ``out.creep`` records each."""
     keep = []
     k = 0
     res = max(out.resolution, 1e-300)
@@ -227,7 +208,6 @@ def _without_creep(out: Presliding, jd: JointData) -> None:
             creep = h["rate"] * (t - t[0])
             qc = q - creep
             h.update(ramp_creep=float(abs(creep[-1])), ramp_bristle=float(np.ptp(qc)),
-                     ramp_duration=float(t[-1] - t[0]),
                      correction_se=float(h["rate_se"] * (t[-1] - t[0]) + CREEP_PROFILE * abs(creep[-1])) + res)
             out.creep.append(h)
             if h["correction_se"] > CREEP_SHARE * h["ramp_bristle"]:
@@ -237,7 +217,6 @@ def _without_creep(out: Presliding, jd: JointData) -> None:
             h["kept"] = True
             out.ramps[k - 1] = (qc, F)
             keep.append(True)
-    _creep_sd(out.creep, res)
     out.ramps = [r for r, kp in zip(out.ramps, keep) if kp]
     out.ramp_t = [r for r, kp in zip(out.ramp_t, keep) if kp]
     out.ramp_w = [r for r, kp in zip(out.ramp_w, keep) if kp]
@@ -259,57 +238,16 @@ def _unseen_creep(h: dict, q: np.ndarray, t: np.ndarray, res: float, out: Presli
     limit = max(h["rate_se"], h.get("shown", 0.0) + step)
     unseen = CREEP_PROFILE * limit * float(t[-1] - t[0])
     h.update(rate=0.0, unseen_limit=float(limit), ramp_creep=0.0, ramp_bristle=float(np.ptp(q)),
-             ramp_duration=float(t[-1] - t[0]), correction_se=float(unseen))
+             correction_se=float(unseen))
     h["kept"] = bool(np.isfinite(unseen) and unseen <= CREEP_SHARE * h["ramp_bristle"])
     out.creep.append(h)
     return h["kept"]
 
 
-def _creep_sd(holds: list[dict], res: float) -> None:
-    """The creep's standard error in each kept ramp (``correction_sd``, what sigma0's error carries; the
-    bounds in ``correction_se`` decide which ramps are kept and whether the signs differ). A bound is not a
-    standard error: on foreign plants that do not creep, a still hold's detection limit (one encoder step
-    over it) made sigma0's error 10-20 times its ramp-to-ramp spread, and every value within 2 errors.
-
-    A creep is the joint's at the held loads, so the holds estimate its rate together: each hold's settled
-    (later) half gives a drift in the load's direction with its error (the samples' correlation,
-    :func:`_correlated_se`, and the rounding of the two readings that set a slope over the half,
-    ``step^2 / 6`` over its duration squared); their weighted mean is the rate ``r +- s``, ``s`` widened by
-    the holds' spread beyond their errors. A ramp whose hold showed no creep was not corrected: the creep it
-    may carry is ``c r T`` (T the ramp's duration, c the creep's unknown profile over the ramp's lower
-    loads, uniform in 0..1), of root mean square ``T sqrt((max(r, 0)^2 + s^2) / 3)``. A corrected ramp (c
-    taken as :data:`CREEP_PROFILE`) keeps the profile's standard deviation ``|rate| T / sqrt(12)``, its
-    rate's error over the ramp and an encoder step's rounding (``res / sqrt(3)``)."""
-    if not holds:
-        return
-    r = np.array([h.get("late", 0.0) for h in holds], float)
-    var = np.array([h.get("late_sd", math.inf) ** 2 + (res / max(h.get("late_duration", 0.0), 1e-300)) ** 2 / 6.0
-                    for h in holds], float)
-    ok = np.isfinite(r) & np.isfinite(var) & (var > 0)
-    rate, s = 0.0, math.inf
-    if ok.any():
-        w = 1.0 / var[ok]
-        rate = float(np.sum(w * r[ok]) / np.sum(w))
-        s2 = 1.0 / float(np.sum(w))
-        if ok.sum() >= 2:
-            s2 *= max(1.0, float(np.sum(w * (r[ok] - rate) ** 2)) / (ok.sum() - 1))
-        s = math.sqrt(s2)
-    for h in holds:
-        T = h.get("ramp_duration")
-        if T is None:
-            continue
-        if h.get("rate", 0.0):  # a corrected ramp
-            prof, err = abs(h["rate"]) * T / math.sqrt(12.0), CREEP_PROFILE * h.get("rate_sd", math.inf) * T
-            h["correction_sd"] = math.sqrt(prof ** 2 + err ** 2 + res ** 2 / 3.0)
-        else:
-            h["correction_sd"] = T * math.sqrt((max(rate, 0.0) ** 2 + s * s) / 3.0)
-        if not math.isfinite(h["correction_sd"]):  # no hold measures the creep: its bound stands
-            h["correction_sd"] = h.get("correction_se", math.inf)
-
-
 def _creep_inflated(s0: pre.DynamicEstimate, pd: Presliding) -> pre.DynamicEstimate:
-    """sigma0's standard error with the creep's standard error in its ramps (:func:`_creep_sd_share`)."""
-    rel = _creep_sd_share(pd)
+    """sigma0's standard error with the uncertainty of the creep taken out of its ramps (relative: the
+    correction's error over the bristle displacement left, the largest of the kept ramps)."""
+    rel = _creep_share(pd)
     if not rel or s0.value is None or s0.stderr is None:
         return s0
     se = math.hypot(s0.stderr, s0.value * rel)
@@ -468,18 +406,8 @@ def _spread_floor(s0: pre.DynamicEstimate, pd: Presliding, g_of: list[float]) ->
                                dict(s0.details or {}, fit_se=s0.stderr, ramp_spread_se=spread))
 
 
-def _creep_sd_share(pd: Presliding) -> float:
-    """The creep's relative standard error in sigma0: its standard error over the bristle displacement left
-    (:func:`_creep_sd`), averaged over the kept ramps (a creep of the joint moves every ramp alike, and the
-    pooled sigma0 by about their mean)."""
-    rel = [h["correction_sd"] / h["ramp_bristle"] for h in pd.creep
-           if h.get("kept") and h["ramp_bristle"] > 0 and math.isfinite(h.get("correction_sd", math.nan))]
-    return float(np.mean(rel)) if rel else 0.0
-
-
 def _creep_share(pd: Presliding) -> float:
-    """The largest relative uncertainty the creep leaves in a kept ramp, a bound (what :func:`_per_sign`
-    allows between the signs)."""
+    """The largest relative uncertainty the creep leaves in a kept ramp (what :func:`_creep_inflated` adds)."""
     rel = [h["correction_se"] / h["ramp_bristle"] for h in pd.creep if h.get("kept") and h["ramp_bristle"] > 0]
     return max(rel, default=0.0)
 
