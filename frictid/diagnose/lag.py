@@ -153,20 +153,27 @@ def _fast_sums(S: Samples, whole: list[int]):
     the measured torque taken that many samples earlier. None without such samples."""
     nf = S.n_folds
     XtX = XtY = None
-    for i, (km, fk, _) in enumerate(_fast_rows(S)):
+    for lg, tau, _, _, g, k, X in _fast_blocks(S):
+        if XtX is None:
+            XtX = np.zeros((nf, X.shape[1], X.shape[1]))
+            XtY = np.zeros((len(whole), nf, X.shape[1]))
+        XtX[g] += X.T @ X
+        for n, L in enumerate(whole):
+            XtY[n, g] += X.T @ (lg.F[k] - tau[k] + shifted_torque(tau, k.astype(float), L))
+    return XtX, XtY
+
+
+def _fast_blocks(S: Samples):
+    """The faster moving samples (:func:`_fast_rows`) in batches of one fold: per batch the log, its finite
+    torque, the log's faster rows and their groups, the fold, the batch's rows and the delay's columns
+    (:func:`_delay_columns`) there."""
+    for i, (km, fk, gk) in enumerate(_fast_rows(S)):
         if not km.size:
             continue
         lg = S.logs[i]
         tau = finite(lg.tau)
         for g, k in _fold_blocks(km, fk, BATCH_ROWS):
-            X = _delay_columns(S, i, k)
-            if XtX is None:
-                XtX = np.zeros((nf, X.shape[1], X.shape[1]))
-                XtY = np.zeros((len(whole), nf, X.shape[1]))
-            XtX[g] += X.T @ X
-            for n, L in enumerate(whole):
-                XtY[n, g] += X.T @ (lg.F[k] - tau[k] + shifted_torque(tau, k.astype(float), L))
-    return XtX, XtY
+            yield lg, tau, km, gk, g, k, _delay_columns(S, i, k)
 
 
 def delay_at_speed(S: Samples, shifts: list[float]) -> dict | None:
@@ -194,19 +201,13 @@ def delay_at_speed(S: Samples, shifts: list[float]) -> dict | None:
     d = np.zeros(S.n_groups)
     ss0 = ss1 = 0.0
     n = 0
-    for i, (km, fk, gk) in enumerate(_fast_rows(S)):
-        if not km.size:
-            continue
-        lg = S.logs[i]
-        tau = finite(lg.tau)
-        for g, k in _fold_blocks(km, fk, BATCH_ROWS):
-            X = _delay_columns(S, i, k)
-            grp = _nearest_group(km, gk, k)
-            b0, b1 = fits[g]
-            r0 = lg.F[k] - X @ b0
-            r1 = lg.F[k] - tau[k] + shifted_torque(tau, k.astype(float), per_fold[g]) - X @ b1
-            d += np.bincount(grp, weights=r0 * r0 - r1 * r1, minlength=S.n_groups)
-            ss0 += float(r0 @ r0)
-            ss1 += float(r1 @ r1)
-            n += k.size
+    for lg, tau, km, gk, g, k, X in _fast_blocks(S):
+        grp = _nearest_group(km, gk, k)
+        b0, b1 = fits[g]
+        r0 = lg.F[k] - X @ b0
+        r1 = lg.F[k] - tau[k] + shifted_torque(tau, k.astype(float), per_fold[g]) - X @ b1
+        d += np.bincount(grp, weights=r0 * r0 - r1 * r1, minlength=S.n_groups)
+        ss0 += float(r0 @ r0)
+        ss1 += float(r1 @ r1)
+        n += k.size
     return {"rms_before": math.sqrt(ss0 / max(n, 1)), "rms_after": math.sqrt(ss1 / max(n, 1)), "d": d, "n": n}
