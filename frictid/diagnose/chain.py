@@ -186,10 +186,6 @@ class Chain:
         self.ctx = Context(S)
         self.st = base
         self.idx_all = np.arange(S.n)
-        #: the friction RMS, the scale of what a term must explain: of the friction torque the logs give,
-        #: ``F = tau - J a - G`` with the fit's rigid body, less the rigid-body repairs the chain adopts
-        #: (:meth:`_friction_rms`)
-        self.F_rms = float(np.sqrt(np.mean(S.F ** 2)))
         #: held-out samples at a speed the training folds cover (:func:`supported`): the only ones scored
         self.inside = supported(S)
         #: a long log's stride, on which some candidates' grids of settings are ranked (:mod:`.search`)
@@ -214,6 +210,9 @@ class Chain:
         self.pred = pred
         self.coef = ev.fit(self.idx_all)
         self.history.append((st, self.coef, pred))
+        #: the friction RMS, the scale of what a term must explain: of the friction torque the logs give,
+        #: ``F = tau - J a - G`` with the fit's rigid body, less the rigid-body repairs the chain adopts
+        #: (:meth:`_friction_rms`), for the current model
         self.F_rms = self._friction_rms(st, self.coef)
 
     def _friction_rms(self, st: Structure, coef: Coef) -> float:
