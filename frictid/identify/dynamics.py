@@ -19,6 +19,7 @@ from frictid.result import ModelFit, ParamEstimate
 from . import presliding as pre
 from .prepare import JointData
 from .static import predict
+from .select import selectable
 
 
 @dataclass
@@ -498,15 +499,16 @@ def _presliding_rms(pd: Presliding, g_of: list[float], s0_of: list[float], base_
 
 
 def _lugre_choice(jd: JointData, mf: ModelFit, base_name: str) -> None:
-    """LuGre replaces its map when identifiable and better on held-out presliding segments."""
+    """LuGre replaces its map when identifiable (or only its static map's drop shape is not, the choice's
+    rule: :func:`.select.selectable`) and better on held-out presliding segments."""
     jf, met = jd.jf, mf.metrics
     rh = met.get("rms_presliding_heldout")
-    if mf.identifiable and rh is not None and rh < met["rms_presliding_static"]:
+    if selectable(mf) and rh is not None and rh < met["rms_presliding_static"]:
         jf.selection["lugre"] = (f"chosen: held-out presliding RMS {rh:.4g} against {met['rms_presliding_static']:.4g} "
                                  f"for {base_name} alone")
         jf.selected = "lugre"
     else:
-        why = ("not all dynamic parameters identifiable" if not mf.identifiable else
+        why = ("not all dynamic parameters identifiable" if not selectable(mf) else
                "fewer than two ramp segments: no held-out presliding error" if rh is None else
                "no better than the static map on held-out presliding segments")
         jf.selection["lugre"] = f"not chosen: {why}"

@@ -171,6 +171,9 @@ def choose_base(jd: JointData, fr: Friction, n_folds: int) -> None:
                                f"{n_folds} folds)"}[fr.basis]
     rec["basis_reason"] = fr.why
     jf.selected, jf.selection = selected, rec
+    if rec.get("shape_not_identifiable"):  # chosen for its map: its drop's shape listed as not identified
+        jf.not_identified += [{"what": f"{selected}.{n}", "reason": pe.reason}
+                              for n, pe in jf.models[selected].params.items() if not (pe.identifiable or pe.fixed)]
 
 
 def _rss(b, ne: rg.NormalEquations) -> float:

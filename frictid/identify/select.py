@@ -8,10 +8,16 @@ spans both signs and all speeds. Each model is refitted without a fold and predi
 Choice (:func:`choose`). Among the base models whose parameters are all identifiable, those whose
 held-out RMS is within :data:`TOLERANCE` (5 %) of the best are equally good on new data; of these the one
 with the lowest AIC (small-sample corrected) is chosen, which prefers the simpler model when the data do
-not need the richer one. When no model is fully identifiable the same rule runs over all models, with a
-warning. The held-out refits therefore run for the models the rule can take (:func:`heldout_for_choice`):
-a model whose parameters are not all identifiable gets no held-out error, and a note saying so, unless no
-identifiable model gets one.
+not need the richer one. A Stribeck map whose only unidentified parameters are its drop's shape
+(:func:`shape_only`: ``Fs``, ``vs``, ``delta``, the exponent below the data or not pinned) still has a
+determined map within the data's speeds: it is taken when it predicts the held-out plateaus better than
+every identifiable model by more than the tolerance (a user compensates with the map's values there, and
+its shape stays marked not identifiable with the reason), and an identifiable model within the tolerance
+of it is preferred, as is one with fewer flags when equally good. A Stribeck map that rises (``Fs <
+Fc``) is never taken. When no model is fully identifiable or shape-only, the same rule runs over all
+models, with a warning. The held-out refits therefore run for the models the rule can take
+(:func:`heldout_for_choice`): a model that is neither gets no held-out error, and a note saying so,
+unless no other model gets one.
 
 Shared with the diagnosis: :data:`BASE_MODELS` and :func:`base_model_name` (the base of its chain, by this
 rule). This module imports neither the fit's steps nor :mod:`frictid.diagnose`.
@@ -29,6 +35,10 @@ from .static import Plateaus, fit_static, predict, warm_start
 
 #: Held-out RMS within this fraction of the best counts as equally good.
 TOLERANCE = 0.05
+#: The static maps with a Stribeck drop whose shape parameters may be unidentified in a selectable model
+#: (:func:`shape_only`), and those parameters (per sign for a per-sign map).
+DROP_MAPS = ("stribeck", "stribeck_asym")
+DROP_SHAPE = ("Fs", "vs", "delta")
 #: Velocity-only models (candidates for the choice), in the order they are reported.
 BASE_MODELS = tuple(sm.map_names()) + ("polynomial_ls",)
 
@@ -67,16 +77,48 @@ def heldout_static(name: str, pl: Plateaus, n_folds: int = 5, axis: str = "rotar
     return float(math.sqrt(np.mean(r**2)))
 
 
+def _branches(mf) -> tuple[str, ...]:
+    return ("_pos", "_neg") if mf.map.endswith("_asym") else ("",)
+
+
+def shape_only(mf) -> bool:
+    """Whether ``mf`` (a Stribeck map, or LuGre on one) has unidentified parameters, all of them its drop's
+    shape (``Fs``, ``vs``, ``delta`` of a branch: the break-away below the slowest plateau, the exponent the
+    data do not pin, a drop not spanned by steady runs) while every other parameter is identifiable, and
+    drops on every branch (``Fs >= Fc``: a map that rises is no Stribeck map, whatever it predicts). Its
+    map within the data's speeds is then determined by the levels and the slope; what it says below the
+    slowest plateau is not, which the flags and the validity range say."""
+    if mf.map not in DROP_MAPS or mf.identifiable:
+        return False
+    sufs = _branches(mf)
+    for n, pe in mf.params.items():
+        if pe.identifiable or pe.fixed:
+            continue
+        if not any(n == s + suf for s in DROP_SHAPE for suf in sufs):
+            return False
+    for suf in sufs:
+        fs, fc = mf.params.get("Fs" + suf), mf.params.get("Fc" + suf)
+        if fs is None or fc is None or fs.value is None or fc.value is None or fs.value < fc.value:
+            return False
+    return True
+
+
+def selectable(mf) -> bool:
+    """A model the choice can take: all its parameters identifiable, or only its drop's shape not
+    (:func:`shape_only`)."""
+    return mf.identifiable or shape_only(mf)
+
+
 #: The note on a model whose held-out error is not computed (:func:`heldout_for_choice`).
-NOT_HELDOUT = ("held-out RMS not computed: its parameters are not all identifiable, and the choice takes the "
-               "identifiable models only when there are any")
+NOT_HELDOUT = ("held-out RMS not computed: its parameters are not all identifiable (beyond a Stribeck drop's "
+               "shape), and the choice takes such models only when no other model has a held-out RMS")
 
 
 def heldout_for_choice(models: dict, names: list[str], heldout: Callable[[str], float | None],
                        others: list[str] = ()) -> list[str]:
-    """Compute the held-out RMS of the models ``names`` that :func:`choose` can take: the identifiable ones,
-    and the others only when no identifiable candidate (of ``names`` and ``others``, whose held-out RMS is
-    already known) gets one. ``heldout(name)`` gives a model's held-out RMS, stored in its metrics; a model
+    """Compute the held-out RMS of the models ``names`` that :func:`choose` can take: the :func:`selectable`
+    ones, and the others only when no selectable candidate (of ``names`` and ``others``, whose held-out RMS
+    is already known) gets one. ``heldout(name)`` gives a model's held-out RMS, stored in its metrics; a model
     left out gets ``None`` and the note :data:`NOT_HELDOUT`. Returns the names left out.
 
     The choice is the same as with every model's held-out RMS: the rule ranks the identifiable models only,
@@ -84,13 +126,13 @@ def heldout_for_choice(models: dict, names: list[str], heldout: Callable[[str], 
     most expensive ones (the least squares wander along the flat direction to their evaluation cap) and
     their error depends on where they stop (a one-ulp change of the inputs moved ``stribeck_2exp_asym``'s by
     5 %): on the hour's joints they were 0.25-0.39 s of 3.6 s CPU per joint-hour."""
-    left = [n for n in names if not models[n].identifiable]
+    left = [n for n in names if not selectable(models[n])]
     for n in names:
         if n not in left:
             models[n].metrics["rms_heldout"] = heldout(n)
-    known = [n for n in list(names) + list(others) if n in models and models[n].identifiable
+    known = [n for n in list(names) + list(others) if n in models and selectable(models[n])
              and models[n].metrics.get("rms_heldout") is not None]
-    if not known:  # no identifiable candidate has a held-out error: the choice runs over every model
+    if not known:  # no selectable candidate has a held-out error: the choice runs over every model
         for n in left:
             models[n].metrics["rms_heldout"] = heldout(n)
         return []
@@ -112,14 +154,12 @@ def choose(models: dict, candidates: list[str] | None = None, tolerance: float =
     for n in names:
         m = models[n]
         ranked.append({"model": n, "rms_heldout": m.metrics.get("rms_heldout"), "aic": m.metrics.get("aic"),
-                       "k": m.metrics.get("k"), "identifiable": m.identifiable})
+                       "k": m.metrics.get("k"), "identifiable": m.identifiable, "shape_only": shape_only(m)})
     rec: dict = {"rule": f"lowest AIC among identifiable models whose held-out RMS is within "
-                         f"{100 * tolerance:.0f} % of the best", "tolerance": tolerance}
-    pool = [r for r in ranked if r["identifiable"] and r["rms_heldout"] is not None]
-    if not pool:
-        pool = [r for r in ranked if r["rms_heldout"] is not None]
-        if pool:
-            rec["warning"] = "no model has all its parameters identifiable; chosen among all models"
+                         f"{100 * tolerance:.0f} % of the best; a Stribeck map whose drop's shape alone is not "
+                         f"identifiable is taken when its held-out RMS beats every identifiable model's by more "
+                         f"than {100 * tolerance:.0f} %", "tolerance": tolerance}
+    pool, beats = _pool(ranked, tolerance, rec)
     if not pool:
         pool = [r for r in ranked if r["aic"] is not None]
         if not pool:
@@ -134,9 +174,40 @@ def choose(models: dict, candidates: list[str] | None = None, tolerance: float =
         best = min(near, key=lambda r: (r["aic"] if r["aic"] is not None else math.inf, r["k"] or 0))
         rec["best_heldout"] = min(pool, key=lambda r: r["rms_heldout"])["model"]
         rec["equally_good"] = [r["model"] for r in near]
+    if best.get("shape_only"):
+        m = models[best["model"]]
+        flagged = [n for n, pe in m.params.items() if not (pe.identifiable or pe.fixed)]
+        rec["shape_not_identifiable"] = (
+            f"{best['model']} is chosen with {', '.join(flagged)} not identifiable (see their reasons): "
+            + (beats or "no identifiable model has a held-out RMS")
+            + "; its map within the data's speeds is what the data determine, its drop's shape is not")
     ranked.sort(key=lambda r: (r["rms_heldout"] is None, r["rms_heldout"] or 0.0))
     rec["ranking"] = ranked
     return best["model"], rec
+
+
+def _pool(ranked: list[dict], tolerance: float, rec: dict) -> tuple[list[dict], str]:
+    """The models the choice ranks: the identifiable ones with a held-out RMS, or the shape-only ones
+    (:func:`shape_only`) when the best of them beats every identifiable one by more than ``tolerance``
+    (or none is identifiable), or, when neither kind has a held-out RMS, every model with one (with a
+    warning in ``rec``); and, for the shape-only pool, by how much it beats them."""
+    ident = [r for r in ranked if r["identifiable"] and r["rms_heldout"] is not None]
+    shape = [r for r in ranked if r["shape_only"] and r["rms_heldout"] is not None]
+    if shape:
+        s_best = min(shape, key=lambda r: r["rms_heldout"])
+        i_best = min(ident, key=lambda r: r["rms_heldout"]) if ident else None
+        if i_best is None or i_best["rms_heldout"] > (1 + tolerance) * s_best["rms_heldout"]:
+            beats = "" if i_best is None else (
+                f"the best held-out RMS ({s_best['model']}: {s_best['rms_heldout']:.4g}), every identifiable "
+                f"model's more than {100 * tolerance:.0f} % above it (the best, {i_best['model']}: "
+                f"{i_best['rms_heldout']:.4g})")
+            return shape, beats
+    if ident:
+        return ident, ""
+    pool = [r for r in ranked if r["rms_heldout"] is not None]
+    if pool:
+        rec["warning"] = "no model has all its parameters identifiable; chosen among all models"
+    return pool, ""
 
 
 def base_model_name(jf) -> str | None:

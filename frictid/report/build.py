@@ -882,6 +882,8 @@ def _selection_text(jd: dict) -> str:
         parts.append(f"Rule: {rec['rule']}.")
     if rec.get("best_heldout"):
         parts.append(f"Lowest held-out RMS: {rec['best_heldout']}.")
+    if rec.get("shape_not_identifiable"):
+        parts.append(f"{rec['shape_not_identifiable']}.")
     if isinstance(rec.get("lugre"), str):
         parts.append(f"LuGre: {rec['lugre']}.")
     if rec.get("reason"):
