@@ -149,7 +149,8 @@ def test_a_drop_out_of_view_at_an_exponent_that_fits_as_well_is_not_identified()
     """Issue 19 (foreign draw: slowest plateau at 3 Stribeck velocities, exponent 0.8; a per-sign fit with a
     free exponent of 1.7 +- 0.6 gave Fs 8.41 +- 0.24 against 10.29, trusted). Plateaus from 3 vs up: the
     fit's own exponent puts the slowest point inside the drop, the exponent 1 fits as well and puts it below
-    a quarter of the drop, so Fs and vs are not identifiable. Competing explanation: plateaus from 0.2 vs up
+    a quarter of the drop, so Fs and vs are not identifiable (where the exponent is held, its profile over
+    0.5-3 already says so: Fs moves by more than itself). Competing explanation: plateaus from 0.2 vs up
     see the drop's top at every exponent, and keep them."""
     from frictid.identify.static import fit_static
     from frictid.identify.validity import drop_spanned
@@ -162,12 +163,12 @@ def test_a_drop_out_of_view_at_an_exponent_that_fits_as_well_is_not_identified()
         se = np.full(w.size, 0.01)
         for name, sufs in (("stribeck", ("",)), ("stribeck_asym", ("_pos", "_neg"))):
             mf = fit_static(name, w, F, se)
-            assert all(mf.params["Fs" + s].identifiable for s in sufs)
+            assert all(mf.params["Fs" + s].identifiable for s in sufs) or not seen
             drop_spanned(mf, w, None, points=(w, F, se))
             for s in sufs:
                 assert mf.params["Fs" + s].identifiable == seen and mf.params["vs" + s].identifiable == seen
                 if not seen:
-                    assert "at exponent" in mf.params["Fs" + s].reason
+                    assert "exponent" in mf.params["Fs" + s].reason
                     assert mf.params["Fc" + s].identifiable and mf.params["sigma2" + s].identifiable
 
 

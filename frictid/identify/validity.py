@@ -342,10 +342,10 @@ def _drop_gain(parts: list, dof: int) -> float | None:
     return c0 - c1
 
 
-#: Exponents at which a branch's Stribeck drop is refitted (:func:`_drop_in_view_at_every_exponent`; the
-#: grid of the held exponent's profile with 2 added, 000/003's value) and the chi-square within which a fit
-#: is as consistent with the data as the reported one.
-EXPONENTS = (1.0, 1.5, 2.0, 3.0)
+#: Exponents at which a branch's Stribeck drop is refitted (:func:`_drop_in_view_at_every_exponent`: the
+#: grid of the held exponent's profile, from 0.5 as real drives show, with 2 added, 000/003's value) and the
+#: chi-square within which a fit is as consistent with the data as the reported one.
+EXPONENTS = (0.5, 0.75, 1.0, 1.5, 2.0, 3.0)
 EXPONENT_CHI2 = 4.0
 
 
@@ -363,7 +363,9 @@ def _drop_in_view_at_every_exponent(mf, suf: str, side: float, points) -> None:
     from .static import DROP_SEEN, fit_branch
 
     fs, vs, dl = (mf.params.get(n + suf) for n in ("Fs", "vs", "delta"))
-    if not fs.identifiable or fs.fixed or not vs.identifiable or vs.fixed:
+    # the speed is judged too where the level already is not identifiable (the held exponent's profile
+    # carries it off at an exponent that fits as well): the drop's speed depends on the same shape
+    if fs.fixed or not vs.identifiable or vs.fixed:
         return
     bw, bF, bse, wts, scales = _branch_points(points, side)
     names = ("Fc", "Fs", "vs", "delta", "sigma2")
