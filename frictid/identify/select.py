@@ -9,15 +9,14 @@ Choice (:func:`choose`). Among the base models whose parameters are all identifi
 held-out RMS is within :data:`TOLERANCE` (5 %) of the best are equally good on new data; of these the one
 with the lowest AIC (small-sample corrected) is chosen, which prefers the simpler model when the data do
 not need the richer one. A Stribeck map whose only unidentified parameters are its drop's shape
-(:func:`shape_only`: ``Fs``, ``vs``, ``delta``, the exponent below the data or not pinned) still has a
-determined map within the data's speeds: it is taken when it predicts the held-out plateaus better than
-every identifiable model by more than the tolerance (a user compensates with the map's values there, and
-its shape stays marked not identifiable with the reason), and an identifiable model within the tolerance
-of it is preferred, as is one with fewer flags when equally good. A Stribeck map that rises (``Fs <
-Fc``) is never taken. When no model is fully identifiable or shape-only, the same rule runs over all
-models, with a warning. The held-out refits therefore run for the models the rule can take
-(:func:`heldout_for_choice`): a model that is neither gets no held-out error, and a note saying so,
-unless no other model gets one.
+(:func:`shape_only`: ``Fs``, ``vs``, ``delta`` where the break-away lies below the slowest plateau, the
+exponent is not pinned or the drop is not spanned by steady runs) still has a determined map within the
+data's speeds: it competes on the same terms (a user compensates with the map's values there), its shape
+staying marked not identifiable with the reason, recorded in the choice. A Stribeck map that rises (``Fs
+< Fc``) or shows no drop above the slowest plateau on any branch is not taken. When no model is fully
+identifiable or shape-only, the same rule runs over all models, with a warning. The held-out refits
+therefore run for the models the rule can take (:func:`heldout_for_choice`): a model that is neither gets
+no held-out error, and a note saying so, unless no other model gets one.
 
 Shared with the diagnosis: :data:`BASE_MODELS` and :func:`base_model_name` (the base of its chain, by this
 rule). This module imports neither the fit's steps nor :mod:`frictid.diagnose`.
@@ -32,6 +31,7 @@ import numpy as np
 from frictid.models import static as sm
 
 from .static import Plateaus, fit_static, predict, warm_start
+from .validity import NO_DROP
 
 #: Held-out RMS within this fraction of the best counts as equally good.
 TOLERANCE = 0.05
@@ -83,11 +83,13 @@ def _branches(mf) -> tuple[str, ...]:
 
 def shape_only(mf) -> bool:
     """Whether ``mf`` (a Stribeck map, or LuGre on one) has unidentified parameters, all of them its drop's
-    shape (``Fs``, ``vs``, ``delta`` of a branch: the break-away below the slowest plateau, the exponent the
-    data do not pin, a drop not spanned by steady runs) while every other parameter is identifiable, and
-    drops on every branch (``Fs >= Fc``: a map that rises is no Stribeck map, whatever it predicts). Its
-    map within the data's speeds is then determined by the levels and the slope; what it says below the
-    slowest plateau is not, which the flags and the validity range say."""
+    shape (``Fs``, ``vs``, ``delta`` of a branch: the exponent the data do not pin, a drop out of view at
+    an exponent that fits as well, a drop not spanned by steady runs) while every other parameter is
+    identifiable, drops on every branch (``Fs >= Fc``: a map that rises is no Stribeck map, whatever it
+    predicts) and shows a drop above the slowest plateau on at least one (else its name describes nothing
+    the data show: :data:`.validity.NO_DROP`). Its map within the data's speeds is then determined by the
+    levels, the slope and the drop's tail; what it says below the slowest plateau is not, which the flags
+    and the validity range say."""
     if mf.map not in DROP_MAPS or mf.identifiable:
         return False
     sufs = _branches(mf)
@@ -96,11 +98,13 @@ def shape_only(mf) -> bool:
             continue
         if not any(n == s + suf for s in DROP_SHAPE for suf in sufs):
             return False
+    seen = False
     for suf in sufs:
         fs, fc = mf.params.get("Fs" + suf), mf.params.get("Fc" + suf)
         if fs is None or fc is None or fs.value is None or fc.value is None or fs.value < fc.value:
             return False
-    return True
+        seen = seen or not (fs.reason or "").startswith(NO_DROP)
+    return seen
 
 
 def selectable(mf) -> bool:
@@ -155,11 +159,10 @@ def choose(models: dict, candidates: list[str] | None = None, tolerance: float =
         m = models[n]
         ranked.append({"model": n, "rms_heldout": m.metrics.get("rms_heldout"), "aic": m.metrics.get("aic"),
                        "k": m.metrics.get("k"), "identifiable": m.identifiable, "shape_only": shape_only(m)})
-    rec: dict = {"rule": f"lowest AIC among identifiable models whose held-out RMS is within "
-                         f"{100 * tolerance:.0f} % of the best; a Stribeck map whose drop's shape alone is not "
-                         f"identifiable is taken when its held-out RMS beats every identifiable model's by more "
-                         f"than {100 * tolerance:.0f} %", "tolerance": tolerance}
-    pool, beats = _pool(ranked, tolerance, rec)
+    rec: dict = {"rule": f"lowest AIC among identifiable models (or Stribeck maps whose drop's shape alone is "
+                         f"not identifiable) whose held-out RMS is within {100 * tolerance:.0f} % of the best",
+                 "tolerance": tolerance}
+    pool = _pool(ranked, rec)
     if not pool:
         pool = [r for r in ranked if r["aic"] is not None]
         if not pool:
@@ -175,39 +178,28 @@ def choose(models: dict, candidates: list[str] | None = None, tolerance: float =
         rec["best_heldout"] = min(pool, key=lambda r: r["rms_heldout"])["model"]
         rec["equally_good"] = [r["model"] for r in near]
     if best.get("shape_only"):
-        m = models[best["model"]]
-        flagged = [n for n, pe in m.params.items() if not (pe.identifiable or pe.fixed)]
+        flagged = [n for n, pe in models[best["model"]].params.items() if not (pe.identifiable or pe.fixed)]
         rec["shape_not_identifiable"] = (
-            f"{best['model']} is chosen with {', '.join(flagged)} not identifiable (see their reasons): "
-            + (beats or "no identifiable model has a held-out RMS")
-            + "; its map within the data's speeds is what the data determine, its drop's shape is not")
+            f"{best['model']} is chosen with {', '.join(flagged)} not identifiable (see their reasons): its map "
+            "within the data's speeds is determined and predicts the held-out data "
+            + ("best" if rec.get("best_heldout") == best["model"] else
+               f"within {100 * tolerance:.0f} % of the best ({rec.get('best_heldout')})")
+            + ", its drop's shape is not")
     ranked.sort(key=lambda r: (r["rms_heldout"] is None, r["rms_heldout"] or 0.0))
     rec["ranking"] = ranked
     return best["model"], rec
 
 
-def _pool(ranked: list[dict], tolerance: float, rec: dict) -> tuple[list[dict], str]:
-    """The models the choice ranks: the identifiable ones with a held-out RMS, or the shape-only ones
-    (:func:`shape_only`) when the best of them beats every identifiable one by more than ``tolerance``
-    (or none is identifiable), or, when neither kind has a held-out RMS, every model with one (with a
-    warning in ``rec``); and, for the shape-only pool, by how much it beats them."""
-    ident = [r for r in ranked if r["identifiable"] and r["rms_heldout"] is not None]
-    shape = [r for r in ranked if r["shape_only"] and r["rms_heldout"] is not None]
-    if shape:
-        s_best = min(shape, key=lambda r: r["rms_heldout"])
-        i_best = min(ident, key=lambda r: r["rms_heldout"]) if ident else None
-        if i_best is None or i_best["rms_heldout"] > (1 + tolerance) * s_best["rms_heldout"]:
-            beats = "" if i_best is None else (
-                f"the best held-out RMS ({s_best['model']}: {s_best['rms_heldout']:.4g}), every identifiable "
-                f"model's more than {100 * tolerance:.0f} % above it (the best, {i_best['model']}: "
-                f"{i_best['rms_heldout']:.4g})")
-            return shape, beats
-    if ident:
-        return ident, ""
-    pool = [r for r in ranked if r["rms_heldout"] is not None]
-    if pool:
-        rec["warning"] = "no model has all its parameters identifiable; chosen among all models"
-    return pool, ""
+def _pool(ranked: list[dict], rec: dict) -> list[dict]:
+    """The models the choice ranks: those with a held-out RMS whose parameters are all identifiable or
+    whose drop's shape alone is not (:func:`shape_only`), or, when none of them has one, every model with
+    one (with a warning in ``rec``)."""
+    pool = [r for r in ranked if (r["identifiable"] or r["shape_only"]) and r["rms_heldout"] is not None]
+    if not pool:
+        pool = [r for r in ranked if r["rms_heldout"] is not None]
+        if pool:
+            rec["warning"] = "no model has all its parameters identifiable; chosen among all models"
+    return pool
 
 
 def base_model_name(jf) -> str | None:

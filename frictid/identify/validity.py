@@ -80,6 +80,9 @@ DROP_INSIDE = (0.05, 0.95)
 
 #: The drop seen at the slowest plateau speed counts when beyond this many of its errors (:func:`_no_drop_seen`).
 NO_DROP_Z = 2.0
+#: How the reason of a break-away level with no drop above the slowest plateau begins (:func:`_no_drop_seen`,
+#: :func:`_drop_significant`; the choice does not take a Stribeck map without a drop on any branch).
+NO_DROP = "no Stribeck drop above the slowest plateau speed"
 
 
 def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None, points=None, shifts=None) -> None:
@@ -169,7 +172,7 @@ def _no_drop_seen(p: dict, v: np.ndarray) -> None:
         if seen > NO_DROP_Z * float(np.sqrt(np.sum(np.square(ses)))):
             return
     fs.identifiable, fs.reason = False, (
-        f"no Stribeck drop above the slowest plateau speed ({float(v.min()):.3g}): the break-away, if any, lies "
+        f"{NO_DROP} ({float(v.min()):.3g}): the break-away, if any, lies "
         "below it" + (f" ({vs.reason})" if held else f" (the drop seen there, {seen:.3g}, is within "
                       f"{NO_DROP_Z:g} errors of zero)"))
 
@@ -271,7 +274,7 @@ def _drop_significant(mf, points, without_drop, shifts=None) -> None:
     if not flag:
         return
     v_min = float(np.min(np.abs(np.asarray(points[0], dtype=float))))
-    why = (f"no Stribeck drop above the slowest plateau speed ({v_min:.3g}): the map fits the plateaus no better "
+    why = (f"{NO_DROP} ({v_min:.3g}): the map fits the plateaus no better "
            f"than Coulomb + viscous (F-test p = {p:.2g}); the break-away, if any, lies below it")
     for pe in flag:
         pe.identifiable, pe.reason = False, why
