@@ -268,7 +268,8 @@ def test_a_map_whose_drop_shape_alone_is_not_identifiable_stays_selectable():
     """Issue 19 (the real screw drive 3): a Stribeck map whose break-away and speed the data do not pin
     (the exponent is free, the drop out of view at one that fits as well) but whose map predicts the
     held-out plateaus best is chosen, its shape still marked; parsimony within the tolerance still holds;
-    a rising 'Stribeck' map, one without a drop above the slowest plateau, or one with another parameter
+    a rising 'Stribeck' map, one without a drop above the slowest plateau, a degenerate drop (a shape
+    parameter at its bound or held where the fit could not place it) or one with another parameter
     unidentified is never taken."""
     from frictid.identify import select as sel
     from frictid.identify.validity import NO_DROP
@@ -282,7 +283,12 @@ def test_a_map_whose_drop_shape_alone_is_not_identifiable_stays_selectable():
     assert sel.choose({"coulomb_viscous": _cv(held=0.83, aic=-30.0), "stribeck": _stribeck()})[0] == "coulomb_viscous"
     assert sel.choose({"coulomb_viscous": _cv(held=0.83), "stribeck": _stribeck()})[0] == "stribeck"
     # a rise (Fs < Fc) is no Stribeck map; a level not identifiable is more than its shape; no drop seen
-    for bad in (_stribeck(fs=0.9), _stribeck(flag=("Fs", "Fc")), _stribeck(why=NO_DROP + " (0.2): ...")):
+    at_bound = _stribeck()
+    at_bound.params["Fs"].bounds = (0.0, 1.5)
+    held = _stribeck(flag=("Fs", "vs"))
+    held.params["vs"].fixed = True
+    for bad in (_stribeck(fs=0.9), _stribeck(flag=("Fs", "Fc")), _stribeck(why=NO_DROP + " (0.2): ..."), at_bound,
+                held):
         assert not sel.shape_only(bad)
         assert sel.choose({"coulomb_viscous": _cv(), "stribeck": bad})[0] == "coulomb_viscous"
     # held-out errors are computed for it, not for a model the rule cannot take

@@ -87,16 +87,19 @@ def shape_only(mf) -> bool:
     an exponent that fits as well, a drop not spanned by steady runs) while every other parameter is
     identifiable, drops on every branch (``Fs >= Fc``: a map that rises is no Stribeck map, whatever it
     predicts) and shows a drop above the slowest plateau on at least one (else its name describes nothing
-    the data show: :data:`.validity.NO_DROP`). Its map within the data's speeds is then determined by the
+    the data show: :data:`.validity.NO_DROP`). A degenerate drop is not taken: a shape parameter at a bound
+    of the fit, or held where the fit put it because it could not be placed (foreign 204132: Fs at its
+    upper bound, 30 times Fc, with a cusp-like exponent of 0.52 and a speed 20 times below the slowest
+    plateau; the map's level there came out 3 % low at 5 errors). Its map within the data's speeds is then determined by the
     levels, the slope and the drop's tail; what it says below the slowest plateau is not, which the flags
     and the validity range say."""
     if mf.map not in DROP_MAPS or mf.identifiable:
         return False
     sufs = _branches(mf)
     for n, pe in mf.params.items():
-        if pe.identifiable or pe.fixed:
+        if pe.identifiable:
             continue
-        if not any(n == s + suf for s in DROP_SHAPE for suf in sufs):
+        if pe.fixed or _at_bound(pe) or not any(n == s + suf for s in DROP_SHAPE for suf in sufs):
             return False
     seen = False
     for suf in sufs:
@@ -105,6 +108,15 @@ def shape_only(mf) -> bool:
             return False
         seen = seen or not (fs.reason or "").startswith(NO_DROP)
     return seen
+
+
+def _at_bound(pe) -> bool:
+    """Whether the optimiser left ``pe`` at one of its bounds (within a millionth of their span)."""
+    if pe.bounds is None or pe.value is None:
+        return False
+    lo, hi = pe.bounds
+    tol = 1e-6 * (hi - lo) if math.isfinite(hi - lo) else 1e-6 * max(1.0, abs(pe.value))
+    return any(b is not None and math.isfinite(b) and abs(pe.value - b) <= tol for b in (lo, hi))
 
 
 def selectable(mf) -> bool:
