@@ -116,8 +116,18 @@ def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
             else:
                 s0 = s0n
                 s1 = s1n
-            zd = wk - s0 * v / g * zk
-            Fk = s0 * zk + s1 * zd + fv
+            if v <= w_stick:
+                # at rest the bristles hold what the applied torque loads them with (the static stick
+                # zone's friction, up to the level): leaving the rest starts from that deflection
+                Fk = u_stick[k]
+                if Fk > g:
+                    Fk = g
+                elif Fk < -g:
+                    Fk = -g
+                zk = Fk * (is0p if Fk >= 0.0 else is0n)
+            else:
+                zd = wk - s0 * v / g * zk
+                Fk = s0 * zk + s1 * zd + fv
         elif v <= w_stick:
             # Karnopp: sticking, the friction balances the applied torque up to the level
             Fk = u_stick[k]
@@ -220,7 +230,10 @@ def replay_friction_ref(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, z0, 
         c = cp if wk >= 0 else cn
         g = max(gmul[k] * float(canonical_level(wk, c)), 1e-300)
         fv = fmul[k] * float(canonical_viscous(wk, c))
-        if dynamic:
+        if dynamic and abs(wk) <= w_stick:
+            F[k] = float(np.clip(u_stick[k], -g, g))
+            zk = F[k] / (s0p if F[k] >= 0 else s0n)
+        elif dynamic:
             s0, s1 = (s0p, s1p) if zk >= 0 else (s0n, s1n)
             F[k] = s0 * zk + s1 * (wk - s0 * abs(wk) / g * zk) + fv
         elif abs(wk) <= w_stick:
@@ -267,9 +280,11 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
     ``dc_neg`` as packed by :func:`frictid.models.thermal.thermal_code`, and either ``T`` (the joint
     temperature per sample [degC], e.g. measured) or ``C`` [J/K], ``K`` [W/K], ``Tenv`` [degC, scalar or
     per sample] and ``T_init`` [degC, default ``Tenv[0]``] for the heat balance.
-    u_stick, w_stick : static map only (Karnopp's stick zone): where ``|w| <= w_stick`` [q/s] the
-    friction balances the net applied torque ``u_stick`` [F] per sample (``tau - J a - G``), clipped to
-    the level; without ``u_stick`` the sign law holds down to ``w = 0`` (``F = f(0) = 0`` there).
+    u_stick, w_stick : Karnopp's stick zone: where ``|w| <= w_stick`` [q/s] the friction balances the net
+    applied torque ``u_stick`` [F] per sample (``tau - J a - G``), clipped to the level; without ``u_stick``
+    the sign law holds down to ``w = 0`` (``F = f(0) = 0`` there). With LuGre the bristle deflection
+    there is the one that torque holds (``z = F / sigma0``), so that motion resumes from the load the
+    rest carried, not from the last motion's state.
     out : a float64 array of n contiguous values to receive the friction (returned as F), e.g. ``u_stick``
     itself when the caller needs it no more: no third array of the log's length.
     reference : run the plain-python twin instead of the compiled loop.
