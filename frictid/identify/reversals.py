@@ -1,0 +1,293 @@
+"""LuGre's bristle stiffness from the stops and reversals of moving data, for joints without presliding ramps.
+
+Where no ramp identifies sigma0 (:mod:`.dynamics`), the stops and reversals of ordinary motion still show
+the bristles: the friction crosses from one level to the other over a travel of about ``L = g(0) / sigma0``
+(the bristle length), where the static map jumps at the velocity's sign change. :func:`reversal_lugre`
+fits that length on the moving samples *including* the stops (the static maps keep them out by design):
+
+- for each length on a grid, from a few encoder steps (the position's quantisation, else its noise) up to a tenth of the
+  median stroke between reversals, the chosen map with bristles of stiffness ``sigma0 = g(0) / L`` (no
+  damping) is replayed along the measured velocity as :func:`frictid.replay.replay` does (at rest the
+  bristles hold what the applied torque loads them with), and the map's amplitudes (one factor on its
+  level part, which scales sigma0 with it so that the length stays; its viscous terms) and the inertia,
+  free gravity terms and offset are fitted again with it by least squares (the rigid body and the
+  friction through the stops trade off: both act where the acceleration is largest);
+- the length is chosen by the held-out error of the fit's time blocks (each fold fitted without its
+  blocks), and compared with the static map under the same refit, block by block.
+
+sigma0 is identifiable when the chosen length lies inside the grid (not at the encoder's end, where the
+bristles are the static map's jump, nor at the stroke's end), beats the static map on the held-out blocks
+by more than two standard errors of the paired block differences, and the lengths within one such error
+of the best stay inside the grid; its standard error is the spread of sigma0 over those lengths. sigma1 is
+held at 0 (the reversals of sampled motion do not resolve the bristles' damping). The refitted terms'
+errors are the block jackknife's over the folds. Arrays in, result objects out; truth is never read.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from frictid.models.params import unit_of
+from frictid.models.replay_kernel import replay_friction
+from frictid.models.static import canonical_viscous
+from frictid.result import ModelFit, ParamEstimate
+
+from . import presliding as pre
+from . import samples as smp
+from .prepare import JointData
+
+#: The stick zone: |w| up to this many velocity noise levels (:data:`frictid.replay.STICK_NOISE`).
+STICK_NOISE = 5.0
+#: The shortest bristle length tried: this many encoder steps (or position noise levels).
+LENGTH_MIN_STEPS = 2.0
+#: The longest: this share of the median stroke between reversals.
+LENGTH_MAX_STROKE = 0.1
+#: Lengths per decade on the grid.
+PER_DECADE = 4
+#: Paired standard errors by which the bristles must beat the static map on the held-out blocks.
+GAIN_Z = 2.0
+#: Reversals and stops needed in the moving samples.
+MIN_REVERSALS = 6
+#: Segment kinds kept out (ramps and steps identify sigma0 themselves).
+EXCLUDE = ("ramp_presliding", "step")
+RIGID = ("J", "Px", "Py", "offset")
+
+
+def _data(jd: JointData):
+    """Per log with a position: (t, w, F, columns of the free rigid terms, used mask, w_stick), the
+    reversal count and the median stroke between them, and the encoder's (or noise's) position step."""
+    from frictid.segments import estimate_scales
+
+    from .mechanics import regressors
+    free = [n for n in regressors(jd).free if n in RIGID]
+    out, strokes, steps, n_rev = [], [], [], 0
+    for p in jd.preps:
+        if p.log.q is None or p.F is None:
+            continue
+        sc = p.scales or estimate_scales(p.log)
+        q = np.asarray(p.log.q, float)
+        w_stick = STICK_NOISE * sc.sigma_w
+        use = np.isfinite(p.F) & np.isfinite(p.w) & np.isfinite(p.a) & (np.abs(p.w) > w_stick)
+        for s in p.segments:
+            if s.kind in EXCLUDE:
+                use[s.i0:s.i1] = False
+        cols = {"J": p.a, "Px": np.cos(q), "Py": np.sin(q), "offset": np.ones_like(q)}
+        X = np.column_stack([np.nan_to_num(cols[n]) for n in free]) if free else np.zeros((q.size, 0))
+        # a stop or reversal: the velocity leaves the moving band (enters the stick zone or changes sign)
+        sgn = np.where(np.abs(p.w) > w_stick, np.sign(p.w), 0.0)
+        moving = np.flatnonzero(sgn != 0)
+        if moving.size > 1:
+            ends = moving[np.flatnonzero(np.diff(sgn[moving]) != 0) + 1]
+            gaps = moving[np.flatnonzero(np.diff(moving) > 1) + 1]
+            marks = np.unique(np.concatenate([ends, gaps]))
+            n_rev += marks.size
+            if marks.size > 1:
+                strokes.extend(np.abs(np.diff(q[marks])).tolist())
+        steps.append(sc.q_step or pre.encoder_resolution(q) or sc.sigma_q)
+        out.append((np.asarray(p.log.t, float), np.asarray(p.w, float), np.asarray(p.F, float), X, use, w_stick))
+    stroke = float(np.median(strokes)) if strokes else 0.0
+    return free, out, n_rev, stroke, max(steps, default=0.0)
+
+
+#: The static maps' viscous parameters and their slot of the canonical vector (``w``, ``w|w|``, ``w^3``).
+VISCOUS = {"sigma2": 0, "alpha3": 0, "alpha4": 1, "c1": 0, "c2": 1, "c3": 2}
+#: Their level amplitudes (scaled together with sigma0: the bristle length stays).
+LEVEL = ("Fc", "Fs", "c0", "alpha0", "alpha1", "alpha2")
+
+
+def _viscous_terms(names) -> list[tuple[str, int, int]]:
+    """(parameter, power slot, sign: 1 for w >= 0, -1 for w < 0, 0 both) of a map's viscous terms."""
+    out = []
+    for n in names:
+        stem, sign = (n[:-4], 1) if n.endswith("_pos") else (n[:-4], -1) if n.endswith("_neg") else (n, 0)
+        if stem in VISCOUS:
+            out.append((n, VISCOUS[stem], sign))
+    return out
+
+
+def _block_equations(data, F_of, f_base, visc, n_folds: int):
+    """Per time block: (X'X, X'y, y'y, n) on the used samples of the friction with the fit's rigid terms
+    against the columns [the model's level part, its viscous terms, the free rigid terms]: the level part
+    from ``F_of(t, w, F, w_stick)`` less the map's viscous part ``f_base(w)``."""
+    ranges = smp.block_ranges([d[0] for d in data], n_folds)
+    n_blocks = smp.BLOCKS_PER_FOLD * n_folds
+    k = 1 + len(visc) + (data[0][3].shape[1] if data else 0)
+    XX, Xy = np.zeros((n_blocks, k, k)), np.zeros((n_blocks, k))
+    yy, nn = np.zeros(n_blocks), np.zeros(n_blocks)
+    for (t, w, F, Xr, use, w_stick), rr in zip(data, ranges):
+        pw = (w, w * np.abs(w), w ** 3)
+        V = [pw[j] * (1.0 if s == 0 else (w >= 0) if s > 0 else (w < 0)) for _, j, s in visc]
+        X = np.column_stack([F_of(t, w, F, w_stick) - f_base(w)] + V + [Xr])
+        for i0, i1, b in rr:
+            m = use[i0:i1]
+            Xb, yb = X[i0:i1][m], F[i0:i1][m]
+            XX[b] += Xb.T @ Xb
+            Xy[b] += Xb.T @ yb
+            yy[b] += float(yb @ yb)
+            nn[b] += m.sum()
+    return XX, Xy, yy, nn
+
+
+def _solve(XX, Xy):
+    k = XX.shape[0]
+    if k == 0:
+        return np.zeros(0)
+    sc = np.sqrt(np.maximum(np.diag(XX), 1e-300))
+    b, *_ = np.linalg.lstsq(XX / np.outer(sc, sc), Xy / sc, rcond=1e-10)
+    return b / sc
+
+
+def _heldout(eq, n_folds: int):
+    """Per block its held-out squared error (the fold's fit without its blocks), the fit on all blocks and
+    the per-fold fits (for the jackknife)."""
+    XX, Xy, yy, nn = eq
+    fold = np.arange(nn.size) % n_folds
+    sse = np.zeros(nn.size)
+    fits = []
+    for f in range(n_folds):
+        tr = fold != f
+        b = _solve(XX[tr].sum(0), Xy[tr].sum(0))
+        fits.append(b)
+        for i in np.flatnonzero(~tr):
+            sse[i] = yy[i] - 2.0 * b @ Xy[i] + b @ XX[i] @ b
+    return sse, _solve(XX.sum(0), Xy.sum(0)), fits
+
+
+def _grid(n_rev: int, stroke: float, step: float) -> tuple[np.ndarray | None, str]:
+    """The bristle lengths [q] tried, or None with the reason."""
+    if n_rev < MIN_REVERSALS:
+        return None, f"{n_rev} stops and reversals in the moving samples (at least {MIN_REVERSALS} needed)"
+    lo, hi = LENGTH_MIN_STEPS * step, LENGTH_MAX_STROKE * stroke
+    if not (lo > 0 and hi > 10.0 * lo):
+        return None, (f"the strokes between reversals (median {stroke:.3g}) are too short against the "
+                      f"position's step ({step:.3g}) to resolve a bristle length")
+    n = int(math.ceil(PER_DECADE * math.log10(hi / lo))) + 1
+    return np.geomspace(lo, hi, n), ""
+
+
+def _paired(sse_a, sse_b, nn) -> tuple[float, float]:
+    """Mean-square gain of b over a on the held-out blocks and its standard error (blocks paired)."""
+    m = nn > 0
+    e = sse_a[m] - sse_b[m]
+    N = float(nn[m].sum())
+    return float(e.sum() / N), float(math.sqrt(e.size) * np.std(e, ddof=1) / N) if e.size > 1 else math.inf
+
+
+def _verdict(sse: list, sse0, nn, L) -> tuple[int, float, str]:
+    """The chosen length's index, sigma0's relative error and the reason it is not identifiable ('' when it
+    is): interior, better than the static map by GAIN_Z paired errors, the lengths within one paired error
+    of it inside the grid."""
+    tot = np.array([s.sum() for s in sse])
+    i = int(np.argmin(tot))
+    gain, se = _paired(sse0, sse[i], nn)
+    near = [j for j in range(len(sse)) if (tot[j] - tot[i]) / nn.sum() <= _paired(sse[j], sse[i], nn)[1]]
+    span = (L[max(near)], L[min(near)])
+    rel = max(L[i] / span[1] - 1.0, 1.0 - L[i] / span[0], 0.5 * (L[1] / L[0] - 1.0))
+    if i == 0:
+        why = (f"the best bristle length is the shortest tried ({L[0]:.3g}, {LENGTH_MIN_STEPS:g} position "
+               "steps): the reversals show no transition longer than the encoder resolves")
+    elif i == len(L) - 1:
+        why = (f"the best bristle length is the longest tried ({L[-1]:.3g}, {100 * LENGTH_MAX_STROKE:.0f} % of "
+               "the median stroke): no presliding transition")
+    elif not gain > GAIN_Z * se:
+        why = (f"bristles of length {L[i]:.3g} predict the held-out blocks no better than the static map "
+               f"(mean-square gain {gain:.3g} +- {se:.3g})")
+    elif 0 in near or len(L) - 1 in near:
+        why = (f"the held-out error is flat over bristle lengths {min(span):.3g} to {max(span):.3g} (within "
+               "one paired standard error), reaching the end of the lengths tried")
+    else:
+        why = ""
+    return i, rel, why
+
+
+def _jackknife(fits) -> np.ndarray:
+    """Block jackknife standard errors over the folds' fits."""
+    B, k = np.array(fits), len(fits)
+    return np.sqrt((k - 1) / k * np.sum((B - B.mean(0)) ** 2, axis=0)) if k > 1 else np.full(B.shape[1], np.nan)
+
+
+def _refit_params(jd: JointData, base: ModelFit, visc, free, full, se) -> dict[str, ParamEstimate]:
+    """The map's amplitudes and the rigid terms fitted with the bristles: level amplitudes times the level
+    part's factor, the viscous terms as fitted, the inertia and gravity as the joint's plus the change, the
+    offset's change as ``tau_offset``; standard errors by the block jackknife over the folds."""
+    jf, axis = jd.jf, jd.axis
+    src = "refitted with the bristles on the moving samples including the stops"
+    out = {}
+    k, sk = float(full[0]), float(se[0])
+    for n, p in base.params.items():
+        if n.split("_")[0] in LEVEL and p.value is not None:
+            e = math.hypot(k * (p.stderr or 0.0), p.value * sk)
+            out[n] = replace(p, value=k * p.value, stderr=e, source=src)
+    for j, (n, _, _) in enumerate(visc):
+        v, e = float(full[1 + j]), float(se[1 + j])
+        out[n] = replace(base.params[n], value=v, stderr=e, source=src)
+    cur = {"J": jf.inertia.value if jf.inertia else None, "offset": 0.0,
+           **{g: (jf.gravity[g].value if jf.gravity.get(g) else None) for g in ("Px", "Py")}}
+    units = {"J": "kg m^2" if axis == "rotary" else "kg", "Px": unit_of("F", axis), "Py": unit_of("F", axis),
+             "offset": unit_of("F", axis)}
+    for j, n in enumerate(free, start=1 + len(visc)):
+        v = (cur[n] or 0.0) + float(full[j])
+        name = "tau_offset" if n == "offset" else n
+        ok = bool(np.isfinite(se[j]) and se[j] < abs(v))
+        out[name] = ParamEstimate(name, v, float(se[j]), units[n], ok,
+                                  "" if ok else "relative error above 100 % (block jackknife)", source=src)
+    return out
+
+
+def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5) -> tuple[dict, dict, str]:
+    """sigma0 (and sigma1 held at 0) from the stops and reversals of the moving samples, with the map's
+    amplitudes and the rigid terms fitted again with the bristles. Returns (the refitted and dynamic
+    parameters, metrics, notes line); sigma0 says why it is not identifiable when it is not (module
+    docstring)."""
+    free, data, n_rev, stroke, step = _data(jd)
+    axis = jd.axis
+    L, why = _grid(n_rev, stroke, step) if data else (None, "no log with a position channel")
+    g0 = (float(c_pos[0] + c_pos[1]), float(c_neg[0] + c_neg[1]))
+    if L is not None and not min(g0) > 0:
+        L, why = None, "the map's level at zero speed is not positive"
+    s1 = ParamEstimate("sigma1", 0.0, None, unit_of("D", axis), False,
+                       "held at 0: the reversals of sampled motion do not resolve the bristles' damping",
+                       fixed=True, source="reversals")
+    if L is None:
+        return {"sigma0": ParamEstimate("sigma0", None, None, unit_of("K", axis), False, why,
+                                        source="reversals"), "sigma1": s1}, {}, ""
+    visc = _viscous_terms(base.params)
+
+    def f_base(w):
+        return np.where(w >= 0, canonical_viscous(w, c_pos), canonical_viscous(w, c_neg))
+
+    def static(t, w, F, ws):
+        return replay_friction(t, w, c_pos, c_neg, u_stick=F, w_stick=ws)[0]
+
+    def bristles(length):
+        return lambda t, w, F, ws: replay_friction(t, w, c_pos, c_neg, sigma0=(g0[0] / length, g0[1] / length),
+                                                   u_stick=F, w_stick=ws)[0]
+
+    eq0 = _block_equations(data, static, f_base, visc, n_folds)
+    sse0, _, _ = _heldout(eq0, n_folds)
+    eqs = [_block_equations(data, bristles(x), f_base, visc, n_folds) for x in L]
+    held = [_heldout(e, n_folds) for e in eqs]
+    i, rel, why = _verdict([h[0] for h in held], sse0, eq0[3], L)
+    k = float(held[i][1][0]) if not why else 1.0
+    source = (f"reversals: bristle length {L[i]:.3g} chosen by the held-out error of "
+              f"{smp.BLOCKS_PER_FOLD * n_folds} time blocks ({n_rev} stops and reversals)")
+    params = {"sigma0": ParamEstimate("sigma0", k * g0[0] / L[i], rel * k * g0[0] / L[i], unit_of("K", axis),
+                                      not why, why, source=source), "sigma1": s1}
+    if g0[1] != g0[0]:
+        params["sigma0_neg"] = ParamEstimate("sigma0_neg", k * g0[1] / L[i], rel * k * g0[1] / L[i],
+                                             unit_of("K", axis), not why, why, source=source)
+    if not why:
+        params.update(_refit_params(jd, base, visc, free, held[i][1], _jackknife(held[i][2])))
+    N = float(eq0[3].sum())
+    XX, Xy, yy, _ = (x.sum(0) for x in eqs[i])
+    b = held[i][1]
+    met = {"rms": float(math.sqrt(max(yy - 2 * b @ Xy + b @ XX @ b, 0.0) / N)),
+           "rms_heldout": float(math.sqrt(held[i][0].sum() / N)),
+           "rms_heldout_static": float(math.sqrt(sse0.sum() / N)), "n": int(N),
+           "k": int(len(base.params) + 1 + len(free))}
+    note = (f"sigma0 from {n_rev} stops and reversals: bristle lengths {L[0]:.3g}-{L[-1]:.3g} tried, held-out "
+            f"RMS {met['rms_heldout']:.4g} against {met['rms_heldout_static']:.4g} for {base.name} with the "
+            "same refit of its amplitudes and the rigid terms")
+    return params, met, note
