@@ -81,10 +81,9 @@ def _data(jd: JointData):
         if moving.size > 1:
             ends = moving[np.flatnonzero(np.diff(sgn[moving]) != 0) + 1]
             gaps = moving[np.flatnonzero(np.diff(moving) > 1) + 1]
-            marks = np.unique(np.concatenate([ends, gaps]))
-            n_rev += marks.size
-            if marks.size > 1:
-                strokes.extend(np.abs(np.diff(q[marks])).tolist())
+            n_rev += np.unique(np.concatenate([ends, gaps])).size
+            if ends.size > 1:  # the travel between reversals
+                strokes.extend(np.abs(np.diff(q[ends])).tolist())
         steps.append(sc.q_step or pre.encoder_resolution(q) or sc.sigma_q)
         out.append((np.asarray(p.log.t, float), np.asarray(p.w, float), np.asarray(p.F, float), X, use, w_stick))
     stroke = float(np.median(strokes)) if strokes else 0.0
