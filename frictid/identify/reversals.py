@@ -8,10 +8,12 @@ fits that length on the moving samples *including* the stops (the static maps ke
 - for each length on a grid, from a few encoder steps (the position's quantisation, else its noise) up to a tenth of the
   median stroke between reversals, the chosen map with bristles of stiffness ``sigma0 = g(0) / L`` (no
   damping) is replayed along the measured velocity as :func:`frictid.replay.replay` does (at rest the
-  bristles hold what the applied torque loads them with), and the map's amplitudes (one factor on its
-  level part, which scales sigma0 with it so that the length stays; its viscous terms) and the inertia,
-  free gravity terms and offset are fitted again with it by least squares (the rigid body and the
-  friction through the stops trade off: both act where the acceleration is largest);
+  bristles carry what the applied torque loads them with where the joint stands), and the inertia, free
+  gravity terms and offset are fitted again with it by least squares (the rigid body and the friction
+  through the stops trade off: both act where the acceleration is largest), together with the map's
+  amplitudes (one factor on its level part, which scales sigma0 with it so that the length stays; its
+  viscous terms) where the map itself was fitted on the moving samples; a map from plateau means stays
+  as fitted (refitted there, its Fc and sigma2 lost coverage on the foreign fit card);
 - the length is chosen by the held-out error of the fit's time blocks (each fold fitted without its
   blocks), and compared with the static map under the same refit, block by block.
 
@@ -30,7 +32,7 @@ from dataclasses import replace
 import numpy as np
 
 from frictid.models.params import unit_of
-from frictid.models.replay_kernel import replay_friction
+from frictid.models.replay_kernel import replay_friction, standing
 from frictid.models.static import canonical_viscous
 from frictid.result import ModelFit, ParamEstimate
 
@@ -85,7 +87,9 @@ def _data(jd: JointData):
             if ends.size > 1:  # the travel between reversals
                 strokes.extend(np.abs(np.diff(q[ends])).tolist())
         steps.append(sc.q_step or pre.encoder_resolution(q) or sc.sigma_q)
-        out.append((np.asarray(p.log.t, float), np.asarray(p.w, float), np.asarray(p.F, float), X, use, w_stick))
+        hold = standing(np.nan_to_num(p.w), w_stick, sc.window_a // 2)
+        out.append((np.asarray(p.log.t, float), np.asarray(p.w, float), np.asarray(p.F, float), X, use, w_stick,
+                    hold))
     stroke = float(np.median(strokes)) if strokes else 0.0
     return free, out, n_rev, stroke, max(steps, default=0.0)
 
@@ -109,19 +113,24 @@ def _viscous_terms(names) -> list[tuple[str, int, int]]:
 def _block_equations(data, F_of, f_base, visc, n_folds: int):
     """Per time block: (X'X, X'y, y'y, n) on the used samples of the friction with the fit's rigid terms
     against the columns [the model's level part, its viscous terms, the free rigid terms]: the level part
-    from ``F_of(t, w, F, w_stick)`` less the map's viscous part ``f_base(w)``."""
+    from ``F_of(t, w, F, w_stick, hold)`` less the map's viscous part ``f_base(w)``. ``visc`` None: the
+    map is kept, the model's friction taken off the target and only the rigid terms fitted."""
     ranges = smp.block_ranges([d[0] for d in data], n_folds)
     n_blocks = smp.BLOCKS_PER_FOLD * n_folds
-    k = 1 + len(visc) + (data[0][3].shape[1] if data else 0)
+    k = (0 if visc is None else 1 + len(visc)) + (data[0][3].shape[1] if data else 0)
     XX, Xy = np.zeros((n_blocks, k, k)), np.zeros((n_blocks, k))
     yy, nn = np.zeros(n_blocks), np.zeros(n_blocks)
-    for (t, w, F, Xr, use, w_stick), rr in zip(data, ranges):
-        pw = (w, w * np.abs(w), w ** 3)
-        V = [pw[j] * (1.0 if s == 0 else (w >= 0) if s > 0 else (w < 0)) for _, j, s in visc]
-        X = np.column_stack([F_of(t, w, F, w_stick) - f_base(w)] + V + [Xr])
+    for (t, w, F, Xr, use, w_stick, hold), rr in zip(data, ranges):
+        Fm = F_of(t, w, F, w_stick, hold)
+        if visc is None:
+            X, y = Xr, F - Fm
+        else:
+            pw = (w, w * np.abs(w), w ** 3)
+            V = [pw[j] * (1.0 if s == 0 else (w >= 0) if s > 0 else (w < 0)) for _, j, s in visc]
+            X, y = np.column_stack([Fm - f_base(w)] + V + [Xr]), F
         for i0, i1, b in rr:
             m = use[i0:i1]
-            Xb, yb = X[i0:i1][m], F[i0:i1][m]
+            Xb, yb = X[i0:i1][m], y[i0:i1][m]
             XX[b] += Xb.T @ Xb
             Xy[b] += Xb.T @ yb
             yy[b] += float(yb @ yb)
@@ -214,19 +223,20 @@ def _refit_params(jd: JointData, base: ModelFit, visc, free, full, se) -> dict[s
     jf, axis = jd.jf, jd.axis
     src = "refitted with the bristles on the moving samples including the stops"
     out = {}
-    k, sk = float(full[0]), float(se[0])
-    for n, p in base.params.items():
-        if n.split("_")[0] in LEVEL and p.value is not None:
-            e = math.hypot(k * (p.stderr or 0.0), p.value * sk)
-            out[n] = replace(p, value=k * p.value, stderr=e, source=src)
-    for j, (n, _, _) in enumerate(visc):
-        v, e = float(full[1 + j]), float(se[1 + j])
-        out[n] = replace(base.params[n], value=v, stderr=e, source=src)
+    if visc is not None:
+        k, sk = float(full[0]), float(se[0])
+        for n, p in base.params.items():
+            if n.split("_")[0] in LEVEL and p.value is not None:
+                e = math.hypot(k * (p.stderr or 0.0), p.value * sk)
+                out[n] = replace(p, value=k * p.value, stderr=e, source=src)
+        for j, (n, _, _) in enumerate(visc):
+            v, e = float(full[1 + j]), float(se[1 + j])
+            out[n] = replace(base.params[n], value=v, stderr=e, source=src)
     cur = {"J": jf.inertia.value if jf.inertia else None, "offset": 0.0,
            **{g: (jf.gravity[g].value if jf.gravity.get(g) else None) for g in ("Px", "Py")}}
     units = {"J": "kg m^2" if axis == "rotary" else "kg", "Px": unit_of("F", axis), "Py": unit_of("F", axis),
              "offset": unit_of("F", axis)}
-    for j, n in enumerate(free, start=1 + len(visc)):
+    for j, n in enumerate(free, start=0 if visc is None else 1 + len(visc)):
         v = (cur[n] or 0.0) + float(full[j])
         name = "tau_offset" if n == "offset" else n
         ok = bool(np.isfinite(se[j]) and se[j] < abs(v))
@@ -235,11 +245,13 @@ def _refit_params(jd: JointData, base: ModelFit, visc, free, full, se) -> dict[s
     return out
 
 
-def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5) -> tuple[dict, dict, str]:
-    """sigma0 (and sigma1 held at 0) from the stops and reversals of the moving samples, with the map's
-    amplitudes and the rigid terms fitted again with the bristles. Returns (the refitted and dynamic
-    parameters, metrics, notes line); sigma0 says why it is not identifiable when it is not (module
-    docstring)."""
+def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5,
+                   refit_map: bool = True) -> tuple[dict, dict, str]:
+    """sigma0 (and sigma1 held at 0) from the stops and reversals of the moving samples, with the rigid
+    terms fitted again with the bristles, and the map's amplitudes when ``refit_map`` (a map fitted on
+    plateau means stays: they measure the steady state better than samples through the stops). Returns
+    (the refitted and dynamic parameters, metrics, notes line); sigma0 says why it is not identifiable
+    when it is not (module docstring)."""
     free, data, n_rev, stroke, step = _data(jd)
     axis = jd.axis
     L, why = _grid(n_rev, stroke, step) if data else (None, "no log with a position channel")
@@ -252,24 +264,24 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
     if L is None:
         return {"sigma0": ParamEstimate("sigma0", None, None, unit_of("K", axis), False, why,
                                         source="reversals"), "sigma1": s1}, {}, ""
-    visc = _viscous_terms(base.params)
+    visc = _viscous_terms(base.params) if refit_map else None
 
     def f_base(w):
         return np.where(w >= 0, canonical_viscous(w, c_pos), canonical_viscous(w, c_neg))
 
-    def static(t, w, F, ws):
+    def static(t, w, F, ws, hold):
         return replay_friction(t, w, c_pos, c_neg, u_stick=F, w_stick=ws)[0]
 
     def bristles(length):
-        return lambda t, w, F, ws: replay_friction(t, w, c_pos, c_neg, sigma0=(g0[0] / length, g0[1] / length),
-                                                   u_stick=F, w_stick=ws)[0]
+        return lambda t, w, F, ws, hold: replay_friction(t, w, c_pos, c_neg, u_stick=F, w_stick=ws, hold=hold,
+                                                         sigma0=(g0[0] / length, g0[1] / length))[0]
 
     eq0 = _block_equations(data, static, f_base, visc, n_folds)
     sse0, _, _ = _heldout(eq0, n_folds)
     eqs = [_block_equations(data, bristles(x), f_base, visc, n_folds) for x in L]
     held = [_heldout(e, n_folds) for e in eqs]
     i, rel, why = _verdict([h[0] for h in held], sse0, eq0[3], L)
-    k = float(held[i][1][0]) if not why else 1.0
+    k = float(held[i][1][0]) if refit_map and not why else 1.0
     source = (f"reversals: bristle length {L[i]:.3g} chosen by the held-out error of "
               f"{smp.BLOCKS_PER_FOLD * n_folds} time blocks ({n_rev} stops and reversals)")
     params = {"sigma0": ParamEstimate("sigma0", k * g0[0] / L[i], rel * k * g0[0] / L[i], unit_of("K", axis),
@@ -286,7 +298,8 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
            "rms_heldout": float(math.sqrt(held[i][0].sum() / N)),
            "rms_heldout_static": float(math.sqrt(sse0.sum() / N)), "n": int(N),
            "k": int(len(base.params) + 1 + len(free))}
+    what = "its amplitudes and the rigid terms" if refit_map else "the rigid terms (the map as fitted)"
     note = (f"sigma0 from {n_rev} stops and reversals: bristle lengths {L[0]:.3g}-{L[-1]:.3g} tried, held-out "
             f"RMS {met['rms_heldout']:.4g} against {met['rms_heldout_static']:.4g} for {base.name} with the "
-            "same refit of its amplitudes and the rigid terms")
+            f"same refit of {what}")
     return params, met, note
