@@ -291,6 +291,9 @@ def _presliding(jf: JointFit, prev: str) -> dict | None:
     for k in ("sigma0", "sigma1", "sigma0_neg", "sigma1_neg") + (() if ramps else ("J", "Px", "Py", "tau_offset")):
         if k in lug.params and (k.startswith("sigma") or k not in params):
             params[k] = ParamEstimate(**vars(lug.params[k]))
+    if not ramps and "tau_offset" in lug.params and "tau_offset" not in base.params and jf.offset is not None:
+        # LuGre's is the change of the joint's offset; a chained model carries the whole offset as tau_offset
+        params["tau_offset"].value += jf.offset.value or 0.0
     name = prev + "+lugre"
     extra = dict(base.extra)
     extra["extensions"] = list(extra.get("extensions", [])) + ["lugre"]
