@@ -5,9 +5,9 @@ the bristles: the friction crosses from one level to the other over a travel of 
 (the bristle length), where the static map jumps at the velocity's sign change. :func:`reversal_lugre`
 fits that length on the moving samples *including* the stops (the static maps keep them out by design):
 
-- for each length on a grid, from a few encoder steps (the position's quantisation, else its noise) up to a tenth of the
-  median stroke between reversals, the chosen map with bristles of stiffness ``sigma0 = g(0) / L`` (no
-  damping) is replayed along the measured velocity as :func:`frictid.replay.replay` does (at rest the
+- for each length on a grid, from a few encoder steps (the position's quantisation, else its noise) up
+  to a tenth of the median stroke between reversals, the chosen map with bristles of stiffness
+  ``sigma0 = g(0) / L`` (no damping) is replayed along the measured velocity as :func:`frictid.replay.replay` does (at rest the
   bristles carry what the applied torque loads them with where the joint stands), and the inertia, free
   gravity terms and offset are fitted again with it by least squares (the rigid body and the friction
   through the stops trade off: both act where the acceleration is largest), together with the map's
@@ -34,14 +34,13 @@ import numpy as np
 from frictid.models.params import unit_of
 from frictid.models.replay_kernel import replay_friction, standing
 from frictid.models.static import canonical_viscous
+from frictid.replay import STICK_NOISE
 from frictid.result import ModelFit, ParamEstimate
 
 from . import presliding as pre
 from . import samples as smp
 from .prepare import JointData
 
-#: The stick zone: |w| up to this many velocity noise levels (:data:`frictid.replay.STICK_NOISE`).
-STICK_NOISE = 5.0
 #: The shortest bristle length tried: this many encoder steps (or position noise levels).
 LENGTH_MIN_STEPS = 2.0
 #: The longest: this share of the median stroke between reversals.
