@@ -274,7 +274,7 @@ def fit_lugre(jd: JointData, selected: str | None) -> None:
     pd = presliding_data(jd)
     g_map = [abs(level(1e-12 if np.mean(F) >= 0 else -1e-12)) for _, F in pd.ramps]
     s0, sides, g_of = _sigma0_estimates(pd, g_map)
-    if not pd.ramps and not s0.identifiable:
+    if not pd.ramps and not pd.creep and not s0.identifiable:  # ramps dropped for creep keep their verdict
         _lugre_from_reversals(jd, base, base_name, c_pos, c_neg, s0)
         return
     jd.used.pop("step", None)

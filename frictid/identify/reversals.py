@@ -284,10 +284,12 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
     source = (f"reversals: bristle length {L[i]:.3g} chosen by the held-out error of "
               f"{smp.BLOCKS_PER_FOLD * n_folds} time blocks ({n_rev} stops and reversals)")
     params = {"sigma0": ParamEstimate("sigma0", k * g0[0] / L[i], rel * k * g0[0] / L[i], unit_of("K", axis),
-                                      not why, why, source=source), "sigma1": s1}
+                                      not why, why, source=source, bounds=(k * g0[0] / L[-1], k * g0[0] / L[0])),
+              "sigma1": s1}
     if g0[1] != g0[0]:
         params["sigma0_neg"] = ParamEstimate("sigma0_neg", k * g0[1] / L[i], rel * k * g0[1] / L[i],
-                                             unit_of("K", axis), not why, why, source=source)
+                                             unit_of("K", axis), not why, why, source=source,
+                                             bounds=(k * g0[1] / L[-1], k * g0[1] / L[0]))
     if not why:
         params.update(_refit_params(jd, base, visc, free, held[i][1], _jackknife(held[i][2])))
     N = float(eq0[3].sum())
