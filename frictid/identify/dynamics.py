@@ -523,8 +523,7 @@ def _lugre_from_reversals(jd: JointData, base: ModelFit, base_name: str, c_pos, 
     from .reversals import reversal_lugre
 
     jf = jd.jf
-    dyn, met, note = reversal_lugre(jd, base, c_pos, c_neg,
-                                    refit_map=str(jf.selection.get("basis", "")).startswith("moving samples"))
+    dyn, met, note = reversal_lugre(jd, base, c_pos, c_neg)
     s0 = dyn["sigma0"]
     if not s0.identifiable:
         s0.reason = f"{ramps.reason}; from the stops and reversals: {s0.reason}"
@@ -534,8 +533,8 @@ def _lugre_from_reversals(jd: JointData, base: ModelFit, base_name: str, c_pos, 
     metrics.update({f"{k}_reversals": v for k, v in met.items()})
     mf = ModelFit("lugre", base.map if base_name != "polynomial_ls" else "polynomial", params, metrics,
                   method="static map as chosen; sigma0 from the stops and reversals of the moving samples "
-                         "(bristle length by the held-out error of time blocks, inertia, gravity and offset, "
-                         "and a map fitted on moving samples, fitted again with it); sigma1 held at 0",
+                         "(bristle length by the held-out error of time blocks, inertia, gravity and offset "
+                         "fitted again with it); sigma1 held at 0",
                   notes=[f"static part: {base_name}"] + ([note] if note else []),
                   extra={"static_model": base_name})
     jf.models["lugre"] = mf

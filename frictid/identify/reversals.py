@@ -10,10 +10,9 @@ fits that length on the moving samples *including* the stops (the static maps ke
   ``sigma0 = g(0) / L`` (no damping) is replayed along the measured velocity as :func:`frictid.replay.replay` does (at rest the
   bristles carry what the applied torque loads them with where the joint stands), and the inertia, free
   gravity terms and offset are fitted again with it by least squares (the rigid body and the friction
-  through the stops trade off: both act where the acceleration is largest), together with the map's
-  amplitudes (one factor on its level part, which scales sigma0 with it so that the length stays; its
-  viscous terms) where the map itself was fitted on the moving samples; a map from plateau means stays
-  as fitted (refitted there, its Fc and sigma2 lost coverage on the foreign fit card);
+  through the stops trade off: both act where the acceleration is largest); the map stays as fitted
+  (refitting its amplitudes with the bristles cost the selected Fc's and sigma2's coverage on the foreign
+  fit card where the map came from plateaus, and gained nothing on the UR10e);
 - the length is chosen by the held-out error of the fit's time blocks (each fold fitted without its
   blocks), and compared with the static map under the same refit, block by block.
 
@@ -27,13 +26,11 @@ errors are the block jackknife's over the folds. Arrays in, result objects out; 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 
 from frictid.models.params import unit_of
 from frictid.models.replay_kernel import replay_friction, standing
-from frictid.models.static import canonical_viscous
 from frictid.replay import STICK_NOISE
 from frictid.result import ModelFit, ParamEstimate
 
@@ -93,40 +90,16 @@ def _data(jd: JointData):
     return free, out, n_rev, stroke, max(steps, default=0.0)
 
 
-#: The static maps' viscous parameters and their slot of the canonical vector (``w``, ``w|w|``, ``w^3``).
-VISCOUS = {"sigma2": 0, "alpha3": 0, "alpha4": 1, "c1": 0, "c2": 1, "c3": 2}
-#: Their level amplitudes (scaled together with sigma0: the bristle length stays).
-LEVEL = ("Fc", "Fs", "c0", "alpha0", "alpha1", "alpha2")
-
-
-def _viscous_terms(names) -> list[tuple[str, int, int]]:
-    """(parameter, power slot, sign: 1 for w >= 0, -1 for w < 0, 0 both) of a map's viscous terms."""
-    out = []
-    for n in names:
-        stem, sign = (n[:-4], 1) if n.endswith("_pos") else (n[:-4], -1) if n.endswith("_neg") else (n, 0)
-        if stem in VISCOUS:
-            out.append((n, VISCOUS[stem], sign))
-    return out
-
-
-def _block_equations(data, F_of, f_base, visc, n_folds: int):
-    """Per time block: (X'X, X'y, y'y, n) on the used samples of the friction with the fit's rigid terms
-    against the columns [the model's level part, its viscous terms, the free rigid terms]: the level part
-    from ``F_of(t, w, F, w_stick, hold)`` less the map's viscous part ``f_base(w)``. ``visc`` None: the
-    map is kept, the model's friction taken off the target and only the rigid terms fitted."""
+def _block_equations(data, F_of, n_folds: int):
+    """Per time block: (X'X, X'y, y'y, n) on the used samples of the friction with the fit's rigid terms less
+    the model's (``F_of(t, w, F, w_stick, hold)``) against the free rigid terms' columns."""
     ranges = smp.block_ranges([d[0] for d in data], n_folds)
     n_blocks = smp.BLOCKS_PER_FOLD * n_folds
-    k = (0 if visc is None else 1 + len(visc)) + (data[0][3].shape[1] if data else 0)
+    k = data[0][3].shape[1] if data else 0
     XX, Xy = np.zeros((n_blocks, k, k)), np.zeros((n_blocks, k))
     yy, nn = np.zeros(n_blocks), np.zeros(n_blocks)
-    for (t, w, F, Xr, use, w_stick, hold), rr in zip(data, ranges):
-        Fm = F_of(t, w, F, w_stick, hold)
-        if visc is None:
-            X, y = Xr, F - Fm
-        else:
-            pw = (w, w * np.abs(w), w ** 3)
-            V = [pw[j] * (1.0 if s == 0 else (w >= 0) if s > 0 else (w < 0)) for _, j, s in visc]
-            X, y = np.column_stack([Fm - f_base(w)] + V + [Xr]), F
+    for (t, w, F, X, use, w_stick, hold), rr in zip(data, ranges):
+        y = F - F_of(t, w, F, w_stick, hold)
         for i0, i1, b in rr:
             m = use[i0:i1]
             Xb, yb = X[i0:i1][m], y[i0:i1][m]
@@ -215,42 +188,30 @@ def _jackknife(fits) -> np.ndarray:
     return np.sqrt((k - 1) / k * np.sum((B - B.mean(0)) ** 2, axis=0)) if k > 1 else np.full(B.shape[1], np.nan)
 
 
-def _refit_params(jd: JointData, base: ModelFit, visc, free, full, se) -> dict[str, ParamEstimate]:
-    """The map's amplitudes and the rigid terms fitted with the bristles: level amplitudes times the level
-    part's factor, the viscous terms as fitted, the inertia and gravity as the joint's plus the change, the
-    offset's change as ``tau_offset``; standard errors by the block jackknife over the folds."""
+def _rigid_params(jd: JointData, free, full, se) -> dict[str, ParamEstimate]:
+    """The inertia, gravity and offset fitted with the bristles: the joint's values plus the refit's change
+    (the offset's change as ``tau_offset``), standard errors by the block jackknife over the folds."""
     jf, axis = jd.jf, jd.axis
-    src = "refitted with the bristles on the moving samples including the stops"
-    out = {}
-    if visc is not None:
-        k, sk = float(full[0]), float(se[0])
-        for n, p in base.params.items():
-            if n.split("_")[0] in LEVEL and p.value is not None:
-                e = math.hypot(k * (p.stderr or 0.0), p.value * sk)
-                out[n] = replace(p, value=k * p.value, stderr=e, source=src)
-        for j, (n, _, _) in enumerate(visc):
-            v, e = float(full[1 + j]), float(se[1 + j])
-            out[n] = replace(base.params[n], value=v, stderr=e, source=src)
     cur = {"J": jf.inertia.value if jf.inertia else None, "offset": 0.0,
            **{g: (jf.gravity[g].value if jf.gravity.get(g) else None) for g in ("Px", "Py")}}
     units = {"J": "kg m^2" if axis == "rotary" else "kg", "Px": unit_of("F", axis), "Py": unit_of("F", axis),
              "offset": unit_of("F", axis)}
-    for j, n in enumerate(free, start=0 if visc is None else 1 + len(visc)):
+    out = {}
+    for j, n in enumerate(free):
         v = (cur[n] or 0.0) + float(full[j])
         name = "tau_offset" if n == "offset" else n
         ok = bool(np.isfinite(se[j]) and se[j] < abs(v))
         out[name] = ParamEstimate(name, v, float(se[j]), units[n], ok,
-                                  "" if ok else "relative error above 100 % (block jackknife)", source=src)
+                                  "" if ok else "relative error above 100 % (block jackknife)",
+                                  source="refitted with the bristles on the moving samples including the stops")
     return out
 
 
-def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5,
-                   refit_map: bool = True) -> tuple[dict, dict, str]:
-    """sigma0 (and sigma1 held at 0) from the stops and reversals of the moving samples, with the rigid
-    terms fitted again with the bristles, and the map's amplitudes when ``refit_map`` (a map fitted on
-    plateau means stays: they measure the steady state better than samples through the stops). Returns
-    (the refitted and dynamic parameters, metrics, notes line); sigma0 says why it is not identifiable
-    when it is not (module docstring)."""
+def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5) -> tuple[dict, dict, str]:
+    """sigma0 (and sigma1 held at 0) from the stops and reversals of the moving samples, with the rigid terms
+    fitted again with the bristles; the map stays as fitted. Returns (the dynamic and refitted rigid
+    parameters, metrics, notes line); sigma0 says why it is not identifiable when it is not (module
+    docstring)."""
     free, data, n_rev, stroke, step = _data(jd)
     axis = jd.axis
     L, why = _grid(n_rev, stroke, step) if data else (None, "no log with a position channel")
@@ -263,10 +224,6 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
     if L is None:
         return {"sigma0": ParamEstimate("sigma0", None, None, unit_of("K", axis), False, why,
                                         source="reversals"), "sigma1": s1}, {}, ""
-    visc = _viscous_terms(base.params) if refit_map else None
-
-    def f_base(w):
-        return np.where(w >= 0, canonical_viscous(w, c_pos), canonical_viscous(w, c_neg))
 
     def static(t, w, F, ws, hold):
         return replay_friction(t, w, c_pos, c_neg, u_stick=F, w_stick=ws)[0]
@@ -275,23 +232,22 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
         return lambda t, w, F, ws, hold: replay_friction(t, w, c_pos, c_neg, u_stick=F, w_stick=ws, hold=hold,
                                                          sigma0=(g0[0] / length, g0[1] / length))[0]
 
-    eq0 = _block_equations(data, static, f_base, visc, n_folds)
+    eq0 = _block_equations(data, static, n_folds)
     sse0, _, _ = _heldout(eq0, n_folds)
-    eqs = [_block_equations(data, bristles(x), f_base, visc, n_folds) for x in L]
+    eqs = [_block_equations(data, bristles(x), n_folds) for x in L]
     held = [_heldout(e, n_folds) for e in eqs]
     i, rel, why = _verdict([h[0] for h in held], sse0, eq0[3], L)
-    k = float(held[i][1][0]) if refit_map and not why else 1.0
     source = (f"reversals: bristle length {L[i]:.3g} chosen by the held-out error of "
               f"{smp.BLOCKS_PER_FOLD * n_folds} time blocks ({n_rev} stops and reversals)")
-    params = {"sigma0": ParamEstimate("sigma0", k * g0[0] / L[i], rel * k * g0[0] / L[i], unit_of("K", axis),
-                                      not why, why, source=source, bounds=(k * g0[0] / L[-1], k * g0[0] / L[0])),
+    params = {"sigma0": ParamEstimate("sigma0", g0[0] / L[i], rel * g0[0] / L[i], unit_of("K", axis),
+                                      not why, why, source=source, bounds=(g0[0] / L[-1], g0[0] / L[0])),
               "sigma1": s1}
     if g0[1] != g0[0]:
-        params["sigma0_neg"] = ParamEstimate("sigma0_neg", k * g0[1] / L[i], rel * k * g0[1] / L[i],
+        params["sigma0_neg"] = ParamEstimate("sigma0_neg", g0[1] / L[i], rel * g0[1] / L[i],
                                              unit_of("K", axis), not why, why, source=source,
-                                             bounds=(k * g0[1] / L[-1], k * g0[1] / L[0]))
+                                             bounds=(g0[1] / L[-1], g0[1] / L[0]))
     if not why:
-        params.update(_refit_params(jd, base, visc, free, held[i][1], _jackknife(held[i][2])))
+        params.update(_rigid_params(jd, free, held[i][1], _jackknife(held[i][2])))
     N = float(eq0[3].sum())
     XX, Xy, yy, _ = (x.sum(0) for x in eqs[i])
     b = held[i][1]
@@ -299,8 +255,7 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
            "rms_heldout": float(math.sqrt(held[i][0].sum() / N)),
            "rms_heldout_static": float(math.sqrt(sse0.sum() / N)), "n": int(N),
            "k": int(len(base.params) + 1 + len(free))}
-    what = "its amplitudes and the rigid terms" if refit_map else "the rigid terms (the map as fitted)"
     note = (f"sigma0 from {n_rev} stops and reversals: bristle lengths {L[0]:.3g}-{L[-1]:.3g} tried, held-out "
             f"RMS {met['rms_heldout']:.4g} against {met['rms_heldout_static']:.4g} for {base.name} with the "
-            f"same refit of {what}")
+            "same refit of the rigid terms")
     return params, met, note
