@@ -405,8 +405,9 @@ def ur10e_bristles(data: Path, tmp: str) -> list[str]:
     0), sigma0 chosen on a grid by the moving RMS of the *first* 70 %, then the last 30 % predicted, against
     the static map's Karnopp replay. "Rest as static": the bristle replay on the moving samples and the
     static replay (whose stick zone reads the net torque) where the joint stands, the whole run's figure a
-    replay would give that holds a resting joint as the static models do. Run with ``--only
-    ur10e_bristles`` (not part of the default run)."""
+    replay would give that holds a resting joint as the static models do (since session 21 frictid's LuGre
+    replay reads the torque at rest itself, and the fit identifies sigma0 from the reversals: the held-out
+    table's figures). Run with ``--only ur10e_bristles`` (not part of the default run)."""
     rows = ["### UR10e joints 4-6: bristles through the stops (first 70 % fitted, last 30 % predicted)", "",
             "| joint | sigma0 [N m/rad] | first 70 %, moving: static / bristles [N m] | static: whole / moving / "
             "near stops [N m] | bristles: whole / moving / near stops [N m] | bristles, rest as static: whole "

@@ -7,8 +7,11 @@ rigid-body terms (inertia, gravity, offset) and the diagnosis extensions (positi
 
 - ``F_model``: friction along the measured velocity (LuGre state integrated along it, the thermal state
   along the predicted friction power), by the compiled kernel of :mod:`frictid.models.replay_kernel`.
-  A static map has no state at rest: within :data:`STICK_NOISE` velocity noise levels of zero it follows
-  Karnopp's stick law (the friction balances the net applied torque, up to the level);
+  Within :data:`STICK_NOISE` velocity noise levels of zero every model follows Karnopp's stick law (the
+  friction balances the net applied torque, up to the level); LuGre's bristles there follow the measured
+  velocity, and where the joint stands (:func:`~frictid.models.replay_kernel.standing`: still on every
+  sample within the acceleration filter's window) they carry the load that torque puts on them, so motion
+  resumes from the rest's load, not from the last motion's state;
 - ``tau_model = J a + G(q) + offset + F_model`` and the residual ``tau - tau_model``;
 - optionally (:func:`closed_loop`) the closed loop re-simulated with the identified model, the log's
   references and a known controller, giving the simulated motion ``q_model``.
@@ -31,7 +34,7 @@ from .errors import ConfigError, FrictidInputError
 from .model import (EXTENSION_PARAMS, FrictionModel, drift_factor, load_factor, position_factor,
                     rigid_torque)
 from .models import static as sm
-from .models.replay_kernel import replay_friction
+from .models.replay_kernel import replay_friction, standing
 
 #: The channels only :func:`closed_loop` reads: the references and the feedforward torque.
 REFERENCE_CHANNELS = ("q_ref", "qd_ref", "tau_ref")
@@ -133,7 +136,7 @@ def replay(log: JointLog, model: FrictionModel, w=None, a=None, t_offset: float 
     as the fit uses them). t_offset [s] : where the log starts on the drift clock (default: its metadata
     ``start_time`` when the model was identified with one, else 0). scales : the log's
     :class:`frictid.segments.Scales` when the caller has them; measured only when needed (for the
-    derivatives, and for a static model's stick zone). G [F] : ``model.gravity`` along the log when the
+    derivatives, and for the stick zone). G [F] : ``model.gravity`` along the log when the
     caller has it (models of one joint share it); not modified.
     """
     sc = scales
@@ -167,21 +170,21 @@ def replay(log: JointLog, model: FrictionModel, w=None, a=None, t_offset: float 
     off = model.ext.get("tau_offset", 0.0)
     tau = np.asarray(log.tau, dtype=float)
     Ja = model.J * af
-    if sig0 is None:
-        # Karnopp's stick zone: the net applied torque, within STICK_NOISE velocity noise levels of rest
-        if sc is None:
-            from .segments import estimate_scales
-            sc = estimate_scales(log)
-        u_net = tau - Ja
-        u_net -= G
-        u_net -= off
-        # the friction is written over the net torque, read sample by sample before it
-        F, z, T = replay_friction(log.t, wf, model.c_pos, model.c_neg, gmul=gmul, fmul=fmul, thermal=th,
-                                  u_stick=u_net, w_stick=STICK_NOISE * sc.sigma_w, out=u_net)
-        del u_net
-    else:
-        F, z, T = replay_friction(log.t, wf, model.c_pos, model.c_neg, gmul=gmul, fmul=fmul, sigma0=sig0,
-                                  sigma1=model.sigma1, thermal=th)
+    # Karnopp's stick zone: the net applied torque, within STICK_NOISE velocity noise levels of rest
+    # (LuGre's bristles there hold the deflection that torque loads them with)
+    if sc is None:
+        from .segments import estimate_scales
+        sc = estimate_scales(log)
+    u_net = tau - Ja
+    u_net -= G
+    u_net -= off
+    w_stick = STICK_NOISE * sc.sigma_w
+    hold = standing(wf, w_stick, sc.window_a // 2) if sig0 is not None else None
+    # the friction is written over the net torque, read sample by sample before it
+    F, z, T = replay_friction(log.t, wf, model.c_pos, model.c_neg, gmul=gmul, fmul=fmul, thermal=th,
+                              sigma0=sig0, sigma1=model.sigma1 if sig0 is not None else 0.0,
+                              u_stick=u_net, w_stick=w_stick, hold=hold, out=u_net)
+    del u_net
     if off:
         F += off
     tau_model = Ja

@@ -499,16 +499,17 @@ def test_cli_fit_diagnoses_by_default_and_the_result_replays(tmp_path, cli):
 
 
 def test_no_evidence_warning_without_findings():
-    """The hydraulic sample: the diagnosis finds nothing, and its base model either loses the check to the
-    fit's choice or is the fit's choice (the symmetric plant's `stribeck`, since the stage-2 offset no
-    longer leaves a per-sign difference in the plateaus: then there is nothing to check); the record says
-    so, and no warning speaks of findings kept as evidence."""
+    """The hydraulic sample: the diagnosis finds no effect beyond the bristles the fit identified at the
+    stops and reversals (session 21: its `presliding` finding carries them onto the symmetric plant's
+    `stribeck`), the check keeps that model, and no warning speaks of findings kept as evidence."""
     import frictid
     from conftest import ROOT
 
     jf = frictid.fit(str(ROOT / "sample_logs" / "hydraulic_sweep.csv"))["j1"]
     check = jf.selection.get("diagnosis_check")
-    assert jf.diagnosis == [] and (check["kept"] if check else jf.selection["diagnosis"]["base"]) == jf.selected
+    # the plant's bristles, found at the stops and reversals (fit step 7), are its one finding
+    assert [f["cause"] for f in jf.diagnosis] == ["presliding"] and jf.selected == "stribeck+lugre"
+    assert check is None or check.get("kept") in (None, jf.selected)
     assert not [w for w in jf.warnings if "evidence" in w or "duty cycles included" in w], jf.warnings
 
 

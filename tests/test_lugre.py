@@ -271,3 +271,30 @@ def test_the_damping_torque_is_taken_out_of_the_ramps():
     assert abs(pre.fit_sigma0(damped.ramps, [g, g]).value - s0) < 0.003 * s0
     unknown = pre.DynamicEstimate(None, None, False, "no steps")
     assert dynamics._without_damping(pd, {"": (plain, unknown)}, [g, g], c, c) is None
+
+
+def _multisine_fit(plant: str, seed: int):
+    import frictid
+    from frictid.plant import simulate_recipe
+    (lg, *_) = simulate_recipe("recipes/multisine.yaml", plant=f"recipes/plants/{plant}.yaml", seed=seed,
+                               duration_scale=0.3)
+    return lg, frictid.fit([lg], models="polynomial,lugre")[lg.joint]
+
+
+def test_sigma0_from_the_reversals_of_a_multisine():
+    """No ramps: sigma0 from the stops and reversals of a multi-sine (identify/reversals.py). The hydraulic
+    plant's bristles (0.75 mrad at break-away, 31 encoder steps) are found, their truth within the error,
+    and LuGre predicts the held-out blocks better and is chosen; the direct drive's (0.03 mrad, under its
+    0.08 mrad encoder step) are not, and sigma0 says why."""
+    lg, jf = _multisine_fit("hydraulic", 0)
+    s0, truth = jf.models["lugre"].params["sigma0"], lg.truth["params"]["sigma0"]
+    assert s0.identifiable and "reversals" in s0.source
+    assert abs(s0.value - truth) <= 2 * s0.stderr and s0.stderr < s0.value
+    assert jf.models["lugre"].params["sigma1"].fixed
+    met = jf.models["lugre"].metrics
+    assert met["rms_heldout_reversals"] < 0.5 * met["rms_heldout_static_reversals"]
+    assert jf.selected.endswith("lugre") and jf.selection["lugre"].startswith("chosen")
+    lg, jf = _multisine_fit("direct_drive", 0)
+    s0 = jf.models["lugre"].params["sigma0"]
+    assert not s0.identifiable and "encoder resolves" in s0.reason
+    assert not jf.selected.endswith("lugre")

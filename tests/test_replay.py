@@ -32,7 +32,7 @@ P_POS, P_NEG = canonical_pair("polynomial_asym", dict(c0_pos=4.0, c1_pos=2.0, c2
 
 @pytest.mark.parametrize("case", ["static", "karnopp", "lugre", "lugre_asym", "thermal4", "thermal6",
                                   "exponential", "thermal_measured", "multipliers", "flat_static",
-                                  "flat_thermal6", "flat_exponential_multipliers"])
+                                  "flat_thermal6", "flat_exponential_multipliers", "lugre_stick"])
 def test_kernel_equals_python_twin(case):
     t, w, rng = _motion()
     n = t.size
@@ -44,6 +44,9 @@ def test_kernel_equals_python_twin(case):
         kw = dict(sigma0=2e3, sigma1=20.0)
     elif case == "lugre_asym":
         kw = dict(sigma0=(5e3, 1e3), sigma1=(30.0, 5.0), z0=1e-4)
+    elif case == "lugre_stick":
+        kw = dict(sigma0=(5e3, 1e3), sigma1=(30.0, 5.0), u_stick=3 * rng.standard_normal(n), w_stick=0.02,
+                  hold=rng.random(n) < 0.5)
     elif case == "thermal4":
         code, theta, dc = th.thermal_code("thermal4", alpha=-0.01, beta=1.0, T0=25.0)
         kw = dict(sigma0=2e3, sigma1=5.0, thermal=dict(code=code, theta=theta, dc_pos=dc, C=20.0, K=1.0, Tenv=25.0))
@@ -97,6 +100,31 @@ def test_static_replay_is_the_map_and_karnopp_holds_at_rest():
     assert z3.shape == T3.shape == (6,) and not z3.flags.writeable and np.all(z3 == 0) and np.all(np.isnan(T3))
     with pytest.raises(ValueError, match="out must be"):
         replay_friction(t, w, C_POS, C_NEG, out=np.empty(5))
+
+
+def test_lugre_replay_at_rest_reads_the_torque_and_resumes_from_it():
+    """In the stick zone LuGre's friction reads the applied torque (as the static replay's does); where the
+    joint stands the bristles carry that load, so motion resumes from it, not from the last motion's
+    state; at a rest's edges (the acceleration filter's half window) they follow the motion."""
+    from frictid.models.replay_kernel import standing
+    t = np.arange(400) * 0.01
+    w = np.where(t < 1.0, 0.3, np.where(t < 2.0, 0.0, -0.3))   # slide one way, rest, slide back
+    u = np.where(t < 2.0, -1.0, 0.0)                          # the rest carries -1 (less than the level)
+    s0 = 2e3
+    hold = standing(w, 0.01, 3)
+    rest = (t >= 1.0) & (t < 2.0)
+    assert np.array_equal(hold, rest & (t >= 1.03) & (t < 1.97))   # three samples off each edge
+    F, z, _ = replay_friction(t, w, C_POS, C_NEG, sigma0=s0, u_stick=u, w_stick=0.01, hold=hold)
+    assert np.allclose(F[rest], -1.0) and np.allclose(z[hold], -1.0 / s0)
+    # without the stick zone the rest holds the last motion's +level deflection and friction
+    F0, z0, _ = replay_friction(t, w, C_POS, C_NEG, sigma0=s0)
+    assert z0[np.flatnonzero(rest)[-1]] > 0.0 and F0[np.flatnonzero(rest)[-1]] > 1.0
+    # the stick zone alone (no hold) reads the torque but keeps the motion's bristle state
+    F1, z1, _ = replay_friction(t, w, C_POS, C_NEG, sigma0=s0, u_stick=u, w_stick=0.01)
+    assert np.allclose(F1[rest], -1.0) and np.allclose(z1[rest], z0[rest])
+    # sliding back starts from -1 N m: the friction goes to the negative level sooner
+    k = np.flatnonzero(t >= 2.0)[0]
+    assert F[k] < F1[k] and F[k + 1] < -1.0
 
 
 def test_lugre_replay_reaches_the_map_and_the_heat_balance_its_steady_state():

@@ -277,26 +277,38 @@ def _presliding(jf: JointFit, prev: str) -> dict | None:
     if lug is None or not str(jf.selection.get("lugre", "")).startswith("chosen"):
         return None
     rs, rh = lug.metrics.get("rms_presliding_static"), lug.metrics.get("rms_presliding_heldout")
-    if not rs or rh is None or not lug.identifiable:
+    ramps = bool(rs) and rh is not None
+    if not ramps:  # sigma0 from the stops and reversals of the moving samples (identify/reversals.py)
+        rs, rh = lug.metrics.get("rms_heldout_static_reversals"), lug.metrics.get("rms_heldout_reversals")
+    if not rs or rh is None or not lug.params["sigma0"].identifiable:
         return None
     gain = 1.0 - rh / rs
     if gain < GAIN_MIN:
         return None
     base = jf.models[prev]
     params = {k: ParamEstimate(**vars(p)) for k, p in base.params.items()}
-    for k in ("sigma0", "sigma1"):
-        params[k] = ParamEstimate(**vars(lug.params[k]))
+    # the bristles, and (from the reversals) the rigid terms fitted with them where the chain has none
+    for k in ("sigma0", "sigma1", "sigma0_neg", "sigma1_neg") + (() if ramps else ("J", "Px", "Py", "tau_offset")):
+        if k in lug.params and (k.startswith("sigma") or k not in params):
+            params[k] = ParamEstimate(**vars(lug.params[k]))
+    if not ramps and "tau_offset" in lug.params and "tau_offset" not in base.params and jf.offset is not None:
+        # LuGre's is the change of the joint's offset; a chained model carries the whole offset as tau_offset
+        params["tau_offset"].value += jf.offset.value or 0.0
     name = prev + "+lugre"
     extra = dict(base.extra)
     extra["extensions"] = list(extra.get("extensions", [])) + ["lugre"]
     extra.setdefault("base", prev)
+    where = ("ramps and steps" if ramps else "stops and reversals of the moving samples, with the rigid "
+             "terms fitted again")
     jf.models[name] = ModelFit(name, base.map, params, dict(base.metrics), method=base.method + "; sigma0, "
-                               "sigma1 from the fit's LuGre (ramps and steps)", extra=extra)
+                               f"sigma1 from the fit's LuGre ({where})", extra=extra)
     u = jf.units.get("tau", "N m")
+    data = "presliding ramps" if ramps else "the moving samples including the stops"
     return {"cause": "presliding",
-            "evidence": (f"on presliding ramps the static map misses the bristle compliance (held-out RMS "
+            "evidence": (f"on {data} the static map misses the bristle compliance (held-out RMS "
                          f"{fmt(rs)} {u}); LuGre with sigma0 = {fmt(lug.params['sigma0'].value)} cuts it to "
                          f"{fmt(rh)} {u} ({100 * gain:.0f} %)"),
-            "statistic": {"test": "held-out ramps (leave one ramp out), as the fit chose LuGre"},
+            "statistic": {"test": ("held-out ramps (leave one ramp out)" if ramps else "held-out time blocks")
+                          + ", as the fit chose LuGre"},
             "extension": "lugre", "model": name, "rms_before": rs, "rms_after": rh, "gain": gain,
-            "heldout": {"split": "leave one presliding ramp out"}}
+            "heldout": {"split": "leave one presliding ramp out" if ramps else "time blocks of the moving samples"}}

@@ -275,6 +275,9 @@ def fit_lugre(jd: JointData, selected: str | None) -> None:
     pd = presliding_data(jd)
     g_map = [abs(level(1e-12 if np.mean(F) >= 0 else -1e-12)) for _, F in pd.ramps]
     s0, sides, g_of = _sigma0_estimates(pd, g_map)
+    if not pd.ramps and not pd.creep and not s0.identifiable:  # ramps dropped for creep keep their verdict
+        _lugre_from_reversals(jd, base, base_name, c_pos, c_neg, s0)
+        return
     jd.used.pop("step", None)
     est = _sigma1_estimates(jd, pd, s0, sides, c_pos, c_neg)
     damped = _without_damping(pd, est, g_of, c_pos, c_neg)
@@ -512,3 +515,36 @@ def _lugre_choice(jd: JointData, mf: ModelFit, base_name: str) -> None:
                "fewer than two ramp segments: no held-out presliding error" if rh is None else
                "no better than the static map on held-out presliding segments")
         jf.selection["lugre"] = f"not chosen: {why}"
+
+
+def _lugre_from_reversals(jd: JointData, base: ModelFit, base_name: str, c_pos, c_neg,
+                          ramps: pre.DynamicEstimate) -> None:
+    """LuGre on the chosen map with sigma0 from the stops and reversals of the moving samples
+    (:func:`.reversals.reversal_lugre`), for joints without ramps; it replaces its map as the chosen model
+    when sigma0 is identifiable, which includes beating the map on the held-out time blocks."""
+    from .reversals import reversal_lugre
+
+    jf = jd.jf
+    dyn, met, note = reversal_lugre(jd, base, c_pos, c_neg)
+    s0 = dyn["sigma0"]
+    if not s0.identifiable:
+        s0.reason = f"{ramps.reason}; from the stops and reversals: {s0.reason}"
+    params = static_params(base)
+    params.update(dyn)
+    metrics = dict(base.metrics)
+    metrics.update({f"{k}_reversals": v for k, v in met.items()})
+    mf = ModelFit("lugre", base.map if base_name != "polynomial_ls" else "polynomial", params, metrics,
+                  method="static map as chosen; sigma0 from the stops and reversals of the moving samples "
+                         "(bristle length by the held-out error of time blocks, inertia, gravity and offset "
+                         "fitted again with it); sigma1 held at 0",
+                  notes=[f"static part: {base_name}"] + ([note] if note else []),
+                  extra={"static_model": base_name})
+    jf.models["lugre"] = mf
+    if not s0.identifiable:
+        jf.not_identified.append({"what": "lugre.sigma0", "reason": s0.reason})
+        jf.selection["lugre"] = "not chosen: sigma0 not identifiable"
+        return
+    jf.selection["lugre"] = (f"chosen: held-out RMS of the moving samples including the stops "
+                             f"{met['rms_heldout']:.4g} against {met['rms_heldout_static']:.4g} for {base_name} "
+                             "alone (the same time blocks and refit of the rigid terms)")
+    jf.selected = "lugre"

@@ -791,10 +791,14 @@ def _replays(j: _Joint, fi: _Findings, vmin: float, notes: list[str]) -> tuple[l
 def _replay_figure(j: _Joint, d: ct.LogData, k: int, r: ct.Replay) -> fg.Rendered:
     """The figure of replay ``r`` along log ``d`` (the joint's ``k``-th), titled with the residual's median
     absolute value (robust to the spikes at reversals), its 95th percentile and its RMS."""
-    st = ct.residual_stats(r.residual(d))
+    res = r.residual(d)
+    # the stick zone reads the measured torque (Karnopp, every model): scored while moving only
+    moving = r.still is not None and bool(np.any(~r.still))
+    st = ct.residual_stats(res[~r.still] if moving else res)
     u = j.units["tau"]
     title = (f"Replay of {r.model}: median |residual| {fmt_num(st['median_abs'], 3)} {u}"
-             f" (95 % below {fmt_num(st['p95_abs'], 3)}, RMS {fmt_num(st['rms'], 3)})")
+             f" (95 % below {fmt_num(st['p95_abs'], 3)}, RMS {fmt_num(st['rms'], 3)})"
+             + (" while moving" if moving else ""))
     return fg.replay(d.log.t, d.log.tau, r.tau_model, j.units, title, j.salt("replay", k),
                      q=d.log.q, q_model=r.q_model, source=d.label or "the log")
 

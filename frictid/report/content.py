@@ -714,6 +714,8 @@ class Replay:
     T: np.ndarray | None = None
     how: str = ""
     notes: list[str] = field(default_factory=list)
+    #: samples in the replay's stick zone, where the model reads the measured torque (None: not known)
+    still: np.ndarray | None = None
 
     def residual(self, d: LogData) -> np.ndarray:
         return np.asarray(d.log.tau, float) - self.tau_model
@@ -734,6 +736,8 @@ def replay_log(d: LogData, jname: str, jd: dict, model: str | None = None, close
                 r = rp.replay(d.log, m, w=d.w, a=d.a, scales=d.scales, G=G)
             T = None if r.T is None or not np.any(np.isfinite(r.T)) else np.asarray(r.T, float)
             out = Replay(name, np.asarray(r.tau_model, float), T=T, how="replay", notes=list(r.notes))
+            if d.scales is not None and d.w is not None:
+                out.still = np.abs(np.asarray(d.w, float)) <= rp.STICK_NOISE * d.scales.sigma_w
             del r  # its friction, bristle and residual arrays: freed before the closed loop allocates
             gains = rp.controller_from_meta(d.log.meta or {}) if closed else None
             if gains is not None and "q_ref" in d.log.channels and m.J > 0 and d.log.q is not None:

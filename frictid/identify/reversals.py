@@ -1,0 +1,261 @@
+"""LuGre's bristle stiffness from the stops and reversals of moving data, for joints without presliding ramps.
+
+Where no ramp identifies sigma0 (:mod:`.dynamics`), the stops and reversals of ordinary motion still show
+the bristles: the friction crosses from one level to the other over a travel of about ``L = g(0) / sigma0``
+(the bristle length), where the static map jumps at the velocity's sign change. :func:`reversal_lugre`
+fits that length on the moving samples *including* the stops (the static maps keep them out by design):
+
+- for each length on a grid, from a few encoder steps (the position's quantisation, else its noise) up
+  to a tenth of the median stroke between reversals, the chosen map with bristles of stiffness
+  ``sigma0 = g(0) / L`` (no damping) is replayed along the measured velocity as :func:`frictid.replay.replay` does (at rest the
+  bristles carry what the applied torque loads them with where the joint stands), and the inertia, free
+  gravity terms and offset are fitted again with it by least squares (the rigid body and the friction
+  through the stops trade off: both act where the acceleration is largest); the map stays as fitted
+  (refitting its amplitudes with the bristles cost the selected Fc's and sigma2's coverage on the foreign
+  fit card where the map came from plateaus, and gained nothing on the UR10e);
+- the length is chosen by the held-out error of the fit's time blocks (each fold fitted without its
+  blocks), and compared with the static map under the same refit, block by block.
+
+sigma0 is identifiable when the chosen length lies inside the grid (not at the encoder's end, where the
+bristles are the static map's jump, nor at the stroke's end), beats the static map on the held-out blocks
+by more than two standard errors of the paired block differences, and the lengths within one such error
+of the best stay inside the grid; its standard error is the spread of sigma0 over those lengths. sigma1 is
+held at 0 (the reversals of sampled motion do not resolve the bristles' damping). The refitted terms'
+errors are the block jackknife's over the folds. Arrays in, result objects out; truth is never read.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from frictid.models.params import unit_of
+from frictid.models.replay_kernel import replay_friction, standing
+from frictid.replay import STICK_NOISE
+from frictid.result import ModelFit, ParamEstimate
+
+from . import presliding as pre
+from . import samples as smp
+from .prepare import JointData
+
+#: The shortest bristle length tried: this many encoder steps (or position noise levels).
+LENGTH_MIN_STEPS = 2.0
+#: The longest: this share of the median stroke between reversals.
+LENGTH_MAX_STROKE = 0.1
+#: Lengths per decade on the grid.
+PER_DECADE = 4
+#: Paired standard errors by which the bristles must beat the static map on the held-out blocks.
+GAIN_Z = 2.0
+#: Reversals and stops needed in the moving samples.
+MIN_REVERSALS = 6
+#: Segment kinds kept out (ramps and steps identify sigma0 themselves).
+EXCLUDE = ("ramp_presliding", "step")
+RIGID = ("J", "Px", "Py", "offset")
+
+
+def _data(jd: JointData):
+    """Per log with a position: (t, w, F, columns of the free rigid terms, used mask, w_stick), the
+    reversal count and the median stroke between them, and the encoder's (or noise's) position step."""
+    from frictid.segments import estimate_scales
+
+    from .mechanics import regressors
+    free = [n for n in regressors(jd).free if n in RIGID]
+    out, strokes, steps, n_rev = [], [], [], 0
+    for p in jd.preps:
+        if p.log.q is None or p.F is None:
+            continue
+        sc = p.scales or estimate_scales(p.log)
+        q = np.asarray(p.log.q, float)
+        w_stick = STICK_NOISE * sc.sigma_w
+        use = np.isfinite(p.F) & np.isfinite(p.w) & np.isfinite(p.a) & (np.abs(p.w) > w_stick)
+        for s in p.segments:
+            if s.kind in EXCLUDE:
+                use[s.i0:s.i1] = False
+        cols = {"J": p.a, "Px": np.cos(q), "Py": np.sin(q), "offset": np.ones_like(q)}
+        X = np.column_stack([np.nan_to_num(cols[n]) for n in free]) if free else np.zeros((q.size, 0))
+        # a stop or reversal: the velocity leaves the moving band (enters the stick zone or changes sign)
+        sgn = np.where(np.abs(p.w) > w_stick, np.sign(p.w), 0.0)
+        moving = np.flatnonzero(sgn != 0)
+        if moving.size > 1:
+            ends = moving[np.flatnonzero(np.diff(sgn[moving]) != 0) + 1]
+            gaps = moving[np.flatnonzero(np.diff(moving) > 1) + 1]
+            n_rev += np.unique(np.concatenate([ends, gaps])).size
+            if ends.size > 1:  # the travel between reversals
+                strokes.extend(np.abs(np.diff(q[ends])).tolist())
+        steps.append(sc.q_step or pre.encoder_resolution(q) or sc.sigma_q)
+        hold = standing(np.nan_to_num(p.w), w_stick, sc.window_a // 2)
+        out.append((np.asarray(p.log.t, float), np.asarray(p.w, float), np.asarray(p.F, float), X, use, w_stick,
+                    hold))
+    stroke = float(np.median(strokes)) if strokes else 0.0
+    return free, out, n_rev, stroke, max(steps, default=0.0)
+
+
+def _block_equations(data, F_of, n_folds: int):
+    """Per time block: (X'X, X'y, y'y, n) on the used samples of the friction with the fit's rigid terms less
+    the model's (``F_of(t, w, F, w_stick, hold)``) against the free rigid terms' columns."""
+    ranges = smp.block_ranges([d[0] for d in data], n_folds)
+    n_blocks = smp.BLOCKS_PER_FOLD * n_folds
+    k = data[0][3].shape[1] if data else 0
+    XX, Xy = np.zeros((n_blocks, k, k)), np.zeros((n_blocks, k))
+    yy, nn = np.zeros(n_blocks), np.zeros(n_blocks)
+    for (t, w, F, X, use, w_stick, hold), rr in zip(data, ranges):
+        y = F - F_of(t, w, F, w_stick, hold)
+        for i0, i1, b in rr:
+            m = use[i0:i1]
+            Xb, yb = X[i0:i1][m], y[i0:i1][m]
+            XX[b] += Xb.T @ Xb
+            Xy[b] += Xb.T @ yb
+            yy[b] += float(yb @ yb)
+            nn[b] += m.sum()
+    return XX, Xy, yy, nn
+
+
+def _solve(XX, Xy):
+    k = XX.shape[0]
+    if k == 0:
+        return np.zeros(0)
+    sc = np.sqrt(np.maximum(np.diag(XX), 1e-300))
+    b, *_ = np.linalg.lstsq(XX / np.outer(sc, sc), Xy / sc, rcond=1e-10)
+    return b / sc
+
+
+def _heldout(eq, n_folds: int):
+    """Per block its held-out squared error (the fold's fit without its blocks), the fit on all blocks and
+    the per-fold fits (for the jackknife)."""
+    XX, Xy, yy, nn = eq
+    fold = np.arange(nn.size) % n_folds
+    sse = np.zeros(nn.size)
+    fits = []
+    for f in range(n_folds):
+        tr = fold != f
+        b = _solve(XX[tr].sum(0), Xy[tr].sum(0))
+        fits.append(b)
+        for i in np.flatnonzero(~tr):
+            sse[i] = yy[i] - 2.0 * b @ Xy[i] + b @ XX[i] @ b
+    return sse, _solve(XX.sum(0), Xy.sum(0)), fits
+
+
+def _grid(n_rev: int, stroke: float, step: float) -> tuple[np.ndarray | None, str]:
+    """The bristle lengths [q] tried, or None with the reason."""
+    if n_rev < MIN_REVERSALS:
+        return None, f"{n_rev} stops and reversals in the moving samples (at least {MIN_REVERSALS} needed)"
+    lo, hi = LENGTH_MIN_STEPS * step, LENGTH_MAX_STROKE * stroke
+    if not (lo > 0 and hi > 10.0 * lo):
+        return None, (f"the strokes between reversals (median {stroke:.3g}) are too short against the "
+                      f"position's step ({step:.3g}) to resolve a bristle length")
+    n = int(math.ceil(PER_DECADE * math.log10(hi / lo))) + 1
+    return np.geomspace(lo, hi, n), ""
+
+
+def _paired(sse_a, sse_b, nn) -> tuple[float, float]:
+    """Mean-square gain of b over a on the held-out blocks and its standard error (blocks paired)."""
+    m = nn > 0
+    e = sse_a[m] - sse_b[m]
+    N = float(nn[m].sum())
+    return float(e.sum() / N), float(math.sqrt(e.size) * np.std(e, ddof=1) / N) if e.size > 1 else math.inf
+
+
+def _verdict(sse: list, sse0, nn, L) -> tuple[int, float, str]:
+    """The chosen length's index, sigma0's relative error and the reason it is not identifiable ('' when it
+    is): interior, better than the static map by GAIN_Z paired errors, the lengths within one paired error
+    of it inside the grid."""
+    tot = np.array([s.sum() for s in sse])
+    i = int(np.argmin(tot))
+    gain, se = _paired(sse0, sse[i], nn)
+    near = [j for j in range(len(sse)) if (tot[j] - tot[i]) / nn.sum() <= _paired(sse[j], sse[i], nn)[1]]
+    span = (L[max(near)], L[min(near)])
+    rel = max(L[i] / span[1] - 1.0, 1.0 - L[i] / span[0], 0.5 * (L[1] / L[0] - 1.0))
+    if i == 0:
+        why = (f"the best bristle length is the shortest tried ({L[0]:.3g}, {LENGTH_MIN_STEPS:g} position "
+               "steps): the reversals show no transition longer than the encoder resolves")
+    elif i == len(L) - 1:
+        why = (f"the best bristle length is the longest tried ({L[-1]:.3g}, {100 * LENGTH_MAX_STROKE:.0f} % of "
+               "the median stroke): no presliding transition")
+    elif not gain > GAIN_Z * se:
+        why = (f"bristles of length {L[i]:.3g} predict the held-out blocks no better than the static map "
+               f"(mean-square gain {gain:.3g} +- {se:.3g})")
+    elif 0 in near or len(L) - 1 in near:
+        why = (f"the held-out error is flat over bristle lengths {min(span):.3g} to {max(span):.3g} (within "
+               "one paired standard error), reaching the end of the lengths tried")
+    else:
+        why = ""
+    return i, rel, why
+
+
+def _jackknife(fits) -> np.ndarray:
+    """Block jackknife standard errors over the folds' fits."""
+    B, k = np.array(fits), len(fits)
+    return np.sqrt((k - 1) / k * np.sum((B - B.mean(0)) ** 2, axis=0)) if k > 1 else np.full(B.shape[1], np.nan)
+
+
+def _rigid_params(jd: JointData, free, full, se) -> dict[str, ParamEstimate]:
+    """The inertia, gravity and offset fitted with the bristles: the joint's values plus the refit's change
+    (the offset's change as ``tau_offset``), standard errors by the block jackknife over the folds."""
+    jf, axis = jd.jf, jd.axis
+    cur = {"J": jf.inertia.value if jf.inertia else None, "offset": 0.0,
+           **{g: (jf.gravity[g].value if jf.gravity.get(g) else None) for g in ("Px", "Py")}}
+    units = {"J": "kg m^2" if axis == "rotary" else "kg", "Px": unit_of("F", axis), "Py": unit_of("F", axis),
+             "offset": unit_of("F", axis)}
+    out = {}
+    for j, n in enumerate(free):
+        v = (cur[n] or 0.0) + float(full[j])
+        name = "tau_offset" if n == "offset" else n
+        ok = bool(np.isfinite(se[j]) and se[j] < abs(v))
+        out[name] = ParamEstimate(name, v, float(se[j]), units[n], ok,
+                                  "" if ok else "relative error above 100 % (block jackknife)",
+                                  source="refitted with the bristles on the moving samples including the stops")
+    return out
+
+
+def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5) -> tuple[dict, dict, str]:
+    """sigma0 (and sigma1 held at 0) from the stops and reversals of the moving samples, with the rigid terms
+    fitted again with the bristles; the map stays as fitted. Returns (the dynamic and refitted rigid
+    parameters, metrics, notes line); sigma0 says why it is not identifiable when it is not (module
+    docstring)."""
+    free, data, n_rev, stroke, step = _data(jd)
+    axis = jd.axis
+    L, why = _grid(n_rev, stroke, step) if data else (None, "no log with a position channel")
+    g0 = (float(c_pos[0] + c_pos[1]), float(c_neg[0] + c_neg[1]))
+    if L is not None and not min(g0) > 0:
+        L, why = None, "the map's level at zero speed is not positive"
+    s1 = ParamEstimate("sigma1", 0.0, None, unit_of("D", axis), False,
+                       "held at 0: the reversals of sampled motion do not resolve the bristles' damping",
+                       fixed=True, source="reversals")
+    if L is None:
+        return {"sigma0": ParamEstimate("sigma0", None, None, unit_of("K", axis), False, why,
+                                        source="reversals"), "sigma1": s1}, {}, ""
+
+    def static(t, w, F, ws, hold):
+        return replay_friction(t, w, c_pos, c_neg, u_stick=F, w_stick=ws)[0]
+
+    def bristles(length):
+        return lambda t, w, F, ws, hold: replay_friction(t, w, c_pos, c_neg, u_stick=F, w_stick=ws, hold=hold,
+                                                         sigma0=(g0[0] / length, g0[1] / length))[0]
+
+    eq0 = _block_equations(data, static, n_folds)
+    sse0, _, _ = _heldout(eq0, n_folds)
+    eqs = [_block_equations(data, bristles(x), n_folds) for x in L]
+    held = [_heldout(e, n_folds) for e in eqs]
+    i, rel, why = _verdict([h[0] for h in held], sse0, eq0[3], L)
+    source = (f"reversals: bristle length {L[i]:.3g} chosen by the held-out error of "
+              f"{smp.BLOCKS_PER_FOLD * n_folds} time blocks ({n_rev} stops and reversals)")
+    params = {"sigma0": ParamEstimate("sigma0", g0[0] / L[i], rel * g0[0] / L[i], unit_of("K", axis),
+                                      not why, why, source=source, bounds=(g0[0] / L[-1], g0[0] / L[0])),
+              "sigma1": s1}
+    if g0[1] != g0[0]:
+        params["sigma0_neg"] = ParamEstimate("sigma0_neg", g0[1] / L[i], rel * g0[1] / L[i],
+                                             unit_of("K", axis), not why, why, source=source,
+                                             bounds=(g0[1] / L[-1], g0[1] / L[0]))
+    if not why:
+        params.update(_rigid_params(jd, free, held[i][1], _jackknife(held[i][2])))
+    N = float(eq0[3].sum())
+    XX, Xy, yy, _ = (x.sum(0) for x in eqs[i])
+    b = held[i][1]
+    met = {"rms": float(math.sqrt(max(yy - 2 * b @ Xy + b @ XX @ b, 0.0) / N)),
+           "rms_heldout": float(math.sqrt(held[i][0].sum() / N)),
+           "rms_heldout_static": float(math.sqrt(sse0.sum() / N)), "n": int(N),
+           "k": int(len(base.params) + 1 + len(free))}
+    note = (f"sigma0 from {n_rev} stops and reversals: bristle lengths {L[0]:.3g}-{L[-1]:.3g} tried, held-out "
+            f"RMS {met['rms_heldout']:.4g} against {met['rms_heldout_static']:.4g} for {base.name} with the "
+            "same refit of the rigid terms")
+    return params, met, note
