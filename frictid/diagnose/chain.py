@@ -628,10 +628,11 @@ def _not_at_one_speed(S: Samples, tr: Trial, m: int) -> str | None:
 
 #: Extensions whose variable changes slowly over the recording or from move to move (a warm-up, the rests
 #: of a program): a free function of the time competes with them for the same residual.
-TIME_COURSE_EXTS = ("thermal4", "thermal6", "dwell", "position_smooth", "position_periodic")
+TIME_COURSE_EXTS = ("thermal4", "thermal6", "dwell", "position_smooth", "position_periodic", "position_torque")
 #: What each such extension's variable describes, for the sentence of a rejection.
 TIME_COURSE_SHAPES = {"dwell": "a dwell effect", "position_smooth": "a function of the position",
-                      "position_periodic": "a function of the position"}
+                      "position_periodic": "a function of the position",
+                      "position_torque": "a torque of the position"}
 
 
 def _not_its_time_course(S: Samples, tr: Trial, m: int) -> str | None:
