@@ -548,7 +548,7 @@ def _stand_in(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float) -> str 
         why = _not_at_one_speed(S, tr, m)
         if why is not None:
             return why
-    if tr.ext in TIME_COURSE_EXTS:
+    if tr.ext in TIME_COURSE_EXTS and tr.ext != "position_torque":
         why = _not_its_time_course(S, tr, m)
         if why is not None or tr.ext not in POSITION_EXTS:
             return why
@@ -562,7 +562,10 @@ def _stand_in(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float) -> str 
     if p >= ALPHA / max(m, 1):
         return (f"{tr.ext} does not show within segments at one speed (held-out within-cell t = {t:.2f}, "
                 f"p = {p:.2g}): the position stands in for the speed or the order of the plateaus")
-    return _grows_with_speed(S, tr, rw, dw, m)
+    why = _grows_with_speed(S, tr, rw, dw, m)
+    # a torque of the position faces the time's course last (session 21): its own checks name a vibration
+    # or a constant first
+    return why if why is not None or tr.ext != "position_torque" else _not_its_time_course(S, tr, m)
 
 
 def _a_constant(ctx: Context, tr: Trial, F_rms: float, noise: float) -> str | None:
@@ -628,11 +631,13 @@ def _not_at_one_speed(S: Samples, tr: Trial, m: int) -> str | None:
 
 #: Extensions whose variable changes slowly over the recording or from move to move (a warm-up, the rests
 #: of a program): a free function of the time competes with them for the same residual.
-TIME_COURSE_EXTS = ("thermal4", "thermal6", "dwell", "position_smooth", "position_periodic", "position_torque")
+TIME_COURSE_EXTS = ("thermal4", "thermal6", "dwell", "position_smooth", "position_periodic", "position_torque",
+                    "load_gravity", "load_torque")
 #: What each such extension's variable describes, for the sentence of a rejection.
 TIME_COURSE_SHAPES = {"dwell": "a dwell effect", "position_smooth": "a function of the position",
                       "position_periodic": "a function of the position",
-                      "position_torque": "a torque of the position"}
+                      "position_torque": "a torque of the position", "load_gravity": "a load-dependent level",
+                      "load_torque": "a load-dependent level"}
 
 
 def _not_its_time_course(S: Samples, tr: Trial, m: int) -> str | None:
@@ -643,7 +648,10 @@ def _not_its_time_course(S: Samples, tr: Trial, m: int) -> str | None:
     candidate's correction, that function must not explain, on held-out data and significantly at the
     step's level, at least as much of what is left as the candidate explained. A warm-up the thermal state
     describes leaves little of its course behind, nor does a dwell effect; a cycle that a thermal state or
-    the rests of a program follow in part leaves the rest of it."""
+    the rests of a program follow in part leaves the rest of it. Where a plateau runs, the position, the
+    gravity torque and the transmitted torque advance with the time too: a position torque and a
+    load-dependent level face the same competitor (session 21: foreign seeds 313620 and 314016, a level
+    cycling in time on sweeps, named ``position_torque`` 0.06 and ``load_gravity`` 0.05)."""
     ra = S.F - tr.pred_after
     sg = np.sign(S.w)   # a slow change of the friction changes its level, whose sign is the velocity's
     rest = ra - sg * heldout_binned(S, ra * sg, S.th * 3600.0)
