@@ -30,7 +30,7 @@ candidates compete too (:data:`COMPETITORS`: a per-direction level for an offset
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.special import ndtri, stdtr
@@ -335,7 +335,7 @@ class Chain:
         ok = [t for t in trials if self.significant(t, m) and self.worth_it(t, m)]
         for t in list(ok):
             why = confounded(self.S, t, m, self.ctx, self.F_rms,
-                             delayed=any(x.ext == "delay" for x in self.st.terms))
+                             delayed=any(x.ext == "delay" for x in self.st.terms)) or self._not_from_the_work(t, m)
             if why is not None:
                 ok.remove(t)
                 if rejected is not None:
@@ -361,6 +361,40 @@ class Chain:
         best = min(over, key=lambda t: t.rms_after) if over else best
         self._rivals(best, ok + self._competitors(best, m), m)
         return best
+
+    def _not_from_the_work(self, tr: Trial, m: int) -> str | None:
+        """Why a heat-balance candidate is no warm-up, or None. Its thermal state is driven by the measured
+        friction power ``F w``, which carries the friction's own changes: a level that cycles in time (or
+        drifts) heats and cools the state with it, and a state of a short time constant then follows the
+        residual whatever its cause (foreign seed 314026, a level cycling in time, 35 %, a work program:
+        ``thermal6`` with a 37 s time constant named temperature, 0.31). A warm-up is the heat the motion
+        delivers: the state driven by the power of the friction the speed alone predicts
+        (:meth:`frictid.diagnose.model.Context.work_power`), with each fold's time constant, must explain the
+        residual too, significantly at the step's level and at least :data:`EXPLAINED_MIN` of the friction
+        RMS (the chain's own bars). A logged ``temp_joint`` is a measurement and is not judged here."""
+        if tr.ext not in ("thermal4", "thermal6") or any(t.settings.get("source") != "heat_balance"
+                                                         for t in tr.fold_terms):
+            return None
+        S = self.S
+        terms = [replace(t, nl=tuple((k, "work" if k == "source" else v) for k, v in t.nl)) for t in tr.fold_terms]
+        self.ctx.prefetch([self.st.plus(term) for term in terms])
+        after = np.empty(S.n)
+        for (trn, te, *_), term in zip(self.train_info, terms):
+            ev = Evaluator(self.st.plus(term), self.ctx)
+            after[te] = ev.predict(ev.fit(trn), te)
+        self.ctx.release(self.st)
+        rb, rms_b, out, n_in = self._before_numbers()
+        after[out] = self.pred[out]
+        ra = S.F - after
+        t, p = paired_t(group_d(S, rb, ra))
+        ra_in = ra[self.inside]
+        expl = math.sqrt(max(rms_b ** 2 - float(np.dot(ra_in, ra_in)) / n_in, 0.0))
+        if p < ALPHA / max(m, 1) and expl >= EXPLAINED_MIN * self.F_rms:
+            return None
+        return (f"{tr.ext} follows the friction's own change, not the heat of the work: driven by the power of the "
+                f"friction the speed alone predicts, its thermal state (the same time constant) explains {expl:.3g} "
+                f"RMS (t = {t:.2f}, p = {p:.2g}) of the {tr.explained:.3g} the measured power's explains; a level that "
+                f"changes by itself heats the measured-power state with it")
 
     def _delay_before_dwell(self, best: Trial, ok: list[Trial], m: int) -> Trial:
         """The chosen candidate, except that a dwell yields to a worthy delay that explains more torque where
