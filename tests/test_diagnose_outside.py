@@ -672,3 +672,61 @@ def test_a_position_torque_or_load_that_follows_part_of_a_slow_cycle_is_not_name
         why = _not_its_time_course(S, dressed(ext, chain.pred + (whole - chain.pred) / 5), 1)
         assert why is not None and f"not the shape of {shape}" in why, why
         assert _not_its_time_course(S, dressed(ext, whole), 1) is None
+
+
+def _even_work_log(effect, minutes: float, v: float = 0.8, hold: float = 2.0, move: float = 0.4, dt: float = 5e-3,
+                   seed: int = 3, noise: float = 0.01):
+    """Back-and-forth moves at one speed, ``minutes`` long: work at an even power. effect(t, q, w, F) as in
+    :func:`test_diagnose.plateau_log`."""
+    n_m, n_h = int(move / dt), int(hold / dt)
+    ws, kinds, w_prev, s = [], [], 0.0, v
+    while sum(x.size for x in ws) * dt < 60.0 * minutes:
+        ws.append(w_prev + (s - w_prev) * smooth(np.arange(n_m) / n_m))
+        kinds.append(("other", n_m))
+        ws.append(np.full(n_h, s))
+        kinds.append(("constant_velocity", n_h))
+        w_prev, s = s, -s
+    w = np.concatenate(ws)
+    n = w.size
+    t = np.arange(n) * dt
+    q = np.cumsum(w) * dt
+    F = np.asarray(effect(t, q, w, Parts(sm.stribeck(w, **TRUE), TRUE["sigma2"] * w)), float)
+    F = F + noise * np.random.default_rng(seed).standard_normal(n)
+    segs, i = [], 0
+    for kind, m in kinds:
+        segs.append(Segment(kind, i, i + m, float(t[i]), float(t[i + m - 1])))
+        i += m
+    return DiagLog(t=t, q=q, w=w, a=np.gradient(w, dt), tau=F.copy(), F=F, G=np.zeros(n), offset=0.0,
+                   segments=segs, channels={"temp_env": np.full(n, 25.0)}, start=None)
+
+
+def test_a_thermal_state_that_follows_the_frictions_own_change_is_no_warm_up():
+    """Foreign seed 314026 (a level cycling in time, 35 %, a work program): the heat balance is driven by the
+    measured friction power ``F w``, which carries the cycle itself, so a state of a short time constant heats
+    and cools with it (``thermal6``, 37 s, named temperature 0.31). A warm-up is the heat the motion delivers:
+    with the state driven by the power of the friction the speed alone predicts
+    (:meth:`frictid.diagnose.model.Context.work_power`) the candidate must still explain the residual
+    (:meth:`frictid.diagnose.chain.Chain._not_from_the_work`). Work at an even power for 8 minutes, the level
+    cycling by 30 % over 2 minutes: the measured power's state (12 s) is significant (t = 3.5) and rejected
+    (the work's state: t = 1.7); a true warm-up, the friction falling with the heat of its own power, keeps
+    both thermal candidates."""
+    from frictid.diagnose.chain import Chain
+    from frictid.diagnose.samples import heat_balance_rise
+
+    def cyc(t, q, w, F):
+        return F.level * (1 + 0.3 * np.sin(2 * np.pi * t / 120.0)) + F.viscous
+
+    def warm(t, q, w, F):
+        return F * (1 - 0.06 * heat_balance_rise(t, F * w, np.zeros(t.size), 60.0))
+
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    for eff, minutes, rejected in ((cyc, 8.0, True), (warm, 6.0, False)):
+        S = build_samples([_even_work_log(eff, minutes)], 5)
+        chain = Chain(S, Structure("stribeck", cp))
+        for ext in ("thermal4", "thermal6"):
+            tr = chain.evaluate(ext, 1)
+            assert tr.p < 0.01 and tr.explained >= 0.02 * chain.F_rms, (ext, tr.t)   # a worthy candidate
+            why = chain._not_from_the_work(tr, 1)
+            assert (why is not None) == rejected, why
+            if rejected:
+                assert "not the heat of the work" in why, why
