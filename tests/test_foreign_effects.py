@@ -125,6 +125,21 @@ def test_cycling_scales_the_level_with_time_alone():
     np.testing.assert_allclose(out["g_eff"], want, rtol=1e-12)
 
 
+def test_memory_raises_the_level_after_a_long_move_and_fades_over_the_next():
+    """The ``memory`` kind (outside the list, drawn only on request): a move's level grows with the travel of
+    the previous move (rest or reversal to rest or reversal) and fades over its own travel."""
+    pl, ctl = _joint()
+    k, s_ref, s_fade, still = 0.4, 0.5, 0.1, 0.01
+    out = sim.simulate(pl, ctl, _program(), fx=_fx(kM=k, sM=s_ref, fM=s_fade, w_stillM=still))
+    cur, prev = effects._move_memory(out["w"], float(out["t"][1] - out["t"][0]), still)
+    moving = np.abs(out["w"]) >= still
+    want = (1 + k * moving * (1 - np.exp(-prev / s_ref)) * np.exp(-cur / s_fade)) * pl.g(out["w"])
+    np.testing.assert_allclose(out["g_eff"], want, rtol=0.05)   # the kernel's clock runs on its sub-steps
+    extra = out["g_eff"] / pl.g(out["w"]) - 1
+    assert extra.max() > 0.5 * k * (1 - math.exp(-0.75 / s_ref)) and abs(extra[:50]).max() == 0.0
+    assert "memory" in effects.ALL_KINDS and "memory" not in effects.KINDS   # drawn on request only
+
+
 def test_load_scales_the_level_with_the_transmitted_torque():
     pl, ctl = _joint()
     out = sim.simulate(pl, ctl, _program(), fx=_fx(kL=0.2, L_ref=3.0))
@@ -136,14 +151,14 @@ def test_load_scales_the_level_with_the_transmitted_torque():
 
 
 @pytest.mark.parametrize("kind", ["position", "asymmetry", "gravity2", "cogging", "delay", "drift", "load",
-                                  "temperature", "dwell", "cycling"])
+                                  "temperature", "dwell", "cycling", "memory"])
 def test_measured_size_lands_near_the_target(kind, tmp_path):
     paths, truth = effects.make_card_logs(7, tmp_path, family="sweeps", effect=kind, minutes=(1.5, 1.5))
     (e,) = truth["effects"]
     assert e["kind"] == kind and 0.03 <= e["size_target"] <= 0.4
     if e["size_plan"] < e["size_target"] - 1e-9:           # stopped by a cap: the plan says so
         assert kind in effects.CAPS or kind == "delay"
-    lo, hi = (0.4, 1.6) if kind in ("temperature", "dwell", "load") else (0.7, 1.3)
+    lo, hi = (0.4, 1.6) if kind in ("temperature", "dwell", "load", "memory") else (0.7, 1.3)
     assert lo * e["size_plan"] <= truth["size"] <= hi * e["size_plan"], (truth["size"], e)
     assert len(paths) == (truth["recordings"]) and (len(paths) > 1) == (kind == "drift")
 

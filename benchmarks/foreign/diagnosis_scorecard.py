@@ -201,7 +201,7 @@ def _median(x) -> float:
 
 def confusion(rows: list) -> list:
     cols = sorted({first(r) for r in rows} - {"none"}) + ["none"]
-    kinds_ = [k for k in effects.KINDS if any(kinds(r) == [k] for r in rows)] + (["none"] if any(not kinds(r) for r in rows) else [])
+    kinds_ = [k for k in effects.ALL_KINDS if any(kinds(r) == [k] for r in rows)] + (["none"] if any(not kinds(r) for r in rows) else [])
     w = max([len(c) for c in cols] + [6]) + 1
     out = ["", "Confusion matrix: hidden effect (rows; single effects and clean logs) x first cause named "
            "(columns; any gain)", f"{'':19}" + "".join(f"{c:>{w}}" for c in cols)]
@@ -219,7 +219,7 @@ def detection(rows: list) -> list:
     """Single effects on the list: the right first cause, per kind and measured size."""
     out = ["", "Detection of single effects on the list (the right first cause named) against the measured size "
            "(RMS change / friction RMS)", f"{'effect':19}" + "".join(f"{_bin_label(a, b):>14}" for a, b in BINS)]
-    ks = [k for k in effects.KINDS if any(kinds(r) == [k] and on_list(r, k) for r in rows)]
+    ks = [k for k in effects.ALL_KINDS if any(kinds(r) == [k] and on_list(r, k) for r in rows)]
     for k in ks + ["all"]:
         rs = [r for r in rows if (k == "all" or kinds(r) == [k]) and on_list(r, kinds(r)[0])]
         cells = []
@@ -274,7 +274,7 @@ def summary(rows, singles, clean, pairs) -> list:
     out.append(repairs_line(rows))
     out.append(f"effects outside the list: no cause of gain >= {GAIN} named {_pct(len(quiet), len(outs))} (target >= 95 %); "
                f"'unexplained' statement {_pct(len(unexp), len(outs))} (target >= 80 %)")
-    for k in effects.OUTSIDE:
+    for k in effects.ALL_OUTSIDE:
         rk = [r for r in outs if kinds(r) == [k]]
         if rk:
             names = sorted({c for r in rk for c, g in named(r) if g >= GAIN})
@@ -384,7 +384,7 @@ def main(argv=None) -> int:
     ap.add_argument("--draws", type=int, default=300)
     ap.add_argument("--seed-base", type=int, default=300000)
     ap.add_argument("--family", choices=effects.CARD_FAMILIES, default=None)
-    ap.add_argument("--effect", choices=effects.KINDS + ("none", "pair"), default=None,
+    ap.add_argument("--effect", choices=effects.ALL_KINDS + ("none", "pair"), default=None,
                     help="only this hidden effect (none: clean logs; pair: two effects on the list)")
     ap.add_argument("--minutes", type=float, default=None, help="stop starting draws after this many minutes")
     ap.add_argument("--log-minutes", type=_pair, default=effects.MINUTES, help="log length range [min], e.g. 60,180")

@@ -48,6 +48,14 @@ OUTSIDE = {"dwell": ("dwell",), "delay": ("delay",), "gravity2": ("harmonic", "s
                        "torque_position"),
            "cycling": ("cycl", "time_periodic", "periodic_time")}
 KINDS = tuple(IN_LIST) + tuple(OUTSIDE)
+#: Effects outside the list drawn only on request (``--effect KIND``), so that the default draws of every seed
+#: stay as they were: ``memory``, a friction level that grows with the travel of the previous move and fades
+#: over the current one (a hysteresis of the lubricant film: a long stroke pushes the grease to its ends,
+#: and the next move starts on a thinner film), a function of neither the speed, the rest, the time nor
+#: the position.
+EXTRA_OUTSIDE = {"memory": ("memory", "hysteresis", "previous_move")}
+ALL_OUTSIDE = {**OUTSIDE, **EXTRA_OUTSIDE}
+ALL_KINDS = KINDS + tuple(EXTRA_OUTSIDE)
 #: Long-log programs: experiments and work blocks with rests between them.
 CARD_FAMILIES = ("sweeps_work", "work", "sweeps")
 #: Card defaults: log rate [Hz] (log-uniform) and log length [min] (log-uniform).
@@ -75,14 +83,14 @@ class CardDraw:
 
 def expected(kind: str) -> tuple:
     """Cause names a right diagnosis gives an effect of ``kind`` (substrings for effects outside the list)."""
-    return IN_LIST.get(kind) or OUTSIDE[kind]
+    return IN_LIST.get(kind) or ALL_OUTSIDE[kind]
 
 
 def names_effect(kind: str, cause: str) -> bool:
     """Whether a named ``cause`` is the right name of a hidden effect of ``kind``."""
     if kind in IN_LIST:
         return cause in IN_LIST[kind]
-    return any(k in cause for k in OUTSIDE[kind])
+    return any(k in cause for k in ALL_OUTSIDE[kind])
 
 
 def draw_card(seed: int, family: str | None = None, effect: str | None = None,
@@ -139,6 +147,9 @@ def _settings(kind: str, rng, sc, seconds: float) -> dict:
     if kind == "cycling":
         return {"period": min(60.0 * scenarios.loguniform(rng, 2.0, 10.0), seconds / 3.0),
                 "phase": rng.uniform(-math.pi, math.pi)}
+    if kind == "memory":   # reference travel of the previous move and fading travel of the current one
+        return {"s_ref": sc.w_top * rng.uniform(0.3, 3.0), "s_fade": sc.w_top * rng.uniform(0.05, 0.5),
+                "w_still": 0.01 * sc.w_top}
     if kind == "cogging":
         per_rev = float(rng.integers(6, 73)) if sc.plant.axis == "rotary" else 2 * math.pi / rng.uniform(0.01, 0.05)
         return {"n": per_rev, "phase": rng.uniform(-math.pi, math.pi)}
@@ -205,6 +216,23 @@ def _rest_clock(w, dt: float, w_still: float):
     return t_rest, s
 
 
+def _move_memory(w, dt: float, w_still: float):
+    """Per sample: the travel [q] of the current move (since a rest or a reversal) and of the previous move,
+    as the kernel's memory clock counts them."""
+    n = w.size
+    s_cur, s_prev = np.zeros(n), np.zeros(n)
+    cur, prev, sg0 = 0.0, 0.0, 0.0
+    for i in range(n):     # plain loop on the planned motion
+        sg = 0.0 if abs(w[i]) < w_still else math.copysign(1.0, w[i])
+        if sg != sg0 and cur > 0.0:
+            prev, cur = cur, 0.0
+        sg0 = sg
+        if sg != 0.0:
+            cur += abs(w[i]) * dt
+        s_cur[i], s_prev[i] = cur, prev
+    return s_cur, s_prev
+
+
 def unit_change(kind: str, e: dict, plant: sim.Plant, ref: dict, fs: float) -> np.ndarray:
     """The torque change [N m] per unit coefficient of an effect along the planned motion ``ref`` (q, w, a:
     the program's references; G the gravity with any load arm), the scale of its coefficient."""
@@ -226,6 +254,10 @@ def unit_change(kind: str, e: dict, plant: sim.Plant, ref: dict, fs: float) -> n
         return np.sin(2 * q + e["phase"])
     if kind == "cycling":
         return np.sin(2 * math.pi * np.arange(w.size) / fs / e["period"] + e["phase"]) * lvl
+    if kind == "memory":
+        s_cur, s_prev = _move_memory(w, 1.0 / fs, e["w_still"])
+        moving = np.abs(w) >= e["w_still"]
+        return moving * (1 - np.exp(-s_prev / e["s_ref"])) * np.exp(-s_cur / e["s_fade"]) * lvl
     if kind == "cogging":
         return np.sin(e["n"] * q + e["phase"])
     if kind == "delay":
@@ -237,7 +269,7 @@ def unit_change(kind: str, e: dict, plant: sim.Plant, ref: dict, fs: float) -> n
 #: Caps of the coefficients (the largest change where the effect is largest), so that no draw is unphysical:
 #: friction stays positive, the break-away at most 4 Fc; a size the cap stops short of is measured as it is.
 CAPS = {"temperature": 0.6, "temperature_logged": 0.6, "load": 1.0, "position": 0.8, "asymmetry": 0.8,
-        "drift": 0.6, "dwell": 3.0, "cycling": 0.6}
+        "drift": 0.6, "dwell": 3.0, "cycling": 0.6, "memory": 1.0}
 #: Time constant [s] over which the friction follows the transmitted torque (a gear's contact load does
 #: not follow the loop's sub-millisecond torque swings).
 LOAD_FILTER = 0.02
@@ -315,6 +347,7 @@ def fx_array(d: CardDraw, plant: sim.Plant, k: int = 0) -> np.ndarray:
     fx[i["on"]] = fx[i["m_all"]] = 1.0
     fx[i["tau_th"]] = fx[i["P_ref"]] = fx[i["L_ref"]] = fx[i["period"]] = 1.0
     fx[i["t0W"]] = fx[i["s0W"]] = fx[i["Tcyc"]] = 1.0
+    fx[i["sM"]] = fx[i["fM"]] = 1.0
     for e in d.effects:
         kind, c = e["kind"], e["coef"]
         if kind.startswith("temperature"):
@@ -336,6 +369,8 @@ def fx_array(d: CardDraw, plant: sim.Plant, k: int = 0) -> np.ndarray:
             fx[i["cC"]], fx[i["nC"]], fx[i["phiC"]] = c, e["n"], e["phase"]
         elif kind == "cycling":
             fx[i["aCyc"]], fx[i["Tcyc"]], fx[i["phiCyc"]] = c, e["period"], e["phase"]
+        elif kind == "memory":
+            fx[i["kM"]], fx[i["sM"]], fx[i["fM"]], fx[i["w_stillM"]] = c, e["s_ref"], e["s_fade"], e["w_still"]
     return fx
 
 

@@ -169,7 +169,7 @@ def _g(w, Fc, Fs, vs, delta):
 #: Hidden-effect parameters of the kernel (``fx``, see ``effects.py``): their positions in the array.
 FX = ("on", "kT", "tau_th", "P_ref", "kL", "L_ref", "aP", "period", "phiP", "kA_level", "kA_visc",
       "kW", "t0W", "s0W", "w_still", "bG2", "phiG2", "cC", "nC", "phiC", "m_all", "tau_load", "aCyc", "Tcyc",
-      "phiCyc")
+      "phiCyc", "kM", "sM", "fM", "w_stillM")
 FXI = {k: i for i, k in enumerate(FX)}
 
 
@@ -177,8 +177,9 @@ FXI = {k: i for i, k in enumerate(FX)}
 def _effects(fx, q, w, st, h, Fc, t):
     """The hidden effects' level factor mL, viscous factor mV, added level dg [N m] and non-friction
     torque E [N m] at one sub-step; ``st`` = (thermal state, transmitted torque (low-passed over
-    fx[21] s, 0: none), rest time, rest time before this motion, travel since it started) is advanced for
-    the dwell clock here."""
+    fx[21] s, 0: none), rest time, rest time before this motion, travel since it started, and for the
+    memory effect the travel of the current move, that of the previous one and the current direction (0 at
+    rest)) is advanced for the dwell and memory clocks here."""
     mL = fx[20] * (1.0 + fx[1] * st[0])
     mV = mL
     if fx[4] != 0.0:                          # load: the torque the transmission carries
@@ -200,6 +201,15 @@ def _effects(fx, q, w, st, h, Fc, t):
             st[2] = 0.0
             st[4] += abs(w) * h
         dg = Fc * fx[11] * math.log1p(st[3] / fx[12]) * math.exp(-st[4] / fx[13])
+    if fx[25] != 0.0:                         # memory: the level of a move grows with the previous move's travel
+        sg = 0.0 if abs(w) < fx[28] else (1.0 if w > 0.0 else -1.0)
+        if sg != st[7] and st[5] > 0.0:       # a rest or a reversal ends a move: its travel is remembered
+            st[6] = st[5]
+            st[5] = 0.0
+        st[7] = sg
+        if sg != 0.0:
+            st[5] += abs(w) * h
+            mL *= 1.0 + fx[25] * (1.0 - math.exp(-st[6] / fx[26])) * math.exp(-st[5] / fx[27])
     E = fx[15] * math.sin(2.0 * q + fx[16]) + fx[17] * math.sin(fx[18] * q + fx[19])
     return mL, mV, dg, E
 
@@ -225,7 +235,7 @@ def _kernel(mode, qr, wr, u, m, dt, par, ctl, q0, fx):
     EE = np.zeros(n)
     TH = np.zeros(n)
     on = fx[0] != 0.0
-    st = np.zeros(5)
+    st = np.zeros(8)
     s2e = s2
     q, w, z, integ, off, g_hold, tau = q0, 0.0, 0.0, 0.0, q0 - qr[0], 0.0, 0.0
     prev_mode = CLOSED

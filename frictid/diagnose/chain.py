@@ -30,7 +30,7 @@ candidates compete too (:data:`COMPETITORS`: a per-direction level for an offset
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.special import ndtri, stdtr
@@ -335,7 +335,7 @@ class Chain:
         ok = [t for t in trials if self.significant(t, m) and self.worth_it(t, m)]
         for t in list(ok):
             why = confounded(self.S, t, m, self.ctx, self.F_rms,
-                             delayed=any(x.ext == "delay" for x in self.st.terms))
+                             delayed=any(x.ext == "delay" for x in self.st.terms)) or self._not_from_the_work(t, m)
             if why is not None:
                 ok.remove(t)
                 if rejected is not None:
@@ -361,6 +361,40 @@ class Chain:
         best = min(over, key=lambda t: t.rms_after) if over else best
         self._rivals(best, ok + self._competitors(best, m), m)
         return best
+
+    def _not_from_the_work(self, tr: Trial, m: int) -> str | None:
+        """Why a heat-balance candidate is no warm-up, or None. Its thermal state is driven by the measured
+        friction power ``F w``, which carries the friction's own changes: a level that cycles in time (or
+        drifts) heats and cools the state with it, and a state of a short time constant then follows the
+        residual whatever its cause (foreign seed 314026, a level cycling in time, 35 %, a work program:
+        ``thermal6`` with a 37 s time constant named temperature, 0.31). A warm-up is the heat the motion
+        delivers: the state driven by the power of the friction the speed alone predicts
+        (:meth:`frictid.diagnose.model.Context.work_power`), with each fold's time constant, must explain the
+        residual too, significantly at the step's level and at least :data:`EXPLAINED_MIN` of the friction
+        RMS (the chain's own bars). A logged ``temp_joint`` is a measurement and is not judged here."""
+        if tr.ext not in ("thermal4", "thermal6") or any(t.settings.get("source") != "heat_balance"
+                                                         for t in tr.fold_terms):
+            return None
+        S = self.S
+        terms = [replace(t, nl=tuple((k, "work" if k == "source" else v) for k, v in t.nl)) for t in tr.fold_terms]
+        self.ctx.prefetch([self.st.plus(term) for term in terms])
+        after = np.empty(S.n)
+        for (trn, te, *_), term in zip(self.train_info, terms):
+            ev = Evaluator(self.st.plus(term), self.ctx)
+            after[te] = ev.predict(ev.fit(trn), te)
+        self.ctx.release(self.st)
+        rb, rms_b, out, n_in = self._before_numbers()
+        after[out] = self.pred[out]
+        ra = S.F - after
+        t, p = paired_t(group_d(S, rb, ra))
+        ra_in = ra[self.inside]
+        expl = math.sqrt(max(rms_b ** 2 - float(np.dot(ra_in, ra_in)) / n_in, 0.0))
+        if p < ALPHA / max(m, 1) and expl >= EXPLAINED_MIN * self.F_rms:
+            return None
+        return (f"{tr.ext} follows the friction's own change, not the heat of the work: driven by the power of the "
+                f"friction the speed alone predicts, its thermal state (the same time constant) explains {expl:.3g} "
+                f"RMS (t = {t:.2f}, p = {p:.2g}) of the {tr.explained:.3g} the measured power's explains; a level that "
+                f"changes by itself heats the measured-power state with it")
 
     def _delay_before_dwell(self, best: Trial, ok: list[Trial], m: int) -> Trial:
         """The chosen candidate, except that a dwell yields to a worthy delay that explains more torque where
@@ -548,7 +582,7 @@ def _stand_in(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float) -> str 
         why = _not_at_one_speed(S, tr, m)
         if why is not None:
             return why
-    if tr.ext in TIME_COURSE_EXTS:
+    if tr.ext in TIME_COURSE_EXTS and tr.ext != "position_torque":
         why = _not_its_time_course(S, tr, m)
         if why is not None or tr.ext not in POSITION_EXTS:
             return why
@@ -562,7 +596,10 @@ def _stand_in(S: Samples, tr: Trial, m: int, ctx: Context, F_rms: float) -> str 
     if p >= ALPHA / max(m, 1):
         return (f"{tr.ext} does not show within segments at one speed (held-out within-cell t = {t:.2f}, "
                 f"p = {p:.2g}): the position stands in for the speed or the order of the plateaus")
-    return _grows_with_speed(S, tr, rw, dw, m)
+    why = _grows_with_speed(S, tr, rw, dw, m)
+    # a torque of the position faces the time's course last (session 21): its own checks name a vibration
+    # or a constant first
+    return why if why is not None or tr.ext != "position_torque" else _not_its_time_course(S, tr, m)
 
 
 def _a_constant(ctx: Context, tr: Trial, F_rms: float, noise: float) -> str | None:
@@ -628,10 +665,13 @@ def _not_at_one_speed(S: Samples, tr: Trial, m: int) -> str | None:
 
 #: Extensions whose variable changes slowly over the recording or from move to move (a warm-up, the rests
 #: of a program): a free function of the time competes with them for the same residual.
-TIME_COURSE_EXTS = ("thermal4", "thermal6", "dwell", "position_smooth", "position_periodic")
+TIME_COURSE_EXTS = ("thermal4", "thermal6", "dwell", "position_smooth", "position_periodic", "position_torque",
+                    "load_gravity", "load_torque")
 #: What each such extension's variable describes, for the sentence of a rejection.
 TIME_COURSE_SHAPES = {"dwell": "a dwell effect", "position_smooth": "a function of the position",
-                      "position_periodic": "a function of the position"}
+                      "position_periodic": "a function of the position",
+                      "position_torque": "a torque of the position", "load_gravity": "a load-dependent level",
+                      "load_torque": "a load-dependent level"}
 
 
 def _not_its_time_course(S: Samples, tr: Trial, m: int) -> str | None:
@@ -642,7 +682,10 @@ def _not_its_time_course(S: Samples, tr: Trial, m: int) -> str | None:
     candidate's correction, that function must not explain, on held-out data and significantly at the
     step's level, at least as much of what is left as the candidate explained. A warm-up the thermal state
     describes leaves little of its course behind, nor does a dwell effect; a cycle that a thermal state or
-    the rests of a program follow in part leaves the rest of it."""
+    the rests of a program follow in part leaves the rest of it. Where a plateau runs, the position, the
+    gravity torque and the transmitted torque advance with the time too: a position torque and a
+    load-dependent level face the same competitor (session 21: foreign seeds 313620 and 314016, a level
+    cycling in time on sweeps, named ``position_torque`` 0.06 and ``load_gravity`` 0.05)."""
     ra = S.F - tr.pred_after
     sg = np.sign(S.w)   # a slow change of the friction changes its level, whose sign is the velocity's
     rest = ra - sg * heldout_binned(S, ra * sg, S.th * 3600.0)

@@ -555,8 +555,30 @@ class Context:
     def thermal(self, tau_c: float, source: str = "heat_balance") -> np.ndarray:
         key = ("thermal", round(float(tau_c), 9), source)
         if key not in self._cache:
-            self._cache[key] = self.S.thermal_state(tau_c, measured=(source == "temp_joint"))
+            if source == "work":   # a competitor's state only (chain.Chain._not_from_the_work), never exported
+                self._cache[key] = self.S.thermal_state(tau_c, power=self.work_power())
+            else:
+                self._cache[key] = self.S.thermal_state(tau_c, measured=(source == "temp_joint"))
         return self._cache[key]
+
+    #: Equal-count bins of the signed velocity of :meth:`work_power`'s friction of the speed alone.
+    WORK_BINS = 200
+
+    def work_power(self) -> list:
+        """Per log, the power ``F(w) w`` [W] of every sample with the friction the speed alone predicts: the
+        mean friction torque of all logs' samples in equal-count bins of the signed velocity. The heat the
+        motion delivers, without the friction's own changes (which the measured power ``F w`` carries)."""
+        if "work_power" not in self._cache:
+            S = self.S
+            w = np.concatenate([S.log_w(i) for i in range(len(S.logs))])
+            F = np.concatenate([np.nan_to_num(np.asarray(lg.F, float)) for lg in S.logs])
+            edges = np.unique(np.quantile(w, np.linspace(0, 1, self.WORK_BINS + 1)[1:-1]))
+            b = np.searchsorted(edges, w)
+            mean = np.bincount(b, weights=F, minlength=edges.size + 1) / np.maximum(
+                np.bincount(b, minlength=edges.size + 1), 1)
+            self._cache["work_power"] = [mean[np.searchsorted(edges, S.log_w(i))] * S.log_w(i)
+                                         for i in range(len(S.logs))]
+        return self._cache["work_power"]
 
 
 def sin_cos(cache: dict, q: np.ndarray, period: float) -> np.ndarray:
