@@ -183,14 +183,23 @@ def test_a_level_asymmetry_differs_from_an_offset_only_by_its_hump_or_viscous_pa
     asymmetry" for an asymmetry under 2 % of the friction RMS and nothing else (seed-free, no simulation)."""
     import diagnosis_scorecard as card
     w = np.concatenate([np.linspace(-1.0, -0.02, 400), np.linspace(0.02, 1.0, 400)])
-    out = {"w": w, "label": np.full(w.size, sim.CODE["other"])}
     flat = sim.Plant(J=0.1, Fc=1.0, Fs=1.0, vs=0.05, delta=2.0, sigma2=0.5, sigma0=1e3, sigma1=1.0)
     hump = sim.Plant(J=0.1, Fc=1.0, Fs=1.6, vs=0.05, delta=2.0, sigma2=0.5, sigma0=1e3, sigma1=1.0)
-    coul, scale = {"variant": "coulomb", "coef": 0.3}, {"variant": "scale", "coef": 0.3}
-    rms = lambda x: float(np.sqrt(np.mean(np.square(x))))   # noqa: E731
-    assert rms(effects.offset_distinct(out, flat, 1.0, coul)) < 1e-9
-    assert 1e-3 < rms(effects.offset_distinct(out, hump, 1.0, coul)) < rms(effects.offset_distinct(out, flat, 1.0, scale))
-    assert rms(effects.offset_distinct(out, flat, 1.0, scale)) > 0.02   # 0.3 * 0.5 |w| / 2 less its mean
+
+    def distinct(pl, variant, warm=1.0):
+        """RMS of what no offset makes of a 0.3 asymmetry, the simulator's level and viscous factors as
+        the kernel makes them (``warm``: another effect's level factor, e.g. a warm-up's)."""
+        e = {"variant": variant, "coef": 0.3}
+        neg = np.where(w < 0, 1.3, 1.0)
+        out = {"w": w, "label": np.full(w.size, sim.CODE["other"]), "g_eff": pl.g(w) * neg * warm,
+               "mV": neg if variant == "scale" else np.ones(w.size)}
+        return float(np.sqrt(np.mean(np.square(effects.offset_distinct(out, pl, 1.0, e)))))
+
+    assert distinct(flat, "coulomb") < 1e-9
+    assert 1e-3 < distinct(hump, "coulomb") < distinct(flat, "scale")
+    assert distinct(flat, "scale") > 0.02   # 0.3 * 0.5 |w| / 2 less its mean
+    # a level that changes in time (a warm-up, a drift) scales a level asymmetry, not an offset
+    assert distinct(flat, "coulomb", warm=np.random.default_rng(3).uniform(0.8, 1.2, w.size)) > 0.01
     row = {"truth": {"asym_distinct": 0.004, "effects": [{"kind": "asymmetry"}], "sensors": {"tau_bias": 0.0},
                      "friction_rms": 1.0},
            "diag": {"findings": [], "ambiguous": [["offset", "asymmetry"]], "tested": ["asymmetry", "offset"]}}

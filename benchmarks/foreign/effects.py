@@ -353,24 +353,29 @@ def measured_change(out: dict, plant: sim.Plant, w_top: float, delay: float) -> 
 
 def offset_distinct(out: dict, plant: sim.Plant, w_top: float, e: dict) -> np.ndarray:
     """The part [N m] of an asymmetry's torque change that no torque offset with a symmetric map can make,
-    on the sliding samples of a simulated recording. The change
-    ``coef (w < 0) g(w)`` (``coulomb``: the level, the Stribeck hump with it) or ``coef (w < 0) F(w)``
-    (``scale``) less its least-squares fit by a constant and a symmetric map (sgn w, w, w|w|, w^3 and the
-    plant's own hump ``sgn w exp(-(|w|/vs)^delta)``): what is left is the even part of the change that is
-    not a constant, the hump's or the viscous part's shape. Where the friction hardly changes with the speed
-    a level asymmetry is an offset to the sliding data, whatever its size (docs/scorecards.md)."""
+    on the sliding samples of a simulated recording. The change ``coef (w < 0) g(w)`` (``coulomb``: the
+    level, the Stribeck hump with it) or ``coef (w < 0) F(w)`` (``scale``), at the simulated state (times
+    the other effects' level and viscous factors), less its least-squares fit by a constant and a
+    symmetric map that carries those factors (sgn w, w, w|w|, w^3 and the plant's own hump ``sgn w
+    exp(-(|w|/vs)^delta)``): what is left is the even part of the change that is not a constant, the
+    hump's or the viscous part's shape, or what a warm-up or a drift scales of the level and not of an
+    offset. Where the friction hardly changes with the speed or in time a level asymmetry is an offset to
+    the sliding data, whatever its size (docs/scorecards.md)."""
     w = out["w"]
     m = _sliding(w, out["label"], w_top)
     w = w[m]
-    s, h = np.sign(w), np.exp(-np.abs(w / plant.vs) ** plant.delta)
-    part = plant.g(w) * s + (plant.sigma2 * w if e["variant"] == "scale" else 0.0)
-    dA = e["coef"] * (w < 0) * part
-    if dA.size < 10:
+    if w.size < 10:
         return np.zeros(0)
-    X = np.column_stack([np.ones_like(w), s, w, w * np.abs(w), w ** 3, s * h])
+    neg = (w < 0).astype(float)
+    kL = e["coef"]
+    kV = kL if e["variant"] == "scale" else 0.0
+    mL = out["g_eff"][m] / plant.g(w) / (1.0 + kL * neg)     # the other effects' level factor (1 alone)
+    mV = out["mV"][m] / (1.0 + kV * neg)
+    s, h = np.sign(w), np.exp(-np.abs(w / plant.vs) ** plant.delta)
+    dA = neg * (kL * mL * plant.g(w) * s + kV * mV * plant.sigma2 * w)
+    X = np.column_stack([np.ones_like(w), mL * s, mL * s * h, mV * w, mV * w * np.abs(w), mV * w ** 3])
     X = X / np.maximum(np.sqrt(np.mean(X * X, axis=0)), 1e-300)
-    r = dA - X @ np.linalg.lstsq(X, dA, rcond=None)[0]
-    return r
+    return dA - X @ np.linalg.lstsq(X, dA, rcond=None)[0]
 
 
 def make_card_logs(seed: int, outdir, family: str | None = None, effect: str | None = None,
