@@ -423,6 +423,19 @@ def describe(r: dict) -> str:
     return "\n".join(lines)
 
 
+def label(rows: list) -> None:
+    """The truth's ``asym_distinct`` (:func:`offset_like`) of saved draws with an asymmetry, from the same
+    draw simulated again (``effects.make_card_logs`` is deterministic in the seed and options); in place."""
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in rows:
+            if any(e["kind"] == "asymmetry" for e in r["truth"]["effects"]):
+                _, family, effect, minutes, rate = json.loads(r["key"])
+                _, truth = effects.make_card_logs(r["seed"], tmp, family, effect, tuple(minutes), tuple(rate))
+                for f in Path(tmp).iterdir():
+                    f.unlink()
+                r["truth"]["asym_distinct"] = truth["asym_distinct"]
+
+
 def _pair(text: str) -> tuple:
     lo, hi = (float(x) for x in text.split(","))
     return (lo, hi)
@@ -441,9 +454,13 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=None, help="JSON-lines file of draws (appended; draws present are skipped)")
     ap.add_argument("--report", default=None, help="print the card from JSON-lines files (comma-separated)")
     ap.add_argument("--examples", type=int, default=4, help="draws listed per failure class")
+    ap.add_argument("--label", action="store_true", help="with --report: give saved asymmetry draws the truth's "
+                    "asym_distinct (re-simulated; the diagnosis is not re-run)")
     args = ap.parse_args(argv)
     if args.report:
         rows = [json.loads(x) for f in args.report.split(",") for x in Path(f).read_text().splitlines() if x.strip()]
+        if args.label:
+            label(rows)
         print(card(rows, args.examples))
         return 0
     if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case
