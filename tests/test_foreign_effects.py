@@ -189,3 +189,40 @@ def test_the_card_draws_are_deterministic_and_cover_every_kind(tmp_path):
     assert kinds == set(effects.KINDS)
     n_clean = sum(1 for d in drawn if not d.effects)
     assert 10 <= n_clean <= 50 and all(d.seconds >= 60 * effects.MINUTES[0] - 1e-6 for d in drawn)
+
+
+def test_a_level_asymmetry_differs_from_an_offset_only_by_its_hump_or_viscous_part():
+    """The card's truth label ``asym_distinct`` (``effects.offset_distinct``): a Coulomb-level asymmetry on a map
+    without a hump is an offset and a symmetric map on the sliding data (nothing left); its hump, or the viscous
+    part a whole-branch asymmetry scales, is what an offset cannot make; the card then accepts "offset or
+    asymmetry" for an asymmetry under 2 % of the friction RMS and nothing else (seed-free, no simulation)."""
+    import diagnosis_scorecard as card
+    w = np.concatenate([np.linspace(-1.0, -0.02, 400), np.linspace(0.02, 1.0, 400)])
+    flat = sim.Plant(J=0.1, Fc=1.0, Fs=1.0, vs=0.05, delta=2.0, sigma2=0.5, sigma0=1e3, sigma1=1.0)
+    hump = sim.Plant(J=0.1, Fc=1.0, Fs=1.6, vs=0.05, delta=2.0, sigma2=0.5, sigma0=1e3, sigma1=1.0)
+
+    def distinct(pl, variant, warm=1.0):
+        """RMS of what no offset makes of a 0.3 asymmetry, the simulator's level and viscous factors as
+        the kernel makes them (``warm``: another effect's level factor, e.g. a warm-up's)."""
+        e = {"variant": variant, "coef": 0.3}
+        neg = np.where(w < 0, 1.3, 1.0)
+        out = {"w": w, "label": np.full(w.size, sim.CODE["other"]), "g_eff": pl.g(w) * neg * warm,
+               "mV": neg if variant == "scale" else np.ones(w.size)}
+        return float(np.sqrt(np.mean(np.square(effects.offset_distinct(out, pl, 1.0, e)))))
+
+    assert distinct(flat, "coulomb") < 1e-9
+    assert 1e-3 < distinct(hump, "coulomb") < distinct(flat, "scale")
+    assert distinct(flat, "scale") > 0.02   # 0.3 * 0.5 |w| / 2 less its mean
+    # a level that changes in time (a warm-up, a drift) scales a level asymmetry, not an offset
+    assert distinct(flat, "coulomb", warm=np.random.default_rng(3).uniform(0.8, 1.2, w.size)) > 0.01
+    row = {"truth": {"asym_distinct": 0.004, "effects": [{"kind": "asymmetry"}], "sensors": {"tau_bias": 0.0},
+                     "friction_rms": 1.0},
+           "diag": {"findings": [], "ambiguous": [["offset", "asymmetry"]], "tested": ["asymmetry", "offset"]}}
+    assert card.found_first(row, "asymmetry") and card.found_any(row, "asymmetry")
+    row["truth"]["asym_distinct"] = 0.05      # an asymmetry an offset cannot make: the name is required
+    assert not card.found_first(row, "asymmetry")
+    row["truth"]["asym_distinct"] = 0.004
+    row["diag"]["findings"] = [["load", "load_torque", 0.3]]   # a wrong name first stays wrong
+    assert not card.found_first(row, "asymmetry")
+    row["diag"]["findings"], row["diag"]["ambiguous"] = [], [["offset", "position"]]
+    assert not card.found_first(row, "asymmetry")

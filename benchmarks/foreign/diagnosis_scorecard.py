@@ -21,6 +21,10 @@ Prints: the confusion matrix (hidden kind x first cause named), detection agains
 (bins 3-10, 10-20, 20-40 %), detection of each of two effects together, wrong first causes, false
 findings (gain >= 0.05) on clean logs, for effects outside the list the share with no cause of gain >=
 0.05 named and the share with an "unexplained" statement; failure classes with reproducing commands.
+An asymmetry that differs from a torque offset on the sliding data by less than a term must explain (2 % of
+the friction RMS: a Coulomb-level asymmetry where the data hold little of the hump, the truth's
+``asym_distinct``) counts as found when a step is left ambiguous between exactly offset and asymmetry, as
+frictid's own plant test accepts; the detection lines also print the count of the cause named.
 Targets (issue 20): detection >= 95 % (single effects >= 10 %), >= 90 % for each of two, wrong first
 cause <= 2 %, false findings <= 3 %, outside the list: no name in >= 95 %, "unexplained" in >= 80 %.
 
@@ -167,6 +171,39 @@ def right(r: dict, kind: str, cause: str) -> bool:
     return effects.names_effect(kind, cause)
 
 
+#: An asymmetry whose change of the sliding data is an offset's but for a part under this share of the friction
+#: RMS (the truth's ``asym_distinct``, :func:`effects.offset_distinct`) is an offset to the sliding data: less
+#: than the diagnosis asks of any term (``frictid.diagnose.chain.EXPLAINED_MIN``) tells the two apart.
+OFFSET_LIKE = 0.02
+
+
+def offset_like(r: dict, kind: str) -> bool:
+    """Whether a hidden asymmetry is one that the sliding data cannot tell from a torque offset (a Coulomb-level
+    asymmetry on a map whose hump the data hardly hold: :data:`OFFSET_LIKE`). Unknown (runs before the truth
+    carried ``asym_distinct``): False."""
+    x = r["truth"].get("asym_distinct")
+    return kind == "asymmetry" and x is not None and x < OFFSET_LIKE
+
+
+def stated_ambiguous(r: dict, kind: str) -> bool:
+    """An offset-like asymmetry (:func:`offset_like`) stated as such: a step left ambiguous between exactly an
+    offset and an asymmetry, its term in the model (frictid's own test of its plants accepts the same for a
+    hidden offset or asymmetry, tests/test_diagnose_plants.py)."""
+    return offset_like(r, kind) and any(set(a) == {"offset", "asymmetry"} for a in r["diag"].get("ambiguous", []))
+
+
+def found_first(r: dict, kind: str) -> bool:
+    """A single effect found: the right cause named first, or an offset-like asymmetry stated ambiguous with
+    no cause named before it."""
+    f = first(r)
+    return right(r, kind, f) or (f == "none" and stated_ambiguous(r, kind))
+
+
+def found_any(r: dict, kind: str) -> bool:
+    """One of two effects found: named anywhere in the chain, or stated ambiguous (:func:`stated_ambiguous`)."""
+    return any(right(r, kind, c) for c, _ in named(r)) or stated_ambiguous(r, kind)
+
+
 def _pct(a: int, b: int) -> str:
     return f"{a}/{b} ({100 * a / b:.0f} %)" if b else "-"
 
@@ -225,7 +262,7 @@ def detection(rows: list) -> list:
         cells = []
         for a, b in BINS:
             rb = [r for r in rs if a <= r["truth"]["size"] < b]
-            cells.append(_pct(sum(1 for r in rb if right(r, kinds(r)[0], first(r))), len(rb)))
+            cells.append(_pct(sum(1 for r in rb if found_first(r, kinds(r)[0])), len(rb)))
         out.append(f"{k:19}" + "".join(f"{c:>14}" for c in cells))
     return out
 
@@ -233,29 +270,39 @@ def detection(rows: list) -> list:
 def pair_table(pairs: list) -> list:
     if not pairs:
         return []
-    out = ["", "Two effects at once: each effect named among the findings (any place), by its planned size"]
+    out = ["", "Two effects at once: each effect named among the findings (any place; an asymmetry an offset makes, "
+           "stated 'offset or asymmetry'), by its planned size"]
     found = [(r, e) for r in pairs for e in r["truth"]["effects"]]
     for lo, label in ((0.0, "all sizes"), (0.10, "planned size >= 10 %")):
         fs = [(r, e) for r, e in found if e["size_plan"] >= lo]
-        hit = sum(1 for r, e in fs if any(right(r, e["kind"], c) for c, _ in named(r)))
+        hit = sum(1 for r, e in fs if found_any(r, e["kind"]))
         out.append(f"  {label}: {_pct(hit, len(fs))}")
-    both = sum(1 for r in pairs if all(any(right(r, e["kind"], c) for c, _ in named(r)) for e in r["truth"]["effects"]))
+    both = sum(1 for r in pairs if all(found_any(r, e["kind"]) for e in r["truth"]["effects"]))
     out.append(f"  both named: {_pct(both, len(pairs))}")
     for k in effects.IN_LIST:
         fk = [(r, e) for r, e in found if e["kind"] == k]
         if fk:
-            out.append(f"    {k:19} {_pct(sum(1 for r, e in fk if any(right(r, k, c) for c, _ in named(r))), len(fk))}")
+            out.append(f"    {k:19} {_pct(sum(1 for r, e in fk if found_any(r, k)), len(fk))}")
     return out
 
 
 def summary(rows, singles, clean, pairs) -> list:
     out = [""]
     big = [r for r in singles if on_list(r, kinds(r)[0]) and r["truth"]["size"] >= 0.10]
-    hit = sum(1 for r in big if right(r, kinds(r)[0], first(r)))
-    out.append(f"detection, single effects on the list of 10 % or more: {_pct(hit, len(big))} (target >= 95 %)")
+    hit = sum(1 for r in big if found_first(r, kinds(r)[0]))
+    strict = sum(1 for r in big if right(r, kinds(r)[0], first(r)))
+    out.append(f"detection, single effects on the list of 10 % or more: {_pct(hit, len(big))} (target >= 95 %); "
+               f"the cause named: {_pct(strict, len(big))}")
     fp = [(r, e) for r in pairs for e in r["truth"]["effects"] if e["size_plan"] >= 0.10]
-    hp = sum(1 for r, e in fp if any(right(r, e["kind"], c) for c, _ in named(r)))
-    out.append(f"detection, each of two effects of 10 % or more: {_pct(hp, len(fp))} (target >= 90 %)")
+    hp = sum(1 for r, e in fp if found_any(r, e["kind"]))
+    hs = sum(1 for r, e in fp if any(right(r, e["kind"], c) for c, _ in named(r)))
+    out.append(f"detection, each of two effects of 10 % or more: {_pct(hp, len(fp))} (target >= 90 %); "
+               f"the cause named: {_pct(hs, len(fp))}")
+    like = [(r, k) for r in singles + pairs for k in kinds(r) if offset_like(r, k)]
+    out.append(f"asymmetries the sliding data cannot tell from an offset (what no offset makes under "
+               f"{100 * OFFSET_LIKE:.0f} % of the friction RMS): {len(like)}; named asymmetry "
+               f"{sum(1 for r, k in like if any(right(r, k, c) for c, _ in named(r)))}, stated 'offset or asymmetry' "
+               f"(counted as found) {sum(1 for r, k in like if stated_ambiguous(r, k) and not any(right(r, k, c) for c, _ in named(r)))}")
     withl = [r for r in singles + pairs if any(on_list(r, k) for k in kinds(r))]
     wrong = [r for r in withl if first(r) != "none" and not any(right(r, k, first(r)) for k in kinds(r))]
     out.append(f"wrong first cause (draws with effects on the list): {_pct(len(wrong), len(withl))} (target <= 2 %)")
@@ -304,9 +351,9 @@ def failures(rows: list, examples: int) -> list:
             cls.setdefault(f"clean log: {named(r)[0][0]} named", []).append(r)
         for k in ks:
             if on_list(r, k):
-                if len(ks) == 1 and f == "none":
+                if len(ks) == 1 and f == "none" and not found_first(r, k):
                     cls.setdefault(f"{k}: missed", []).append(r)
-                elif len(ks) == 2 and not any(right(r, k, c) for c, _ in named(r)):
+                elif len(ks) == 2 and not found_any(r, k):
                     cls.setdefault(f"{k} (with another effect): missed", []).append(r)
             elif any(g >= GAIN for _, g in named(r)):
                 cls.setdefault(f"{k} (outside the list): named {named(r)[0][0]}", []).append(r)
@@ -361,7 +408,9 @@ def describe(r: dict) -> str:
         lines.append(f"  hidden: {e['kind']} {sets}")
     if not t["effects"]:
         lines.append("  hidden: nothing")
-    lines.append(f"  measured size {100 * t['size']:.1f} % of the friction RMS")
+    lines.append(f"  measured size {100 * t['size']:.1f} % of the friction RMS"
+                 + (f"; of an asymmetry's change, what no offset makes: {100 * t['asym_distinct']:.2f} %"
+                    if t.get("asym_distinct") is not None else ""))
     d = r["diag"]
     lines.append("  named: " + ("; ".join(f"{c} ({x}) gain {g:.3f}" for c, x, g in d["findings"]) or "nothing")
                  + f"; selected {d['selected']}")
@@ -372,6 +421,19 @@ def describe(r: dict) -> str:
     lines.append(f"  tested: {', '.join(d['tested']) or '-'}; unexplained: {d['unexplained'] or '-'}"
                  + (f"; not diagnosed: {d['skipped']}" if d["skipped"] else ""))
     return "\n".join(lines)
+
+
+def label(rows: list) -> None:
+    """The truth's ``asym_distinct`` (:func:`offset_like`) of saved draws with an asymmetry, from the same
+    draw simulated again (``effects.make_card_logs`` is deterministic in the seed and options); in place."""
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in rows:
+            if any(e["kind"] == "asymmetry" for e in r["truth"]["effects"]):
+                _, family, effect, minutes, rate = json.loads(r["key"])
+                _, truth = effects.make_card_logs(r["seed"], tmp, family, effect, tuple(minutes), tuple(rate))
+                for f in Path(tmp).iterdir():
+                    f.unlink()
+                r["truth"]["asym_distinct"] = truth["asym_distinct"]
 
 
 def _pair(text: str) -> tuple:
@@ -392,9 +454,13 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=None, help="JSON-lines file of draws (appended; draws present are skipped)")
     ap.add_argument("--report", default=None, help="print the card from JSON-lines files (comma-separated)")
     ap.add_argument("--examples", type=int, default=4, help="draws listed per failure class")
+    ap.add_argument("--label", action="store_true", help="with --report: give saved asymmetry draws the truth's "
+                    "asym_distinct (re-simulated; the diagnosis is not re-run)")
     args = ap.parse_args(argv)
     if args.report:
         rows = [json.loads(x) for f in args.report.split(",") for x in Path(f).read_text().splitlines() if x.strip()]
+        if args.label:
+            label(rows)
         print(card(rows, args.examples))
         return 0
     if os.environ.get("FRICTID_SMOKE") == "1":  # the docs test: the same code path on a tiny case

@@ -386,6 +386,33 @@ def measured_change(out: dict, plant: sim.Plant, w_top: float, delay: float) -> 
     return dT[m], plant.static(w)[m]
 
 
+def offset_distinct(out: dict, plant: sim.Plant, w_top: float, e: dict) -> np.ndarray:
+    """The part [N m] of an asymmetry's torque change that no torque offset with a symmetric map can make,
+    on the sliding samples of a simulated recording. The change ``coef (w < 0) g(w)`` (``coulomb``: the
+    level, the Stribeck hump with it) or ``coef (w < 0) F(w)`` (``scale``), at the simulated state (times
+    the other effects' level and viscous factors), less its least-squares fit by a constant and a
+    symmetric map that carries those factors (sgn w, w, w|w|, w^3 and the plant's own hump ``sgn w
+    exp(-(|w|/vs)^delta)``): what is left is the even part of the change that is not a constant, the
+    hump's or the viscous part's shape, or what a warm-up or a drift scales of the level and not of an
+    offset. Where the friction hardly changes with the speed or in time a level asymmetry is an offset to
+    the sliding data, whatever its size (docs/scorecards.md)."""
+    w = out["w"]
+    m = _sliding(w, out["label"], w_top)
+    w = w[m]
+    if w.size < 10:
+        return np.zeros(0)
+    neg = (w < 0).astype(float)
+    kL = e["coef"]
+    kV = kL if e["variant"] == "scale" else 0.0
+    mL = out["g_eff"][m] / plant.g(w) / (1.0 + kL * neg)     # the other effects' level factor (1 alone)
+    mV = out["mV"][m] / (1.0 + kV * neg)
+    s, h = np.sign(w), np.exp(-np.abs(w / plant.vs) ** plant.delta)
+    dA = neg * (kL * mL * plant.g(w) * s + kV * mV * plant.sigma2 * w)
+    X = np.column_stack([np.ones_like(w), mL * s, mL * s * h, mV * w, mV * w * np.abs(w), mV * w ** 3])
+    X = X / np.maximum(np.sqrt(np.mean(X * X, axis=0)), 1e-300)
+    return dA - X @ np.linalg.lstsq(X, dA, rcond=None)[0]
+
+
 def make_card_logs(seed: int, outdir, family: str | None = None, effect: str | None = None,
                    minutes: tuple = MINUTES, rate: tuple = RATE) -> tuple[list, dict]:
     """Draw, plan, calibrate, simulate, measure and write the logs of one card draw
@@ -405,10 +432,13 @@ def make_card_logs(seed: int, outdir, family: str | None = None, effect: str | N
         progs.append(pr)
     calibrate(d, plant, [_reference(pr, plant, d.fs) for pr in progs])
     delay = next((e["coef"] for e in d.effects if e["kind"] == "delay"), 0.0)
-    paths, dTs, Fs, sim_n = [], [], [], 0
+    paths, dTs, Fs, sim_n, dist = [], [], [], 0, []
     for k, pr in enumerate(progs):
         out = sim.simulate(plant, d.sc.ctl, pr, fx=fx_array(d, plant, k))
         dT, F0 = measured_change(out, plant, d.sc.w_top, delay)
+        for e in d.effects:
+            if e["kind"] == "asymmetry":
+                dist.append(offset_distinct(out, plant, d.sc.w_top, e))
         dTs.append(dT)
         Fs.append(F0)
         sim_n += out["t"].size
@@ -432,6 +462,7 @@ def make_card_logs(seed: int, outdir, family: str | None = None, effect: str | N
     truth = {"seed": seed, "family": d.family, "fs": d.fs, "seconds": d.seconds, "recordings": n_rec,
              "samples": sim_n, "blocks": blocks, "effects": d.effects, "starts": d.starts,
              "size": _rms(dT) / _rms(F0) if F0.size else 0.0, "friction_rms": _rms(F0),
+             "asym_distinct": _rms(np.concatenate(dist)) / _rms(F0) if dist and F0.size else None,
              "plant": {k: v for k, v in vars(plant).items()}, "controller": vars(d.sc.ctl),
              "sensors": vars(d.sc.sensors) | {"q_step": d.sc.sensors.q_step}, "w_top": d.sc.w_top}
     return paths, truth
