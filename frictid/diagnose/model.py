@@ -574,9 +574,9 @@ def sin_cos(cache: dict, q: np.ndarray, period: float) -> np.ndarray:
     if inv is None:
         np.sin(ph, out=c[0])
         np.cos(ph, out=c[1])
-    else:
-        np.take(np.sin(ph), inv, out=c[0])
-        np.take(np.cos(ph), inv, out=c[1])
+    else:   # mode "wrap": the indices are in range, and the default "raise" copies out through a buffer
+        np.take(np.sin(ph), inv, out=c[0], mode="wrap")
+        np.take(np.cos(ph), inv, out=c[1], mode="wrap")
     return c.T
 
 
