@@ -348,21 +348,37 @@ class Context:
         Accumulated once per fold and column pair and cached: a candidate's system is the current one
         bordered by its own columns, and only the border is new."""
         S = self.S
-        sel = (lambda v: v.sum()) if fold is None else (lambda v: v.sum() - v[fold])
-        self._fill_pairs(list(items) + [(("y",), S.F)])
+        T = self._stacked(items)
         p = len(items)
-        XtX = np.empty((p, p))
-        Xty = np.empty(p)
-        for i, (ka, _) in enumerate(items):
-            Xty[i] = sel(self._cached_pair(ka, ("y",)))
-            for j in range(i, p):
-                XtX[i, j] = XtX[j, i] = sel(self._cached_pair(ka, items[j][0]))
-        yty = float(sel(self._cached_pair(("y",), ("y",))))
+        A = T.sum(axis=0) if fold is None else T.sum(axis=0) - T[fold]
+        XtX, Xty, yty = A[:p, :p], A[:p, p].copy(), float(A[p, p])
         full = self._cache.get("fold_counts")
         if full is None:
             full = self._cache["fold_counts"] = np.bincount(S.fold, minlength=S.n_folds)
         n = int(full.sum() - (0 if fold is None else full[fold]))
         return NormalEquations(p, XtX, Xty, yty, n)
+
+    def _stacked(self, items) -> np.ndarray:
+        """Every fold's sums of the products of the columns ``items`` and the friction torque (its last row
+        and column), ``T[f, i, j]``, assembled from the cached pairs once per list of keys: the folds' fits of
+        one structure (a candidate's five training sets, a grid setting's) ask for the same list, and
+        assembling it pair by pair was most of a fit's own time. ``T.sum(0) - T[f]`` adds the folds in the
+        order a pair's ``v.sum() - v[f]`` did, the same numbers."""
+        keys = tuple(k for k, _ in items)
+        memo = self._cache.setdefault("stacked", {})
+        T = memo.get(keys)
+        if T is not None:
+            return T
+        allk = list(items) + [(("y",), self.S.F)]
+        self._fill_pairs(allk)
+        p = len(allk)
+        T = np.empty((self.S.n_folds, p, p))
+        for i in range(p):
+            ka = allk[i][0]
+            for j in range(i, p):
+                T[:, i, j] = T[:, j, i] = self._cached_pair(ka, allk[j][0])
+        memo[keys] = T
+        return T
 
     def extremes(self, term: Term, cols=None) -> np.ndarray:
         """Rows of the term's columns (``cols`` of them, default all) among which every linear function of
