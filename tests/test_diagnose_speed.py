@@ -105,6 +105,14 @@ def test_position_columns_of_an_encoder_grid_are_the_direct_ones(S):
             np.testing.assert_array_equal(X[:, 0], np.sin(ph))
             np.testing.assert_array_equal(X[:, 1], np.cos(ph))
         assert (ctx._cache["q2pi"][1] is None) == (np.unique(q).size * 2 > q.size)
+        # a periodic level factor's extremes: one row per distinct position, the rows the samples read, so
+        # every linear function of the columns reaches the same largest |value| over them
+        term = Term("position", "position_periodic", "level_factor", (("period", 0.31),))
+        X, E = ctx.term_columns(term), ctx.extremes(term)
+        assert E.shape[0] == (np.unique(q).size if ctx._cache["q2pi"][1] is not None else q.size)
+        np.testing.assert_array_equal(np.unique(E, axis=0), np.unique(X, axis=0))
+        for g in (np.array([0.3, -0.7]), np.array([1e-3, 2.5])):
+            assert np.max(np.abs(E @ g)) == np.max(np.abs(X @ g))
 
 
 def test_group_sums_by_runs_are_the_bincount(S):

@@ -389,6 +389,8 @@ class Context:
         if key not in self._cache:
             if term.ext == "thermal6" and cols is not None and len(cols) == 1:   # one product, not all four
                 X = _product(self.term_vectors(term)[cols[0]])[:, None]
+            elif cols is None and _periodic(term) and self._cache.get("q2pi", (None, None))[1] is not None:
+                X = sin_cos(self._cache, None, term.settings["period"])   # one row per distinct position
             else:
                 X = self.term_columns(term)
                 X = X if cols is None else X[:, list(cols)]
@@ -575,17 +577,29 @@ class Context:
         return self._cache[key]
 
 
-def sin_cos(cache: dict, q: np.ndarray, period: float) -> np.ndarray:
+def _periodic(term: Term) -> bool:
+    """Whether the term's columns are sin and cos of a position period (:func:`sin_cos`)."""
+    return term.ext == "position_periodic" or (term.ext == "position_torque" and term.settings["period"] != 0)
+
+
+def sin_cos(cache: dict, q: np.ndarray | None, period: float) -> np.ndarray:
     """``sin`` and ``cos`` of ``2 pi q / period`` as the columns of an F-ordered array (filled in place).
     An encoder's positions repeat (208 000 distinct among 1.16 M sliding samples on the one-hour bench
     log): where at most half of them are distinct, the two functions are evaluated once per distinct
     position and read back per sample, the same numbers (``2 pi q`` and the distinct positions kept in
-    ``cache``, a :class:`Context`'s: every period tried shares them)."""
+    ``cache``, a :class:`Context`'s: every period tried shares them). q None (after a first call that kept
+    the distinct positions): one row per distinct position, the rows the samples read back
+    (:meth:`Context.extremes`: every linear function of the columns takes its extremes among them)."""
     if "q2pi" not in cache:
         u, inv = np.unique(q, return_inverse=True)
         cache["q2pi"] = (2 * np.pi * u, inv) if 2 * u.size <= q.size else (2 * np.pi * q, None)
     q2pi, inv = cache["q2pi"]
     ph = q2pi / period
+    if q is None:
+        c = np.empty((2, ph.size))
+        c[0] = np.sin(ph)   # as the samples' read-back forms them
+        c[1] = np.cos(ph)
+        return c.T
     c = np.empty((2, q.size))
     if inv is None:
         np.sin(ph, out=c[0])
