@@ -210,6 +210,14 @@ class Context:
         self._fold_memo[id(idx)] = (weakref.ref(idx), out)
         return out
 
+    def _set_pair(self, ka, kb, v: np.ndarray) -> None:
+        """Cache the per-fold sums of a pair. A pair summed again (with a list of columns whose other pairs
+        were missing: other blocks, another rounding) replaces the old sums, as before, and the systems
+        assembled from them (:meth:`_stacked`) are assembled again."""
+        if ("pair", ka, kb) in self._cache or ("pair", kb, ka) in self._cache:
+            self._cache.pop("stacked", None)
+        self._cache[("pair", ka, kb)] = v
+
     def _cached_pair(self, ka, kb):
         out = self._cache.get(("pair", ka, kb))
         return self._cache.get(("pair", kb, ka)) if out is None else out
@@ -295,11 +303,11 @@ class Context:
         P, Q = self._border_products([vec[k] for k in old], [vec[k] for k in order], spans)
         for a, ka in enumerate(old):
             for b, kb in enumerate(order):
-                self._cache[("pair", ka, kb)] = P[:, a, b].copy()
+                self._set_pair(ka, kb, P[:, a, b].copy())
         for (s0, s1), q in zip(spans, Q):
             for a in range(s1 - s0):
                 for b in range(a, s1 - s0):
-                    self._cache[("pair", order[s0 + a], order[s0 + b])] = q[:, a, b].copy()
+                    self._set_pair(order[s0 + a], order[s0 + b], q[:, a, b].copy())
 
     def _border_products(self, olds: list, news: list, spans: list) -> tuple[np.ndarray, list]:
         """Per-fold sums of the products of every old vector with every new one, and of the new ones of each
@@ -338,7 +346,7 @@ class Context:
         P = self.fold_products([vec[i] for i in rows], [vec[j] for j in cols])
         for a, i in enumerate(rows):
             for b, j in enumerate(cols):
-                self._cache[("pair", items[i][0], items[j][0])] = P[:, a, b].copy()
+                self._set_pair(items[i][0], items[j][0], P[:, a, b].copy())
 
     def normal_equations(self, items, fold: int | None):
         """:class:`frictid.identify.regression.NormalEquations` of the columns ``items`` (list of (key, vector))
@@ -351,7 +359,8 @@ class Context:
         T = self._stacked(items)
         p = len(items)
         A = T.sum(axis=0) if fold is None else T.sum(axis=0) - T[fold]
-        XtX, Xty, yty = A[:p, :p], A[:p, p].copy(), float(A[p, p])
+        # contiguous copies, as the pair-by-pair assembly gave: BLAS may round a strided matrix's products apart
+        XtX, Xty, yty = np.ascontiguousarray(A[:p, :p]), A[:p, p].copy(), float(A[p, p])
         full = self._cache.get("fold_counts")
         if full is None:
             full = self._cache["fold_counts"] = np.bincount(S.fold, minlength=S.n_folds)
