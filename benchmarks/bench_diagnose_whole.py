@@ -1,7 +1,7 @@
 """Benchmark: the diagnosis on every sliding sample of a long log, against the fit without the diagnosis.
 
     python benchmarks/bench_diagnose_whole.py [--minutes 60] [--plant geared_industrial] [--seed 100000] [--stages]
-                                             [--candidates] [--passes]
+                                             [--candidates] [--repeat N] [--passes]
 
 Input: frictid's plant (``--plant``, its own hidden effects removed, ``tests/diag_synth.py``) run through a
 pick-and-place program (``diag_synth.pick_place_recipe``: a constant-velocity sweep, ``--minutes`` of 7 s
@@ -18,6 +18,8 @@ findings (cause, extension, held-out gain, where the temperature came from) and 
 ``--stages``: the CPU time of each step of one more fit with the diagnosis (``bench_fit_floor.stage_times``).
 ``--candidates``: the CPU time of each candidate extension's trials in the chain of one more fit, and of
 them its proposals' and its folds' sums.
+``--repeat N``: the pair of fits timed N times more in the same process (the steady cost, after the first
+fit with the diagnosis has grown the heap to its peak).
 ``--passes``: the parts of one pass of the diagnosis' sums (current model's columns, new columns, products)
 over as many random samples as the diagnosis slid, for 1-30 new columns.
 
@@ -117,6 +119,22 @@ def print_candidates(total: float, spent: dict) -> None:
         print(f"  {ext:<20} {cpu:6.2f} s  {100 * cpu / total:4.0f} %  ({n} steps)  {p:5.2f} s  {q:5.2f} s")
 
 
+def repeat_times(logs, k: int) -> None:
+    """The pair of fits (without, with the diagnosis) timed ``k`` times more in this process: after the first
+    fit with the diagnosis a process has its heap at the peak, so these show the diagnosis' steady cost."""
+    import frictid
+
+    ratios, diag = [], []
+    for i in range(k):
+        _, c0, _ = timed(lambda: frictid.fit(logs, models=ds.FIT_MODELS, diagnose=False))
+        _, c1, _ = timed(lambda: frictid.fit(logs, models=ds.FIT_MODELS))
+        ratios.append(c1 / c0)
+        diag.append(c1 - c0)
+        print(f"again {i + 1}: without CPU {c0:.2f} s, with {c1:.2f} s, ratio {c1 / c0:.2f}x, the difference "
+              f"{c1 - c0:.2f} s (load {load():.1f})")
+    print(f"again, mean: ratio {sum(ratios) / k:.2f}x, the difference {sum(diag) / k:.2f} s")
+
+
 def pass_times(n: int, seed: int = 0) -> None:
     """The parts of one pass of the diagnosis' sums (``Context._border_products``) over ``n`` samples: the
     current model's columns formed block by block (8 plain columns at the first step; 14 at the next, 6 of
@@ -162,6 +180,8 @@ def main(argv=None) -> int:
     ap.add_argument("--stages", action="store_true", help="also the CPU time of each step of one fit")
     ap.add_argument("--candidates", action="store_true",
                     help="also the CPU time of each candidate extension in the diagnosis' chain of one fit")
+    ap.add_argument("--repeat", type=int, default=0,
+                    help="also time the pair of fits (without, with the diagnosis) this many times more")
     ap.add_argument("--passes", action="store_true",
                     help="also the parts of one pass of the diagnosis' sums over as many samples as it slid")
     args = ap.parse_args(argv)
@@ -195,6 +215,8 @@ def main(argv=None) -> int:
               f"{f['gain']:.2f}")
     for w in jf.warnings:
         print(f"  warning: {w}")
+    if args.repeat:
+        repeat_times(logs, args.repeat)
     if args.stages:
         from bench_fit_floor import print_stages, stage_times
 
