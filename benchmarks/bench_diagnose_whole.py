@@ -1,7 +1,7 @@
 """Benchmark: the diagnosis on every sliding sample of a long log, against the fit without the diagnosis.
 
     python benchmarks/bench_diagnose_whole.py [--minutes 60] [--plant geared_industrial] [--seed 100000] [--stages]
-                                             [--candidates]
+                                             [--candidates] [--repeat N] [--passes]
 
 Input: frictid's plant (``--plant``, its own hidden effects removed, ``tests/diag_synth.py``) run through a
 pick-and-place program (``diag_synth.pick_place_recipe``: a constant-velocity sweep, ``--minutes`` of 7 s
@@ -16,7 +16,12 @@ with it: the log's samples, the sliding samples the diagnosis used (all of them:
 findings (cause, extension, held-out gain, where the temperature came from) and any warning.
 
 ``--stages``: the CPU time of each step of one more fit with the diagnosis (``bench_fit_floor.stage_times``).
-``--candidates``: the CPU time of each candidate extension's trials in the chain of one more fit.
+``--candidates``: the CPU time of each candidate extension's trials in the chain of one more fit, and of
+them its proposals' and its folds' sums.
+``--repeat N``: the pair of fits timed N times more in the same process (the steady cost, after the first
+fit with the diagnosis has grown the heap to its peak).
+``--passes``: the parts of one pass of the diagnosis' sums (current model's columns, new columns, products)
+over as many random samples as the diagnosis slid, for 1-30 new columns.
 
 ``FRICTID_SMOKE=1`` shrinks the log to one minute of cycles (a few seconds), the same code path.
 """
@@ -57,34 +62,114 @@ def make_logs(minutes: float, plant: str, seed: int):
 def candidate_times(run) -> tuple[float, dict]:
     """CPU time of ``run()`` and, per candidate extension, the CPU time of its trials in the diagnosis'
     chain (``Chain.evaluate``: its proposals and held-out refits over the folds, summed over the chain's
-    steps) and the number of steps it was tried in."""
+    steps), the number of steps it was tried in, and the parts of its trials in its proposals
+    (``Chain._propose``: the settings' searches) and in the sums its folds' fits ask for (``Context.prefetch``
+    outside the proposals, the candidate's columns formed for them included)."""
     from frictid.diagnose.chain import Chain
+    from frictid.diagnose.model import Context
 
     spent: dict = {}
-    fn = Chain.evaluate
+    cur: list = [None, False]
+    fn, prop, pre = Chain.evaluate, Chain._propose, Context.prefetch
+
+    def add(ext, i, dt):
+        row = spent.setdefault(ext, [0.0, 0, 0.0, 0.0])
+        row[i] += dt
 
     def timed(self, ext, m):
         t0 = time.process_time()
+        cur[0] = ext
         try:
             return fn(self, ext, m)
         finally:
-            cpu, n = spent.get(ext, (0.0, 0))
-            spent[ext] = (cpu + time.process_time() - t0, n + 1)
-    Chain.evaluate = timed
+            add(ext, 0, time.process_time() - t0)
+            spent[ext][1] += 1
+            cur[0] = None
+
+    def proposing(self, ext, *a, **k):
+        t0, cur[1] = time.process_time(), True
+        try:
+            return prop(self, ext, *a, **k)
+        finally:
+            add(ext, 2, time.process_time() - t0)
+            cur[1] = False
+
+    def summing(self, structures):
+        t0 = time.process_time()
+        try:
+            return pre(self, structures)
+        finally:
+            if cur[0] is not None and not cur[1]:
+                add(cur[0], 3, time.process_time() - t0)
+    Chain.evaluate, Chain._propose, Context.prefetch = timed, proposing, summing
     try:
         t0 = time.process_time()
         run()
         total = time.process_time() - t0
     finally:
-        Chain.evaluate = fn
-    return total, spent
+        Chain.evaluate, Chain._propose, Context.prefetch = fn, prop, pre
+    return total, {k: tuple(v) for k, v in spent.items()}
 
 
 def print_candidates(total: float, spent: dict) -> None:
-    chain = sum(c for c, _ in spent.values())
-    print(f"candidates (CPU time of one fit with the diagnosis, {total:.2f} s; their trials {chain:.2f} s):")
-    for ext, (cpu, n) in sorted(spent.items(), key=lambda kv: -kv[1][0]):
-        print(f"  {ext:<20} {cpu:6.2f} s  {100 * cpu / total:4.0f} %  ({n} steps)")
+    chain = sum(v[0] for v in spent.values())
+    print(f"candidates (CPU time of one fit with the diagnosis, {total:.2f} s; their trials {chain:.2f} s; "
+          f"of each: proposals, sums):")
+    for ext, (cpu, n, p, q) in sorted(spent.items(), key=lambda kv: -kv[1][0]):
+        print(f"  {ext:<20} {cpu:6.2f} s  {100 * cpu / total:4.0f} %  ({n} steps)  {p:5.2f} s  {q:5.2f} s")
+
+
+def repeat_times(logs, k: int) -> None:
+    """The pair of fits (without, with the diagnosis) timed ``k`` times more in this process: after the first
+    fit with the diagnosis a process has its heap at the peak, so these show the diagnosis' steady cost."""
+    import frictid
+
+    ratios, diag = [], []
+    for i in range(k):
+        _, c0, _ = timed(lambda: frictid.fit(logs, models=ds.FIT_MODELS, diagnose=False))
+        _, c1, _ = timed(lambda: frictid.fit(logs, models=ds.FIT_MODELS))
+        ratios.append(c1 / c0)
+        diag.append(c1 - c0)
+        print(f"again {i + 1}: without CPU {c0:.2f} s, with {c1:.2f} s, ratio {c1 / c0:.2f}x, the difference "
+              f"{c1 - c0:.2f} s (load {load():.1f})")
+    print(f"again, mean: ratio {sum(ratios) / k:.2f}x, the difference {sum(diag) / k:.2f} s")
+
+
+def pass_times(n: int, seed: int = 0) -> None:
+    """The parts of one pass of the diagnosis' sums (``Context._border_products``) over ``n`` samples: the
+    current model's columns formed block by block (8 plain columns at the first step; 14 at the next, 6 of
+    them products with a factor's column), the candidate's new columns, and the products; CPU time of one
+    pass, mean of three, one BLAS thread as in the diagnosis."""
+    import numpy as np
+    from threadpoolctl import threadpool_limits
+
+    from frictid.diagnose.model import BLOCK_ROWS, _block
+
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal(n)
+    plain = [rng.standard_normal(n) for _ in range(8)]
+    print(f"one pass of the sums over {n:,} samples (CPU ms: current model's columns, new columns, products):")
+    with threadpool_limits(1, "blas"):
+        steps = (("first step, 8 columns", plain), ("next step, 14 columns", plain + [(v, x) for v in plain[:6]]))
+        for name, olds in steps:
+            for k in (1, 2, 10, 30):
+                news = [rng.standard_normal(n) for _ in range(k)]
+                V, W = np.empty((len(olds), BLOCK_ROWS)), np.empty((k, BLOCK_ROWS))
+                P, Q = np.zeros((len(olds), k)), np.zeros((k, k))
+                t = np.zeros(3)
+                for _ in range(3):
+                    for s in range(0, n, BLOCK_ROWS):
+                        e = min(s + BLOCK_ROWS, n)
+                        t0 = time.process_time()
+                        A = _block(V[:, :e - s], olds, s, e)
+                        t1 = time.process_time()
+                        B = _block(W[:, :e - s], news, s, e)
+                        t2 = time.process_time()
+                        P += A @ B.T
+                        Q += B @ B.T
+                        t += (t1 - t0, t2 - t1, time.process_time() - t2)
+                t *= 1e3 / 3
+                print(f"  {name}, {k:2d} new: {t[0]:5.1f} {t[1]:5.1f} {t[2]:6.1f}")
 
 
 def main(argv=None) -> int:
@@ -95,6 +180,10 @@ def main(argv=None) -> int:
     ap.add_argument("--stages", action="store_true", help="also the CPU time of each step of one fit")
     ap.add_argument("--candidates", action="store_true",
                     help="also the CPU time of each candidate extension in the diagnosis' chain of one fit")
+    ap.add_argument("--repeat", type=int, default=0,
+                    help="also time the pair of fits (without, with the diagnosis) this many times more")
+    ap.add_argument("--passes", action="store_true",
+                    help="also the parts of one pass of the diagnosis' sums over as many samples as it slid")
     args = ap.parse_args(argv)
     smoke = os.environ.get("FRICTID_SMOKE") == "1"
     minutes = 1.0 if smoke else args.minutes
@@ -126,12 +215,16 @@ def main(argv=None) -> int:
               f"{f['gain']:.2f}")
     for w in jf.warnings:
         print(f"  warning: {w}")
+    if args.repeat:
+        repeat_times(logs, args.repeat)
     if args.stages:
         from bench_fit_floor import print_stages, stage_times
 
         print_stages(*stage_times(lambda: frictid.fit(logs, models=ds.FIT_MODELS)))
     if args.candidates:
         print_candidates(*candidate_times(lambda: frictid.fit(logs, models=ds.FIT_MODELS)))
+    if args.passes:
+        pass_times(int(rec.get("samples", 0)) or lg.n)
     print(f"load average at the end {load():.1f}")
     return 0
 

@@ -105,6 +105,14 @@ def test_position_columns_of_an_encoder_grid_are_the_direct_ones(S):
             np.testing.assert_array_equal(X[:, 0], np.sin(ph))
             np.testing.assert_array_equal(X[:, 1], np.cos(ph))
         assert (ctx._cache["q2pi"][1] is None) == (np.unique(q).size * 2 > q.size)
+        # a periodic level factor's extremes: one row per distinct position, the rows the samples read, so
+        # every linear function of the columns reaches the same largest |value| over them
+        term = Term("position", "position_periodic", "level_factor", (("period", 0.31),))
+        X, E = ctx.term_columns(term), ctx.extremes(term)
+        assert E.shape[0] == (np.unique(q).size if ctx._cache["q2pi"][1] is not None else q.size)
+        np.testing.assert_array_equal(np.unique(E, axis=0), np.unique(X, axis=0))
+        for g in (np.array([0.3, -0.7]), np.array([1e-3, 2.5])):
+            assert np.max(np.abs(E @ g)) == np.max(np.abs(X @ g))
 
 
 def test_group_sums_by_runs_are_the_bincount(S):
@@ -202,3 +210,39 @@ def test_a_grid_ranked_on_a_stride_chooses_the_setting_of_all_samples(S, monkeyp
             full = propose("stribeck", ch.ctx, ch.st, tr, res, lev, c0)
             assert tr_full.fold_terms[f] == full
         assert tr_full.gain > 0 and np.all(np.isfinite(tr_full.pred_after))
+
+
+def test_monomial_coefficients_for_all_monomials_at_once_are_the_per_monomial_products():
+    """:func:`frictid.diagnose.moments.coefficients` (all monomials at once, its plan kept per layout) gives
+    the numbers of the per-monomial products it replaced, exactly, on random layouts and coefficients."""
+    from frictid.diagnose import moments as mo
+
+    def plain(monos, amp, gam, free_items, free_gamma):
+        col_of_item = {k: n for n, k in enumerate(free_items)}
+        col_of_gam = {ij: len(free_items) + n for n, ij in enumerate(free_gamma)}
+        c, C = np.zeros(len(monos)), np.zeros((len(monos), len(free_items) + len(free_gamma)))
+        for m, x in enumerate(monos):
+            vals = [1.0 if j < 0 else float(gam[i][j]) for i, j in zip(x.factors, x.choice)]
+            prod_all = float(np.prod(vals)) if vals else 1.0
+            c[m] = amp[x.item] * prod_all
+            if x.item in col_of_item:
+                C[m, col_of_item[x.item]] = prod_all
+            for p, (i, j) in enumerate(zip(x.factors, x.choice)):
+                if j >= 0 and (i, j) in col_of_gam:
+                    others = vals[:p] + vals[p + 1:]
+                    C[m, col_of_gam[(i, j)]] = amp[x.item] * (float(np.prod(others)) if others else 1.0)
+        return c, C
+
+    rng = np.random.default_rng(7)
+    for _ in range(60):
+        sizes = [int(s) for s in rng.integers(1, 4, rng.integers(0, 4))]
+        n_items = int(rng.integers(1, 7))
+        applies = [tuple(i for i in range(len(sizes)) if rng.random() < 0.7) for _ in range(n_items)]
+        monos = mo.monomials(n_items, applies, sizes)
+        amp = rng.standard_normal(n_items) * 10.0 ** rng.uniform(-3, 3, n_items)
+        gam = [rng.standard_normal(s) * 10.0 ** rng.uniform(-4, 1) for s in sizes]
+        free_items = [k for k in range(n_items) if rng.random() < 0.8]
+        free_gamma = [(i, j) for i, s in enumerate(sizes) for j in range(s) if rng.random() < 0.8]
+        for got, want in zip(mo.coefficients(monos, amp, gam, free_items, free_gamma),
+                             plain(monos, amp, gam, free_items, free_gamma)):
+            assert np.array_equal(got, want)

@@ -176,6 +176,12 @@ def _on_training(fn, c, tr: np.ndarray, te: np.ndarray) -> np.ndarray:
     return np.concatenate(parts) if parts else np.zeros(0)
 
 
+def _rows(te: np.ndarray):
+    """The held-out fold's samples ``te`` (increasing) as a slice when they are one run (the samples are in
+    folds): a prediction there reads views of the columns, not a gather of them, the same numbers."""
+    return slice(int(te[0]), int(te[-1]) + 1) if te.size and te[-1] - te[0] + 1 == te.size else te
+
+
 class Chain:
     """Runs the diagnosis on one joint's samples from a base structure."""
 
@@ -204,7 +210,7 @@ class Chain:
             tr = np.flatnonzero(S.fold != f)
             te = np.flatnonzero(S.fold == f)
             c = ev.fit(tr)
-            pred[te] = ev.predict(c, te)
+            pred[te] = ev.predict(c, _rows(te))
             self.train_info.append((tr, te, S.F[tr] - _on_training(ev.predict, c, tr, te),
                                     _on_training(ev.level, c, tr, te), c))
         self.pred = pred
@@ -251,13 +257,13 @@ class Chain:
         for (tr, te, *_), term in zip(self.train_info, terms):
             ev = Evaluator(self.st.plus(term), self.ctx)
             c = ev.fit(tr)
-            after[te] = ev.predict(c, te)
+            after[te] = ev.predict(c, _rows(te))
             coefs.append(c)
         self.ctx.release(self.st)   # the candidate's columns (its sums of products stay cached)
-        rb, rms_b, out, n_in = self._before_numbers()
+        rb, rms_b, out, n_in, rb2 = self._before_numbers()
         after[out] = self.pred[out]   # the map extrapolated: the candidate is not judged there, the current model stands
         ra = S.F - after
-        d = group_d(S, rb, ra)
+        d = S.group_sums(rb2 - ra * ra)   # group_d, the step's rb * rb formed once
         t, p = paired_t(d)
         ra_in = ra[self.inside]
         rms_a = float(np.sqrt(np.dot(ra_in, ra_in) / n_in))
@@ -279,15 +285,16 @@ class Chain:
 
     def _before_numbers(self) -> tuple:
         """The current model's held-out residual, its RMS over the scored samples, the samples not scored
-        (indices) and the number scored: the same for every candidate of a step (kept while ``self.pred`` is
-        the step's)."""
+        (indices), the number scored and the residual's square: the same for every candidate of a step (kept
+        while ``self.pred`` is the step's)."""
         memo = getattr(self, "_memo_before", None)
         if memo is None or memo[0] is not self.pred:
             out = np.flatnonzero(~self.inside)
             n_in = max(self.S.n - out.size, 1)
             rb = self.S.F - self.pred
             rb_in = rb[self.inside]
-            memo = self._memo_before = (self.pred, rb, float(np.sqrt(np.dot(rb_in, rb_in) / n_in)), out, n_in)
+            memo = self._memo_before = (self.pred, rb, float(np.sqrt(np.dot(rb_in, rb_in) / n_in)), out, n_in,
+                                        rb * rb)
         return memo[1:]
 
     def significant(self, tr: Trial, m: int) -> bool:

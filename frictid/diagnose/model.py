@@ -210,6 +210,14 @@ class Context:
         self._fold_memo[id(idx)] = (weakref.ref(idx), out)
         return out
 
+    def _set_pair(self, ka, kb, v: np.ndarray) -> None:
+        """Cache the per-fold sums of a pair. A pair summed again (with a list of columns whose other pairs
+        were missing: other blocks, another rounding) replaces the old sums, as before, and the systems
+        assembled from them (:meth:`_stacked`) are assembled again."""
+        if ("pair", ka, kb) in self._cache or ("pair", kb, ka) in self._cache:
+            self._cache.pop("stacked", None)
+        self._cache[("pair", ka, kb)] = v
+
     def _cached_pair(self, ka, kb):
         out = self._cache.get(("pair", ka, kb))
         return self._cache.get(("pair", kb, ka)) if out is None else out
@@ -295,11 +303,11 @@ class Context:
         P, Q = self._border_products([vec[k] for k in old], [vec[k] for k in order], spans)
         for a, ka in enumerate(old):
             for b, kb in enumerate(order):
-                self._cache[("pair", ka, kb)] = P[:, a, b].copy()
+                self._set_pair(ka, kb, P[:, a, b].copy())
         for (s0, s1), q in zip(spans, Q):
             for a in range(s1 - s0):
                 for b in range(a, s1 - s0):
-                    self._cache[("pair", order[s0 + a], order[s0 + b])] = q[:, a, b].copy()
+                    self._set_pair(order[s0 + a], order[s0 + b], q[:, a, b].copy())
 
     def _border_products(self, olds: list, news: list, spans: list) -> tuple[np.ndarray, list]:
         """Per-fold sums of the products of every old vector with every new one, and of the new ones of each
@@ -338,7 +346,7 @@ class Context:
         P = self.fold_products([vec[i] for i in rows], [vec[j] for j in cols])
         for a, i in enumerate(rows):
             for b, j in enumerate(cols):
-                self._cache[("pair", items[i][0], items[j][0])] = P[:, a, b].copy()
+                self._set_pair(items[i][0], items[j][0], P[:, a, b].copy())
 
     def normal_equations(self, items, fold: int | None):
         """:class:`frictid.identify.regression.NormalEquations` of the columns ``items`` (list of (key, vector))
@@ -348,21 +356,38 @@ class Context:
         Accumulated once per fold and column pair and cached: a candidate's system is the current one
         bordered by its own columns, and only the border is new."""
         S = self.S
-        sel = (lambda v: v.sum()) if fold is None else (lambda v: v.sum() - v[fold])
-        self._fill_pairs(list(items) + [(("y",), S.F)])
+        T = self._stacked(items)
         p = len(items)
-        XtX = np.empty((p, p))
-        Xty = np.empty(p)
-        for i, (ka, _) in enumerate(items):
-            Xty[i] = sel(self._cached_pair(ka, ("y",)))
-            for j in range(i, p):
-                XtX[i, j] = XtX[j, i] = sel(self._cached_pair(ka, items[j][0]))
-        yty = float(sel(self._cached_pair(("y",), ("y",))))
+        A = T.sum(axis=0) if fold is None else T.sum(axis=0) - T[fold]
+        # contiguous copies, as the pair-by-pair assembly gave: BLAS may round a strided matrix's products apart
+        XtX, Xty, yty = np.ascontiguousarray(A[:p, :p]), A[:p, p].copy(), float(A[p, p])
         full = self._cache.get("fold_counts")
         if full is None:
             full = self._cache["fold_counts"] = np.bincount(S.fold, minlength=S.n_folds)
         n = int(full.sum() - (0 if fold is None else full[fold]))
         return NormalEquations(p, XtX, Xty, yty, n)
+
+    def _stacked(self, items) -> np.ndarray:
+        """Every fold's sums of the products of the columns ``items`` and the friction torque (its last row
+        and column), ``T[f, i, j]``, assembled from the cached pairs once per list of keys: the folds' fits of
+        one structure (a candidate's five training sets, a grid setting's) ask for the same list, and
+        assembling it pair by pair was most of a fit's own time. ``T.sum(0) - T[f]`` adds the folds in the
+        order a pair's ``v.sum() - v[f]`` did, the same numbers."""
+        keys = tuple(k for k, _ in items)
+        memo = self._cache.setdefault("stacked", {})
+        T = memo.get(keys)
+        if T is not None:
+            return T
+        allk = list(items) + [(("y",), self.S.F)]
+        self._fill_pairs(allk)
+        p = len(allk)
+        T = np.empty((self.S.n_folds, p, p))
+        for i in range(p):
+            ka = allk[i][0]
+            for j in range(i, p):
+                T[:, i, j] = T[:, j, i] = self._cached_pair(ka, allk[j][0])
+        memo[keys] = T
+        return T
 
     def extremes(self, term: Term, cols=None) -> np.ndarray:
         """Rows of the term's columns (``cols`` of them, default all) among which every linear function of
@@ -373,6 +398,8 @@ class Context:
         if key not in self._cache:
             if term.ext == "thermal6" and cols is not None and len(cols) == 1:   # one product, not all four
                 X = _product(self.term_vectors(term)[cols[0]])[:, None]
+            elif cols is None and _periodic(term) and self._cache.get("q2pi", (None, None))[1] is not None:
+                X = sin_cos(self._cache, None, term.settings["period"])   # one row per distinct position
             else:
                 X = self.term_columns(term)
                 X = X if cols is None else X[:, list(cols)]
@@ -581,24 +608,36 @@ class Context:
         return self._cache["work_power"]
 
 
-def sin_cos(cache: dict, q: np.ndarray, period: float) -> np.ndarray:
+def _periodic(term: Term) -> bool:
+    """Whether the term's columns are sin and cos of a position period (:func:`sin_cos`)."""
+    return term.ext == "position_periodic" or (term.ext == "position_torque" and term.settings["period"] != 0)
+
+
+def sin_cos(cache: dict, q: np.ndarray | None, period: float) -> np.ndarray:
     """``sin`` and ``cos`` of ``2 pi q / period`` as the columns of an F-ordered array (filled in place).
     An encoder's positions repeat (208 000 distinct among 1.16 M sliding samples on the one-hour bench
     log): where at most half of them are distinct, the two functions are evaluated once per distinct
     position and read back per sample, the same numbers (``2 pi q`` and the distinct positions kept in
-    ``cache``, a :class:`Context`'s: every period tried shares them)."""
+    ``cache``, a :class:`Context`'s: every period tried shares them). q None (after a first call that kept
+    the distinct positions): one row per distinct position, the rows the samples read back
+    (:meth:`Context.extremes`: every linear function of the columns takes its extremes among them)."""
     if "q2pi" not in cache:
         u, inv = np.unique(q, return_inverse=True)
         cache["q2pi"] = (2 * np.pi * u, inv) if 2 * u.size <= q.size else (2 * np.pi * q, None)
     q2pi, inv = cache["q2pi"]
     ph = q2pi / period
+    if q is None:
+        c = np.empty((2, ph.size))
+        c[0] = np.sin(ph)   # as the samples' read-back forms them
+        c[1] = np.cos(ph)
+        return c.T
     c = np.empty((2, q.size))
     if inv is None:
         np.sin(ph, out=c[0])
         np.cos(ph, out=c[1])
-    else:
-        np.take(np.sin(ph), inv, out=c[0])
-        np.take(np.cos(ph), inv, out=c[1])
+    else:   # mode "wrap": the indices are in range, and the default "raise" copies out through a buffer
+        np.take(np.sin(ph), inv, out=c[0], mode="wrap")
+        np.take(np.cos(ph), inv, out=c[1], mode="wrap")
     return c.T
 
 

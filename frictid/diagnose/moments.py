@@ -15,6 +15,7 @@ them), at a cost per fit of the new column pairs only.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from itertools import product
 
 import numpy as np
@@ -46,23 +47,62 @@ def coefficients(monos: list[Monomial], amp: np.ndarray, gam: list[np.ndarray], 
     """The prediction's coefficients c over the monomials and the Jacobian's C (one column per free
     coefficient: the free items' amplitudes, then the free factor coefficients ``(i, j)``).
 
-    amp : amplitude of every item; gam : coefficients of every factor."""
-    M = len(monos)
+    amp : amplitude of every item; gam : coefficients of every factor.
+
+    Each monomial's product of its factors' coefficients (1 where it takes none of a factor's columns) is
+    formed left to right over its factors, for all monomials at once (:func:`_plan`: where each reads its
+    coefficients, kept per layout): a Gauss-Newton run asks for it at every iteration."""
+    items, gidx, item_rc, gam_rc = _plan(tuple(monos), tuple(free_items), tuple(free_gamma),
+                                         tuple(int(np.size(g)) for g in gam))
+    amp = np.asarray(amp, float)
+    gflat = np.concatenate([np.atleast_1d(np.asarray(g, float)) for g in gam] + [np.ones(1)])
+    vals = gflat[gidx]   # (monomials, factor places); index -1 reads the 1 at the end
+    n_places = vals.shape[1]
+    prod_all = np.ones(len(monos)) if not n_places else vals[:, 0].copy()
+    for p in range(1, n_places):
+        prod_all = prod_all * vals[:, p]
+    c = amp[items] * prod_all
+    C = np.zeros((len(monos), len(free_items) + len(free_gamma)))
+    rows, cols = item_rc
+    C[rows, cols] = prod_all[rows]
+    for p, (rows, cols) in enumerate(gam_rc):
+        if not rows.size:
+            continue
+        others = [q for q in range(n_places) if q != p]
+        prod = vals[rows, others[0]].copy() if others else np.ones(rows.size)
+        for q in others[1:]:
+            prod = prod * vals[rows, q]
+        C[rows, cols] = amp[items[rows]] * prod
+    return c, C
+
+
+@lru_cache(maxsize=1024)
+def _plan(monos: tuple, free_items: tuple, free_gamma: tuple, sizes: tuple) -> tuple:
+    """Where :func:`coefficients` reads each monomial's coefficients: its item, the flat index of each of
+    its factors' coefficients (-1: none of that factor's columns; places beyond its factors -1 too), the
+    (rows, columns) of C taking a free item's product, and per factor place those taking a free factor
+    coefficient's derivative."""
+    off = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
+    n_places = max((len(mo.factors) for mo in monos), default=0)
+    gidx = np.full((len(monos), n_places), -1, dtype=int)
     col_of_item = {k: n for n, k in enumerate(free_items)}
     col_of_gam = {ij: len(free_items) + n for n, ij in enumerate(free_gamma)}
-    c = np.zeros(M)
-    C = np.zeros((M, len(free_items) + len(free_gamma)))
+    item_r, item_c = [], []
+    gam_r, gam_c = [[] for _ in range(n_places)], [[] for _ in range(n_places)]
     for m, mo in enumerate(monos):
-        vals = [1.0 if j < 0 else float(gam[i][j]) for i, j in zip(mo.factors, mo.choice)]
-        prod_all = float(np.prod(vals)) if vals else 1.0
-        c[m] = amp[mo.item] * prod_all
         if mo.item in col_of_item:
-            C[m, col_of_item[mo.item]] = prod_all
+            item_r.append(m)
+            item_c.append(col_of_item[mo.item])
         for p, (i, j) in enumerate(zip(mo.factors, mo.choice)):
-            if j >= 0 and (i, j) in col_of_gam:
-                others = vals[:p] + vals[p + 1:]
-                C[m, col_of_gam[(i, j)]] = amp[mo.item] * (float(np.prod(others)) if others else 1.0)
-    return c, C
+            if j >= 0:
+                gidx[m, p] = off[i] + j
+                if (i, j) in col_of_gam:
+                    gam_r[p].append(m)
+                    gam_c[p].append(col_of_gam[(i, j)])
+    items = np.array([mo.item for mo in monos], dtype=int)
+    as_idx = lambda x: np.array(x, dtype=int)   # noqa: E731
+    return (items, gidx, (as_idx(item_r), as_idx(item_c)),
+            tuple((as_idx(r), as_idx(c)) for r, c in zip(gam_r, gam_c)))
 
 
 def gauss_newton_step(G: np.ndarray, b: np.ndarray, yty: float, n: int, c: np.ndarray, C: np.ndarray
