@@ -390,7 +390,7 @@ class Chain:
             ev = Evaluator(self.st.plus(term), self.ctx)
             after[te] = ev.predict(ev.fit(trn), te)
         self.ctx.release(self.st)
-        rb, rms_b, out, n_in = self._before_numbers()
+        rb, rms_b, out, n_in, _ = self._before_numbers()
         after[out] = self.pred[out]
         ra = S.F - after
         t, p = paired_t(group_d(S, rb, ra))
