@@ -296,3 +296,56 @@ def test_a_map_whose_drop_shape_alone_is_not_identifiable_stays_selectable():
             "stribeck_asym": _stribeck(flag=("Fs", "Fc"), held=None)}
     left = sel.heldout_for_choice(some, list(some), lambda n: {"coulomb_viscous": 1.0, "stribeck": 0.8}.get(n, 0.5))
     assert left == ["stribeck_asym"] and some["stribeck"].metrics["rms_heldout"] == 0.8
+
+
+def test_a_break_away_is_not_trusted_through_a_drop_speed_the_data_do_not_pin():
+    """Issue 19 (foreign card 204518: vs 0.17 +- 0.18 by the jackknife, Fs 0.0476 +- 0.0019 against
+    0.0536, trusted): with the drop's speed free and its error above its value, the break-away level is
+    read at zero speed through a drop that may lie below the data: Fs is marked, and the map stays
+    selectable (its drop's shape alone is not identifiable). A speed measured, or held by the fit (its own
+    rules), leaves Fs alone; so does a speed whose error stays below its value."""
+    from frictid.identify import select as sel
+    from frictid.identify.validity import break_away_needs_speed
+
+    m = _stribeck(flag=("vs",))
+    m.params["vs"].stderr = 0.11  # vs 0.1 +- 0.11
+    assert m.params["Fs"].identifiable
+    break_away_needs_speed(m)
+    assert not m.params["Fs"].identifiable and "vs 0.1 +- 0.11" in m.params["Fs"].reason
+    assert m.params["Fc"].identifiable and sel.shape_only(m)
+    for vs_se, fixed, ok in ((0.11, True, False), (0.09, False, False), (0.11, False, True)):
+        m = _stribeck(flag=("vs",))
+        m.params["vs"].stderr, m.params["vs"].fixed, m.params["vs"].identifiable = vs_se, fixed, ok
+        break_away_needs_speed(m)
+        assert m.params["Fs"].identifiable
+
+
+def test_a_degenerate_drop_carries_its_shape_into_the_level_and_slope(monkeypatch):
+    """Issue 19 (W2): a drop the fit could not place (here the tail of a drop below the slowest plateau:
+    the break-away runs up, the speed and exponent are held where the fit put them) fixes the level and
+    slope only through the shape it ended at. The profile over drop speeds and exponents that fit as well
+    (static._shape_profile) adds their change to the errors of Fc and sigma2, which then cover the truth;
+    a map whose drop is placed is not touched."""
+    import frictid.identify.static as st
+
+    v = np.geomspace(0.1, 2.0, 10)
+    w = np.concatenate([v, -v])
+    truth = dict(Fc=1.0, Fs=1.3, vs=0.05, delta=1.0, sigma2=0.1)
+
+    def fits(seed):
+        F = sm.evaluate("stribeck", w, truth) + np.random.default_rng(seed).normal(0, 0.003, w.size)
+        with_profile = fit_static("stribeck", w, F, np.full(w.size, 0.003))
+        with monkeypatch.context() as mp:
+            mp.setattr(st, "_shape_profile", lambda *a, **k: None)
+            without = fit_static("stribeck", w, F, np.full(w.size, 0.003))
+        return with_profile, without
+
+    deg, bare = fits(4)
+    assert deg.params["vs"].fixed and not deg.params["vs"].identifiable  # the fit could not place the drop
+    for n in ("Fc", "sigma2"):
+        p = deg.params[n]
+        assert p.value == bare.params[n].value and p.stderr > 1.3 * bare.params[n].stderr
+        assert abs(p.value - truth[n]) <= 2 * p.stderr
+    placed, bare = fits(1)  # a drop the fit places: the same errors
+    assert not placed.params["vs"].fixed
+    assert all(placed.params[n].stderr == bare.params[n].stderr for n in ("Fc", "Fs", "sigma2"))

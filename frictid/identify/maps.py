@@ -66,6 +66,8 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
     else:
         sel.heldout_for_choice(jf.models, fitted, lambda n: sel.heldout_static(
             n, plat, n_folds, axis=jd.axis, full=jf.models[n]), others=["polynomial_ls"])
+    for n in fitted:  # after the held-out refits, whose jackknife can take a drop's speed (samples basis)
+        validity.break_away_needs_speed(jf.models[n])
 
 
 #: Per map: (break-away level, level it drops to, the drop's shape parameters) of a Stribeck drop; the drop

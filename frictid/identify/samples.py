@@ -309,9 +309,10 @@ def _bin_samples(S: SampleSet, leave_out: int | None = None, per_sign: int = BIN
     return _join_bins(parts)
 
 
-def _fit_binned(name, bins, axis, start=None, var_inflation=1.0) -> ModelFit:
+def _fit_binned(name, bins, axis, start=None, var_inflation=1.0, profile=None) -> ModelFit:
     wb, Fb, nb = bins
-    return fit_static(name, wb, Fb, 1.0 / np.sqrt(nb), axis=axis, start=start, var_inflation=var_inflation)
+    return fit_static(name, wb, Fb, 1.0 / np.sqrt(nb), axis=axis, start=start, var_inflation=var_inflation,
+                      profile=profile)
 
 
 def fit_map(name: str, S: SampleSet, axis: str = "rotary", heldout: bool = True) -> ModelFit:
@@ -342,7 +343,7 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary", heldout: bool = True)
         if s2_bins > 0:
             first = mf.notes  # why the first pass held what the second holds again (e.g. delta at 2)
             mf = _fit_binned(name, bins, axis, start=warm_start(mf),
-                             var_inflation=S.inflation * s2_samples / s2_bins)
+                             var_inflation=S.inflation * s2_samples / s2_bins, profile=True)
             mf.notes = first + [nt for nt in mf.notes if nt not in first]
             vals = mf.values()
         if heldout:

@@ -147,6 +147,27 @@ def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None, points=None, shif
         _level_spread(mf, without_drop, suf)
 
 
+def break_away_needs_speed(mf) -> None:
+    """A Stribeck branch's break-away level ``Fs`` is the drop's level at zero speed, read through the
+    drop's speed ``vs``: with ``vs`` free and not identifiable by an error above its value, its interval
+    reaches zero, where the whole drop lies below the slowest point, and ``Fs`` is an extrapolation by the
+    shape the fit assumed (:func:`.static._drop_in_view`'s case, at a speed the data cannot rule out).
+    ``Fs`` is then marked not identifiable with that reason (foreign card, a sweep with ramps and steps:
+    vs 0.17 +- 0.18 by the jackknife over the time blocks, Fs 0.0476 +- 0.0019 against 0.0536, trusted).
+    A speed held by the fit (a drop it could not place) has its own rules (:func:`_no_drop_seen`)."""
+    if (mf.name[:-5] if mf.name.endswith("_asym") else mf.name) != "stribeck":
+        return
+    for suf in ("_pos", "_neg") if mf.name.endswith("_asym") else ("",):
+        vs, fs = mf.params.get("vs" + suf), mf.params.get("Fs" + suf)
+        if vs is None or fs is None or vs.fixed or vs.identifiable or vs.value is None or vs.stderr is None:
+            continue
+        if fs.identifiable and not fs.fixed and vs.stderr > abs(vs.value):
+            fs.identifiable, fs.reason = False, (
+                f"read at zero speed through the drop's speed vs{suf} {vs.value:.3g} +- {vs.stderr:.2g}, which "
+                "is not identifiable: at speeds within its error the drop lies below the data and the "
+                "break-away level is extrapolated")
+
+
 def _no_drop_seen(p: dict, v: np.ndarray) -> None:
     """``Fs`` is a break-away level only when the data show a drop down from it. When the drop's speed
     ``vs`` is not identifiable, the fit did not resolve a drop if it held ``vs`` because the drop is not
