@@ -316,6 +316,25 @@ def test_a_level_cycling_in_time_is_not_named_temperature(seed):
     assert jf.selection["diagnosis"]["unexplained"]
 
 
+def _slow_cycle(seed: int, period: float = 40.0):
+    """A plateau log whose friction level cycles in time (+-15 %, ``period`` s), the chain on the true map,
+    an offset trial to dress up (its fields, another correction) and the prediction that takes the whole
+    cycle."""
+    from frictid.diagnose.chain import Chain
+
+    def cyc(t, q, w, F):
+        return F.level * (1 + 0.15 * np.sin(2 * np.pi * t / period)) + F.viscous
+
+    lg = plateau_log(cyc, seed=seed, reps=4, alternate=True)
+    S = build_samples([lg], 5)
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    chain = Chain(S, Structure("stribeck", cp))
+    off = chain.evaluate("offset", 1)
+    true_map = Parts(sm.stribeck(lg.w, **TRUE), TRUE["sigma2"] * lg.w)
+    whole = chain.pred + (np.asarray(cyc(lg.t, lg.q, lg.w, true_map)) - np.asarray(true_map))[S.k]
+    return S, chain, off, whole
+
+
 @pytest.mark.parametrize("seed", [4])
 def test_a_candidate_that_follows_part_of_a_slow_cycle_is_not_named(seed):
     """The foreign card's seed 300204 (a level cycling in time, 25 %, outside the list) was named dwell (gain
@@ -324,21 +343,9 @@ def test_a_candidate_that_follows_part_of_a_slow_cycle_is_not_named(seed):
     rejected; one that takes the whole cycle is not."""
     from dataclasses import replace
 
-    from frictid.diagnose.chain import Chain, _not_its_time_course
+    from frictid.diagnose.chain import _not_its_time_course
 
-    P = 40.0
-
-    def cyc(t, q, w, F):
-        return F.level * (1 + 0.15 * np.sin(2 * np.pi * t / P)) + F.viscous
-
-    lg = plateau_log(cyc, seed=seed, reps=4, alternate=True)
-    S = build_samples([lg], 5)
-    cp, _ = sm.canonical_pair("stribeck", TRUE)
-    chain = Chain(S, Structure("stribeck", cp))
-    off = chain.evaluate("offset", 1)          # a trial to dress up: its fields, another correction
-    true_map = Parts(sm.stribeck(lg.w, **TRUE), TRUE["sigma2"] * lg.w)
-    cycle = (np.asarray(cyc(lg.t, lg.q, lg.w, true_map)) - np.asarray(true_map))[S.k]
-    whole = chain.pred + cycle
+    S, chain, off, whole = _slow_cycle(seed)
     for ext in ("dwell", "thermal6"):
         part = replace(off, ext=ext, pred_after=chain.pred + (whole - chain.pred) / 5)
         rb, ra = S.F - part.pred_before, S.F - part.pred_after
@@ -647,18 +654,9 @@ def test_a_position_torque_or_load_that_follows_part_of_a_slow_cycle_is_not_name
     fifth of the cycle is rejected, one that takes the whole cycle leaves nothing to it."""
     from dataclasses import replace
 
-    from frictid.diagnose.chain import TIME_COURSE_EXTS, Chain, _not_its_time_course
+    from frictid.diagnose.chain import TIME_COURSE_EXTS, _not_its_time_course
 
-    def cyc(t, q, w, F):
-        return F.level * (1 + 0.15 * np.sin(2 * np.pi * t / 40.0)) + F.viscous
-
-    lg = plateau_log(cyc, seed=seed, reps=4, alternate=True)
-    S = build_samples([lg], 5)
-    cp, _ = sm.canonical_pair("stribeck", TRUE)
-    chain = Chain(S, Structure("stribeck", cp))
-    off = chain.evaluate("offset", 1)   # a trial to dress up: its fields, another correction
-    true_map = Parts(sm.stribeck(lg.w, **TRUE), TRUE["sigma2"] * lg.w)
-    whole = chain.pred + (np.asarray(cyc(lg.t, lg.q, lg.w, true_map)) - np.asarray(true_map))[S.k]
+    S, chain, off, whole = _slow_cycle(seed)
 
     def dressed(ext, pred_after):
         tr = replace(off, ext=ext, pred_after=pred_after)

@@ -813,20 +813,32 @@ def _delta_profile(bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: 
         fx = dict(bfixed, delta=d)
         alt = fit_branch("stribeck", bw, bF, bse, fx, scales=scales, start=dict(bf.values, delta=d),
                          var_inflation=var_inflation)
-        if not math.isfinite(alt.cost) or 2.0 * (alt.cost - bf.cost) / s2 > DELTA_CHI2:
-            continue
-        for n in bf.free:
-            if alt.values.get(n) is not None and bf.values.get(n) is not None:
-                spread[n] = max(spread[n], abs(alt.values[n] - bf.values[n]))
+        _widen(spread, bf, alt, s2)
+    _add_spread(bf, spread, lambda sp: (
+        f"depends on the Stribeck exponent, which the data do not pin down (held at 2): it moves by {sp:.3g} "
+        f"over exponents {DELTA_GRID[0]}-{DELTA_GRID[-1]} that fit as well"))
+
+
+def _widen(spread: dict[str, float], bf: BranchFit, alt: BranchFit, s2: float) -> None:
+    """Each parameter's largest change (``spread``, in place) among the refits ``alt`` that fit as well as
+    ``bf`` (chi-square within :data:`DELTA_CHI2`)."""
+    if not math.isfinite(alt.cost) or 2.0 * (alt.cost - bf.cost) / s2 > DELTA_CHI2:
+        return
+    for n in spread:
+        if alt.values.get(n) is not None and bf.values.get(n) is not None:
+            spread[n] = max(spread[n], abs(alt.values[n] - bf.values[n]))
+
+
+def _add_spread(bf: BranchFit, spread: dict[str, float], reason) -> None:
+    """The spread of each parameter added to its standard error in quadrature; ``reason(spread)`` where the
+    error then exceeds the value and no reason was given yet."""
     for n, sp in spread.items():
         se = bf.stderr.get(n)
         if sp <= 0 or se is None:
             continue
         bf.stderr[n] = math.hypot(se, sp)
-        v = bf.values[n]
-        if n not in bf.reasons and bf.stderr[n] > abs(v):
-            bf.reasons[n] = (f"depends on the Stribeck exponent, which the data do not pin down (held at 2): it "
-                             f"moves by {sp:.3g} over exponents {DELTA_GRID[0]}-{DELTA_GRID[-1]} that fit as well")
+        if n not in bf.reasons and bf.stderr[n] > abs(bf.values[n]):
+            bf.reasons[n] = reason(sp)
 
 
 def _free_delta_profile(bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: BranchFit) -> None:
@@ -924,20 +936,9 @@ def _shape_profile(bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: 
             fx = dict(bfixed, vs=float(vs), delta=d)
             alt = fit_branch("stribeck", bw, bF, bse, fx, scales=scales, start=dict(bf.values, vs=float(vs), delta=d),
                              var_inflation=var_inflation)
-            if not math.isfinite(alt.cost) or 2.0 * (alt.cost - bf.cost) / s2 > DELTA_CHI2:
-                continue
-            for n in keep:
-                if alt.values.get(n) is not None and bf.values.get(n) is not None:
-                    spread[n] = max(spread[n], abs(alt.values[n] - bf.values[n]))
-    for n, sp in spread.items():
-        se = bf.stderr.get(n)
-        if sp <= 0 or se is None:
-            continue
-        bf.stderr[n] = math.hypot(se, sp)
-        val = bf.values[n]
-        if n not in bf.reasons and bf.stderr[n] > abs(val):
-            bf.reasons[n] = (f"depends on the shape of a drop the fit could not place: it moves by {sp:.3g} over "
-                             "drop speeds and exponents that fit as well")
+            _widen(spread, bf, alt, s2)
+    _add_spread(bf, spread, lambda sp: (f"depends on the shape of a drop the fit could not place: it moves by "
+                                        f"{sp:.3g} over drop speeds and exponents that fit as well"))
 
 
 def _branch_params(smap, suf: str, bf: BranchFit, shapeless: dict[str, str], axis: str, scales

@@ -61,6 +61,16 @@ def _level(v, cc, o):
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+def _clip(x, g):
+    """``x`` limited to the level ``[-g, g]`` (the stick zone's friction balances the applied torque up to it)."""
+    if x > g:
+        return g
+    if x < -g:
+        return -g
+    return x
+
+
+@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
 def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
           code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, hold, F, z, T, flat):
     """The replay loop. The map at joint temperature T is ``c0 s(T) + dc (T - T0)``
@@ -120,11 +130,7 @@ def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
             if v <= w_stick:
                 # the stick zone reads the applied torque, up to the level; where the joint stands (hold)
                 # the bristles carry that load, so motion resumes from it, elsewhere they follow the motion
-                Fk = u_stick[k]
-                if Fk > g:
-                    Fk = g
-                elif Fk < -g:
-                    Fk = -g
+                Fk = _clip(u_stick[k], g)
                 if hold[k * sh]:
                     zk = Fk * (is0p if Fk >= 0.0 else is0n)
             else:
@@ -132,11 +138,7 @@ def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
                 Fk = s0 * zk + s1 * zd + fv
         elif v <= w_stick:
             # Karnopp: sticking, the friction balances the applied torque up to the level
-            Fk = u_stick[k]
-            if Fk > g:
-                Fk = g
-            elif Fk < -g:
-                Fk = -g
+            Fk = _clip(u_stick[k], g)
         elif wk > 0.0:
             Fk = g + fv
         elif wk < 0.0:
