@@ -128,6 +128,14 @@ def thermal_input(model: FrictionModel, log: JointLog, n: int) -> dict | None:
     return model.thermal_input(n, Tenv=log.channels.get("temp_env"))
 
 
+def stands(w: np.ndarray, sc) -> np.ndarray:
+    """Where the joint stands along the velocity ``w`` of a log of scales ``sc``
+    (:func:`~frictid.models.replay_kernel.standing` within :data:`STICK_NOISE` velocity noise levels of rest,
+    over half the acceleration filter's window either side): where LuGre's bristles carry the load the
+    applied torque puts on them, in the replay and in the fit that identifies them from the reversals."""
+    return standing(w, STICK_NOISE * sc.sigma_w, sc.window_a // 2)
+
+
 def replay(log: JointLog, model: FrictionModel, w=None, a=None, t_offset: float | None = None,
            scales=None, G=None) -> ReplayResult:
     """Predicted friction and torque of ``model`` along ``log`` (one value per sample).
@@ -179,7 +187,7 @@ def replay(log: JointLog, model: FrictionModel, w=None, a=None, t_offset: float 
     u_net -= G
     u_net -= off
     w_stick = STICK_NOISE * sc.sigma_w
-    hold = standing(wf, w_stick, sc.window_a // 2) if sig0 is not None else None
+    hold = stands(wf, sc) if sig0 is not None else None
     # the friction is written over the net torque, read sample by sample before it
     F, z, T = replay_friction(log.t, wf, model.c_pos, model.c_neg, gmul=gmul, fmul=fmul, thermal=th,
                               sigma0=sig0, sigma1=model.sigma1 if sig0 is not None else 0.0,

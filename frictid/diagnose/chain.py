@@ -244,15 +244,26 @@ class Chain:
     # -- one candidate -------------------------------------------------------------------------------
     def evaluate(self, ext: str, m: int) -> Trial | None:
         S = self.S
-        after = np.empty(S.n)
-        terms, coefs = [], []
+        terms = []
         for f, (tr, te, res, lev, c0) in enumerate(self.train_info):
             term = self._propose(ext, tr, res, lev, c0, f)
             if term is None:
                 self.ctx.release(self.st)
                 return None
             terms.append(term)
-        # the folds' own settings (a period, a shift) summed in one pass, then each fold's fit from its sums
+        after, coefs = self._fold_fits(terms)
+        rms_b, rms_a, d, t, p, expl = self._judged(after)
+        gain = 1.0 - rms_a / rms_b if rms_b > 0 else 0.0
+        # self.pred is replaced, never changed in place, when the model is extended: shared, not copied
+        return Trial(ext, EXTENSIONS[ext][0], self.pred, after, terms, coefs, rms_b, rms_a, gain, t, p,
+                     S.n_groups, expl, n_coef(ext, self.st), d, index=len(self.st.terms))
+
+    def _fold_fits(self, terms: list) -> tuple[np.ndarray, list]:
+        """Each fold's fit of the current structure with its term ``terms[f]`` on its training set, predicting
+        its held-out samples; the folds' own settings (a period, a shift) are summed in one pass, then each
+        fold is fitted from its sums. Returns the held-out prediction and the folds' coefficients."""
+        after = np.empty(self.S.n)
+        coefs = []
         self.ctx.prefetch([self.st.plus(term) for term in terms])
         for (tr, te, *_), term in zip(self.train_info, terms):
             ev = Evaluator(self.st.plus(term), self.ctx)
@@ -260,18 +271,20 @@ class Chain:
             after[te] = ev.predict(c, _rows(te))
             coefs.append(c)
         self.ctx.release(self.st)   # the candidate's columns (its sums of products stay cached)
+        return after, coefs
+
+    def _judged(self, after: np.ndarray) -> tuple:
+        """A held-out prediction ``after`` against the current model's: (RMS before, RMS after on the scored
+        samples, per held-out group ``d`` = sum of r_before^2 - r_after^2, t, p, what it explains). Where the
+        map is extrapolated ``after`` takes the current model's prediction (in place): it is not judged there."""
         rb, rms_b, out, n_in, rb2 = self._before_numbers()
-        after[out] = self.pred[out]   # the map extrapolated: the candidate is not judged there, the current model stands
-        ra = S.F - after
-        d = S.group_sums(rb2 - ra * ra)   # group_d, the step's rb * rb formed once
+        after[out] = self.pred[out]
+        ra = self.S.F - after
+        d = self.S.group_sums(rb2 - ra * ra)   # group_d, the step's rb * rb formed once
         t, p = paired_t(d)
         ra_in = ra[self.inside]
         rms_a = float(np.sqrt(np.dot(ra_in, ra_in) / n_in))
-        gain = 1.0 - rms_a / rms_b if rms_b > 0 else 0.0
-        expl = math.sqrt(max(rms_b ** 2 - rms_a ** 2, 0.0))
-        # self.pred is replaced, never changed in place, when the model is extended: shared, not copied
-        return Trial(ext, EXTENSIONS[ext][0], self.pred, after, terms, coefs, rms_b, rms_a, gain, t, p,
-                     S.n_groups, expl, n_coef(ext, self.st), d, index=len(self.st.terms))
+        return rms_b, rms_a, d, t, p, math.sqrt(max(rms_b ** 2 - rms_a ** 2, 0.0))
 
     def _propose(self, ext: str, tr: np.ndarray, res: np.ndarray, lev: np.ndarray, c0: Coef, f: int | None = None):
         """:func:`propose` on the training set ``tr`` (fold f's; None: all samples); on a long log, a
@@ -382,20 +395,8 @@ class Chain:
         if tr.ext not in ("thermal4", "thermal6") or any(t.settings.get("source") != "heat_balance"
                                                          for t in tr.fold_terms):
             return None
-        S = self.S
         terms = [replace(t, nl=tuple((k, "work" if k == "source" else v) for k, v in t.nl)) for t in tr.fold_terms]
-        self.ctx.prefetch([self.st.plus(term) for term in terms])
-        after = np.empty(S.n)
-        for (trn, te, *_), term in zip(self.train_info, terms):
-            ev = Evaluator(self.st.plus(term), self.ctx)
-            after[te] = ev.predict(ev.fit(trn), te)
-        self.ctx.release(self.st)
-        rb, rms_b, out, n_in, _ = self._before_numbers()
-        after[out] = self.pred[out]
-        ra = S.F - after
-        t, p = paired_t(group_d(S, rb, ra))
-        ra_in = ra[self.inside]
-        expl = math.sqrt(max(rms_b ** 2 - float(np.dot(ra_in, ra_in)) / n_in, 0.0))
+        _, _, _, t, p, expl = self._judged(self._fold_fits(terms)[0])
         if p < ALPHA / max(m, 1) and expl >= EXPLAINED_MIN * self.F_rms:
             return None
         return (f"{tr.ext} follows the friction's own change, not the heat of the work: driven by the power of the "

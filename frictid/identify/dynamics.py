@@ -308,16 +308,22 @@ def fit_lugre(jd: JointData, selected: str | None) -> None:
         notes.append("bristle limit from the ramps' curvature: " + ", ".join(
             f"{g:.4g}" for g in sorted(set(s0.details["g_ramps"]))) + " (the map's level at zero speed: "
             + ", ".join(f"{g:.4g}" for g in sorted(set(g_map))) + ")")
-    mf = ModelFit("lugre", base.map if base_name != "polynomial_ls" else "polynomial", params, met,
-                  method="static map on plateaus; sigma0 from ramps (torque against displacement); sigma1 "
-                         + ("from steps (simulation error)" if "steps" in s1.source else
-                            "by the critical-damping rule" if "rule" in s1.source else "not identified"),
-                  notes=notes, extra={"static_model": base_name})
+    mf = _lugre_fit(base, base_name, params, met, notes,
+                    "static map on plateaus; sigma0 from ramps (torque against displacement); sigma1 "
+                    + ("from steps (simulation error)" if "steps" in s1.source else
+                       "by the critical-damping rule" if "rule" in s1.source else "not identified"))
     jf.models["lugre"] = mf
     for n in [p + sfx for sfx in est for p in ("sigma0", "sigma1")]:
         if not params[n].identifiable:
             jf.not_identified.append({"what": f"lugre.{n}", "reason": params[n].reason})
     _lugre_choice(jd, mf, base_name)
+
+
+def _lugre_fit(base: ModelFit, base_name: str, params: dict, metrics: dict, notes: list[str],
+               method: str) -> ModelFit:
+    """The ``lugre`` model on the chosen static map ``base_name`` (``polynomial_ls`` is a polynomial map)."""
+    return ModelFit("lugre", base.map if base_name != "polynomial_ls" else "polynomial", params, metrics,
+                    method=method, notes=notes, extra={"static_model": base_name})
 
 
 def _sigma0_estimates(pd: Presliding, g_map: list[float]):
@@ -533,12 +539,10 @@ def _lugre_from_reversals(jd: JointData, base: ModelFit, base_name: str, c_pos, 
     params.update(dyn)
     metrics = dict(base.metrics)
     metrics.update({f"{k}_reversals": v for k, v in met.items()})
-    mf = ModelFit("lugre", base.map if base_name != "polynomial_ls" else "polynomial", params, metrics,
-                  method="static map as chosen; sigma0 from the stops and reversals of the moving samples "
-                         "(bristle length by the held-out error of time blocks, inertia, gravity and offset "
-                         "fitted again with it); sigma1 held at 0",
-                  notes=[f"static part: {base_name}"] + ([note] if note else []),
-                  extra={"static_model": base_name})
+    mf = _lugre_fit(base, base_name, params, metrics, [f"static part: {base_name}"] + ([note] if note else []),
+                    "static map as chosen; sigma0 from the stops and reversals of the moving samples (bristle "
+                    "length by the held-out error of time blocks, inertia, gravity and offset fitted again with "
+                    "it); sigma1 held at 0")
     jf.models["lugre"] = mf
     if not s0.identifiable:
         jf.not_identified.append({"what": "lugre.sigma0", "reason": s0.reason})

@@ -30,8 +30,8 @@ import math
 import numpy as np
 
 from frictid.models.params import unit_of
-from frictid.models.replay_kernel import replay_friction, standing
-from frictid.replay import STICK_NOISE
+from frictid.models.replay_kernel import replay_friction
+from frictid.replay import STICK_NOISE, stands
 from frictid.result import ModelFit, ParamEstimate
 
 from . import presliding as pre
@@ -83,7 +83,7 @@ def _data(jd: JointData):
             if ends.size > 1:  # the travel between reversals
                 strokes.extend(np.abs(np.diff(q[ends])).tolist())
         steps.append(sc.q_step or pre.encoder_resolution(q) or sc.sigma_q)
-        hold = standing(np.nan_to_num(p.w), w_stick, sc.window_a // 2)
+        hold = stands(np.nan_to_num(p.w), sc)
         out.append((np.asarray(p.log.t, float), np.asarray(p.w, float), np.asarray(p.F, float), X, use, w_stick,
                     hold))
     stroke = float(np.median(strokes)) if strokes else 0.0
