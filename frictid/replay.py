@@ -11,7 +11,8 @@ rigid-body terms (inertia, gravity, offset) and the diagnosis extensions (positi
   friction balances the net applied torque, up to the level); LuGre's bristles there follow the measured
   velocity, and where the joint stands (:func:`~frictid.models.replay_kernel.standing`: still on every
   sample within the acceleration filter's window) they carry the load that torque puts on them, so motion
-  resumes from the rest's load, not from the last motion's state;
+  resumes from the rest's load, not from the last motion's state; a log that starts sliding starts them in
+  the steady state of that motion (a cut from a longer recording does not start with unloaded bristles);
 - ``tau_model = J a + G(q) + offset + F_model`` and the residual ``tau - tau_model``;
 - optionally (:func:`closed_loop`) the closed loop re-simulated with the identified model, the log's
   references and a known controller, giving the simulated motion ``q_model``.
@@ -190,7 +191,7 @@ def replay(log: JointLog, model: FrictionModel, w=None, a=None, t_offset: float 
     hold = stands(wf, sc) if sig0 is not None else None
     # the friction is written over the net torque, read sample by sample before it
     F, z, T = replay_friction(log.t, wf, model.c_pos, model.c_neg, gmul=gmul, fmul=fmul, thermal=th,
-                              sigma0=sig0, sigma1=model.sigma1 if sig0 is not None else 0.0,
+                              sigma0=sig0, sigma1=model.sigma1 if sig0 is not None else 0.0, z0="steady",
                               u_stick=u_net, w_stick=w_stick, hold=hold, out=u_net)
     del u_net
     if off:

@@ -127,6 +127,23 @@ def test_lugre_replay_at_rest_reads_the_torque_and_resumes_from_it():
     assert F[k] < F1[k] and F[k + 1] < -1.0
 
 
+def test_lugre_replay_of_a_log_cut_while_sliding_starts_in_the_steady_state():
+    """z0="steady": a log that starts sliding starts with the bristles that motion has set (the map's level
+    at once, both signs, compiled loop and twin alike); one that starts at rest starts unloaded; the default
+    z0 = 0 starts unloaded anyway (the first sample's friction is its viscous part)."""
+    t = np.arange(50) * 0.01
+    for sign, c in ((1.0, C_POS), (-1.0, C_NEG)):
+        w = np.full(50, 0.3 * sign)
+        for ref in (False, True):
+            F, z, _ = replay_friction(t, w, C_POS, C_NEG, sigma0=(4e3, 2e3), z0="steady", reference=ref)
+            assert np.allclose(F, canonical_friction(w, C_POS, C_NEG), rtol=1e-9)
+        F0, _, _ = replay_friction(t, w, C_POS, C_NEG, sigma0=(4e3, 2e3))
+        assert abs(F0[0]) < 0.1 * float(canonical_level(0.3, c))
+    w = np.concatenate([np.zeros(10), np.full(40, 0.3)])
+    F, z, _ = replay_friction(t, w, C_POS, C_NEG, sigma0=4e3, z0="steady", u_stick=np.zeros(50), w_stick=0.01)
+    assert np.all(z[:10] == 0.0) and np.all(F[:10] == 0.0)
+
+
 def test_lugre_replay_reaches_the_map_and_the_heat_balance_its_steady_state():
     n = 20000
     t = np.arange(n) * 1e-3

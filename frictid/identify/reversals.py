@@ -230,7 +230,8 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
 
     def bristles(length):
         return lambda t, w, F, ws, hold: replay_friction(t, w, c_pos, c_neg, u_stick=F, w_stick=ws, hold=hold,
-                                                         sigma0=(g0[0] / length, g0[1] / length))[0]
+                                                         sigma0=(g0[0] / length, g0[1] / length),
+                                                         z0="steady")[0]
 
     eq0 = _block_equations(data, static, n_folds)
     sse0, _, _ = _heldout(eq0, n_folds)

@@ -121,6 +121,12 @@ def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
         fv = fmul[k * sf] * wk * (s * (cc[o + 6] + cc[o + 7] * v + cc[o + 8] * wk * wk)
                              + dT * (dd[o + 6] + dd[o + 7] * v + dd[o + 8] * wk * wk))
         if dynamic:
+            if zk != zk:
+                # z0 NaN: the log starts in the steady state of its first sample's motion (sliding: the
+                # bristles at g sgn(w) / sigma0; still: unloaded until the stick zone reads the torque)
+                zk = 0.0
+                if v > w_stick and v > 0.0:
+                    zk = g / s0p if wk > 0.0 else -g / s0n
             if zk >= 0.0:
                 s0 = s0p
                 s1 = s1p
@@ -234,6 +240,8 @@ def replay_friction_ref(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, z0, 
         c = cp if wk >= 0 else cn
         g = max(gmul[k] * float(canonical_level(wk, c)), 1e-300)
         fv = fmul[k] * float(canonical_viscous(wk, c))
+        if dynamic and zk != zk:  # z0 NaN: the steady state of the first sample's motion
+            zk = (g / s0p if wk > 0 else -g / s0n) if abs(wk) > w_stick and wk != 0 else 0.0
         if dynamic and abs(wk) <= w_stick:
             F[k] = float(np.clip(u_stick[k], -g, g))
             if hold[k]:
@@ -280,7 +288,10 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
     ``w < 0``; c_neg defaults to c_pos.
     gmul, fmul : per-sample multipliers [1] of the level ``g`` and of the viscous part ``f`` (default 1).
     sigma0 : LuGre stiffness [F/q] (number or (z >= 0, z < 0) pair); None gives the static map.
-    sigma1 : LuGre damping [F s/q] (number or pair). z0 : initial bristle deflection [q].
+    sigma1 : LuGre damping [F s/q] (number or pair). z0 : initial bristle deflection [q], or ``"steady"``: the
+    steady state of the first sample's motion (``g(w) sgn(w) / sigma0`` where the log starts sliding, 0 where
+    it starts within the stick zone): a log cut from a longer recording starts with the bristles as the
+    motion has already set them, not unloaded.
     thermal : None, or a dict with ``code``, ``theta`` (= [alpha, beta, lam, T0]) and ``dc_pos`` /
     ``dc_neg`` as packed by :func:`frictid.models.thermal.thermal_code`, and either ``T`` (the joint
     temperature per sample [degC], e.g. measured) or ``C`` [J/K], ``K`` [W/K], ``Tenv`` [degC, scalar or
@@ -309,6 +320,7 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
     gmul, fmul = _multiplier(gmul, n), _multiplier(fmul, n)
     dynamic = sigma0 is not None
     s0p, s0n = _pair(sigma0) if dynamic else (1.0, 1.0)
+    z0 = math.nan if isinstance(z0, str) and z0 == "steady" else float(z0)
     s1p, s1n = _pair(sigma1)
     # inputs the loop does not read stay one value long (the joint temperature unless given, the ambient
     # without a heat balance, the applied torque without a stick zone): no array of the log's length
@@ -349,7 +361,7 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
         gmul, fmul = np.broadcast_to(gmul, (n,)), np.broadcast_to(fmul, (n,))
         T_in, Tenv, u_stick, hold = (np.broadcast_to(x, (n,)) if x.shape[0] == 1 else x
                                      for x in (T_in, Tenv, u_stick, hold))
-        F, z, T = replay_friction_ref(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, float(z0), bool(dynamic),
+        F, z, T = replay_friction_ref(t, w, gmul, fmul, c_pos, c_neg, s0p, s0n, s1p, s1n, z0, bool(dynamic),
                                       code, theta, dc_pos, dc_neg, C, K, Tenv, T_init, T_in, T_given, u_stick,
                                       w_stick, hold)
         if out is not None:
@@ -362,7 +374,7 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
     # a thermal law): the replays of a report's diagnosis then allocate 29-58 MB fewer per joint-hour
     z = np.empty(n if dynamic else 1)
     T = np.empty(n if code != 0 else 1)
-    F, z, T = (_kernel_flat if flat else _kernel)(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, float(z0), bool(dynamic),
+    F, z, T = (_kernel_flat if flat else _kernel)(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, bool(dynamic),
                    code, theta, np.concatenate([dc_pos, dc_neg]), C, K, Tenv,
                    T_init, T_in, T_given, u_stick, w_stick, hold, np.empty(n) if out is None else out, z, T)
     if n != 1:
