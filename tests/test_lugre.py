@@ -294,7 +294,22 @@ def test_sigma0_from_the_reversals_of_a_multisine():
     met = jf.models["lugre"].metrics
     assert met["rms_heldout_reversals"] < 0.5 * met["rms_heldout_static_reversals"]
     assert jf.selected.endswith("lugre") and jf.selection["lugre"].startswith("chosen")
+    # the polynomial map, fitted away from the stops, has no Stribeck drop; the low-speed term chosen under
+    # the bristles is the plant's (Fs - Fc = 75 N m at vs = 0.08 rad/s), and the chosen model carries it
+    p, st = jf.models["lugre"].params, lg.truth["params"]["static"]
+    assert abs(p["str_amp"].value - (st["Fs"] - st["Fc"])) < 0.2 * (st["Fs"] - st["Fc"])
+    assert abs(p["str_vs"].value - st["vs"]) < 0.2 * st["vs"] and p["str_delta"].fixed
+    assert jf.friction_model().c_pos[1] == p["str_amp"].value
     lg, jf = _multisine_fit("direct_drive", 0)
     s0 = jf.models["lugre"].params["sigma0"]
     assert not s0.identifiable and "encoder resolves" in s0.reason
-    assert not jf.selected.endswith("lugre")
+    assert not jf.selected.endswith("lugre") and "str_amp" not in jf.models["lugre"].params
+
+
+def test_no_low_speed_term_under_the_bristles_without_a_drop():
+    """The geared plant's friction rises from rest (a polynomial, no Stribeck drop): its bristles are found
+    from the reversals, and no low-speed term under them."""
+    lg, jf = _multisine_fit("geared_industrial", 0)
+    lug = jf.models["lugre"]
+    assert lug.params["sigma0"].identifiable and "str_amp" not in lug.params
+    assert any("no low-speed term" in n for n in lug.notes)

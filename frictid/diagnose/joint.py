@@ -292,8 +292,10 @@ def _presliding(jf: JointFit, prev: str) -> dict | None:
         return None
     base = jf.models[prev]
     params = {k: ParamEstimate(**vars(p)) for k, p in base.params.items()}
-    # the bristles, and (from the reversals) the rigid terms fitted with them where the chain has none
-    for k in ("sigma0", "sigma1", "sigma0_neg", "sigma1_neg") + (() if ramps else ("J", "Px", "Py", "tau_offset")):
+    # the bristles, and (from the reversals) the rigid terms fitted with them where the chain has none and the
+    # low-speed term chosen under them
+    for k in ("sigma0", "sigma1", "sigma0_neg", "sigma1_neg") + (() if ramps else ("J", "Px", "Py", "tau_offset",
+                                                                                   "str_amp", "str_vs", "str_delta")):
         if k in lug.params and (k.startswith("sigma") or k not in params):
             params[k] = ParamEstimate(**vars(lug.params[k]))
     if not ramps and "tau_offset" in lug.params and "tau_offset" not in base.params and jf.offset is not None:

@@ -16,6 +16,13 @@ fits that length on the moving samples *including* the stops (the static maps ke
 - the length is chosen by the held-out error of the fit's time blocks (each fold fitted without its
   blocks), and compared with the static map under the same refit, block by block.
 
+Where the map has no low-speed (Stribeck) part of its own, a low-speed term ``amp exp(-(|w| / vs)^2)``
+under the bristles is chosen alike (:func:`_low_speed`: amplitudes a share of the level at rest, speeds from
+twice the stick threshold to half the median speed; kept when its speed is inside that grid and it beats the
+bristles alone by two paired errors of the held-out blocks): the maps are fitted away from the stops, where
+a Stribeck drop acts, and the bristles carry the friction through them. It is the model's ``str_amp``,
+``str_vs`` (``str_delta`` held at 2), the Stribeck slot of its canonical vectors.
+
 sigma0 is identifiable when the chosen length lies inside the grid (not at the encoder's end, where the
 bristles are the static map's jump, nor at the stroke's end), beats the static map on the held-out blocks
 by more than two standard errors of the paired block differences, and the lengths within one such error
@@ -51,6 +58,12 @@ MIN_REVERSALS = 6
 #: Segment kinds kept out (ramps and steps identify sigma0 themselves).
 EXCLUDE = ("ramp_presliding", "step")
 RIGID = ("J", "Px", "Py", "offset")
+#: The low-speed (Stribeck) term under the bristles, for a map without one: amplitudes [share of the map's
+#: level at rest] and speeds from this many stick thresholds ...
+STR_AMPS = (0.1, 0.2, 0.3, 0.5)
+STR_MIN_STICK = 2.0
+#: ... to this share of the used samples' median speed (PER_DECADE speeds per decade).
+STR_MAX_SPEED = 0.5
 
 
 def _data(jd: JointData):
@@ -88,6 +101,12 @@ def _data(jd: JointData):
                     hold))
     stroke = float(np.median(strokes)) if strokes else 0.0
     return free, out, n_rev, stroke, max(steps, default=0.0)
+
+
+def _speeds(data) -> tuple[float, float]:
+    """The largest stick threshold and the median speed of the used samples."""
+    w = np.concatenate([np.abs(d[1][d[4]]) for d in data]) if data else np.zeros(0)
+    return max((d[5] for d in data), default=0.0), float(np.median(w)) if w.size else 0.0
 
 
 def _block_equations(data, F_of, n_folds: int):
@@ -182,6 +201,61 @@ def _verdict(sse: list, sse0, nn, L) -> tuple[int, float, str]:
     return i, rel, why
 
 
+def _low_speed(data, c_pos, c_neg, sigma0, held_ref, nn, n_folds: int):
+    """A low-speed (Stribeck) term under the bristles, ``amp exp(-(|w| / vs)^2)`` added to the level of a map
+    that has none (the static maps are fitted away from the stops, where it acts): each (amplitude, speed) of
+    the grid replayed with the chosen bristles and the rigid terms refitted, chosen by the held-out error of
+    the time blocks; kept when the speed is inside its grid and it beats the bristles without it by GAIN_Z
+    paired errors. Returns ((amp, vs, rel. error of vs), (its block equations, held-out result)) or (None, why)."""
+    if c_pos[1] or c_neg[1]:
+        return None, "the map has a low-speed part of its own"
+    w_stick, w_med = _speeds(data)
+    lo, hi = STR_MIN_STICK * w_stick, STR_MAX_SPEED * w_med
+    if not (lo > 0 and hi > 3.0 * lo):
+        return None, f"the moving samples' speeds (median {w_med:.3g}) leave no room above the stick zone"
+    vs = np.geomspace(lo, hi, int(math.ceil(PER_DECADE * math.log10(hi / lo))) + 1)
+    g_rest = 0.5 * float(c_pos[0] + c_neg[0])
+    best = None
+    for share in STR_AMPS:
+        amp = share * g_rest
+        eqs = [_block_equations(data, _lugre_of(_with_low_speed(c_pos, amp, v), _with_low_speed(c_neg, amp, v),
+                                                sigma0), n_folds) for v in vs]
+        runs = [(e, _heldout(e, n_folds)) for e in eqs]
+        j = int(np.argmin([r[1][0].sum() for r in runs]))
+        if best is None or runs[j][1][0].sum() < best[2][1][0].sum():
+            best = (amp, j, runs[j])
+    amp, j, run = best
+    gain, se = _paired(held_ref[0], run[1][0], nn)
+    if j in (0, vs.size - 1):
+        return None, f"the best low-speed term's speed is at the end of those tried ({vs[j]:.3g})"
+    if not gain > GAIN_Z * se:
+        return None, f"a low-speed term predicts the held-out blocks no better (mean-square gain {gain:.3g} +- {se:.3g})"
+    return (amp, float(vs[j]), 0.5 * (vs[1] / vs[0] - 1.0)), run
+
+
+def _with_low_speed(c, amp: float, vs: float) -> np.ndarray:
+    """A canonical vector with its Stribeck slot holding the low-speed term (the model's ``str_*``)."""
+    c = np.array(c, dtype=float)
+    c[1], c[2], c[3] = amp, vs, 2.0
+    return c
+
+
+def _lugre_of(c_pos, c_neg, sigma0):
+    """``F_of`` of :func:`_block_equations`: the map with bristles of stiffness ``sigma0`` (pair), replayed
+    along the measured velocity with the stick zone's torque and the standing rule, from the steady start."""
+    return lambda t, w, F, ws, hold: replay_friction(t, w, c_pos, c_neg, u_stick=F, w_stick=ws, hold=hold,
+                                                     sigma0=sigma0, z0="steady")[0]
+
+
+def _low_speed_params(low, axis: str, source: str) -> dict[str, ParamEstimate]:
+    amp, vs, rel = low
+    return {"str_amp": ParamEstimate("str_amp", amp, amp * STR_AMPS[0] / max(STR_AMPS), unit_of("F", axis),
+                                     source=source),
+            "str_vs": ParamEstimate("str_vs", vs, rel * vs, unit_of("W", axis), source=source),
+            "str_delta": ParamEstimate("str_delta", 2.0, None, "1", False, "held at 2 (Gaussian)", fixed=True,
+                                       source=source)}
+
+
 def _jackknife(fits) -> np.ndarray:
     """Block jackknife standard errors over the folds' fits."""
     B, k = np.array(fits), len(fits)
@@ -228,14 +302,9 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
     def static(t, w, F, ws, hold):
         return replay_friction(t, w, c_pos, c_neg, u_stick=F, w_stick=ws)[0]
 
-    def bristles(length):
-        return lambda t, w, F, ws, hold: replay_friction(t, w, c_pos, c_neg, u_stick=F, w_stick=ws, hold=hold,
-                                                         sigma0=(g0[0] / length, g0[1] / length),
-                                                         z0="steady")[0]
-
     eq0 = _block_equations(data, static, n_folds)
     sse0, _, _ = _heldout(eq0, n_folds)
-    eqs = [_block_equations(data, bristles(x), n_folds) for x in L]
+    eqs = [_block_equations(data, _lugre_of(c_pos, c_neg, (g0[0] / x, g0[1] / x)), n_folds) for x in L]
     held = [_heldout(e, n_folds) for e in eqs]
     i, rel, why = _verdict([h[0] for h in held], sse0, eq0[3], L)
     source = (f"reversals: bristle length {L[i]:.3g} chosen by the held-out error of "
@@ -247,6 +316,11 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
         params["sigma0_neg"] = ParamEstimate("sigma0_neg", g0[1] / L[i], rel * g0[1] / L[i],
                                              unit_of("K", axis), not why, why, source=source,
                                              bounds=(g0[1] / L[-1], g0[1] / L[0]))
+    low, got = (None, "") if why else _low_speed(data, c_pos, c_neg, (g0[0] / L[i], g0[1] / L[i]), held[i],
+                                                  eq0[3], n_folds)
+    if low is not None:
+        eqs[i], held[i] = got
+        params.update(_low_speed_params(low, axis, f"{source}; the low-speed term under them chosen alike"))
     if not why:
         params.update(_rigid_params(jd, free, held[i][1], _jackknife(held[i][2])))
     N = float(eq0[3].sum())
@@ -255,8 +329,10 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
     met = {"rms": float(math.sqrt(max(yy - 2 * b @ Xy + b @ XX @ b, 0.0) / N)),
            "rms_heldout": float(math.sqrt(held[i][0].sum() / N)),
            "rms_heldout_static": float(math.sqrt(sse0.sum() / N)), "n": int(N),
-           "k": int(len(base.params) + 1 + len(free))}
+           "k": int(len(base.params) + 1 + len(free) + (2 if low else 0))}
     note = (f"sigma0 from {n_rev} stops and reversals: bristle lengths {L[0]:.3g}-{L[-1]:.3g} tried, held-out "
             f"RMS {met['rms_heldout']:.4g} against {met['rms_heldout_static']:.4g} for {base.name} with the "
-            "same refit of the rigid terms")
+            "same refit of the rigid terms" + (f"; a low-speed term under the bristles (amplitude {low[0]:.3g}, "
+                                               f"speed {low[1]:.3g})" if low else
+                                               f"; no low-speed term under them: {got}" if got else ""))
     return params, met, note
