@@ -300,6 +300,7 @@ def test_sigma0_from_the_reversals_of_a_multisine():
     assert abs(p["str_amp"].value - (st["Fs"] - st["Fc"])) < 0.2 * (st["Fs"] - st["Fc"])
     assert abs(p["str_vs"].value - st["vs"]) < 0.2 * st["vs"] and p["str_delta"].fixed
     assert jf.friction_model().c_pos[1] == p["str_amp"].value
+    assert any("low-speed term" in f["evidence"] for f in jf.diagnosis if f["cause"] == "presliding")
     lg, jf = _multisine_fit("direct_drive", 0)
     s0 = jf.models["lugre"].params["sigma0"]
     assert not s0.identifiable and "encoder resolves" in s0.reason

@@ -313,7 +313,9 @@ def _presliding(jf: JointFit, prev: str) -> dict | None:
     data = "presliding ramps" if ramps else "the moving samples including the stops"
     return {"cause": "presliding",
             "evidence": (f"on {data} the static map misses the bristle compliance (held-out RMS "
-                         f"{fmt(rs)} {u}); LuGre with sigma0 = {fmt(lug.params['sigma0'].value)} cuts it to "
+                         f"{fmt(rs)} {u}); LuGre with sigma0 = {fmt(lug.params['sigma0'].value)}"
+                         + (f" and a low-speed term under the bristles ({fmt(lug.params['str_amp'].value)} {u})"
+                            if "str_amp" in lug.params else "") + " cuts it to "
                          f"{fmt(rh)} {u} ({100 * gain:.0f} %)"),
             "statistic": {"test": ("held-out ramps (leave one ramp out)" if ramps else "held-out time blocks")
                           + ", as the fit chose LuGre"},
