@@ -542,7 +542,10 @@ class Chain:
         if not self.stride.active or self.full is not None:
             return None
         sub = self._screen_chain()
-        tr = sub.evaluate(ext, m)
+        try:
+            tr = sub.evaluate(ext, m)
+        except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+            tr = None   # a trial the stride cannot make leaves the candidate to the trial on all samples
         if tr is None:
             return None
         bar = EXPLAINED_MIN * self.F_rms
