@@ -17,7 +17,8 @@ findings (cause, extension, held-out gain, where the temperature came from) and 
 
 ``--stages``: the CPU time of each step of one more fit with the diagnosis (``bench_fit_floor.stage_times``).
 ``--candidates``: the CPU time of each candidate extension's trials in the chain of one more fit, and of
-them its proposals' and its folds' sums.
+them its proposals' and its folds' sums; on a long log a candidate's trial on the stride (its screen,
+``frictid.diagnose.screen``) is listed apart as ``ext (stride)``, and the candidates the screen skipped.
 ``--repeat N``: the pair of fits timed N times more in the same process (the steady cost, after the first
 fit with the diagnosis has grown the heap to its peak).
 ``--passes``: the parts of one pass of the diagnosis' sums (current model's columns, new columns, products)
@@ -78,12 +79,14 @@ def candidate_times(run) -> tuple[float, dict]:
 
     def timed(self, ext, m):
         t0 = time.process_time()
-        cur[0] = ext
+        # a long log's screen (the same trial on the stride, frictid.diagnose.screen) is listed apart
+        key = ext + (" (stride)" if getattr(self, "full", None) is not None else "")
+        cur[0] = key
         try:
             return fn(self, ext, m)
         finally:
-            add(ext, 0, time.process_time() - t0)
-            spent[ext][1] += 1
+            add(key, 0, time.process_time() - t0)
+            spent[key][1] += 1
             cur[0] = None
 
     def proposing(self, ext, *a, **k):
@@ -91,7 +94,7 @@ def candidate_times(run) -> tuple[float, dict]:
         try:
             return prop(self, ext, *a, **k)
         finally:
-            add(ext, 2, time.process_time() - t0)
+            add(cur[0] if cur[0] is not None else ext, 2, time.process_time() - t0)
             cur[1] = False
 
     def summing(self, structures):
@@ -213,6 +216,11 @@ def main(argv=None) -> int:
         src = (jf.models[f["model"]].extra or {}).get("temperature", "")
         print(f"  finding: {f['cause']} ({f['extension']}{', ' + src if src else ''}), held-out gain "
               f"{f['gain']:.2f}")
+    steps = [[(t["extension"], "screened" in t) for t in st.get("tested", [])] for st in rec.get("steps", [])]
+    print(f"  steps: {len(steps)}; candidates' trials {sum(len(s) for s in steps)}, of them screened out on the "
+          f"stride {sum(x for s in steps for _, x in s)} (" + "; ".join(
+              f"step {i + 1}: " + (", ".join(e for e, x in s if not x) or "none") + " on all samples"
+              for i, s in enumerate(steps)) + ")")
     for w in jf.warnings:
         print(f"  warning: {w}")
     if args.repeat:

@@ -39,6 +39,7 @@ from .binned import fold_parts, heldout_binned
 from .causes import EXTENSIONS, X_NOISE, candidates, n_coef, propose, torque_noise
 from .model import VISCOUS_SLOTS, Coef, Context, Evaluator, Structure
 from .samples import Samples
+from .screen import explained_bound, screen_record
 from .search import StrideSearch
 from .signals import REST_MIN, delay_heldout, rest_scales, rests
 
@@ -185,11 +186,16 @@ def _rows(te: np.ndarray):
 class Chain:
     """Runs the diagnosis on one joint's samples from a base structure."""
 
-    def __init__(self, S: Samples, base: Structure, J: float | None = None):
+    def __init__(self, S: Samples, base: Structure, J: float | None = None, ctx: Context | None = None,
+                 full: Chain | None = None):
         self.S = S
         #: the fit's inertia (None: unknown), which an inertia repair corrects (:func:`unphysical`)
         self.J = J
-        self.ctx = Context(S)
+        self.ctx = Context(S) if ctx is None else ctx
+        #: the chain of all samples when this one is its screen, on a stride of them (:mod:`.screen`)
+        self.full = full
+        #: a long log's screen (:meth:`_screen_chain`), made when first asked for
+        self._sub: Chain | None = None
         self.st = base
         self.idx_all = np.arange(S.n)
         #: held-out samples at a speed the training folds cover (:func:`supported`): the only ones scored
@@ -255,8 +261,12 @@ class Chain:
         rms_b, rms_a, d, t, p, expl = self._judged(after)
         gain = 1.0 - rms_a / rms_b if rms_b > 0 else 0.0
         # self.pred is replaced, never changed in place, when the model is extended: shared, not copied
-        return Trial(ext, EXTENSIONS[ext][0], self.pred, after, terms, coefs, rms_b, rms_a, gain, t, p,
-                     S.n_groups, expl, n_coef(ext, self.st), d, index=len(self.st.terms))
+        tr = Trial(ext, EXTENSIONS[ext][0], self.pred, after, terms, coefs, rms_b, rms_a, gain, t, p,
+                   S.n_groups, expl, n_coef(ext, self.st), d, index=len(self.st.terms))
+        memo = getattr(self, "_moving_memo", None)   # a screen's judgement on every moving sample, the same shifts
+        if ext == "delay" and memo is not None and memo[0] == tuple(_fold_shifts(tr)):
+            tr.moving = memo[1]
+        return tr
 
     def _fold_fits(self, terms: list) -> tuple[np.ndarray, list]:
         """Each fold's fit of the current structure with its term ``terms[f]`` on its training set, predicting
@@ -289,6 +299,11 @@ class Chain:
     def _propose(self, ext: str, tr: np.ndarray, res: np.ndarray, lev: np.ndarray, c0: Coef, f: int | None = None):
         """:func:`propose` on the training set ``tr`` (fold f's; None: all samples); on a long log, a
         candidate's grid of settings ranked on a stride of it (:mod:`.search`)."""
+        if self.full is not None and ext == "delay":
+            # a screen's delay: the shifts of the whole logs' moving samples, searched once for both chains
+            # (a delay's proposal reads no residual)
+            return propose(ext, self.full.ctx, self.full.st,
+                           self.full.idx_all if f is None else self.full.train_info[f][0], None, None, None)
         if not self.stride.wants(ext):
             return propose(ext, self.ctx, self.st, tr, res, lev, c0)
         self.stride.sync(self.ctx)
@@ -483,8 +498,16 @@ class Chain:
             if not exts:
                 break
             m = len(exts)
-            trials = [t for t in (self.evaluate(e, m) for e in exts) if t is not None]
-            step = {"tested": [t.record() for t in trials], "m": m}
+            trials, records = [], []
+            for e in exts:
+                rec = self._screened(e, m)   # a long log's candidate that cannot pass: not tried on all samples
+                tr = None if rec is not None else self.evaluate(e, m)
+                if tr is not None:
+                    trials.append(tr)
+                    rec = tr.record()
+                if rec is not None:
+                    records.append(rec)
+            step = {"tested": records, "m": m}
             best, term, st_new = self._choose_sound(trials, m, step)
             if best is None:
                 step["chosen"] = None
@@ -496,6 +519,45 @@ class Chain:
             self._before(st_new)
             step["coef"] = self.coef
         return self.steps
+
+    def _screen_chain(self) -> Chain:
+        """The screen of a long log: a chain of the same structure on the stride's samples (:mod:`.search`,
+        every ``k``-th sample of every group), refitted whenever this chain's model changes."""
+        if self._sub is None or self._sub.st is not self.st:
+            self.stride.sync(self.ctx)   # the current model's columns that cost a pass over the logs
+        if self._sub is None:
+            self._sub = Chain(self.stride.sub, self.st, self.J, ctx=self.stride.ctx, full=self)
+        elif self._sub.st is not self.st:
+            self._sub.st = self.st
+            self._sub._before(self.st)
+        return self._sub
+
+    def _screened(self, ext: str, m: int) -> dict | None:
+        """A long log's candidate judged on the stride first (:func:`.screen.explained_bound`): its record
+        when even the upper bound of what it would explain on all samples is under the bar a term must pass
+        (:data:`EXPLAINED_MIN` of the friction RMS) and, for a delay, it does not pay for itself on every
+        moving sample either (:meth:`worth_it`); such a candidate cannot be chosen and its trial on all
+        samples is skipped. None: the candidate is tried on all samples (every log of at most
+        :data:`.search.STRIDE_MIN` sliding samples)."""
+        if not self.stride.active or self.full is not None:
+            return None
+        sub = self._screen_chain()
+        try:
+            tr = sub.evaluate(ext, m)
+        except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+            tr = None   # a trial the stride cannot make leaves the candidate to the trial on all samples
+        if tr is None:
+            return None
+        bar = EXPLAINED_MIN * self.F_rms
+        bound = explained_bound(tr, sub._before_numbers()[3], ALPHA / max(m, 1), self.S.n_folds)
+        if bound >= bar:
+            return None
+        if ext == "delay" and self._moving_map_carries_model() and _unresolved_delay(self.S, tr) is None:
+            mv = delay_moving(self.S, tr)   # every moving sample: the whole logs' shifts, exact
+            self._moving_memo = (tuple(_fold_shifts(tr)), mv)
+            if mv["p"] < ALPHA / max(m, 1) and mv["explained"] >= bar:
+                return None
+        return screen_record(tr, self.stride, bound, bar)
 
     def _choose_sound(self, trials: list[Trial], m: int, step: dict):
         """The chosen candidate, its term on all samples and the extended structure, skipping candidates

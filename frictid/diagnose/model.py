@@ -183,6 +183,10 @@ class Context:
         # the largest speed and acceleration of the logs (not only of the sliding samples)
         self.w_top = max(float(np.max(np.abs(S.log_w(i)))) for i in range(len(S.logs)))
         self.a_top = max(float(np.max(np.abs(S.log_a(i)))) for i in range(len(S.logs)))
+        #: (the context of all samples, the indices of S's samples in them) when S is a stride of them
+        #: (:class:`frictid.diagnose.search.StrideSearch`): the thermal states, a recursion over the whole
+        #: logs, are then that context's at these samples (one recursion per time constant, shared)
+        self.full: tuple | None = None
 
     @staticmethod
     def base_key(slot: int, shapes, term_nl=None) -> tuple:
@@ -582,7 +586,9 @@ class Context:
     def thermal(self, tau_c: float, source: str = "heat_balance") -> np.ndarray:
         key = ("thermal", round(float(tau_c), 9), source)
         if key not in self._cache:
-            if source == "work":   # a competitor's state only (chain.Chain._not_from_the_work), never exported
+            if self.full is not None:   # the same recursion, its values at these samples
+                self._cache[key] = self.full[0].thermal(tau_c, source)[self.full[1]]
+            elif source == "work":   # a competitor's state only (chain.Chain._not_from_the_work), never exported
                 self._cache[key] = self.S.thermal_state(tau_c, power=self.work_power())
             else:
                 self._cache[key] = self.S.thermal_state(tau_c, measured=(source == "temp_joint"))

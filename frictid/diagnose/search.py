@@ -70,6 +70,7 @@ class StrideSearch:
         from .signals import rest_scales, rests
 
         S, sub = self.S, self.sub
+        self.ctx.full = (ctx, self.sel)
         if "rests" not in sub._memo and S.q is not None:
             tr, sd = rests(S)
             sub._memo["rests"] = (tr[self.sel], sd[self.sel])

@@ -1,0 +1,58 @@
+"""Two-stage trials on long logs: a candidate judged on a stride of the samples first, and on all of them
+only when it could pass.
+
+A candidate enters the model only when it is significant and explains at least
+:data:`frictid.diagnose.chain.EXPLAINED_MIN` of the friction RMS on held-out samples
+(:meth:`frictid.diagnose.chain.Chain.worth_it`); a trial that cannot reach that bar changes nothing but its
+own record. On a log of more than :data:`frictid.diagnose.search.STRIDE_MIN` sliding samples each candidate
+is first judged by the same trial (its proposals, the folds' fits, the held-out groups) on the stride of
+:class:`frictid.diagnose.search.StrideSearch` (every ``k``-th sample of every group, about
+:data:`frictid.diagnose.search.STRIDE_TARGET` of them); what it explains there, ``E = sum_g d_g / n`` (``d_g``
+the held-out group's sum of ``r_before^2 - r_after^2``, ``n`` the scored samples), estimates what it would
+explain on all samples. The upper bound (:func:`explained_bound`) adds
+
+- the sampling error of ``E``: ``z`` standard errors of the mean over the held-out groups (the groups as the
+  units, as the chain's t test; ``z`` its one-sided quantile at the step's level ``ALPHA / m``). The stride
+  keeps every group, so the stride's mean differs from the whole samples' by the variation within the
+  groups only, which the spread between groups exceeds;
+- the fits' share: the stride's folds fit the extension's coefficients (and its setting) on ``k`` times fewer
+  samples, and a fit's held-out loss grows with the coefficients' variance, at most ``p rms_before^2 /
+  G_train`` per sample (``p`` the term's coefficients and one setting, ``G_train`` the training folds'
+  groups: every group one independent unit, the most the residual's correlation can make of it).
+
+Only a candidate whose bound is under the bar is skipped (and a delay only when it does not pay for itself on
+every moving sample either, computed exactly); its record keeps the stride's numbers and the bound
+(``screened``). A candidate that may pass is tried on all samples as before, so a choice, a name and every
+number of a chosen or worthy candidate are the same as without the screen.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.special import ndtri
+
+
+def explained_bound(tr, n_scored: int, level: float, n_folds: int) -> float:
+    """Upper bound of the held-out RMS a candidate would explain on all samples, from its trial ``tr`` on the
+    stride (:class:`frictid.diagnose.chain.Trial`: per-group ``d``, RMS before, coefficients ``k``) with
+    ``n_scored`` scored samples and ``n_folds`` folds, at the one-sided ``level``."""
+    d = np.asarray(tr.d, float)
+    d = d[np.isfinite(d)]
+    G = int(np.count_nonzero(d)) or 1   # groups with scored samples on the stride
+    n = max(int(n_scored), 1)
+    est = float(d.sum()) / n
+    se = float(np.std(d, ddof=1)) * math.sqrt(d.size) / n if d.size > 1 else math.inf
+    z = float(ndtri(1.0 - level))
+    folds = max(int(n_folds), 2)
+    fits = (tr.k + 1) * tr.rms_before ** 2 * folds / ((folds - 1) * G)
+    return math.sqrt(max(est + z * se + fits, 0.0))
+
+
+def screen_record(tr, stride, bound: float, bar: float) -> dict:
+    """The record of a screened candidate (``selection.diagnosis.steps[].tested``): its trial's numbers on the
+    stride and ``screened`` (the stride, its samples, the bound and the bar)."""
+    rec = tr.record()
+    rec["screened"] = {"stride": int(stride.sel[1] - stride.sel[0]) if stride.sel.size > 1 else 1,
+                       "samples": int(stride.sub.n), "explained_bound": float(bound), "explained_min": float(bar)}
+    return rec

@@ -1,0 +1,68 @@
+"""The two-stage trials of long logs (:mod:`frictid.diagnose.screen`): a candidate whose trial on the stride
+bounds what it would explain on all samples under the bar is not tried on all of them, and the chain's
+answer is that of trying every candidate on all samples (issue 20's speed line; the time itself is measured
+by ``benchmarks/bench_diagnose_whole.py``)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from frictid.diagnose import chain as ch
+from frictid.diagnose import search
+from frictid.diagnose.model import Structure
+from frictid.diagnose.samples import build_samples
+from frictid.models import static as sm
+
+from test_diagnose import TRUE, plateau_log
+
+
+@pytest.fixture(scope="module")
+def S():
+    # a position ripple of 10 % of the level: one cause to find, the rest to screen out
+    eff = lambda t, q, w, F: F * (1 + 0.1 * np.sin(2 * np.pi * q / 0.9))
+    return build_samples([plateau_log(eff, seed=14, dt=5e-3), plateau_log(eff, seed=15, t0=200.0, dt=5e-3)], 5)
+
+
+def _base():
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    return Structure("stribeck", cp, ())
+
+
+def _run(S, monkeypatch, screen: bool):
+    monkeypatch.setattr(search, "STRIDE_MIN", 1 << 12)
+    monkeypatch.setattr(search, "STRIDE_TARGET", 1 << 12)
+    if not screen:
+        monkeypatch.setattr(ch.Chain, "_screened", lambda self, ext, m: None)
+    c = ch.Chain(S, _base())
+    assert c.stride.active
+    return c, c.run()
+
+
+def test_a_screened_candidate_could_not_have_passed_and_the_answer_is_unchanged(S, monkeypatch):
+    c1, steps1 = _run(S, monkeypatch, True)
+    monkeypatch.undo()
+    c0, steps0 = _run(S, monkeypatch, False)
+    assert [s["chosen"].ext if s["chosen"] else None for s in steps1] == \
+           [s["chosen"].ext if s["chosen"] else None for s in steps0]
+    assert steps1[0]["chosen"] is not None and steps1[0]["chosen"].cause == "position"
+    screened = 0
+    for s1, s0 in zip(steps1, steps0):
+        full = {r["extension"]: r for r in s0["tested"]}
+        assert [r["extension"] for r in s1["tested"]] == [r["extension"] for r in s0["tested"]]
+        for r in s1["tested"]:
+            r0 = full[r["extension"]]
+            if "screened" not in r:   # tried on all samples: the numbers of the chain without the screen
+                assert r == r0
+                continue
+            screened += 1
+            sc = r["screened"]
+            assert sc["explained_bound"] < sc["explained_min"] and sc["samples"] < S.n and sc["stride"] >= 2
+            # what it explains on all samples is within the bound: it could not have passed
+            expl = np.sqrt(max(r0["rms_before"] ** 2 - r0["rms_after"] ** 2, 0.0))
+            assert expl <= sc["explained_bound"]
+    assert screened >= 5
+    # the chosen terms and their held-out numbers are those of the chain without the screen
+    for s1, s0 in zip(steps1, steps0):
+        if s1["chosen"] is not None:
+            assert s1["term"] == s0["term"]
+            assert s1["chosen"].rms_after == s0["chosen"].rms_after
