@@ -21,7 +21,7 @@ from frictid.result import JointFit, ParamEstimate
 from . import regression as rg
 from . import samples as smp
 from .prepare import JointData, Prep, regression_exclude
-from .static import NEGLIGIBLE, Plateaus, fit_static, plateau_points, predict
+from .static import NEGLIGIBLE, Plateaus, fit_static, plateau_column_means, plateau_points, predict
 
 #: Maps tried for the stage-2 friction (no held-out split: only the best in-sample curve is needed).
 STAGE2_MAPS = ("stribeck_asym", "stribeck_2exp_asym", "polynomial_asym")
@@ -522,7 +522,7 @@ def rigid_body(jd: JointData, regs: Regressors, n_folds: int) -> tuple[RigidBody
     fr = Friction(plat, keys, S, basis, why_basis, excl)
     final = _stage2(jd, rb, fr) or reg_fit
     if final is not None and fr.basis == "plateaus":
-        fr.shifts = plateau_shifts(jd, final, len(fr.plat))
+        fr.shifts = plateau_shifts(jd, final, fr.keys)
     for p in jd.preps:  # the mechanics are final: cos q and sin q are not needed again (58 MB per joint-hour)
         p._trig = None
     mechanics_not_identified(jd.jf)
@@ -689,16 +689,16 @@ def plateau_even(plat: Plateaus) -> tuple[float, float] | None:
     return e, se_e * math.sqrt(max(chi2, 1.0))
 
 
-def plateau_shifts(jd: JointData, fit_: rg.LinearFit, n_plat: int) -> list[np.ndarray]:
+def plateau_shifts(jd: JointData, fit_: rg.LinearFit, keys: np.ndarray) -> list[np.ndarray]:
     """How the plateau points move for one standard deviation of each independent error direction of the
     rigid-body terms subtracted from the torque (inertia, gravity, payload, offset): the plateau means of
     their regressors times the eigenvectors of their covariance (correlations from the regression, standard
     errors from the reported estimates, which carry the bandwidth check's systematic term). Empty when a
-    plateau's regressors are not finite."""
+    plateau's regressors are not finite or a plateau is not found again (``keys``: per point, (log, segment))."""
     jf = jd.jf
     est = {"J": jf.inertia, "offset": jf.offset, **jf.gravity}
     names = [n for n in fit_.names if n not in POLY_COEFS and n not in fit_.dependent and n in est]
-    if not names or n_plat == 0:
+    if not names or len(keys) == 0:
         return []
     idx = [fit_.names.index(n) for n in names]
     C = np.asarray(fit_.cov, dtype=float)[np.ix_(idx, idx)]
@@ -711,15 +711,16 @@ def plateau_shifts(jd: JointData, fit_: rg.LinearFit, n_plat: int) -> list[np.nd
         corr = np.nan_to_num(C / np.outer(se_c, se_c))
     np.fill_diagonal(corr, 1.0)
     lam, V = np.linalg.eigh(corr * np.outer(se, se))
-    Xbar = []
-    for p in jd.preps:
-        cols = [plateau_points(p.log.t, p.w, np.nan_to_num(rg.column(
-            n, p.log.q, p.w, p.a, p.log.channels.get("payload"), jd.axis, _trig(p, names, {}))) * np.isfinite(p.F),
-            p.segments).F for n in names]
-        if len(cols[0]):
-            Xbar.append(np.column_stack(cols))
-    Xbar = np.concatenate(Xbar) if Xbar else np.zeros((0, len(names)))
-    if Xbar.shape[0] != n_plat or not np.all(np.isfinite(Xbar)):
+    rows = {}
+    for pi_, p in enumerate(jd.preps):
+        cols = [np.nan_to_num(rg.column(n, p.log.q, p.w, p.a, p.log.channels.get("payload"), jd.axis,
+                                        _trig(p, names, {}))) for n in names]
+        seg, xb = plateau_column_means(p.w, p.F, p.segments, cols)
+        rows.update({(pi_, int(k)): x for k, x in zip(seg, xb)})
+    if any((int(a), int(b)) not in rows for a, b in keys):
+        return []
+    Xbar = np.array([rows[(int(a), int(b))] for a, b in keys], dtype=float).reshape(len(keys), len(names))
+    if not np.all(np.isfinite(Xbar)):
         return []
     return [-(Xbar @ (V[:, i] * math.sqrt(l))) for i, l in enumerate(lam) if l > 0]
 
