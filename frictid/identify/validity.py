@@ -446,32 +446,21 @@ def per_sign_supported(asym, sym, points, shifts=None) -> None:
     on a held-out RMS 2.7 times below the symmetric map's with sigma2 16 % off on one branch."""
     from scipy.stats import f as f_dist
 
-    from .static import _scales, _weights, predict
+    from .static import _scales, _weights
 
     if asym is None or sym is None:
         return
     w, F, se = (np.asarray(x, dtype=float) for x in points)
-    ka, ks = asym.metrics.get("k"), sym.metrics.get("k")
-    ra, rs = predict(asym.name, asym.values(), w) - F, predict(sym.name, sym.values(), w) - F
-    if not (ka and ks and ka > ks and np.all(np.isfinite(ra)) and np.all(np.isfinite(rs))):
-        return
     W = _weights(se, _scales(w, F)[0], w.size)
     D = np.column_stack([np.asarray(d, dtype=float) for d in shifts]) * W[:, None] if shifts else np.zeros((w.size, 0))
-    rank = int(np.linalg.matrix_rank(D)) if D.shape[1] else 0
-    dof = w.size - int(ka) - rank
-    if dof < 1:
+    fa, fs_ = _refit_with_shifts(asym, w, F, W, D), _refit_with_shifts(sym, w, F, W, D)
+    if fa is None or fs_ is None or fa[1] <= fs_[1]:
         return
-
-    def chi2(r):  # the residuals' weighted sum of squares after the shifts' patterns, at any amplitude
-        rw = r * W
-        if rank:
-            rw = rw - D @ np.linalg.lstsq(D, rw, rcond=None)[0]
-        return float(rw @ rw)
-
-    ca, cs = chi2(ra), chi2(rs)
-    if not ca > 0:
+    (ca, ra), (cs, rs) = fa, fs_
+    dof = w.size - ra
+    if dof < 1 or not ca > 0:
         return
-    k = int(ka) - int(ks)
+    k = ra - rs
     p = float(f_dist.sf(max(cs - ca, 0.0) / k / (ca / dof), k, dof))
     asym.metrics["per_sign_p"] = p
     if p <= SPLIT_P:
@@ -482,3 +471,29 @@ def per_sign_supported(asym, sym, points, shifts=None) -> None:
     asym.extra["per_sign_not_supported"] = why
     if why not in asym.notes:
         asym.notes = list(asym.notes) + [why]
+
+
+def _refit_with_shifts(mf, w, F, W, D) -> tuple[float, int] | None:
+    """A map's weighted residual sum of squares when its free parameters (linearised about the fit) and the
+    shifts' amplitudes (columns of ``D``, weighted; at any amplitude) are refitted together, and the rank of
+    that refit. None when the map cannot be evaluated."""
+    from .static import predict
+
+    vals = mf.values()
+    free = [n for n, pe in mf.params.items() if not pe.fixed and pe.value is not None]
+    base = predict(mf.name, vals, w)
+    if not np.all(np.isfinite(base)):
+        return None
+    cols = []
+    for n in free:
+        h = 1e-6 * max(abs(vals[n]), 1e-9)
+        d = (predict(mf.name, dict(vals, **{n: vals[n] + h}), w) - base) / h
+        if np.all(np.isfinite(d)):
+            cols.append(d * W)
+    A = np.column_stack(cols + [D]) if cols or D.shape[1] else np.zeros((w.size, 0))
+    r = (base - F) * W
+    if A.shape[1] == 0:
+        return float(r @ r), 0
+    x, *_ = np.linalg.lstsq(A, -r, rcond=None)
+    e = r + A @ x
+    return float(e @ e), int(np.linalg.matrix_rank(A))
