@@ -951,7 +951,7 @@ def _shape_profile(bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: 
     s2 = 2.0 * bf.cost / dof
     v = np.abs(np.asarray(bw, dtype=float))
     v = v[np.isfinite(v) & (v > 0)]
-    if not (s2 > 0 and math.isfinite(s2)) or v.size == 0:
+    if not (s2 > 0 and math.isfinite(s2)) or v.size == 0 or not v.min() / 16.0 > 0:  # (a subnormal speed)
         return
     table = sm.STATIC_MAPS["stribeck"].table
     lo, hi, _, _ = scaled_table(table, *scales)
