@@ -375,19 +375,22 @@ def acceleration_noise(p: Prep, smooth: int = 0) -> float:
     to the column's ``X^T X`` and pulls the coefficient towards zero by the noise's share of the column's
     variance (errors in variables). The regression takes it out of ``X^T X`` (bias-corrected least
     squares). Foreign card 204012 (12-bit encoder, 118 Hz, no velocity column): the acceleration's noise
-    was 22 % of its variance on the moving samples and J came out 22 % low."""
+    was 22 % of its variance on the moving samples and J came out 22 % low.
+    Only for an acceleration made from the positions: a logged velocity is either exact (no noise to speak
+    of) or a drive's difference of counts, whose noise is the counts' differenced, not white, and which the
+    white-noise formula overstates many times (foreign card: 6-9 kHz logs with such a velocity had J 14 %
+    and 72 % high after the correction, not identifiable before it)."""
     sc = p.scales
-    if sc is None or not getattr(sc, "window_a", None) or not np.isfinite(getattr(sc, "sigma_a", np.nan)):
+    if (sc is None or getattr(sc, "qd_logged", True) or not getattr(sc, "window_a", None)
+            or not np.isfinite(getattr(sc, "sigma_a", np.nan))):
         return 0.0
     if smooth <= 1:
         return float(sc.sigma_a) ** 2
     from scipy.signal import savgol_coeffs
 
-    logged = bool(getattr(sc, "qd_logged", False))
-    c = savgol_coeffs(sc.window_a, 2, deriv=1 if logged else 2, delta=sc.dt)
-    c = np.convolve(c, np.full(smooth, 1.0 / smooth))
-    return float(sc.sigma_a) ** 2 * float(np.sum(c * c)) / float(np.sum(savgol_coeffs(
-        sc.window_a, 2, deriv=1 if logged else 2, delta=sc.dt) ** 2))
+    c = savgol_coeffs(sc.window_a, 2, deriv=2, delta=sc.dt)
+    cf = np.convolve(c, np.full(smooth, 1.0 / smooth))
+    return float(sc.sigma_a) ** 2 * float(np.sum(cf * cf)) / float(np.sum(c * c))
 
 
 def _trig(p: Prep, names, known) -> tuple | None:
