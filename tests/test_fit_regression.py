@@ -371,9 +371,11 @@ def test_gravity_and_offset_carry_their_bandwidth_change_by_hand():
 
 def test_holds_that_travel_less_than_the_presliding_ramps_are_not_plateau_points():
     """A constant-velocity segment whose travel (speed x duration) stays within the joint's presliding
-    travel (the median range of its ramp segments) is a hold under load, creeping: its torque is the load,
-    not the sliding friction (foreign card: 0.2 mrad/s holds after each slow plateau pulled Fs 15 % low).
-    mechanics._sliding_only leaves them out and says so once; without ramps every plateau stays."""
+    travel (the largest range of its ramp segments, creep included) is a hold under load, creeping: its
+    torque is the load, not the sliding friction (foreign card: 0.2 mrad/s holds after each slow plateau
+    pulled Fs 15 % low; 224078: holds of 0.25-0.4 mrad between the median ramp's 0.2 mrad and the creeping
+    ramps' 1.3 mrad took Fs 7.8 % low, trusted). mechanics._sliding_only leaves them out and says so once;
+    without ramps every plateau stays."""
     from types import SimpleNamespace
 
     from frictid.data import Segment
@@ -383,20 +385,22 @@ def test_holds_that_travel_less_than_the_presliding_ramps_are_not_plateau_points
     t = np.arange(4000) * 1e-3
     q = np.zeros(t.size)
     q[100:600] = np.linspace(0, 2e-3, 500)  # a ramp that deflects the bristles by 2 mrad
-    q[600:1100] = 2e-3 + np.linspace(0, 3e-3, 500)  # and one of 3 mrad
-    ramps = [Segment("ramp_presliding", 100, 600, t[100], t[599]),
-             Segment("ramp_presliding", 600, 1100, t[600], t[1099])]
+    q[600:1100] = 2e-3 + np.linspace(0, 2.2e-3, 500)  # one of 2.2 mrad
+    q[1100:1600] = 4.2e-3 + np.linspace(0, 6e-3, 500)  # and one that creeps 6 mrad
+    ramps = [Segment("ramp_presliding", a, a + 500, t[a], t[a + 499]) for a in (100, 600, 1100)]
     jf = SimpleNamespace(warnings=[])
     jd = SimpleNamespace(jf=jf, preps=[SimpleNamespace(log=SimpleNamespace(q=q), segments=ramps)])
-    assert presliding_travel(jd) == pytest.approx(2.5e-3, rel=1e-9)
-    # three plateaus: 0.02 rad/s for 3 s (60 mrad), a hold at 0.2 mrad/s for 0.4 s (0.08 mrad), -0.02 for 3 s
-    pl = Plateaus(np.array([0.02, 2e-4, -0.02]), np.array([3.0, 2.97, -3.0]), np.full(3, 1e-3), np.full(3, 1e-5),
-                  np.array([3000, 400, 3000]), np.array([0.0, 3.0, 4.0]), np.array([3.0, 3.4, 7.0]), np.arange(3))
+    assert presliding_travel(jd) == pytest.approx(6e-3, rel=1e-9)
+    # plateaus: 0.02 rad/s for 3 s (60 mrad), holds at 0.2 mrad/s for 0.4 s (0.08 mrad) and at 3 mrad/s for
+    # 1 s (3 mrad: above the median ramp's travel, below the creeping one's), -0.02 for 3 s
+    pl = Plateaus(np.array([0.02, 2e-4, 3e-3, -0.02]), np.array([3.0, 2.97, 2.9, -3.0]), np.full(4, 1e-3),
+                  np.full(4, 1e-5), np.array([3000, 400, 1000, 3000]), np.array([0.0, 3.0, 3.5, 4.6]),
+                  np.array([3.0, 3.4, 4.5, 7.6]), np.arange(4))
     (pi_, kept), = _sliding_only(jd, [(0, pl)])
     np.testing.assert_array_equal(kept.w, [0.02, -0.02])
-    assert len(jf.warnings) == 1 and "1 constant-velocity segment(s)" in jf.warnings[0]
+    assert len(jf.warnings) == 1 and "2 constant-velocity segment(s)" in jf.warnings[0]
     _sliding_only(jd, [(0, pl)])
     assert len(jf.warnings) == 1  # once
     jd.preps[0].segments = []
     (pi_, kept), = _sliding_only(jd, [(0, pl)])
-    assert len(kept) == 3
+    assert len(kept) == 4

@@ -25,6 +25,7 @@ import argparse
 import json
 import os
 import math
+import statistics
 import sys
 import tempfile
 import time
@@ -193,6 +194,7 @@ def report(args, rows, errors, wall):
             f"{100 * cnt[o] / max(n, 1):>{w}.1f}%" for o, w in zip(OUTCOMES, (8, 9, 11, 5, 9))) + f" {covs:>16}")
         strict.append(f"{row} {100 * (cnt['wrong_identifiable'] + cnt['unresolved']) / max(n, 1):.1f}%")
     print("strict WRONG+ident. (identifiable and outside the tolerance, whatever its error): " + ", ".join(strict))
+    print(error_sizes(rows))
     print("\nper family: on target / not identifiable / WRONG but identifiable, % of the family's draws")
     fams = [f for f in scenarios.FIT_FAMILIES if any(d["family"] == f for d in rows)]
     print(f"{'parameter':<19} " + " ".join(f"{f[:19]:>20}" for f in fams))
@@ -209,6 +211,18 @@ def report(args, rows, errors, wall):
         print(f"\nerrors ({len(errors)} draws):")
         for seed, msg in errors:
             print(f"  seed {seed}: {msg}")
+
+
+def error_sizes(rows) -> str:
+    """Whether the errors are right-sized: per parameter, the median of |value - truth| / stderr over the
+    identifiable values with an error (an honest normal error gives 0.67; far below, the errors are too
+    large for the typical draw even where the 2-stderr coverage looks right)."""
+    out = []
+    for row, _, name, _ in TARGETS:
+        z = [abs(v - float(d["plant"][name])) / se for d in rows for v, se, ok in d["ests"][row]
+             if ok and v is not None and se is not None and math.isfinite(se) and se > 0]
+        out.append(f"{row} {statistics.median(z):.2f}" if z else f"{row} -")
+    return "error size, median |value - truth| / stderr of the identifiable values (honest: 0.67): " + ", ".join(out)
 
 
 def failure_classes(args, rows):

@@ -59,6 +59,11 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
         validity.drop_spanned(jf.models[n], fr.plat.w, jf.models.get(n.replace("stribeck", "coulomb_viscous")),
                               points=(fr.plat.w, fr.plat.F, fr.plat.F_se) if fr.basis == "plateaus" else None,
                               shifts=fr.shifts)
+    if fr.basis == "plateaus":
+        for n in fitted:
+            if n.endswith("_asym"):
+                validity.per_sign_supported(jf.models[n], jf.models.get(n[:-5]), (fr.plat.w, fr.plat.F, fr.plat.F_se),
+                                            fr.shifts)
     # held-out errors of the maps the choice can take (the identifiable ones, unless none gets one)
     if fr.basis == "samples":
         sel.heldout_for_choice(jf.models, fitted, lambda n: smp.heldout_map(n, fr.S, jf.models[n], jd.axis),

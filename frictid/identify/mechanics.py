@@ -21,7 +21,7 @@ from frictid.result import JointFit, ParamEstimate
 from . import regression as rg
 from . import samples as smp
 from .prepare import JointData, Prep, regression_exclude
-from .static import NEGLIGIBLE, Plateaus, fit_static, plateau_points, predict
+from .static import NEGLIGIBLE, Plateaus, fit_static, plateau_column_means, plateau_points, predict
 
 #: Maps tried for the stage-2 friction (no held-out split: only the best in-sample curve is needed).
 STAGE2_MAPS = ("stribeck_asym", "stribeck_2exp_asym", "polynomial_asym")
@@ -359,7 +359,38 @@ def _accumulate(p: Prep, pi, ranges, seg_ids, names, known_coef, min_speed, axis
         ne, = rg.accumulate([ranges[k]], *args, within[(pi, seg_ids[k])], axis, friction=friction, smooth=smooth,
                             max_speed=max_speed, trig=trig)
         out[k] = ne.within(j)
+    if "J" in names:
+        var = acceleration_noise(p, smooth)
+        jj = list(names).index("J")
+        for ne in out:
+            ne.XtX[jj, jj] -= ne.n * var
     return out
+
+
+def acceleration_noise(p: Prep, smooth: int = 0) -> float:
+    """Variance [(q/s^2)^2] of the noise the acceleration column carries per sample (after the parallel
+    filter of ``smooth`` samples): the log's position (or logged velocity) noise through the
+    Savitzky-Golay derivative that made it (the scales' ``sigma_a``, :func:`frictid.segments.estimate_scales`),
+    0 without the scales. Noise in a regressor is not averaged out by least squares: it adds its variance
+    to the column's ``X^T X`` and pulls the coefficient towards zero by the noise's share of the column's
+    variance (errors in variables). The regression takes it out of ``X^T X`` (bias-corrected least
+    squares). Foreign card 204012 (12-bit encoder, 118 Hz, no velocity column): the acceleration's noise
+    was 22 % of its variance on the moving samples and J came out 22 % low.
+    Only for an acceleration made from the positions: a logged velocity is either exact (no noise to speak
+    of) or a drive's difference of counts, whose noise is the counts' differenced, not white, and which the
+    white-noise formula overstates many times (foreign card: 6-9 kHz logs with such a velocity had J 14 %
+    and 72 % high after the correction, not identifiable before it)."""
+    sc = p.scales
+    if (sc is None or getattr(sc, "qd_logged", True) or not getattr(sc, "window_a", None)
+            or not np.isfinite(getattr(sc, "sigma_a", np.nan))):
+        return 0.0
+    if smooth <= 1:
+        return float(sc.sigma_a) ** 2
+    from scipy.signal import savgol_coeffs
+
+    c = savgol_coeffs(sc.window_a, 2, deriv=2, delta=sc.dt)
+    cf = np.convolve(c, np.full(smooth, 1.0 / smooth))
+    return float(sc.sigma_a) ** 2 * float(np.sum(cf * cf)) / float(np.sum(c * c))
 
 
 def _trig(p: Prep, names, known) -> tuple | None:
@@ -522,7 +553,7 @@ def rigid_body(jd: JointData, regs: Regressors, n_folds: int) -> tuple[RigidBody
     fr = Friction(plat, keys, S, basis, why_basis, excl)
     final = _stage2(jd, rb, fr) or reg_fit
     if final is not None and fr.basis == "plateaus":
-        fr.shifts = plateau_shifts(jd, final, len(fr.plat))
+        fr.shifts = plateau_shifts(jd, final, fr.keys)
     for p in jd.preps:  # the mechanics are final: cos q and sin q are not needed again (58 MB per joint-hour)
         p._trig = None
     mechanics_not_identified(jd.jf)
@@ -689,16 +720,16 @@ def plateau_even(plat: Plateaus) -> tuple[float, float] | None:
     return e, se_e * math.sqrt(max(chi2, 1.0))
 
 
-def plateau_shifts(jd: JointData, fit_: rg.LinearFit, n_plat: int) -> list[np.ndarray]:
+def plateau_shifts(jd: JointData, fit_: rg.LinearFit, keys: np.ndarray) -> list[np.ndarray]:
     """How the plateau points move for one standard deviation of each independent error direction of the
     rigid-body terms subtracted from the torque (inertia, gravity, payload, offset): the plateau means of
     their regressors times the eigenvectors of their covariance (correlations from the regression, standard
     errors from the reported estimates, which carry the bandwidth check's systematic term). Empty when a
-    plateau's regressors are not finite."""
+    plateau's regressors are not finite or a plateau is not found again (``keys``: per point, (log, segment))."""
     jf = jd.jf
     est = {"J": jf.inertia, "offset": jf.offset, **jf.gravity}
     names = [n for n in fit_.names if n not in POLY_COEFS and n not in fit_.dependent and n in est]
-    if not names or n_plat == 0:
+    if not names or len(keys) == 0:
         return []
     idx = [fit_.names.index(n) for n in names]
     C = np.asarray(fit_.cov, dtype=float)[np.ix_(idx, idx)]
@@ -711,15 +742,16 @@ def plateau_shifts(jd: JointData, fit_: rg.LinearFit, n_plat: int) -> list[np.nd
         corr = np.nan_to_num(C / np.outer(se_c, se_c))
     np.fill_diagonal(corr, 1.0)
     lam, V = np.linalg.eigh(corr * np.outer(se, se))
-    Xbar = []
-    for p in jd.preps:
-        cols = [plateau_points(p.log.t, p.w, np.nan_to_num(rg.column(
-            n, p.log.q, p.w, p.a, p.log.channels.get("payload"), jd.axis, _trig(p, names, {}))) * np.isfinite(p.F),
-            p.segments).F for n in names]
-        if len(cols[0]):
-            Xbar.append(np.column_stack(cols))
-    Xbar = np.concatenate(Xbar) if Xbar else np.zeros((0, len(names)))
-    if Xbar.shape[0] != n_plat or not np.all(np.isfinite(Xbar)):
+    rows = {}
+    for pi_, p in enumerate(jd.preps):
+        cols = [np.nan_to_num(rg.column(n, p.log.q, p.w, p.a, p.log.channels.get("payload"), jd.axis,
+                                        _trig(p, names, {}))) for n in names]
+        seg, xb = plateau_column_means(p.w, p.F, p.segments, cols)
+        rows.update({(pi_, int(k)): x for k, x in zip(seg, xb)})
+    if any((int(a), int(b)) not in rows for a, b in keys):
+        return []
+    Xbar = np.array([rows[(int(a), int(b))] for a, b in keys], dtype=float).reshape(len(keys), len(names))
+    if not np.all(np.isfinite(Xbar)):
         return []
     return [-(Xbar @ (V[:, i] * math.sqrt(l))) for i, l in enumerate(lam) if l > 0]
 
@@ -752,12 +784,15 @@ def plateaus(jd: JointData) -> tuple[Plateaus, np.ndarray]:
 
 
 def presliding_travel(jd: JointData) -> float:
-    """The displacement [q] a load below break-away makes on this joint: the median travel (position range)
-    of its presliding-ramp segments, creep included; 0 without ramps or positions."""
+    """The displacement [q] a load below break-away makes on this joint: the largest travel (position
+    range) of its presliding-ramp segments, creep included (what such a load has been seen to do; the
+    median let holds of 0.25-0.4 mrad through as plateaus on foreign 224078, where four of eleven ramps
+    crept 0.75-1.33 mrad and the rest moved 0.16-0.24, and their loads took the Stribeck drop's Fs 7.8 %
+    low, trusted); 0 without ramps or positions."""
     d = [float(np.ptp(p.log.q[s.i0:s.i1])) for p in jd.preps if p.log.q is not None
          for s in p.segments if s.kind == "ramp_presliding" and s.i1 - s.i0 > 1]
     d = [x for x in d if np.isfinite(x)]
-    return float(np.median(d)) if d else 0.0
+    return float(np.max(d)) if d else 0.0
 
 
 def _sliding_only(jd: JointData, pls: list) -> list:

@@ -170,7 +170,8 @@ def choose(models: dict, candidates: list[str] | None = None, tolerance: float =
     for n in names:
         m = models[n]
         ranked.append({"model": n, "rms_heldout": m.metrics.get("rms_heldout"), "aic": m.metrics.get("aic"),
-                       "k": m.metrics.get("k"), "identifiable": m.identifiable, "shape_only": shape_only(m)})
+                       "k": m.metrics.get("k"), "identifiable": m.identifiable, "shape_only": shape_only(m),
+                       "one_map_for_both_signs": "per_sign_not_supported" in m.extra})
     rec: dict = {"rule": f"lowest AIC among identifiable models (or Stribeck maps whose drop's shape alone is "
                          f"not identifiable) whose held-out RMS is within {100 * tolerance:.0f} % of the best",
                  "tolerance": tolerance}
@@ -206,7 +207,8 @@ def _pool(ranked: list[dict], rec: dict) -> list[dict]:
     """The models the choice ranks: those with a held-out RMS whose parameters are all identifiable or
     whose drop's shape alone is not (:func:`shape_only`), or, when none of them has one, every model with
     one (with a warning in ``rec``)."""
-    pool = [r for r in ranked if (r["identifiable"] or r["shape_only"]) and r["rms_heldout"] is not None]
+    pool = [r for r in ranked if (r["identifiable"] or r["shape_only"]) and r["rms_heldout"] is not None
+            and not r.get("one_map_for_both_signs")]
     if not pool:
         pool = [r for r in ranked if r["rms_heldout"] is not None]
         if pool:

@@ -109,18 +109,25 @@ def _settled_mean(x: np.ndarray, n_batches: int) -> tuple[float, float]:
     what the halves differ by. Foreign card: a sweep's slowest plateaus (0.01 rad/s, 0.75 s) settled for a
     third of their length; the whole mean sat 3.7 of its batch-means errors (0.94 N m) below the steady
     friction and pulled Fs 1.6 % low, trusted; the later half is 0.31 N m below, within its error 0.63."""
+    m, se, _ = _settled(x, n_batches)
+    return m, se
+
+
+def _settled(x: np.ndarray, n_batches: int) -> tuple[float, float, int]:
+    """:func:`_settled_mean`'s mean and error, and the first sample of ``x`` it averaged (0, or the later
+    half's first when the friction is still settling)."""
     m, se = float(x.mean()), _batch_se(x, n_batches)
     h = x.shape[0] // 2
     if h < 4 or not math.isfinite(se):
-        return m, se
+        return m, se, 0
     late = float(x[h:].mean())
     d = 0.5 * (late - float(x[:h].mean()))
     q = [float(c.mean()) for c in np.array_split(x, 4)]
     early_change, late_change = q[1] - q[0], q[3] - q[2]
     decays = early_change * late_change >= 0.0 and abs(late_change) < SETTLING_DECAY * abs(early_change)
     if abs(d) <= SETTLING_Z * se or not decays:
-        return m, se
-    return late, max(abs(d), _batch_se(x[h:], n_batches))
+        return m, se, 0
+    return late, max(abs(d), _batch_se(x[h:], n_batches)), h
 
 
 #: A plateau's friction counts as still settling when half the difference of its halves' means exceeds
@@ -142,7 +149,34 @@ def plateau_points(t, w, F, segments, trim: float = 0.1, n_batches: int = 10,
     trim : fraction cut from each end of a plateau (transients). Plateaus whose velocity changes sign or
     whose mean speed is below ``min_speed`` are skipped.
     """
-    rows = []
+    rows = [(float(ww.mean()), m, se, _batch_se(ww, n_batches), ww.shape[0], float(t[s.i0]), float(t[s.i1 - 1]), k)
+            for k, s, ww, _, m, se in _plateau_windows(w, F, segments, trim, n_batches, min_speed)]
+    if not rows:
+        z = np.zeros(0)
+        return Plateaus(z, z, z, z, z.astype(int), z, z, z.astype(int))
+    a = list(zip(*rows))
+    return Plateaus(np.array(a[0]), np.array(a[1]), np.array(a[2]), np.array(a[3]),
+                    np.array(a[4], dtype=int), np.array(a[5]), np.array(a[6]), np.array(a[7], dtype=int))
+
+
+def plateau_column_means(w, F, segments, cols, trim: float = 0.1, n_batches: int = 10,
+                         min_speed: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Per plateau of :func:`plateau_points` (same arguments), the means of each of ``cols`` (per-sample
+    arrays) over the very samples its friction point averaged: the plateau's trimmed finite samples, or
+    their later half where the friction was still settling. A column that changes along a plateau (the
+    gravity torque of a joint moving through its angles) averaged over other samples than the friction
+    would not say how an error of its coefficient moves the point. Returns the plateaus' segment indices
+    (``Plateaus.seg``) and the means, shape (plateaus, columns)."""
+    seg, out = [], []
+    for k, _, _, (idx, h), _, _ in _plateau_windows(w, F, segments, trim, n_batches, min_speed):
+        seg.append(k)
+        out.append([float(np.asarray(c, dtype=float)[idx][h:].mean()) for c in cols])
+    return np.array(seg, dtype=int), np.array(out, dtype=float).reshape(len(out), len(cols))
+
+
+def _plateau_windows(w, F, segments, trim: float, n_batches: int, min_speed: float):
+    """Per usable constant-velocity segment ``k``: (k, segment, its speeds, (sample indices, first of them
+    averaged), the friction point's mean and error) (:func:`plateau_points`)."""
     for k, s in enumerate(segments):
         if s.kind != "constant_velocity":
             continue
@@ -160,14 +194,8 @@ def plateau_points(t, w, F, segments, trim: float = 0.1, n_batches: int = 10,
         wm = float(ww.mean())
         if abs(wm) <= min_speed or np.mean(np.sign(ww) == np.sign(wm)) < 0.95:
             continue
-        rows.append((wm, *_settled_mean(ff, n_batches), _batch_se(ww, n_batches),
-                     ww.shape[0], float(t[s.i0]), float(t[s.i1 - 1]), k))
-    if not rows:
-        z = np.zeros(0)
-        return Plateaus(z, z, z, z, z.astype(int), z, z, z.astype(int))
-    a = list(zip(*rows))
-    return Plateaus(np.array(a[0]), np.array(a[1]), np.array(a[2]), np.array(a[3]),
-                    np.array(a[4], dtype=int), np.array(a[5]), np.array(a[6]), np.array(a[7], dtype=int))
+        mean, se, h = _settled(ff, n_batches)
+        yield k, s, ww, (i0 + np.flatnonzero(ok), h), mean, se
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -923,7 +951,7 @@ def _shape_profile(bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: 
     s2 = 2.0 * bf.cost / dof
     v = np.abs(np.asarray(bw, dtype=float))
     v = v[np.isfinite(v) & (v > 0)]
-    if not (s2 > 0 and math.isfinite(s2)) or v.size == 0:
+    if not (s2 > 0 and math.isfinite(s2)) or v.size == 0 or not v.min() / 16.0 > 0:  # (a subnormal speed)
         return
     table = sm.STATIC_MAPS["stribeck"].table
     lo, hi, _, _ = scaled_table(table, *scales)
