@@ -94,13 +94,18 @@ def fit_robot(paths_or_logs, robot, mapping=None, units=None, *, friction: str =
 
 def stage_two(rb, rf, logs: list[JointLog], first: FitResult, diagnose: bool = True, jobs: int = 1) -> FitResult:
     """frictid's single-joint fit on each joint's friction torque (the rigid body of ``rf`` held), each
-    joint's entry then judged against stage 1's linear friction (:func:`guard_models`): where stage 2's
-    model does not predict the held-out blocks better, the joint keeps ``first``'s entry (stage 1's) with
-    the reason in its warnings. ``settings['stage2']`` holds the comparison per joint."""
+    joint's entry then judged against stage 1's linear friction (:func:`guard_models`, :func:`keep_linear`).
+    ``settings['stage2']`` holds the comparison per joint."""
     p = predict(rb, rf, logs)
     flogs = friction_logs(logs, p)
     res = fit_joints(flogs, diagnose=diagnose, jobs=jobs)
-    verdict = guard_models(flogs, p, res, jobs=jobs)
+    return keep_linear(res, first, guard_models(flogs, p, res, jobs=jobs))
+
+
+def keep_linear(res: FitResult, first: FitResult, verdict: dict) -> FitResult:
+    """``res`` with the entry of every joint whose verdict keeps the linear friction replaced by ``first``'s
+    (stage 1's), the reason among its warnings; each entry's ``selection['stage2']`` and the result's
+    ``settings['stage2']`` hold the verdicts."""
     for j, v in verdict.items():
         if v["kept"] == "linear":
             jf = copy.deepcopy(first[j])
@@ -269,8 +274,9 @@ def heldout_models(robot, logs: list[JointLog], fraction: float = 0.3, smooth_hz
                    rigid_body: str = "identify", guard: bool = True) -> dict:
     """:func:`frictid.robot.identify.heldout_errors` for both stages: identify on the first ``1 - fraction``
     of the logs, predict the rest with stage 1 (``linear``) and with the rigid body of stage 1 plus each
-    joint's selected velocity model of stage 2 (``models``, fitted without the diagnosis; ``guard``: stage 1's
-    friction where :func:`guard_models` does not keep the model, as :func:`fit_robot` does). Returns per
+    joint's selected velocity model of stage 2, fitted without the diagnosis: every joint's (``models_all``)
+    and, with ``guard``, stage 1's friction where :func:`guard_models` does not keep it (``models``, as
+    :func:`fit_robot` keeps them; ``stage2``: the verdicts). Returns per
     stage {'whole', 'moving'} RMS per joint [N m], at the logs' own samples; ``rigid_body="known"``: the
     robot description's rigid body (:mod:`frictid.robot.known`) instead of stage 1's identified one."""
     from scipy.signal import butter, sosfiltfilt
@@ -278,10 +284,14 @@ def heldout_models(robot, logs: list[JointLog], fraction: float = 0.3, smooth_hz
     k = int(round((1.0 - fraction) * min(lg.n for lg in logs)))
     head, tail = [cut_log(lg, slice(0, k)) for lg in logs], [cut_log(lg, slice(k, None)) for lg in logs]
     rf = (identify_known if rigid_body == "known" else identify_robot)(robot, head)
-    res = stage_two(robot, rf, head, fit_result(robot, rf, [], robot.name), diagnose=False) if guard else \
-        fit_joints(friction_logs(head, predict(robot, rf, head)), diagnose=False)
+    ph = predict(robot, rf, head)
+    flogs = friction_logs(head, ph)
+    res = fit_joints(flogs, diagnose=False)
     p = predict(robot, rf, tail)
-    preds = {"linear": p.tau, "models": model_torque(res, p, tail)}
+    preds = {"linear": p.tau, "models_all": model_torque(res, p, tail)}
+    if guard:
+        res = keep_linear(res, fit_result(robot, rf, [], robot.name), guard_models(flogs, ph, res))
+        preds["models"] = model_torque(res, p, tail)
     out = {stage: {"whole": {}, "moving": {}} for stage in preds}
     for lg in tail:
         j = str(lg.joint)
@@ -293,6 +303,6 @@ def heldout_models(robot, logs: list[JointLog], fraction: float = 0.3, smooth_hz
             r = tau - pr[j]
             out[stage]["whole"][j] = float(np.sqrt(np.mean(r ** 2)))
             out[stage]["moving"][j] = float(np.sqrt(np.mean(r[p.moving[j]] ** 2)))
-    out["stage2"] = {str(lg.joint): res[str(lg.joint)].selection.get("stage2") for lg in tail}
+    out["stage2"] = res.settings.get("stage2", {})
     return out
 
