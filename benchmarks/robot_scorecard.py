@@ -24,7 +24,8 @@
    (``--part known``).
 6. Stage 2 held out (``--part stage2``): the UR10e harmonic run and the Franka run (rigid body identified and
    known from panda_arm.urdf), per joint stage 1's linear friction, every joint's selected stage-2 model, and
-   what the fit keeps (robotfit.guard_models), with each joint's verdict on the fitted part's own time blocks.
+   what the fit keeps (robotfit.guard_models), with each joint's verdict on the fitted part's own time blocks;
+   and 5 simulated 3-joint arms (seeds from --seed-base + 3000) whose joint 1 has a Stribeck drop.
 With FRICTID_SMOKE=1: two arms, the Franka run, part 4 on the first eighth of the Franka run and part 5 on
 its first quarter.
 """
@@ -184,6 +185,32 @@ def stage_two(robot, logs, rigid_body: str = "identify", label: str = "") -> Non
         blk = f"{e['models']:.3f} / {e['linear']:.3f}" if e else v["reason"]
         print(f"  {j:<5} {a['whole'][j]:7.3f} {b['whole'][j]:7.3f} {c['whole'][j]:7.3f}   {a['moving'][j]:14.3f} "
               f"{b['moving'][j]:7.3f} {c['moving'][j]:7.3f}   {v['kept']:<6} ({v['model']}: {blk})")
+
+
+def stage_two_arms(n: int, base: int) -> None:
+    """Stage 2's guard on simulated 3-joint arms (tests/test_robot.py's generator, 20 s at 500 Hz, 0.05 N m
+    noise): joint 1 with a Stribeck drop (0.5-2 N m over its Coulomb level, Stribeck speed 0.05-0.3 rad/s,
+    which the linear friction cannot follow), joints 2 and 3 linear. Per arm, held out (first 70 % fitted,
+    last 30 % predicted): which joints keep stage 2's model and the RMS of linear / every model / kept."""
+    kept_drop, kept_lin, worse = 0, 0, 0
+    for s in range(base, base + n):
+        rng = np.random.default_rng(s)
+        robot, friction = random_arm(rng, 3)
+        logs = simulate_excitation(robot, friction, rng, duration=20.0)
+        amp, vs = rng.uniform(0.5, 2.0), rng.uniform(0.05, 0.3)
+        w = logs[0].qd
+        logs[0].tau = logs[0].tau + amp * np.exp(-(w / vs) ** 2) * np.sign(w)
+        both = heldout_models(robot, logs, 0.3)
+        a, b, c = (both[k]["whole"] for k in ("linear", "models_all", "models"))
+        verdict = {j: both["stage2"][j]["kept"] for j in robot.joints}
+        kept_drop += verdict["1"] == "models"
+        kept_lin += sum(verdict[j] == "linear" for j in robot.joints[1:])
+        worse += sum(c[j] > 1.05 * a[j] for j in robot.joints)
+        print(f"  arm {s}: drop {amp:.2f} N m at {vs:.2f} rad/s; " + "; ".join(
+            f"joint {j} {verdict[j]} {a[j]:.3f}/{b[j]:.3f}/{c[j]:.3f}" for j in robot.joints))
+    print(f"  simulated arms {base}..{base + n - 1}: the drop's joint keeps stage 2's model on {kept_drop}/{n}; the "
+          f"linear joints keep stage 1 on {kept_lin}/{2 * n}; kept law more than 5 % worse than linear held out on "
+          f"{worse}/{3 * n} joints (RMS per joint: linear/every model/kept)")
 
 
 def standing(robot, logs, fraction: float = 0.3) -> None:
@@ -480,6 +507,8 @@ def main(argv=None) -> int:
         print("Franka Panda")
         stage_two(load_robot(ROOT / REAL_RUNS[1][2]), fr, label="rigid body identified ")
         stage_two(load_robot(ROOT / "recipes/robots/panda_arm.urdf"), fr, "known", "rigid body known (panda_arm.urdf) ")
+        print("simulated arms, a Stribeck drop on joint 1 (seeds from --seed-base + 3000)")
+        stage_two_arms(min(args.arms, 2 if smoke else 5), args.seed_base + 3000)
         return 0
     if args.part == "standing":
         for run, mapping, robot in REAL_RUNS:
