@@ -22,6 +22,10 @@
    friction against Table III, the known rigid body's F test, held-out torque error of both stages; and on
    random simulated arms (seeds from --seed-base + 2000) with the true inertias and with them 10 % off
    (``--part known``).
+6. Stage 2 held out (``--part stage2``): the UR10e harmonic run and the Franka run (rigid body identified and
+   known from panda_arm.urdf), per joint stage 1's linear friction, every joint's selected stage-2 model, and
+   what the fit keeps (robotfit.guard_models), with each joint's verdict on the fitted part's own time blocks;
+   and 5 simulated 3-joint arms (seeds from --seed-base + 3000) whose joint 1 has a Stribeck drop.
 With FRICTID_SMOKE=1: two arms, the Franka run, part 4 on the first eighth of the Franka run and part 5 on
 its first quarter.
 """
@@ -153,20 +157,60 @@ def ur10e() -> None:
         f = fit.friction[j]
         print(f"  {j:<5} {raw['whole'][j]:6.2f} {AURT_RAW[j]:6.2f} {raw['moving'][j]:7.2f}   {smooth['whole'][j]:10.2f} "
               f"{AURT_20HZ[j]:6.2f} {smooth['moving'][j]:7.2f}   {f['fv'].value:.2f} {f['fc'].value:.2f} {f['fo'].value:.2f}")
-    t0 = time.time()
-    both = heldout_models(robot, logs, 0.3)
-    print(f"  stage 2 (frictid's velocity models on each joint's friction torque, rigid body held), same split, "
-          f"as logged, {time.time() - t0:.1f} s:")
-    print(f"  {'joint':<5} {'linear':>7} {'models':>7}   {'moving: linear':>14} {'models':>7}")
-    for j in robot.joints:
-        a, b = both["linear"], both["models"]
-        print(f"  {j:<5} {a['whole'][j]:7.2f} {b['whole'][j]:7.2f}   {a['moving'][j]:14.2f} {b['moving'][j]:7.2f}")
+    stage_two(robot, logs)
     t0 = time.time()
     rounds = 1 if os.environ.get("FRICTID_SMOKE") else 3
     alt = alternation(robot, logs, rounds)
     print(f"  stage 2 with the rigid body re-estimated by alternation, same split, as logged, per round "
           f"({time.time() - t0:.1f} s): " + "; ".join(f"{r}: " + " ".join(f"{v:.2f}" for v in e) for r, e in enumerate(alt)))
     standing(robot, logs)
+
+
+def stage_two(robot, logs, rigid_body: str = "identify", label: str = "") -> None:
+    """Stage 2 held out (first 70 % fitted, last 30 % predicted, as logged): per joint the RMS of stage 1's
+    linear friction, of every joint's selected stage-2 model (the choice unguarded, as before session 22),
+    and of what fit_robot keeps (robotfit.guard_models: the model only where it beats the linear friction on
+    the fitted part's own 4 time blocks), with the blocks' verdict."""
+    t0 = time.process_time()
+    both = heldout_models(robot, logs, 0.3, rigid_body=rigid_body)
+    print(f"  stage 2 {label}(frictid's velocity models on each joint's friction torque, rigid body held), same "
+          f"split, as logged, {time.process_time() - t0:.1f} s CPU; kept: robotfit.guard_models on the fitted "
+          "part's own 4 time blocks (block RMS model / linear)")
+    print(f"  {'joint':<5} {'linear':>7} {'models':>7} {'kept':>7}   {'moving: linear':>14} {'models':>7} {'kept':>7}"
+          "   verdict")
+    a, b, c = both["linear"], both["models_all"], both["models"]
+    for j in robot.joints:
+        v = both["stage2"][j]
+        e = v.get("heldout_rms", {})
+        blk = f"{e['models']:.3f} / {e['linear']:.3f}" if e else v["reason"]
+        print(f"  {j:<5} {a['whole'][j]:7.3f} {b['whole'][j]:7.3f} {c['whole'][j]:7.3f}   {a['moving'][j]:14.3f} "
+              f"{b['moving'][j]:7.3f} {c['moving'][j]:7.3f}   {v['kept']:<6} ({v['model']}: {blk})")
+
+
+def stage_two_arms(n: int, base: int) -> None:
+    """Stage 2's guard on simulated 3-joint arms (tests/test_robot.py's generator, 20 s at 500 Hz, 0.05 N m
+    noise): joint 1 with a Stribeck drop (0.5-2 N m over its Coulomb level, Stribeck speed 0.05-0.3 rad/s,
+    which the linear friction cannot follow), joints 2 and 3 linear. Per arm, held out (first 70 % fitted,
+    last 30 % predicted): which joints keep stage 2's model and the RMS of linear / every model / kept."""
+    kept_drop, kept_lin, worse = 0, 0, 0
+    for s in range(base, base + n):
+        rng = np.random.default_rng(s)
+        robot, friction = random_arm(rng, 3)
+        logs = simulate_excitation(robot, friction, rng, duration=20.0)
+        amp, vs = rng.uniform(0.5, 2.0), rng.uniform(0.05, 0.3)
+        w = logs[0].qd
+        logs[0].tau = logs[0].tau + amp * np.exp(-(w / vs) ** 2) * np.sign(w)
+        both = heldout_models(robot, logs, 0.3)
+        a, b, c = (both[k]["whole"] for k in ("linear", "models_all", "models"))
+        verdict = {j: both["stage2"][j]["kept"] for j in robot.joints}
+        kept_drop += verdict["1"] == "models"
+        kept_lin += sum(verdict[j] == "linear" for j in robot.joints[1:])
+        worse += sum(c[j] > 1.05 * a[j] for j in robot.joints)
+        print(f"  arm {s}: drop {amp:.2f} N m at {vs:.2f} rad/s; " + "; ".join(
+            f"joint {j} {verdict[j]} {a[j]:.3f}/{b[j]:.3f}/{c[j]:.3f}" for j in robot.joints))
+    print(f"  simulated arms {base}..{base + n - 1}: the drop's joint keeps stage 2's model on {kept_drop}/{n}; the "
+          f"linear joints keep stage 1 on {kept_lin}/{2 * n}; kept law more than 5 % worse than linear held out on "
+          f"{worse}/{3 * n} joints (RMS per joint: linear/every model/kept)")
 
 
 def standing(robot, logs, fraction: float = 0.3) -> None:
@@ -414,12 +458,15 @@ def known(smoke: bool = False) -> None:
         ses = " ".join(f"{fit.friction[j]['fc'].stderr:.3g}" for j in TABLE3)
         print(f"    fc standard errors [N m]: {ses}")
     print("  held out (first 70 % fitted, last 30 % predicted, as logged), RMS per joint [N m], "
-          "joint estimate | stage 2's models:")
+          "joint estimate | stage 2's models, every joint's | stage 2 as kept (robotfit.guard_models):")
     for name, (robot, estimate, mode) in routes.items():
         lin = heldout_errors(robot, logs, 0.3, estimate=estimate)["whole"]
-        mod = heldout_models(robot, logs, 0.3, rigid_body=mode)["models"]["whole"]
+        both = heldout_models(robot, logs, 0.3, rigid_body=mode)
+        mod, kept = both["models_all"]["whole"], both["models"]["whole"]
         print(f"  {name:<10} " + " ".join(f"{lin[j]:.3f}" for j in TABLE3) + " | "
-              + " ".join(f"{mod[j]:.3f}" for j in TABLE3))
+              + " ".join(f"{mod[j]:.3f}" for j in TABLE3) + " | "
+              + " ".join(f"{kept[j]:.3f}{'*' if both['stage2'][j]['kept'] == 'models' else ''}" for j in TABLE3))
+    print("  (*: stage 2's model kept; otherwise stage 1's linear friction)")
 
 
 #: the real runs of the standing level's lines: (run under shared/realdata, mapping file, robot file)
@@ -433,10 +480,12 @@ def main(argv=None) -> int:
     ap.add_argument("--arms", type=int, default=20)
     ap.add_argument("--ur-arms", type=int, default=5, help="6-axis arms with the UR10e's kinematics")
     ap.add_argument("--seed-base", type=int, default=400000)
-    ap.add_argument("--part", choices=("all", "published", "standing", "known"), default="all",
+    ap.add_argument("--part", choices=("all", "published", "standing", "known", "stage2"), default="all",
                     help="published: part 4 only (friction values against the published ones); standing: the "
                          "standing level's held-out lines of the UR10e and Franka runs only; known: part 5 only "
-                         "(the Franka run with the rigid body known from recipes/robots/panda.urdf)")
+                         "(the Franka run with the rigid body known from recipes/robots/panda.urdf); stage2: "
+                         "stage 2 held out on the UR10e harmonic run and the Franka run (rigid body identified, "
+                         "and known from panda_arm.urdf)")
     args = ap.parse_args(argv)
     smoke = bool(os.environ.get("FRICTID_SMOKE"))
     if smoke:
@@ -447,6 +496,19 @@ def main(argv=None) -> int:
     if args.part == "known":
         known_arms(args.arms, args.seed_base + 2000)
         known(smoke)
+        return 0
+    if args.part == "stage2":
+        ur = read_logs(str(ROOT.parent / "shared/realdata" / REAL_RUNS[0][0]), str(ROOT / REAL_RUNS[0][1]))
+        print("UR10e harmonic run")
+        stage_two(load_robot(ROOT / REAL_RUNS[0][2]), ur)
+        fr = read_logs(str(ROOT.parent / "shared/realdata" / REAL_RUNS[1][0]), str(ROOT / REAL_RUNS[1][1]))
+        if smoke:
+            fr = [cut_log(lg, slice(0, lg.n // 4)) for lg in fr]
+        print("Franka Panda")
+        stage_two(load_robot(ROOT / REAL_RUNS[1][2]), fr, label="rigid body identified ")
+        stage_two(load_robot(ROOT / "recipes/robots/panda_arm.urdf"), fr, "known", "rigid body known (panda_arm.urdf) ")
+        print("simulated arms, a Stribeck drop on joint 1 (seeds from --seed-base + 3000)")
+        stage_two_arms(min(args.arms, 2 if smoke else 5), args.seed_base + 3000)
         return 0
     if args.part == "standing":
         for run, mapping, robot in REAL_RUNS:

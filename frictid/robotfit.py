@@ -4,7 +4,9 @@ and offset friction (:mod:`frictid.robot`), then frictid's own single-joint iden
 static maps, Stribeck and polynomial models, selection, diagnosis, all as for one joint (docs/robots.md).
 
 ``friction="linear"`` stops after the first stage (each joint's Coulomb-viscous model, as the joint
-estimate gives it); ``"models"`` (the default) runs the second.
+estimate gives it); ``"models"`` (the default) runs the second. Stage 2 keeps a joint's model only where it
+predicts the friction torque of the fitted logs' own held-out time blocks better than stage 1's linear
+friction (:func:`guard_models`); elsewhere the joint's entry is stage 1's, with the reason.
 
 A log that moves one joint at a time (:func:`frictid.robot.pose.one_joint_motion`), or a joint named with
 ``joint``, is fitted one joint at a time instead (the rigid body cannot be identified from it): the robot
@@ -14,6 +16,7 @@ where its axis is parallel to gravity; ``settings.robot_pose`` of the result say
 from __future__ import annotations
 
 import copy
+import warnings
 
 import numpy as np
 
@@ -27,6 +30,10 @@ from .robot.identify import Prediction, cut_log, friction_log, predict
 from .robot.known import identify_known, require_inertias
 from .robot.pose import one_joint_motion, pose_gravity
 from .robot.result import fit_result
+
+#: contiguous time blocks of the fitted logs on which stage 2's models face stage 1's linear friction
+#: (each block held out in turn, the model refitted on the others)
+GUARD_BLOCKS = 4
 
 FRICTION_STAGES = ("models", "linear")
 RIGID_BODY = ("identify", "known")
@@ -77,12 +84,139 @@ def fit_robot(paths_or_logs, robot, mapping=None, units=None, *, friction: str =
     first = fit_result(rb, rf, sources, robot_file or str(robot if not hasattr(robot, "model") else rb.name))
     if friction == "linear":
         return first
-    res = fit_joints(friction_logs(logs, predict(rb, rf, logs)), diagnose=diagnose, jobs=jobs)
+    res = stage_two(rb, rf, logs, first, diagnose=diagnose, jobs=jobs)
     hashes = {s["path"]: s["sha256"] for s in sources}
     for s in res.sources:
         s["sha256"] = hashes.get(s["path"])
-    res.settings["robot"] = dict(first.settings["robot"], friction_stage="models")
+    res.settings["robot"] = dict(first.settings["robot"], friction_stage="models", stage2=res.settings.pop("stage2"))
     return res
+
+
+def stage_two(rb, rf, logs: list[JointLog], first: FitResult, diagnose: bool = True, jobs: int = 1) -> FitResult:
+    """frictid's single-joint fit on each joint's friction torque (the rigid body of ``rf`` held), each
+    joint's entry then judged against stage 1's linear friction (:func:`guard_models`, :func:`keep_linear`).
+    ``settings['stage2']`` holds the comparison per joint."""
+    p = predict(rb, rf, logs)
+    flogs = friction_logs(logs, p)
+    res = fit_joints(flogs, diagnose=diagnose, jobs=jobs)
+    return keep_linear(res, first, guard_models(flogs, p, res, jobs=jobs))
+
+
+def keep_linear(res: FitResult, first: FitResult, verdict: dict) -> FitResult:
+    """``res`` with the entry of every joint whose verdict keeps the linear friction replaced by ``first``'s
+    (stage 1's), the reason among its warnings; each entry's ``selection['stage2']`` and the result's
+    ``settings['stage2']`` hold the verdicts."""
+    for j, v in verdict.items():
+        if v["kept"] == "linear":
+            jf = copy.deepcopy(first[j])
+            jf.warnings.append(f"stage 2's model is not kept: {v['reason']}")
+            jf.selection = dict(jf.selection, stage2=v)
+            res.joints[j] = jf
+        else:
+            res[j].selection["stage2"] = v
+    res.settings["stage2"] = verdict
+    return res
+
+
+def _base_name(jf) -> str | None:
+    """The velocity-only model stage 2's choice starts from (the diagnosis' base when it ran)."""
+    return (jf.selection.get("diagnosis") or {}).get("base") or jf.selected
+
+
+def _wanted(names) -> list[str]:
+    """The models a block's refit needs for ``names`` (a ``lugre`` with the maps it may build on)."""
+    out = set(n for n in names if n)
+    if "lugre" in out:
+        out |= {"coulomb_viscous", "stribeck", "stribeck_asym", "stribeck_2exp", "stribeck_2exp_asym",
+                "polynomial", "polynomial_ls"}
+    return sorted(out)
+
+
+def _blocks(n: int, k: int = GUARD_BLOCKS) -> list[slice]:
+    edges = np.linspace(0, n, k + 1).round().astype(int)
+    return [slice(a, b) for a, b in zip(edges[:-1], edges[1:])]
+
+
+def _linear(y: np.ndarray, v: np.ndarray, mov: np.ndarray) -> np.ndarray:
+    """Stage 1's law refitted on the moving samples given: ``[fc, fv, fo]`` of ``fc sgn v + fv v + fo``."""
+    A = np.column_stack([np.sign(v[mov]), v[mov], np.ones(int(mov.sum()))])
+    return np.linalg.lstsq(A, y[mov], rcond=None)[0]
+
+
+def guard_models(flogs: list[JointLog], p: Prediction, res: FitResult, jobs: int = 1,
+                 k: int = GUARD_BLOCKS) -> dict:
+    """Whether each joint's stage-2 model predicts its friction torque better than stage 1's linear
+    friction, judged on the fitted logs' own time: ``k`` contiguous blocks, each held out in turn, stage 2's
+    velocity model (its base, :func:`_base_name`) and the linear law (``fc sgn v + fv v + fo``) refitted on
+    the rest, both predicting the block as the robot model does (the model as the parameter file evaluates
+    it, at the prediction's filtered velocity where the joint moves; the offset and the held friction where
+    it stands). Per joint {'kept': 'models' or 'linear', 'model', 'heldout_rms': {'models', 'linear'},
+    'blocks', 'reason'}; 'models' only when it beats the linear law by more than two paired errors: the
+    mean over the blocks of (linear - model) mean squared error above twice its standard error."""
+    names = {str(lg.joint): _base_name(res[str(lg.joint)]) for lg in flogs}
+    sse: dict[str, list] = {j: [] for j in names}
+    failed: dict[str, str] = {}
+    for i in range(k):
+        train = []
+        for lg in flogs:
+            b = _blocks(lg.n, k)[i]
+            train += [cut_log(lg, s) for s in (slice(0, b.start), slice(b.stop, lg.n)) if s.stop - s.start > 1]
+        try:
+            refit = fit_joints(train, models=_wanted(names.values()), diagnose=False, jobs=jobs)
+        except (FrictidInputError, ValueError, np.linalg.LinAlgError) as exc:
+            failed.update({j: f"stage 2's refit without a block failed ({exc})" for j in names})
+            continue
+        for lg in flogs:
+            j = str(lg.joint)
+            sse[j].append(_block_errors(lg, p, refit, names[j], _blocks(lg.n, k)[i], failed))
+    return {j: _verdict(names[j], np.array(sse[j]).reshape(-1, 3), failed.get(j), k) for j in names}
+
+
+def _block_errors(lg: JointLog, p: Prediction, refit: FitResult, name: str | None, b: slice,
+                  failed: dict) -> np.ndarray:
+    """[model, linear] squared held-out errors of one joint's block ``b`` and its sample count (``refit``:
+    stage 2 fitted without the block); a model that cannot be judged is recorded in ``failed``."""
+    j = str(lg.joint)
+    y, v, held = (np.asarray(x, float) for x in (lg.tau, p.qd[j], p.held[j]))
+    mov = np.asarray(p.moving[j], bool)
+    train = np.ones(lg.n, bool)
+    train[b] = False
+    if (mov & train).sum() < 3:
+        failed.setdefault(j, "too few moving samples outside a block")
+        return np.zeros(3)
+    fc, fv, fo = _linear(y - held, v, mov & train)
+    lin = fo + held[b] + np.where(mov[b], fc * np.sign(v[b]) + fv * v[b], 0.0)
+    jf = refit.joints.get(j)
+    if jf is None or name is None or name not in jf.models or not jf.models[name].success:
+        failed.setdefault(j, f"stage 2's model {name} could not be refitted without a block")
+        return np.zeros(3)
+    off = jf.offset.value if jf.offset is not None and jf.offset.value is not None else 0.0
+    m = mov[b]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        F = jf.friction_model(name).friction(v[b][m], q=None if lg.q is None else np.asarray(lg.q, float)[b][m])
+    mod = off + held[b]
+    mod[m] += F
+    return np.array([np.sum((y[b] - mod) ** 2), np.sum((y[b] - lin) ** 2), b.stop - b.start])
+
+
+def _verdict(name: str | None, sse: np.ndarray, failed: str | None, k: int) -> dict:
+    """One joint's entry of :func:`guard_models` from its blocks' squared errors (rows [model, linear,
+    count])."""
+    out = {"model": name, "blocks": k}
+    if failed is not None or len(sse) < 2:
+        return dict(out, kept="linear", reason=failed or "fewer than two blocks judged")
+    n = max(float(sse[:, 2].sum()), 1.0)
+    rms_m, rms_l = float(np.sqrt(sse[:, 0].sum() / n)), float(np.sqrt(sse[:, 1].sum() / n))
+    d = (sse[:, 1] - sse[:, 0]) / np.maximum(sse[:, 2], 1.0)   # per block: linear's MSE less the model's
+    se = float(np.std(d, ddof=1) / np.sqrt(len(d)))
+    out["heldout_rms"] = {"models": rms_m, "linear": rms_l}
+    if d.mean() > 2.0 * se:
+        return dict(out, kept="models", reason="")
+    return dict(out, kept="linear", reason=(
+        f"on the fitted logs' own {k} time blocks, each held out in turn, {name} predicts the friction torque "
+        f"with an RMS error of {rms_m:.3g} N m against {rms_l:.3g} for stage 1's linear friction (not better "
+        "by two paired errors)"))
 
 
 def pose_logs(rb, logs: list[JointLog], joints: list[str]) -> tuple[list[JointLog], dict]:
@@ -125,11 +259,15 @@ def fit_pose(rb, logs: list[JointLog], joints: list[str], why: str, sources: lis
 def model_torque(res: FitResult, p: Prediction, logs: list[JointLog]) -> dict:
     """Each joint's torque as the rigid body of the robot model's prediction ``p`` plus the joint's selected
     friction model of ``res`` at the filtered velocity (where the joint stands, its offset and the friction
-    the robot estimate holds there, :mod:`frictid.robot.hold`), at each log's own samples."""
+    the robot estimate holds there, :mod:`frictid.robot.hold`), at each log's own samples; a joint whose
+    entry is stage 1's (:func:`guard_models`) has stage 1's torque."""
     out = {}
     for lg in logs:
         j = str(lg.joint)
         jf = res[j]
+        if (jf.selection.get("stage2") or {}).get("kept") == "linear":
+            out[j] = p.tau[j]
+            continue
         off = jf.offset.value if jf.offset is not None and jf.offset.value is not None else 0.0
         mov = p.moving[j]
         F = off + p.held.get(j, np.zeros(lg.n))
@@ -139,10 +277,12 @@ def model_torque(res: FitResult, p: Prediction, logs: list[JointLog]) -> dict:
 
 
 def heldout_models(robot, logs: list[JointLog], fraction: float = 0.3, smooth_hz: float | None = None,
-                   rigid_body: str = "identify") -> dict:
+                   rigid_body: str = "identify", guard: bool = True) -> dict:
     """:func:`frictid.robot.identify.heldout_errors` for both stages: identify on the first ``1 - fraction``
     of the logs, predict the rest with stage 1 (``linear``) and with the rigid body of stage 1 plus each
-    joint's selected velocity model of stage 2 (``models``, fitted without the diagnosis). Returns per
+    joint's selected velocity model of stage 2, fitted without the diagnosis: every joint's (``models_all``)
+    and, with ``guard``, stage 1's friction where :func:`guard_models` does not keep it (``models``, as
+    :func:`fit_robot` keeps them; ``stage2``: the verdicts). Returns per
     stage {'whole', 'moving'} RMS per joint [N m], at the logs' own samples; ``rigid_body="known"``: the
     robot description's rigid body (:mod:`frictid.robot.known`) instead of stage 1's identified one."""
     from scipy.signal import butter, sosfiltfilt
@@ -150,9 +290,14 @@ def heldout_models(robot, logs: list[JointLog], fraction: float = 0.3, smooth_hz
     k = int(round((1.0 - fraction) * min(lg.n for lg in logs)))
     head, tail = [cut_log(lg, slice(0, k)) for lg in logs], [cut_log(lg, slice(k, None)) for lg in logs]
     rf = (identify_known if rigid_body == "known" else identify_robot)(robot, head)
-    res = fit_joints(friction_logs(head, predict(robot, rf, head)), diagnose=False)
+    ph = predict(robot, rf, head)
+    flogs = friction_logs(head, ph)
+    res = fit_joints(flogs, diagnose=False)
     p = predict(robot, rf, tail)
-    preds = {"linear": p.tau, "models": model_torque(res, p, tail)}
+    preds = {"linear": p.tau, "models_all": model_torque(res, p, tail)}
+    if guard:
+        res = keep_linear(res, fit_result(robot, rf, [], robot.name), guard_models(flogs, ph, res))
+        preds["models"] = model_torque(res, p, tail)
     out = {stage: {"whole": {}, "moving": {}} for stage in preds}
     for lg in tail:
         j = str(lg.joint)
@@ -164,5 +309,6 @@ def heldout_models(robot, logs: list[JointLog], fraction: float = 0.3, smooth_hz
             r = tau - pr[j]
             out[stage]["whole"][j] = float(np.sqrt(np.mean(r ** 2)))
             out[stage]["moving"][j] = float(np.sqrt(np.mean(r[p.moving[j]] ** 2)))
+    out["stage2"] = res.settings.get("stage2", {})
     return out
 
