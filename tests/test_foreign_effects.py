@@ -126,8 +126,8 @@ def test_cycling_scales_the_level_with_time_alone():
 
 
 def test_memory_raises_the_level_after_a_long_move_and_fades_over_the_next():
-    """The ``memory`` kind (outside the list, drawn only on request): a move's level grows with the travel of
-    the previous move (rest or reversal to rest or reversal) and fades over its own travel."""
+    """The ``memory`` kind (outside the list): a move's level grows with the travel of the previous move (rest
+    or reversal to rest or reversal) and fades over its own travel."""
     pl, ctl = _joint()
     k, s_ref, s_fade, still = 0.4, 0.5, 0.1, 0.01
     out = sim.simulate(pl, ctl, _program(), fx=_fx(kM=k, sM=s_ref, fM=s_fade, w_stillM=still))
@@ -137,7 +137,32 @@ def test_memory_raises_the_level_after_a_long_move_and_fades_over_the_next():
     np.testing.assert_allclose(out["g_eff"], want, rtol=0.05)   # the kernel's clock runs on its sub-steps
     extra = out["g_eff"] / pl.g(out["w"]) - 1
     assert extra.max() > 0.5 * k * (1 - math.exp(-0.75 / s_ref)) and abs(extra[:50]).max() == 0.0
-    assert "memory" in effects.ALL_KINDS and "memory" not in effects.KINDS   # drawn on request only
+    assert "memory" in effects.ALL_KINDS and "memory" not in effects.KINDS   # in the mix from MIX_FROM only
+
+
+def test_the_default_mix_draws_memory_from_new_seeds_only_and_leaves_every_other_draw(monkeypatch):
+    """Session 22: the card's default mix holds ``memory`` beside ``cycling`` for seeds from ``MIX_FROM`` on
+    (a single effect turned into it on a stream of its own); every earlier seed, and every later draw that is
+    not turned, is the draw it was (the same plant, program, rate, length, kinds, sizes and settings)."""
+    def kinds_of(seeds):
+        return {s: [e["kind"] for e in effects.draw_card(s).effects] for s in seeds}
+
+    seeds = list(range(effects.MIX_FROM - 30, effects.MIX_FROM + 90))
+    new = kinds_of(seeds)
+    assert all("memory" not in k for s, k in new.items() if s < effects.MIX_FROM)
+    turned = [s for s, k in new.items() if k == ["memory"]]
+    assert 2 <= len(turned) <= 20, turned     # 1 in 12 of the single effects (65 % of the draws): about 5 of 90
+    before = {s: effects.draw_card(s) for s in seeds}
+    monkeypatch.setattr(effects, "_mixed", lambda seed, effect: effect)
+    for s in seeds:
+        old = effects.draw_card(s)
+        if s in turned:
+            assert len(old.effects) == 1 and old.effects[0]["kind"] in effects.KINDS
+            continue
+        b = before[s]
+        assert (b.family, b.fs, b.seconds, b.starts, b.sc.plant) == (old.family, old.fs, old.seconds, old.starts,
+                                                                    old.sc.plant), s
+        assert yaml.safe_dump(b.effects) == yaml.safe_dump(old.effects), s
 
 
 def test_load_scales_the_level_with_the_transmitted_torque():

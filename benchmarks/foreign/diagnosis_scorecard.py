@@ -12,7 +12,8 @@ a long program (velocity sweeps, duty cycles, point-to-point work; rests of 0.1.
 nothing hidden (15 %), two effects on frictid's candidate list at once (20 %) or one effect of any kind:
 on the list (temperature with and without a logged ``temp_joint``, load, position ripple, drift across
 recordings with a start time, asymmetry) or outside it (dwell-time break-away, a torque-motion delay, a
-gravity second harmonic, cogging, a level cycling in time), of a random size of 3..40 % of the friction RMS. Then
+gravity second harmonic, cogging, a level cycling in time; from seed 320500 also a level that grows with the
+previous move's travel, ``memory``), of a random size of 3..40 % of the friction RMS. Then
 ``frictid.fit(paths)`` with the diagnosis; the diagnosis block is read generically (each finding's cause
 and gain, the causes tested, an "unexplained" statement if there is one), so new candidates are scored
 when they arrive: an effect outside the list counts as on it once a tested cause carries its name.

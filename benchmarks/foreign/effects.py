@@ -48,14 +48,17 @@ OUTSIDE = {"dwell": ("dwell",), "delay": ("delay",), "gravity2": ("harmonic", "s
                        "torque_position"),
            "cycling": ("cycl", "time_periodic", "periodic_time")}
 KINDS = tuple(IN_LIST) + tuple(OUTSIDE)
-#: Effects outside the list drawn only on request (``--effect KIND``), so that the default draws of every seed
-#: stay as they were: ``memory``, a friction level that grows with the travel of the previous move and fades
-#: over the current one (a hysteresis of the lubricant film: a long stroke pushes the grease to its ends,
-#: and the next move starts on a thinner film), a function of neither the speed, the rest, the time nor
-#: the position.
+#: Effects outside the list added after the card's first seeds: ``memory``, a friction level that grows with
+#: the travel of the previous move and fades over the current one (a hysteresis of the lubricant film: a long
+#: stroke pushes the grease to its ends, and the next move starts on a thinner film), a function of neither
+#: the speed, the rest, the time nor the position. Drawn on request (``--effect memory``) and, for seeds from
+#: :data:`MIX_FROM` on, in the default mix (:func:`_mixed`).
 EXTRA_OUTSIDE = {"memory": ("memory", "hysteresis", "previous_move")}
 ALL_OUTSIDE = {**OUTSIDE, **EXTRA_OUTSIDE}
 ALL_KINDS = KINDS + tuple(EXTRA_OUTSIDE)
+#: First seed whose default draw may be a kind of :data:`EXTRA_OUTSIDE` (session 22): every earlier seed draws
+#: exactly what it drew before.
+MIX_FROM = 320500
 #: Long-log programs: experiments and work blocks with rests between them.
 CARD_FAMILIES = ("sweeps_work", "work", "sweeps")
 #: Card defaults: log rate [Hz] (log-uniform) and log length [min] (log-uniform).
@@ -107,7 +110,7 @@ def draw_card(seed: int, family: str | None = None, effect: str | None = None,
     u, k1, k2 = rng.random(), rng.integers(len(KINDS)), rng.permutation(len(IN_LIST))
     sizes = rng.uniform(*SIZE, 2)
     if effect is None:
-        effect = "none" if u < P_CLEAN else ("pair" if u < P_CLEAN + P_TWO else KINDS[int(k1)])
+        effect = _mixed(seed, "none" if u < P_CLEAN else ("pair" if u < P_CLEAN + P_TWO else KINDS[int(k1)]))
     if effect == "none":
         kinds = []
     elif effect == "pair":
@@ -125,6 +128,18 @@ def draw_card(seed: int, family: str | None = None, effect: str | None = None,
     for e in effects:
         e.update(_settings(e["kind"], rng, sc, seconds))
     return CardDraw(seed, family, sc, fs, seconds, effects, starts)
+
+
+def _mixed(seed: int, effect: str) -> str:
+    """The default draw's effect with the kinds of :data:`EXTRA_OUTSIDE` in the mix, for seeds from
+    :data:`MIX_FROM` on: a single effect becomes one of them with the share each of the
+    ``len(KINDS) + len(EXTRA_OUTSIDE)`` kinds would have, chosen on a stream of its own (``[seed, 4]``), so the
+    seed's other draws (plant, program, sizes, the other kinds) stay what they were."""
+    if seed < MIX_FROM or effect not in KINDS:
+        return effect
+    extra = tuple(EXTRA_OUTSIDE)
+    u = np.random.default_rng([seed, 4]).random() * (len(KINDS) + len(extra))
+    return extra[int(u)] if u < len(extra) else effect
 
 
 def _settings(kind: str, rng, sc, seconds: float) -> dict:

@@ -30,6 +30,7 @@ import numpy as np
 from ..identify.regression import NormalEquations, solve
 from . import moments as mo
 from .samples import Samples
+from .previous import previous_columns
 from .signals import delay_column, dwell_state
 
 #: Extensions the parameter file's friction models do not carry: causes the diagnosis names (a finding with
@@ -551,6 +552,8 @@ class Context:
             c = sin_cos(self._cache, S.q, nl["period"])
         elif term.ext == "delay":
             c = delay_column(S, nl.get("shift", 0.0), nl.get("beta", ()))[:, None]
+        elif term.ext == "dwell" and nl.get("source") == "previous":   # a competitor only, never exported
+            c = previous_columns(S, nl["s_c"])
         elif term.ext == "dwell":
             c = dwell_state(S, nl["t0"], nl["s_c"])[:, None]
         else:
