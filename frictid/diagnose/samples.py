@@ -112,6 +112,10 @@ class Samples:
     group_t: np.ndarray
     decimation: int = 1
     axis: str = "rotary"
+    #: the bristle length [q] of the fit's LuGre (its level at rest over sigma0, where the fit identified
+    #: sigma0), None otherwise: the travel after a reversal over which the friction's presliding state acts
+    #: (:func:`frictid.diagnose.signals.settled`)
+    bristle: float | None = None
     #: per-log inputs of the thermal state and other values derived from the full logs, computed once
     _memo: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -343,7 +347,7 @@ def _sliding_rows(lg: DiagLog, w: np.ndarray, fin_w: np.ndarray, v_min: float, v
 
 def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None,
                   n_max: int | None = None, axis: str = "rotary", J: float = 0.0,
-                  why: dict | None = None) -> Samples | None:
+                  why: dict | None = None, bristle: float | None = None) -> Samples | None:
     """The :class:`Samples` of a joint's logs, or None when fewer than ``2 n_folds`` groups slide (or fewer
     than :data:`MIN_SAMPLES` samples, :data:`MIN_PER_GROUP` per group on average); then ``why['reason']``
     says which, with the numbers.
@@ -354,6 +358,8 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
     J [kg m^2 | kg] : the inertia the friction torque was computed with; samples whose inertial torque
     ``|J a|`` exceeds :data:`INERTIA_RATIO` times the typical friction are left out (there the friction
     torque is a small difference of large numbers, dominated by the error of the acceleration estimate).
+
+    bristle [q] : the bristle length of the fit's LuGre, or None (:attr:`Samples.bristle`).
     """
     fin_w = [np.isfinite(lg.w) for lg in logs]
     why = {} if why is None else why
@@ -413,7 +419,7 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
         F=take("F", lambda lg: lg.F), G=take("G", lambda lg: lg.G), payload=take("payload"),
         temp_env=env, temp_joint=take("temp_joint"), li=cat["li"], k=cat["k"], group=group, fold=fold,
         logs=logs, n_folds=n_folds, v_min=v_min, w0=w0, T0=T0, clock_t0=clock_t0, clock_real=real,
-        group_t=gt, decimation=dec, axis=axis)
+        group_t=gt, decimation=dec, axis=axis, bristle=bristle)
     S._memo.update((("dt", i), dt) for i, dt in enumerate(dts))
     S._memo.update((("log_w", i), w) for i, w in enumerate(w_nan0))
     _fold_major(S)
