@@ -101,7 +101,7 @@ def candidates(S: Samples, st: Structure, ctx: Context | None = None) -> list[st
     out = []
     span_h = float(S.th.max() - S.th.min())
     if "temperature" not in have and span_h * 3600 > 20 * _dt(S) and (
-            S.temp_joint is not None or tau_grid(S, ctx).size):
+            S.temp_joint is not None or any(tau_grid(S, ctx, K).size for K in S.conductances())):
         out += ["thermal4", "thermal6"]
     if "position" not in have and S.q is not None and np.ptp(S.q) > 0:
         out.append("position_smooth")
@@ -221,16 +221,16 @@ def run_time(S: Samples) -> float:
     return total / runs if runs else math.inf
 
 
-def tau_grid(S: Samples, ctx: Context | None = None) -> np.ndarray:
+def tau_grid(S: Samples, ctx: Context | None = None, K: float = 1.0) -> np.ndarray:
     """Thermal time constants [s] tried for the heat balance, only those the data resolve: from
     :data:`TAU_MIN_RUNS` one-sign runs of the motion (and 1/100 of the recording) to the span of the
     longest log (the state starts cold in every log; a longer time constant is a trend the recording
     cannot tell from anything else slow), none when that log is shorter than :data:`SPAN_MIN_TAUS` of the
     shortest, and only those whose thermal state is a slow variable, not a proxy for the speed
-    (:data:`THERMAL_R2_MAX`)."""
+    (:data:`THERMAL_R2_MAX`), for the heat balance's conductance ``K`` (:meth:`Samples.conductances`)."""
     if ctx is None:
         ctx = Context(S)
-    key = ("tau_grid",)
+    key = ("tau_grid",) if K == 1.0 else ("tau_grid", float(K))
     if key in ctx._cache:
         return ctx._cache[key]
     # the thermal state starts cold at the start of every log: the longest log is what can resolve it
@@ -242,7 +242,8 @@ def tau_grid(S: Samples, ctx: Context | None = None) -> np.ndarray:
         n = max(3, int(round(TAU_PER_DECADE * math.log10(hi / lo))) + 1)
         grid = np.geomspace(lo, hi, n)
         basis = velocity_basis(S)
-        grid = np.array([tc for tc in grid if velocity_r2(S, ctx.thermal(tc), basis) <= THERMAL_R2_MAX])
+        grid = np.array([tc for tc in grid if velocity_r2(S, ctx.thermal(tc, "heat_balance", K), basis)
+                         <= THERMAL_R2_MAX])
     ctx._cache[key] = grid
     return grid
 
@@ -264,25 +265,14 @@ def propose(ext: str, ctx: Context, st: Structure, idx: np.ndarray, resid: np.nd
     if ext in ("thermal4", "thermal6"):
         best = None
         sources = ["heat_balance"] + (["temp_joint"] if S.temp_joint is not None else [])
-        def trial(src, tc):
-            term = Term(cause, ext, role, (("source", src), ("tau_c", float(tc))))
-            return _fit_rms(ctx, st.plus(term), idx), term
-
         per_source = {}
         for src in sources:
             if src == "temp_joint":
-                cand = [trial(src, 1.0)]
-            else:
-                grid = tau_grid(S, ctx)
-                if not grid.size:
+                cand = [_thermal_trial(ctx, st, idx, ext, src, 1.0)]
+            else:   # the time constant on its grid, for each conductance the data offer
+                cand = [c for K in S.conductances() for c in _thermal_grid(ctx, st, idx, ext, K)]
+                if not cand:
                     continue
-                ctx.prefetch([st.plus(Term(cause, ext, role, (("source", src), ("tau_c", float(tc))))) for tc in grid])
-                cand = [trial(src, tc) for tc in grid]
-                k = int(np.argmin([c[0] for c in cand]))
-                step = 10.0 ** (1.0 / TAU_PER_DECADE)
-                near = [grid[k] * step ** f for f in (-1 / 3, 1 / 3) if grid[0] <= grid[k] * step ** f <= grid[-1]]
-                ctx.prefetch([st.plus(Term(cause, ext, role, (("source", src), ("tau_c", float(tc))))) for tc in near])
-                cand += [trial(src, tc) for tc in near]
             per_source[src] = min(cand, key=lambda c: c[0])
         return _thermal_source(per_source, S, idx)
 
@@ -381,6 +371,34 @@ def _position_torque(ctx: Context, st: Structure, idx: np.ndarray, resid: np.nda
     terms.append(Term("position_torque", "position_torque", "additive", (("period", 0.0), ("q0", q0), ("qs", qs))))
     ctx.prefetch([st.plus(term) for term in terms])   # their sums in one pass
     return min(terms, key=lambda term: _fit_rms(ctx, st.plus(term), idx))
+
+
+def _thermal_term(ext: str, src: str, tc: float, K: float = 1.0) -> Term:
+    """A thermal term: its source, time constant [s] and, when not 1, the heat balance's conductance K."""
+    cause, role, _ = EXTENSIONS[ext]
+    nl = (("source", src), ("tau_c", float(tc))) + ((("K", float(K)),) if K != 1.0 else ())
+    return Term(cause, ext, role, nl)
+
+
+def _thermal_trial(ctx: Context, st: Structure, idx, ext: str, src: str, tc: float, K: float = 1.0) -> tuple:
+    """(training RMS, term) of a thermal term."""
+    term = _thermal_term(ext, src, tc, K)
+    return _fit_rms(ctx, st.plus(term), idx), term
+
+
+def _thermal_grid(ctx: Context, st: Structure, idx, ext: str, K: float) -> list:
+    """The heat balance's trials (training RMS, term) on its time-constant grid (:func:`tau_grid`) for the
+    conductance K, and a third of a grid step either side of the best."""
+    grid = tau_grid(ctx.S, ctx, K)
+    if not grid.size:
+        return []
+    ctx.prefetch([st.plus(_thermal_term(ext, "heat_balance", tc, K)) for tc in grid])
+    cand = [_thermal_trial(ctx, st, idx, ext, "heat_balance", tc, K) for tc in grid]
+    k = int(np.argmin([c[0] for c in cand]))
+    step = 10.0 ** (1.0 / TAU_PER_DECADE)
+    near = [grid[k] * step ** f for f in (-1 / 3, 1 / 3) if grid[0] <= grid[k] * step ** f <= grid[-1]]
+    ctx.prefetch([st.plus(_thermal_term(ext, "heat_balance", tc, K)) for tc in near])
+    return cand + [_thermal_trial(ctx, st, idx, ext, "heat_balance", tc, K) for tc in near]
 
 
 def _thermal_source(per_source: dict, S: Samples, idx: np.ndarray) -> Term | None:

@@ -110,7 +110,7 @@ def _thermal_evidence(S: Samples, nl: dict, g4, dc, rb, r: float, F_u: str, tail
     """The sentence of a temperature finding: the model's mean friction at the coldest and the warmest
     thermal state of the recording (1st and 99th percentiles of the state, at the samples' speeds), not the
     ends of the logs laid end to end (a last log that starts cold hid a 20 % fall as 1.4 %)."""
-    x = S.thermal_state(nl["tau_c"], measured=nl.get("source") == "temp_joint")
+    x = S.thermal_state(nl["tau_c"], measured=nl.get("source") == "temp_joint", K=nl.get("K", 1.0))
     lo, hi = np.percentile(x, [1, 99])
     sg = np.sign(S.w)
     L = float(np.mean(np.abs(S.F)))

@@ -8,6 +8,8 @@ fit's LuGre comparison (leave one ramp out), since sliding samples say nothing a
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..identify.select import BASE_MODELS, base_model_name, choose
@@ -40,6 +42,23 @@ def _base_structure(jf: JointFit, name: str, S: Samples) -> Structure:
     return Structure(map=mapname, shapes=np.asarray(cp, float), terms=terms)
 
 
+def bristle_length(jf: JointFit) -> float | None:
+    """The bristle length [q] of the fit's LuGre, ``g(0) / sigma0`` (its static map's level at rest), where
+    the fit identified sigma0 (from ramps, or from the stops and reversals); None otherwise. Within a few
+    such lengths of travel after a reversal the friction's presliding state lags the motion
+    (:func:`frictid.diagnose.signals.settled`)."""
+    mf = jf.models.get("lugre")
+    s0 = mf.params.get("sigma0") if mf is not None else None
+    if s0 is None or s0.value is None or not s0.identifiable or not float(s0.value) > 0:
+        return None
+    try:
+        cp, _ = sm.canonical_pair(mf.map, {k: v for k, v in mf.values().items()})
+    except (KeyError, TypeError, ValueError):
+        return None
+    g0 = float(cp[0] + cp[1] + cp[4])   # the level and both Stribeck amplitudes at zero speed
+    return g0 / float(s0.value) if g0 > 0 and math.isfinite(g0) else None
+
+
 def _rigid(jf: JointFit) -> dict[str, float]:
     """The fit's inertia and gravity terms (0 when unknown)."""
     return {"J": jf.inertia.value if jf.inertia and jf.inertia.value is not None else 0.0,
@@ -69,7 +88,7 @@ def diagnose_joint(jf: JointFit, logs: list[DiagLog], n_folds: int = N_FOLDS) ->
     rec["base"] = base
     J = jf.inertia.value if jf.inertia is not None and jf.inertia.value is not None else 0.0
     why: dict = {}
-    S = build_samples(logs, n_folds, axis=jf.axis, J=max(J, 0.0), why=why)
+    S = build_samples(logs, n_folds, axis=jf.axis, J=max(J, 0.0), why=why, bristle=bristle_length(jf))
     if S is None:
         rec["skipped"] = f"{why.get('reason', 'too few sliding samples')}: the fit's own choice stands"
         jf.warnings.append(f"not diagnosed: {rec['skipped']}")

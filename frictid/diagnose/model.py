@@ -424,8 +424,8 @@ class Context:
         state: :meth:`_thermal6_vectors`; the diagnosis' measured peak did not rise)."""
         terms = {(t.ext, t.nl) for t in st.terms}
         strib = {(t.settings["vs"], t.settings["delta"]) for t in st.terms if t.role == "stribeck"}
-        thermal = {(round(float(t.settings["tau_c"]), 9), t.settings.get("source", "heat_balance"))
-                   for t in st.terms if t.ext in ("thermal4", "thermal6")}
+        thermal = {(round(float(t.settings["tau_c"]), 9), t.settings.get("source", "heat_balance"),
+                    float(t.settings.get("K", 1.0))) for t in st.terms if t.ext in ("thermal4", "thermal6")}
         keep_states = not thermal
 
         def stale(k) -> bool:
@@ -437,7 +437,7 @@ class Context:
             if kind == "signed":
                 return stale(k[1])
             if kind == "thermal":
-                return not keep_states and (k[1], k[2]) not in thermal
+                return not keep_states and (k[1], k[2], k[3]) not in thermal
             return False
 
         for k in [k for k in self._cache if isinstance(k, tuple) and k and stale(k)]:
@@ -524,7 +524,7 @@ class Context:
         elif term.ext in ("asym_scale", "asym_level"):
             c = (S.w < 0).astype(float)[:, None]
         elif term.ext in ("thermal4", "thermal6"):
-            x = self.thermal(nl["tau_c"], nl.get("source", "heat_balance"))
+            x = self.thermal(nl["tau_c"], nl.get("source", "heat_balance"), nl.get("K", 1.0))
             if term.ext == "thermal4":
                 c = x[:, None]
             else:
@@ -580,21 +580,23 @@ class Context:
         Four columns per time constant tried are never stored (12 time constants on a one-hour log: 0.45 GB
         and a third of the thermal6 candidate's time)."""
         nl = term.settings
-        x = self.thermal(nl["tau_c"], nl.get("source", "heat_balance"))
+        x = self.thermal(nl["tau_c"], nl.get("source", "heat_balance"), nl.get("K", 1.0))
         if "w2" not in self._cache:
             self._cache["w2"] = self.S.w * self.S.w
         w, w2 = self.S.w, self._cache["w2"]
         return [(self.sgn, x), (w, x), (w, x, self.v), (w, x, w2)]
 
-    def thermal(self, tau_c: float, source: str = "heat_balance") -> np.ndarray:
-        key = ("thermal", round(float(tau_c), 9), source)
+    def thermal(self, tau_c: float, source: str = "heat_balance", K: float = 1.0) -> np.ndarray:
+        """The thermal state of time constant ``tau_c`` [s] from ``source`` (``heat_balance``: the measured
+        friction power with the conductance ``K`` [W/K], :meth:`Samples.conductances`; ``temp_joint``; ``work``)."""
+        key = ("thermal", round(float(tau_c), 9), source, float(K))
         if key not in self._cache:
             if self.full is not None:   # the same recursion, its values at these samples
-                self._cache[key] = self.full[0].thermal(tau_c, source)[self.full[1]]
+                self._cache[key] = self.full[0].thermal(tau_c, source, K)[self.full[1]]
             elif source == "work":   # a competitor's state only (chain.Chain._not_from_the_work), never exported
-                self._cache[key] = self.S.thermal_state(tau_c, power=self.work_power())
+                self._cache[key] = self.S.thermal_state(tau_c, power=self.work_power(), K=K)
             else:
-                self._cache[key] = self.S.thermal_state(tau_c, measured=(source == "temp_joint"))
+                self._cache[key] = self.S.thermal_state(tau_c, measured=(source == "temp_joint"), K=K)
         return self._cache[key]
 
     #: Equal-count bins of the signed velocity of :meth:`work_power`'s friction of the speed alone.
@@ -1169,10 +1171,12 @@ def model_values(st: Structure, c: Coef, S: Samples, rigid: dict) -> tuple[str, 
             vals["drift_per_hour"] = float(g[0])
             vals["drift_t0"] = float(S.clock_t0) if S.clock_real else 0.0
         elif t.ext == "thermal4":
-            vals.update(alpha=float(g[0]), beta=1.0, C=float(nl["tau_c"]), K=1.0, T0=float(S.T0))
+            K = float(nl.get("K", 1.0))   # C dT/dt = P - K (T - Tenv): the time constant is C / K
+            vals.update(alpha=float(g[0]), beta=1.0, C=K * float(nl["tau_c"]), K=K, T0=float(S.T0))
         elif t.ext == "thermal6":
             vals.update({f"dc{j}": float(c.dc[j]) for j in range(4)})
-            vals.update(C=float(nl["tau_c"]), K=1.0, T0=float(S.T0))
+            K = float(nl.get("K", 1.0))
+            vals.update(C=K * float(nl["tau_c"]), K=K, T0=float(S.T0))
         elif t.ext == "offset":
             vals["tau_offset"] = float(g[0])
         elif t.ext == "inertia":

@@ -112,6 +112,10 @@ class Samples:
     group_t: np.ndarray
     decimation: int = 1
     axis: str = "rotary"
+    #: the bristle length [q] of the fit's LuGre (its level at rest over sigma0, where the fit identified
+    #: sigma0), None otherwise: the travel after a reversal over which the friction's presliding state acts
+    #: (:func:`frictid.diagnose.signals.settled`)
+    bristle: float | None = None
     #: per-log inputs of the thermal state and other values derived from the full logs, computed once
     _memo: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -195,11 +199,13 @@ class Samples:
         return self.cached(("rows", i), rows)
 
     def thermal_state(self, tau_c: float, power: list[np.ndarray] | None = None,
-                      measured: bool = False) -> np.ndarray:
+                      measured: bool = False, K: float = 1.0) -> np.ndarray:
         """Joint temperature rise ``T - T0`` [K] at the samples, for a time constant tau_c [s].
 
         power : friction power [W] per sample of each full log (default: the measured ``F w``).
         measured : use the logged ``temp_joint`` instead of the heat balance.
+        K : the heat balance's conductance [W/K], the weight of the power against the ambient's change
+        (:meth:`conductances`).
         """
         out = np.empty(self.n)
         for i, lg in enumerate(self.logs):
@@ -211,9 +217,9 @@ class Samples:
             else:
                 # the filter is causal: the samples after the last one kept are not needed
                 if power is None:
-                    u, x0 = self._heat_input(i)
+                    u, x0 = self._heat_input(i, K)
                 else:
-                    u, x0 = _heat_input(power[i], self._dTenv(i))
+                    u, x0 = _heat_input(power[i], self._dTenv(i), K)
                 x = _rise(u[:max(end, 2)], self.dt(i), x0, tau_c)[k]
             out[sel] = x
         return out
@@ -224,9 +230,40 @@ class Samples:
         Tenv = np.full(lg.n, self.T0) if Tenv is None else np.asarray(Tenv, float)
         return Tenv - self.T0
 
-    def _heat_input(self, i: int):
-        """(u, x0) of :func:`heat_balance_rise` for log i with the measured power (computed once)."""
-        return self.cached(("heat_input", i), lambda: _heat_input(self.power(i), self._dTenv(i)))
+    def _heat_input(self, i: int, K: float = 1.0):
+        """(u, x0) of :func:`heat_balance_rise` for log i with the measured power (computed once per K)."""
+        key = ("heat_input", i) if K == 1.0 else ("heat_input", i, K)
+        return self.cached(key, lambda: _heat_input(self.power(i), self._dTenv(i), K))
+
+    def conductances(self) -> tuple[float, ...]:
+        """The heat balance's conductances K [W/K] tried: 1 (the ambient's kelvin and the power's watt weigh
+        alike, as the fit's own thermal law is written), and, where a logged ambient ``temp_env`` changes
+        within a log, one that weighs the power :data:`AMBIENT_WEIGHT` times the ambient's change: the
+        power's share of the rise ``P / K`` (its RMS over all logs) against the ambient's largest change
+        within a log. Which one holds is a property of the joint that the data choose (the lower training
+        error, :func:`frictid.diagnose.causes.propose`): with 1 W/K a joint whose friction dissipates 0.03 W
+        warms by 0.03 K while a logged ambient wanders by 0.7 K, so the ambient's wander, not the work,
+        made the state of a 35 % warm-up (foreign card seed 316068; 316561 named no temperature beside an
+        asymmetry for the same reason)."""
+        def compute():
+            spread = 0.0
+            for i, lg in enumerate(self.logs):
+                if "temp_env" in lg.channels and lg.n:
+                    d = finite(self._dTenv(i))
+                    spread = max(spread, float(np.ptp(d)) if d.size else 0.0)
+            if spread <= 0:
+                return (1.0,)
+            p = np.concatenate([self.power(i) for i in range(len(self.logs))])
+            p_rms = float(np.sqrt(np.mean(p * p))) if p.size else 0.0
+            if p_rms <= 0:
+                return (1.0,)
+            return (1.0, p_rms / (AMBIENT_WEIGHT * spread))
+        return self.cached("conductances", compute)
+
+
+#: How many times the ambient's largest change within a log the power's rise weighs in the second
+#: conductance tried (:meth:`Samples.conductances`): the ambient's share of the state is then under 0.1 %.
+AMBIENT_WEIGHT = 1000.0
 
 
 def heat_balance_rise(t, P, dTenv, tau_c, K: float = 1.0, ref: bool = False) -> np.ndarray:
@@ -310,7 +347,7 @@ def _sliding_rows(lg: DiagLog, w: np.ndarray, fin_w: np.ndarray, v_min: float, v
 
 def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None,
                   n_max: int | None = None, axis: str = "rotary", J: float = 0.0,
-                  why: dict | None = None) -> Samples | None:
+                  why: dict | None = None, bristle: float | None = None) -> Samples | None:
     """The :class:`Samples` of a joint's logs, or None when fewer than ``2 n_folds`` groups slide (or fewer
     than :data:`MIN_SAMPLES` samples, :data:`MIN_PER_GROUP` per group on average); then ``why['reason']``
     says which, with the numbers.
@@ -321,6 +358,8 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
     J [kg m^2 | kg] : the inertia the friction torque was computed with; samples whose inertial torque
     ``|J a|`` exceeds :data:`INERTIA_RATIO` times the typical friction are left out (there the friction
     torque is a small difference of large numbers, dominated by the error of the acceleration estimate).
+
+    bristle [q] : the bristle length of the fit's LuGre, or None (:attr:`Samples.bristle`).
     """
     fin_w = [np.isfinite(lg.w) for lg in logs]
     why = {} if why is None else why
@@ -380,7 +419,7 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
         F=take("F", lambda lg: lg.F), G=take("G", lambda lg: lg.G), payload=take("payload"),
         temp_env=env, temp_joint=take("temp_joint"), li=cat["li"], k=cat["k"], group=group, fold=fold,
         logs=logs, n_folds=n_folds, v_min=v_min, w0=w0, T0=T0, clock_t0=clock_t0, clock_real=real,
-        group_t=gt, decimation=dec, axis=axis)
+        group_t=gt, decimation=dec, axis=axis, bristle=bristle)
     S._memo.update((("dt", i), dt) for i, dt in enumerate(dts))
     S._memo.update((("log_w", i), w) for i, w in enumerate(w_nan0))
     _fold_major(S)
