@@ -12,10 +12,30 @@ PER_BIN = 200
 MAX_BINS, MIN_BINS = 120, 8
 
 
+def equal_count_bins(x: np.ndarray, nb: int, side: str = "right") -> tuple[np.ndarray, int]:
+    """Bin index per sample of ``nb`` bins of x of about equal count, and the number of bins: the edges are
+    the quantiles ``k / nb`` of x (linear interpolation, equal edges merged: ties share a bin), a sample
+    equal to an edge lies above it (``side="right"``) or below it (``"left"``). The same bins as
+    ``np.searchsorted(edges, x, side)``, from one sort of x: the quantiles of the sorted values are x's
+    (the same order statistics), and a sorted sample's bin is the count of edges at or below its place."""
+    x = np.asarray(x)
+    n = x.size
+    q = np.linspace(0, 1, nb + 1)[1:-1]
+    if n == 0 or not np.all(np.isfinite(x)):  # an empty or non-finite x: the direct way (NaN sorts last)
+        edges = np.unique(np.quantile(x, q)) if n else np.zeros(0)
+        return np.searchsorted(edges, x, side=side), edges.size + 1
+    order = np.argsort(x)
+    xs = x[order]
+    edges = np.unique(np.quantile(xs, q))
+    first = np.searchsorted(xs, edges, side="left" if side == "right" else "right")  # first sample above
+    b = np.empty(n, np.intp)
+    b[order] = np.cumsum(np.bincount(first, minlength=n + 1)[:n])
+    return b, edges.size + 1
+
+
 def _bins(x: np.ndarray, nb: int) -> np.ndarray:
     """Bin index per sample: ``nb`` bins of about equal count (ties share a bin)."""
-    edges = np.unique(np.quantile(x, np.linspace(0, 1, nb + 1)[1:-1]))
-    return np.searchsorted(edges, x, side="right")
+    return equal_count_bins(x, nb)[0]
 
 
 #: Variables whose bins are kept (the last ones binned: the time is binned by a structure test and by the
