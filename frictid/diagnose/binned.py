@@ -15,22 +15,16 @@ MAX_BINS, MIN_BINS = 120, 8
 def equal_count_bins(x: np.ndarray, nb: int, side: str = "right") -> tuple[np.ndarray, int]:
     """Bin index per sample of ``nb`` bins of x of about equal count, and the number of bins: the edges are
     the quantiles ``k / nb`` of x (linear interpolation, equal edges merged: ties share a bin), a sample
-    equal to an edge lies above it (``side="right"``) or below it (``"left"``). The same bins as
-    ``np.searchsorted(edges, x, side)``, from one sort of x: the quantiles of the sorted values are x's
-    (the same order statistics), and a sorted sample's bin is the count of edges at or below its place."""
+    equal to an edge lies above it (``side="right"``) or below it (``"left"``): ``np.searchsorted(edges, x,
+    side)``. The quantiles are taken of a sorted copy (the same order statistics, so the same edges; one
+    vectorised sort costs less than numpy's selection of about 2 nb order statistics). Placing the sorted
+    samples and scattering them back by an argsort costs more than the search on the bench log's variables
+    (docs/diagnosis.md, "Benchmark", session 22)."""
     x = np.asarray(x)
-    n = x.size
-    q = np.linspace(0, 1, nb + 1)[1:-1]
-    if n == 0 or not np.all(np.isfinite(x)):  # an empty or non-finite x: the direct way (NaN sorts last)
-        edges = np.unique(np.quantile(x, q)) if n else np.zeros(0)
-        return np.searchsorted(edges, x, side=side), edges.size + 1
-    order = np.argsort(x)
-    xs = x[order]
-    edges = np.unique(np.quantile(xs, q))
-    first = np.searchsorted(xs, edges, side="left" if side == "right" else "right")  # first sample above
-    b = np.empty(n, np.intp)
-    b[order] = np.cumsum(np.bincount(first, minlength=n + 1)[:n])
-    return b, edges.size + 1
+    if x.size == 0:
+        return np.zeros(0, np.intp), 1
+    edges = np.unique(np.quantile(np.sort(x), np.linspace(0, 1, nb + 1)[1:-1]))
+    return np.searchsorted(edges, x, side=side), edges.size + 1
 
 
 def _bins(x: np.ndarray, nb: int) -> np.ndarray:
