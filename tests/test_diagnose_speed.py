@@ -246,3 +246,20 @@ def test_monomial_coefficients_for_all_monomials_at_once_are_the_per_monomial_pr
         for got, want in zip(mo.coefficients(monos, amp, gam, free_items, free_gamma),
                              plain(monos, amp, gam, free_items, free_gamma)):
             assert np.array_equal(got, want)
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_equal_count_bins_from_one_sort_are_the_quantile_edges_bins(side):
+    """The shared binning (one sort of x) gives the bins of the quantile edges found by searchsorted, with
+    ties, a constant stretch, a few values and a NaN, on either side of an edge."""
+    from frictid.diagnose.binned import equal_count_bins
+
+    rng = np.random.default_rng(7)
+    xs = [rng.normal(size=5001), np.round(rng.normal(size=4000), 1), np.r_[np.zeros(3000), rng.random(500)],
+          rng.integers(0, 3, 999).astype(float), np.r_[rng.random(300), np.nan], np.arange(7.0)]
+    for x in xs:
+        for nb in (4, 40, 120):
+            edges = np.unique(np.quantile(x, np.linspace(0, 1, nb + 1)[1:-1]))
+            b, n = equal_count_bins(x, nb, side)
+            assert n == edges.size + 1
+            np.testing.assert_array_equal(b, np.searchsorted(edges, x, side=side))

@@ -1008,3 +1008,27 @@ def test_replay_headline_is_robust_to_reversal_spikes(full_report):
     assert st["rms"] > 40.0 and st["p95_abs"] < 5.0 and st["n"] == r.size
     html, _, _ = full_report
     assert re.search(r"median \|residual\| [0-9.]+ N m \(95 % below [0-9.]+, RMS [0-9.]+\)", html)
+
+
+def test_screened_rows_of_the_tested_table_say_so(offset_asym):
+    """A candidate the long-log screen did not try on all samples carries the stride's numbers: its row in
+    the tested table is marked and a footnote says what those numbers are; a row tried on all samples is
+    not marked and without a screened row there is no footnote."""
+    import copy
+
+    from frictid.report import build_report
+
+    params = copy.deepcopy(offset_asym["params"])
+    j = offset_asym["joint"]
+    jid = "j-" + j
+    steps = params["joints"][j]["selection"]["diagnosis"]["steps"]
+    tested = [c for s in steps for c in s["tested"]]
+    assert len(tested) >= 2
+    diag = section_text(build_report(params, []), jid, "diagnosis")
+    assert "screened" not in diag
+    tested[-1]["screened"] = {"stride": 7, "samples": 52000, "explained_bound": 0.4, "explained_min": 1.2}
+    html = build_report(params, [])
+    diag = section_text(html, jid, "diagnosis")
+    assert diag.count("screened*") == 1 and "every 7th sample" in diag and "not on all of them" in diag
+    rows = [r for r in re.findall(r"<tr>(.*?)</tr>", html, re.S) if "<td class=\"num\">" in r and "screened" in r]
+    assert len(rows) == 1 and tested[-1]["extension"] in rows[0]

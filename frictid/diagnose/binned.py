@@ -12,10 +12,24 @@ PER_BIN = 200
 MAX_BINS, MIN_BINS = 120, 8
 
 
+def equal_count_bins(x: np.ndarray, nb: int, side: str = "right") -> tuple[np.ndarray, int]:
+    """Bin index per sample of ``nb`` bins of x of about equal count, and the number of bins: the edges are
+    the quantiles ``k / nb`` of x (linear interpolation, equal edges merged: ties share a bin), a sample
+    equal to an edge lies above it (``side="right"``) or below it (``"left"``): ``np.searchsorted(edges, x,
+    side)``. The quantiles are taken of a sorted copy (the same order statistics, so the same edges; one
+    vectorised sort costs less than numpy's selection of about 2 nb order statistics). Placing the sorted
+    samples and scattering them back by an argsort costs more than the search on the bench log's variables
+    (docs/diagnosis.md, "Benchmark", session 22)."""
+    x = np.asarray(x)
+    if x.size == 0:
+        return np.zeros(0, np.intp), 1
+    edges = np.unique(np.quantile(np.sort(x), np.linspace(0, 1, nb + 1)[1:-1]))
+    return np.searchsorted(edges, x, side=side), edges.size + 1
+
+
 def _bins(x: np.ndarray, nb: int) -> np.ndarray:
     """Bin index per sample: ``nb`` bins of about equal count (ties share a bin)."""
-    edges = np.unique(np.quantile(x, np.linspace(0, 1, nb + 1)[1:-1]))
-    return np.searchsorted(edges, x, side="right")
+    return equal_count_bins(x, nb)[0]
 
 
 #: Variables whose bins are kept (the last ones binned: the time is binned by a structure test and by the

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.special import ndtri, stdtr
 
-from .binned import fold_parts, heldout_binned
+from .binned import equal_count_bins, fold_parts, heldout_binned
 from .causes import EXTENSIONS, X_NOISE, candidates, n_coef, propose, torque_noise
 from .model import VISCOUS_SLOTS, Coef, Context, Evaluator, Structure
 from .samples import Samples
@@ -669,9 +669,8 @@ def speed_cells(S: Samples) -> np.ndarray:
     equal-count bins of the signed velocity): within a cell the speed, the plateau and the time hardly
     change, so what varies there with the position is not a stand-in for any of them."""
     def compute():
-        edges = np.unique(np.quantile(S.w, np.linspace(0, 1, 2 * SPEED_BINS + 1)[1:-1]))
-        b = np.searchsorted(edges, S.w, side="right")
-        _, cell = np.unique(S.group.astype(np.int64) * (edges.size + 1) + b, return_inverse=True)
+        b = speed_bins(S)
+        _, cell = np.unique(S.group.astype(np.int64) * (int(b.max()) + 1) + b, return_inverse=True)
         return cell
     return S.cached("speed_cells", compute)
 
@@ -769,10 +768,7 @@ def speed_bins(S: Samples) -> np.ndarray:
     """Bin index per sample: :data:`SPEED_BINS` equal-count bins of the signed velocity per sign, all
     segments pooled (cached). Within a bin a function of the speed hardly changes; a dwell variable changes
     from a move after a short rest to one after a long rest."""
-    def compute():
-        edges = np.unique(np.quantile(S.w, np.linspace(0, 1, 2 * SPEED_BINS + 1)[1:-1]))
-        return np.searchsorted(edges, S.w, side="right")
-    return S.cached("speed_bins", compute)
+    return S.cached("speed_bins", lambda: equal_count_bins(S.w, 2 * SPEED_BINS)[0])
 
 
 def _not_at_one_speed(S: Samples, tr: Trial, m: int) -> str | None:
@@ -913,10 +909,9 @@ def _band_shares(S: Samples, rw: np.ndarray, dw: np.ndarray) -> list[tuple[float
     cells), its standard error with the held-out groups as the independent units (a ratio estimator), and
     the band's speeds [lowest, highest]."""
     speed = np.abs(S.w)
-    edges = np.unique(np.quantile(speed, np.linspace(0, 1, SPEED_BANDS + 1)[1:-1]))
-    band = np.searchsorted(edges, speed, side="right")
+    band, nb = equal_count_bins(speed, SPEED_BANDS)
     out = []
-    for k in range(edges.size + 1):
+    for k in range(nb):
         sel = band == k
         s = np.bincount(S.group[sel], weights=(rw * dw)[sel], minlength=S.n_groups)
         d = np.bincount(S.group[sel], weights=(dw * dw)[sel], minlength=S.n_groups)

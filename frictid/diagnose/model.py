@@ -29,6 +29,7 @@ import numpy as np
 
 from ..identify.regression import NormalEquations, solve
 from . import moments as mo
+from .binned import equal_count_bins
 from .samples import Samples
 from .previous import previous_columns
 from .signals import delay_column, dwell_state
@@ -610,12 +611,10 @@ class Context:
             S = self.S
             w = np.concatenate([S.log_w(i) for i in range(len(S.logs))])
             F = np.concatenate([np.nan_to_num(np.asarray(lg.F, float)) for lg in S.logs])
-            edges = np.unique(np.quantile(w, np.linspace(0, 1, self.WORK_BINS + 1)[1:-1]))
-            b = np.searchsorted(edges, w)
-            mean = np.bincount(b, weights=F, minlength=edges.size + 1) / np.maximum(
-                np.bincount(b, minlength=edges.size + 1), 1)
-            self._cache["work_power"] = [mean[np.searchsorted(edges, S.log_w(i))] * S.log_w(i)
-                                         for i in range(len(S.logs))]
+            b, nb = equal_count_bins(w, self.WORK_BINS, side="left")
+            mean = np.bincount(b, weights=F, minlength=nb) / np.maximum(np.bincount(b, minlength=nb), 1)
+            at = np.cumsum([S.log_w(i).size for i in range(len(S.logs))])[:-1]
+            self._cache["work_power"] = [mean[bi] * S.log_w(i) for i, bi in enumerate(np.split(b, at))]
         return self._cache["work_power"]
 
 

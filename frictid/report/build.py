@@ -721,6 +721,19 @@ def _findings(jd: dict) -> _Findings:
     return _Findings(entries, befores, later)
 
 
+def _screened_note(tested: list[dict]) -> str:
+    """The footnote of the tested table when a row is screened: its numbers come from a stride of the
+    sliding samples, not from a trial on all of them."""
+    sc = [t["screened"] for t in tested if t.get("screened")]
+    if not sc:
+        return ""
+    strides = sorted({str(x["stride"]) for x in sc if x.get("stride")})
+    return ("* screened: the row's RMS, gain, t and p are those of a trial on a stride of the sliding samples "
+            f"(every {' or '.join(strides) or 'k'}th sample), not on all of them; on that stride the most the "
+            "candidate could explain stays under the bar a term must pass, so it was not tried on all samples "
+            "(docs/diagnosis.md, \"Whole logs\").")
+
+
 def _diagnosis(j: _Joint, vmin: float) -> Section:
     """The diagnosis section: what the diagnosis tested, a row per finding of the parameter file with its
     residual figure (findings the chosen model does not carry marked as not adopted), and the replays of
@@ -738,6 +751,7 @@ def _diagnosis(j: _Joint, vmin: float) -> Section:
     s.data["tested"] = [dict(t, gain=_fmt_gain(t["gain"]), rms_before=fmt_num(t["rms_before"]),
                              rms_after=fmt_num(t["rms_after"]), p=fmt_num(t["p"], 2), t=fmt_num(t["t"], 3))
                         for t in ct.diagnosis_tested(j.jd)]
+    s.data["screened_note"] = _screened_note(s.data["tested"])
     s.data["rule"] = str(((j.jd.get("selection") or {}).get("diagnosis") or {}).get("rule") or "")
     s.data["base"] = str(((j.jd.get("selection") or {}).get("diagnosis") or {}).get("base") or "")
     s.figures = replays

@@ -997,9 +997,24 @@ def _num(v) -> str:
     return "—" if v is None else f"{v:.4g}"
 
 
+def _screened(sc) -> dict | None:
+    """A tested entry's ``screened`` record as ``{stride, samples}`` (ints), or None when it has none."""
+    if not isinstance(sc, dict):
+        return None
+    out = {}
+    for k in ("stride", "samples"):
+        try:
+            out[k] = int(sc.get(k))
+        except (TypeError, ValueError):
+            out[k] = None
+    return out
+
+
 def diagnosis_tested(jd: dict) -> list[dict]:
     """Every candidate the diagnosis tested, per step (``selection.diagnosis.steps``): step, extension,
-    rms_before, rms_after, gain, t, p, chosen (bool)."""
+    rms_before, rms_after, gain, t, p, chosen (bool) and screened: None for a trial on all sliding samples,
+    else ``{stride, samples}`` of the stride whose numbers the entry carries (a long log's candidate the
+    screen found unable to pass, :mod:`frictid.diagnose.screen`)."""
     diag = (jd.get("selection") or {}).get("diagnosis")
     rows = []
     for k, step in enumerate((diag or {}).get("steps") or [] if isinstance(diag, dict) else []):
@@ -1010,7 +1025,8 @@ def diagnosis_tested(jd: dict) -> list[dict]:
                 rows.append({"step": k + 1, "extension": str(c.get("extension", "")),
                              "rms_before": pvalue(c.get("rms_before")), "rms_after": pvalue(c.get("rms_after")),
                              "gain": pvalue(c.get("gain")), "t": pvalue(c.get("t")), "p": pvalue(c.get("p")),
-                             "chosen": c.get("extension") == step.get("chosen")})
+                             "chosen": c.get("extension") == step.get("chosen"),
+                             "screened": _screened(c.get("screened"))})
     return rows
 
 
