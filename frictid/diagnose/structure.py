@@ -3,7 +3,8 @@
 After the chain (:mod:`.chain`) the held-out residual of its last model, ``r = F - F_model`` (every sliding
 sample predicted by fits that never saw its segment), is tested for structure against the variables a
 user would plot it against: the velocity, the time since the last rest, the time, the position, the
-acceleration and the measured torque. Per variable ``x``, and per fold, the training folds' residual is
+acceleration, the measured torque, its rate and the previous move's travel (signed by the current move's
+direction). Per variable ``x``, and per fold, the training folds' residual is
 averaged in bins of ``x`` (equal-count bins over all samples) and that step function predicts the
 held-out fold; the structure is *significant* when it lowers the held-out residual with the chain's test
 (one-sided paired t over held-out groups, ``ALPHA`` split over the variables), and *large enough to state*
@@ -27,13 +28,15 @@ import numpy as np
 from .binned import heldout_binned
 from .causes import X_NOISE, torque_noise
 from .chain import ALPHA, EXPLAINED_MIN, group_d, paired_t
+from .previous import previous_travel
 from .samples import Samples
 from .signals import torque_rate
 
 #: The variables tested, with their label and unit key.
 VARIABLES = (("speed", "velocity", "w"), ("dwell", "time since the last rest", "s"), ("time", "time", "s"),
              ("position", "position", "q"), ("acceleration", "acceleration", "a"),
-             ("torque", "measured torque", "F"), ("torque_rate", "rate of the measured torque", "F/s"))
+             ("torque", "measured torque", "F"), ("torque_rate", "rate of the measured torque", "F/s"),
+             ("previous", "the previous move's travel", "q"))
 
 
 def since_rest(S: Samples) -> np.ndarray:
@@ -54,6 +57,17 @@ def since_rest(S: Samples) -> np.ndarray:
     return S.cached("since_rest", compute)
 
 
+def previous_signed(S: Samples) -> np.ndarray | None:
+    """The previous move's travel [q] (:func:`.previous.previous_travel`) signed by the current move's
+    direction (a level that follows the previous move moves the friction torque with the direction of
+    motion: unsigned, the two directions' bins would cancel), 0 where there is no previous move (its own
+    bin); None without positions."""
+    if S.q is None or np.ptp(S.q) <= 0:
+        return None
+    x = previous_travel(S)
+    return np.where(np.isfinite(x), np.sign(S.w) * x, 0.0)
+
+
 def variable(S: Samples, name: str) -> np.ndarray | None:
     """The samples of a tested variable (None when the logs do not have it)."""
     if name == "speed":
@@ -70,6 +84,8 @@ def variable(S: Samples, name: str) -> np.ndarray | None:
         return S.tau
     if name == "torque_rate":   # a delay between torque and motion leaves d dtau/dt
         return torque_rate(S)
+    if name == "previous":
+        return previous_signed(S)
     raise KeyError(name)
 
 
