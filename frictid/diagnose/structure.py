@@ -3,13 +3,13 @@
 After the chain (:mod:`.chain`) the held-out residual of its last model, ``r = F - F_model`` (every sliding
 sample predicted by fits that never saw its segment), is tested for structure against the variables a
 user would plot it against: the velocity, the time since the last rest, the time, the position, the
-acceleration, the measured torque, its rate and the previous move's travel (signed by the current move's
-direction). Per variable ``x``, and per fold, the training folds' residual is
-averaged in bins of ``x`` (equal-count bins over all samples) and that step function predicts the
-held-out fold; the structure is *significant* when it lowers the held-out residual with the chain's test
-(one-sided paired t over held-out groups, ``ALPHA`` split over the variables), and *large enough to state*
-when the RMS it explains is at least the larger of :data:`frictid.diagnose.chain.EXPLAINED_MIN` of the
-friction RMS and :data:`X_NOISE` times the noise the logs show on the friction torque (its robust
+acceleration, the measured torque, its rate and the previous move's travel. Per variable ``x``, and per
+fold, the training folds' residual is averaged in bins of ``x`` (equal-count bins over all samples; for the
+previous move's travel the cells of :func:`.previous.previous_cells`: its bins by the current move's
+direction and the travel since the move started) and that step function predicts the held-out fold; the
+structure is *significant* when it lowers the held-out residual with the chain's test (one-sided paired t
+over held-out groups, ``ALPHA`` split over the variables), and *large enough to state* when the RMS it
+explains is at least the larger of :data:`frictid.diagnose.chain.EXPLAINED_MIN` of the friction RMS and :data:`X_NOISE` times the noise the logs show on the friction torque (its robust
 white-noise level, :func:`frictid.segments.noise_sigma`): both scales come from the data. A slow, segment-to-segment
 wander that no variable carries (autocorrelation) is measured by the scatter of the held-out groups'
 mean residuals against what the noise alone gives them (``sigma / sqrt(samples)``).
@@ -28,7 +28,7 @@ import numpy as np
 from .binned import heldout_binned
 from .causes import X_NOISE, torque_noise
 from .chain import ALPHA, EXPLAINED_MIN, group_d, paired_t
-from .previous import previous_travel
+from .previous import heldout_cells, previous_cells
 from .samples import Samples
 from .signals import torque_rate
 
@@ -36,7 +36,7 @@ from .signals import torque_rate
 VARIABLES = (("speed", "velocity", "w"), ("dwell", "time since the last rest", "s"), ("time", "time", "s"),
              ("position", "position", "q"), ("acceleration", "acceleration", "a"),
              ("torque", "measured torque", "F"), ("torque_rate", "rate of the measured torque", "F/s"),
-             ("previous", "the previous move's travel", "q"))
+             ("previous", "the previous move's travel (by direction and travel since the move started)", "q"))
 
 
 def since_rest(S: Samples) -> np.ndarray:
@@ -57,17 +57,6 @@ def since_rest(S: Samples) -> np.ndarray:
     return S.cached("since_rest", compute)
 
 
-def previous_signed(S: Samples) -> np.ndarray | None:
-    """The previous move's travel [q] (:func:`.previous.previous_travel`) signed by the current move's
-    direction (a level that follows the previous move moves the friction torque with the direction of
-    motion: unsigned, the two directions' bins would cancel), 0 where there is no previous move (its own
-    bin); None without positions."""
-    if S.q is None or np.ptp(S.q) <= 0:
-        return None
-    x = previous_travel(S)
-    return np.where(np.isfinite(x), np.sign(S.w) * x, 0.0)
-
-
 def variable(S: Samples, name: str) -> np.ndarray | None:
     """The samples of a tested variable (None when the logs do not have it)."""
     if name == "speed":
@@ -85,7 +74,7 @@ def variable(S: Samples, name: str) -> np.ndarray | None:
     if name == "torque_rate":   # a delay between torque and motion leaves d dtau/dt
         return torque_rate(S)
     if name == "previous":
-        return previous_signed(S)
+        return previous_cells(S)
     raise KeyError(name)
 
 
@@ -100,7 +89,7 @@ def structure_tests(S: Samples, r: np.ndarray, F_rms: float) -> list[dict]:
     floor = max(EXPLAINED_MIN * F_rms, X_NOISE * sig)
     for name, label, unit in names:
         x = variable(S, name)
-        ra = r - heldout_binned(S, r, x)
+        ra = r - (heldout_cells(S, r, x) if name == "previous" else heldout_binned(S, r, x))
         t, p = paired_t(group_d(S, r, ra))
         expl = math.sqrt(max(rms ** 2 - float(np.mean(ra * ra)), 0.0))
         out.append(_entry(name, label, expl, t, p, m, floor, F_rms, sig))
