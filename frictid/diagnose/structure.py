@@ -11,8 +11,9 @@ structure is *significant* when it lowers the held-out residual with the chain's
 over held-out groups, ``ALPHA`` split over the variables), and *large enough to state* when the RMS it
 explains is at least the larger of :data:`frictid.diagnose.chain.EXPLAINED_MIN` of the friction RMS and
 :data:`X_NOISE` times the noise the logs show on the friction torque (its robust white-noise level,
-:func:`frictid.segments.noise_sigma`): both scales come from the data. A slow, segment-to-segment wander that no variable carries (autocorrelation) is measured by the scatter of the held-out groups'
-mean residuals against what the noise alone gives them (``sigma / sqrt(samples)``).
+:func:`frictid.segments.noise_sigma`): both scales come from the data. A slow, segment-to-segment wander that no
+variable carries (autocorrelation) is measured by the scatter of the held-out groups' mean residuals against
+what the noise alone gives them (``sigma / sqrt(samples)``).
 
 The strongest significant structure becomes one sentence with its numbers ("residual varies with position
 (period 0.31 rad), 12 % of the friction RMS, 8x the sensor noise; no candidate explains it"), stored in
