@@ -782,7 +782,24 @@ def test_a_level_that_grows_with_the_previous_move_is_not_named_dwell(seed):
     assert not [f for f in findings if f.get("kind") != "repair" and f["gain"] >= 0.05], findings
     why = [r["reason"] for s in rec["steps"] for r in s.get("rejected", []) if r["extension"] == "dwell"]
     assert why and "beaten by the move before the rest" in why[0], rec["steps"]
+    # what is left follows the previous move: its structure test (cells of the previous move's travel by
+    # direction and travel since the move started) states it (the session-22 memory draws left silent)
+    prev = next(e for e in rec["structure"]["tests"] if e["variable"] == "previous")
+    assert prev["large"] and prev["p"] < 1e-6, prev
+    assert rec["unexplained"] and rec["unexplained"][0].startswith("residual varies with the previous move's travel")
     lg, values = _previous_move_log(seed, "dwell", 0.08)
     jf = fake_fit(values)
     diagnose_joint(jf, [lg])
     assert _outside(jf).get("dwell", {}).get("gain", 0.0) > 0.5, jf.selection["diagnosis"]["steps"]
+
+
+def test_the_previous_move_states_nothing_on_a_clean_program():
+    """The previous move's structure test (its cells hold a few hundred samples each) finds nothing on the
+    same program of rests and moves without an effect: the cells' held-out means do not fit the noise."""
+    lg, values = _previous_move_log(1, "memory", 0.0)
+    jf = fake_fit(values)
+    diagnose_joint(jf, [lg])
+    rec = jf.selection["diagnosis"]
+    prev = next(e for e in rec["structure"]["tests"] if e["variable"] == "previous")
+    assert not prev["significant"] and prev["explained_rms"] < 0.01 * values["Fc"], prev
+    assert rec["unexplained"] == [], rec["unexplained"]

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..data import finite
+from .binned import PER_BIN, fold_parts
 from .samples import Samples
 from .signals import REST_MIN, _moves, rests
 
@@ -115,3 +116,38 @@ def previous_columns(S: Samples, s_c: float) -> np.ndarray:
     _, s = rests(S)
     out[np.flatnonzero(ok), b[ok]] = np.exp(-s[ok] / s_c)
     return out
+
+
+def previous_cells(S: Samples) -> np.ndarray | None:
+    """Cell index per sample for the residual structure test (:mod:`.structure`): the bin of the previous
+    move's travel (:func:`_previous_bins`, "no previous move" a bin of its own) by the current move's
+    direction (a level that follows the previous move moves the friction torque with the direction of
+    motion) by equal-count bins of the travel since the move started (the level shows at a move's start and
+    fades over its travel: averaged over the whole move it is diluted); 2..8 travel bins, about
+    :data:`frictid.diagnose.binned.PER_BIN` samples a cell. None without positions (cached)."""
+    if S.q is None or np.ptp(S.q) <= 0:
+        return None
+
+    def compute():
+        pb = _previous_bins(S)
+        code = (pb + 1) * 2 + (S.w > 0)
+        n_code = 2 * (int(pb.max()) + 2)
+        nb = int(np.clip(S.n // (PER_BIN * n_code), 2, 8))
+        _, s = rests(S)
+        edges = np.unique(np.quantile(s, np.linspace(0, 1, nb + 1)[1:-1]))
+        return code * nb + np.searchsorted(edges, s, side="right")
+    return S.cached("previous_cells", compute)
+
+
+def heldout_cells(S: Samples, r: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The held-out prediction of r by the training folds' mean of r in the cells b (0 in a cell without
+    training samples): :func:`frictid.diagnose.binned.heldout_binned` on given cells."""
+    m = int(b.max()) + 1
+    parts = fold_parts(S)
+    cnts = np.array([np.bincount(b[te], minlength=m) for te in parts])
+    sums = np.array([np.bincount(b[te], weights=r[te], minlength=m) for te in parts])
+    pred = np.empty(S.n)
+    for f, te in enumerate(parts):
+        s, c = sums.sum(0) - sums[f], cnts.sum(0) - cnts[f]
+        pred[te] = np.where(c > 0, s / np.maximum(c, 1), 0.0)[b[te]]
+    return pred

@@ -3,15 +3,17 @@
 After the chain (:mod:`.chain`) the held-out residual of its last model, ``r = F - F_model`` (every sliding
 sample predicted by fits that never saw its segment), is tested for structure against the variables a
 user would plot it against: the velocity, the time since the last rest, the time, the position, the
-acceleration and the measured torque. Per variable ``x``, and per fold, the training folds' residual is
-averaged in bins of ``x`` (equal-count bins over all samples) and that step function predicts the
-held-out fold; the structure is *significant* when it lowers the held-out residual with the chain's test
-(one-sided paired t over held-out groups, ``ALPHA`` split over the variables), and *large enough to state*
-when the RMS it explains is at least the larger of :data:`frictid.diagnose.chain.EXPLAINED_MIN` of the
-friction RMS and :data:`X_NOISE` times the noise the logs show on the friction torque (its robust
-white-noise level, :func:`frictid.segments.noise_sigma`): both scales come from the data. A slow, segment-to-segment
-wander that no variable carries (autocorrelation) is measured by the scatter of the held-out groups'
-mean residuals against what the noise alone gives them (``sigma / sqrt(samples)``).
+acceleration, the measured torque, its rate and the previous move's travel. Per variable ``x``, and per
+fold, the training folds' residual is averaged in bins of ``x`` (equal-count bins over all samples; for the
+previous move's travel the cells of :func:`.previous.previous_cells`: its bins by the current move's
+direction and the travel since the move started) and that step function predicts the held-out fold; the
+structure is *significant* when it lowers the held-out residual with the chain's test (one-sided paired t
+over held-out groups, ``ALPHA`` split over the variables), and *large enough to state* when the RMS it
+explains is at least the larger of :data:`frictid.diagnose.chain.EXPLAINED_MIN` of the friction RMS and
+:data:`X_NOISE` times the noise the logs show on the friction torque (its robust white-noise level,
+:func:`frictid.segments.noise_sigma`): both scales come from the data. A slow, segment-to-segment wander that no
+variable carries (autocorrelation) is measured by the scatter of the held-out groups' mean residuals against
+what the noise alone gives them (``sigma / sqrt(samples)``).
 
 The strongest significant structure becomes one sentence with its numbers ("residual varies with position
 (period 0.31 rad), 12 % of the friction RMS, 8x the sensor noise; no candidate explains it"), stored in
@@ -27,13 +29,15 @@ import numpy as np
 from .binned import heldout_binned
 from .causes import X_NOISE, torque_noise
 from .chain import ALPHA, EXPLAINED_MIN, group_d, paired_t
+from .previous import heldout_cells, previous_cells
 from .samples import Samples
 from .signals import torque_rate
 
 #: The variables tested, with their label and unit key.
 VARIABLES = (("speed", "velocity", "w"), ("dwell", "time since the last rest", "s"), ("time", "time", "s"),
              ("position", "position", "q"), ("acceleration", "acceleration", "a"),
-             ("torque", "measured torque", "F"), ("torque_rate", "rate of the measured torque", "F/s"))
+             ("torque", "measured torque", "F"), ("torque_rate", "rate of the measured torque", "F/s"),
+             ("previous", "the previous move's travel (by direction and travel since the move started)", "q"))
 
 
 def since_rest(S: Samples) -> np.ndarray:
@@ -70,6 +74,8 @@ def variable(S: Samples, name: str) -> np.ndarray | None:
         return S.tau
     if name == "torque_rate":   # a delay between torque and motion leaves d dtau/dt
         return torque_rate(S)
+    if name == "previous":
+        return previous_cells(S)
     raise KeyError(name)
 
 
@@ -84,7 +90,7 @@ def structure_tests(S: Samples, r: np.ndarray, F_rms: float) -> list[dict]:
     floor = max(EXPLAINED_MIN * F_rms, X_NOISE * sig)
     for name, label, unit in names:
         x = variable(S, name)
-        ra = r - heldout_binned(S, r, x)
+        ra = r - (heldout_cells(S, r, x) if name == "previous" else heldout_binned(S, r, x))
         t, p = paired_t(group_d(S, r, ra))
         expl = math.sqrt(max(rms ** 2 - float(np.mean(ra * ra)), 0.0))
         out.append(_entry(name, label, expl, t, p, m, floor, F_rms, sig))
