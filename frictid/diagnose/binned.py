@@ -68,7 +68,12 @@ def heldout_binned(S: Samples, r: np.ndarray, x: np.ndarray) -> np.ndarray:
     """The held-out prediction of r by the training folds' mean of r in bins of x (0 in a bin without
     training samples)."""
     nb = int(np.clip(S.n // PER_BIN, MIN_BINS, MAX_BINS))
-    b = _bins_of(S, x, nb)
+    return heldout_cells(S, r, _bins_of(S, x, nb))
+
+
+def heldout_cells(S: Samples, r: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The held-out prediction of r by the training folds' mean of r in the cells b (cell index per sample;
+    0 in a cell without training samples)."""
     m = int(b.max()) + 1
     parts = fold_parts(S)
     cnts = np.array([np.bincount(b[te], minlength=m) for te in parts])

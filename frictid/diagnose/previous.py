@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..data import finite
-from .binned import PER_BIN, fold_parts
+from .binned import PER_BIN, equal_count_bins
 from .samples import Samples
 from .signals import REST_MIN, _moves, rests
 
@@ -134,20 +134,5 @@ def previous_cells(S: Samples) -> np.ndarray | None:
         n_code = 2 * (int(pb.max()) + 2)
         nb = int(np.clip(S.n // (PER_BIN * n_code), 2, 8))
         _, s = rests(S)
-        edges = np.unique(np.quantile(s, np.linspace(0, 1, nb + 1)[1:-1]))
-        return code * nb + np.searchsorted(edges, s, side="right")
+        return code * nb + equal_count_bins(s, nb)[0]
     return S.cached("previous_cells", compute)
-
-
-def heldout_cells(S: Samples, r: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The held-out prediction of r by the training folds' mean of r in the cells b (0 in a cell without
-    training samples): :func:`frictid.diagnose.binned.heldout_binned` on given cells."""
-    m = int(b.max()) + 1
-    parts = fold_parts(S)
-    cnts = np.array([np.bincount(b[te], minlength=m) for te in parts])
-    sums = np.array([np.bincount(b[te], weights=r[te], minlength=m) for te in parts])
-    pred = np.empty(S.n)
-    for f, te in enumerate(parts):
-        s, c = sums.sum(0) - sums[f], cnts.sum(0) - cnts[f]
-        pred[te] = np.where(c > 0, s / np.maximum(c, 1), 0.0)[b[te]]
-    return pred

@@ -26,10 +26,10 @@ import math
 
 import numpy as np
 
-from .binned import heldout_binned
+from .binned import heldout_binned, heldout_cells
 from .causes import X_NOISE, torque_noise
 from .chain import ALPHA, EXPLAINED_MIN, group_d, paired_t
-from .previous import heldout_cells, previous_cells
+from .previous import previous_cells
 from .samples import Samples
 from .signals import torque_rate
 
