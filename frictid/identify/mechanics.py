@@ -11,7 +11,7 @@ the plateaus as the friction (the polynomial cannot follow a Stribeck drop, whic
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -77,6 +77,10 @@ class Friction:
     #: the plateau points' changes for one standard deviation of each independent error direction of the
     #: inertia, gravity and offset (:func:`plateau_shifts`)
     shifts: list[np.ndarray] | None = None
+    #: the even part's error (:func:`plateau_even`) where the offset was set from the plateaus
+    #: (:func:`_offset_from_plateaus`), else None; then :attr:`odd_shifts` are the symmetric maps' shifts
+    even_se: float | None = None
+    odd_shifts: list[np.ndarray] | None = None
 
 
 def _meta_value(meta: dict, *keys):
@@ -554,6 +558,7 @@ def rigid_body(jd: JointData, regs: Regressors, n_folds: int) -> tuple[RigidBody
     final = _stage2(jd, rb, fr) or reg_fit
     if final is not None and fr.basis == "plateaus":
         fr.shifts = plateau_shifts(jd, final, fr.keys)
+        fr.odd_shifts = odd_shifts(fr.plat, fr.shifts, fr.even_se)
     for p in jd.preps:  # the mechanics are final: cos q and sin q are not needed again (58 MB per joint-hour)
         p._trig = None
     mechanics_not_identified(jd.jf)
@@ -686,11 +691,35 @@ def _offset_from_plateaus(jd: JointData, fr: Friction) -> None:
     if even is None or pe is None or pe.value is None or pe.stderr is None:
         return
     e, se = even
+    fr.even_se = se
     pe.value += e
     pe.stderr = math.sqrt(pe.stderr**2 + se**2 + e**2)
     reason = _precision_reason("offset", "F", pe.value, pe.stderr, jd)
     pe.identifiable, pe.reason = not reason, reason
     fr.plat, fr.keys = plateaus(jd)
+
+
+def odd_shifts(plat: Plateaus, shifts: list[np.ndarray] | None, even_se: float | None) -> list[np.ndarray] | None:
+    """The shifts a symmetric map's points take when the offset was set from the plateaus' even part
+    (:func:`_offset_from_plateaus`, ``even_se`` its error; None otherwise): the offset is then what makes
+    the points odd, so an error of the inertia or gravity changes it with them and each shift loses its
+    even part (:func:`plateau_even` of the shifted points); the offset's own error, as the points see it,
+    is the even part's error, one constant shift. The stage-2 regression's offset error (the moves between
+    the plateaus) otherwise entered whole: a symmetric map moves under an even shift only through its
+    points' unequal weights at mirrored speeds, and foreign 224025 had Fc 7.1784 +- 0.083 against 7.1764,
+    0.0011 before the shifts, 0.073 of them the offset's."""
+    if even_se is None or not shifts:
+        return None
+    base = plateau_even(plat)
+    if base is None:
+        return None
+    out = []
+    for d in shifts:
+        moved = plateau_even(replace(plat, F=plat.F + d))
+        if moved is None:
+            return None
+        out.append(d - (moved[0] - base[0]))
+    return out + [np.full(len(plat), float(even_se))]
 
 
 def plateau_even(plat: Plateaus) -> tuple[float, float] | None:
