@@ -528,7 +528,7 @@ def predict(name: str, values: dict, w) -> np.ndarray:
         vals = {n: values.get(n + suf) for n in smap.names}
         if any(v is None for v in vals.values()):
             continue
-        out[m] = smap.func(w[m], **vals)
+        out[m] = sm.evaluate(smap.name, w[m], vals)  # as the file runs it (a negative level held at zero)
     return out
 
 
