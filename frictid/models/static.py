@@ -327,11 +327,12 @@ def level(name: str, w, params: dict) -> np.ndarray:
     return np.where(w >= 0, canonical_level(w, c_pos), canonical_level(w, c_neg))
 
 
-def evaluate(name: str, w, params: dict) -> np.ndarray:
+def evaluate(name: str, w, params: dict, formula: bool = False) -> np.ndarray:
     """Steady-state friction [F] of the named static map (symmetric or ``_asym``) at velocities w, as the
     model a parameter file describes runs it (:class:`frictid.model.FrictionModel`, the replay kernel): a
     level g below zero is held at zero (a friction level cannot push the motion), so a map whose formula's
-    level crosses zero is scored as the function the file runs, not as its formula."""
+    level crosses zero is scored as the function the file runs, not as its formula. ``formula``: the
+    formula as written (a curve through friction points that no file runs: the rigid-body step's map)."""
     smap, asym = split_asym(name)
     w = np.asarray(w, dtype=float)
     if not asym:
@@ -340,6 +341,8 @@ def evaluate(name: str, w, params: dict) -> np.ndarray:
         fp = smap.func(w, **{n: params[n + "_pos"] for n in smap.names})
         fn = smap.func(w, **{n: params[n + "_neg"] for n in smap.names})
         F = np.where(w >= 0, fp, fn)
+    if formula:
+        return F
     g = level(name, w, params)
     below = g < 0
     if np.any(below):  # elsewhere the formula is left as it is (bit for bit)
