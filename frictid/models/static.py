@@ -343,6 +343,9 @@ def evaluate(name: str, w, params: dict, formula: bool = False) -> np.ndarray:
         F = np.where(w >= 0, fp, fn)
     if formula:
         return F
+    c_pos, c_neg = canonical_pair(name, params)
+    if all(c[0] + min(c[1], 0.0) + min(c[4], 0.0) >= 0.0 for c in (c_pos, c_neg)):
+        return F  # a level that cannot go below zero at any speed (its lower bound): nothing to hold
     g = level(name, w, params)
     below = g < 0
     if np.any(below):  # elsewhere the formula is left as it is (bit for bit)
