@@ -55,6 +55,9 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
         else:
             jf.not_identified.append({"what": "polynomial_ls", "reason": rb.why or "no moving samples"})
     fitted = [n for n in static_names if n in jf.models]
+    basis_w = fr.S.w if fr.basis == "samples" and fr.S is not None else fr.plat.w
+    for n in fitted + (["polynomial_ls"] if "polynomial_ls" in jf.models else []):
+        level_in_range(jf.models[n], basis_w, jd.F0)
     for n in fitted:
         physical_shape(jf.models[n], jd.w0, jd.F0)
         validity.drop_spanned(jf.models[n], fr.plat.w, jf.models.get(n.replace("stribeck", "coulomb_viscous")),
@@ -122,6 +125,45 @@ def physical_shape(mf, w0: float = math.inf, F0: float = 0.0) -> None:
             # well-determined zero, the rule of the static fits)
             _not_physical(v, f"negative viscous coefficient ({v.value:.4g} +- {v.stderr or 0.0:.2g}): the data do "
                              "not tell the slope's sign over the measured range")
+
+
+#: Per map: the parameters of its level g (``F = g sgn(w) + f(w)``), flagged when g is below zero inside
+#: the fitted speeds (:func:`level_in_range`).
+LEVEL = {"coulomb_viscous": ("Fc",), "stribeck": ("Fc", "Fs"), "stribeck_2exp": ("alpha0", "alpha1", "alpha2"),
+         "polynomial": ("c0",)}
+#: Points of the speed grid on which :func:`level_in_range` looks for a negative level (besides the speeds).
+LEVEL_GRID = 257
+
+
+def level_in_range(mf, basis_w: np.ndarray, F0: float) -> None:
+    """A level that goes negative inside the fitted speeds is no friction (issue 19): the model the parameter
+    file runs (:class:`frictid.model.FrictionModel`, the replay kernel) holds g at zero there, so the fitted
+    formula is not the function the file describes (Franka joint 4, ``stribeck_2exp``: g(1 rad/s) = -3.6
+    N m, run as 0). On each branch, over the speeds the map was fitted on (the validity range's, and a grid
+    between them), a level below zero by more than :data:`~.static.NEGLIGIBLE` of the torque scale ``F0``
+    marks the level's parameters not identifiable with the reason, so the choice does not take the map."""
+    base = mf.map[:-5] if mf.map.endswith("_asym") else mf.map
+    vals = mf.values()
+    if base not in LEVEL or any(v is None for v in vals.values()):
+        return
+    w = np.asarray(basis_w, dtype=float)
+    w = w[np.isfinite(w) & (w != 0)]
+    sides = (("_pos", w[w > 0]), ("_neg", -w[w < 0])) if mf.map.endswith("_asym") else (("", np.abs(w)),)
+    for suf, v in sides:
+        rng = validity._range(v, validity.TAIL if v.size > 1000 else 0.0)
+        if rng is None:
+            continue
+        grid = np.concatenate([np.linspace(rng[0], rng[1], LEVEL_GRID), v[(v >= rng[0]) & (v <= rng[1])]])
+        g = sm.level(mf.map, grid if suf != "_neg" else -grid, vals)
+        k = int(np.argmin(g))
+        if g[k] >= -NEGLIGIBLE * F0:
+            continue
+        why = (f"level g{suf} {g[k]:.4g} at {grid[k]:.4g} q/s, below zero inside the fitted speeds "
+               f"[{rng[0]:.4g}, {rng[1]:.4g}]: the model the parameter file runs holds a level at zero (friction "
+               "does not push the motion), so this formula is not the function the file describes")
+        for n in LEVEL[base]:
+            _not_physical(mf.params.get(n + suf), why)
+        mf.notes = list(mf.notes) + [why]
 
 
 def _basis_warnings(jd: JointData, fr: Friction) -> None:

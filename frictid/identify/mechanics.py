@@ -883,8 +883,10 @@ def _stage2_map(plat, odd: bool = False):
         vals = mf.values()
         if any(v is None for v in vals.values()) or mf.metrics.get("rms") is None:
             continue
-        if best is None or mf.metrics["rms"] < best[1]:
-            best = (name, mf.metrics["rms"], vals)
+        r = predict(name, vals, plat.w, True) - plat.F  # the formula's fit (its metrics score the file's model)
+        rms = math.sqrt(float(np.mean(r[np.isfinite(r)] ** 2)))
+        if best is None or rms < best[1]:
+            best = (name, rms, vals)
     if best is None:
         return None
     name, _, vals = best
@@ -896,5 +898,6 @@ def _stage2_map(plat, odd: bool = False):
     if odd:
         v = np.abs(plat.w[np.isfinite(plat.w) & (plat.w != 0)])
         v = v[v >= min(v_low, v.max())] if v.size else v
-        even = float(np.mean(predict(name, vals, v) + predict(name, vals, -v))) / 2.0 if v.size else 0.0
-    return name, (lambda w, _n=name, _v=vals, _e=even: predict(_n, _v, w) - _e), v_low
+        even = float(np.mean(predict(name, vals, v, True) + predict(name, vals, -v, True))) / 2.0 if v.size else 0.0
+    # the map as fitted (a curve through the plateau points, which no parameter file runs)
+    return name, (lambda w, _n=name, _v=vals, _e=even: predict(_n, _v, w, True) - _e), v_low

@@ -515,20 +515,22 @@ def metrics(name: str, values: dict, w, F, k: int) -> dict:
     return {"rms": math.sqrt(rss / n) if n else None, "n": n, "k": int(k), "aic": _aic(rss, n, k)}
 
 
-def predict(name: str, values: dict, w) -> np.ndarray:
-    """Friction [F] of static map ``name`` (symmetric or ``_asym``) at w; NaN where a branch is unknown."""
+def predict(name: str, values: dict, w, formula: bool = False) -> np.ndarray:
+    """Friction [F] of static map ``name`` (symmetric or ``_asym``) at w, as a parameter file runs it (a
+    negative level held at zero; ``formula``: as written, :func:`frictid.models.static.evaluate`); NaN where a
+    branch is unknown."""
     w = np.asarray(w, dtype=float)
     smap, asym = sm.split_asym(name)
     if not asym:
         if any(values.get(n) is None for n in smap.names):
             return np.full(w.shape, np.nan)
-        return sm.evaluate(name, w, values)
+        return sm.evaluate(name, w, values, formula)
     out = np.full(w.shape, np.nan)
     for suf, m in (("_pos", w >= 0), ("_neg", w < 0)):
         vals = {n: values.get(n + suf) for n in smap.names}
         if any(v is None for v in vals.values()):
             continue
-        out[m] = smap.func(w[m], **vals)
+        out[m] = sm.evaluate(smap.name, w[m], vals, formula)
     return out
 
 

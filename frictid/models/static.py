@@ -319,15 +319,38 @@ def canonical_pair(name: str, params: dict) -> tuple[np.ndarray, np.ndarray]:
     return smap.canonical(pos), smap.canonical(neg)
 
 
-def evaluate(name: str, w, params: dict) -> np.ndarray:
-    """Steady-state friction [F] of the named static map (symmetric or ``_asym``) at velocities w."""
+def level(name: str, w, params: dict) -> np.ndarray:
+    """The level g(|w|) [F] of the named static map at velocities w, each on its sign's branch (the part of
+    the friction that acts against the motion whatever the speed: ``F = g sgn(w) + f(w)``)."""
+    c_pos, c_neg = canonical_pair(name, params)
+    w = np.asarray(w, dtype=float)
+    return np.where(w >= 0, canonical_level(w, c_pos), canonical_level(w, c_neg))
+
+
+def evaluate(name: str, w, params: dict, formula: bool = False) -> np.ndarray:
+    """Steady-state friction [F] of the named static map (symmetric or ``_asym``) at velocities w, as the
+    model a parameter file describes runs it (:class:`frictid.model.FrictionModel`, the replay kernel): a
+    level g below zero is held at zero (a friction level cannot push the motion), so a map whose formula's
+    level crosses zero is scored as the function the file runs, not as its formula. ``formula``: the
+    formula as written (a curve through friction points that no file runs: the rigid-body step's map)."""
     smap, asym = split_asym(name)
     w = np.asarray(w, dtype=float)
     if not asym:
-        return smap.func(w, **{n: params[n] for n in smap.names})
-    fp = smap.func(w, **{n: params[n + "_pos"] for n in smap.names})
-    fn = smap.func(w, **{n: params[n + "_neg"] for n in smap.names})
-    return np.where(w >= 0, fp, fn)
+        F = smap.func(w, **{n: params[n] for n in smap.names})
+    else:
+        fp = smap.func(w, **{n: params[n + "_pos"] for n in smap.names})
+        fn = smap.func(w, **{n: params[n + "_neg"] for n in smap.names})
+        F = np.where(w >= 0, fp, fn)
+    if formula:
+        return F
+    c_pos, c_neg = canonical_pair(name, params)
+    if all(c[0] + min(c[1], 0.0) + min(c[4], 0.0) >= 0.0 for c in (c_pos, c_neg)):
+        return F  # a level that cannot go below zero at any speed (its lower bound): nothing to hold
+    g = level(name, w, params)
+    below = g < 0
+    if np.any(below):  # elsewhere the formula is left as it is (bit for bit)
+        F = np.where(below, F - g * np.sign(w), F)
+    return F
 
 
 def param_table(name: str) -> tuple[Param, ...]:
