@@ -530,28 +530,36 @@ def ur10e_structures(data: Path, tmp: str) -> list[str]:
     return rows + [""]
 
 
-def _ur_parts(data: Path, tmp: str, k: int) -> list[dict]:
-    """The first 70 % and the last 30 % of jointwise file ``k``, each read through its mapping file: angle,
-    frictid's velocity and acceleration (Savitzky-Golay of the position), the logged velocity and its
-    difference low-passed at 20 Hz, the moving samples (|qd| above 1 % of the file's top speed), the torque
-    low-passed at 20 Hz (as the held-out table scores it) and the controller's target moment (column
-    ``tdem``, read here only as a reference: frictid never sees it)."""
+def _ur_split(data: Path, tmp: str, k: int, prefix: str):
+    """The first 70 % and the last 30 % of jointwise file ``k``, each written to ``tmp`` and read through its
+    mapping file: per part ``(tag, rows, raw, log, qd, dt, mov)`` with the logged velocity qd, the sample
+    period and the moving samples (|qd| above 1 % of the file's top speed)."""
     from frictid.io.logs import read_logs
-    from frictid.segments import derivatives, estimate_scales
 
     raw = pd.read_csv(data / "ur10e_mamedov2020" / "jointwise_motion" / f"ur-20_01_22-joint_{k}.csv", header=None)
     cut = int((1 - UR_HELD) * len(raw))
     top = np.percentile(np.abs(raw.iloc[:, 6 + k].to_numpy()), 99.5)
-    parts = []
     for tag, sl in (("first", slice(0, cut)), ("last", slice(cut, None))):
-        path = Path(tmp) / f"urs{k}_{tag}.csv"
+        path = Path(tmp) / f"{prefix}{k}_{tag}.csv"
         raw.iloc[sl].to_csv(path, header=False, index=False)
         (lg,) = read_logs(str(path), str(MAPS / f"ur10e_joint{k}.yaml"))
-        dt = float(np.median(np.diff(lg.t)))
-        w, a = derivatives(lg, estimate_scales(lg))
         qd = raw.iloc[sl, 6 + k].to_numpy()
+        yield tag, sl, raw, lg, qd, float(np.median(np.diff(lg.t))), np.abs(qd) > 0.01 * top
+
+
+def _ur_parts(data: Path, tmp: str, k: int) -> list[dict]:
+    """The first 70 % and the last 30 % of jointwise file ``k`` (:func:`_ur_split`): angle, frictid's
+    velocity and acceleration (Savitzky-Golay of the position), the logged velocity and its difference
+    low-passed at 20 Hz, the moving samples, the torque low-passed at 20 Hz (as the held-out table scores it)
+    and the controller's target moment (column ``tdem``, read here only as a reference: frictid never sees
+    it)."""
+    from frictid.segments import derivatives, estimate_scales
+
+    parts = []
+    for _, sl, raw, lg, qd, dt, mov in _ur_split(data, tmp, k, "urs"):
+        w, a = derivatives(lg, estimate_scales(lg))
         parts.append({"q": np.asarray(lg.q, float), "w": w, "a": a, "qd": qd, "dt": dt,
-                      "a_qd": np.gradient(lowpass(qd, dt, 20.0), dt), "mov": np.abs(qd) > 0.01 * top,
+                      "a_qd": np.gradient(lowpass(qd, dt, 20.0), dt), "mov": mov,
                       "tau": lowpass(np.asarray(lg.tau, float), dt, 20.0), "tdem": raw.iloc[sl, 24 + k].to_numpy()})
     return parts
 
@@ -787,23 +795,13 @@ def ur10e_stops(data: Path, tmp: str) -> list[str]:
 
 
 def _stop_parts(data: Path, tmp: str, k: int):
-    """Both parts of jointwise file ``k`` read through its mapping file and replayed with the model fitted on
-    the first 70 %: per part the log, raw and 20 Hz torque, the replay, moving and near-stop masks."""
-    from frictid.io.logs import read_logs
+    """Both parts of jointwise file ``k`` (:func:`_ur_split`) replayed with the model fitted on the first
+    70 %: per part the log, raw and 20 Hz torque, the replay, moving and near-stop masks."""
     from frictid.io.params import read_params
     from frictid.replay import joint_model, replay as replay_model
 
-    raw = pd.read_csv(data / "ur10e_mamedov2020" / "jointwise_motion" / f"ur-20_01_22-joint_{k}.csv", header=None)
-    cut = int((1 - UR_HELD) * len(raw))
-    top = np.percentile(np.abs(raw.iloc[:, 6 + k].to_numpy()), 99.5)
     parts = []
-    for tag, sl in (("first", slice(0, cut)), ("last", slice(cut, None))):
-        path = Path(tmp) / f"urp{k}_{tag}.csv"
-        raw.iloc[sl].to_csv(path, header=False, index=False)
-        (lg,) = read_logs(str(path), str(MAPS / f"ur10e_joint{k}.yaml"))
-        qd = raw.iloc[sl, 6 + k].to_numpy()
-        dt = float(np.median(np.diff(lg.t)))
-        mov = np.abs(qd) > 0.01 * top
+    for _, _, _, lg, qd, dt, mov in _ur_split(data, tmp, k, "urp"):
         parts.append({"log": lg, "dt": dt, "q": np.asarray(lg.q, float), "tau": np.asarray(lg.tau, float),
                       "tau20": lowpass(np.asarray(lg.tau, float), dt, 20.0), "mov": mov,
                       "near": _near_reversals(qd, dt) & mov, "qd": qd})
