@@ -587,8 +587,8 @@ class Chain:
         """A long log's candidate judged on the stride first (:func:`.screen.explained_bound`): its record
         when even the upper bound of what it would explain on all samples is under the bar a term must pass
         (:data:`EXPLAINED_MIN` of the friction RMS) and, for a delay, it does not pay for itself on every
-        moving sample either (:meth:`worth_it`); such a candidate cannot be chosen and its trial on all
-        samples is skipped. None: the candidate is tried on all samples (every log of at most
+        moving sample or at speed either (:meth:`worth_it`'s routes); such a candidate cannot be chosen and
+        its trial on all samples is skipped. None: the candidate is tried on all samples (every log of at most
         :data:`.search.STRIDE_MIN` sliding samples)."""
         if not self.stride.active or self.full is not None:
             return None
@@ -606,8 +606,8 @@ class Chain:
         if ext == "delay" and self._moving_map_carries_model() and _unresolved_delay(self.S, tr) is None:
             mv = delay_moving(self.S, tr)   # every moving sample: the whole logs' shifts, exact
             self._moving_memo = (tuple(_fold_shifts(tr)), mv)
-            if mv["p"] < ALPHA / max(m, 1) and mv["explained"] >= bar:
-                return None
+            if mv["p"] < ALPHA / max(m, 1) and mv["explained"] >= bar or self._shown_at_speed(tr, m):
+                return None   # a delay worth a term on every moving sample or at speed (:meth:`worth_it`)
         return screen_record(tr, self.stride, bound, bar)
 
     def _choose_sound(self, trials: list[Trial], m: int, step: dict):
