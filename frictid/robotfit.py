@@ -190,13 +190,10 @@ def _block_errors(lg: JointLog, p: Prediction, refit: FitResult, name: str | Non
     if jf is None or name is None or name not in jf.models or not jf.models[name].success:
         failed.setdefault(j, f"stage 2's model {name} could not be refitted without a block")
         return np.zeros(3)
-    off = jf.offset.value if jf.offset is not None and jf.offset.value is not None else 0.0
-    m = mov[b]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        F = jf.friction_model(name).friction(v[b][m], q=None if lg.q is None else np.asarray(lg.q, float)[b][m])
-    mod = off + held[b]
-    mod[m] += F
+        mod = joint_friction(jf, jf.friction_model(name), v[b], None if lg.q is None else np.asarray(lg.q, float)[b],
+                             held[b], mov[b])
     return np.array([np.sum((y[b] - mod) ** 2), np.sum((y[b] - lin) ** 2), b.stop - b.start])
 
 
@@ -268,12 +265,19 @@ def model_torque(res: FitResult, p: Prediction, logs: list[JointLog]) -> dict:
         if (jf.selection.get("stage2") or {}).get("kept") == "linear":
             out[j] = p.tau[j]
             continue
-        off = jf.offset.value if jf.offset is not None and jf.offset.value is not None else 0.0
-        mov = p.moving[j]
-        F = off + p.held.get(j, np.zeros(lg.n))
-        F[mov] += jf.model.friction(p.qd[j][mov], q=None if lg.q is None else lg.q[mov])
+        F = joint_friction(jf, jf.model, p.qd[j], lg.q, p.held.get(j, np.zeros(lg.n)), p.moving[j])
         out[j] = p.tau[j] - p.F[j] + F
     return out
+
+
+def joint_friction(jf, model, v: np.ndarray, q, held: np.ndarray, mov: np.ndarray) -> np.ndarray:
+    """A joint's friction torque [F] as the robot model composes it: ``model`` (a
+    :class:`frictid.model.FrictionModel`) at the velocity v where the joint moves (``mov``), plus the joint's
+    offset and the friction the robot estimate holds (``held``, :mod:`frictid.robot.hold`) everywhere."""
+    off = jf.offset.value if jf.offset is not None and jf.offset.value is not None else 0.0
+    F = off + np.asarray(held, dtype=float)
+    F[mov] += model.friction(v[mov], q=None if q is None else q[mov])
+    return F
 
 
 def heldout_models(robot, logs: list[JointLog], fraction: float = 0.3, smooth_hz: float | None = None,

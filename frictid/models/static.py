@@ -322,8 +322,11 @@ def canonical_pair(name: str, params: dict) -> tuple[np.ndarray, np.ndarray]:
 def level(name: str, w, params: dict) -> np.ndarray:
     """The level g(|w|) [F] of the named static map at velocities w, each on its sign's branch (the part of
     the friction that acts against the motion whatever the speed: ``F = g sgn(w) + f(w)``)."""
-    c_pos, c_neg = canonical_pair(name, params)
-    w = np.asarray(w, dtype=float)
+    return _pair_level(np.asarray(w, dtype=float), *canonical_pair(name, params))
+
+
+def _pair_level(w: np.ndarray, c_pos: np.ndarray, c_neg: np.ndarray) -> np.ndarray:
+    """:func:`level` from the map's packed vectors (:func:`canonical_pair`)."""
     return np.where(w >= 0, canonical_level(w, c_pos), canonical_level(w, c_neg))
 
 
@@ -346,7 +349,7 @@ def evaluate(name: str, w, params: dict, formula: bool = False) -> np.ndarray:
     c_pos, c_neg = canonical_pair(name, params)
     if all(c[0] + min(c[1], 0.0) + min(c[4], 0.0) >= 0.0 for c in (c_pos, c_neg)):
         return F  # a level that cannot go below zero at any speed (its lower bound): nothing to hold
-    g = level(name, w, params)
+    g = _pair_level(w, c_pos, c_neg)
     below = g < 0
     if np.any(below):  # elsewhere the formula is left as it is (bit for bit)
         F = np.where(below, F - g * np.sign(w), F)
