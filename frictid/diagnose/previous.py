@@ -6,7 +6,9 @@ after its strokes. A level that grows with the previous move (a lubricant film p
 stroke, a heated contact) then shows at the start of the next move, fading over its travel, with the
 dwell's shape, and the dwell candidate follows it through the rests. Its competitor: the same fade over the
 current move's travel, with a free function of the previous move's travel in place of the rest's
-logarithm (:func:`heldout_previous`). A name is given only when the dwell explains something beyond it.
+logarithm (:func:`previous_columns`); the dwell is refused when the competitor predicts the held-out data
+significantly better (:meth:`frictid.diagnose.chain.Chain._not_the_rest`). The residual structure test on
+the previous move (:func:`previous_cells`, :mod:`.structure`) states such a level when nothing names it.
 """
 from __future__ import annotations
 
