@@ -257,9 +257,8 @@ def _low_speed_params(low, axis: str, source: str) -> dict[str, ParamEstimate]:
 
 
 def _jackknife(fits) -> np.ndarray:
-    """Block jackknife standard errors over the folds' fits."""
-    B, k = np.array(fits), len(fits)
-    return np.sqrt((k - 1) / k * np.sum((B - B.mean(0)) ** 2, axis=0)) if k > 1 else np.full(B.shape[1], np.nan)
+    """Block jackknife standard errors over the folds' fits (:func:`.samples.jackknife_se`; NaN from one fold)."""
+    return smp.jackknife_se(fits) if len(fits) > 1 else np.full(np.shape(fits)[1], np.nan)
 
 
 def _rigid_params(jd: JointData, free, full, se) -> dict[str, ParamEstimate]:

@@ -392,10 +392,17 @@ def jackknife_errors(mf: ModelFit, refits: list[dict], S: SampleSet) -> None:
     _raise_to_jackknife(mf, refits, S, "jackknife over the time-block folds")
 
 
+def jackknife_se(fits) -> np.ndarray:
+    """Delete-a-group jackknife standard errors of estimates over ``k`` groups (rows of ``fits``: each the
+    estimate without one group): ``sqrt((k - 1) / k * sum((x - mean)^2))`` per column."""
+    B = np.asarray(fits, dtype=float)
+    k = B.shape[0]
+    return np.sqrt((k - 1) / k * np.sum((B - B.mean(0)) ** 2, axis=0))
+
+
 def _raise_to_jackknife(mf: ModelFit, refits: list[dict], S: SampleSet, what: str) -> None:
     """Standard errors raised to the delete-a-group jackknife of ``refits`` where it is larger, and the
     parameters whose error so exceeds 100 % (with a torque effect that is not negligible) not identifiable."""
-    G = len(refits)
     dims = {p.name: p.dim for p in sm.param_table(mf.map)}
     F0 = float(np.percentile(np.abs(S.F), 99.5)) if S.n else 0.0
     w0 = float(np.percentile(np.abs(S.w), 99.5)) if S.n else 0.0
@@ -403,7 +410,7 @@ def _raise_to_jackknife(mf: ModelFit, refits: list[dict], S: SampleSet, what: st
         vals = np.array([r.get(n) for r in refits], dtype=float)
         if pe.fixed or pe.value is None or pe.stderr is None or not np.all(np.isfinite(vals)):
             continue
-        se_j = math.sqrt((G - 1) / G * float(np.sum((vals - vals.mean()) ** 2)))
+        se_j = float(jackknife_se(vals))
         if se_j <= pe.stderr:
             continue
         pe.stderr = se_j
