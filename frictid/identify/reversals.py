@@ -58,6 +58,8 @@ MIN_REVERSALS = 6
 #: Segment kinds kept out (ramps and steps identify sigma0 themselves).
 EXCLUDE = ("ramp_presliding", "step")
 RIGID = ("J", "Px", "Py", "offset")
+#: The gravity terms, kept in the refit only when they predict the held-out blocks better (:func:`_gravity_guard`).
+GRAVITY = ("Px", "Py")
 #: The low-speed (Stribeck) term under the bristles, for a map without one: amplitudes [share of the map's
 #: level at rest] and speeds from this many stick thresholds ...
 STR_AMPS = (0.1, 0.2, 0.3, 0.5)
@@ -256,14 +258,47 @@ def _low_speed_params(low, axis: str, source: str) -> dict[str, ParamEstimate]:
                                        source=source)}
 
 
+def _without_gravity(eq, free, g0: np.ndarray):
+    """Block equations of the refit with the gravity held at zero: its columns dropped and the joint's gravity
+    ``g0`` (Px, Py as the fit left them) put back into the friction residual (``y + G g0``)."""
+    XX, Xy, yy, nn = eq
+    gi = [j for j, n in enumerate(free) if n in GRAVITY]
+    ri = [j for j, n in enumerate(free) if n not in GRAVITY]
+    XXg = XX[:, ri][:, :, gi]
+    return (XX[:, ri][:, :, ri], Xy[:, ri] + XXg @ g0, yy + 2.0 * Xy[:, gi] @ g0
+            + np.einsum("i,bij,j->b", g0, XX[:, gi][:, :, gi], g0), nn)
+
+
+def _gravity_guard(jd: JointData, free, eq, held, n_folds: int):
+    """Whether the free gravity terms earn their place in the refit with the bristles: on an oscillation the
+    acceleration follows the angle, so J and ``Px cos q + Py sin q`` trade off and take up the friction's
+    misfit together (docs/realdata.md, UR10e joint 6), and a gravity the data cannot tell from none moves J.
+    The refit with the gravity held at zero is compared on the same held-out blocks; the gravity is kept when
+    it beats it by GAIN_Z paired errors. Returns None (kept, or no free gravity) or (the reduced terms, their
+    block equations, held-out result, the reason)."""
+    if not any(n in GRAVITY for n in free):
+        return None
+    g0 = np.array([float(jd.jf.gravity[n].value) if jd.jf.gravity.get(n) is not None and
+                   jd.jf.gravity[n].value is not None else 0.0 for n in free if n in GRAVITY])
+    red = _without_gravity(eq, free, g0)
+    held_red = _heldout(red, n_folds)
+    gain, se = _paired(held_red[0], held[0], eq[3])
+    if gain > GAIN_Z * se:
+        return None
+    why = (f"held at 0: the gravity terms predict the held-out blocks no better than none (mean-square gain "
+           f"{gain:.3g} +- {se:.3g}; J and the gravity trade off where the acceleration follows the angle)")
+    return [n for n in free if n not in GRAVITY], red, held_red, why
+
+
 def _jackknife(fits) -> np.ndarray:
     """Block jackknife standard errors over the folds' fits (:func:`.samples.jackknife_se`; NaN from one fold)."""
     return smp.jackknife_se(fits) if len(fits) > 1 else np.full(np.shape(fits)[1], np.nan)
 
 
-def _rigid_params(jd: JointData, free, full, se) -> dict[str, ParamEstimate]:
+def _rigid_params(jd: JointData, free, full, se, held_at_zero: str = "") -> dict[str, ParamEstimate]:
     """The inertia, gravity and offset fitted with the bristles: the joint's values plus the refit's change
-    (the offset's change as ``tau_offset``), standard errors by the block jackknife over the folds."""
+    (the offset's change as ``tau_offset``), standard errors by the block jackknife over the folds; with
+    ``held_at_zero`` (the reason) the gravity terms held at zero (:func:`_gravity_guard`)."""
     jf, axis = jd.jf, jd.axis
     cur = {"J": jf.inertia.value if jf.inertia else None, "offset": 0.0,
            **{g: (jf.gravity[g].value if jf.gravity.get(g) else None) for g in ("Px", "Py")}}
@@ -277,6 +312,9 @@ def _rigid_params(jd: JointData, free, full, se) -> dict[str, ParamEstimate]:
         out[name] = ParamEstimate(name, v, float(se[j]), units[n], ok,
                                   "" if ok else "relative error above 100 % (block jackknife)",
                                   source="refitted with the bristles on the moving samples including the stops")
+    for n in GRAVITY if held_at_zero else ():
+        out[n] = ParamEstimate(n, 0.0, None, units[n], False, held_at_zero, fixed=True,
+                               source="refitted with the bristles on the moving samples including the stops")
     return out
 
 
@@ -320,8 +358,11 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
     if low is not None:
         eqs[i], held[i] = got
         params.update(_low_speed_params(low, axis, f"{source}; the low-speed term under them chosen alike"))
+    grav = None if why else _gravity_guard(jd, free, eqs[i], held[i], n_folds)
+    if grav is not None:
+        free, eqs[i], held[i], _ = grav
     if not why:
-        params.update(_rigid_params(jd, free, held[i][1], _jackknife(held[i][2])))
+        params.update(_rigid_params(jd, free, held[i][1], _jackknife(held[i][2]), grav[3] if grav else ""))
     N = float(eq0[3].sum())
     XX, Xy, yy, _ = (x.sum(0) for x in eqs[i])
     b = held[i][1]
@@ -333,5 +374,6 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
             f"RMS {met['rms_heldout']:.4g} against {met['rms_heldout_static']:.4g} for {base.name} with the "
             "same refit of the rigid terms" + (f"; a low-speed term under the bristles (amplitude {low[0]:.3g}, "
                                                f"speed {low[1]:.3g})" if low else
-                                               f"; no low-speed term under them: {got}" if got else ""))
+                                               f"; no low-speed term under them: {got}" if got else "")
+            + (f"; gravity {grav[3]}" if grav else ""))
     return params, met, note

@@ -1,0 +1,56 @@
+"""The rigid terms refitted with the bristles from the stops and reversals (identify/reversals.py), on a
+simulated UR-like wrist joint (100 Hz, 2.4 N m Coulomb level, bristles of 0.4 mrad, J 0.45 kg m^2) that
+oscillates: its acceleration follows its angle, so the inertia and a free gravity trade off."""
+from __future__ import annotations
+
+import pytest
+import yaml
+
+WRIST = {
+    "name": "wrist", "description": "UR-like wrist joint (tests)", "robot": "wrist_like", "source": "tests",
+    "axis": "rotary", "substeps": 1,
+    "sensors": {"sample_rate": 100, "encoder_counts": 62832, "tau_noise": 0.15, "qd_noise": 0.001, "delay": 0},
+    "joints": [{"name": "j1", "J": 0.45, "gravity": {"Px": 0.0, "Py": 0.0, "offset": 0.0},
+                "friction": {"map": "stribeck", "Fc": 2.4, "Fs": 2.9, "vs": 0.06, "delta": 2.0, "sigma2": 3.0,
+                             "sigma0": 6000.0, "sigma1": 20.0},
+                "limits": {"velocity": 0.7, "acceleration": 4.0, "torque": 30.0, "position": [-2.0, 2.0]},
+                "control": {"bandwidth_hz": 10.0, "damping": 1.0, "integral": 0.2}, "effects": []}]}
+
+
+def _sine_fit(tmp_path, seed: int, gravity=(0.0, 0.0)):
+    """A one-tone multi-sine (a = -w^2 (q - qc)) on the wrist, fitted with LuGre from the reversals."""
+    import frictid
+    from frictid.plant import simulate_recipe
+    rec = yaml.safe_load(open("recipes/multisine.yaml"))
+    rec["experiments"][0]["harmonics"] = 1
+    (tmp_path / "sine.yaml").write_text(yaml.safe_dump(rec))
+    plant = yaml.safe_load(yaml.safe_dump(WRIST))
+    plant["joints"][0]["gravity"].update(Px=gravity[0], Py=gravity[1])
+    (tmp_path / "wrist.yaml").write_text(yaml.safe_dump(plant))
+    (lg, *_) = simulate_recipe(str(tmp_path / "sine.yaml"), plant=str(tmp_path / "wrist.yaml"), seed=seed,
+                               duration_scale=0.5)
+    return frictid.fit([lg], models="polynomial,lugre")[lg.joint]
+
+
+@pytest.mark.parametrize("seed", [2, 5])
+def test_a_gravity_the_oscillation_cannot_tell_from_none_is_held_at_zero(tmp_path, seed):
+    """Without gravity the free Px, Py predict the held-out blocks no better than none and are held at 0,
+    with the reason; J is then the plant's within 7 % (with them free: 9 % and 11 % high on these seeds,
+    the trade moving J)."""
+    jf = _sine_fit(tmp_path, seed)
+    assert jf.selected.endswith("lugre")
+    p = jf.models["lugre"].params
+    assert p["Px"].fixed and p["Px"].value == 0.0 and p["Py"].fixed and "no better than none" in p["Px"].reason
+    assert abs(p["J"].value - 0.45) < 0.07 * 0.45
+    assert any("gravity held at 0" in n for n in jf.models["lugre"].notes)
+    fm = jf.friction_model()
+    assert fm.Px == 0.0 and fm.Py == 0.0
+
+
+def test_a_gravity_the_joint_has_is_kept(tmp_path):
+    """With 0.67 N m of gravity (a quarter of the Coulomb level) the gravity terms beat none and stay
+    free, near the plant's."""
+    jf = _sine_fit(tmp_path, 2, gravity=(0.6, -0.3))
+    p = jf.models["lugre"].params
+    assert not p["Px"].fixed and abs(p["Px"].value - 0.6) < 0.1 and abs(p["Py"].value + 0.3) < 0.1
+    assert not any("gravity held at 0" in n for n in jf.models["lugre"].notes)
