@@ -354,17 +354,19 @@ UR_ROBOT = str(Path(__file__).resolve().parent.parent / "recipes" / "robots" / "
 def ur10e_heldout(data: Path, tmp: str) -> list[str]:
     """Each jointwise file cut in time: frictid fits the first 70 % (``frictid fit``, its chosen model) and
     replays the last 30 % (``frictid simulate --replay``); RMS of the measured torque low-passed at 20 Hz
-    minus the model's, over the whole held-out part and over its moving samples (|qd| above 1 % of the file's
-    top speed), next to AURT's figures of issue 19. The moving samples are also split at the stops and
-    reversals (within :data:`UR_REVERSAL` s of a change of the logged velocity's sign) and away from them:
-    where the error sits. A diagnostic column scores the model low-passed at 20 Hz like the torque (AURT's
-    parallel filtering); the checks stay on the model as frictid replays it."""
+    minus the model's torque low-passed alike (AURT's parallel filtering: the issue's torque is the current
+    low-passed at 20 Hz, and a model of it passes through the same filter), over the whole held-out part and
+    over its moving samples (|qd| above 1 % of the file's top speed), next to AURT's figures of issue 19. The
+    moving samples are also split at the stops and reversals (within :data:`UR_REVERSAL` s of a change of the
+    logged velocity's sign) and away from them: where the error sits. Two diagnostic columns: the model as
+    replayed, unfiltered, against the filtered torque (the scoring before session 23), and both unfiltered."""
     base = data / "ur10e_mamedov2020" / "jointwise_motion"
     rows = ["### UR10e held out in time (jointwise files: first 70 % fitted, last 30 % predicted)", "",
             "| joint | chosen | whole run: frictid / AURT [N m] | | moving: frictid / AURT [N m] | | "
             "moving near stops and reversals / away [N m] (share of the moving samples near) | "
-            "diagnostic: whole / moving with the model low-passed at 20 Hz like the torque [N m] |",
-            "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+            "diagnostic: whole / moving, the model unfiltered against the filtered torque [N m] | "
+            "diagnostic: whole / moving, both unfiltered [N m] |",
+            "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for k in range(1, 7):
         raw = pd.read_csv(base / f"ur-20_01_22-joint_{k}.csv", header=None)
         cut = int((1 - UR_HELD) * len(raw))
@@ -381,22 +383,26 @@ def ur10e_heldout(data: Path, tmp: str) -> list[str]:
         near = _near_reversals(raw.iloc[cut:, 6 + k].to_numpy(), dt) & moving
         split = (f"{float(np.sqrt(np.mean(r[near] ** 2))):.2f} / {float(np.sqrt(np.mean(r[moving & ~near] ** 2))):.2f} "
                  f"({100 * near.sum() / max(moving.sum(), 1):.0f} %)" if near.any() and (moving & ~near).any() else "-")
-        r20 = r + np.nan_to_num(d["tau_model"].to_numpy()) - lowpass(np.nan_to_num(d["tau_model"].to_numpy()), dt, 20.0)
-        filt = f"{float(np.sqrt(np.mean(r20 ** 2))):.2f} / {float(np.sqrt(np.mean(r20[moving] ** 2))):.2f}"
+        model = np.nan_to_num(d["tau_model"].to_numpy())
+        cells = []
+        for r_d in (lowpass(d["tau"].to_numpy(), dt, 20.0) - model, d["tau"].to_numpy() - model):
+            cells.append(f"{float(np.sqrt(np.mean(r_d ** 2))):.2f} / {float(np.sqrt(np.mean(r_d[moving] ** 2))):.2f}")
         aw, am = UR_AURT[k]
         cw = check("UR10e held out", f"joint {k} whole run below AURT", f"{whole:.2f}", f"< {aw}", whole < aw)
         cm = check("UR10e held out", f"joint {k} moving below AURT", f"{mov:.2f}", f"< {am}", mov < am)
         rows.append(f"| {k} | {chosen(next(iter(P['joints'].values())))} | {whole:.2f} / {aw} | {cw} | "
-                    f"{mov:.2f} / {am} | {cm} | {split} | {filt} |")
+                    f"{mov:.2f} / {am} | {cm} | {split} | {cells[0]} | {cells[1]} |")
     return rows + [""]
 
 
-def _heldout_errors(d: pd.DataFrame, raw: pd.DataFrame, cut: int, k: int):
+def _heldout_errors(d: pd.DataFrame, raw: pd.DataFrame, cut: int, k: int, filtered: bool = True):
     """The held-out table's scoring of a replay ``d`` of jointwise file ``k``'s samples from ``cut`` on:
-    sample period, residual (measured torque low-passed at 20 Hz minus the model's), moving samples (|qd|
-    above 1 % of the file's top speed), whole-run RMS and moving RMS [N m]."""
+    sample period, residual (measured torque low-passed at 20 Hz minus the model's, low-passed alike unless
+    ``filtered`` is False), moving samples (|qd| above 1 % of the file's top speed), whole-run RMS and moving
+    RMS [N m]."""
     dt = float(np.median(np.diff(d["t"].to_numpy())))
-    r = lowpass(d["tau"].to_numpy(), dt, 20.0) - np.nan_to_num(d["tau_model"].to_numpy())
+    model = np.nan_to_num(d["tau_model"].to_numpy())
+    r = lowpass(d["tau"].to_numpy(), dt, 20.0) - (lowpass(model, dt, 20.0) if filtered else model)
     qd = np.abs(raw.iloc[cut:, 6 + k].to_numpy())
     moving = qd > 0.01 * np.percentile(np.abs(raw.iloc[:, 6 + k].to_numpy()), 99.5)
     return dt, r, moving, float(np.sqrt(np.mean(r**2))), float(np.sqrt(np.mean(r[moving] ** 2)))
@@ -705,7 +711,7 @@ def _lag_row(k: int, parts: list[dict]) -> str:
 
 def _declared_gravity(data: Path, tmp: str) -> list[str]:
     """frictid's fit of the first 70 % and replay of the last 30 % of joints 5 and 6 (the held-out table's
-    scoring), with the mapping file as shipped and with the gravity of their jointwise pose declared in it:
+    scoring as session 19 recorded it: the model unfiltered), with the mapping file as shipped and with the gravity of their jointwise pose declared in it:
     zero (joints 2-4 stand at -pi/2, 0, -pi/2, which puts joint 5's axis vertical; joint 6 carries only the
     flange, whose centre of mass is on its axis). The identification run moves joints 2-4, so the shipped
     mapping files leave gravity to the fit."""
@@ -728,7 +734,7 @@ def _declared_gravity(data: Path, tmp: str) -> list[str]:
             mp.write_text(yaml.safe_dump(spec))
             P = fit(first, mp, Path(tmp) / f"urg{k}_first.yaml")
             d = replay(str(Path(tmp) / f"urg{k}_first.yaml"), last, mp, tmp, f"urg{k}_held")
-            *_, whole, mov = _heldout_errors(d, raw, cut, k)
+            *_, whole, mov = _heldout_errors(d, raw, cut, k, filtered=False)
             j = next(iter(P["joints"].values()))
             inertia, amp = j.get("inertia") or {}, (j.get("gravity") or {}).get("amplitude") or {}
             flag = lambda e: "" if e.get("identifiable") else " (not identifiable)"  # noqa: E731

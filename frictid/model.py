@@ -48,6 +48,7 @@ EXTENSION_PARAMS = {
     "presliding": ("sigma0", "sigma1"),
     "inertia": ("J",),
     "gravity": ("Px", "Py"),
+    "ripple": ("rip_period", "rip_sin", "rip_cos"),
     "temperature": ("alpha", "beta", "lam", "dc0", "dc1", "dc2", "dc3", "C", "K", "T0"),
 }
 
@@ -227,10 +228,21 @@ class FrictionModel:
     # ---- rigid body
 
     def gravity(self, q, payload=None):
-        """Gravity and offset torque G(q) [F] (payload [kg] per sample or None)."""
+        """Gravity and offset torque G(q) [F] (payload [kg] per sample or None), with the torque ripple that
+        follows the position where the model has one (:meth:`ripple`)."""
         if q is None:
             return np.asarray(self.offset, dtype=float)
-        return rigid_torque(q, self.axis, self.Px, self.Py, self.offset, payload, self.Mx, self.My)
+        G = rigid_torque(q, self.axis, self.Px, self.Py, self.offset, payload, self.Mx, self.My)
+        return G + self.ripple(q) if self.ext.get("rip_period") else G
+
+    def ripple(self, q):
+        """The torque ripple that follows the position [F]: ``rip_sin sin(2 pi q / rip_period) + rip_cos
+        cos(2 pi q / rip_period)`` (a motor's cogging, a gear's tooth period; 0 without one)."""
+        ext = self.ext
+        if not ext.get("rip_period"):
+            return np.zeros(np.shape(q))
+        x = (2.0 * math.pi / ext["rip_period"]) * np.asarray(q, dtype=float)
+        return ext.get("rip_sin", 0.0) * np.sin(x) + ext.get("rip_cos", 0.0) * np.cos(x)
 
     # ---- evaluation
 
@@ -408,9 +420,11 @@ class FrictionModel:
         grav = ("Px cos(q) + Py sin(q)" + (" + payload (Mx cos(q) + My sin(q))" if self.Mx or self.My else "")
                 if self.axis == "rotary" else "0")
         off = "tau_offset (in F)" if "offset" in terms else "offset"
+        rip = (" + rip_sin sin(2 pi q / rip_period) + rip_cos cos(2 pi q / rip_period)"
+               if self.ext.get("rip_period") else "")
         return {"words": "; ".join([words] + [TERM_WORDS[t] for t in terms]),
                 "friction": [sym] + [TERM_FORMULAS[t] for t in terms],
-                "torque": f"tau = J a + {grav} + {off} + F(w)"}
+                "torque": f"tau = J a + {grav}{rip} + {off} + F(w)"}
 
     def head(self) -> dict:
         """What a feed-forward user needs of this model, for the top of a joint in the parameter file: name,

@@ -292,6 +292,8 @@ def closed_loop(log: JointLog, model: FrictionModel, gains: dict, rigid_stiffnes
         p[P_PAY] = model.Mx  # the kernel's payload gravity: m P_PAY cos q
     if model.My or (model.Mx and model.axis != "rotary"):
         notes.append("closed loop: payload gravity other than Mx m cos q is not simulated")
+    if ext.get("rip_period"):
+        notes.append("closed loop: the torque ripple that follows the position is not simulated")
     start = log_start_time(log)
     t_off = start if (start is not None and ext.get("drift_t0")) else 0.0
     if a is None:

@@ -42,6 +42,7 @@ from frictid.replay import STICK_NOISE, stands
 from frictid.result import ModelFit, ParamEstimate
 
 from . import presliding as pre
+from . import ripple as rp
 from . import samples as smp
 from .prepare import JointData
 
@@ -69,8 +70,8 @@ STR_MAX_SPEED = 0.5
 
 
 def _data(jd: JointData):
-    """Per log with a position: (t, w, F, columns of the free rigid terms, used mask, w_stick), the
-    reversal count and the median stroke between them, and the encoder's (or noise's) position step."""
+    """Per log with a position: (t, w, F, columns of the free rigid terms, used mask, w_stick, standing
+    mask, q), the reversal count and the median stroke between them, and the encoder's (or noise's) position step."""
     from frictid.segments import estimate_scales
 
     from .mechanics import regressors
@@ -100,7 +101,7 @@ def _data(jd: JointData):
         steps.append(sc.q_step or pre.encoder_resolution(q) or sc.sigma_q)
         hold = stands(np.nan_to_num(p.w), sc)
         out.append((np.asarray(p.log.t, float), np.asarray(p.w, float), np.asarray(p.F, float), X, use, w_stick,
-                    hold))
+                    hold, q))
     stroke = float(np.median(strokes)) if strokes else 0.0
     return free, out, n_rev, stroke, max(steps, default=0.0)
 
@@ -119,7 +120,7 @@ def _block_equations(data, F_of, n_folds: int):
     k = data[0][3].shape[1] if data else 0
     XX, Xy = np.zeros((n_blocks, k, k)), np.zeros((n_blocks, k))
     yy, nn = np.zeros(n_blocks), np.zeros(n_blocks)
-    for (t, w, F, X, use, w_stick, hold), rr in zip(data, ranges):
+    for (t, w, F, X, use, w_stick, hold, _), rr in zip(data, ranges):
         y = F - F_of(t, w, F, w_stick, hold)
         for i0, i1, b in rr:
             m = use[i0:i1]
@@ -269,6 +270,20 @@ def _without_gravity(eq, free, g0: np.ndarray):
             + np.einsum("i,bij,j->b", g0, XX[:, gi][:, :, gi], g0), nn)
 
 
+def _chosen_residuals(data, jd: JointData, free0, free, c_pos, c_neg, low, sigma0):
+    """Per log the friction residual the chosen bristles (with the low-speed term when kept) leave, and the
+    rigid columns of the terms kept (the gravity put back where :func:`_gravity_guard` held it at zero)."""
+    if low is not None:
+        c_pos, c_neg = _with_low_speed(c_pos, low[0], low[1]), _with_low_speed(c_neg, low[0], low[1])
+    F_of = _lugre_of(c_pos, c_neg, sigma0)
+    keep = [j for j, n in enumerate(free0) if n in free]
+    gi = [j for j, n in enumerate(free0) if n not in free]
+    g0 = np.array([float(jd.jf.gravity[free0[j]].value or 0.0) if jd.jf.gravity.get(free0[j]) is not None
+                   else 0.0 for j in gi])
+    ys = [d[2] - F_of(d[0], d[1], d[2], d[5], d[6]) + (d[3][:, gi] @ g0 if gi else 0.0) for d in data]
+    return ys, [d[3][:, keep] for d in data]
+
+
 def _gravity_guard(jd: JointData, free, eq, held, n_folds: int):
     """Whether the free gravity terms earn their place in the refit with the bristles: on an oscillation the
     acceleration follows the angle, so J and ``Px cos q + Py sin q`` trade off and take up the friction's
@@ -288,6 +303,81 @@ def _gravity_guard(jd: JointData, free, eq, held, n_folds: int):
     why = (f"held at 0: the gravity terms predict the held-out blocks no better than none (mean-square gain "
            f"{gain:.3g} +- {se:.3g}; J and the gravity trade off where the acceleration follows the angle)")
     return [n for n in free if n not in GRAVITY], red, held_red, why
+
+
+def _ripple_equations(data, ys, Xs, period: float, n_folds: int):
+    """Block equations of the refit with the ripple's two columns at ``period`` added (residuals ``ys`` and
+    rigid columns ``Xs`` per log, as the chosen model leaves them)."""
+    ranges = smp.block_ranges([d[0] for d in data], n_folds)
+    n_blocks = smp.BLOCKS_PER_FOLD * n_folds
+    k = Xs[0].shape[1] + 2
+    XX, Xy = np.zeros((n_blocks, k, k)), np.zeros((n_blocks, k))
+    yy, nn = np.zeros(n_blocks), np.zeros(n_blocks)
+    for d, y, X, rr in zip(data, ys, Xs, ranges):
+        use, q = d[4], d[7]
+        for i0, i1, b in rr:
+            m = use[i0:i1]
+            Xb = np.column_stack([X[i0:i1][m], rp.columns(q[i0:i1][m], period)])
+            yb = y[i0:i1][m]
+            XX[b] += Xb.T @ Xb
+            Xy[b] += Xb.T @ yb
+            yy[b] += float(yb @ yb)
+            nn[b] += m.sum()
+    return XX, Xy, yy, nn
+
+
+def _ripple(data, ys, Xs, held_ref, stroke: float, step: float, n_folds: int):
+    """A torque ripple that follows the position (:mod:`.ripple`) under the chosen model: its period searched
+    on each fold's training blocks (the residual of the fold's refit), the held-out blocks scored with it;
+    kept when the period is inside its grid and the ripple beats the model without it by GAIN_Z paired
+    errors. Returns ((period, its grid's relative spacing), (block equations, held-out result)) or (None, why)."""
+    ranges = smp.block_ranges([d[0] for d in data], n_folds)
+    blk = []
+    for d, rr in zip(data, ranges):
+        b = np.full(d[0].size, -1)
+        for i0, i1, k in rr:
+            b[i0:i1] = k
+        blk.append(np.where(d[4], b, -1))
+    q_used = np.concatenate([d[7][m >= 0] for d, m in zip(data, blk)])
+    band, why = rp.period_band(q_used, step, stroke)
+    if band is None:
+        return None, why
+
+    def period_without(fit, fold):
+        tr = [(m >= 0) & (m % n_folds != fold) for m in blk]
+        r = np.concatenate([(y - X @ fit)[t] for y, X, t in zip(ys, Xs, tr)])
+        return rp.best_period(np.concatenate([d[7][t] for d, t in zip(data, tr)]), r, band)
+
+    sse = np.zeros(held_ref[0].size)
+    fold = np.arange(sse.size) % n_folds
+    for f, fit in enumerate(held_ref[2]):
+        XX, Xy, yy, _ = _ripple_equations(data, ys, Xs, period_without(fit, f)[0], n_folds)
+        b = _solve(XX[fold != f].sum(0), Xy[fold != f].sum(0))
+        for i in np.flatnonzero(fold == f):
+            sse[i] = yy[i] - 2.0 * b @ Xy[i] + b @ XX[i] @ b
+    P, rel, edge = period_without(held_ref[1], -1)
+    eq = _ripple_equations(data, ys, Xs, P, n_folds)
+    gain, se = _paired(held_ref[0], sse, eq[3])
+    if edge:
+        return None, f"the best ripple period is at the end of those tried ({P:.4g})"
+    if not gain > GAIN_Z * se:
+        return None, (f"a ripple of period {P:.4g} predicts the held-out blocks no better (mean-square gain "
+                      f"{gain:.3g} +- {se:.3g})")
+    _, full, fits = _heldout(eq, n_folds)
+    return (P, rel), (eq, (sse, full, fits))
+
+
+def _ripple_params(rip, b, se, axis: str, source: str) -> dict[str, ParamEstimate]:
+    P, rel = rip
+    unit = unit_of("F", axis)
+    out = {"rip_period": ParamEstimate("rip_period", P, rel * P, "rad" if axis == "rotary" else "m",
+                                       source=source)}
+    for j, n in enumerate(("rip_sin", "rip_cos")):
+        v, e = float(b[j]), float(se[j])
+        ok = bool(np.isfinite(e) and e < abs(v))
+        out[n] = ParamEstimate(n, v, e, unit, ok, "" if ok else "relative error above 100 % (block jackknife)",
+                               source=source)
+    return out
 
 
 def _jackknife(fits) -> np.ndarray:
@@ -359,21 +449,35 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
         eqs[i], held[i] = got
         params.update(_low_speed_params(low, axis, f"{source}; the low-speed term under them chosen alike"))
     grav = None if why else _gravity_guard(jd, free, eqs[i], held[i], n_folds)
+    free0 = free
     if grav is not None:
         free, eqs[i], held[i], _ = grav
+    rip, got_r = (None, "") if why else _ripple(data, *_chosen_residuals(data, jd, free0, free, c_pos, c_neg, low,
+                                                                          (g0[0] / L[i], g0[1] / L[i])),
+                                                held[i], stroke, step, n_folds)
+    if rip is not None:
+        eqs[i], held[i] = got_r
     if not why:
-        params.update(_rigid_params(jd, free, held[i][1], _jackknife(held[i][2]), grav[3] if grav else ""))
+        se = _jackknife(held[i][2])
+        k = len(free)
+        params.update(_rigid_params(jd, free, held[i][1][:k], se[:k], grav[3] if grav else ""))
+        if rip is not None:
+            params.update(_ripple_params(rip, held[i][1][k:], se[k:], axis,
+                                         f"{source}; a torque ripple that follows the position, its period "
+                                         "searched on each fold's training blocks"))
     N = float(eq0[3].sum())
     XX, Xy, yy, _ = (x.sum(0) for x in eqs[i])
     b = held[i][1]
     met = {"rms": float(math.sqrt(max(yy - 2 * b @ Xy + b @ XX @ b, 0.0) / N)),
            "rms_heldout": float(math.sqrt(held[i][0].sum() / N)),
            "rms_heldout_static": float(math.sqrt(sse0.sum() / N)), "n": int(N),
-           "k": int(len(base.params) + 1 + len(free) + (2 if low else 0))}
+           "k": int(len(base.params) + 1 + len(free) + (2 if low else 0) + (3 if rip else 0))}
     note = (f"sigma0 from {n_rev} stops and reversals: bristle lengths {L[0]:.3g}-{L[-1]:.3g} tried, held-out "
             f"RMS {met['rms_heldout']:.4g} against {met['rms_heldout_static']:.4g} for {base.name} with the "
             "same refit of the rigid terms" + (f"; a low-speed term under the bristles (amplitude {low[0]:.3g}, "
                                                f"speed {low[1]:.3g})" if low else
                                                f"; no low-speed term under them: {got}" if got else "")
-            + (f"; gravity {grav[3]}" if grav else ""))
+            + (f"; gravity {grav[3]}" if grav else "")
+            + (f"; a torque ripple of period {rip[0]:.4g} that follows the position" if rip else
+               f"; no position ripple: {got_r}" if got_r else ""))
     return params, met, note
