@@ -89,6 +89,9 @@ def dropped_notes(model: FrictionModel) -> list[str]:
     if model.ext.get("tau_offset"):
         notes.append(f"its torque offset {model.ext['tau_offset']:.4g} is not friction and is left out "
                      "(apply it as a bias torque)")
+    if model.ext.get("rip_period"):
+        notes.append(f"its torque ripple that follows the position (period {model.ext['rip_period']:.4g}) is not "
+                     "friction and is left out, as the gravity is")
     return notes
 
 

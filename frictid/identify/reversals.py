@@ -305,6 +305,19 @@ def _gravity_guard(jd: JointData, free, eq, held, n_folds: int):
     return [n for n in free if n not in GRAVITY], red, held_red, why
 
 
+#: Why no ripple is tried on logs whose positions are not declared absolute.
+NOT_ABSOLUTE = ("not tried: the logs do not declare their positions absolute (`meta: {position_absolute: true}`); "
+                "an incremental encoder zeroed where a recording starts moves a ripple's phase from one "
+                "recording to the next")
+
+
+def _absolute(jd: JointData) -> bool:
+    """Whether every log with a position declares it absolute (the same zero in every recording), so that a
+    ripple's phase carries from the fitted recordings to others."""
+    logs = [p.log for p in jd.preps if p.log.q is not None]
+    return bool(logs) and all(bool((lg.meta or {}).get("position_absolute")) for lg in logs)
+
+
 def _ripple_equations(data, ys, Xs, period: float, n_folds: int):
     """Block equations of the refit with the ripple's two columns at ``period`` added (residuals ``ys`` and
     rigid columns ``Xs`` per log, as the chosen model leaves them)."""
@@ -452,9 +465,11 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
     free0 = free
     if grav is not None:
         free, eqs[i], held[i], _ = grav
-    rip, got_r = (None, "") if why else _ripple(data, *_chosen_residuals(data, jd, free0, free, c_pos, c_neg, low,
-                                                                          (g0[0] / L[i], g0[1] / L[i])),
-                                                held[i], stroke, step, n_folds)
+    if why or not _absolute(jd):
+        rip, got_r = None, ("" if why else NOT_ABSOLUTE)
+    else:
+        rip, got_r = _ripple(data, *_chosen_residuals(data, jd, free0, free, c_pos, c_neg, low,
+                                                      (g0[0] / L[i], g0[1] / L[i])), held[i], stroke, step, n_folds)
     if rip is not None:
         eqs[i], held[i] = got_r
     if not why:
