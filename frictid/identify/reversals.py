@@ -23,6 +23,13 @@ bristles alone by two paired errors of the held-out blocks): the maps are fitted
 a Stribeck drop acts, and the bristles carry the friction through them. It is the model's ``str_amp``,
 ``str_vs`` (``str_delta`` held at 2), the Stribeck slot of its canonical vectors.
 
+With the bristles chosen, two more terms of the refit are judged on the same held-out blocks (session 23):
+the free gravity terms are kept only when they beat the refit with the gravity held at zero by two paired
+errors (:func:`_gravity_guard`: on an oscillation J and the gravity trade off, and a gravity the data cannot
+tell from none moves J); and on logs that declare their positions absolute a torque ripple that follows the
+position (:mod:`.ripple`, :func:`_ripple`: a motor's cogging, a gear's teeth) is added when, its period
+searched on each fold's training blocks, it beats the model without it by two paired errors.
+
 sigma0 is identifiable when the chosen length lies inside the grid (not at the encoder's end, where the
 bristles are the static map's jump, nor at the stroke's end), beats the static map on the held-out blocks
 by more than two standard errors of the paired block differences, and the lengths within one such error
@@ -115,16 +122,25 @@ def _speeds(data) -> tuple[float, float]:
 def _block_equations(data, F_of, n_folds: int):
     """Per time block: (X'X, X'y, y'y, n) on the used samples of the friction with the fit's rigid terms less
     the model's (``F_of(t, w, F, w_stick, hold)``) against the free rigid terms' columns."""
+    return _equations(data, [d[2] - F_of(d[0], d[1], d[2], d[5], d[6]) for d in data], [d[3] for d in data],
+                      n_folds)
+
+
+def _equations(data, ys, Xs, n_folds: int, extra=None):
+    """:func:`_block_equations` of residuals ``ys`` against columns ``Xs`` (per log), with the columns
+    ``extra(q)`` of the position appended when given (the ripple's)."""
     ranges = smp.block_ranges([d[0] for d in data], n_folds)
     n_blocks = smp.BLOCKS_PER_FOLD * n_folds
-    k = data[0][3].shape[1] if data else 0
+    k = (Xs[0].shape[1] if data else 0) + (2 if extra is not None else 0)
     XX, Xy = np.zeros((n_blocks, k, k)), np.zeros((n_blocks, k))
     yy, nn = np.zeros(n_blocks), np.zeros(n_blocks)
-    for (t, w, F, X, use, w_stick, hold, _), rr in zip(data, ranges):
-        y = F - F_of(t, w, F, w_stick, hold)
+    for d, y, X, rr in zip(data, ys, Xs, ranges):
+        use, q = d[4], d[7]
         for i0, i1, b in rr:
             m = use[i0:i1]
             Xb, yb = X[i0:i1][m], y[i0:i1][m]
+            if extra is not None:
+                Xb = np.column_stack([Xb, extra(q[i0:i1][m])])
             XX[b] += Xb.T @ Xb
             Xy[b] += Xb.T @ yb
             yy[b] += float(yb @ yb)
@@ -270,6 +286,12 @@ def _without_gravity(eq, free, g0: np.ndarray):
             + np.einsum("i,bij,j->b", g0, XX[:, gi][:, :, gi], g0), nn)
 
 
+def _gravity_now(jd: JointData, names) -> np.ndarray:
+    """The joint's gravity terms ``names`` as the fit left them (0 where it has none)."""
+    return np.array([float(jd.jf.gravity[n].value) if jd.jf.gravity.get(n) is not None and
+                     jd.jf.gravity[n].value is not None else 0.0 for n in names])
+
+
 def _chosen_residuals(data, jd: JointData, free0, free, c_pos, c_neg, low, sigma0):
     """Per log the friction residual the chosen bristles (with the low-speed term when kept) leave, and the
     rigid columns of the terms kept (the gravity put back where :func:`_gravity_guard` held it at zero)."""
@@ -278,8 +300,7 @@ def _chosen_residuals(data, jd: JointData, free0, free, c_pos, c_neg, low, sigma
     F_of = _lugre_of(c_pos, c_neg, sigma0)
     keep = [j for j, n in enumerate(free0) if n in free]
     gi = [j for j, n in enumerate(free0) if n not in free]
-    g0 = np.array([float(jd.jf.gravity[free0[j]].value or 0.0) if jd.jf.gravity.get(free0[j]) is not None
-                   else 0.0 for j in gi])
+    g0 = _gravity_now(jd, [free0[j] for j in gi])
     ys = [d[2] - F_of(d[0], d[1], d[2], d[5], d[6]) + (d[3][:, gi] @ g0 if gi else 0.0) for d in data]
     return ys, [d[3][:, keep] for d in data]
 
@@ -293,9 +314,7 @@ def _gravity_guard(jd: JointData, free, eq, held, n_folds: int):
     block equations, held-out result, the reason)."""
     if not any(n in GRAVITY for n in free):
         return None
-    g0 = np.array([float(jd.jf.gravity[n].value) if jd.jf.gravity.get(n) is not None and
-                   jd.jf.gravity[n].value is not None else 0.0 for n in free if n in GRAVITY])
-    red = _without_gravity(eq, free, g0)
+    red = _without_gravity(eq, free, _gravity_now(jd, [n for n in free if n in GRAVITY]))
     held_red = _heldout(red, n_folds)
     gain, se = _paired(held_red[0], held[0], eq[3])
     if gain > GAIN_Z * se:
@@ -321,28 +340,13 @@ def _absolute(jd: JointData) -> bool:
 def _ripple_equations(data, ys, Xs, period: float, n_folds: int):
     """Block equations of the refit with the ripple's two columns at ``period`` added (residuals ``ys`` and
     rigid columns ``Xs`` per log, as the chosen model leaves them)."""
-    ranges = smp.block_ranges([d[0] for d in data], n_folds)
-    n_blocks = smp.BLOCKS_PER_FOLD * n_folds
-    k = Xs[0].shape[1] + 2
-    XX, Xy = np.zeros((n_blocks, k, k)), np.zeros((n_blocks, k))
-    yy, nn = np.zeros(n_blocks), np.zeros(n_blocks)
-    for d, y, X, rr in zip(data, ys, Xs, ranges):
-        use, q = d[4], d[7]
-        for i0, i1, b in rr:
-            m = use[i0:i1]
-            Xb = np.column_stack([X[i0:i1][m], rp.columns(q[i0:i1][m], period)])
-            yb = y[i0:i1][m]
-            XX[b] += Xb.T @ Xb
-            Xy[b] += Xb.T @ yb
-            yy[b] += float(yb @ yb)
-            nn[b] += m.sum()
-    return XX, Xy, yy, nn
+    return _equations(data, ys, Xs, n_folds, lambda q: rp.columns(q, period))
 
 
 def _ripple(data, ys, Xs, held_ref, stroke: float, step: float, n_folds: int):
     """A torque ripple that follows the position (:mod:`.ripple`) under the chosen model: its period searched
     on each fold's training blocks (the residual of the fold's refit), the held-out blocks scored with it;
-    kept when the period is inside its grid and the ripple beats the model without it by GAIN_Z paired
+    kept when the period is not at its band's end and the ripple beats the model without it by GAIN_Z paired
     errors. Returns ((period, its grid's relative spacing), (block equations, held-out result)) or (None, why)."""
     ranges = smp.block_ranges([d[0] for d in data], n_folds)
     blk = []
