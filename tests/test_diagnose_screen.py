@@ -66,3 +66,27 @@ def test_a_screened_candidate_could_not_have_passed_and_the_answer_is_unchanged(
         if s1["chosen"] is not None:
             assert s1["term"] == s0["term"]
             assert s1["chosen"].rms_after == s0["chosen"].rms_after
+
+
+def test_a_grid_searched_by_the_screen_is_the_one_the_whole_trial_would_search(S, monkeypatch):
+    # a candidate ranked on the stride (search.STRIDE_EXTS) tried on all samples after its screen takes the
+    # screen's terms (search.StrideSearch.propose): the terms and numbers of searching again
+    monkeypatch.setattr(search, "STRIDE_MIN", 1 << 12)
+    monkeypatch.setattr(search, "STRIDE_TARGET", 1 << 12)
+    cp, _ = sm.canonical_pair("coulomb_viscous", dict(Fc=2.0, sigma2=1.2))
+    c = ch.Chain(S, Structure("coulomb_viscous", cp, ()))   # a base without a Stribeck part: stribeck is tried
+    exts = [e for e in ch.candidates(S, c.st, c.ctx) if e in search.STRIDE_EXTS]
+    assert "stribeck" in exts
+    calls = []
+    searched = ch.propose
+    monkeypatch.setattr(ch, "propose", lambda ext, *a, **k: calls.append(ext) or searched(ext, *a, **k))
+    for ext in exts:
+        c._screened(ext, 10)   # the screen's trial searches the grid once per fold
+        assert calls.count(ext) == S.n_folds
+        tr = c.evaluate(ext, 10)
+        assert calls.count(ext) == S.n_folds   # not searched again
+        c.stride._proposed.clear()
+        tr0 = c.evaluate(ext, 10)   # searched again
+        assert calls.count(ext) == 2 * S.n_folds
+        assert tr.fold_terms == tr0.fold_terms
+        assert (tr.rms_after, tr.t) == (tr0.rms_after, tr0.t)

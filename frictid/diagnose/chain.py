@@ -304,10 +304,19 @@ class Chain:
             # (a delay's proposal reads no residual)
             return propose(ext, self.full.ctx, self.full.st,
                            self.full.idx_all if f is None else self.full.train_info[f][0], None, None, None)
+        if self.full is not None and f is not None and self.full.stride.wants(ext):
+            # a screen's grid search is the one the whole chain's trial makes (:meth:`StrideSearch.propose`)
+            return self.full.stride.propose(ext, f, self.st, lambda: propose(ext, self.ctx, self.st, tr, res,
+                                                                              lev, c0))
         if not self.stride.wants(ext):
             return propose(ext, self.ctx, self.st, tr, res, lev, c0)
         self.stride.sync(self.ctx)
-        term = propose(ext, self.stride.ctx, self.st, *self.stride.training(f, tr, res, lev), c0)
+        idx, res_s, lev_s = self.stride.training(f, tr, res, lev)
+        if f is None:
+            term = propose(ext, self.stride.ctx, self.st, idx, res_s, lev_s, c0)
+        else:
+            term = self.stride.propose(ext, f, self.st, lambda: propose(ext, self.stride.ctx, self.st, idx, res_s,
+                                                                         lev_s, c0))
         self.stride.ctx.release(self.st)
         return term
 
@@ -739,11 +748,8 @@ def _a_constant(ctx: Context, tr: Trial, F_rms: float, noise: float) -> str | No
     mean of 7.2 N over the travel and 1.1 N RMS of shape, 1.6 % of the friction RMS and five times the
     noise; held-out RMS 7.35 -> 0.98 with the position torque, 1.51 with an offset. It was rejected and the
     step left ambiguous, offset or asymmetry.)"""
-    var = []
-    for term, c in zip(tr.fold_terms, tr.fold_coefs):
-        cols = ctx.term_columns(term)
-        g = np.atleast_1d(c.gamma.get(tr.index, np.zeros(0)))
-        var.append(float(np.std(cols @ g)) if g.size == cols.shape[1] else 0.0)
+    var = [ctx.spread(term, np.atleast_1d(c.gamma.get(tr.index, np.zeros(0))))
+           for term, c in zip(tr.fold_terms, tr.fold_coefs)]
     v = float(np.mean(var)) if var else 0.0
     if v < EXPLAINED_MIN * F_rms and v <= X_NOISE * noise:
         return (f"{tr.ext} hardly varies with the position: what varies over the travel has an RMS of {v:.3g}, "
