@@ -39,7 +39,7 @@ from .binned import equal_count_bins, fold_parts, heldout_binned
 from .causes import EXTENSIONS, X_NOISE, candidates, n_coef, propose, torque_noise
 from .model import VISCOUS_SLOTS, Coef, Context, Evaluator, Structure
 from .samples import Samples
-from .screen import explained_bound, screen_record
+from .screen import explained_bound, gap_allowance, screen_record
 from .search import StrideSearch
 from .signals import REST_MIN, delay_heldout, rest_scales, rests
 
@@ -282,6 +282,21 @@ class Chain:
             coefs.append(c)
         self.ctx.release(self.st)   # the candidate's columns (its sums of products stay cached)
         return after, coefs
+
+    def in_sample_d(self, tr: Trial) -> np.ndarray:
+        """Per group, its sum of ``r_before^2 - r_after^2`` over its scored samples on the training sets that
+        hold it, averaged over them: each fold's fit of the current model (``train_info``) and of the
+        extended one (``tr.fold_coefs``) on its own training set (what the trial explains in-sample;
+        :func:`.screen.gap_allowance`)."""
+        S = self.S
+        acc = np.zeros(S.n_groups)
+        for (tri, te, res, _, _), term, c in zip(self.train_info, tr.fold_terms, tr.fold_coefs):
+            ra = S.F[tri] - _on_training(Evaluator(self.st.plus(term), self.ctx).predict, c, tri, te)
+            x = np.zeros(S.n)
+            x[tri] = np.where(self.inside[tri], res * res - ra * ra, 0.0)
+            acc += S.group_sums(x)
+        self.ctx.release(self.st)
+        return acc / max(S.n_folds - 1, 1)
 
     def _judged(self, after: np.ndarray) -> tuple:
         """A held-out prediction ``after`` against the current model's: (RMS before, RMS after on the scored
@@ -609,7 +624,13 @@ class Chain:
         if tr is None:
             return None
         bar = EXPLAINED_MIN * self.F_rms
-        bound = explained_bound(tr, sub._before_numbers()[3], ALPHA / max(m, 1), self.S.n_folds)
+        n_in, level = sub._before_numbers()[3], ALPHA / max(m, 1)
+        bound = explained_bound(tr, n_in, level, self.S.n_folds)
+        if bound >= bar and explained_bound(tr, n_in, level / 2, self.S.n_folds, fits=0.0) < bar:
+            # the fits' share decides: the stride's own in-sample to held-out gap (:func:`.screen.gap_allowance`),
+            # each of the two errors at half the step's level
+            fits = gap_allowance(sub.in_sample_d(tr), tr.d, n_in, level / 2)
+            bound = min(bound, explained_bound(tr, n_in, level / 2, self.S.n_folds, fits=fits))
         if bound >= bar:
             return None
         if ext == "delay" and self._moving_map_carries_model() and _unresolved_delay(self.S, tr) is None:
