@@ -18,7 +18,9 @@ explain on all samples. The upper bound (:func:`explained_bound`) adds
 - the fits' share: the stride's folds fit the extension's coefficients (and its setting) on ``k`` times fewer
   samples, and a fit's held-out loss grows with the coefficients' variance, at most ``p rms_before^2 /
   G_train`` per sample (``p`` the term's coefficients and one setting, ``G_train`` the training folds'
-  groups: every group one independent unit, the most the residual's correlation can make of it).
+  groups: every group one independent unit, the most the residual's correlation can make of it); where that
+  share decides, the smaller of it and the stride's own in-sample to held-out gap (:func:`gap_allowance`,
+  session 23), each of the two errors then at half the step's level.
 
 Only a candidate whose bound is under the bar is skipped (and a delay only when it does not pay for itself on
 every moving sample either, computed exactly); its record keeps the stride's numbers and the bound
