@@ -528,6 +528,7 @@ def test_a_position_torque_that_is_a_constant_is_rejected():
     S = SimpleNamespace(F=9.0 * np.sign(rng.standard_normal(q.size)), q=q)   # friction RMS 9
     ctx = SimpleNamespace(S=S, _cache={})   # the columns of the terms, as the chain's Context makes them
     ctx.term_columns = lambda term: Context.term_columns(ctx, term)
+    ctx.spread = lambda term, g: Context.spread(ctx, term, g)
     smooth = Term("position_torque", "position_torque", "additive", (("period", 0.0), ("q0", 0.0), ("qs", 3.0)))
     periodic = Term("position_torque", "position_torque", "additive", (("period", 2.0),))
 

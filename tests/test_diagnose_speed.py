@@ -263,3 +263,16 @@ def test_equal_count_bins_from_one_sort_are_the_quantile_edges_bins(side):
             b, n = equal_count_bins(x, nb, side)
             assert n == edges.size + 1
             np.testing.assert_array_equal(b, np.searchsorted(edges, x, side=side))
+
+
+def test_the_spread_of_a_periodic_correction_from_the_distinct_positions_is_the_samples(S):
+    # a confound check's spread of a position torque over the samples (Context.spread): from one row per
+    # distinct position weighted by its samples when the positions repeat, the same number as the columns'
+    for q in (np.round(S.q / 1e-3) * 1e-3, S.q):
+        ctx = Context(replace(S, q=q))
+        for P, g in ((0.31, np.array([0.3, -0.7])), (np.pi, np.array([1e-3, 2.5]))):
+            term = Term("position_torque", "position_torque", "additive", (("period", P),))
+            got = ctx.spread(term, g)   # before the columns are formed: the distinct positions' path
+            want = float(np.std(ctx.term_columns(term) @ g))
+            assert got == pytest.approx(want, rel=1e-12)
+            assert ctx.spread(term, np.zeros(3)) == 0.0

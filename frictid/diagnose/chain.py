@@ -39,7 +39,7 @@ from .binned import equal_count_bins, fold_parts, heldout_binned
 from .causes import EXTENSIONS, X_NOISE, candidates, n_coef, propose, torque_noise
 from .model import VISCOUS_SLOTS, Coef, Context, Evaluator, Structure
 from .samples import Samples
-from .screen import explained_bound, screen_record
+from .screen import explained_bound, gap_allowance, screen_record
 from .search import StrideSearch
 from .signals import REST_MIN, delay_heldout, rest_scales, rests
 
@@ -283,6 +283,21 @@ class Chain:
         self.ctx.release(self.st)   # the candidate's columns (its sums of products stay cached)
         return after, coefs
 
+    def in_sample_d(self, tr: Trial) -> np.ndarray:
+        """Per group, its sum of ``r_before^2 - r_after^2`` over its scored samples on the training sets that
+        hold it, averaged over them: each fold's fit of the current model (``train_info``) and of the
+        extended one (``tr.fold_coefs``) on its own training set (what the trial explains in-sample;
+        :func:`.screen.gap_allowance`)."""
+        S = self.S
+        acc = np.zeros(S.n_groups)
+        for (tri, te, res, _, _), term, c in zip(self.train_info, tr.fold_terms, tr.fold_coefs):
+            ra = S.F[tri] - _on_training(Evaluator(self.st.plus(term), self.ctx).predict, c, tri, te)
+            x = np.zeros(S.n)
+            x[tri] = np.where(self.inside[tri], res * res - ra * ra, 0.0)
+            acc += S.group_sums(x)
+        self.ctx.release(self.st)
+        return acc / max(S.n_folds - 1, 1)
+
     def _judged(self, after: np.ndarray) -> tuple:
         """A held-out prediction ``after`` against the current model's: (RMS before, RMS after on the scored
         samples, per held-out group ``d`` = sum of r_before^2 - r_after^2, t, p, what it explains). Where the
@@ -304,10 +319,19 @@ class Chain:
             # (a delay's proposal reads no residual)
             return propose(ext, self.full.ctx, self.full.st,
                            self.full.idx_all if f is None else self.full.train_info[f][0], None, None, None)
+        if self.full is not None and f is not None and self.full.stride.wants(ext):
+            # a screen's grid search is the one the whole chain's trial makes (:meth:`StrideSearch.propose`)
+            return self.full.stride.propose(ext, f, self.st, lambda: propose(ext, self.ctx, self.st, tr, res,
+                                                                              lev, c0))
         if not self.stride.wants(ext):
             return propose(ext, self.ctx, self.st, tr, res, lev, c0)
         self.stride.sync(self.ctx)
-        term = propose(ext, self.stride.ctx, self.st, *self.stride.training(f, tr, res, lev), c0)
+        idx, res_s, lev_s = self.stride.training(f, tr, res, lev)
+        if f is None:
+            term = propose(ext, self.stride.ctx, self.st, idx, res_s, lev_s, c0)
+        else:
+            term = self.stride.propose(ext, f, self.st, lambda: propose(ext, self.stride.ctx, self.st, idx, res_s,
+                                                                         lev_s, c0))
         self.stride.ctx.release(self.st)
         return term
 
@@ -600,7 +624,13 @@ class Chain:
         if tr is None:
             return None
         bar = EXPLAINED_MIN * self.F_rms
-        bound = explained_bound(tr, sub._before_numbers()[3], ALPHA / max(m, 1), self.S.n_folds)
+        n_in, level = sub._before_numbers()[3], ALPHA / max(m, 1)
+        bound = explained_bound(tr, n_in, level, self.S.n_folds)
+        if bound >= bar and explained_bound(tr, n_in, level / 2, self.S.n_folds, fits=0.0) < bar:
+            # the fits' share decides: the stride's own in-sample to held-out gap (:func:`.screen.gap_allowance`),
+            # each of the two errors at half the step's level
+            fits = gap_allowance(sub.in_sample_d(tr), tr.d, n_in, level / 2)
+            bound = min(bound, explained_bound(tr, n_in, level / 2, self.S.n_folds, fits=fits))
         if bound >= bar:
             return None
         if ext == "delay" and self._moving_map_carries_model() and _unresolved_delay(self.S, tr) is None:
@@ -739,11 +769,8 @@ def _a_constant(ctx: Context, tr: Trial, F_rms: float, noise: float) -> str | No
     mean of 7.2 N over the travel and 1.1 N RMS of shape, 1.6 % of the friction RMS and five times the
     noise; held-out RMS 7.35 -> 0.98 with the position torque, 1.51 with an offset. It was rejected and the
     step left ambiguous, offset or asymmetry.)"""
-    var = []
-    for term, c in zip(tr.fold_terms, tr.fold_coefs):
-        cols = ctx.term_columns(term)
-        g = np.atleast_1d(c.gamma.get(tr.index, np.zeros(0)))
-        var.append(float(np.std(cols @ g)) if g.size == cols.shape[1] else 0.0)
+    var = [ctx.spread(term, np.atleast_1d(c.gamma.get(tr.index, np.zeros(0))))
+           for term, c in zip(tr.fold_terms, tr.fold_coefs)]
     v = float(np.mean(var)) if var else 0.0
     if v < EXPLAINED_MIN * F_rms and v <= X_NOISE * noise:
         return (f"{tr.ext} hardly varies with the position: what varies over the travel has an RMS of {v:.3g}, "

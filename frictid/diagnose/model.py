@@ -412,6 +412,27 @@ class Context:
             self._cache[key] = np.vstack([X.min(axis=0), X.max(axis=0)]) if X.shape[1] == 1 and X.size else X
         return self._cache[key]
 
+    def spread(self, term: Term, g: np.ndarray) -> float:
+        """The standard deviation over the samples of the term's correction ``term_columns(term) @ g`` (0 when
+        g does not match its columns). A periodic position term whose positions repeat (:func:`sin_cos`)
+        is evaluated once per distinct position, weighted by how many samples hold it: the same mean and
+        spread without forming its columns over every sample (a confound check reads the five folds'
+        corrections after the trial released their columns)."""
+        q2pi = self._cache.get("q2pi", (None, None))
+        if _periodic(term) and q2pi[1] is not None and ("term", term.ext, term.nl) not in self._cache:
+            X = sin_cos(self._cache, None, term.settings["period"])
+            if g.size != X.shape[1]:
+                return 0.0
+            if "q2pi_counts" not in self._cache:
+                self._cache["q2pi_counts"] = np.bincount(q2pi[1], minlength=X.shape[0]).astype(float)
+            cnt = self._cache["q2pi_counts"]
+            v = X @ g
+            n = float(cnt.sum())
+            mean = float(cnt @ v) / n
+            return float(np.sqrt(max(float(cnt @ (v - mean) ** 2) / n, 0.0)))
+        cols = self.term_columns(term)
+        return float(np.std(cols @ g)) if g.size == cols.shape[1] else 0.0
+
     def release(self, st: Structure) -> None:
         """Drop the cached columns that no term of st uses: those of a candidate's settings (time constants,
         Stribeck velocities, periods) once it is judged. Their sums of products stay cached (small); a

@@ -18,7 +18,9 @@ explain on all samples. The upper bound (:func:`explained_bound`) adds
 - the fits' share: the stride's folds fit the extension's coefficients (and its setting) on ``k`` times fewer
   samples, and a fit's held-out loss grows with the coefficients' variance, at most ``p rms_before^2 /
   G_train`` per sample (``p`` the term's coefficients and one setting, ``G_train`` the training folds'
-  groups: every group one independent unit, the most the residual's correlation can make of it).
+  groups: every group one independent unit, the most the residual's correlation can make of it); where that
+  share decides, the smaller of it and the stride's own in-sample to held-out gap (:func:`gap_allowance`,
+  session 23), each of the two errors then at half the step's level.
 
 Only a candidate whose bound is under the bar is skipped (and a delay only when it does not pay for itself on
 every moving sample either, computed exactly); its record keeps the stride's numbers and the bound
@@ -33,10 +35,11 @@ import numpy as np
 from scipy.special import ndtri
 
 
-def explained_bound(tr, n_scored: int, level: float, n_folds: int) -> float:
+def explained_bound(tr, n_scored: int, level: float, n_folds: int, fits: float | None = None) -> float:
     """Upper bound of the held-out RMS a candidate would explain on all samples, from its trial ``tr`` on the
     stride (:class:`frictid.diagnose.chain.Trial`: per-group ``d``, RMS before, coefficients ``k``) with
-    ``n_scored`` scored samples and ``n_folds`` folds, at the one-sided ``level``."""
+    ``n_scored`` scored samples and ``n_folds`` folds, at the one-sided ``level``; ``fits``: the fits' share
+    (a mean square, :func:`gap_allowance`) instead of the one with every training group one unit."""
     d = np.asarray(tr.d, float)
     d = d[np.isfinite(d)]
     G = int(np.count_nonzero(d)) or 1   # groups with scored samples on the stride
@@ -45,8 +48,35 @@ def explained_bound(tr, n_scored: int, level: float, n_folds: int) -> float:
     se = float(np.std(d, ddof=1)) * math.sqrt(d.size) / n if d.size > 1 else math.inf
     z = float(ndtri(1.0 - level))
     folds = max(int(n_folds), 2)
-    fits = (tr.k + 1) * tr.rms_before ** 2 * folds / ((folds - 1) * G)
+    if fits is None:
+        fits = (tr.k + 1) * tr.rms_before ** 2 * folds / ((folds - 1) * G)
     return math.sqrt(max(est + z * se + fits, 0.0))
+
+
+def gap_allowance(d_in: np.ndarray, d_out: np.ndarray, n_scored: int, level: float) -> float:
+    """The fits' share of the bound from the stride's own fits: half the gap between what the candidate
+    explains on its training samples and on held-out ones, plus ``z`` standard errors of it over the groups
+    (``z`` at the one-sided ``level``). ``d_in``: per group, its sum of ``r_before^2 - r_after^2`` on the
+    training sets that hold it (each fold's fits of the current model and of the extended one, averaged
+    over those folds); ``d_out``: the held-out ``d``; ``n_scored``: the scored samples.
+
+    Why half the gap. A fitted coefficient's error makes the training fit look better by about what it
+    costs on held-out data (least squares: ``+p s^2`` and ``-p s^2``; a setting chosen on the training set
+    adds to the first only), so half the gap estimates the held-out loss of the stride's fits. The trial
+    on all samples fits the same groups with more samples each: its loss is at most the stride's (the
+    variation within the groups averages out, the variation between them stays), so what it explains
+    exceeds the stride's estimate by at most that loss. Sound where the residual is correlated over the
+    groups too; the old share assumes every training group one independent unit at the residual's whole
+    variance, and on a log whose residual is many times the bar it alone passed the bar (foreign seed 321021,
+    1.4x)."""
+    d_in, d_out = np.asarray(d_in, float), np.asarray(d_out, float)
+    keep = np.isfinite(d_in) & np.isfinite(d_out) & ((d_in != 0) | (d_out != 0))
+    g = d_in[keep] - d_out[keep]
+    if g.size < 2:
+        return math.inf
+    n = max(int(n_scored), 1)
+    se = float(np.std(g, ddof=1)) * math.sqrt(g.size) / n
+    return max(0.5 * (float(g.sum()) / n + float(ndtri(1.0 - level)) * se), 0.0)
 
 
 def screen_record(tr, stride, bound: float, bar: float) -> dict:

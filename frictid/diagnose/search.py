@@ -59,6 +59,22 @@ class StrideSearch:
         self.sub, self.sel = stride_samples(S, k)
         self.ctx = Context(self.sub)
         self.train = [np.flatnonzero(self.sub.fold != f) for f in range(S.n_folds)]
+        #: the last grid search per (candidate, fold): its structure and its term (:meth:`propose`)
+        self._proposed: dict = {}
+
+    def propose(self, ext: str, f: int, st, make):
+        """Fold f's term of a candidate whose settings are ranked on the stride (:data:`STRIDE_EXTS`), from
+        ``make()`` once per structure ``st``: the screen's trial of a long log (:mod:`.screen`, a chain on
+        the stride's samples) and the whole chain's trial search the same grid on the same training samples
+        of the stride with the same sums (these candidates' searches fit the structure with each setting and
+        read neither the residual nor the current coefficients), so a candidate tried on all samples after
+        its screen takes the screen's terms instead of searching again (the same terms)."""
+        got = self._proposed.get((ext, f))
+        if got is not None and got[0] is st:
+            return got[1]
+        term = make()
+        self._proposed[(ext, f)] = (st, term)
+        return term
 
     def wants(self, ext: str) -> bool:
         return self.active and ext in STRIDE_EXTS
