@@ -392,10 +392,10 @@ def ur10e_heldout(data: Path, tmp: str) -> list[str]:
             cells.append(f"{float(np.sqrt(np.mean(r_d ** 2))):.2f} / {float(np.sqrt(np.mean(r_d[moving] ** 2))):.2f}")
         aw, am = UR_AURT[k]
         lw, lm, lcells = ls_baseline(_ur_parts(data, tmp, k))
-        cw = check("UR10e held out", f"joint {k} whole run below AURT and the least squares", f"{whole:.2f}",
-                   f"< {aw} and < {lw:.2f}", whole < min(aw, lw))
-        cm = check("UR10e held out", f"joint {k} moving below AURT and the least squares", f"{mov:.2f}",
-                   f"< {am} and < {lm:.2f}", mov < min(am, lm))
+        cw = check("UR10e held out", f"joint {k} whole run below AURT and the least squares", f"{whole:.3f}",
+                   f"< {aw} and < {lw:.3f}", whole < min(aw, lw))
+        cm = check("UR10e held out", f"joint {k} moving below AURT and the least squares", f"{mov:.3f}",
+                   f"< {am} and < {lm:.3f}", mov < min(am, lm))
         rows.append(f"| {k} | {chosen(next(iter(P['joints'].values())))} | {whole:.2f} / {aw} / {lw:.2f} | {cw} | "
                     f"{mov:.2f} / {am} / {lm:.2f} | {cm} | {split} | {cells[0]}; {lcells[0]} | "
                     f"{cells[1]}; {lcells[1]} |")
