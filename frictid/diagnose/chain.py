@@ -543,9 +543,10 @@ class Chain:
         322035 (a Coulomb-level asymmetry of 37 % on 288 k samples; a hump of 1.16 times the level below 2 % of
         the top speed): the offset left 0.0074058 N m, the per-direction level 0.0074061, and the offset's part
         beyond it had t = 5.2 for an RMS of 6.8e-5 N m, 0.9 % of that residual (0.03 % of the friction RMS):
-        ``offset`` was named first where the data cannot tell the two apart. Where they can (frictid's plateau
-        logs with a hump of 1.3 times the level: an offset of 0.2 explains 0.012 beyond the per-direction level,
-        77 % of what the level leaves at a noise of 0.01, 23 % at 0.05) the bar is far below."""
+        ``offset`` was named first where the data cannot tell the two apart. Where they can the bar is far below
+        (frictid's plateau logs: an offset of 0.2 on a flat map with a hump of 1.3 times the level explains 0.012
+        beyond the scaled w < 0 branch, 77 % of what that leaves at a noise of 0.01, 23 % at 0.05; an offset of
+        0.35 on the Stribeck plant 0.034 beyond the per-direction level, 96 %)."""
         ca, cb = a.pred_after - a.pred_before, b.pred_after - b.pred_before
         ss = float(cb @ cb)
         perp = ca - (float(ca @ cb) / ss) * cb if ss > 0 else ca
