@@ -288,7 +288,9 @@ def _structure(jf: JointFit, chain: Chain, S: Samples, rec: dict) -> None:
                         "rule": ("held-out bin means of the residual against each variable (training folds "
                                  f"only), one-sided paired t over held-out groups, alpha {ALPHA} split over the "
                                  f"variables; stated when the explained RMS is at least {100 * EXPLAINED_MIN:.0f} % "
-                                 f"of the friction RMS and {X_NOISE:g}x the noise of the friction torque"),
+                                 f"of the friction RMS, and against the velocity, the acceleration, the measured "
+                                 f"torque, its rate and the segments' wander (which carry the torque's noise or the "
+                                 f"map's misfit) also {X_NOISE:g}x the noise of the friction torque"),
                         "tests": tests}
     rec["unexplained"] = [text] if text else []
     if text:
