@@ -5,10 +5,10 @@ A damped bristle turns the friction at a reversal faster than an undamped one of
 foreign fit card sigma0 came out 5-9x the truth, trusted, on draws with damping ratios 0.77-0.91. Here:
 random plants after the geared joint (inertia 3-30 kg m^2, bristle length 0.1-0.6 mrad at the level at
 rest, damping ratio 0.7-0.95; seeds < 1000, the cards use >= 100000) under the multi-sine, which has no
-ramps: the damping is chosen with the length, and sigma0 lies within two errors of the truth and within a
-factor 1.5 of it (seeds 301-304: 0.91, 1.28, 0.68, 0.93 of the truth; holding sigma1 at 0 gave 4.8, 2.2, 3.6,
-2.8, the first three outside two errors; the grids' steps, a factor 1.8 in length and 0.25 in damping ratio,
-bound the precision).
+ramps: the damping is chosen with the length (seeds 301-304: 0.91, 1.28, 0.68, 0.93 of the truth; holding
+sigma1 at 0 gave 4.8, 2.2, 3.6, 2.8, the first three outside two errors), sigma0's error spans the undamped
+bristles' best length too, and it is within two errors of the truth: identifiable within a factor 1.5, or
+not identifiable because the damping moves it by more than a factor 2.
 """
 from __future__ import annotations
 
@@ -44,7 +44,9 @@ def test_sigma0_of_damped_bristles_from_the_reversals(seed, tmp_path):
     (lg, *_) = simulate_recipe("recipes/multisine.yaml", plant=str(path), seed=seed, duration_scale=0.3)
     jf = frictid.fit([lg], models="polynomial,lugre")[lg.joint]
     s0 = jf.models["lugre"].params["sigma0"]
-    assert s0.identifiable, s0.reason
     assert abs(s0.value - sigma0) <= 2.0 * s0.stderr
-    assert 1 / 1.5 < s0.value / sigma0 < 1.5, (s0.value, sigma0, s0.source)
+    if s0.identifiable:
+        assert 1 / 1.5 < s0.value / sigma0 < 1.5, (s0.value, sigma0, s0.source)
+    else:  # the undamped and the damped bristles' lengths more than a factor 2 apart: said so
+        assert "damping" in s0.reason
     assert jf.models["lugre"].params["sigma1"].value > 0
