@@ -5,10 +5,10 @@ A damped bristle turns the friction at a reversal faster than an undamped one of
 foreign fit card sigma0 came out 5-9x the truth, trusted, on draws with damping ratios 0.77-0.91. Here:
 random plants after the geared joint (inertia 3-30 kg m^2, bristle length 0.1-0.6 mrad at the level at
 rest, damping ratio 0.7-0.95; seeds < 1000, the cards use >= 100000) under the multi-sine, which has no
-ramps: the damping is chosen with the length (seeds 301-304: 0.91, 1.28, 0.68, 0.93 of the truth; holding
-sigma1 at 0 gave 4.8, 2.2, 3.6, 2.8, the first three outside two errors), sigma0's error spans the undamped
-bristles' best length too, and it is within two errors of the truth: identifiable within a factor 1.5, or
-not identifiable because the damping moves it by more than a factor 2.
+ramps: the best damped bristles (seeds 301-304: 0.91, 1.28, 0.68, 0.93 of the truth) are kept where they lie
+within a factor 2 of the undamped ones, else the undamped (4.8, 2.2, 3.6, 2.8x) with an error that spans the
+damped: the truth is then within one error (holding sigma1 at 0, the errors were 40 % of the value: 2.2x at
+1.3 errors, 4.8x at 1.9).
 """
 from __future__ import annotations
 
@@ -44,9 +44,8 @@ def test_sigma0_of_damped_bristles_from_the_reversals(seed, tmp_path):
     (lg, *_) = simulate_recipe("recipes/multisine.yaml", plant=str(path), seed=seed, duration_scale=0.3)
     jf = frictid.fit([lg], models="polynomial,lugre")[lg.joint]
     s0 = jf.models["lugre"].params["sigma0"]
-    assert abs(s0.value - sigma0) <= 2.0 * s0.stderr
-    if s0.identifiable:
-        assert 1 / 1.5 < s0.value / sigma0 < 1.5, (s0.value, sigma0, s0.source)
-    else:  # the undamped and the damped bristles' lengths more than a factor 2 apart: said so
-        assert "damping" in s0.reason
-    assert jf.models["lugre"].params["sigma1"].value > 0
+    assert s0.identifiable, s0.reason
+    if jf.models["lugre"].params["sigma1"].value > 0:  # the damped bristles kept: near the truth
+        assert 1 / 1.5 < s0.value / sigma0 < 1.5 and abs(s0.value - sigma0) <= 2.0 * s0.stderr
+    else:  # the damped best more than a factor 2 away: the undamped kept, its error spanning the damped one
+        assert abs(s0.value - sigma0) <= s0.stderr, (s0.value, s0.stderr, sigma0)

@@ -61,6 +61,9 @@ GAIN_Z = 2.0
 MIN_REVERSALS = 6
 #: Bristle damping ratios tried with each length (``sigma1 = 2 zeta sqrt(sigma0 J) - sigma2``, at least 0).
 ZETAS = (0.0, 0.25, 0.5, 0.75, 1.0)
+#: The damped best length is kept only within this factor of the undamped best (else the undamped, its error
+#: spanning both).
+SPAN_MAX = 2.0
 #: Segment kinds kept out (ramps and steps identify sigma0 themselves).
 EXCLUDE = ("ramp_presliding", "step")
 RIGID = ("J", "Px", "Py", "offset")
@@ -275,8 +278,9 @@ def _damped(data, c_pos, c_neg, g0, L, J, sse0, nn, n_folds: int):
     (the length and the damping trade off along a ridge), such a cell at the grid's end making it not
     identifiable; where a damped cell is best, the undamped row's best length joins them (the damping is a
     nuisance the reversals may not resolve: on foreign logs whose bristles span few encoder steps a damped,
-    longer bristle won at 0.2-0.4x the truth's stiffness, trusted), and a span above a factor 2 makes sigma0
-    not identifiable. Returns (zeta, {length index: block equations}, {length index: held-out run} of the chosen
+    longer bristle won at 0.2-0.4x the truth's stiffness, trusted), and where the two lie more than
+    :data:`SPAN_MAX` apart the undamped cell is kept (the model as without the damping; UR10e joints 5 and 6,
+    whose held-out tail it predicts as before) with the error spanning the damped one. Returns (zeta, {length index: block equations}, {length index: held-out run} of the chosen
     row, the length's index, sigma0's relative error, the reason it is not identifiable or '')."""
     zetas = ZETAS if J is not None and J > 0 else ZETAS[:1]
 
@@ -292,24 +296,22 @@ def _damped(data, c_pos, c_neg, g0, L, J, sse0, nn, n_folds: int):
         prev = rows[-1]
         rows.append(_row_walk(lambda j, z=z: cell(z, j), min(prev, key=lambda j: prev[j][1][0].sum()), len(L), nn))
     k, i = min(((r, j) for r, row in enumerate(rows) for j in row), key=lambda rj: rows[rj[0]][rj[1]][1][0].sum())
+    i0 = min(rows[0], key=lambda j: rows[0][j][1][0].sum())
+    N = float(nn.sum())
+    near = [j for r in rows for j in r
+            if (r[j][1][0].sum() - rows[k][i][1][0].sum()) / N <= _paired(r[j][1][0], rows[k][i][1][0], nn)[1]]
+    if k > 0:  # the damping is a nuisance the error carries: the undamped bristles' best length is in the span
+        near.append(i0)
+        if max(L[i] / L[i0], L[i0] / L[i]) > SPAN_MAX:  # the damping not pinned: the undamped bristles, as before
+            k, i = 0, i0
     row = rows[k]
     js = sorted(row)
     i_sub, rel, why = _verdict([row[j][1][0] for j in js], sse0, nn, L[js])
-    best = row[i][1][0]
-    N = float(nn.sum())
-    near = [j for r in rows for j in r
-            if (r[j][1][0].sum() - best.sum()) / N <= _paired(r[j][1][0], best, nn)[1]]
-    if k > 0:  # the damping is a nuisance the error carries: the undamped bristles' best length is in the span
-        near.append(min(rows[0], key=lambda j: rows[0][j][1][0].sum()))
     rel = max(rel, L[i] / L[min(near)] - 1.0, 1.0 - L[i] / L[max(near)])
     if not why and (0 in near or len(L) - 1 in near):
         why = (f"the held-out error is flat over bristle lengths {L[min(near)]:.3g} to {L[max(near)]:.3g} and "
                f"damping ratios {min(zetas):g}-{max(zetas):g} (within one paired standard error), reaching the end "
                "of the lengths tried")
-    elif not why and rel >= 1.0:
-        why = (f"sigma0 depends on the bristles' damping, which the reversals do not pin: bristle lengths "
-               f"{L[min(near)]:.3g} to {L[max(near)]:.3g} over damping ratios 0-{zetas[k]:g} (the best undamped, "
-               "and those within one paired error of the best), a factor above 2")
     return float(zetas[k]), {j: row[j][0] for j in js}, {j: row[j][1] for j in js}, js[i_sub], rel, why
 
 
