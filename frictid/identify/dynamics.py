@@ -542,7 +542,7 @@ def _lugre_from_reversals(jd: JointData, base: ModelFit, base_name: str, c_pos, 
     mf = _lugre_fit(base, base_name, params, metrics, [f"static part: {base_name}"] + ([note] if note else []),
                     "static map as chosen; sigma0 from the stops and reversals of the moving samples (bristle "
                     "length by the held-out error of time blocks, inertia, gravity and offset fitted again with "
-                    "it); sigma1 held at 0")
+                    "it); sigma1 by a damping ratio chosen with the length")
     jf.models["lugre"] = mf
     if not s0.identifiable:
         jf.not_identified.append({"what": "lugre.sigma0", "reason": s0.reason})

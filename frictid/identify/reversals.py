@@ -7,7 +7,8 @@ fits that length on the moving samples *including* the stops (the static maps ke
 
 - for each length on a grid, from a few encoder steps (the position's quantisation, else its noise) up
   to a tenth of the median stroke between reversals, the chosen map with bristles of stiffness
-  ``sigma0 = g(0) / L`` (no damping) is replayed along the measured velocity as :func:`frictid.replay.replay` does (at rest the
+  ``sigma0 = g(0) / L`` (and a damping, below) is replayed along the measured velocity as
+  :func:`frictid.replay.replay` does (at rest the
   bristles carry what the applied torque loads them with where the joint stands), and the inertia, free
   gravity terms and offset are fitted again with it by least squares (the rigid body and the friction
   through the stops trade off: both act where the acceleration is largest); the map stays as fitted
@@ -33,8 +34,11 @@ searched on each fold's training blocks, it beats the model without it by two pa
 sigma0 is identifiable when the chosen length lies inside the grid (not at the encoder's end, where the
 bristles are the static map's jump, nor at the stroke's end), beats the static map on the held-out blocks
 by more than two standard errors of the paired block differences, and the lengths within one such error
-of the best stay inside the grid; its standard error is the spread of sigma0 over those lengths. sigma1 is
-held at 0 (the reversals of sampled motion do not resolve the bristles' damping). The refitted terms'
+of the best stay inside the grid; its standard error is the spread of sigma0 over those lengths. The damping
+is chosen with the length (:func:`_damped`): a damping ratio ``zeta`` of :data:`ZETAS` sets ``sigma1 = 2 zeta
+sqrt(sigma0 J) - sigma2`` at each length, the pair with the least held-out error wins, and the lengths of
+every ratio within one paired error widen sigma0's error; sigma1 is reported as chosen, not identifiable
+(the reversals do not resolve it apart from the length). The refitted terms'
 errors are the block jackknife's over the folds. Arrays in, result objects out; truth is never read.
 """
 from __future__ import annotations
@@ -63,6 +67,11 @@ PER_DECADE = 4
 GAIN_Z = 2.0
 #: Reversals and stops needed in the moving samples.
 MIN_REVERSALS = 6
+#: Bristle damping ratios tried with each length (``sigma1 = 2 zeta sqrt(sigma0 J) - sigma2``, at least 0).
+ZETAS = (0.0, 0.25, 0.5, 0.75, 1.0)
+#: The damped best length is kept only within this factor of the undamped best (else the undamped, its error
+#: spanning both).
+SPAN_MAX = 2.0
 #: Segment kinds kept out (ramps and steps identify sigma0 themselves).
 EXCLUDE = ("ramp_presliding", "step")
 RIGID = ("J", "Px", "Py", "offset")
@@ -220,7 +229,7 @@ def _verdict(sse: list, sse0, nn, L) -> tuple[int, float, str]:
     return i, rel, why
 
 
-def _low_speed(data, c_pos, c_neg, sigma0, held_ref, nn, n_folds: int):
+def _low_speed(data, c_pos, c_neg, sigma0, held_ref, nn, n_folds: int, sigma1=0.0):
     """A low-speed (Stribeck) term under the bristles, ``amp exp(-(|w| / vs)^2)`` added to the level of a map
     that has none (the static maps are fitted away from the stops, where it acts): each (amplitude, speed) of
     the grid replayed with the chosen bristles and the rigid terms refitted, chosen by the held-out error of
@@ -238,7 +247,7 @@ def _low_speed(data, c_pos, c_neg, sigma0, held_ref, nn, n_folds: int):
     for share in STR_AMPS:
         amp = share * g_rest
         eqs = [_block_equations(data, _lugre_of(_with_low_speed(c_pos, amp, v), _with_low_speed(c_neg, amp, v),
-                                                sigma0), n_folds) for v in vs]
+                                                sigma0, sigma1), n_folds) for v in vs]
         runs = [(e, _heldout(e, n_folds)) for e in eqs]
         j = int(np.argmin([r[1][0].sum() for r in runs]))
         if best is None or runs[j][1][0].sum() < best[2][1][0].sum():
@@ -259,11 +268,97 @@ def _with_low_speed(c, amp: float, vs: float) -> np.ndarray:
     return c
 
 
-def _lugre_of(c_pos, c_neg, sigma0):
-    """``F_of`` of :func:`_block_equations`: the map with bristles of stiffness ``sigma0`` (pair), replayed
-    along the measured velocity with the stick zone's torque and the standing rule, from the steady start."""
+def _lugre_of(c_pos, c_neg, sigma0, sigma1=0.0):
+    """``F_of`` of :func:`_block_equations`: the map with bristles of stiffness ``sigma0`` and damping ``sigma1``
+    (pairs), replayed along the measured velocity with the stick zone's torque and the standing rule, from the
+    steady start."""
     return lambda t, w, F, ws, hold: replay_friction(t, w, c_pos, c_neg, u_stick=F, w_stick=ws, hold=hold,
-                                                     sigma0=sigma0, z0="steady")[0]
+                                                     sigma0=sigma0, sigma1=sigma1, z0="steady")[0]
+
+
+def _damping(sigma0, zeta: float, J, c_pos, c_neg) -> tuple[float, float]:
+    """The bristle damping (pair) of damping ratio ``zeta``: ``sigma1 = 2 zeta sqrt(sigma0 J) - sigma2``, at least
+    0 (``sigma2`` the map's viscous slope at rest, canonical ``b1``)."""
+    if not zeta or J is None or not J > 0:
+        return 0.0, 0.0
+    return tuple(max(2.0 * zeta * math.sqrt(s * J) - float(c[6]), 0.0) for s, c in zip(sigma0, (c_pos, c_neg)))
+
+
+def _damped(data, c_pos, c_neg, g0, L, J, sse0, nn, n_folds: int):
+    """The bristle length and the damping ratio chosen together by the held-out error of the time blocks: a
+    damped bristle turns the friction faster at a reversal (``sigma1 dz/dt`` acts at once), which stiffer
+    undamped bristles imitate (sigma0 5-9x high where the damping ratio is 0.8-0.9). The undamped row is tried
+    at every length; each further ratio of :data:`ZETAS` (none without a positive inertia) walks downhill from
+    the previous ratio's best length and then out to the lengths within one paired error of its best
+    (:func:`_row_walk`); where the undamped row's best is the shortest length (no transition longer than
+    the encoder resolves) no damping is tried: a damped bristle turns faster still, and a damping there
+    would only take up what the map misses near zero speed. The best cell's row gives the length and the verdict (:func:`_verdict` on that row's
+    contiguous lengths), and the cells of every ratio within one paired error of the best widen sigma0's error
+    (the length and the damping trade off along a ridge), such a cell at the grid's end making it not
+    identifiable; where a damped cell is best, the undamped row's best length joins them (the damping is a
+    nuisance the reversals may not resolve: on foreign logs whose bristles span few encoder steps a damped,
+    longer bristle won at 0.2-0.4x the truth's stiffness, trusted), and where the two lie more than
+    :data:`SPAN_MAX` apart the undamped cell is kept (the model as without the damping; UR10e joints 5 and 6,
+    whose held-out tail it predicts as before) with the error spanning the damped one. Returns (zeta, {length index: block equations}, {length index: held-out run} of the chosen
+    row, the length's index, sigma0's relative error, the reason it is not identifiable or '')."""
+    zetas = ZETAS if J is not None and J > 0 else ZETAS[:1]
+
+    def cell(z, j):
+        s0 = (g0[0] / L[j], g0[1] / L[j])
+        e = _block_equations(data, _lugre_of(c_pos, c_neg, s0, _damping(s0, z, J, c_pos, c_neg)), n_folds)
+        return e, _heldout(e, n_folds)
+
+    rows = [{j: cell(zetas[0], j) for j in range(len(L))}]
+    if min(rows[0], key=lambda j: rows[0][j][1][0].sum()) == 0:
+        zetas = zetas[:1]  # no transition longer than the encoder resolves: none for a damping to shorten
+    for z in zetas[1:]:
+        prev = rows[-1]
+        rows.append(_row_walk(lambda j, z=z: cell(z, j), min(prev, key=lambda j: prev[j][1][0].sum()), len(L), nn))
+    k, i = min(((r, j) for r, row in enumerate(rows) for j in row), key=lambda rj: rows[rj[0]][rj[1]][1][0].sum())
+    i0 = min(rows[0], key=lambda j: rows[0][j][1][0].sum())
+    N = float(nn.sum())
+    near = [j for r in rows for j in r
+            if (r[j][1][0].sum() - rows[k][i][1][0].sum()) / N <= _paired(r[j][1][0], rows[k][i][1][0], nn)[1]]
+    if k > 0:  # the damping is a nuisance the error carries: the undamped bristles' best length is in the span
+        near.append(i0)
+        if max(L[i] / L[i0], L[i0] / L[i]) > SPAN_MAX:  # the damping not pinned: the undamped bristles, as before
+            k, i = 0, i0
+    row = rows[k]
+    js = sorted(row)
+    i_sub, rel, why = _verdict([row[j][1][0] for j in js], sse0, nn, L[js])
+    rel = max(rel, L[i] / L[min(near)] - 1.0, 1.0 - L[i] / L[max(near)])
+    if not why and (0 in near or len(L) - 1 in near):
+        why = (f"the held-out error is flat over bristle lengths {L[min(near)]:.3g} to {L[max(near)]:.3g} and "
+               f"damping ratios {min(zetas):g}-{max(zetas):g} (within one paired standard error), reaching the end "
+               "of the lengths tried")
+    return float(zetas[k]), {j: row[j][0] for j in js}, {j: row[j][1] for j in js}, js[i_sub], rel, why
+
+
+def _row_walk(cell, start: int, n: int, nn) -> dict:
+    """One damping ratio's row of (block equations, held-out run) by length index, evaluated lazily: downhill
+    from ``start`` (both neighbours of the minimum evaluated), then outwards while a length stays within one
+    paired error of the row's best; the evaluated indices are contiguous, and an end of them that is not the
+    grid's is outside that band."""
+    row = {}
+
+    def get(j):
+        if j not in row:
+            row[j] = cell(j)
+        return row[j][1][0].sum()
+
+    j = start
+    while True:
+        nb = [m for m in (j - 1, j + 1) if 0 <= m < n]
+        m = min(nb, key=get)
+        if get(m) >= get(j):
+            break
+        j = m
+    N = float(nn.sum())
+    for step in (-1, 1):
+        m = j + step
+        while 0 <= m < n and (get(m) - get(j)) / N <= _paired(row[m][1][0], row[j][1][0], nn)[1]:
+            m += step
+    return row
 
 
 def _low_speed_params(low, axis: str, source: str) -> dict[str, ParamEstimate]:
@@ -426,7 +521,7 @@ def _rigid_params(jd: JointData, free, full, se, held_at_zero: str = "") -> dict
 
 
 def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5) -> tuple[dict, dict, str]:
-    """sigma0 (and sigma1 held at 0) from the stops and reversals of the moving samples, with the rigid terms
+    """sigma0 (and sigma1 by a damping ratio chosen with it) from the stops and reversals of the moving samples, with the rigid terms
     fitted again with the bristles; the map stays as fitted. Returns (the dynamic and refitted rigid
     parameters, metrics, notes line); sigma0 says why it is not identifiable when it is not (module
     docstring)."""
@@ -437,8 +532,7 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
     if L is not None and not min(g0) > 0:
         L, why = None, "the map's level at zero speed is not positive"
     s1 = ParamEstimate("sigma1", 0.0, None, unit_of("D", axis), False,
-                       "held at 0: the reversals of sampled motion do not resolve the bristles' damping",
-                       fixed=True, source="reversals")
+                       "held at 0: no positive inertia to set a damping ratio against", fixed=True, source="reversals")
     if L is None:
         return {"sigma0": ParamEstimate("sigma0", None, None, unit_of("K", axis), False, why,
                                         source="reversals"), "sigma1": s1}, {}, ""
@@ -448,11 +542,17 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
 
     eq0 = _block_equations(data, static, n_folds)
     sse0, _, _ = _heldout(eq0, n_folds)
-    eqs = [_block_equations(data, _lugre_of(c_pos, c_neg, (g0[0] / x, g0[1] / x)), n_folds) for x in L]
-    held = [_heldout(e, n_folds) for e in eqs]
-    i, rel, why = _verdict([h[0] for h in held], sse0, eq0[3], L)
-    source = (f"reversals: bristle length {L[i]:.3g} chosen by the held-out error of "
+    J = jd.jf.inertia.value if jd.jf.inertia is not None else None
+    zeta, eqs, held, i, rel, why = _damped(data, c_pos, c_neg, g0, L, J, sse0, eq0[3], n_folds)
+    s0 = (g0[0] / L[i], g0[1] / L[i])
+    s1v = _damping(s0, zeta, J, c_pos, c_neg)
+    source = (f"reversals: bristle length {L[i]:.3g} and damping ratio {zeta:g} chosen by the held-out error of "
               f"{smp.BLOCKS_PER_FOLD * n_folds} time blocks ({n_rev} stops and reversals)")
+    if J is not None and J > 0:
+        s1 = ParamEstimate("sigma1", s1v[0], None, unit_of("D", axis), False,
+                           f"damping ratio {zeta:g} (sigma1 = 2 zeta sqrt(sigma0 J) - sigma2) chosen with the bristle "
+                           "length on a grid; the reversals do not resolve it apart from the length", fixed=True,
+                           source="reversals")
     params = {"sigma0": ParamEstimate("sigma0", g0[0] / L[i], rel * g0[0] / L[i], unit_of("K", axis),
                                       not why, why, source=source, bounds=(g0[0] / L[-1], g0[0] / L[0])),
               "sigma1": s1}
@@ -460,8 +560,9 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
         params["sigma0_neg"] = ParamEstimate("sigma0_neg", g0[1] / L[i], rel * g0[1] / L[i],
                                              unit_of("K", axis), not why, why, source=source,
                                              bounds=(g0[1] / L[-1], g0[1] / L[0]))
-    low, got = (None, "") if why else _low_speed(data, c_pos, c_neg, (g0[0] / L[i], g0[1] / L[i]), held[i],
-                                                  eq0[3], n_folds)
+        if s1v[1] != s1v[0]:
+            params["sigma1_neg"] = ParamEstimate(**{**vars(s1), "name": "sigma1_neg", "value": s1v[1]})
+    low, got = (None, "") if why else _low_speed(data, c_pos, c_neg, s0, held[i], eq0[3], n_folds, s1v)
     if low is not None:
         eqs[i], held[i] = got
         params.update(_low_speed_params(low, axis, f"{source}; the low-speed term under them chosen alike"))

@@ -118,8 +118,8 @@ def drop_spanned(mf, plateau_w: np.ndarray, without_drop=None, points=None, shif
             continue
         v = np.abs(w[np.sign(w) == side] if side else w)
         _no_drop_seen(p, v)
-        if p["Fs"].value <= p["Fc"].value:  # no drop: physical_shape's case
-            _level_spread(mf, without_drop, suf)
+        if p["Fs"].value <= p["Fc"].value:  # no drop: physical_shape's case, a shape the name denies (whole change)
+            _level_spread(mf, without_drop, suf, 1.0)
             continue
         if points is not None:
             _drop_in_view_at_every_exponent(mf, suf, side, points)
@@ -209,17 +209,34 @@ def _drop_free_spread(mf, without_drop) -> None:
         _level_spread(without_drop, mf, suf)
 
 
-def _level_spread(into, other, suf: str) -> None:
+def _level_spread(into, other, suf: str, weight: float | None = None) -> None:
     """``Fc`` and ``sigma2`` of branch ``suf`` of map ``into`` with their change to map ``other``'s added to
     their standard errors (the Stribeck map's by the drop-free map in :func:`drop_spanned`, and the mirror
-    in :func:`_drop_free_spread`)."""
+    in :func:`_drop_free_spread`), weighted by how well ``other`` explains the same data: the model-averaged
+    variance ``se^2 + w d^2`` with ``w`` the Akaike weight of ``other`` against ``into``
+    (:func:`akaike_weight`). A map the data reject (a drop-free line through a drop that is there) carries
+    no weight, and its level no error; the whole change was added before (session 23: the Stribeck map's
+    Fc error 60-175x its own on foreign sweeps whose drop the plateaus do not span but whose level they
+    measure, 234025: 0.00047 -> 0.083 N m, truth 0.0004 away). ``weight`` given: that weight instead (a
+    Stribeck branch fitted as a rise, Fs below Fc, whose shape its name denies, carries the whole change)."""
     if into is None or other is None:
         return
+    w = akaike_weight(other, into) if weight is None else weight
     for n in ("Fc", "sigma2"):
         pe, alt = into.params.get(n + suf), other.params.get(n + suf)
         if pe is None or alt is None or pe.value is None or alt.value is None or pe.stderr is None:
             continue
-        pe.stderr = float(np.hypot(pe.stderr, alt.value - pe.value))
+        pe.stderr = float(np.hypot(pe.stderr, math.sqrt(w) * (alt.value - pe.value)))
+
+
+def akaike_weight(a, b) -> float:
+    """The Akaike weight of map ``a`` against map ``b`` fitted on the same data, ``1 / (1 + exp((AIC_a -
+    AIC_b) / 2))`` (their ``metrics["aic"]``: the points', or on the samples the effective count's); 1
+    when either is missing (the whole change counts)."""
+    ia, ib = a.metrics.get("aic"), b.metrics.get("aic")
+    if ia is None or ib is None or not (math.isfinite(ia) and math.isfinite(ib)):
+        return 1.0
+    return 1.0 / (1.0 + math.exp(min((ia - ib) / 2.0, 700.0)))
 
 
 #: A fitted drop counts as seen when the F-test of the Stribeck map against the drop-free map of the same
