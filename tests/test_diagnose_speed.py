@@ -276,3 +276,41 @@ def test_the_spread_of_a_periodic_correction_from_the_distinct_positions_is_the_
             want = float(np.std(ctx.term_columns(term) @ g))
             assert got == pytest.approx(want, rel=1e-12)
             assert ctx.spread(term, np.zeros(3)) == 0.0
+
+
+@pytest.mark.parametrize("stride", [1, 3])
+def test_the_checks_second_sample_set_takes_the_firsts_columns_only_when_build_would_give_them(stride):
+    """The fit's check builds one sample set per model on the same logs; the second model's set takes the
+    first's velocity, blocks, folds and logs (only its friction gathered) and equals the set built from its
+    own targets; with a target that is not finite everywhere it is built again."""
+    from types import SimpleNamespace
+
+    from frictid.diagnose import check
+    from frictid.identify import samples as smp
+    from frictid.data import Segment
+
+    rng = np.random.default_rng(7)
+    logs = []
+    for n, t0 in ((3000, 0.0), (2000, 40.0)):
+        t = t0 + np.arange(n) * 0.01
+        w = np.sin(t) + 0.01 * rng.standard_normal(n)
+        logs.append(SimpleNamespace(log=SimpleNamespace(t=t, n=n), w=w,
+                                    segments=[Segment("duty_cycle", 100, 400, t0 + 1.0, t0 + 4.0)]))
+    Y1 = [np.tanh(p.w) + 0.1 * rng.standard_normal(p.w.size) for p in logs]
+    Y2 = [y + 0.3 * rng.standard_normal(y.size) for y in Y1]
+    kw = dict(exclude=("duty_cycle",), max_samples=(5000 if stride == 1 else 1500))
+
+    def built(Y):
+        return smp.build([SimpleNamespace(log=p.log, w=p.w, F=y, segments=p.segments) for p, y in zip(logs, Y)],
+                         0.05, 5, **kw)
+
+    S1 = built(Y1)
+    assert S1.stride == stride
+    key = check._SampleKey(S1.order_key(), S1.w, S1.block, S1.fold, S1.log, S1.stride, S1.n_moving, True)
+    S2, ref = check._same_samples(key, Y2), built(Y2)
+    for f in ("w", "F", "block", "fold", "log"):
+        assert np.array_equal(getattr(S2, f), getattr(ref, f)), f
+    assert (S2.stride, S2.n_moving, S2.n_folds) == (ref.stride, ref.n_moving, ref.n_folds)
+    assert all(np.array_equal(a, b) for a, b in zip(S2.speed_order(), ref.speed_order()))
+    # a first set with a non-finite target does not share its columns (its masks left those samples out)
+    assert check._same_samples(replace(key, finite=False), Y2) is None
