@@ -306,11 +306,30 @@ def test_the_checks_second_sample_set_takes_the_firsts_columns_only_when_build_w
 
     S1 = built(Y1)
     assert S1.stride == stride
-    key = check._SampleKey(S1.order_key(), S1.w, S1.block, S1.fold, S1.log, S1.stride, S1.n_moving, True)
+    key = check._SampleKey(S1.order_key(), S1.w, S1.block, S1.fold, S1.log, S1.stride, S1.n_moving, True,
+                           tuple((w, f) for w, _, f in S1.by_speed()))
     S2, ref = check._same_samples(key, Y2), built(Y2)
     for f in ("w", "F", "block", "fold", "log"):
         assert np.array_equal(getattr(S2, f), getattr(ref, f)), f
     assert (S2.stride, S2.n_moving, S2.n_folds) == (ref.stride, ref.n_moving, ref.n_folds)
     assert all(np.array_equal(a, b) for a, b in zip(S2.speed_order(), ref.speed_order()))
+    assert all(np.array_equal(a, b) for x, y in zip(S2.by_speed(), ref.by_speed()) for a, b in zip(x, y))
     # a first set with a non-finite target does not share its columns (its masks left those samples out)
     assert check._same_samples(replace(key, finite=False), Y2) is None
+
+
+def test_quantiles_read_off_a_sorted_array_are_numpys_to_the_bit():
+    """:func:`frictid.diagnose.binned.sorted_quantiles` gives ``np.quantile`` of the sorted array bit for bit:
+    lengths 1 to 400 and 10^5, ties, integers, a NaN, the bins' quantile grids and random levels."""
+    from frictid.diagnose.binned import sorted_quantiles
+
+    rng = np.random.default_rng(11)
+    for k in range(600):
+        n = int(rng.integers(1, 400)) if k else 100_000
+        x = (rng.standard_normal(n) * 10.0 ** rng.integers(-6, 6) if k % 3 else
+             rng.integers(0, 7, n).astype(float if k % 2 else np.int64))
+        if k % 50 == 7:
+            x = np.r_[x.astype(float), np.nan]
+        s = np.sort(x)
+        for q in (np.linspace(0, 1, int(rng.integers(2, 130)) + 1)[1:-1], np.sort(rng.random(5)), np.array([0.0, 1.0])):
+            assert sorted_quantiles(s, q).tobytes() == np.quantile(s, q).tobytes(), (k, n, q.size)

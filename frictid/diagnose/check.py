@@ -149,19 +149,21 @@ def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds, like=Non
             return math.nan, None, None
         if isinstance(like, _SampleKey):
             S.share_order(like.order)
-            like.w = like.block = like.fold = like.log = None   # not shared: not held through the refits
+            like.w = like.block = like.fold = like.log = like.by_speed = None   # not shared: not held
     mf = smp.fit_map(mapname, S, jf.axis)
     rh = mf.metrics.get("rms_heldout")
     # the columns are kept only when another model's finite targets can take them (:func:`_same_samples`)
     cols = (S.w, S.block, S.fold, S.log) if finite else (None,) * 4
-    key = _SampleKey(S.order_key(), *cols, S.stride, S.n_moving, finite)
+    bs = S.__dict__.get("_by_speed") if finite else None
+    key = _SampleKey(S.order_key(), *cols, S.stride, S.n_moving, finite,
+                     None if bs is None else tuple((w, f) for w, _, f in bs))
     return (rh if rh is not None else math.nan), mf, key
 
 
 @dataclass
 class _SampleKey:
     """What a sample set built by :func:`_heldout_on_basis` shares with the other model's set on the same
-    logs: its speed order and its columns other than the friction (the same masks take the same samples),
+    logs: its speed order and its columns other than the friction (the same masks take the same samples), sorted by speed too,
     and whether every target was finite (then the masks depend on the velocity and segments only)."""
 
     order: "smp.SpeedOrder | None"
@@ -172,6 +174,8 @@ class _SampleKey:
     stride: int
     n_moving: int
     finite: bool
+    #: per velocity sign, the speed-sorted velocity and folds (:meth:`~frictid.identify.samples.SampleSet.by_speed`)
+    by_speed: tuple | None = None
 
 
 def _same_samples(key: _SampleKey, Y) -> "smp.SampleSet | None":
@@ -189,6 +193,8 @@ def _same_samples(key: _SampleKey, Y) -> "smp.SampleSet | None":
     S = smp.SampleSet(key.w, F, key.block, key.fold, key.log, key.stride, key.n_moving, key.order.n_folds,
                       source=key.order.source)
     S.share_order(key.order)
+    if key.by_speed is not None:   # the speed-sorted samples: only their friction gathered
+        S.__dict__["_by_speed"] = tuple((w, F[idx], f) for (w, f), idx in zip(key.by_speed, S.speed_order()))
     return S
 
 
