@@ -333,3 +333,21 @@ def test_quantiles_read_off_a_sorted_array_are_numpys_to_the_bit():
         s = np.sort(x)
         for q in (np.linspace(0, 1, int(rng.integers(2, 130)) + 1)[1:-1], np.sort(rng.random(5)), np.array([0.0, 1.0])):
             assert sorted_quantiles(s, q).tobytes() == np.quantile(s, q).tobytes(), (k, n, q.size)
+
+
+def test_kept_bins_are_found_for_the_same_values_only(S):
+    """A variable binned again (formed anew, equal value by value) takes its kept bins; one that differs only
+    inside, or starts with a NaN, is binned anew."""
+    from frictid.diagnose.binned import _bins, _bins_of
+
+    nb = 40
+    x = np.asarray(S.w, dtype=float) * 1.0
+    b0 = _bins_of(S, x, nb)
+    assert _bins_of(S, x.copy(), nb) is b0
+    y = x.copy()
+    y[y.size // 2] += 10.0 * np.ptp(x)   # the same ends, another middle
+    by = _bins_of(S, y, nb)
+    assert by is not b0 and np.array_equal(by, _bins(y, nb))
+    z = x.copy()
+    z[0] = np.nan
+    assert _bins_of(S, z, nb) is not b0 and _bins_of(S, z, nb) is not by
