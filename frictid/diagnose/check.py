@@ -163,8 +163,9 @@ def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds, like=Non
 @dataclass
 class _SampleKey:
     """What a sample set built by :func:`_heldout_on_basis` shares with the other model's set on the same
-    logs: its speed order and its columns other than the friction (the same masks take the same samples), sorted by speed too,
-    and whether every target was finite (then the masks depend on the velocity and segments only)."""
+    logs: its speed order and its columns other than the friction (the same masks take the same samples),
+    sorted by speed too, and whether every target was finite (then the masks depend on the velocity and the
+    segments only)."""
 
     order: "smp.SpeedOrder | None"
     w: np.ndarray | None
