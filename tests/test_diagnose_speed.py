@@ -276,3 +276,78 @@ def test_the_spread_of_a_periodic_correction_from_the_distinct_positions_is_the_
             want = float(np.std(ctx.term_columns(term) @ g))
             assert got == pytest.approx(want, rel=1e-12)
             assert ctx.spread(term, np.zeros(3)) == 0.0
+
+
+@pytest.mark.parametrize("stride", [1, 3])
+def test_the_checks_second_sample_set_takes_the_firsts_columns_only_when_build_would_give_them(stride):
+    """The fit's check builds one sample set per model on the same logs; the second model's set takes the
+    first's velocity, blocks, folds and logs (only its friction gathered) and equals the set built from its
+    own targets; with a target that is not finite everywhere it is built again."""
+    from types import SimpleNamespace
+
+    from frictid.diagnose import check
+    from frictid.identify import samples as smp
+    from frictid.data import Segment
+
+    rng = np.random.default_rng(7)
+    logs = []
+    for n, t0 in ((3000, 0.0), (2000, 40.0)):
+        t = t0 + np.arange(n) * 0.01
+        w = np.sin(t) + 0.01 * rng.standard_normal(n)
+        logs.append(SimpleNamespace(log=SimpleNamespace(t=t, n=n), w=w,
+                                    segments=[Segment("duty_cycle", 100, 400, t0 + 1.0, t0 + 4.0)]))
+    Y1 = [np.tanh(p.w) + 0.1 * rng.standard_normal(p.w.size) for p in logs]
+    Y2 = [y + 0.3 * rng.standard_normal(y.size) for y in Y1]
+    kw = dict(exclude=("duty_cycle",), max_samples=(5000 if stride == 1 else 1500))
+
+    def built(Y):
+        return smp.build([SimpleNamespace(log=p.log, w=p.w, F=y, segments=p.segments) for p, y in zip(logs, Y)],
+                         0.05, 5, **kw)
+
+    S1 = built(Y1)
+    assert S1.stride == stride
+    key = check._SampleKey(S1.order_key(), S1.w, S1.block, S1.fold, S1.log, S1.stride, S1.n_moving, True,
+                           tuple((w, f) for w, _, f in S1.by_speed()))
+    S2, ref = check._same_samples(key, Y2), built(Y2)
+    for f in ("w", "F", "block", "fold", "log"):
+        assert np.array_equal(getattr(S2, f), getattr(ref, f)), f
+    assert (S2.stride, S2.n_moving, S2.n_folds) == (ref.stride, ref.n_moving, ref.n_folds)
+    assert all(np.array_equal(a, b) for a, b in zip(S2.speed_order(), ref.speed_order()))
+    assert all(np.array_equal(a, b) for x, y in zip(S2.by_speed(), ref.by_speed()) for a, b in zip(x, y))
+    # a first set with a non-finite target does not share its columns (its masks left those samples out)
+    assert check._same_samples(replace(key, finite=False), Y2) is None
+
+
+def test_quantiles_read_off_a_sorted_array_are_numpys_to_the_bit():
+    """:func:`frictid.diagnose.binned.sorted_quantiles` gives ``np.quantile`` of the sorted array bit for bit:
+    lengths 1 to 400 and 10^5, ties, integers, a NaN, the bins' quantile grids and random levels."""
+    from frictid.diagnose.binned import sorted_quantiles
+
+    rng = np.random.default_rng(11)
+    for k in range(600):
+        n = int(rng.integers(1, 400)) if k else 100_000
+        x = (rng.standard_normal(n) * 10.0 ** rng.integers(-6, 6) if k % 3 else
+             rng.integers(0, 7, n).astype(float if k % 2 else np.int64))
+        if k % 50 == 7:
+            x = np.r_[x.astype(float), np.nan]
+        s = np.sort(x)
+        for q in (np.linspace(0, 1, int(rng.integers(2, 130)) + 1)[1:-1], np.sort(rng.random(5)), np.array([0.0, 1.0])):
+            assert sorted_quantiles(s, q).tobytes() == np.quantile(s, q).tobytes(), (k, n, q.size)
+
+
+def test_kept_bins_are_found_for_the_same_values_only(S):
+    """A variable binned again (formed anew, equal value by value) takes its kept bins; one that differs only
+    inside, or starts with a NaN, is binned anew."""
+    from frictid.diagnose.binned import _bins, _bins_of
+
+    nb = 40
+    x = np.asarray(S.w, dtype=float) * 1.0
+    b0 = _bins_of(S, x, nb)
+    assert _bins_of(S, x.copy(), nb) is b0
+    y = x.copy()
+    y[y.size // 2] += 10.0 * np.ptp(x)   # the same ends, another middle
+    by = _bins_of(S, y, nb)
+    assert by is not b0 and np.array_equal(by, _bins(y, nb))
+    z = x.copy()
+    z[0] = np.nan
+    assert _bins_of(S, z, nb) is not b0 and _bins_of(S, z, nb) is not by

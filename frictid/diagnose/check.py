@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
@@ -127,9 +128,10 @@ def _target_plateaus(preps: list[Prep], Y) -> Plateaus:
 def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds, like=None, cache=None):
     """Held-out RMS [F] of model ``name`` on the fit's basis: its static map refitted without each fold
     (plateau folds, or the time blocks of the sample basis) on the targets of :func:`_static_targets`, the
-    rest of the model held. Returns (rms_heldout, refit ModelFit, target Plateaus or the samples' speed
-    order, :meth:`~frictid.identify.samples.SampleSet.order_key`). ``like``: that speed order from another model
-    of the joint, reused when the samples are the same (one sort of up to 2 M samples less)."""
+    rest of the model held. Returns (rms_heldout, refit ModelFit, target Plateaus or the samples' key,
+    :class:`_SampleKey`). ``like``: that key from another model of the joint: its speed order is reused when
+    the samples are the same (one sort of up to 2 M samples less), and its columns too when both models'
+    targets are finite everywhere (:func:`_same_samples`: only the friction is gathered again)."""
     mapname, _, Y = _static_targets(jf, preps, name, cache)
     if basis == "plateaus":
         pl = _target_plateaus(preps, Y)
@@ -138,15 +140,63 @@ def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds, like=Non
         mf = fit_static(mapname, pl.w, pl.F, pl.F_se, axis=jf.axis)
         rh = sel.heldout_static(mapname, pl, n_folds, axis=jf.axis, full=mf)
         return (rh if rh is not None else math.nan), mf, pl
-    pseudo = [SimpleNamespace(log=p.log, w=p.w, F=y, segments=p.segments) for p, y in zip(preps, Y)]
-    S = smp.build(pseudo, min_speed, n_folds, exclude=excl)
+    finite = all(bool(np.isfinite(y).all()) for y in Y)
+    S = _same_samples(like, Y) if finite and isinstance(like, _SampleKey) else None
     if S is None:
-        return math.nan, None, None
-    if isinstance(like, smp.SpeedOrder):
-        S.share_order(like)
+        pseudo = [SimpleNamespace(log=p.log, w=p.w, F=y, segments=p.segments) for p, y in zip(preps, Y)]
+        S = smp.build(pseudo, min_speed, n_folds, exclude=excl)
+        if S is None:
+            return math.nan, None, None
+        if isinstance(like, _SampleKey):
+            S.share_order(like.order)
+            like.w = like.block = like.fold = like.log = like.by_speed = None   # not shared: not held
     mf = smp.fit_map(mapname, S, jf.axis)
     rh = mf.metrics.get("rms_heldout")
-    return (rh if rh is not None else math.nan), mf, S.order_key()
+    # the columns are kept only when another model's finite targets can take them (:func:`_same_samples`)
+    cols = (S.w, S.block, S.fold, S.log) if finite else (None,) * 4
+    bs = S.__dict__.get("_by_speed") if finite else None
+    key = _SampleKey(S.order_key(), *cols, S.stride, S.n_moving, finite,
+                     None if bs is None else tuple((w, f) for w, _, f in bs))
+    return (rh if rh is not None else math.nan), mf, key
+
+
+@dataclass
+class _SampleKey:
+    """What a sample set built by :func:`_heldout_on_basis` shares with the other model's set on the same
+    logs: its speed order and its columns other than the friction (the same masks take the same samples),
+    sorted by speed too, and whether every target was finite (then the masks depend on the velocity and the
+    segments only)."""
+
+    order: "smp.SpeedOrder | None"
+    w: np.ndarray | None
+    block: np.ndarray | None
+    fold: np.ndarray | None
+    log: np.ndarray | None
+    stride: int
+    n_moving: int
+    finite: bool
+    #: per velocity sign, the speed-sorted velocity and folds (:meth:`~frictid.identify.samples.SampleSet.by_speed`)
+    by_speed: tuple | None = None
+
+
+def _same_samples(key: _SampleKey, Y) -> "smp.SampleSet | None":
+    """The sample set of the targets Y on the samples of ``key`` (both models' targets finite everywhere:
+    :func:`frictid.identify.samples.build` keeps the same samples of the same logs, only their friction
+    differs), without forming its velocity, blocks and logs again; None when that does not hold."""
+    if not key.finite or key.w is None or key.order is None or len(key.order.source[1]) != len(Y):
+        return None
+    masks = key.order.source[1]
+    if any(m.shape != y.shape for m, y in zip(masks, Y)):
+        return None
+    F = np.concatenate([y[m] for y, m in zip(Y, masks)])
+    if key.stride > 1:
+        F = F[::key.stride]
+    S = smp.SampleSet(key.w, F, key.block, key.fold, key.log, key.stride, key.n_moving, key.order.n_folds,
+                      source=key.order.source)
+    S.share_order(key.order)
+    if key.by_speed is not None:   # the speed-sorted samples: only their friction gathered
+        S.__dict__["_by_speed"] = tuple((w, F[idx], f) for (w, f), idx in zip(key.by_speed, S.speed_order()))
+    return S
 
 
 def check_diagnosis(jf: JointFit, preps: list[Prep], choice: str, basis: str, min_speed: float, excl,
