@@ -160,8 +160,11 @@ def settled(S: Samples, i: int) -> np.ndarray:
     """Per sample of log i: whether the travel since the velocity last changed sign (a reversal, or a start
     from rest) exceeds :data:`BRISTLE_SETTLED` bristle lengths of the fit's LuGre (``S.bristle``; all True
     without one, or without positions). Within it the friction's own state lags the motion, as a torque
-    delay would: a delay judged there takes the bristles' lag for its own (foreign card seed 316013, a 7.5 ms
-    delay at 109 Hz: estimated at 21.6 ms on every moving sample, 7.6 ms on those past 3 bristle lengths)."""
+    delay would: a delay estimated there takes the bristles' lag for its own (foreign card seed 316013, a
+    7.5 ms delay at 109 Hz: estimated at 21.6 ms on every moving sample, 7.6 ms on those past 3 bristle
+    lengths). Left out of the estimate only: the delay is judged on every moving sample
+    (:func:`_moving_rows` ``every``; session 23, foreign seed 322527: a 50 ms delay lengthened the fit's
+    bristles to 2.5 mrad, the plant's 0.23, and the travel past them held what the delay changes)."""
     lg = S.logs[i]
     if S.bristle is None or not S.bristle > 0 or lg.q is None:
         return np.ones(lg.n, bool)
