@@ -105,7 +105,7 @@ def friction_lag_heldout(S: Samples, delay_s: float) -> dict | None:
         fits.append((beta0, best[1], best[2]))
     ss0 = np.zeros(S.n_groups)
     ss1 = np.zeros(S.n_groups)
-    for i, ((km, fk), gk) in enumerate(zip(_moving_rows(S), _moving_groups(S))):
+    for i, ((km, fk), gk) in enumerate(zip(_moving_rows(S, True), _moving_groups(S, True))):
         lg = S.logs[i]
         for g, k in _fold_blocks(km, fk, BATCH_ROWS):
             grp = _nearest_group(km, gk, k)
@@ -116,7 +116,7 @@ def friction_lag_heldout(S: Samples, delay_s: float) -> dict | None:
             r1 = y - _lag_columns(S, i, k, allg[n], X0) @ beta
             ss0 += np.bincount(grp, weights=r0 * r0, minlength=S.n_groups)
             ss1 += np.bincount(grp, weights=r1 * r1, minlength=S.n_groups)
-    n_mv = sum(km.size for km, _ in _moving_rows(S))
+    n_mv = sum(km.size for km, _ in _moving_rows(S, True))
     return {"lags": [allg[n] for _, n, _ in fits], "rms_before": math.sqrt(ss0.sum() / max(n_mv, 1)),
             "rms_after": math.sqrt(ss1.sum() / max(n_mv, 1)), "ss0": ss0, "ss1": ss1}
 
@@ -133,14 +133,14 @@ def _fast_rows(S: Samples) -> list:
     their fold, their held-out group): the moves at speed, their accelerations and decelerations included,
     without the starts and reversals (cached)."""
     def compute():
-        rows = _moving_rows(S)
+        rows = _moving_rows(S, True)
         speeds = [np.abs(S.log_w(i)[km]) for i, (km, _) in enumerate(rows)]
         allv = np.concatenate(speeds) if speeds else np.zeros(0)
         if not allv.size:
             return []
         v_half = float(np.median(allv))
         out = []
-        for (km, fk), gk, v in zip(rows, _moving_groups(S), speeds):
+        for (km, fk), gk, v in zip(rows, _moving_groups(S, True), speeds):
             sel = v >= v_half
             out.append((km[sel], fk[sel], gk[sel]))
         return out

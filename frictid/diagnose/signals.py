@@ -160,8 +160,11 @@ def settled(S: Samples, i: int) -> np.ndarray:
     """Per sample of log i: whether the travel since the velocity last changed sign (a reversal, or a start
     from rest) exceeds :data:`BRISTLE_SETTLED` bristle lengths of the fit's LuGre (``S.bristle``; all True
     without one, or without positions). Within it the friction's own state lags the motion, as a torque
-    delay would: a delay judged there takes the bristles' lag for its own (foreign card seed 316013, a 7.5 ms
-    delay at 109 Hz: estimated at 21.6 ms on every moving sample, 7.6 ms on those past 3 bristle lengths)."""
+    delay would: a delay estimated there takes the bristles' lag for its own (foreign card seed 316013, a
+    7.5 ms delay at 109 Hz: estimated at 21.6 ms on every moving sample, 7.6 ms on those past 3 bristle
+    lengths). Left out of the estimate only: the delay is judged on every moving sample
+    (:func:`_moving_rows` ``every``; session 23, foreign seed 322527: a 50 ms delay lengthened the fit's
+    bristles to 2.5 mrad, the plant's 0.23, and the travel past them held what the delay changes)."""
     lg = S.logs[i]
     if S.bristle is None or not S.bristle > 0 or lg.q is None:
         return np.ones(lg.n, bool)
@@ -174,23 +177,26 @@ def settled(S: Samples, i: int) -> np.ndarray:
     return np.abs(q - q[start]) > BRISTLE_SETTLED * S.bristle
 
 
-def _moving_rows(S: Samples) -> list:
+def _moving_rows(S: Samples, every: bool = False) -> list:
     """Per log: (indices of its moving samples, their fold: that of the nearest sliding sample in time). The
-    moving samples are faster than :data:`MOVING_FRACTION` of the top speed and past the bristles' travel
-    after a reversal (:func:`settled`)."""
+    moving samples are faster than :data:`MOVING_FRACTION` of the top speed and, for the delay's estimate
+    (``every`` False), past the bristles' travel after a reversal (:func:`settled`); ``every`` True: all of
+    them, where a delay is judged (:func:`delay_heldout`)."""
     def compute():
         out = []
         for i, lg in enumerate(S.logs):
             w = S.log_w(i)
-            km = np.flatnonzero((np.abs(w) > max(MOVING_FRACTION * S.w0, S.v_min)) & np.isfinite(lg.F)
-                                & np.isfinite(lg.tau) & settled(S, i))
+            m = (np.abs(w) > max(MOVING_FRACTION * S.w0, S.v_min)) & np.isfinite(lg.F) & np.isfinite(lg.tau)
+            km = np.flatnonzero(m if every else m & settled(S, i))
             sel = S.li == i
             if km.size < 8 or not sel.any() or lg.n < 3:
                 out.append((np.zeros(0, np.int64), np.zeros(0, np.int64)))
                 continue
             out.append((km, _nearest(S.k[sel], S.fold[sel], km)))
         return out
-    return S.cached("moving_rows", compute)
+    if every and (S.bristle is None or not S.bristle > 0):
+        return _moving_rows(S)   # nothing left out: the same rows
+    return S.cached("moving_rows_every" if every else "moving_rows", compute)
 
 
 def _delay_columns(S: Samples, i: int, k: np.ndarray) -> np.ndarray:
@@ -600,19 +606,21 @@ def delay_column(S: Samples, shift_s: float, beta: tuple = ()) -> np.ndarray:
     return S.cached(key, lambda: None)
 
 
-def _moving_groups(S: Samples) -> list:
-    """Per log: the held-out group of each moving sample of :func:`_moving_rows` (that of the nearest
-    sliding sample in time, as its fold is; cached)."""
+def _moving_groups(S: Samples, every: bool = False) -> list:
+    """Per log: the held-out group of each moving sample of :func:`_moving_rows` (``every`` as there; that of
+    the nearest sliding sample in time, as its fold is; cached)."""
     def compute():
         out = []
-        for i, (km, _) in enumerate(_moving_rows(S)):
+        for i, (km, _) in enumerate(_moving_rows(S, every)):
             sel = S.li == i
             if not km.size:
                 out.append(np.zeros(0, np.int64))
                 continue
             out.append(_nearest(S.k[sel], S.group[sel], km))
         return out
-    return S.cached("moving_groups", compute)
+    if every and (S.bristle is None or not S.bristle > 0):
+        return _moving_groups(S)
+    return S.cached("moving_groups_every" if every else "moving_groups", compute)
 
 
 def delay_heldout(S: Samples, shifts: list) -> tuple[float, float, np.ndarray]:
@@ -637,7 +645,7 @@ def delay_heldout(S: Samples, shifts: list) -> tuple[float, float, np.ndarray]:
     d = np.zeros(S.n_groups)
     ss0 = ss1 = 0.0
     n = 0
-    for i, ((km, fk), gk) in enumerate(zip(_moving_rows(S), _moving_groups(S))):
+    for i, ((km, fk), gk) in enumerate(zip(_moving_rows(S, True), _moving_groups(S, True))):
         lg = S.logs[i]
         tau = finite(lg.tau)
         for b in range(0, km.size, BLOCK):
