@@ -12,7 +12,8 @@ from frictid.diagnose.samples import build_samples
 from frictid.diagnose.signals import delay_estimates, delay_heldout
 from frictid.models import static as sm
 from frictid.result import ModelFit, ParamEstimate
-from test_diagnose import TRUE, _run, fake_fit, plateau_log
+from test_diagnose import TRUE, _run, fake_fit
+from test_diagnose_pairs import _bristle_log
 
 #: Seeds of the random plants (the foreign card's are 300000 and up).
 SEEDS = (23, 24)
@@ -28,23 +29,9 @@ def _plant(seed: int) -> tuple[dict, float, float]:
 
 
 def _log(values: dict, L: float, delay: float):
-    """Plateaus whose sign alternates, the friction of ``values`` through a bristle state of length ``L``
-    (as :func:`test_diagnose_pairs._bristle_log`), the torque ``delay`` seconds late."""
-    def bristles(t, q, w, F):
-        g = np.abs(np.asarray(F.level))
-        z = np.empty(w.size)
-        zk = 0.0
-        dq = np.abs(np.diff(q, prepend=q[0]))
-        for k in range(w.size):
-            zs = np.sign(w[k]) * g[k]
-            zk = zs + (zk - zs) * np.exp(-dq[k] / L)
-            z[k] = zk
-        return z + np.asarray(F.viscous)
-
-    lg = plateau_log(bristles, seed=2, reps=2, alternate=True, noise=1e-3, values=values)
-    for arr in (lg.tau, lg.F):
-        arr[:] = np.interp(lg.t - delay, lg.t, arr)
-    return lg
+    """Plateaus whose sign alternates, the friction of ``values`` through a bristle state of length ``L``,
+    the torque ``delay`` seconds late (:func:`test_diagnose_pairs._bristle_log`)."""
+    return _bristle_log(L, delay, values)
 
 
 def _lugre_fit(values: dict, L_fit: float):

@@ -62,10 +62,10 @@ def test_a_constant_ambient_offers_the_one_conductance():
     assert build_samples([lg], 5).conductances() == (1.0,)
 
 
-def _bristle_log(L: float, delay: float):
-    """Plateaus whose sign alternates, the friction through a bristle state of length ``L`` [rad] (LuGre's
-    steady path: after a reversal the level closes on its sliding value as ``exp(-s / L)`` of the travel s),
-    the torque (and so the friction torque) ``delay`` seconds late."""
+def _bristle_log(L: float, delay: float, values: dict = TRUE):
+    """Plateaus whose sign alternates, the friction of ``values`` through a bristle state of length ``L``
+    [rad] (LuGre's steady path: after a reversal the level closes on its sliding value as ``exp(-s / L)`` of
+    the travel s), the torque (and so the friction torque) ``delay`` seconds late."""
     def bristles(t, q, w, F):
         g = np.abs(np.asarray(F.level))
         z = np.empty(w.size)
@@ -77,7 +77,7 @@ def _bristle_log(L: float, delay: float):
             z[k] = zk
         return z + np.asarray(F.viscous)
 
-    lg = plateau_log(bristles, seed=2, reps=2, alternate=True, noise=1e-3)
+    lg = plateau_log(bristles, seed=2, reps=2, alternate=True, noise=1e-3, values=values)
     for arr in (lg.tau, lg.F):
         arr[:] = np.interp(lg.t - delay, lg.t, arr)
     return lg
