@@ -2,7 +2,7 @@
 
 Run by hand only (not in CI, not by any test); it writes outside the repository:
 
-    python benchmarks/recorded/aurt_input.py RUN.csv OUT_DIR [--rate 500]
+    python benchmarks/recorded/aurt_input.py RUN.csv OUT_DIR [--rate 0]
 
 RUN.csv is Mamedov et al.'s headerless 31-column log (``../shared/realdata/ur10e_mamedov2020/
 identification_data/ur-20_02_19_15harm50sec.csv``: t, q1..q6, qd1..qd6, i1..i6, i_des1..6, tau_des1..6;
@@ -20,11 +20,15 @@ SOURCE.md there). OUT_DIR gets
   does not read (only its plots do): written as the actual position and velocity and a zero acceleration).
   AURT fits the motor current itself (no drive gains).
 
-``--rate R`` (R > 0) resamples every column linearly onto a uniform grid of R Hz over the logged time span.
-AURT's trajectory filter has a fixed 50 Hz cut-off (``RobotCalibration.f_dyn`` = 10 Hz, times 5), above the
-Nyquist frequency of the native ~100 Hz log, where scipy's Butterworth design refuses it; at 500 Hz (the
-rate of UR's RTDE interface that AURT was written for) it passes, and the resampled log carries nothing the
-logged one does not (linear interpolation adds no content above the log's own Nyquist frequency).
+``--rate R`` (R > 0) resamples every column linearly onto a uniform grid of R Hz over the logged time span;
+the default (0) writes the log at its own samples, the input of the recorded run. AURT's trajectory filter
+has a fixed 50 Hz cut-off (``RobotCalibration.f_dyn`` = 10 Hz, times 5): the Nyquist frequency of a 100 Hz
+log. On this log AURT's most frequent time step (``RobotData.dt_nominal``) reads 0.00999999999999 s, so the
+filter's normalised cut-off is 0.99999999999909 and scipy designs it (checked with AURT's own reader and
+filter); a log whose most frequent step read a hair over 10 ms would be refused ("Digital filter critical
+frequencies must be 0 < Wn < fs/2"), which resampling to 500 Hz (the rate of UR's RTDE interface that AURT
+was written for) avoids without adding content (linear interpolation adds nothing above the log's own
+Nyquist frequency).
 """
 from __future__ import annotations
 
@@ -68,7 +72,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("run")
     ap.add_argument("out_dir")
-    ap.add_argument("--rate", type=float, default=500.0, help="resample to this rate [Hz]; 0: as logged")
+    ap.add_argument("--rate", type=float, default=0.0, help="resample to this rate [Hz]; 0: as logged")
     args = ap.parse_args(argv)
     out = Path(args.out_dir)
     out.mkdir(parents=True, exist_ok=True)
