@@ -95,6 +95,18 @@ def _signals_deferred():
             signal.raise_signal(s)
 
 
+def one_blas_thread():
+    """A context holding BLAS to one thread (``threadpoolctl``) for work whose matrix products are small or
+    thin (the diagnosis' blocks of 4 096 samples, the robot regressor's least squares): more threads gave
+    nothing there, and on a loaded machine they spun for most of their CPU time. Without threadpoolctl BLAS
+    keeps its own count."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # optional, as in the workers (:func:`_start_worker`)
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 def _start_worker(fn: Callable, items: list) -> None:
     """A worker's start: it keeps the inherited ``fn`` and ``items``, ignores Ctrl-C (the caller stops the
     workers and reports the interruption once), dies on SIGTERM (not the caller's handler) and uses one BLAS

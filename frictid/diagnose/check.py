@@ -8,7 +8,6 @@ replayed along the logs (:func:`frictid.replay.replay`).
 """
 from __future__ import annotations
 
-import contextlib
 import math
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -21,6 +20,7 @@ from frictid.identify import select as sel
 from frictid.identify.prepare import REGRESSION_EXCLUDE, Prep
 from frictid.identify.static import Plateaus, fit_static, plateau_points, predict
 from frictid.models import static as sm
+from frictid.parallel import one_blas_thread
 from frictid.replay import joint_model, log_start_time, replay
 from frictid.result import JointFit, ParamEstimate
 
@@ -59,19 +59,8 @@ def diagnose_fit(jf: JointFit, preps: list[Prep]) -> None:
                             segments=p.segments, channels=p.log.channels, start=log_start_time(p.log),
                             source=p.index))
     if logs:
-        with _one_blas_thread():
+        with one_blas_thread():
             diagnose_joint(jf, logs)
-
-
-def _one_blas_thread():
-    """The diagnosis' matrix products are small (a few columns by a block of 4 096 samples): one BLAS thread
-    (``threadpoolctl``, as the fit's worker processes have); more gave nothing, and on a loaded machine their
-    threads spun for most of their CPU time. Without threadpoolctl BLAS keeps its own count."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # optional, as in frictid.parallel
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _residuals(jf: JointFit, preps: list[Prep], name: str, cache: dict | None = None) -> list[np.ndarray]:

@@ -520,6 +520,22 @@ def _rigid_params(jd: JointData, free, full, se, held_at_zero: str = "") -> dict
     return out
 
 
+def _bristle_params(g0, L, i: int, rel: float, why: str, source: str, s1: ParamEstimate, s1_neg, axis) -> dict:
+    """sigma0 (and sigma0_neg where the map's zero-speed levels differ by sign) of bristle length ``L[i]``
+    with relative error ``rel``, sigma1 ``s1`` (and sigma1_neg of value ``s1_neg`` when it is one, not
+    False)."""
+    params = {"sigma0": ParamEstimate("sigma0", g0[0] / L[i], rel * g0[0] / L[i], unit_of("K", axis),
+                                      not why, why, source=source, bounds=(g0[0] / L[-1], g0[0] / L[0])),
+              "sigma1": s1}
+    if g0[1] != g0[0]:
+        params["sigma0_neg"] = ParamEstimate("sigma0_neg", g0[1] / L[i], rel * g0[1] / L[i],
+                                             unit_of("K", axis), not why, why, source=source,
+                                             bounds=(g0[1] / L[-1], g0[1] / L[0]))
+        if s1_neg is not False:
+            params["sigma1_neg"] = ParamEstimate(**{**vars(s1), "name": "sigma1_neg", "value": s1_neg})
+    return params
+
+
 def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5) -> tuple[dict, dict, str]:
     """sigma0 (and sigma1 by a damping ratio chosen with it) from the stops and reversals of the moving samples, with the rigid terms
     fitted again with the bristles; the map stays as fitted. Returns (the dynamic and refitted rigid
@@ -553,15 +569,7 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
                            f"damping ratio {zeta:g} (sigma1 = 2 zeta sqrt(sigma0 J) - sigma2) chosen with the bristle "
                            "length on a grid; the reversals do not resolve it apart from the length", fixed=True,
                            source="reversals")
-    params = {"sigma0": ParamEstimate("sigma0", g0[0] / L[i], rel * g0[0] / L[i], unit_of("K", axis),
-                                      not why, why, source=source, bounds=(g0[0] / L[-1], g0[0] / L[0])),
-              "sigma1": s1}
-    if g0[1] != g0[0]:
-        params["sigma0_neg"] = ParamEstimate("sigma0_neg", g0[1] / L[i], rel * g0[1] / L[i],
-                                             unit_of("K", axis), not why, why, source=source,
-                                             bounds=(g0[1] / L[-1], g0[1] / L[0]))
-        if s1v[1] != s1v[0]:
-            params["sigma1_neg"] = ParamEstimate(**{**vars(s1), "name": "sigma1_neg", "value": s1v[1]})
+    params = _bristle_params(g0, L, i, rel, why, source, s1, s1v[1] != s1v[0] and s1v[1], axis)
     low, got = (None, "") if why else _low_speed(data, c_pos, c_neg, s0, held[i], eq0[3], n_folds, s1v)
     if low is not None:
         eqs[i], held[i] = got

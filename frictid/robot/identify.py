@@ -27,6 +27,7 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 from ..errors import ConfigError
+from ..parallel import one_blas_thread
 from ..result import ParamEstimate
 from .description import Robot
 from .feasibility import feasibility_note, nearest_consistent
@@ -212,7 +213,15 @@ def _errors(robot: Robot, A: np.ndarray, y: np.ndarray, x: np.ndarray, jid) -> t
 
 def identify_robot(robot: Robot, logs) -> RobotFit:
     """Base parameters and per-joint Coulomb, viscous and offset friction from the joints' logs (a held-out
-    prediction: :func:`heldout_errors`)."""
+    prediction: :func:`heldout_errors`). BLAS on one thread (:func:`frictid.parallel.one_blas_thread`: the
+    regressor is a few dozen columns; a second thread spun for most of its CPU time, 0.46 against 0.09 s CPU
+    on the UR10e harmonic run, ``benchmarks/bench_robot_speed.py``)."""
+    with one_blas_thread():
+        return _identify(robot, logs)
+
+
+def _identify(robot: Robot, logs) -> RobotFit:
+    """:func:`identify_robot`'s work."""
     fit_d = prepare(robot, logs)
     bp = base_parameters(robot, robot.armature)
     A_full = design(robot, bp, fit_d)
