@@ -698,8 +698,22 @@ def _lstsq(cols: list, y: np.ndarray) -> np.ndarray:
 BOUND = 10.0
 #: A Stribeck column whose largest value on the training samples is below this is not excited.
 EXCITE = 0.2
-#: ... and a factor term at most this much (1 + phi gamma between -1 and 3).
+#: ... and a factor term at most this much (1 + phi gamma between -1 and 3); the dwell's at most this much
+#: per unit of its column (:func:`_factor_bound`).
 FACTOR_BOUND = 2.0
+
+
+def _factor_bound(t: "Term", x_top: float) -> float:
+    """The largest |phi gamma| a factor term may reach on the samples: FACTOR_BOUND, and for the dwell's own
+    term (not the previous move's competitor, which shares its extension) FACTOR_BOUND times its column's
+    largest |value| x_top when above one. The dwell's column ``ln(1 + t_rest / t0)`` grows with the logs'
+    longest rest (7 for 60 s over 50 ms), and a plant whose level grows by 0.46 per unit of it is 4x after
+    such a rest (foreign seed 322537): a fixed bound on the factor held it at zero in 3 of 5 folds. Per unit
+    of the column the bound stays (a coefficient of 2 doubles the level per e-fold of the rest), which still
+    catches the blow-up the bound is for: a coefficient resting on a column the samples hardly excite."""
+    if t.ext == "dwell" and t.settings.get("source") != "previous":
+        return FACTOR_BOUND * max(1.0, x_top)
+    return FACTOR_BOUND
 
 
 def _combination(cols, coef) -> np.ndarray:
@@ -936,8 +950,9 @@ class Evaluator:
     def _unsupported(self, c: Coef, y_scale: float) -> list:
         """Coefficients whose term would exceed the data anywhere on the samples (inputs only, never the
         held-out targets): a linear term above BOUND times the largest training friction, a factor term
-        beyond +-FACTOR_BOUND. Such a coefficient rests on a column the training samples hardly excite
-        (a Stribeck term without low speeds) and would blow up a held-out prediction."""
+        beyond +-FACTOR_BOUND (the dwell's per unit of its column, :func:`_factor_bound`). Such a coefficient
+        rests on a column the training samples hardly excite (a Stribeck term without low speeds) and would
+        blow up a held-out prediction."""
         bad = []
         wt = self.ctx.w_top
         for sl, col in self.base_cols.items():
@@ -961,7 +976,8 @@ class Evaluator:
                 if ("g", i, j) not in self._excl and abs(c.gamma[i][j]) * m > BOUND * y_scale:
                     bad.append(("g", i, j))
         for i, t, X in self.lf + self.af:
-            if np.max(np.abs(self.ctx.extremes(t) @ np.atleast_1d(c.gamma[i]))) > FACTOR_BOUND:
+            ext = self.ctx.extremes(t)
+            if np.max(np.abs(ext @ np.atleast_1d(c.gamma[i]))) > _factor_bound(t, float(np.max(np.abs(ext)))):
                 bad += [("g", i, j) for j in range(X.shape[1]) if ("g", i, j) not in self._excl]
         return bad
 
