@@ -137,7 +137,8 @@ def report(name: str, rows: list[np.ndarray], aurt: tuple = (None, ""), whole: f
 
 def stage_one_blas(run: Path) -> np.ndarray:
     """Stage 1 (``identify_robot``) with BLAS held to one thread (threadpoolctl), then as it runs:
-    [[CPU, wall] one thread, [CPU, wall] default] (a candidate speed-up, not what fit_robot does)."""
+    [[CPU, wall] one thread, [CPU, wall] default]. Since c9471f5 ``identify_robot`` holds BLAS to one thread
+    itself (``frictid.parallel.one_blas_thread``), so the two agree; before, the default spent 5x the CPU."""
     from threadpoolctl import threadpool_limits
     rb, logs = load_robot(ROBOT), read_many([str(run)], str(MAP))
     out = []
