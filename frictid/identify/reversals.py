@@ -403,12 +403,13 @@ def _gravity_now(jd: JointData, names) -> np.ndarray:
                      jd.jf.gravity[n].value is not None else 0.0 for n in names])
 
 
-def _chosen_residuals(data, jd: JointData, free0, free, c_pos, c_neg, low, sigma0):
-    """Per log the friction residual the chosen bristles (with the low-speed term when kept) leave, and the
-    rigid columns of the terms kept (the gravity put back where :func:`_gravity_guard` held it at zero)."""
+def _chosen_residuals(data, jd: JointData, free0, free, c_pos, c_neg, low, sigma0, sigma1):
+    """Per log the friction residual the chosen bristles (stiffness ``sigma0``, damping ``sigma1``; with the
+    low-speed term when kept) leave, and the rigid columns of the terms kept (the gravity put back where
+    :func:`_gravity_guard` held it at zero)."""
     if low is not None:
         c_pos, c_neg = _with_low_speed(c_pos, low[0], low[1]), _with_low_speed(c_neg, low[0], low[1])
-    F_of = _lugre_of(c_pos, c_neg, sigma0)
+    F_of = _lugre_of(c_pos, c_neg, sigma0, sigma1)
     keep = [j for j, n in enumerate(free0) if n in free]
     gi = [j for j, n in enumerate(free0) if n not in free]
     g0 = _gravity_now(jd, [free0[j] for j in gi])
@@ -597,8 +598,8 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
     if why or not _absolute(jd):
         rip, got_r = None, ("" if why else NOT_ABSOLUTE)
     else:
-        rip, got_r = _ripple(data, *_chosen_residuals(data, jd, free0, free, c_pos, c_neg, low,
-                                                      (g0[0] / L[i], g0[1] / L[i])), held[i], stroke, step, n_folds)
+        rip, got_r = _ripple(data, *_chosen_residuals(data, jd, free0, free, c_pos, c_neg, low, s0, s1v), held[i],
+                             stroke, step, n_folds)
     if rip is not None:
         eqs[i], held[i] = got_r
     if not why:
