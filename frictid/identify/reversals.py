@@ -565,6 +565,7 @@ def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5
     if L is not None and not min(g0) > 0:
         L, why = None, "the map's level at zero speed is not positive"
     s1 = ParamEstimate("sigma1", 0.0, None, unit_of("D", axis), False,
+                       "held at 0: no bristles from the reversals to damp" if L is None else
                        "held at 0: no positive inertia to set a damping ratio against", fixed=True, source="reversals")
     if L is None:
         return {"sigma0": ParamEstimate("sigma0", None, None, unit_of("K", axis), False, why,
