@@ -384,12 +384,12 @@ def ur10e_heldout(data: Path, tmp: str) -> list[str]:
         d = replay(str(Path(tmp) / f"ur{k}_first.yaml"), last, mp, tmp, f"ur{k}_held")
         dt, r, moving, whole, mov = _heldout_errors(d, raw, cut, k)
         near = _near_reversals(raw.iloc[cut:, 6 + k].to_numpy(), dt) & moving
-        split = (f"{float(np.sqrt(np.mean(r[near] ** 2))):.2f} / {float(np.sqrt(np.mean(r[moving & ~near] ** 2))):.2f} "
+        split = (f"{_rms(r, near):.2f} / {_rms(r, moving & ~near):.2f} "
                  f"({100 * near.sum() / max(moving.sum(), 1):.0f} %)" if near.any() and (moving & ~near).any() else "-")
         model = np.nan_to_num(d["tau_model"].to_numpy())
-        cells = []
-        for r_d in (lowpass(d["tau"].to_numpy(), dt, 20.0) - model, d["tau"].to_numpy() - model):
-            cells.append(f"{float(np.sqrt(np.mean(r_d ** 2))):.2f} / {float(np.sqrt(np.mean(r_d[moving] ** 2))):.2f}")
+        every = np.ones_like(moving)
+        cells = [f"{_rms(r_d, every):.2f} / {_rms(r_d, moving):.2f}"
+                 for r_d in (lowpass(d["tau"].to_numpy(), dt, 20.0) - model, d["tau"].to_numpy() - model)]
         aw, am = UR_AURT[k]
         lw, lm, lcells = ls_baseline(_ur_parts(data, tmp, k))
         cw = check("UR10e held out", f"joint {k} whole run below AURT and the least squares", f"{whole:.3f}",
@@ -485,7 +485,7 @@ def _bristles_row(data: Path, tmp: str, k: int) -> str:
 
     def rms(e, part):
         _, _, mov, near = part
-        return [float(np.sqrt(np.mean(e[s] ** 2))) for s in (np.ones_like(mov), mov, near)]
+        return [_rms(e, s) for s in (np.ones_like(mov), mov, near)]
 
     e_static = [resid(p) for p in parts]
     grid = np.geomspace(1e3, 1e5, 11)
