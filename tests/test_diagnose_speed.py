@@ -351,3 +351,59 @@ def test_kept_bins_are_found_for_the_same_values_only(S):
     z = x.copy()
     z[0] = np.nan
     assert _bins_of(S, z, nb) is not b0 and _bins_of(S, z, nb) is not by
+
+
+def test_the_time_since_the_last_rest_from_the_runs_ends_is_the_running_maximums():
+    """:func:`frictid.diagnose.structure.since_rest` finds each sample's last sample at rest among the ends of
+    the runs of rest; on random logs (rests at the start, at the end, none, everywhere; several logs; any
+    samples kept) the times are those of the running maximum over the whole log it replaced."""
+    from types import SimpleNamespace
+
+    from frictid.diagnose.structure import since_rest
+
+    def running_max(S):
+        out = np.empty(S.n)
+        for i, lg in enumerate(S.logs):
+            sel = S.li == i
+            last = np.where(np.abs(S.log_w(i)) <= S.v_min, np.arange(lg.n), 0)
+            np.maximum.accumulate(last, out=last)
+            out[sel] = lg.t[S.k[sel]] - lg.t[last[S.k[sel]]]
+        return out
+
+    rng = np.random.default_rng(20)
+    for trial in range(200):
+        logs, ks, li = [], [], []
+        for i in range(int(rng.integers(1, 4))):
+            n = int(rng.integers(1, 60))
+            w = np.where(rng.random(n) < rng.random(), 0.0, rng.normal(size=n))
+            w[:int(rng.integers(0, 3))] = 0.0 if trial % 3 else 1.0
+            if trial % 7 == 0:
+                w[:] = 1.0
+            logs.append(SimpleNamespace(w=w, t=np.cumsum(rng.random(n)), n=n))
+            k = np.sort(rng.choice(n, size=int(rng.integers(0, n + 1)), replace=False))
+            ks.append(k)
+            li.append(np.full(k.size, i))
+        k = np.concatenate(ks)
+        S = SimpleNamespace(n=k.size, logs=logs, li=np.concatenate(li), k=k, v_min=0.3,
+                            cached=lambda key, fn: fn())
+        S.log_w = lambda i, S=S: S.logs[i].w
+        assert np.array_equal(since_rest(S), running_max(S)), trial
+
+
+def test_the_runs_starts_at_some_samples_are_those_spread_over_the_log():
+    """``signals._moves`` looks each sample's run start and the run before up among the runs' starts: on random
+    velocities (rests, reversals, a constant sign, one sample) they are the starts spread over every sample."""
+    rng = np.random.default_rng(21)
+    for trial in range(200):
+        n = int(rng.integers(1, 80))
+        w = np.where(rng.random(n) < 0.4, 0.0, rng.normal(size=n))
+        if trial % 9 == 0:
+            w[:] = -1.0
+        sign = np.where(np.abs(w) > 0.3, np.sign(w), 0.0)
+        edges = np.concatenate(([0], np.flatnonzero(sign[1:] != sign[:-1]) + 1))
+        lens = np.diff(np.concatenate((edges, [n])))
+        start, prev = np.repeat(edges, lens), np.repeat(np.concatenate(([-1], edges[:-1])), lens)
+        k = np.sort(rng.choice(n, size=int(rng.integers(0, n + 1)), replace=False))
+        s2, st, pv = sg._moves(w, 0.3, k)
+        assert np.array_equal(s2, sign) and np.array_equal(st, start[k]) and np.array_equal(pv, prev[k]), trial
+        assert st.dtype == start.dtype and pv.dtype == prev.dtype

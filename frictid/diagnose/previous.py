@@ -55,7 +55,8 @@ def previous_travel(S: Samples) -> np.ndarray:
             sel = S.li == i
             if not sel.any() or lg.q is None:
                 continue
-            sg, start, prev = _moves(S.log_w(i), S.v_min)
+            k = S.k[sel]
+            sg, st, pv = _moves(S.log_w(i), S.v_min, k)
             cl = _cleaned(sg, lg.t)
             q = finite(lg.q)
             edges = np.flatnonzero(np.concatenate(([True], cl[1:] != cl[:-1])))
@@ -66,10 +67,8 @@ def previous_travel(S: Samples) -> np.ndarray:
             j = np.arange(edges.size) - 1
             j = np.where((j >= 0) & (sgr[np.maximum(j, 0)] == 0), j - 1, j)
             prev_travel = np.where((j >= 0) & (sgr != 0), travel[np.maximum(j, 0)], np.nan)
-            k = S.k[sel]
             val = prev_travel[np.searchsorted(edges, k, side="right") - 1]
             # a raw run that starts after a dip in its own direction: not a move's start
-            st, pv = start[k], prev[k]
             cut = (pv >= 0) & (st > 0)
             cut[cut] &= (sg[st[cut] - 1] == 0) & (pv[cut] >= 1)
             cut[cut] &= (sg[np.maximum(pv[cut] - 1, 0)] == sg[st[cut]]) & (lg.t[st[cut]] - lg.t[pv[cut]] < REST_MIN)

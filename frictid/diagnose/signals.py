@@ -30,14 +30,14 @@ REST_MIN = 0.05
 RATE_WINDOW = 0.025
 
 
-def _moves(w: np.ndarray, v_min: float):
-    """Per sample of one log: the start index of its run (at rest, or moving one way) and of the run before."""
+def _moves(w: np.ndarray, v_min: float, k: np.ndarray):
+    """The sign of the motion per sample of one log (0 at rest) and, at its samples ``k``, the start index of
+    their run (at rest, or moving one way) and of the run before (-1 for the first run): looked up among the
+    runs' starts, not spread over every sample of the log."""
     sg = np.where(np.abs(w) > v_min, np.sign(w), 0.0)
-    n = sg.size
-    brk = np.flatnonzero(sg[1:] != sg[:-1]) + 1
-    edges = np.concatenate(([0], brk))
-    lens = np.diff(np.concatenate((edges, [n])))
-    return sg, np.repeat(edges, lens), np.repeat(np.concatenate(([-1], edges[:-1])), lens)
+    edges = np.concatenate(([0], np.flatnonzero(sg[1:] != sg[:-1]) + 1))
+    j = np.searchsorted(edges, k, side="right") - 1
+    return sg, edges[j], np.where(j > 0, edges[np.maximum(j - 1, 0)], -1)
 
 
 def rests(S: Samples) -> tuple[np.ndarray, np.ndarray]:
@@ -49,9 +49,8 @@ def rests(S: Samples) -> tuple[np.ndarray, np.ndarray]:
             sel = S.li == i
             if not sel.any() or lg.q is None:
                 continue
-            sg, start, prev = _moves(S.log_w(i), S.v_min)
             k = S.k[sel]
-            st, pv = start[k], prev[k]
+            sg, st, pv = _moves(S.log_w(i), S.v_min, k)
             after = (st > 0) & (pv >= 0)
             after[after] &= sg[st[after] - 1] == 0
             tr[sel] = np.where(after, lg.t[st] - lg.t[np.maximum(pv, 0)], 0.0)

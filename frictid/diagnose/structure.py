@@ -42,7 +42,9 @@ VARIABLES = (("speed", "velocity", "w"), ("dwell", "time since the last rest", "
 
 def since_rest(S: Samples) -> np.ndarray:
     """Time [s] since the joint last rested (moved slower than ``v_min``), per sample; since the start of
-    its log when it never rested before."""
+    its log when it never rested before. The last sample at rest at or before a sample is the sample itself
+    when it rests, else the last sample of the latest run of rest before it (found among the runs' ends, not
+    by a running maximum over the whole log: the same indices)."""
     def compute():
         out = np.empty(S.n)
         for i, lg in enumerate(S.logs):
@@ -50,10 +52,15 @@ def since_rest(S: Samples) -> np.ndarray:
             if not sel.any():
                 continue
             rest = np.abs(S.log_w(i)) <= S.v_min
-            last = np.where(rest, np.arange(lg.n), 0)
-            np.maximum.accumulate(last, out=last)
             k = S.k[sel]
-            out[sel] = lg.t[k] - lg.t[last[k]]
+            ends = np.flatnonzero(rest[:-1] & ~rest[1:])   # the last sample of each run of rest with one after it
+            if ends.size:
+                last = ends[np.maximum(np.searchsorted(ends, k, side="right") - 1, 0)]
+                last[k < ends[0]] = 0
+            else:
+                last = np.zeros(k.size, np.int64)
+            last = np.where(rest[k], k, last)
+            out[sel] = lg.t[k] - lg.t[last]
         return out
     return S.cached("since_rest", compute)
 

@@ -122,6 +122,17 @@ class SampleSet:
             self.__dict__["_by_speed"] = out
         return out
 
+    def sorted_velocity_folds(self) -> tuple[tuple[np.ndarray, np.ndarray], ...] | None:
+        """Per velocity sign, the velocity and folds of :meth:`by_speed` (what another set of the same samples
+        shares, :meth:`share_sorted`), or None when they have not been sorted."""
+        out = self.__dict__.get("_by_speed")
+        return None if out is None else tuple((w, f) for w, _, f in out)
+
+    def share_sorted(self, wf: tuple[tuple[np.ndarray, np.ndarray], ...]) -> None:
+        """Take :meth:`by_speed` from another set of the same samples (its :meth:`sorted_velocity_folds`, after
+        :meth:`share_order` took its speed order): only this set's friction is gathered in that order."""
+        self.__dict__["_by_speed"] = tuple((w, self.F[idx], f) for (w, f), idx in zip(wf, self.speed_order()))
+
     def speed_order(self) -> tuple[np.ndarray, np.ndarray]:
         """Indices of the positive, then the negative velocity samples in increasing |w| (stable), sorted
         once (or taken from a set with the same samples, :meth:`share_order`)."""
@@ -315,10 +326,12 @@ def _fit_binned(name, bins, axis, start=None, var_inflation=1.0, profile=None) -
                       profile=profile)
 
 
-def fit_map(name: str, S: SampleSet, axis: str = "rotary", heldout: bool = True) -> ModelFit:
+def fit_map(name: str, S: SampleSet, axis: str = "rotary", heldout: bool = True, errors: bool = True) -> ModelFit:
     """Static map ``name`` (symmetric or ``_asym``) on the friction samples, with held-out error by fold
     (:func:`heldout_map`; ``heldout=False``: None, for the caller to compute when needed), standard errors
-    of autocorrelated samples and AIC on the effective sample count.
+    of autocorrelated samples and AIC on the effective sample count. ``errors=False``: the held-out refits'
+    jackknife is not taken into the standard errors (:func:`heldout_map`), for a caller that reads the
+    held-out error alone (the diagnosis' check).
 
     The least squares runs on velocity-bin means weighted by their counts (:func:`bin_points`; the same
     objective as on the samples while the map is smooth across a bin, and hundreds of times faster);
@@ -347,7 +360,7 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary", heldout: bool = True)
             mf.notes = first + [nt for nt in mf.notes if nt not in first]
             vals = mf.values()
         if heldout:
-            held = heldout_map(name, S, mf, axis)
+            held = heldout_map(name, S, mf, axis, errors)
     mf.metrics = sample_metrics(rss, n, k, held, S)
     mf.method = ("bounded least squares on the moving samples (velocity-bin means), F = tau - J a - G(q) - "
                  "offset with J, gravity and offset from the linear stage"
@@ -356,9 +369,11 @@ def fit_map(name: str, S: SampleSet, axis: str = "rotary", heldout: bool = True)
     return mf
 
 
-def heldout_map(name: str, S: SampleSet, mf: ModelFit, axis: str = "rotary") -> float | None:
+def heldout_map(name: str, S: SampleSet, mf: ModelFit, axis: str = "rotary", errors: bool = True) -> float | None:
     """Held-out RMS [F] of map ``name`` on the samples: refitted without each fold (warm-started at the
-    fit ``mf`` on all samples), predicting the fold. None when a prediction is not finite."""
+    fit ``mf`` on all samples), predicting the fold. None when a prediction is not finite. With ``errors``
+    the fold refits (and a refit without each recording) raise ``mf``'s standard errors
+    (:func:`jackknife_errors`, :func:`recording_errors`); they do not change the held-out RMS."""
     if any(v is None for v in mf.values().values()):
         return None
     start = warm_start(mf)
@@ -371,8 +386,9 @@ def heldout_map(name: str, S: SampleSet, mf: ModelFit, axis: str = "rotary") -> 
         m = _fit_binned(name, _bin_samples(S, leave_out=f), axis, start=start)
         refits.append(m.values())
         ph[te] = predict(name, m.values(), S.w[te])
-    jackknife_errors(mf, refits, S)
-    recording_errors(mf, name, S, axis, start)
+    if errors:
+        jackknife_errors(mf, refits, S)
+        recording_errors(mf, name, S, axis, start)
     ph -= S.F  # the held-out residual, in place
     if np.isfinite(ph).all():
         return float(math.sqrt(np.mean(np.square(ph, out=ph))))
