@@ -407,3 +407,51 @@ def test_the_runs_starts_at_some_samples_are_those_spread_over_the_log():
         s2, st, pv = sg._moves(w, 0.3, k)
         assert np.array_equal(s2, sign) and np.array_equal(st, start[k]) and np.array_equal(pv, prev[k]), trial
         assert st.dtype == start.dtype and pv.dtype == prev.dtype
+
+
+def test_the_speed_bands_shares_from_one_count_over_cells_are_the_band_by_band_ones(S):
+    """``chain._band_shares`` sums each (speed band, group) cell in one ``bincount``: the shares, their errors
+    and the bands' speeds are those of the band-by-band sums it replaced, to the bit (twice: the second from the
+    cached bands)."""
+    from frictid.diagnose.binned import equal_count_bins
+    from frictid.diagnose.chain import SPEED_BANDS, _band_shares
+
+    def by_band(rw, dw):
+        speed = np.abs(S.w)
+        band, nb = equal_count_bins(speed, SPEED_BANDS)
+        out = []
+        for k in range(nb):
+            sel = band == k
+            s = np.bincount(S.group[sel], weights=(rw * dw)[sel], minlength=S.n_groups)
+            d = np.bincount(S.group[sel], weights=(dw * dw)[sel], minlength=S.n_groups)
+            if d.sum() <= 0:
+                continue
+            beta = float(s.sum() / d.sum())
+            out.append((beta, float(np.sqrt(np.sum((s - beta * d) ** 2)) / d.sum()),
+                        float(speed[sel].min()), float(speed[sel].max())))
+        return out
+
+    rng = np.random.default_rng(22)
+    for _ in range(2):
+        rw, dw = rng.standard_normal(S.n), rng.standard_normal(S.n)
+        assert _band_shares(S, rw, dw) == by_band(rw, dw)
+    dw[np.abs(S.w) < np.median(np.abs(S.w))] = 0.0   # slow bands without a correction: left out alike
+    assert _band_shares(S, rw, dw) == by_band(rw, dw)
+
+
+def test_samples_gathered_in_fold_order_are_their_logs_values(S):
+    """``build_samples`` gathers each log's arrays once, in the folds' order: every per-sample array of the
+    two-log fixture is its log's value at the sample's (log, index), the folds are contiguous, and within a
+    fold the samples keep their order in time (log by log, index by index)."""
+    from frictid.diagnose.samples import PER_SAMPLE
+
+    assert np.all(np.diff(S.fold) >= 0) and np.unique(S.li).size == 2
+    for name, full in (("w", "w"), ("a", "a"), ("tau", "tau"), ("F", "F"), ("G", "G"), ("q", "q"), ("t", "t")):
+        ref = np.empty(S.n)
+        for i, lg in enumerate(S.logs):
+            ref[S.li == i] = np.asarray(getattr(lg, full), float)[S.k[S.li == i]]
+        assert np.array_equal(getattr(S, name), ref, equal_nan=True), name
+    for f in range(S.n_folds):
+        key = S.li[S.fold == f].astype(np.int64) * (1 << 40) + S.k[S.fold == f]
+        assert np.all(np.diff(key) > 0)
+    assert all(getattr(S, n) is None or getattr(S, n).shape == (S.n,) for n in PER_SAMPLE)

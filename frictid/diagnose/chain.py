@@ -956,19 +956,26 @@ def _band_shares(S: Samples, rw: np.ndarray, dw: np.ndarray) -> list[tuple[float
     """Per speed band (:data:`SPEED_BANDS` equal-count bands of |w|): the share of the candidate's
     correction in the residual, ``beta = sum(rw dw) / sum(dw^2)`` over the band's samples (both within
     cells), its standard error with the held-out groups as the independent units (a ratio estimator), and
-    the band's speeds [lowest, highest]."""
-    speed = np.abs(S.w)
-    band, nb = equal_count_bins(speed, SPEED_BANDS)
+    the band's speeds [lowest, highest]. The bands, their speeds and each sample's (band, group) cell are the
+    samples' own (cached); the sums per band and group come from one ``bincount`` over the cells (the same
+    samples added in the same order as band by band)."""
+    def bands():
+        speed = np.abs(S.w)
+        band, nb = equal_count_bins(speed, SPEED_BANDS)
+        lims = [(float(speed[band == k].min()), float(speed[band == k].max())) if np.any(band == k) else None
+                for k in range(nb)]
+        return band * S.n_groups + S.group, nb, lims
+    cell, nb, lims = S.cached("speed_bands", bands)
+    G = S.n_groups
+    sums = np.bincount(cell, weights=rw * dw, minlength=nb * G).reshape(nb, G)
+    dsq = np.bincount(cell, weights=dw * dw, minlength=nb * G).reshape(nb, G)
     out = []
     for k in range(nb):
-        sel = band == k
-        s = np.bincount(S.group[sel], weights=(rw * dw)[sel], minlength=S.n_groups)
-        d = np.bincount(S.group[sel], weights=(dw * dw)[sel], minlength=S.n_groups)
+        s, d = sums[k], dsq[k]
         if d.sum() <= 0:
             continue
         beta = float(s.sum() / d.sum())
-        out.append((beta, float(np.sqrt(np.sum((s - beta * d) ** 2)) / d.sum()),
-                    float(speed[sel].min()), float(speed[sel].max())))
+        out.append((beta, float(np.sqrt(np.sum((s - beta * d) ** 2)) / d.sum())) + lims[k])
     return out
 
 

@@ -394,17 +394,24 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
                          f"({MIN_SAMPLES} in all) are needed to hold some out")
         return None
     group, fold, gt = grouped
+    # the samples ordered by fold first (:func:`_fold_major`): each log's arrays are then gathered once, in
+    # that order
+    order = _fold_major(fold)
+    group, fold = group[order], fold[order]
+    for name in ("t", "th", "li", "k"):
+        cat[name] = cat[name][order]
+    per_log = [cat["li"] == i for i in range(len(logs))] if len(logs) > 1 else None
 
     def take(name, full=None):
-        out = []
-        for i, lg in enumerate(logs):
-            sel = cat["li"] == i
-            arr = full(lg) if full else lg.channels.get(name)
-            if arr is None:
-                return None
-            out.append(np.asarray(arr, float)[cat["k"][sel]])
-        # li is sorted by log (parts appended log by log), so concatenation matches
-        return np.concatenate(out)
+        arrs = [full(lg) if full else lg.channels.get(name) for lg in logs]
+        if any(arr is None for arr in arrs):
+            return None
+        if per_log is None:
+            return np.asarray(arrs[0], float)[cat["k"]]
+        out = np.empty(cat["k"].size)
+        for sel, arr in zip(per_log, arrs):
+            out[sel] = np.asarray(arr, float)[cat["k"][sel]]
+        return out
 
     has_q = all(lg.q is not None for lg in logs)
     env = take("temp_env")
@@ -422,7 +429,6 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
         group_t=gt, decimation=dec, axis=axis, bristle=bristle)
     S._memo.update((("dt", i), dt) for i, dt in enumerate(dts))
     S._memo.update((("log_w", i), w) for i, w in enumerate(w_nan0))
-    _fold_major(S)
     return S
 
 
@@ -431,16 +437,13 @@ PER_SAMPLE = ("t", "th", "q", "w", "a", "tau", "F", "G", "payload", "temp_env", 
               "fold")
 
 
-def _fold_major(S: Samples) -> None:
-    """Order the samples by fold (in time within a fold, stably), in place: every fold's samples are then
-    one contiguous block, so the per-fold sums of the fits (:meth:`frictid.diagnose.model.Context.
-    fold_products`) stream over slices, not gathers. Nothing else depends on the order (the thermal state
-    and the groups are looked up by each sample's log, index and group)."""
-    order = np.argsort(S.fold, kind="stable")
-    for name in PER_SAMPLE:
-        x = getattr(S, name)
-        if x is not None:
-            setattr(S, name, x[order])
+def _fold_major(fold: np.ndarray) -> np.ndarray:
+    """The samples' order by fold (in time within a fold, stably), in which :func:`build_samples` gathers
+    them: every fold's samples are then one contiguous block, so the per-fold sums of the fits
+    (:meth:`frictid.diagnose.model.Context.fold_products`) stream over slices, not gathers. Nothing else
+    depends on the order (the thermal state and the groups are looked up by each sample's log, index and
+    group)."""
+    return np.argsort(fold, kind="stable")
 
 
 def _speed_limits(logs: list[DiagLog], fin_w: list[np.ndarray]) -> tuple[float, float, float] | None:
