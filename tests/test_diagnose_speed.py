@@ -306,9 +306,17 @@ def test_the_checks_second_sample_set_takes_the_firsts_columns_only_when_build_w
 
     S1 = built(Y1)
     assert S1.stride == stride
+    folds = [None] + list(range(S1.n_folds))
+    for f in folds:   # the first set's velocity bins, which the second takes
+        smp._bin_samples(S1, f)
     key = check._SampleKey(S1.order_key(), S1.w, S1.block, S1.fold, S1.log, S1.stride, S1.n_moving, True,
-                           tuple((w, f) for w, _, f in S1.by_speed()))
+                           tuple((w, f) for w, _, f in S1.by_speed()), S1.velocity_bins_cache())
     S2, ref = check._same_samples(key, Y2), built(Y2)
+    assert S2.velocity_bins_cache() is S1.velocity_bins_cache()
+    for f in folds:   # its bins (velocity side shared, its friction summed) are those of its own set, to the bit
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(smp._bin_samples(S2, f), smp._bin_samples(ref, f))), f
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(smp._bin_samples(ref, f), smp.bin_points(
+            ref.w[ref.fold != f] if f is not None else ref.w, ref.F[ref.fold != f] if f is not None else ref.F))), f
     for f in ("w", "F", "block", "fold", "log"):
         assert np.array_equal(getattr(S2, f), getattr(ref, f)), f
     assert (S2.stride, S2.n_moving, S2.n_folds) == (ref.stride, ref.n_moving, ref.n_folds)

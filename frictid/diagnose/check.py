@@ -138,7 +138,7 @@ def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds, like=Non
             return math.nan, None, None
         if isinstance(like, _SampleKey):
             S.share_order(like.order)
-            like.w = like.block = like.fold = like.log = like.by_speed = None   # not shared: not held
+            like.w = like.block = like.fold = like.log = like.by_speed = like.w_bins = None   # not shared: not held
     # only its held-out error is read: the fold refits' jackknife of the standard errors (two percentiles of
     # up to 2 M samples, a pass over their recordings) is left out
     mf = smp.fit_map(mapname, S, jf.axis, errors=False)
@@ -146,7 +146,7 @@ def _heldout_on_basis(jf, preps, name, basis, min_speed, excl, n_folds, like=Non
     # the columns are kept only when another model's finite targets can take them (:func:`_same_samples`)
     cols = (S.w, S.block, S.fold, S.log) if finite else (None,) * 4
     key = _SampleKey(S.order_key(), *cols, S.stride, S.n_moving, finite,
-                     S.sorted_velocity_folds() if finite else None)
+                     S.sorted_velocity_folds() if finite else None, S.velocity_bins_cache() if finite else None)
     return (rh if rh is not None else math.nan), mf, key
 
 
@@ -167,6 +167,8 @@ class _SampleKey:
     finite: bool
     #: per velocity sign, the speed-sorted velocity and folds (:meth:`~frictid.identify.samples.SampleSet.by_speed`)
     by_speed: tuple | None = None
+    #: the velocity side of the binned samples (:meth:`~frictid.identify.samples.SampleSet.velocity_bins`)
+    w_bins: dict | None = None
 
 
 def _same_samples(key: _SampleKey, Y) -> "smp.SampleSet | None":
@@ -185,7 +187,7 @@ def _same_samples(key: _SampleKey, Y) -> "smp.SampleSet | None":
                       source=key.order.source)
     S.share_order(key.order)
     if key.by_speed is not None:   # the speed-sorted samples: only their friction gathered
-        S.share_sorted(key.by_speed)
+        S.share_sorted(key.by_speed, key.w_bins)
     return S
 
 

@@ -128,10 +128,37 @@ class SampleSet:
         out = self.__dict__.get("_by_speed")
         return None if out is None else tuple((w, f) for w, _, f in out)
 
-    def share_sorted(self, wf: tuple[tuple[np.ndarray, np.ndarray], ...]) -> None:
+    def share_sorted(self, wf: tuple[tuple[np.ndarray, np.ndarray], ...], bins: dict | None = None) -> None:
         """Take :meth:`by_speed` from another set of the same samples (its :meth:`sorted_velocity_folds`, after
-        :meth:`share_order` took its speed order): only this set's friction is gathered in that order."""
+        :meth:`share_order` took its speed order): only this set's friction is gathered in that order; and its
+        :meth:`velocity_bins` (``bins``, that set's :meth:`velocity_bins_cache`) when given."""
         self.__dict__["_by_speed"] = tuple((w, self.F[idx], f) for (w, f), idx in zip(wf, self.speed_order()))
+        self.__dict__["_velocity_bins"] = {} if bins is None else bins
+
+    def velocity_bins_cache(self) -> dict:
+        """What :meth:`velocity_bins` holds (another set of the same samples takes it, :meth:`share_sorted`)."""
+        return self.__dict__.setdefault("_velocity_bins", {})
+
+    def velocity_bins(self, leave_out: int | None, per_sign: int) -> list:
+        """Per velocity sign, the velocity side of :func:`_bin_samples` (the samples outside fold ``leave_out``,
+        all when None; ``per_sign`` equal-count bins): ``(mask of the kept samples in the order of
+        :meth:`by_speed` or None, the bins' first indices among them, counts, mean velocities)``, all None for
+        a sign without kept samples. Cached: it depends on the velocity and the folds only, so every map fitted
+        on these samples, and another set of the same samples, bins only its friction."""
+        cache = self.velocity_bins_cache()
+        key = (leave_out, per_sign)
+        if key not in cache:
+            out = []
+            for ww, _, fold in self.by_speed():
+                keep = None if leave_out is None else fold != leave_out
+                wk = ww if keep is None else ww[keep]
+                if not wk.size:
+                    out.append((None, None, None, None))
+                    continue
+                edges, cnt = _bin_edges(wk.size, per_sign)
+                out.append((keep, edges, cnt, np.add.reduceat(wk, edges) / cnt))
+            cache[key] = out
+        return cache[key]
 
     def speed_order(self) -> tuple[np.ndarray, np.ndarray]:
         """Indices of the positive, then the negative velocity samples in increasing |w| (stable), sorted
@@ -162,6 +189,7 @@ class SampleSet:
             return False
         self.__dict__["_speed_order"] = key.order
         self.__dict__.pop("_by_speed", None)
+        self.__dict__.pop("_velocity_bins", None)
         return True
 
 
@@ -292,10 +320,15 @@ def bin_points(w: np.ndarray, F: np.ndarray, per_sign: int = BINS_PER_SIGN
 
 def _sign_bins(ww: np.ndarray, ff: np.ndarray, per_sign: int):
     """Equal-count bin means of one sign's samples (w, F) already in increasing |w|, and the counts."""
-    nb = max(1, min(per_sign, ww.size // MIN_PER_BIN))
-    edges = np.linspace(0, ww.size, nb + 1).astype(np.int64)[:-1]
-    cnt = np.diff(np.append(edges, ww.size))
+    edges, cnt = _bin_edges(ww.size, per_sign)
     return np.add.reduceat(ww, edges) / cnt, np.add.reduceat(ff, edges) / cnt, cnt
+
+
+def _bin_edges(n: int, per_sign: int) -> tuple[np.ndarray, np.ndarray]:
+    """The first index and the count of each of the equal-count bins of ``n`` samples of one sign."""
+    nb = max(1, min(per_sign, n // MIN_PER_BIN))
+    edges = np.linspace(0, n, nb + 1).astype(np.int64)[:-1]
+    return edges, np.diff(np.append(edges, n))
 
 
 def _join_bins(parts):
@@ -309,14 +342,12 @@ def _join_bins(parts):
 
 def _bin_samples(S: SampleSet, leave_out: int | None = None, per_sign: int = BINS_PER_SIGN):
     """:func:`bin_points` of the samples of S outside fold ``leave_out`` (all when None), from the
-    speed-sorted samples of :meth:`SampleSet.by_speed` (the same bins, without sorting again)."""
+    speed-sorted samples of :meth:`SampleSet.by_speed` (the same bins, without sorting again) and their
+    velocity side from :meth:`SampleSet.velocity_bins` (the same numbers: only the friction is summed here)."""
     parts = []
-    for ww, ff, fold in S.by_speed():
-        if leave_out is not None:
-            keep = fold != leave_out
-            ww, ff = ww[keep], ff[keep]
-        if ww.size:
-            parts.append(_sign_bins(ww, ff, per_sign))
+    for (keep, edges, cnt, wm), (_, ff, _) in zip(S.velocity_bins(leave_out, per_sign), S.by_speed()):
+        if edges is not None:
+            parts.append((wm, np.add.reduceat(ff if keep is None else ff[keep], edges) / cnt, cnt))
     return _join_bins(parts)
 
 
