@@ -463,3 +463,39 @@ def test_samples_gathered_in_fold_order_are_their_logs_values(S):
         key = S.li[S.fold == f].astype(np.int64) * (1 << 40) + S.k[S.fold == f]
         assert np.all(np.diff(key) > 0)
     assert all(getattr(S, n) is None or getattr(S, n).shape == (S.n,) for n in PER_SAMPLE)
+
+
+def test_the_cleaned_runs_are_those_of_the_cleaned_signs_spread_over_the_log():
+    """``previous._cleaned`` works on the runs: on random run signs and times (dips within moves, twitches at
+    rest, one run, one sample) its runs' first indices and signs are those of the per-sample signs the two
+    passes spread over the log before."""
+    from frictid.diagnose.previous import _cleaned
+    from frictid.diagnose.signals import REST_MIN
+
+    def per_sample(sg, t):
+        out = sg.copy()
+        for pass_ in (0, 1):
+            edges = np.flatnonzero(np.concatenate(([True], out[1:] != out[:-1])))
+            ends = np.concatenate((edges[1:], [out.size]))
+            length = t[np.minimum(ends, out.size - 1)] - t[edges]
+            sgr = out[edges]
+            if pass_ == 0:
+                dip = (sgr == 0) & (length < REST_MIN)
+                dip[[0, -1]] = False
+                dip[1:-1] &= (sgr[:-2] == sgr[2:]) & (sgr[:-2] != 0)
+                short, fill = dip, np.concatenate(([0.0], sgr[:-1]))
+            else:
+                short, fill = (sgr != 0) & (length < REST_MIN), np.zeros(sgr.size)
+            out = np.repeat(np.where(short, fill, sgr), ends - edges)
+        return out
+
+    rng = np.random.default_rng(23)
+    for trial in range(300):
+        n = int(rng.integers(1, 120))
+        sg = rng.choice([-1.0, 0.0, 1.0], size=n, p=rng.dirichlet(np.ones(3)))
+        sg = np.repeat(sg, rng.integers(1, 6, n))[:n]
+        t = np.cumsum(rng.random(n) * 0.04)
+        cl = per_sample(sg, t)
+        edges, sgr = _cleaned(sg, t)
+        assert np.array_equal(edges, np.flatnonzero(np.concatenate(([True], cl[1:] != cl[:-1])))), trial
+        assert np.array_equal(sgr, cl[edges]), trial

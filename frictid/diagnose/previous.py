@@ -20,17 +20,17 @@ from .samples import Samples
 from .signals import REST_MIN, _moves, rests
 
 
-def _cleaned(sg: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """The run signs of one log with the short runs taken out: a rest shorter than
-    :data:`frictid.diagnose.signals.REST_MIN` between two runs of one direction is part of the move (a dip of
-    the measured velocity), and a run of motion shorter than that is part of the rest around it (a loop
-    hunting at rest, noise across the speed threshold)."""
-    out = sg.copy()
+def _cleaned(sg: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The runs of one log's run signs ``sg`` with the short runs taken out, as (first index, sign) per run:
+    a rest shorter than :data:`frictid.diagnose.signals.REST_MIN` between two runs of one direction is part
+    of the move (a dip of the measured velocity), and a run of motion shorter than that is part of the rest
+    around it (a loop hunting at rest, noise across the speed threshold). Worked on the runs (a run that takes
+    its neighbour's sign merges with it), not spread over every sample of the log between the two passes."""
+    edges = np.flatnonzero(np.concatenate(([True], sg[1:] != sg[:-1])))
+    sgr = sg[edges]
     for pass_ in (0, 1):
-        edges = np.flatnonzero(np.concatenate(([True], out[1:] != out[:-1])))
-        ends = np.concatenate((edges[1:], [out.size]))
-        length = t[np.minimum(ends, out.size - 1)] - t[edges]
-        sgr = out[edges]
+        ends = np.concatenate((edges[1:], [sg.size]))
+        length = t[np.minimum(ends, sg.size - 1)] - t[edges]
         if pass_ == 0:   # dips within a move
             dip = (sgr == 0) & (length < REST_MIN)
             dip[[0, -1]] = False
@@ -40,8 +40,10 @@ def _cleaned(sg: np.ndarray, t: np.ndarray) -> np.ndarray:
         else:            # twitches at rest
             short = (sgr != 0) & (length < REST_MIN)
             fill = np.zeros(sgr.size)
-        out = np.repeat(np.where(short, fill, sgr), ends - edges)
-    return out
+        vals = np.where(short, fill, sgr)
+        first = np.concatenate(([True], vals[1:] != vals[:-1]))   # runs that now carry one sign merge
+        edges, sgr = edges[first], vals[first]
+    return edges, sgr
 
 
 def previous_travel(S: Samples) -> np.ndarray:
@@ -57,12 +59,10 @@ def previous_travel(S: Samples) -> np.ndarray:
                 continue
             k = S.k[sel]
             sg, st, pv = _moves(S.log_w(i), S.v_min, k)
-            cl = _cleaned(sg, lg.t)
+            edges, sgr = _cleaned(sg, lg.t)
             q = finite(lg.q)
-            edges = np.flatnonzero(np.concatenate(([True], cl[1:] != cl[:-1])))
-            ends = np.concatenate((edges[1:], [cl.size - 1]))
+            ends = np.concatenate((edges[1:], [sg.size - 1]))
             travel = np.abs(q[ends] - q[edges])
-            sgr = cl[edges]
             # the move before each run: the run before it, or the one before a rest
             j = np.arange(edges.size) - 1
             j = np.where((j >= 0) & (sgr[np.maximum(j, 0)] == 0), j - 1, j)
