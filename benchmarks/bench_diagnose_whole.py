@@ -23,6 +23,12 @@ them its proposals' and its folds' sums; on a long log a candidate's trial on th
 fit with the diagnosis has grown the heap to its peak).
 ``--passes``: the parts of one pass of the diagnosis' sums (current model's columns, new columns, products)
 over as many random samples as the diagnosis slid, for 1-30 new columns.
+``--budget``: the whole CPU budget of one more fit without and one with the diagnosis, in exclusive parts
+(:data:`BUDGET_SPOTS` wrapped for the two fits only): the fit's own steps (the same with and without the
+diagnosis), then the diagnosis (its samples, the chain's set-up, the candidates' lists, their trials on the
+stride and on all samples, the screen's bounds besides its trials, the choice and confound rules, the chosen
+term on all samples, the refits after a step, the findings and sentences, the structure tests) and the check
+(its replays, sample sets, map fits and held-out refits, stored RMS).
 
 ``FRICTID_SMOKE=1`` shrinks the log to one minute of cycles (a few seconds), the same code path.
 """
@@ -175,6 +181,102 @@ def pass_times(n: int, seed: int = 0) -> None:
                 print(f"  {name}, {k:2d} new: {t[0]:5.1f} {t[1]:5.1f} {t[2]:6.1f}")
 
 
+#: (module, attribute) of what ``--budget`` times; "Class.method" for methods. Each key is timed on its outermost
+#: call, and apart within the keys of :data:`BUDGET_WITHIN` it runs inside (a trial inside the screen).
+BUDGET_SPOTS = [("frictid.identify.prepare", "prepare"), ("frictid.identify.mechanics", "rigid_body"),
+                ("frictid.identify.maps", "static_maps"), ("frictid.identify.validity", "of_joint"),
+                ("frictid.api", "diagnose_fit"), ("frictid.api", "check_diagnosis"),
+                ("frictid.diagnose.joint", "build_samples"), ("frictid.diagnose.joint", "_chain"),
+                ("frictid.diagnose.joint", "_findings"), ("frictid.diagnose.joint", "_structure"),
+                ("frictid.diagnose.chain", "candidates"), ("frictid.diagnose.chain", "Chain._screened"),
+                ("frictid.diagnose.chain", "Chain.evaluate"), ("frictid.diagnose.chain", "Chain._choose_sound"),
+                ("frictid.diagnose.chain", "Chain.choose"), ("frictid.diagnose.chain", "Chain._before"),
+                ("frictid.diagnose.chain", "Chain.run"), ("frictid.diagnose.check", "_static_targets"),
+                ("frictid.diagnose.check", "_stored_rms"), ("frictid.identify.samples", "build"),
+                ("frictid.diagnose.check", "_same_samples"), ("frictid.identify.samples", "fit_map")]
+BUDGET_WITHIN = ("_screened", "run", "_choose_sound")
+
+
+def budget_times(run) -> dict:
+    """CPU time of ``run()`` (key ``total``) and of each :data:`BUDGET_SPOTS` function within it, on its
+    outermost call (key: the function's name), and apart where it runs inside a :data:`BUDGET_WITHIN` one
+    (key ``name@outer``). The functions are wrapped where they are defined and where ``frictid.api`` imported
+    them, for the call only."""
+    import collections
+    import functools
+    import importlib
+
+    spent, depth, undo = collections.defaultdict(float), collections.Counter(), []
+    api = importlib.import_module("frictid.api")
+    for mod, attr in BUDGET_SPOTS:
+        owner = importlib.import_module(mod)
+        *path, name = attr.split(".")
+        for part in path:
+            owner = getattr(owner, part)
+        fn = getattr(owner, name)
+
+        @functools.wraps(fn)
+        def timed(*a, _fn=fn, _k=name, **kw):
+            outer = [k for k in BUDGET_WITHIN if depth[k] and k != _k]
+            depth[_k] += 1
+            t0 = time.process_time()
+            try:
+                return _fn(*a, **kw)
+            finally:
+                depth[_k] -= 1
+                if depth[_k] == 0:
+                    dt = time.process_time() - t0
+                    spent[_k] += dt
+                    for k in outer:
+                        spent[f"{_k}@{k}"] += dt
+        for where in (owner, api):
+            if getattr(where, name, None) is fn:
+                setattr(where, name, timed)
+                undo.append((where, name, fn))
+    try:
+        t0 = time.process_time()
+        run()
+        spent["total"] = time.process_time() - t0
+    finally:
+        for where, name, fn in reversed(undo):
+            setattr(where, name, fn)
+    return dict(spent)
+
+
+def print_budget(without: dict, with_: dict) -> None:
+    """The budget of :func:`budget_times` of a fit without and one with the diagnosis, in exclusive parts."""
+    for label, s in (("without", without), ("with", with_)):
+        g = lambda k, s=s: s.get(k, 0.0)  # noqa: E731
+        fit = g("prepare") + g("rigid_body") + g("static_maps") + g("of_joint")
+        print(f"budget, fit {label} the diagnosis: CPU {g('total'):.2f} s; the fit's steps {fit:.2f} s (prepare "
+              f"{g('prepare'):.2f}, rigid body {g('rigid_body'):.2f}, static maps {g('static_maps'):.2f}, validity "
+              f"{g('of_joint'):.2f}), the rest {g('total') - fit - g('diagnose_fit') - g('check_diagnosis'):.2f} s")
+    g = lambda k: with_.get(k, 0.0)  # noqa: E731
+    ev_stride = g("evaluate@_screened")
+    check_parts = g("_static_targets") + g("build") + g("_same_samples") + g("fit_map") + g("_stored_rms")
+    rows = [("samples (build_samples)", g("build_samples")),
+            ("chain set-up: base refits, columns, stride (_chain)", g("_chain")),
+            ("candidates' lists (candidates)", g("candidates")),
+            ("trials on the stride (evaluate within _screened)", ev_stride),
+            ("the screen besides its trials (_screened less them)", g("_screened") - ev_stride),
+            ("trials on all samples (evaluate)", g("evaluate") - ev_stride - g("evaluate@_choose_sound")),
+            ("choice and confound rules (choose)", g("choose")),
+            ("chosen term on all samples (_choose_sound less choose)", g("_choose_sound") - g("choose")),
+            ("refits after a step (_before in run)", g("_before@run") - g("_before@_screened")
+             - g("_before@_choose_sound")),
+            ("findings, models, sentences (_findings)", g("_findings")),
+            ("structure tests (_structure)", g("_structure"))]
+    rows.append(("the diagnosis' rest", g("diagnose_fit") - sum(v for _, v in rows)))
+    rows += [("check: replays and targets (_static_targets)", g("_static_targets")),
+             ("check: sample sets (build, _same_samples)", g("build") + g("_same_samples")),
+             ("check: map fits and held-out refits (fit_map)", g("fit_map")),
+             ("check: stored parameters' RMS (_stored_rms)", g("_stored_rms")),
+             ("check: rest", g("check_diagnosis") - check_parts)]
+    print(f"  diagnosis {g('diagnose_fit'):.2f} s and its check {g('check_diagnosis'):.2f} s, of them (exclusive):")
+    for k, v in rows:
+        print(f"    {k:<56} {v:6.3f} s")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=60.0, help="pick-and-place cycles [min]")
@@ -187,6 +289,8 @@ def main(argv=None) -> int:
                     help="also time the pair of fits (without, with the diagnosis) this many times more")
     ap.add_argument("--passes", action="store_true",
                     help="also the parts of one pass of the diagnosis' sums over as many samples as it slid")
+    ap.add_argument("--budget", action="store_true",
+                    help="also the whole CPU budget of one fit without and one with the diagnosis, in exclusive parts")
     args = ap.parse_args(argv)
     smoke = os.environ.get("FRICTID_SMOKE") == "1"
     minutes = 1.0 if smoke else args.minutes
@@ -233,6 +337,9 @@ def main(argv=None) -> int:
         print_candidates(*candidate_times(lambda: frictid.fit(logs, models=ds.FIT_MODELS)))
     if args.passes:
         pass_times(int(rec.get("samples", 0)) or lg.n)
+    if args.budget:
+        print_budget(budget_times(lambda: frictid.fit(logs, models=ds.FIT_MODELS, diagnose=False)),
+                     budget_times(lambda: frictid.fit(logs, models=ds.FIT_MODELS)))
     print(f"load average at the end {load():.1f}")
     return 0
 
