@@ -400,18 +400,7 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
     group, fold = group[order], fold[order]
     for name in ("t", "th", "li", "k"):
         cat[name] = cat[name][order]
-    per_log = [cat["li"] == i for i in range(len(logs))] if len(logs) > 1 else None
-
-    def take(name, full=None):
-        arrs = [full(lg) if full else lg.channels.get(name) for lg in logs]
-        if any(arr is None for arr in arrs):
-            return None
-        if per_log is None:
-            return np.asarray(arrs[0], float)[cat["k"]]
-        out = np.empty(cat["k"].size)
-        for sel, arr in zip(per_log, arrs):
-            out[sel] = np.asarray(arr, float)[cat["k"][sel]]
-        return out
+    take = _taker(logs, cat["li"], cat["k"])
 
     has_q = all(lg.q is not None for lg in logs)
     env = take("temp_env")
@@ -430,6 +419,25 @@ def build_samples(logs: list[DiagLog], n_folds: int = 5, edge: int | None = None
     S._memo.update((("dt", i), dt) for i, dt in enumerate(dts))
     S._memo.update((("log_w", i), w) for i, w in enumerate(w_nan0))
     return S
+
+
+def _taker(logs: list[DiagLog], li: np.ndarray, k: np.ndarray):
+    """``take(name, full=None)``: the samples' values of a per-sample array of the logs (``full(log)``, or the
+    channel ``name``; None when a log lacks it), sample ``j`` from log ``li[j]`` at index ``k[j]``: one gather
+    per log, in the samples' order."""
+    per_log = [li == i for i in range(len(logs))] if len(logs) > 1 else None
+
+    def take(name, full=None):
+        arrs = [full(lg) if full else lg.channels.get(name) for lg in logs]
+        if any(arr is None for arr in arrs):
+            return None
+        if per_log is None:
+            return np.asarray(arrs[0], float)[k]
+        out = np.empty(k.size)
+        for sel, arr in zip(per_log, arrs):
+            out[sel] = np.asarray(arr, float)[k[sel]]
+        return out
+    return take
 
 
 #: The per-sample arrays of :class:`Samples`.
