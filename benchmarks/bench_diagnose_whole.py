@@ -194,7 +194,7 @@ BUDGET_SPOTS = [("frictid.identify.prepare", "prepare"), ("frictid.identify.mech
                 ("frictid.diagnose.chain", "Chain.run"), ("frictid.diagnose.check", "_static_targets"),
                 ("frictid.diagnose.check", "_stored_rms"), ("frictid.identify.samples", "build"),
                 ("frictid.diagnose.check", "_same_samples"), ("frictid.identify.samples", "fit_map")]
-BUDGET_WITHIN = ("_screened", "run", "_choose_sound")
+BUDGET_WITHIN = ("_screened", "run", "_choose_sound", "check_diagnosis")
 
 
 def budget_times(run) -> dict:
@@ -253,7 +253,9 @@ def print_budget(without: dict, with_: dict) -> None:
               f"{g('of_joint'):.2f}), the rest {g('total') - fit - g('diagnose_fit') - g('check_diagnosis'):.2f} s")
     g = lambda k: with_.get(k, 0.0)  # noqa: E731
     ev_stride = g("evaluate@_screened")
-    check_parts = g("_static_targets") + g("build") + g("_same_samples") + g("fit_map") + g("_stored_rms")
+    # the fit builds sample sets and fits maps on them too (a joint's sample basis): the check's own only
+    check_parts = (g("_static_targets") + g("build@check_diagnosis") + g("_same_samples")
+                   + g("fit_map@check_diagnosis") + g("_stored_rms"))
     rows = [("samples (build_samples)", g("build_samples")),
             ("chain set-up: base refits, columns, stride (_chain)", g("_chain")),
             ("candidates' lists (candidates)", g("candidates")),
@@ -268,8 +270,8 @@ def print_budget(without: dict, with_: dict) -> None:
             ("structure tests (_structure)", g("_structure"))]
     rows.append(("the diagnosis' rest", g("diagnose_fit") - sum(v for _, v in rows)))
     rows += [("check: replays and targets (_static_targets)", g("_static_targets")),
-             ("check: sample sets (build, _same_samples)", g("build") + g("_same_samples")),
-             ("check: map fits and held-out refits (fit_map)", g("fit_map")),
+             ("check: sample sets (build, _same_samples)", g("build@check_diagnosis") + g("_same_samples")),
+             ("check: map fits and held-out refits (fit_map)", g("fit_map@check_diagnosis")),
              ("check: stored parameters' RMS (_stored_rms)", g("_stored_rms")),
              ("check: rest", g("check_diagnosis") - check_parts)]
     print(f"  diagnosis {g('diagnose_fit'):.2f} s and its check {g('check_diagnosis'):.2f} s, of them (exclusive):")
