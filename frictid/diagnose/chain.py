@@ -219,9 +219,10 @@ class Chain:
         ev = Evaluator(st, self.ctx)
         pred = np.empty(S.n)
         self.train_info = []
-        for f in range(S.n_folds):
-            tr = np.flatnonzero(S.fold != f)
-            te = np.flatnonzero(S.fold == f)
+        # each fold's training and held-out samples: the samples' own, formed once for every refit of the chain
+        folds = S.cached("fold_rows", lambda: [(np.flatnonzero(S.fold != f), np.flatnonzero(S.fold == f))
+                                               for f in range(S.n_folds)])
+        for f, (tr, te) in enumerate(folds):
             c = ev.fit(tr)
             pred[te] = ev.predict(c, _rows(te))
             self.train_info.append((tr, te, S.F[tr] - _on_training(ev.predict, c, tr, te),
