@@ -49,3 +49,23 @@ def test_sigma0_of_damped_bristles_from_the_reversals(seed, tmp_path):
         assert 1 / 1.5 < s0.value / sigma0 < 1.5 and abs(s0.value - sigma0) <= 2.0 * s0.stderr
     else:  # the damped best more than a factor 2 away: the undamped kept, its error spanning the damped one
         assert abs(s0.value - sigma0) <= s0.stderr, (s0.value, s0.stderr, sigma0)
+
+
+def test_a_ripple_under_damped_bristles_is_searched_on_their_residual(tmp_path):
+    """A damped joint with a position ripple (session 24; session 23 merged the ripple and the damping without
+    one): seed 302's plant (damping ratio 0.7-0.95, the damped bristles kept above) with a cogging ripple of
+    4.5 N m (a tenth of the Coulomb level) every 2 pi / 800 rad, on a log that declares its positions absolute.
+    The damped bristles are chosen, and the ripple's period and amplitude come from the residual they leave
+    (before d8720db it was searched on the undamped model's residual, and no ripple was found)."""
+    path, sigma0 = _plant(302, tmp_path)
+    (lg, *_) = simulate_recipe("recipes/multisine.yaml", plant=str(path), seed=302, duration_scale=0.3)
+    P = 2 * math.pi / 800
+    A = 4.5
+    lg.tau = lg.tau + A * np.sin(2 * math.pi * lg.q / P + 0.7)
+    lg.meta["position_absolute"] = True
+    jf = frictid.fit([lg], models="polynomial,lugre")[lg.joint]
+    p = jf.models["lugre"].params
+    assert p["sigma1"].value > 0, p["sigma1"].reason  # the damped bristles chosen
+    assert 1 / 1.5 < p["sigma0"].value / sigma0 < 1.5
+    assert abs(p["rip_period"].value - P) < 0.002 * P
+    assert abs(math.hypot(p["rip_sin"].value, p["rip_cos"].value) - A) < 0.1 * A

@@ -283,13 +283,16 @@ def _multisine_fit(plant: str, seed: int):
 
 def test_sigma0_from_the_reversals_of_a_multisine():
     """No ramps: sigma0 from the stops and reversals of a multi-sine (identify/reversals.py). The hydraulic
-    plant's bristles (0.75 mrad at break-away, 31 encoder steps) are found, their truth within the error,
-    and LuGre predicts the held-out blocks better and is chosen; the direct drive's (0.03 mrad, under its
-    0.08 mrad encoder step) are not, and sigma0 says why."""
+    plant's bristles (0.75 mrad at break-away, 31 encoder steps) are found, their truth within 2 errors of 20 %
+    at most, and LuGre predicts the held-out blocks better and is chosen; the direct drive's (0.03 mrad, under
+    its 0.08 mrad encoder step) are not, and sigma0 says why."""
     lg, jf = _multisine_fit("hydraulic", 0)
     s0, truth = jf.models["lugre"].params["sigma0"], lg.truth["params"]["sigma0"]
     assert s0.identifiable and "reversals" in s0.source
     assert abs(s0.value - truth) <= 2 * s0.stderr and s0.stderr < s0.value
+    # its error from the data, not the grid's spacing (session 24: 36 % before, the half-step floor; 6 %, the
+    # truth 13 % off at 1.8 errors, the damping ratio 0 chosen where the plant's is about 0.8)
+    assert s0.stderr < 0.2 * s0.value
     assert jf.models["lugre"].params["sigma1"].fixed
     met = jf.models["lugre"].metrics
     assert met["rms_heldout_reversals"] < 0.5 * met["rms_heldout_static_reversals"]
