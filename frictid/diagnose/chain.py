@@ -810,7 +810,10 @@ AT_ONE_SPEED_EXTS = ("dwell",)
 #: Extensions that yield to a worthy delay explaining more torque where it shows (:meth:`Chain._delay_before_dwell`):
 #: their variables are largest where a delay's residual is, at the start of a move (the rest before it) and
 #: in the transients (the torque the transmission carries, ``|J a + G|``); tested again on the delay's model.
-YIELD_TO_DELAY_EXTS = AT_ONE_SPEED_EXTS + ("load_torque", "load_gravity")
+#: Since session 24 the position terms too: on sweeps the accelerations sit at the ends of the travel, so a
+#: delay's transients are a smooth function of the position there (foreign seed 330303, a 35.9 ms delay of
+#: 18 %: ``position_smooth`` named first while the shift explained 7.2 N m of every moving sample).
+YIELD_TO_DELAY_EXTS = AT_ONE_SPEED_EXTS + ("load_torque", "load_gravity") + POSITION_EXTS
 
 
 def speed_bins(S: Samples) -> np.ndarray:
