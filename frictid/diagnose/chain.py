@@ -811,7 +811,10 @@ AT_ONE_SPEED_EXTS = ("dwell",)
 #: Extensions that yield to a worthy delay explaining more torque where it shows (:meth:`Chain._delay_before_dwell`):
 #: their variables are largest where a delay's residual is, at the start of a move (the rest before it) and
 #: in the transients (the torque the transmission carries, ``|J a + G|``); tested again on the delay's model.
-YIELD_TO_DELAY_EXTS = AT_ONE_SPEED_EXTS + ("load_torque", "load_gravity")
+#: Since session 24 the position terms too: on sweeps the accelerations sit at the ends of the travel, so a
+#: delay's transients are a smooth function of the position there (foreign seed 330303, a 35.9 ms delay of
+#: 18 %: ``position_smooth`` named first while the shift explained 7.2 N m of every moving sample).
+YIELD_TO_DELAY_EXTS = AT_ONE_SPEED_EXTS + ("load_torque", "load_gravity") + POSITION_EXTS
 
 
 def speed_bins(S: Samples) -> np.ndarray:
@@ -980,14 +983,12 @@ def _band_shares(S: Samples, rw: np.ndarray, dw: np.ndarray) -> list[tuple[float
     return out
 
 
-def _grows_with_speed(S: Samples, tr: Trial, rw: np.ndarray, dw: np.ndarray, m: int) -> str | None:
-    """Why a position candidate is a vibration of the speed, not a torque of the position, or None. A torque
-    that depends on the position reaches the measured torque at every speed: a closed loop attenuates it
-    where ``v / P`` lies above its bandwidth and raises it at most by its resonance peak
-    (:data:`LOOP_PEAK_MAX`). A correction whose share of the residual (:func:`_band_shares`) is
-    significantly more than that many times larger in a faster band than in every slower one (the largest
-    of them) lives at some speeds only: a vibration at the time frequency ``v / P`` (a resonance the motion
-    passes through), which the position stands in for on a repeated program."""
+def speed_growth(S: Samples, rw: np.ndarray, dw: np.ndarray, m: int) -> dict | None:
+    """Where a correction ``dw`` of the position lives at some speeds only, or None: its share of the residual
+    ``rw`` (both within cells, :func:`_band_shares`) in a faster band exceeds :data:`LOOP_PEAK_MAX` times the
+    largest share of the slower bands by more than the one-sided quantile of ``ALPHA / (m (bands - 1))``
+    (the held-out groups' standard errors). The numbers of the first such band: ``share``, ``lo``, ``hi``,
+    the slower band's ``share_slow``, ``lo_slow``, ``hi_slow``, and ``z``."""
     bands = _band_shares(S, rw, dw)
     if len(bands) < 2:
         return None
@@ -998,11 +999,26 @@ def _grows_with_speed(S: Samples, tr: Trial, rw: np.ndarray, dw: np.ndarray, m: 
         excess = bk - LOOP_PEAK_MAX * bj
         se = math.hypot(sk, LOOP_PEAK_MAX * sj)
         if excess > z * se:
-            return (f"{tr.ext} grows with the speed: it carries {bk:.2f} of its correction at {lo_k:.3g}-{hi_k:.3g} "
-                    f"against {bj:.2f} at {lo_j:.3g}-{hi_j:.3g} (speed units; held-out groups, z = {excess / se:.1f}): "
-                    f"a closed loop passes a torque of the position at every speed, at most "
-                    f"{LOOP_PEAK_MAX:g}x more at a higher one; a vibration at the time frequency v / P is not one")
+            return {"share": bk, "lo": lo_k, "hi": hi_k, "share_slow": bj, "lo_slow": lo_j, "hi_slow": hi_j,
+                    "z": excess / se}
     return None
+
+
+def _grows_with_speed(S: Samples, tr: Trial, rw: np.ndarray, dw: np.ndarray, m: int) -> str | None:
+    """Why a position candidate is a vibration of the speed, not a torque of the position, or None. A torque
+    that depends on the position reaches the measured torque at every speed: a closed loop attenuates it
+    where ``v / P`` lies above its bandwidth and raises it at most by its resonance peak
+    (:data:`LOOP_PEAK_MAX`). A correction whose share of the residual (:func:`_band_shares`) is
+    significantly more than that many times larger in a faster band than in every slower one (the largest
+    of them, :func:`speed_growth`) lives at some speeds only: a vibration at the time frequency ``v / P`` (a
+    resonance the motion passes through), which the position stands in for on a repeated program."""
+    g = speed_growth(S, rw, dw, m)
+    if g is None:
+        return None
+    return (f"{tr.ext} grows with the speed: it carries {g['share']:.2f} of its correction at {g['lo']:.3g}-{g['hi']:.3g} "
+            f"against {g['share_slow']:.2f} at {g['lo_slow']:.3g}-{g['hi_slow']:.3g} (speed units; held-out groups, "
+            f"z = {g['z']:.1f}): a closed loop passes a torque of the position at every speed, at most "
+            f"{LOOP_PEAK_MAX:g}x more at a higher one; a vibration at the time frequency v / P is not one")
 
 
 #: A delay is resolved by the log's rate when it is at least this many sample periods (the sampling places

@@ -282,7 +282,7 @@ def _step_model(jf: JointFit, step: dict, tr: Trial, S: Samples, base: str, rigi
 def _structure(jf: JointFit, chain: Chain, S: Samples, rec: dict) -> None:
     """The residual structure tests after the chain's last model (:mod:`.structure`); a structure worth
     stating goes to ``rec['unexplained']`` and the joint's warnings."""
-    units = {"F": jf.units.get("tau", "N m"), "q": jf.units.get("q", "rad")}
+    units = {"F": jf.units.get("tau", "N m"), "q": jf.units.get("q", "rad"), "w": jf.units.get("qd", "rad/s")}
     tests, text = unexplained(S, S.F - chain.pred, chain.F_rms, units, f"the diagnosis' model {chain.st.name}")
     rec["structure"] = {"noise": torque_noise(S), "model": chain.st.name,
                         "rule": ("held-out bin means of the residual against each variable (training folds "

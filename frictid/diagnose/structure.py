@@ -26,9 +26,9 @@ import math
 
 import numpy as np
 
-from .binned import heldout_binned, heldout_cells
+from .binned import fold_parts, heldout_binned, heldout_cells
 from .causes import X_NOISE, torque_noise
-from .chain import ALPHA, EXPLAINED_MIN, group_d, paired_t
+from .chain import ALPHA, EXPLAINED_MIN, _within, group_d, paired_t, speed_cells, speed_growth
 from .previous import previous_cells
 from .samples import Samples
 from .signals import torque_rate
@@ -151,6 +151,30 @@ def position_period(S: Samples, r: np.ndarray) -> float | None:
     return None if pr is None else best_period(S.q, r, np.ones_like(r), pr)
 
 
+def vibration(S: Samples, r: np.ndarray, m: int, period: float | None) -> dict | None:
+    """Where the residual's structure in the position lives at some speeds only (:func:`.chain.speed_growth`,
+    the test that rejects a position candidate as a vibration), or None: the held-out correction of the
+    structure stated (the sinusoid of ``period`` in the position, fitted on the training folds; without a
+    period, the held-out bin means of r in the position) and r, each less its mean and its line in the
+    velocity in every cell of one segment and one speed bin (:func:`.chain.speed_cells`), their shares in
+    bands of the speed. A torque of the position reaches the measured torque at every speed through a
+    closed loop; a resonance the motion passes through at some speeds, on a repeated program, falls at the
+    same positions every cycle (frictid's geared joint in a pick-and-place program,
+    ``benchmarks/bench_diagnose_whole.py``)."""
+    if period is None:
+        d = heldout_binned(S, r, S.q)
+    else:
+        x = 2.0 * math.pi * S.q / period
+        X = np.column_stack([np.sin(x), np.cos(x), np.ones(S.n)])
+        d = np.empty(S.n)
+        for te in fold_parts(S):
+            train = np.ones(S.n, dtype=bool)
+            train[te] = False
+            d[te] = X[te] @ np.linalg.lstsq(X[train], r[train], rcond=None)[0]
+    cell = speed_cells(S)
+    return speed_growth(S, _within(cell, r, S.w), _within(cell, d, S.w), m)
+
+
 def unexplained(S: Samples, r: np.ndarray, F_rms: float, units: dict, model: str = "the best model"
                 ) -> tuple[list[dict], str | None]:
     """(the tests, the sentence on the strongest structure worth stating or None); model : the name of the
@@ -162,16 +186,24 @@ def unexplained(S: Samples, r: np.ndarray, F_rms: float, units: dict, model: str
     if not large:
         return tests, None
     top = large[0]
-    what = top["label"]
+    what, why = top["label"], ""
     if top["variable"] == "position":
         P = position_period(S, r)
-        if P is not None:
+        g = vibration(S, r, sum(1 for e in tests if e["variable"] != "wander") + 1, P)
+        top["speed_growth"] = g
+        if g is not None:
+            what += " at some speeds only"
+            why = (f"; its correction carries {g['share']:.2f} of the residual at {g['lo']:.3g}-{g['hi']:.3g} "
+                   f"{units.get('w', 'speed units')} against {g['share_slow']:.2f} at {g['lo_slow']:.3g}-"
+                   f"{g['hi_slow']:.3g} (z = {g['z']:.1f}): a vibration the motion excites at those speeds, which a "
+                   f"repeated program places at the same positions, not a torque of the position")
+        elif P is not None:
             what += f" (period {P:.3g} {units.get('q', 'rad')})"
     others = [e["label"] for e in large[1:] if e["variable"] != "wander"]
     xn = f"{top['x_noise']:.0f}x the sensor noise" if math.isfinite(top["x_noise"]) else "noise-free torque"
     text = (f"residual varies with {what} after {model}: {top['explained_rms']:.3g} "
             f"{units.get('F', 'N m')} RMS, {100 * top['of_friction_rms']:.0f} % of the friction RMS, {xn}"
-            + (f" (also seen against {', '.join(others)})" if others else "")
+            + (f" (also seen against {', '.join(others)})" if others else "") + why
             + "; no candidate explains it")
     if top["variable"] == "wander":
         text = (f"residual wanders from segment to segment after {model}: {top['explained_rms']:.3g} "
