@@ -580,6 +580,18 @@ def _fold_delay_terms(S: Samples) -> list:
     return S.cached("delay_fold_terms", compute)
 
 
+def share_delay_terms(S: Samples, sub: Samples) -> None:
+    """Give ``sub``, a stride of S's samples (:mod:`frictid.diagnose.search`), S's training sets' delay terms
+    once S has estimated them (:func:`delay_estimates`, :func:`_fold_delay_terms`): a screen's delay terms
+    are the whole logs' (:meth:`frictid.diagnose.chain.Chain._propose`), and with them :func:`delay_column`
+    on the stride forms the five training sets' columns in one pass (:func:`_delay_columns_at`), not one
+    pass per column, each over the whole logs' length. A sample's value does not depend on the other
+    samples of the pass: the same columns."""
+    if S.has("delay_estimates") and not sub.has("delay_fold_terms"):
+        sub.cached("delay_estimates", lambda: delay_estimates(S))
+        sub.cached("delay_fold_terms", lambda: _fold_delay_terms(S))
+
+
 def delay_column(S: Samples, shift_s: float, beta: tuple = ()) -> np.ndarray:
     """At the sliding samples: ``(T(t + shift/2) - T(t - shift/2)) / shift`` [F/s] with ``T`` the torque the
     motion explains (:func:`_torque_model`, the map fitted with the delay): the rate of the torque over the
