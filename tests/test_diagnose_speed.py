@@ -352,28 +352,3 @@ def test_kept_bins_are_found_for_the_same_values_only(S):
     z[0] = np.nan
     assert _bins_of(S, z, nb) is not b0 and _bins_of(S, z, nb) is not by
 
-
-def test_a_screen_s_delay_columns_are_formed_together_and_are_the_whole_logs_at_the_stride(S, monkeypatch):
-    """The screen's delay terms are the whole logs' (one per training set): on the stride their five columns
-    come from one pass (:func:`frictid.diagnose.signals.share_delay_terms`), each equal to the whole logs'
-    column at the stride's samples."""
-    from frictid.diagnose import search
-    from frictid.diagnose.chain import Chain
-
-    monkeypatch.setattr(search, "STRIDE_MIN", 1 << 12)
-    monkeypatch.setattr(search, "STRIDE_TARGET", 1 << 13)
-    cp, _ = sm.canonical_pair("stribeck", TRUE)
-    ch = Chain(S, Structure("stribeck", cp, ()))
-    sub = ch._screen_chain()
-    calls = []
-    real = sg._delay_columns_at
-    monkeypatch.setattr(sg, "_delay_columns_at", lambda S_, items: calls.append((S_, len(items))) or real(S_, items))
-    tr = sub.evaluate("delay", 10)
-    assert tr is not None
-    on_stride = [n for s, n in calls if s is sub.S]
-    shifts = [t.settings["shift"] for t in tr.fold_terms]
-    assert on_stride == [sum(1 for x in set(shifts) if x)]   # one pass, every training set's column
-    for t in tr.fold_terms:
-        if t.settings["shift"]:
-            col = sg.delay_column(sub.S, t.settings["shift"], t.settings["beta"])
-            np.testing.assert_array_equal(col, sg.delay_column(S, t.settings["shift"], t.settings["beta"])[ch.stride.sel])
