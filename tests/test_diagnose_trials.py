@@ -75,3 +75,25 @@ def test_the_position_torque_s_periodogram_bins_are_best_period_s_own(S, fold):
             np.testing.assert_array_equal(j2, np.minimum(((q - q0) / h2).astype(np.int64), int(rng / h2)))
             np.testing.assert_array_equal(B2, np.bincount(j2, weights=np.ones(idx.size), minlength=int(rng / h2) + 1))
         assert best_period(None, resid, None, pr, bins=(q0, rng, j2, B2)) == best_period(q, resid, np.ones(idx.size), pr)
+
+
+@pytest.mark.parametrize("shift", [-40, 0, 3, 40])
+def test_the_delay_search_s_sums_at_whole_shifts_are_those_of_the_shifted_torque(S, shift):
+    """The delay search reads the torque at whole shifts by one clipped gather (the ends of a log held):
+    per fold the sums X'y and y'y of the interpolated shifted torque (:func:`signals.shifted_torque`)."""
+    from frictid.data import finite
+
+    dt = S.dt(0)
+    XtX, XtY, yty = sg._delay_sums(S, shift * dt)
+    want_y, want_yy = np.zeros_like(XtY), np.zeros_like(yty)
+    for i, (km, fk) in enumerate(sg._moving_rows(S)):
+        lg = S.logs[i]
+        tau = finite(lg.tau)
+        X = sg._delay_columns(S, i, km)
+        y = lg.F[km] - tau[km] + sg.shifted_torque(tau, km.astype(float), float(shift))
+        for g in range(S.n_folds):
+            m = fk == g
+            want_y[g] += X[m].T @ y[m]
+            want_yy[g] += y[m] @ y[m]
+    np.testing.assert_allclose(XtY, want_y, rtol=1e-10, atol=1e-12 * np.abs(want_y).max())
+    np.testing.assert_allclose(yty, want_yy, rtol=1e-12)

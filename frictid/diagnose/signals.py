@@ -301,8 +301,9 @@ def _delay_prefetch_pass(S: Samples, todo: list) -> None:
                 XtX[g] += X.T @ X
             if not ns:
                 continue
-            if whole:   # shifted_torque at a whole shift, without its interpolation (the same numbers)
-                Y = tau[np.clip(k[:, None] - np.round(sh).astype(np.int64)[None, :], 0, lg.n - 1)]
+            if whole:   # shifted_torque at a whole shift, without its interpolation (the same numbers); the
+                # indices clipped to the log by the gather itself, not in a copy of them
+                Y = np.take(tau, k[:, None] - np.round(sh).astype(np.int64)[None, :], mode="clip")
             else:
                 Y = shifted_torque(tau, k.astype(float)[:, None] - sh[None, :], 0.0)
             Y += (lg.F[k] - tau[k])[:, None]
