@@ -499,3 +499,4 @@ def test_the_cleaned_runs_are_those_of_the_cleaned_signs_spread_over_the_log():
         edges, sgr = _cleaned(sg, t)
         assert np.array_equal(edges, np.flatnonzero(np.concatenate(([True], cl[1:] != cl[:-1])))), trial
         assert np.array_equal(sgr, cl[edges]), trial
+

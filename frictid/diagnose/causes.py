@@ -360,7 +360,7 @@ def _position_torque(ctx: Context, st: Structure, idx: np.ndarray, resid: np.nda
     S = ctx.S
     periods = [P for P in _torque_periods(S) if P > 0]
     if _period_range(S) is not None:
-        P = best_period(S.q[idx], resid, np.ones(idx.size), _period_range(S))
+        P = best_period(None, resid, None, _period_range(S), bins=ctx.position_bins(idx, _period_range(S)[0]))
         if P is not None:
             periods.append(float(P))
     terms = [Term("position_torque", "position_torque", "additive", (("period", float(P)),)) for P in periods]
@@ -432,31 +432,40 @@ def _score(Cr: np.ndarray, D: np.ndarray, sB: float) -> np.ndarray:
     return (cc * sr * sr - 2 * sc * sr * cr + ss * cr * cr) / det
 
 
-def best_period(q, resid, level, prange, n_keep: int = 3) -> float | None:
+def best_period(q, resid, level, prange, n_keep: int = 3, bins: tuple | None = None) -> float | None:
     """Period [q] of the level modulation ``level (a sin + b cos)(2 pi q / P)`` that best explains resid.
 
     A least-squares periodogram over frequencies ``1/P`` from ``1/P_max`` to ``1/P_min`` at a quarter
     cycle over the range: the sums of its 2x2 normal equations come from FFTs of ``resid * level`` and
     ``level^2`` binned in position (bins of ``P_min / 8``); the best few peaks are then refined on a fine
     frequency grid with the sums of every sample over bins of ``P_min / 32``.
+
+    bins : for a level of one (q and level then unused), the positions' lowest value, their range, each
+    sample's fine bin and the samples per fine bin, as computed here
+    (:meth:`frictid.diagnose.model.Context.position_bins`: kept for a training set, which the chain's
+    steps search again).
     """
-    if prange is None or q.size < 20:
+    if prange is None or (q.size if bins is None else bins[2].size) < 20:
         return None
     p_min, p_max = prange
-    q = np.asarray(q, float)
-    rr = np.asarray(resid, float) * np.asarray(level, float)
-    gg = np.asarray(level, float) ** 2
-    q0 = float(q.min())
-    rng = float(np.ptp(q))
+    h2 = p_min / 32.0
+    if bins is None:
+        q = np.asarray(q, float)
+        rr = np.asarray(resid, float) * np.asarray(level, float)
+        gg = np.asarray(level, float) ** 2
+        q0 = float(q.min())
+        rng = float(np.ptp(q))
+        nb2 = int(rng / h2) + 1
+        j2 = np.minimum(((q - q0) / h2).astype(np.int64), nb2 - 1)
+        B2 = np.bincount(j2, weights=gg, minlength=nb2)
+    else:
+        (q0, rng, j2, B2), rr = bins, np.asarray(resid, float)
+        nb2 = B2.size
     h = p_min / 8.0
     nb = int(rng / h) + 1
     # the fine bins of the refinement (below, P_min / 32) first: a coarse bin is four of them exactly (the
     # widths differ by a power of two, so (q - q0) / h2 is 4 (q - q0) / h to the last bit), its sums theirs
-    h2 = p_min / 32.0
-    nb2 = int(rng / h2) + 1
-    j2 = np.minimum(((q - q0) / h2).astype(np.int64), nb2 - 1)
     A2 = np.bincount(j2, weights=rr, minlength=nb2)
-    B2 = np.bincount(j2, weights=gg, minlength=nb2)
     A, B = (np.pad(x, (0, max(4 * nb - nb2, 0)))[:4 * nb].reshape(nb, 4).sum(axis=1) for x in (A2, B2))
     N = 1 << int(math.ceil(math.log2(max(8 * nb, 16))))
     FA = np.fft.rfft(A, N)

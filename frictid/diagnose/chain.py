@@ -41,7 +41,7 @@ from .model import VISCOUS_SLOTS, Coef, Context, Evaluator, Structure
 from .samples import Samples
 from .screen import explained_bound, gap_allowance, screen_record
 from .search import StrideSearch
-from .signals import REST_MIN, delay_heldout, rest_scales, rests
+from .signals import REST_MIN, delay_heldout, rest_scales, rests, share_delay_terms
 
 #: Family-wise false-finding level of one step of the chain (split over its candidates).
 ALPHA = 0.01
@@ -324,9 +324,11 @@ class Chain:
         candidate's grid of settings ranked on a stride of it (:mod:`.search`)."""
         if self.full is not None and ext == "delay":
             # a screen's delay: the shifts of the whole logs' moving samples, searched once for both chains
-            # (a delay's proposal reads no residual)
-            return propose(ext, self.full.ctx, self.full.st,
+            # (a delay's proposal reads no residual); the stride's columns of the five terms then in one pass
+            term = propose(ext, self.full.ctx, self.full.st,
                            self.full.idx_all if f is None else self.full.train_info[f][0], None, None, None)
+            share_delay_terms(self.full.S, self.S)
+            return term
         if self.full is not None and f is not None and self.full.stride.wants(ext):
             # a screen's grid search is the one the whole chain's trial makes (:meth:`StrideSearch.propose`)
             return self.full.stride.propose(ext, f, self.st, lambda: propose(ext, self.ctx, self.st, tr, res,

@@ -395,6 +395,41 @@ class Context:
         memo[keys] = T
         return T
 
+    def position_bins(self, idx: np.ndarray, p_min: float) -> tuple:
+        """The bins of :func:`frictid.diagnose.causes.best_period` over the positions of the samples idx with a
+        level of one (the position torque's periodogram): the lowest position, the range, each sample's bin of
+        ``p_min / 32`` and the samples per bin (floats), the same numbers as it computes. A sample's bin
+        depends on the lowest position and the range only: for all samples or a training set it is read off
+        the bins of every sample for that lowest position and range (an encoder's extremes recur: one array
+        serves every training set and every step of the chain), and the samples per bin are kept."""
+        S, fold = self.S, self.fold_of(idx)
+        h2 = p_min / 32.0
+        if fold is False:
+            q = np.asarray(S.q[idx], float)
+            q0, rng = float(q.min()), float(np.ptp(q))
+            nb2 = int(rng / h2) + 1
+            j2 = np.minimum(((q - q0) / h2).astype(np.int64), nb2 - 1)
+            return q0, rng, j2, np.bincount(j2, minlength=nb2).astype(float)
+        b = self._fold_bounds()
+        parts = [slice(b[g], b[g + 1]) for g in range(S.n_folds) if g != fold and b[g + 1] > b[g]]
+        key = ("position_bins", fold, float(p_min))
+        got = self._cache.get(key)
+        if got is None:
+            q0 = min(float(S.q[p].min()) for p in parts)
+            rng = float(np.float64(max(float(S.q[p].max()) for p in parts)) - np.float64(q0))   # np.ptp's
+            nb2 = int(rng / h2) + 1
+            every = ("position_bins_all", q0, nb2, h2)
+            if every not in self._cache:
+                self._cache[every] = np.minimum(((np.asarray(S.q, float) - q0) / h2).astype(np.int64), nb2 - 1)
+            got = (q0, rng, every, None)
+        q0, rng, every, B2 = got
+        j2 = self._cache[every]
+        j2 = j2 if fold is None else np.concatenate([j2[p] for p in parts])
+        if B2 is None:
+            B2 = np.bincount(j2, minlength=int(rng / h2) + 1).astype(float)
+            self._cache[key] = (q0, rng, every, B2)
+        return q0, rng, j2, B2
+
     def extremes(self, term: Term, cols=None) -> np.ndarray:
         """Rows of the term's columns (``cols`` of them, default all) among which every linear function of
         them reaches its largest and smallest value over the samples: the smallest and largest value of

@@ -300,8 +300,9 @@ def _delay_prefetch_pass(S: Samples, todo: list) -> None:
                 XtX[g] += X.T @ X
             if not ns:
                 continue
-            if whole:   # shifted_torque at a whole shift, without its interpolation (the same numbers)
-                Y = tau[np.clip(k[:, None] - np.round(sh).astype(np.int64)[None, :], 0, lg.n - 1)]
+            if whole:   # shifted_torque at a whole shift, without its interpolation (the same numbers); the
+                # indices clipped to the log by the gather itself, not in a copy of them
+                Y = np.take(tau, k[:, None] - np.round(sh).astype(np.int64)[None, :], mode="clip")
             else:
                 Y = shifted_torque(tau, k.astype(float)[:, None] - sh[None, :], 0.0)
             Y += (lg.F[k] - tau[k])[:, None]
@@ -577,6 +578,18 @@ def _fold_delay_terms(S: Samples) -> list:
         return [(float(d), delay_map(S, d, [g for g in range(nf) if g != f]))
                 for f, d in enumerate(delay_estimates(S))]
     return S.cached("delay_fold_terms", compute)
+
+
+def share_delay_terms(S: Samples, sub: Samples) -> None:
+    """Give ``sub``, a stride of S's samples (:mod:`frictid.diagnose.search`), S's training sets' delay terms
+    once S has estimated them (:func:`delay_estimates`, :func:`_fold_delay_terms`): a screen's delay terms
+    are the whole logs' (:meth:`frictid.diagnose.chain.Chain._propose`), and with them :func:`delay_column`
+    on the stride forms the five training sets' columns in one pass (:func:`_delay_columns_at`), not one
+    pass per column, each over the whole logs' length. A sample's value does not depend on the other
+    samples of the pass: the same columns."""
+    if S.has("delay_estimates") and not sub.has("delay_fold_terms"):
+        sub.cached("delay_estimates", lambda: delay_estimates(S))
+        sub.cached("delay_fold_terms", lambda: _fold_delay_terms(S))
 
 
 def delay_column(S: Samples, shift_s: float, beta: tuple = ()) -> np.ndarray:

@@ -1,0 +1,99 @@
+"""The candidates' trials on long logs: shortcuts that give the numbers of the plain computations they
+replace (issue 20's speed line; the speed itself is measured by ``benchmarks/bench_diagnose_whole.py``): a
+screen's delay columns formed together on the stride, the position torque's periodogram bins kept per
+training set."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from frictid.diagnose import signals as sg
+from frictid.diagnose.model import Context, Structure
+from frictid.models import static as sm
+
+from frictid.diagnose.samples import build_samples
+
+from test_diagnose import TRUE, plateau_log
+
+
+@pytest.fixture(scope="module")
+def S():
+    # two plateau logs at 200 Hz with a position ripple, a drift and an offset (the samples of
+    # tests/test_diagnose_speed.py, other seeds)
+    eff = lambda t, q, w, F: F * (1 + 0.1 * np.sin(2 * np.pi * q / 0.9)) * (1 - 0.002 * t) + 0.05
+    return build_samples([plateau_log(eff, seed=6, dt=5e-3), plateau_log(eff, seed=7, t0=200.0, dt=5e-3)], 5)
+
+
+def test_a_screen_s_delay_columns_are_formed_together_and_are_the_whole_logs_at_the_stride(S, monkeypatch):
+    """The screen's delay terms are the whole logs' (one per training set): on the stride their five columns
+    come from one pass (:func:`frictid.diagnose.signals.share_delay_terms`), each equal to the whole logs'
+    column at the stride's samples."""
+    from frictid.diagnose import search
+    from frictid.diagnose.chain import Chain
+
+    monkeypatch.setattr(search, "STRIDE_MIN", 1 << 12)
+    monkeypatch.setattr(search, "STRIDE_TARGET", 1 << 13)
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    ch = Chain(S, Structure("stribeck", cp, ()))
+    sub = ch._screen_chain()
+    calls = []
+    real = sg._delay_columns_at
+    monkeypatch.setattr(sg, "_delay_columns_at", lambda S_, items: calls.append((S_, len(items))) or real(S_, items))
+    tr = sub.evaluate("delay", 10)
+    assert tr is not None
+    on_stride = [n for s, n in calls if s is sub.S]
+    shifts = [t.settings["shift"] for t in tr.fold_terms]
+    assert on_stride == [sum(1 for x in set(shifts) if x)]   # one pass, every training set's column
+    for t in tr.fold_terms:
+        if t.settings["shift"]:
+            col = sg.delay_column(sub.S, t.settings["shift"], t.settings["beta"])
+            np.testing.assert_array_equal(col, sg.delay_column(S, t.settings["shift"], t.settings["beta"])[ch.stride.sel])
+
+
+@pytest.mark.parametrize("fold", [None, 0, 2, 4, "gather"])
+def test_the_position_torque_s_periodogram_bins_are_best_period_s_own(S, fold):
+    """The bins kept for a training set (read off every sample's bins where the lowest position and the range
+    are all samples') are those best_period forms from the positions, and its period the same; also for a
+    training set that lacks the lowest or the highest position (its bins then start elsewhere)."""
+    from frictid.diagnose.causes import _period_range, best_period
+
+    pr = _period_range(S)
+    assert pr is not None
+    ctx = Context(S)
+    lo, hi = int(np.argmin(S.q)), int(np.argmax(S.q))
+    for f_out in ((S.fold[lo], S.fold[hi]) if fold == 2 else (fold,)):
+        if f_out == "gather":
+            idx = np.flatnonzero(np.arange(S.n) % 3 != 0)
+        else:
+            idx = np.arange(S.n) if f_out is None else np.flatnonzero(S.fold != f_out)
+        resid = np.random.default_rng(7).standard_normal(idx.size) + 0.3 * np.sin(2 * np.pi * S.q[idx] / 0.9)
+        for _ in range(2):   # kept, then read again
+            q0, rng, j2, B2 = ctx.position_bins(idx, pr[0])
+            q = S.q[idx]
+            h2 = pr[0] / 32.0
+            assert q0 == float(q.min()) and rng == float(np.ptp(q))
+            np.testing.assert_array_equal(j2, np.minimum(((q - q0) / h2).astype(np.int64), int(rng / h2)))
+            np.testing.assert_array_equal(B2, np.bincount(j2, weights=np.ones(idx.size), minlength=int(rng / h2) + 1))
+        assert best_period(None, resid, None, pr, bins=(q0, rng, j2, B2)) == best_period(q, resid, np.ones(idx.size), pr)
+
+
+@pytest.mark.parametrize("shift", [-40, 0, 3, 40])
+def test_the_delay_search_s_sums_at_whole_shifts_are_those_of_the_shifted_torque(S, shift):
+    """The delay search reads the torque at whole shifts by one clipped gather (the ends of a log held):
+    per fold the sums X'y and y'y of the interpolated shifted torque (:func:`signals.shifted_torque`)."""
+    from frictid.data import finite
+
+    dt = S.dt(0)
+    XtX, XtY, yty = sg._delay_sums(S, shift * dt)
+    want_y, want_yy = np.zeros_like(XtY), np.zeros_like(yty)
+    for i, (km, fk) in enumerate(sg._moving_rows(S)):
+        lg = S.logs[i]
+        tau = finite(lg.tau)
+        X = sg._delay_columns(S, i, km)
+        y = lg.F[km] - tau[km] + sg.shifted_torque(tau, km.astype(float), float(shift))
+        for g in range(S.n_folds):
+            m = fk == g
+            want_y[g] += X[m].T @ y[m]
+            want_yy[g] += y[m] @ y[m]
+    np.testing.assert_allclose(XtY, want_y, rtol=1e-10, atol=1e-12 * np.abs(want_y).max())
+    np.testing.assert_allclose(yty, want_yy, rtol=1e-12)
