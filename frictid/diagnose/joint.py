@@ -319,8 +319,12 @@ def _presliding(jf: JointFit, prev: str) -> dict | None:
                                                                                    "str_amp", "str_vs", "str_delta")):
         if k in lug.params and (k.startswith("sigma") or k not in params):
             params[k] = ParamEstimate(**vars(lug.params[k]))
-    if not ramps and "tau_offset" in lug.params and "tau_offset" not in base.params and jf.offset is not None:
-        # LuGre's is the change of the joint's offset; a chained model carries the whole offset as tau_offset
+    if (not ramps and "tau_offset" in lug.params and "tau_offset" not in base.params and jf.offset is not None
+            and (base.extra or {}).get("extensions") is None):
+        # LuGre's is the change of the joint's offset; a chained model carries the whole offset as tau_offset.
+        # Only on a fit's own base, which runs with the joint's offset: a diagnosis model's terms were fitted
+        # on the friction with that offset left in, so they hold it already (EMPS: asym's per-sign levels;
+        # adding it again put the replay of coulomb_viscous+asym+lugre at 3.6 N against 1.9 without it)
         params["tau_offset"].value += jf.offset.value or 0.0
     name = prev + "+lugre"
     extra = dict(base.extra)
