@@ -1163,7 +1163,7 @@ def finding_rows(params: dict, logs: list, only_joint: str | None = None) -> lis
         entries = [f for f in (jd.get("diagnosis") or []) if isinstance(f, dict)]
         adopted, why = ct.diagnosis_adoption(jd)
         datas = [ct.prepare_log(lg, jd, find_segments, derivatives) for lg in jl] if entries and jl else []
-        rows = ct.diagnosis_samples(datas, jd) if datas else None
+        rows = ct.diagnosis_samples(datas, str(jn), jd) if datas else None
         for f, before, ad in zip(entries, ct.diagnosis_befores(jd, entries), adopted):
             rec = {"joint": str(jn), "cause": f.get("cause"), "kind": f.get("kind") or "effect",
                    "extension": f.get("extension"), "model": f.get("model"), "before": f.get("rms_before"),
@@ -1214,7 +1214,8 @@ def agrees(rec: dict) -> bool | None:
 def _finding_cell(rec: dict) -> list[str]:
     """The table cells of one record of :func:`finding_rows`."""
     g = rec.get("gain")
-    comp = ", ".join(f"{e} {100 * x:.0f} %" + (" (rejected: " + r.split(" (")[0].split(":")[0][:70] + ")" if r else "")
+    comp = ", ".join(f"{e} {100 * x:.0f} %" + (" (rejected: " + r.removeprefix(e + ": ").split(" (")[0].split(":")[0][:70]
+                                               + ")" if r else "")
                      for e, x, r in rec["competitors"][:3]) or "-"
     pb, pa = rec.get("plot_before"), rec.get("plot_after")
     replay = "-" if pb is None or pa is None else f"{pb:.3g} -> {pa:.3g} ({100 * (1 - pa / pb):.0f} %, {rec['samples']})"

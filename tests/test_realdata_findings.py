@@ -60,7 +60,7 @@ def _figures(case) -> list[tuple[dict, dict]]:
     off the sliding samples is replayed on the moving samples (the report does not draw it)."""
     jn, jd, datas = case
     entries = [f for f in jd.get("diagnosis") or [] if isinstance(f, dict)]
-    rows = ct.diagnosis_samples(datas, jd)
+    rows = ct.diagnosis_samples(datas, jn, jd)
     out = []
     for f, before in zip(entries, ct.diagnosis_befores(jd, entries)):
         res = ct.diagnosis_residuals(datas, jn, jd, f, before=before,

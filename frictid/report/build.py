@@ -854,7 +854,7 @@ def _finding(j: _Joint, fi: _Findings, i: int, vmin: float) -> dict:
                        "part (torque against displacement with LuGre's sigma0).")
     elif j.datas:
         if not fi.rows_built:
-            fi.rows, fi.rows_built = ct.diagnosis_samples(j.datas, j.jd), True
+            fi.rows, fi.rows_built = ct.diagnosis_samples(j.datas, j.name, j.jd), True
         res = ct.diagnosis_residuals(j.datas, j.name, j.jd, f, before=prev, cache=fi.cache, vmin=vmin,
                                      keep=fi.later[i + 1], rows=fi.rows)
         if res is not None:

@@ -921,31 +921,58 @@ def as_diagnosis_base(jd: dict, name: str | None) -> dict:
     return jd2
 
 
-def diagnosis_samples(datas: list[LogData], jd: dict) -> list[np.ndarray] | None:
-    """Per log, the rows of the diagnosis' sliding samples, the samples its findings' held-out numbers are
-    measured on (:func:`frictid.diagnose.samples.build_samples` on the logs as the fit handed them over:
-    the joint's inertia, gravity and :func:`diagnosis_offset` left in the friction torque); None when the
-    logs give none."""
-    from frictid.diagnose.samples import DiagLog, build_samples
+@dataclass
+class DiagnosisSamples:
+    """The diagnosis' sliding samples of a joint's logs, where its findings' held-out numbers are measured:
+    per log the rows (increasing), and the held-out residual of the diagnosis' base ``base`` on them (its
+    amplitudes and gravity refitted without each fold, the fit's offset left in: what the first finding is
+    judged against), or None when the base cannot be rebuilt."""
+
+    rows: list[np.ndarray]
+    base: str | None = None
+    base_residual: list[np.ndarray] | None = None
+
+
+def diagnosis_samples(datas: list[LogData], jname: str, jd: dict) -> DiagnosisSamples | None:
+    """:class:`DiagnosisSamples` of the logs (:func:`frictid.diagnose.joint.base_residuals` on the logs as the
+    fit handed them to the diagnosis: the joint's inertia, gravity and :func:`diagnosis_offset` left in the
+    friction torque); None when the logs give no sliding samples."""
+    from frictid.diagnose.joint import N_FOLDS, base_residuals
+    from frictid.diagnose.samples import DiagLog
 
     off = diagnosis_offset(jd)
     logs = [DiagLog(t=d.log.t, q=d.log.q, w=d.w, a=d.a, tau=d.log.tau, F=d.F.full() + off, G=d.G.full() - off,
                     offset=off, segments=d.segments, channels=d.log.channels) for d in datas]
-    S = build_samples(logs, J=rigid_terms(jd)["J"])
-    if S is None:
+    rec = (jd.get("selection") or {}).get("diagnosis")
+    rec = rec if isinstance(rec, dict) else {}
+    base = rec.get("base") if isinstance(rec.get("base"), str) else None
+    try:
+        got = base_residuals(JointFit.from_dict(jname, jd), logs, base or "", int(rec.get("folds") or N_FOLDS))
+    except (FrictidInputError, KeyError, ValueError, TypeError, ArithmeticError):
         return None
-    return [np.sort(S.k[S.li == i]) for i in range(len(datas))]
+    if got is None:
+        return None
+    li, k, r = got
+    rows, res = [], []
+    for i in range(len(datas)):
+        sel = np.flatnonzero(li == i)
+        order = np.argsort(k[sel], kind="stable")
+        rows.append(k[sel][order])
+        if r is not None:
+            res.append(r[sel][order])
+    return DiagnosisSamples(rows, base if r is not None else None, res if r is not None else None)
 
 
 def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dict, before: str | None = None,
                         cache: dict | None = None, vmin: float | None = None,
-                        keep: set[str] | None = None, rows: list[np.ndarray] | None = None) -> dict | None:
+                        keep: set[str] | None = None, rows: DiagnosisSamples | None = None) -> dict | None:
     """Residual ``tau - tau_model`` against the finding's cause variable, binned, before (model ``before``,
     default the chosen one; the diagnosis' base as the diagnosis ran it, :func:`as_diagnosis_base`) and
     after the extension (the finding's ``model``, or the chosen model with the extension's ``params``; else
-    the finding's own ``binned: {x, after}``), on the samples ``rows`` (per log, the diagnosis' sliding
-    samples, :func:`diagnosis_samples`: where the finding's numbers were measured), else on the moving
-    samples; with the RMS of each residual over those samples (``rms_before``, ``rms_after``).
+    the finding's own ``binned: {x, after}``), on the samples ``rows`` (the diagnosis' sliding samples,
+    :func:`diagnosis_samples`: where the finding's numbers were measured; there the diagnosis' base is its
+    own held-out residual, the model the first finding was judged against), else on the moving samples;
+    with the RMS of each residual over those samples (``rms_before``, ``rms_after``).
     ``cache`` keeps replays per (model, log index); ``keep``: the models whose replays stay in it (the
     others are dropped once used, each as soon as its residual is taken: None keeps all); ``vmin``:
     :func:`min_speed` of ``datas`` when known."""
@@ -969,17 +996,22 @@ def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dic
         if keep is not None and kk != unless and (kk[2] != 0 or kk[0] not in keep):
             cache.pop(kk, None)
 
+    own_base = rows is not None and rows.base_residual is not None and before == rows.base
     xs, rb, ra, label = [], [], [], ""
     for k, d in enumerate(datas):
-        mv = np.abs(d.w) > vmin if rows is None else rows[k]
-        rb_k = run(before, jd_before, k, d)
-        if rb_k is None:
-            return None
-        rb.append(rb_k.residual(d)[mv])
-        T_before = rb_k.T
-        del rb_k
+        mv = np.abs(d.w) > vmin if rows is None else rows.rows[k]
         k_after = key(ext[0], ext[1], k) if ext is not None else None
-        release(key(before, jd_before, k), unless=k_after)
+        if own_base:
+            rb.append(rows.base_residual[k])
+            T_before = None
+        else:
+            rb_k = run(before, jd_before, k, d)
+            if rb_k is None:
+                return None
+            rb.append(rb_k.residual(d)[mv])
+            T_before = rb_k.T
+            del rb_k
+            release(key(before, jd_before, k), unless=k_after)
         ra_k = run(ext[0], ext[1], k, d) if ext is not None else None
         T = ra_k.T if ra_k is not None and ra_k.T is not None else T_before
         x, label = variable_values(var, d, T)
@@ -995,7 +1027,8 @@ def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dic
     order = x_order(x)
     rb = np.concatenate(rb)
     out = {"variable": var, "label": label, "before": binned(x, rb, order=order), "before_model": before,
-           "before_base": jd_before is not jd, "samples": "moving" if rows is None else "sliding",
+           "before_base": "refitted" if own_base else "without offset" if jd_before is not jd else "",
+           "samples": "moving" if rows is None else "sliding",
            "rms_before": _rms(rb), "rms_after": None}
     ra = np.concatenate(ra) if ra else None
     if ra is not None and np.any(np.isfinite(ra)):

@@ -596,8 +596,9 @@ def diagnosis(finding: dict, res: dict, units: dict, salt: str) -> Rendered:
     def rms(v):
         return "" if v is None else f", RMS {v:.3g} {u}"
 
-    before = (res.get("before_model") or "chosen model") + (" without the fit's offset (the diagnosis' base)"
-                                                            if res.get("before_base") else "")
+    before = (res.get("before_model") or "chosen model") + {
+        "refitted": " as the diagnosis' base (refitted on these samples, held out by fold)",
+        "without offset": " without the fit's offset (the diagnosis' base)"}.get(res.get("before_base") or "", "")
     with rc_context(salt):
         fig = new_figure(3.4 + LEGEND_ROW_IN)
         ax = fig.subplots(gridspec_kw=place(fig, bottom=BOTTOM_IN + LEGEND_ROW_IN + 0.1))
