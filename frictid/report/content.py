@@ -1035,15 +1035,24 @@ def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dic
         aft = binned(x, ra, order=order)
         out["given"] = {"x": aft["x"], "after": aft["mean"], "before": None, "model": ext[0]}
         out["rms_after"] = _rms(ra)
-    given = finding.get("binned")
-    if "given" not in out and isinstance(given, dict) and given.get("x") is not None and given.get("after") is not None:
-        try:
-            out["given"] = {"x": np.asarray(given["x"], float), "after": np.asarray(given["after"], float),
-                            "before": (np.asarray(given["before"], float) if given.get("before") is not None
-                                       else None), "model": None}
-        except (TypeError, ValueError):
-            pass
+    if "given" not in out:
+        out["given"] = _given_binned(finding)
+        if out["given"] is None:
+            del out["given"]
     return out
+
+
+def _given_binned(finding: dict) -> dict | None:
+    """The finding's own binned residual after its extension (``binned: {x, after[, before]}``), or None."""
+    given = finding.get("binned")
+    if not (isinstance(given, dict) and given.get("x") is not None and given.get("after") is not None):
+        return None
+    try:
+        return {"x": np.asarray(given["x"], float), "after": np.asarray(given["after"], float),
+                "before": np.asarray(given["before"], float) if given.get("before") is not None else None,
+                "model": None}
+    except (TypeError, ValueError):
+        return None
 
 
 def _rms(r: np.ndarray) -> float | None:
