@@ -113,15 +113,3 @@ def test_ur10e_joint2_load_is_found_and_adopted(ur2):
     others = [t["gain"] for t in step["tested"] if not t["extension"].startswith("load_")]
     assert max(others) < f["gain"]
 
-
-def test_ur10e_joint1_names_no_stribeck_that_rises():
-    """A Stribeck term below zero (friction falling toward zero speed, 003's Fs < Fc) is no Stribeck effect:
-    UR10e joint 1, whose friction rises monotonically with the speed, had an adopted `stribeck` repair of
-    amplitude -5.05 N m; the chain now rejects it and says why."""
-    jn, jd, _ = _fitted(DATA / "ur10e_mamedov2020" / "jointwise_motion" / "ur-20_01_22-joint_1.csv",
-                        MAPS / "ur10e_joint1.yaml")
-    for f in jd.get("diagnosis") or []:
-        amp = ((jd["models"].get(f.get("model")) or {}).get("params") or {}).get("str_amp")
-        assert amp is None or amp["value"] >= 0, f
-    rejected = [r for s in jd["selection"]["diagnosis"]["steps"] for r in s.get("rejected") or []]
-    assert any(r["extension"] == "stribeck" and "below zero" in r["reason"] for r in rejected)

@@ -682,7 +682,7 @@ class Chain:
             st_new = self.st.plus(term)
             after = Evaluator(st_new, self.ctx).fit(self.idx_all)
             why = (degenerate(self.coef, st_new, after) or unphysical(st_new, after, self.J)
-                   or stribeck_rises(st_new, after) or level_below_zero(st_new, after, self.S))
+                   or level_below_zero(st_new, after, self.S))
             if why is None:
                 return best, term, st_new
             step.setdefault("rejected", []).append({"extension": best.ext, "reason": why})
@@ -1131,24 +1131,6 @@ def unphysical(st: Structure, after: Coef, J: float | None) -> str | None:
         return (f"inertia {J:.3g} -> {new:.3g}: not a rigid body's (at most zero); the acceleration's share of "
                 f"the residual is another cause's")
     return None
-
-
-def stribeck_rises(st: Structure, after: Coef) -> str | None:
-    """Why a new Stribeck term names nothing the data show, or None: its amplitude (canonical slot 1, the
-    break-away above the sliding level) is below zero on a branch, so the friction falls toward zero speed
-    there: a rise with the speed, not Stribeck's drop (003: Fs >= Fc), which the fit's own Stribeck maps
-    refuse for the same reason (:data:`frictid.identify.maps.DROPS`). What such a term carries is the speed
-    curve's shape at low speed, a map the fit chooses among. (UR10e joint 1: a `stribeck` repair of
-    amplitude -5.05 N m, adopted, on data whose friction rises monotonically with the speed.)"""
-    i = len(st.terms) - 1
-    if st.terms[i].role != "stribeck":
-        return None
-    amps = [after.base_pos.get(1, 0.0)] + ([after.base_neg.get(1, 0.0)] if st.per_sign else [])
-    low = min(amps)
-    if low >= 0:
-        return None
-    return (f"stribeck: amplitude {low:.3g} below zero (the friction falls toward zero speed: a rise with the "
-            "speed, not a Stribeck drop, Fs >= Fc)")
 
 
 def level_below_zero(st: Structure, after: Coef, S: Samples) -> str | None:
