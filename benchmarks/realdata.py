@@ -1139,7 +1139,8 @@ def findings_cases(data: Path) -> list[tuple[str, list, Path]]:
                 MAPS / f"ur10e_joint{k}.yaml") for k in range(1, 7)]
             + [("UR10e identification", [ur / "identification_data" / "ur-20_02_19_15harm50sec.csv"],
                 MAPS / "ur10e_harmonic.yaml")]
-            + [(f"screw drive {d}", sorted(glob.glob(str(screw / f"driveNo{d}" / "steady_state" / "0.096kg" / "*.csv"))),
+            + [(f"screw drive {d}",
+                sorted(glob.glob(str(screw / f"driveNo{d}" / "steady_state" / "0.096kg" / "*.csv"))),
                 MAPS / f"screw_drive{d}.yaml") for d in (1, 2, 3)]
             + [("KUKA A+B+C", [kuka / f"recording_FF_{r}_2020-10-21.mat" for r in "ABC"], MAPS / "kuka_kr300.yaml"),
                ("Franka", [data / "franka_panda_gaz2019"], MAPS / "franka_panda.yaml")])
@@ -1194,7 +1195,8 @@ def _competitors(diag: dict, f: dict) -> list[tuple[str, float, str]]:
     """The other candidates of the chain step that chose ``f``'s extension: (extension, held-out gain, why
     rejected or ""), best first."""
     for step in diag.get("steps") or []:
-        if step.get("chosen") == f.get("extension") and (f.get("model") is None or step.get("model") in (None, f.get("model"))):
+        if step.get("chosen") == f.get("extension") and (f.get("model") is None
+                                                         or step.get("model") in (None, f.get("model"))):
             rej = {r.get("extension"): str(r.get("reason", "")) for r in step.get("rejected") or []}
             tested = [(t["extension"], float(t["gain"]), rej.get(t["extension"], ""))
                       for t in step.get("tested") or [] if t.get("extension") != f.get("extension")]
@@ -1214,11 +1216,12 @@ def agrees(rec: dict) -> bool | None:
 def _finding_cell(rec: dict) -> list[str]:
     """The table cells of one record of :func:`finding_rows`."""
     g = rec.get("gain")
-    comp = ", ".join(f"{e} {100 * x:.0f} %" + (" (rejected: " + r.removeprefix(e + ": ").split(" (")[0].split(":")[0][:70]
-                                               + ")" if r else "")
-                     for e, x, r in rec["competitors"][:3]) or "-"
+    def why(e, r):
+        return " (rejected: " + r.removeprefix(e + ": ").split(" (")[0].split(":")[0][:70] + ")" if r else ""
+    comp = ", ".join(f"{e} {100 * x:.0f} %{why(e, r)}" for e, x, r in rec["competitors"][:3]) or "-"
     pb, pa = rec.get("plot_before"), rec.get("plot_after")
-    replay = "-" if pb is None or pa is None else f"{pb:.3g} -> {pa:.3g} ({100 * (1 - pa / pb):.0f} %, {rec['samples']})"
+    replay = ("-" if pb is None or pa is None else
+              f"{pb:.3g} -> {pa:.3g} ({100 * (1 - pa / pb):.0f} %, {rec['samples']})")
     ag = agrees(rec)
     worse = None if pb is None or pa is None else pa > pb
     return [rec["cause"], rec["kind"], str(rec.get("extension")),
@@ -1247,7 +1250,8 @@ def findings_table(data: Path, tmp: str) -> list[str]:
         recs = finding_rows(P, read_many([str(f) for f in files], str(mp)))
         for rec in recs:
             if rec["cause"] is None:
-                quiet.append(f"{label} {rec['joint']}" + (f" (skipped: {rec['skipped']})" if rec.get("skipped") else ""))
+                quiet.append(f"{label} {rec['joint']}"
+                             + (f" (skipped: {rec['skipped']})" if rec.get("skipped") else ""))
                 continue
             rows.append("| " + " | ".join([label, rec["joint"]] + _finding_cell(rec)) + " |")
             if label.startswith("UR10e jointwise") and rec["cause"] == "load":
@@ -1261,7 +1265,8 @@ def findings_table(data: Path, tmp: str) -> list[str]:
              f"{100 * AGREE_TOL:.0f} % of the stated held-out ones. Replayed: WORSE where the stored extended "
              "model leaves more than the model before it on those samples.", "",
              "| UR10e jointwise | load found | held-out RMS before -> after [N m] | adopted | the same with the torque "
-             "low-passed at 20 Hz (AURT's basis) | adopted | issue's figures |", "| --- | --- | --- | --- | --- | --- | --- |"]
+             "low-passed at 20 Hz (AURT's basis) | adopted | issue's figures |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
 
     def cells(r):
         return (["no", "-", "-"] if r is None else

@@ -217,7 +217,8 @@ class FrictionModel:
         c_pos, c_neg = sm.canonical_pair(mf.map, _static_params(mf.map, mf.params))
         if ext.get("str_amp") or ext.get("str_amp_neg"):  # the stribeck extension: the canonical Stribeck slot
             # of a map that has none; str_amp_neg: the w < 0 branch's own amplitude (a per-sign model's)
-            for c, amp in ((c_pos, ext.get("str_amp", 0.0)), (c_neg, ext.get("str_amp_neg", ext.get("str_amp", 0.0)))):
+            amps = (ext.get("str_amp", 0.0), ext.get("str_amp_neg", ext.get("str_amp", 0.0)))
+            for c, amp in zip((c_pos, c_neg), amps):
                 c[1], c[2], c[3] = amp, ext["str_vs"], ext.get("str_delta", 2.0)
         m = cls(name=name, map=mf.map, c_pos=c_pos, c_neg=c_neg, axis=jf.axis, ext=ext, joint=str(jf.joint),
                 params=dict(mf.params), validity=dict(getattr(jf, "validity", None) or {}),
@@ -410,7 +411,8 @@ class FrictionModel:
         out += ["lugre"] if self.sigma0 is not None else []
         out += [self.thermal["law"]] if self.thermal else []
         checks = {"position": ("pos_amp", "pos_lin", "pos_quad"), "load": ("load_torque", "load_gravity",
-                  "load_payload"), "drift": ("drift_per_hour",), "offset": ("tau_offset",), "stribeck": ("str_amp", "str_amp_neg")}
+                  "load_payload"), "drift": ("drift_per_hour",), "offset": ("tau_offset",),
+                  "stribeck": ("str_amp", "str_amp_neg")}
         return out + [t for t, keys in checks.items() if any(ext.get(k) for k in keys)]
 
     def formula(self) -> dict:

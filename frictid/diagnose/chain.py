@@ -1138,7 +1138,7 @@ def level_below_zero(st: Structure, after: Coef, S: Samples) -> str | None:
     or None: its map's level goes below zero at the speeds of the sliding samples, where the model runs it
     held at zero (a friction level cannot push the motion, :func:`frictid.models.static.evaluate`), as the
     fit refuses such a map (docs/fit.md step 5). (Franka joint 3: `stribeck_2exp+asym_scale`, amplitudes of
-    +207, -237 and -224 N m, its level -28 N m at the slowest speeds of w > 0; 7.49 -> 4.44 N m held out by
+    +207, -237 and -224 N m, its level -17 N m at the slowest sliding speeds of w > 0; 7.49 -> 4.44 N m held out by
     its formula, 10.8 N m as run on the same samples.)"""
     cp, cn = canonical_vectors(st, after)
     pos = S.w >= 0
