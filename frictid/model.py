@@ -44,7 +44,7 @@ EXTENSION_PARAMS = {
     "load": ("load_torque", "load_gravity", "load_payload"),
     "offset": ("tau_offset",),
     "drift": ("drift_per_hour", "drift_t0"),
-    "stribeck": ("str_amp", "str_vs", "str_delta"),
+    "stribeck": ("str_amp", "str_vs", "str_delta", "str_amp_neg"),
     "presliding": ("sigma0", "sigma1"),
     "inertia": ("J",),
     "gravity": ("Px", "Py"),
@@ -215,9 +215,11 @@ class FrictionModel:
             raise ConfigError(f"joint {jf.joint}, model {name}: {exc.args[0]}") from None
         ext = _extension_values(mf.params)
         c_pos, c_neg = sm.canonical_pair(mf.map, _static_params(mf.map, mf.params))
-        if ext.get("str_amp"):  # the stribeck extension: the canonical Stribeck slot of a map that has none
-            for c in (c_pos, c_neg):
-                c[1], c[2], c[3] = ext["str_amp"], ext["str_vs"], ext.get("str_delta", 2.0)
+        if ext.get("str_amp") or ext.get("str_amp_neg"):  # the stribeck extension: the canonical Stribeck slot
+            # of a map that has none; str_amp_neg: the w < 0 branch's own amplitude (a per-sign model's)
+            amps = (ext.get("str_amp", 0.0), ext.get("str_amp_neg", ext.get("str_amp", 0.0)))
+            for c, amp in zip((c_pos, c_neg), amps):
+                c[1], c[2], c[3] = amp, ext["str_vs"], ext.get("str_delta", 2.0)
         m = cls(name=name, map=mf.map, c_pos=c_pos, c_neg=c_neg, axis=jf.axis, ext=ext, joint=str(jf.joint),
                 params=dict(mf.params), validity=dict(getattr(jf, "validity", None) or {}),
                 **_rigid_terms(jf, mf, ext))
@@ -409,7 +411,8 @@ class FrictionModel:
         out += ["lugre"] if self.sigma0 is not None else []
         out += [self.thermal["law"]] if self.thermal else []
         checks = {"position": ("pos_amp", "pos_lin", "pos_quad"), "load": ("load_torque", "load_gravity",
-                  "load_payload"), "drift": ("drift_per_hour",), "offset": ("tau_offset",), "stribeck": ("str_amp",)}
+                  "load_payload"), "drift": ("drift_per_hour",), "offset": ("tau_offset",),
+                  "stribeck": ("str_amp", "str_amp_neg")}
         return out + [t for t, keys in checks.items() if any(ext.get(k) for k in keys)]
 
     def formula(self) -> dict:

@@ -37,7 +37,8 @@ from scipy.special import ndtri, stdtr
 
 from .binned import equal_count_bins, fold_parts, heldout_binned
 from .causes import EXTENSIONS, X_NOISE, candidates, n_coef, propose, torque_noise
-from .model import VISCOUS_SLOTS, Coef, Context, Evaluator, Structure
+from ..models.static import canonical_level
+from .model import VISCOUS_SLOTS, Coef, Context, Evaluator, Structure, canonical_vectors
 from .samples import Samples
 from .screen import explained_bound, gap_allowance, screen_record
 from .search import StrideSearch
@@ -683,7 +684,8 @@ class Chain:
             term = self._propose(best.ext, self.idx_all, res, ev0.level(self.coef, self.idx_all), self.coef)
             st_new = self.st.plus(term)
             after = Evaluator(st_new, self.ctx).fit(self.idx_all)
-            why = degenerate(self.coef, st_new, after) or unphysical(st_new, after, self.J)
+            why = (degenerate(self.coef, st_new, after) or unphysical(st_new, after, self.J)
+                   or level_below_zero(st_new, after, self.S))
             if why is None:
                 return best, term, st_new
             step.setdefault("rejected", []).append({"extension": best.ext, "reason": why})
@@ -1155,6 +1157,24 @@ def unphysical(st: Structure, after: Coef, J: float | None) -> str | None:
         return (f"inertia {J:.3g} -> {new:.3g}: not a rigid body's (at most zero); the acceleration's share of "
                 f"the residual is another cause's")
     return None
+
+
+def level_below_zero(st: Structure, after: Coef, S: Samples) -> str | None:
+    """Why the extended model, as a parameter file runs it, is not the formula its gain was measured with,
+    or None: its map's level goes below zero at the speeds of the sliding samples, where the model runs it
+    held at zero (a friction level cannot push the motion, :func:`frictid.models.static.evaluate`), as the
+    fit refuses such a map (docs/fit.md step 5). (Franka joint 3: `stribeck_2exp+asym_scale`, amplitudes of
+    +207, -237 and -224 N m, its level -17 N m at the slowest sliding speeds of w > 0; 7.49 -> 4.44 N m held out by
+    its formula, 10.8 N m as run on the same samples.)"""
+    cp, cn = canonical_vectors(st, after)
+    pos = S.w >= 0
+    low = [(float(np.min(canonical_level(S.w[m], c))), name) for m, c, name in
+           ((pos, cp, "w > 0"), (~pos, cn, "w < 0")) if np.any(m)]
+    worst = min(low, default=(0.0, ""))
+    if worst[0] >= 0:
+        return None
+    return (f"{st.terms[-1].ext}: the extended map's level goes below zero on the sliding samples ({worst[0]:.3g} "
+            f"at {worst[1]}): a model file runs it held at zero, not as the formula its gain was measured with")
 
 
 #: The parts of a base map (canonical slots): a part collapses when none of its amplitudes is left. A

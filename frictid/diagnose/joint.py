@@ -112,6 +112,23 @@ def diagnose_joint(jf: JointFit, logs: list[DiagLog], n_folds: int = N_FOLDS) ->
     return findings
 
 
+def base_residuals(jf: JointFit, logs: list[DiagLog], base: str, n_folds: int = N_FOLDS):
+    """The diagnosis' sliding samples of ``logs`` and its base ``base`` on them, as :func:`diagnose_joint`
+    judges its first finding against it (the base map's amplitudes and gravity refitted without each fold,
+    the fit's offset left in the friction): ``(li, k, r)``, per sample its log, its row in that log and the
+    held-out residual ``F - prediction``; None without sliding samples. For a report that draws a finding on
+    the samples and against the model its numbers were measured on (:mod:`frictid.report.content`)."""
+    J = jf.inertia.value if jf.inertia is not None and jf.inertia.value is not None else 0.0
+    S = build_samples(logs, n_folds, axis=jf.axis, J=max(J, 0.0), bristle=bristle_length(jf))
+    if S is None:
+        return None
+    r = None
+    if base in jf.models:
+        chain = Chain(S, _base_structure(jf, base, S), J=jf.inertia.value if jf.inertia is not None else None)
+        r = S.F - chain.pred
+    return S.li, S.k, r
+
+
 def _chain(jf: JointFit, S: Samples, base: str, rec: dict) -> tuple[Chain, str]:
     """The chain from the fit's base model, or, when the sliding samples cannot refit that base
     (:func:`_not_refitted`), from the next velocity-only model by the same choice rule; each refused base
@@ -319,8 +336,12 @@ def _presliding(jf: JointFit, prev: str) -> dict | None:
                                                                                    "str_amp", "str_vs", "str_delta")):
         if k in lug.params and (k.startswith("sigma") or k not in params):
             params[k] = ParamEstimate(**vars(lug.params[k]))
-    if not ramps and "tau_offset" in lug.params and "tau_offset" not in base.params and jf.offset is not None:
-        # LuGre's is the change of the joint's offset; a chained model carries the whole offset as tau_offset
+    if (not ramps and "tau_offset" in lug.params and "tau_offset" not in base.params and jf.offset is not None
+            and (base.extra or {}).get("extensions") is None):
+        # LuGre's is the change of the joint's offset; a chained model carries the whole offset as tau_offset.
+        # Only on a fit's own base, which runs with the joint's offset: a diagnosis model's terms were fitted
+        # on the friction with that offset left in, so they hold it already (EMPS: asym's per-sign levels;
+        # adding it again put the replay of coulomb_viscous+asym+lugre at 3.6 N against 1.9 without it)
         params["tau_offset"].value += jf.offset.value or 0.0
     name = prev + "+lugre"
     extra = dict(base.extra)

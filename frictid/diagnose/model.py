@@ -1257,8 +1257,8 @@ def model_values(st: Structure, c: Coef, S: Samples, rigid: dict) -> tuple[str, 
             vals["Py"] = rigid.get("Py", 0.0) + float(g[1])
         elif t.ext == "stribeck":
             vals.update(str_amp=float(cp[1]), str_vs=float(nl["vs"]), str_delta=float(nl["delta"]))
-            if st.per_sign:
-                vals["str_amp"] = float(0.5 * (cp[1] + cn[1]))
+            if st.per_sign:   # each branch its own amplitude (their mean replayed 0.708 N m where the fit gave 0.646)
+                vals["str_amp_neg"] = float(cn[1])
     if any(t.ext in ("thermal4", "thermal6") for t in st.terms):
         th = next(t for t in st.terms if t.ext in ("thermal4", "thermal6"))
         if th.settings.get("source") == "temp_joint":

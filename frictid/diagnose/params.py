@@ -23,7 +23,7 @@ def _units_of(axis: str) -> dict:
         "drift_per_hour": "1/h", "drift_t0": "s", "alpha": "1/K", "beta": "1", "C": "J/K", "K": "W/K",
         "T0": "degC", "dc0": f"{F}/K", "dc1": f"{unit_of('D', axis)}/K", "dc2": f"{unit_of('D2', axis)}/K",
         "dc3": f"{unit_of('D3', axis)}/K", "tau_offset": F, "J": "kg m^2" if axis == "rotary" else "kg",
-        "Px": F, "Py": F, "str_amp": F, "str_vs": unit_of("W", axis), "str_delta": "1",
+        "Px": F, "Py": F, "str_amp": F, "str_amp_neg": F, "str_vs": unit_of("W", axis), "str_delta": "1",
         "sigma0": unit_of("K", axis), "sigma1": unit_of("D", axis),
     }
 

@@ -709,6 +709,10 @@ class _Findings:
     befores: list
     later: list[set]
     cache: dict = field(default_factory=dict)
+    #: per log the diagnosis' sliding samples (:func:`content.diagnosis_samples`), built at the first
+    #: finding drawn on them; ``rows_built`` says whether they were
+    rows: list | None = None
+    rows_built: bool = False
 
 
 def _findings(jd: dict) -> _Findings:
@@ -842,11 +846,17 @@ def _finding(j: _Joint, fi: _Findings, i: int, vmin: float) -> dict:
     f, prev = fi.entries[i], fi.befores[i]
     row = _finding_row(f, prev)
     if not ct.on_sliding_samples(f):
-        row["note"] = ("Judged on the presliding ramps, not along the sliding samples: see the Presliding "
+        split = str((f.get("heldout") or {}).get("split", "")) if isinstance(f.get("heldout"), dict) else ""
+        row["note"] = ("Judged on the stops and reversals of the moving samples (the fit's LuGre against its "
+                       "static map, held out by time blocks), not along the sliding samples: the replay "
+                       "above runs the chosen model through them." if "moving samples" in split else
+                       "Judged on the presliding ramps, not along the sliding samples: see the Presliding "
                        "part (torque against displacement with LuGre's sigma0).")
     elif j.datas:
+        if not fi.rows_built:
+            fi.rows, fi.rows_built = ct.diagnosis_samples(j.datas, j.name, j.jd), True
         res = ct.diagnosis_residuals(j.datas, j.name, j.jd, f, before=prev, cache=fi.cache, vmin=vmin,
-                                     keep=fi.later[i + 1])
+                                     keep=fi.later[i + 1], rows=fi.rows)
         if res is not None:
             row["figure"] = fg.diagnosis(f, res, j.units, j.salt("diagnosis", i))
             if res.get("given") is None:

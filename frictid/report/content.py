@@ -897,12 +897,82 @@ def replayed_models(jd: dict, finding: dict, before: str | None) -> set[str]:
     return out
 
 
+def diagnosis_offset(jd: dict) -> float:
+    """The joint's offset that the diagnosis leaves in the friction torque it judges (it enters the
+    diagnosis' models only through its ``offset`` cause; :func:`frictid.diagnose.check.diagnose_fit`): the
+    fit's estimate, none when the offset comes from the log's metadata."""
+    off = jd.get("offset") if isinstance(jd.get("offset"), dict) else {}
+    v = pvalue(off)
+    return 0.0 if v is None or off.get("source") == "log metadata" else v
+
+
+def as_diagnosis_base(jd: dict, name: str | None) -> dict:
+    """The joint entry with model ``name`` run as the diagnosis ran its base: a fit's own model without the
+    joint's offset (:func:`diagnosis_offset` is left in the friction the diagnosis judges, so its first
+    finding is measured against the base without it); ``jd`` itself when the model is a diagnosis model
+    already (``extensions``), absent, or the diagnosis left no offset out."""
+    md = (jd.get("models") or {}).get(name)
+    if not isinstance(md, dict) or "extensions" in md or diagnosis_offset(jd) == 0.0:
+        return jd
+    import copy
+    jd2 = copy.copy(jd)
+    jd2["models"] = dict(jd["models"])
+    jd2["models"][name] = dict(md, extensions=[])   # a diagnosis model: its offset is its own (none)
+    return jd2
+
+
+@dataclass
+class DiagnosisSamples:
+    """The diagnosis' sliding samples of a joint's logs, where its findings' held-out numbers are measured:
+    per log the rows (increasing), and the held-out residual of the diagnosis' base ``base`` on them (its
+    amplitudes and gravity refitted without each fold, the fit's offset left in: what the first finding is
+    judged against), or None when the base cannot be rebuilt."""
+
+    rows: list[np.ndarray]
+    base: str | None = None
+    base_residual: list[np.ndarray] | None = None
+
+
+def diagnosis_samples(datas: list[LogData], jname: str, jd: dict) -> DiagnosisSamples | None:
+    """:class:`DiagnosisSamples` of the logs (:func:`frictid.diagnose.joint.base_residuals` on the logs as the
+    fit handed them to the diagnosis: the joint's inertia, gravity and :func:`diagnosis_offset` left in the
+    friction torque); None when the logs give no sliding samples."""
+    from frictid.diagnose.joint import N_FOLDS, base_residuals
+    from frictid.diagnose.samples import DiagLog
+
+    off = diagnosis_offset(jd)
+    logs = [DiagLog(t=d.log.t, q=d.log.q, w=d.w, a=d.a, tau=d.log.tau, F=d.F.full() + off, G=d.G.full() - off,
+                    offset=off, segments=d.segments, channels=d.log.channels) for d in datas]
+    rec = (jd.get("selection") or {}).get("diagnosis")
+    rec = rec if isinstance(rec, dict) else {}
+    base = rec.get("base") if isinstance(rec.get("base"), str) else None
+    try:
+        got = base_residuals(JointFit.from_dict(jname, jd), logs, base or "", int(rec.get("folds") or N_FOLDS))
+    except (FrictidInputError, KeyError, ValueError, TypeError, ArithmeticError):
+        return None
+    if got is None:
+        return None
+    li, k, r = got
+    rows, res = [], []
+    for i in range(len(datas)):
+        sel = np.flatnonzero(li == i)
+        order = np.argsort(k[sel], kind="stable")
+        rows.append(k[sel][order])
+        if r is not None:
+            res.append(r[sel][order])
+    return DiagnosisSamples(rows, base if r is not None else None, res if r is not None else None)
+
+
 def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dict, before: str | None = None,
                         cache: dict | None = None, vmin: float | None = None,
-                        keep: set[str] | None = None) -> dict | None:
-    """Residual ``tau - tau_model`` on the moving samples against the finding's cause variable, binned,
-    before (model ``before``, default the chosen one) and after the extension (the finding's ``model``, or
-    the chosen model with the extension's ``params``; else the finding's own ``binned: {x, after}``).
+                        keep: set[str] | None = None, rows: DiagnosisSamples | None = None) -> dict | None:
+    """Residual ``tau - tau_model`` against the finding's cause variable, binned, before (model ``before``,
+    default the chosen one; the diagnosis' base as the diagnosis ran it, :func:`as_diagnosis_base`) and
+    after the extension (the finding's ``model``, or the chosen model with the extension's ``params``; else
+    the finding's own ``binned: {x, after}``), on the samples ``rows`` (the diagnosis' sliding samples,
+    :func:`diagnosis_samples`: where the finding's numbers were measured; there the diagnosis' base is its
+    own held-out residual, the model the first finding was judged against), else on the moving samples;
+    with the RMS of each residual over those samples (``rms_before``, ``rms_after``).
     ``cache`` keeps replays per (model, log index); ``keep``: the models whose replays stay in it (the
     others are dropped once used, each as soon as its residual is taken: None keeps all); ``vmin``:
     :func:`min_speed` of ``datas`` when known."""
@@ -911,9 +981,10 @@ def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dic
     vmin = min_speed(datas) if vmin is None else vmin
     ext = extension_model(jd, finding)
     before = before if before in (jd.get("models") or {}) else jd.get("selected")
+    jd_before = as_diagnosis_base(jd, before)
 
-    def key(name, entry, k):
-        return name, k, id(entry) if entry is not jd else 0
+    def key(name, entry, k):   # the base run without the offset: its own tag (the copy is made per call)
+        return name, k, 0 if entry is jd else "base" if entry is jd_before else id(entry)
 
     def run(name, entry, k, d):
         kk = key(name, entry, k)
@@ -925,23 +996,28 @@ def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dic
         if keep is not None and kk != unless and (kk[2] != 0 or kk[0] not in keep):
             cache.pop(kk, None)
 
+    own_base = rows is not None and rows.base_residual is not None and before == rows.base
     xs, rb, ra, label = [], [], [], ""
     for k, d in enumerate(datas):
-        mv = np.abs(d.w) > vmin
-        rb_k = run(before, jd, k, d)
-        if rb_k is None:
-            return None
-        rb.append(rb_k.residual(d)[mv])
-        T_before = rb_k.T
-        del rb_k
+        mv = np.abs(d.w) > vmin if rows is None else rows.rows[k]
         k_after = key(ext[0], ext[1], k) if ext is not None else None
-        release(key(before, jd, k), unless=k_after)
+        if own_base:
+            rb.append(rows.base_residual[k])
+            T_before = None
+        else:
+            rb_k = run(before, jd_before, k, d)
+            if rb_k is None:
+                return None
+            rb.append(rb_k.residual(d)[mv])
+            T_before = rb_k.T
+            del rb_k
+            release(key(before, jd_before, k), unless=k_after)
         ra_k = run(ext[0], ext[1], k, d) if ext is not None else None
         T = ra_k.T if ra_k is not None and ra_k.T is not None else T_before
         x, label = variable_values(var, d, T)
         xs.append(x[mv])
         if ext is not None:
-            ra.append(ra_k.residual(d)[mv] if ra_k is not None else np.full(int(mv.sum()), np.nan))
+            ra.append(ra_k.residual(d)[mv] if ra_k is not None else np.full(rb[-1].size, np.nan))
             del ra_k
             release(k_after)
         del T, T_before, x
@@ -949,21 +1025,40 @@ def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dic
         return None
     x = np.concatenate(xs)
     order = x_order(x)
-    out = {"variable": var, "label": label, "before": binned(x, np.concatenate(rb), order=order),
-           "before_model": before}
+    rb = np.concatenate(rb)
+    out = {"variable": var, "label": label, "before": binned(x, rb, order=order), "before_model": before,
+           "before_base": "refitted" if own_base else "without offset" if jd_before is not jd else "",
+           "samples": "moving" if rows is None else "sliding",
+           "rms_before": _rms(rb), "rms_after": None}
     ra = np.concatenate(ra) if ra else None
     if ra is not None and np.any(np.isfinite(ra)):
         aft = binned(x, ra, order=order)
         out["given"] = {"x": aft["x"], "after": aft["mean"], "before": None, "model": ext[0]}
-    given = finding.get("binned")
-    if "given" not in out and isinstance(given, dict) and given.get("x") is not None and given.get("after") is not None:
-        try:
-            out["given"] = {"x": np.asarray(given["x"], float), "after": np.asarray(given["after"], float),
-                            "before": (np.asarray(given["before"], float) if given.get("before") is not None
-                                       else None), "model": None}
-        except (TypeError, ValueError):
-            pass
+        out["rms_after"] = _rms(ra)
+    if "given" not in out:
+        out["given"] = _given_binned(finding)
+        if out["given"] is None:
+            del out["given"]
     return out
+
+
+def _given_binned(finding: dict) -> dict | None:
+    """The finding's own binned residual after its extension (``binned: {x, after[, before]}``), or None."""
+    given = finding.get("binned")
+    if not (isinstance(given, dict) and given.get("x") is not None and given.get("after") is not None):
+        return None
+    try:
+        return {"x": np.asarray(given["x"], float), "after": np.asarray(given["after"], float),
+                "before": np.asarray(given["before"], float) if given.get("before") is not None else None,
+                "model": None}
+    except (TypeError, ValueError):
+        return None
+
+
+def _rms(r: np.ndarray) -> float | None:
+    """RMS of the finite values of ``r`` (None without any)."""
+    r = r[np.isfinite(r)]
+    return float(np.sqrt(np.mean(r * r))) if r.size else None
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -584,29 +584,41 @@ def thermal(cycles: list[dict], models: list[dict], units: dict, salt: str) -> R
 
 @_gc_paused
 def diagnosis(finding: dict, res: dict, units: dict, salt: str) -> Rendered:
-    """Residual of the chosen model against the finding's cause variable (binned mean ± 1 s.e.), before
-    and, when the diagnosis provides it, after the extension."""
+    """Residual of the model a finding was measured against and of its extension against the finding's
+    cause variable (binned mean ± 1 s.e.), on the samples the finding's numbers come from (the diagnosis'
+    sliding samples, else the moving ones), each curve labelled with its residual's RMS over them."""
     b = res["before"]
     xdiv, xl = 1.0, res["label"]
     if xl.startswith("time ["):
         xdiv, xl = time_axis(float(np.ptp(b["x"])) if b["x"].size else 0.0)
+    u = units["tau"]
+
+    def rms(v):
+        return "" if v is None else f", RMS {v:.3g} {u}"
+
+    before = (res.get("before_model") or "chosen model") + {
+        "refitted": " as the diagnosis' base (refitted on these samples, held out by fold)",
+        "without offset": " without the fit's offset (the diagnosis' base)"}.get(res.get("before_base") or "", "")
     with rc_context(salt):
         fig = new_figure(3.4 + LEGEND_ROW_IN)
         ax = fig.subplots(gridspec_kw=place(fig, bottom=BOTTOM_IN + LEGEND_ROW_IN + 0.1))
         ax.axhline(0, color=GREY, lw=0.8)
         ax.errorbar(b["x"] / xdiv, b["mean"], yerr=b["se"], fmt="o-", ms=4, mfc="white", mec=BLACK,
-                    color=BLACK, lw=1.0, ecolor=BLACK, label=f"before: {res.get('before_model') or 'chosen model'}")
+                    color=BLACK, lw=1.0, ecolor=BLACK, label=f"before: {before}{rms(res.get('rms_before'))}")
         g = res.get("given")
         if g is not None:
             ext = finding.get("extension")
             name = g.get("model") or (ext.get("name") or ext.get("model") if isinstance(ext, dict) else ext)
             ax.plot(g["x"] / xdiv, g["after"], color=VERMILLION, ls=(0, (5, 2)), marker="s", ms=4, lw=1.6,
-                    label=f"after: {name or 'with the extension, as the diagnosis gives it'}")
+                    label=(f"after: {name or 'with the extension, as the diagnosis gives it'}"
+                           f"{rms(res.get('rms_after') if g.get('model') else None)}"))
         ax.set_xlabel(xl)
-        ax.set_ylabel(f"torque residual [{units['tau']}]")
-        ax.set_title(f"Residual against {xl.split(' [')[0]}: {finding.get('cause', 'finding')}", loc="left")
-        legend_below(fig, ax.get_legend_handles_labels()[0], 2)
-        alt = f"Diagnosis {finding.get('cause', '')}: residual against {xl}"
+        ax.set_ylabel(f"torque residual [{u}]")
+        where = "sliding samples" if res.get("samples") == "sliding" else "moving samples"
+        ax.set_title(f"Residual against {xl.split(' [')[0]} ({where}): {finding.get('cause', 'finding')}",
+                     loc="left")
+        legend_below(fig, ax.get_legend_handles_labels()[0], 1)
+        alt = f"Diagnosis {finding.get('cause', '')}: residual against {xl} on the {where}"
         return render(fig, alt, salt, int(b["x"].size * 2))
 
 

@@ -1,0 +1,115 @@
+"""Issue 20's real-data line on the cheap logs (EMPS identification run, UR10e joint 2): each finding's figure
+draws the number it states, no finding's stored model predicts worse than the model it was judged against,
+and the load on UR10e joint 2 is found with its held-out reduction.
+
+The data are not copied into the repository: without ``../shared/realdata`` (or ``FRICTID_REALDATA``) these
+tests fail, they do not skip (as tests/test_realdata.py). The table over every real log is
+``python benchmarks/realdata.py --data ../shared/realdata --only findings`` (docs/realdata.md).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import frictid
+from frictid.io.logs import read_logs
+from frictid.report import content as ct
+from frictid.segments import derivatives, find_segments
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = Path(os.environ.get("FRICTID_REALDATA", ROOT.parent / "shared" / "realdata"))
+MAPS = ROOT / "recipes" / "realdata"
+#: The figure's RMS before and after (in-sample, the same models on the same samples) within this of the
+#: stated held-out RMS (benchmarks/realdata.py AGREE_TOL).
+AGREE_TOL = 0.05
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _realdata_present():
+    """The real data are the final judge: without them these tests fail, they do not skip."""
+    if not DATA.is_dir():
+        pytest.fail(f"real-data sets not found at {DATA}: they are not copied into the repository; put the "
+                    "shared folder beside the checkout (../shared/realdata) or set FRICTID_REALDATA", pytrace=False)
+
+
+def _fitted(log: Path, mapping: Path) -> tuple[str, dict, list]:
+    """One joint's parameter entry (as the file holds it, diagnosis run) and its logs prepared as the
+    report prepares them."""
+    logs = read_logs(str(log), str(mapping))
+    params = frictid.fit(logs).to_dict()
+    (jn, jd), = params["joints"].items()
+    return jn, jd, [ct.prepare_log(lg, jd, find_segments, derivatives) for lg in logs]
+
+
+@pytest.fixture(scope="module")
+def emps():
+    return _fitted(DATA / "emps" / "DATA_EMPS.mat", MAPS / "emps.yaml")
+
+
+@pytest.fixture(scope="module")
+def ur2():
+    return _fitted(DATA / "ur10e_mamedov2020" / "jointwise_motion" / "ur-20_01_22-joint_2.csv",
+                   MAPS / "ur10e_joint2.yaml")
+
+
+def _figures(case) -> list[tuple[dict, dict]]:
+    """(finding, what the report's figure of it draws) for every finding of the joint; a finding judged
+    off the sliding samples is replayed on the moving samples (the report does not draw it)."""
+    jn, jd, datas = case
+    entries = [f for f in jd.get("diagnosis") or [] if isinstance(f, dict)]
+    rows = ct.diagnosis_samples(datas, jn, jd)
+    out = []
+    for f, before in zip(entries, ct.diagnosis_befores(jd, entries)):
+        res = ct.diagnosis_residuals(datas, jn, jd, f, before=before,
+                                     rows=rows if ct.on_sliding_samples(f) else None)
+        assert res is not None, f
+        out.append((f, res))
+    return out
+
+
+@pytest.mark.parametrize("case", ["emps", "ur2"])
+def test_each_finding_figure_draws_its_number(case, request):
+    """The figure of a finding drawn on the sliding samples shows the models and samples its held-out
+    numbers come from: the RMS it draws before and after lie within 5 % of the stated ones. (EMPS's
+    asymmetry drew the fit's coulomb_viscous with its -3.2 N offset, 1.75 N on those samples, against the
+    diagnosis' base without it, 3.97 N.)"""
+    figs = [(f, r) for f, r in _figures(request.getfixturevalue(case)) if ct.on_sliding_samples(f)]
+    assert figs, "no finding drawn on the sliding samples"
+    for f, res in figs:
+        assert res["samples"] == "sliding"
+        assert res["rms_before"] == pytest.approx(f["rms_before"], rel=AGREE_TOL), f["cause"]
+        assert res["rms_after"] == pytest.approx(f["rms_after"], rel=AGREE_TOL), f["cause"]
+        assert np.isfinite(res["before"]["mean"]).all() and np.isfinite(res["given"]["after"]).all()
+
+
+@pytest.mark.parametrize("case", ["emps", "ur2"])
+def test_no_finding_model_predicts_worse_than_the_model_before_it(case, request):
+    """Every finding states a held-out gain, and the extended model the file stores for it, replayed along
+    the log, leaves less on its samples than the model it was judged against. (EMPS's presliding model
+    carried the joint's offset twice, once in asym's per-sign levels and once as tau_offset: 3.64 N on the
+    moving samples against 1.89 N before it.)"""
+    figs = _figures(request.getfixturevalue(case))
+    assert figs
+    for f, res in figs:
+        assert f["rms_after"] < f["rms_before"] and f["gain"] > 0, f["cause"]
+        assert res["rms_after"] is not None and res["rms_after"] < res["rms_before"], (f["cause"], res["rms_before"],
+                                                                                       res["rms_after"])
+
+
+def test_ur10e_joint2_load_is_found_and_adopted(ur2):
+    """The load on UR10e joint 2 (its friction level grows with the gravity torque it carries): a plain load
+    term cuts the held-out RMS of the sliding samples by at least a third (3.27 -> 1.93 N m in session 24),
+    beats every other candidate of its step but its twin load_gravity, and the chosen model carries it."""
+    jn, jd, _ = ur2
+    load = [f for f in jd.get("diagnosis") or [] if f.get("cause") == "load"]
+    assert len(load) == 1
+    f = load[0]
+    assert f["rms_after"] <= (2 / 3) * f["rms_before"]
+    assert jd["selected"] == f["model"]
+    step = next(s for s in jd["selection"]["diagnosis"]["steps"] if s.get("chosen") == f["extension"])
+    others = [t["gain"] for t in step["tested"] if not t["extension"].startswith("load_")]
+    assert max(others) < f["gain"]
+
