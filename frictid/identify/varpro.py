@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, types as nt
 
 from frictid.models import static as sm
 from .smallsq import damped_step
@@ -466,6 +466,14 @@ def _kkt_nb(g, on_bound):
         if v > m or v != v:
             m = v
     return m
+
+
+_C1 = nt.float64[::1]
+#: The kernels with their signature (numba types), for :func:`frictid.api.compile_kernels`: the regressors in
+#: Fortran order (:meth:`Projection._projected` passes only those), every other array contiguous.
+KERNELS = ((_project_nb, (nt.Array(nt.float64, 2, "F"), _C1, nt.Array(nt.float64, 3, "C"), _C1, _C1, nt.int64[::1],
+                          nt.boolean, _C1, _C1)),
+           (_bvls_nb, (nt.Array(nt.float64, 2, "F"), _C1, _C1, _C1, _C1, nt.float64)))
 
 
 def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: float = 1.0
