@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, types as nt
+from numba.np import linalg as _nla
 
 from frictid.models import static as sm
 from .smallsq import damped_step
@@ -50,6 +51,12 @@ APART = 2.0
 #: for 8 speeds) jumped from a Stribeck drop's valley into the two-exponential map's degenerate one.
 RADIUS = 0.25
 EPS, TINY = float(np.finfo(float).eps), float(np.finfo(float).tiny)
+#: LAPACK's least squares (``dgelsd``) as numba's own ``np.linalg.lstsq`` calls it (its helper library), with
+#: the kind code of float64 and LAPACK's integer type.
+_nla.ensure_lapack()
+_GELSD = _nla._LAPACK().numba_ez_gelsd(nt.float64)
+_KIND_D = ord("d")
+_F_INT = _nla.F_INT_nptype
 #: Relative tolerance of an active bound (scipy's ``find_active_constraints`` with ``ftol``).
 ACTIVE_RTOL = 1e-8
 #: Tolerances of the refinement (:func:`levenberg_marquardt`): relative cost decrease, relative step, and
@@ -298,13 +305,12 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
     cut = sv[0] * float(max(n, L)) * EPS
     keep = np.flatnonzero(sv > cut)
     k = keep.size
-    Uk = np.empty((k, n)).T
-    for c in range(k):
-        Uk[:, c] = U[:, keep[c]]
+    Uk = _columns(U, keep)
     Vk = np.empty((k, L))
     svk = np.empty(k)
     for c in range(k):
-        Vk[c, :] = Vt[keep[c], :]
+        for j in range(L):
+            Vk[c, j] = Vt[keep[c], j]
         svk[c] = sv[keep[c]]
     t = _mv(Uk.T, y) / svk
     b = _mv(Vk.T, t) / norms
@@ -315,16 +321,12 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
         for j in range(L):
             if on_bound[j] != 0:
                 b[j] = lo[j] if on_bound[j] < 0 else hi[j]
-        Ai = np.empty((inside.size, n)).T
-        for c in range(inside.size):
-            Ai[:, c] = A[:, inside[c]]
+        Ai = _columns(A, inside)
         Uk = np.empty((0, n)).T  # (Fortran order, as every Uk here: BLAS sees one layout)
         if inside.size:
             U, sv, _ = np.linalg.svd(Ai, full_matrices=False)
             keep = np.flatnonzero(sv > sv[0] * float(max(n, L)) * EPS)
-            Uk = np.empty((keep.size, n)).T
-            for c in range(keep.size):
-                Uk[:, c] = U[:, keep[c]]
+            Uk = _columns(U, keep)
     r = _mv(A, b) - y
     if all_lin:
         b_all = b
@@ -335,7 +337,9 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
     S = dA.shape[0]
     JnT = np.empty((S, n))
     for s_ in range(S):
-        JnT[s_, :] = _mv(dA[s_], b_all)
+        col = _mv(dA[s_], b_all)
+        for i in range(n):
+            JnT[s_, i] = col[i]
     Jn = JnT.T
     out = np.empty((n, S))
     if Uk.shape[1] == 0:  # nothing to project off (every level at a bound)
@@ -352,6 +356,19 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
             for s_ in range(S):
                 out[i, s_] = Jn[i, s_] - P[i, s_]
     return b, r, out
+
+
+@njit(cache=True)
+def _columns(M, idx):
+    """The columns ``idx`` of ``M``, copied in Fortran order (element by element: a slice assignment compiles
+    numba's shape-mismatch message, a second of a first run)."""
+    n = M.shape[0]
+    out = np.empty((idx.size, n)).T
+    for c in range(idx.size):
+        j = idx[c]
+        for i in range(n):
+            out[i, c] = M[i, j]
+    return out
 
 
 @njit(cache=True)
@@ -376,29 +393,32 @@ def _within(b, lo, hi) -> bool:
 @njit(cache=True, error_model="numpy")
 def _bvls_nb(A, y, x_lsq, lo, hi, tol):
     """The work of :func:`bvls` (``A`` in Fortran order): scipy's bounded-variable least squares step for
-    step, with LAPACK's least squares (``gelsd`` at numpy's ``rcond``) on each free set."""
+    step, with LAPACK's least squares (``gelsd`` at numpy's ``rcond``) on each free set. The index sets are
+    built and applied element by element (the same arithmetic on each element as numpy's fancy indexing and
+    concatenation, whose generic code was most of this kernel's compilation on a first run)."""
     n, L = A.shape
     x = x_lsq.copy()
     on_bound = np.zeros(L)
     for j in range(L):
         on_bound[j] = -1.0 if x[j] <= lo[j] else (1.0 if x[j] >= hi[j] else 0.0)
     x = _clip_nb(x, lo, hi)
-    free = np.flatnonzero(on_bound == 0)
+    free = _free_of(on_bound)
     while free.size:  # initialisation: free variables whose solution is feasible
         z = _lstsq_free(A, y, x, on_bound, free)
-        any_out = False
-        keep = np.ones(free.size, dtype=np.bool_)
+        kept = 0
         for c in range(free.size):
             j = free[c]
             if z[c] < lo[j]:
-                x[j], on_bound[j], keep[c], any_out = lo[j], -1.0, False, True
+                x[j], on_bound[j] = lo[j], -1.0
             elif z[c] > hi[j]:
-                x[j], on_bound[j], keep[c], any_out = hi[j], 1.0, False, True
+                x[j], on_bound[j] = hi[j], 1.0
             else:
                 x[j] = z[c]
-        if not any_out:
+                free[kept] = j
+                kept += 1
+        if kept == free.size:
             break
-        free = free[keep]
+        free = free[:kept].copy()
     r = _mv(A, x) - y
     cost, g = 0.5 * np.dot(r, r), _mv(A.T, r)
     for _ in range(L):  # loop A: free the bound variable whose gradient points most into the box
@@ -406,19 +426,43 @@ def _bvls_nb(A, y, x_lsq, lo, hi, tol):
             break
         on_bound[np.argmax(g * on_bound)] = 0.0
         while True:  # loop B: solve on the free set, step back to the first bound crossed
-            free = np.flatnonzero(on_bound == 0)
-            xf = x[free]
+            free = _free_of(on_bound)
+            nf = free.size
+            xf = np.empty(nf)
+            for c in range(nf):
+                xf[c] = x[free[c]]
             z = _lstsq_free(A, y, x, on_bound, free)
-            lof, hif = lo[free], hi[free]
-            lbv, ubv = np.flatnonzero(z < lof), np.flatnonzero(z > hif)
-            v = np.concatenate((lbv, ubv))
-            if not v.size:
-                x[free] = z
+            n_lo = 0
+            n_hi = 0
+            for c in range(nf):
+                if z[c] < lo[free[c]]:
+                    n_lo += 1
+                elif z[c] > hi[free[c]]:
+                    n_hi += 1
+            if n_lo + n_hi == 0:
+                for c in range(nf):
+                    x[free[c]] = z[c]
                 break
-            alphas = np.concatenate((lof[lbv] - xf[lbv], hif[ubv] - xf[ubv])) / (z[v] - xf[v])
+            v = np.empty(n_lo + n_hi, dtype=np.int64)  # the free entries below their bound, then those above
+            alphas = np.empty(n_lo + n_hi)
+            k_lo = 0
+            k_hi = n_lo
+            for c in range(nf):
+                if z[c] < lo[free[c]]:
+                    v[k_lo] = c
+                    alphas[k_lo] = (lo[free[c]] - xf[c]) / (z[c] - xf[c])
+                    k_lo += 1
+            for c in range(nf):
+                if z[c] > hi[free[c]]:
+                    v[k_hi] = c
+                    alphas[k_hi] = (hi[free[c]] - xf[c]) / (z[c] - xf[c])
+                    k_hi += 1
             i = np.argmin(alphas)
-            x[free] = xf * (1 - alphas[i]) + alphas[i] * z
-            on_bound[free[v[i]]] = -1.0 if i < lbv.size else 1.0
+            a = alphas[i]
+            b = 1 - a
+            for c in range(nf):
+                x[free[c]] = xf[c] * b + a * z[c]
+            on_bound[free[v[i]]] = -1.0 if i < n_lo else 1.0
         r = _mv(A, x) - y
         cost_new = 0.5 * np.dot(r, r)
         stalled = cost - cost_new < tol * cost
@@ -428,6 +472,22 @@ def _bvls_nb(A, y, x_lsq, lo, hi, tol):
     return x, on_bound
 
 
+@njit(cache=True)
+def _free_of(on_bound):
+    """The indices where ``on_bound`` is 0 (``np.flatnonzero(on_bound == 0)``)."""
+    n = 0
+    for j in range(on_bound.shape[0]):
+        if on_bound[j] == 0:
+            n += 1
+    out = np.empty(n, dtype=np.int64)
+    n = 0
+    for j in range(on_bound.shape[0]):
+        if on_bound[j] == 0:
+            out[n] = j
+            n += 1
+    return out
+
+
 @njit(cache=True, error_model="numpy")
 def _lstsq_free(A, y, x, on_bound, free):
     """The least-squares solution on the free columns with the bound ones' part moved to the right-hand
@@ -435,12 +495,42 @@ def _lstsq_free(A, y, x, on_bound, free):
     n = A.shape[0]
     if free.size == 0:
         return np.zeros(0)
-    xb = np.where(on_bound != 0, x, 0.0)
+    xb = np.empty(x.shape[0])
+    for j in range(x.shape[0]):
+        xb[j] = x[j] if on_bound[j] != 0 else 0.0
     rhs = y - _mv(A, xb)
-    Af = np.empty((free.size, n)).T
-    for c in range(free.size):
-        Af[:, c] = A[:, free[c]]
-    return np.linalg.lstsq(Af, rhs, EPS * max(n, free.size))[0]
+    Af = _columns(A, free)
+    return _lstsq_fortran(Af, rhs, EPS * max(n, free.size))
+
+
+@njit(cache=True, error_model="numpy")
+def _lstsq_fortran(a, b, rcond):
+    """``np.linalg.lstsq(a, b, rcond)[0]`` as numba computes it, for a Fortran-ordered ``a`` of this caller's
+    own (LAPACK overwrites it) and a 1-D ``b``: the same checks and the same LAPACK call (``gelsd``, through
+    numba's helper, as its ``lstsq`` makes it), without the residuals, rank and singular values nobody reads
+    here, whose generic code was most of the compilation of :func:`_bvls_nb` on a first run."""
+    m, n = a.shape
+    for j in range(n):
+        for i in range(m):
+            if not np.isfinite(a[i, j]):
+                raise np.linalg.LinAlgError("Array must not contain infs or NaNs.")
+    for i in range(m):
+        if not np.isfinite(b[i]):
+            raise np.linalg.LinAlgError("Array must not contain infs or NaNs.")
+    if m == 0 or n == 0 or b.shape[0] == 0:
+        raise np.linalg.LinAlgError("Arrays cannot be empty")
+    if b.shape[0] != m:
+        raise np.linalg.LinAlgError("Incompatible array sizes, system is not dimensionally valid.")
+    maxmn = max(m, n)
+    bcpy = np.empty(maxmn)
+    for i in range(m):  # (element by element: a slice assignment compiles numba's shape-mismatch message)
+        bcpy[i] = b[i]
+    s = np.empty(min(m, n))
+    rank = np.empty(1, dtype=_F_INT)
+    r = _GELSD(_KIND_D, m, n, 1, a.ctypes, m, bcpy.ctypes, maxmn, s.ctypes, rcond, rank.ctypes)
+    if r != 0:
+        raise ValueError("Internal algorithm failed to converge.")
+    return bcpy[:n].copy()
 
 
 @njit(cache=True)
