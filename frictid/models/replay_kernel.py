@@ -70,7 +70,7 @@ def _clip(x, g):
     return x
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+@njit(cache=True, error_model="numpy", fastmath=_FM)
 def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
           code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, hold, F, z, T, flat):
     """The replay loop. The map at joint temperature T is ``c0 s(T) + dc (T - T0)``
@@ -82,7 +82,9 @@ def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
     page faults when the kernel allocated them); z or T one value long holds a state that cannot change
     (the static law's z = 0, no thermal law's T), and F may be ``u_stick`` itself (each sample's
     ``u_stick`` is read before its F is written). ``flat`` (a compile-time constant, see
-    :func:`_kernel_flat`): the level is the constant a0 (no Stribeck or saturation term)."""
+    :func:`_kernel_flat`: numba compiles this loop once for each literal): the level is the constant a0 (no
+    Stribeck or saturation term). Not inlined into the kernels by numba (its copy of the inlined code was a
+    quarter of their compilation; LLVM's own inlining leaves the same numbers at the same speed)."""
     n = w.shape[0]
     sg = 1 if gmul.shape[0] > 1 else 0  # a multiplier of length 1 holds for every sample
     sf = 1 if fmul.shape[0] > 1 else 0
