@@ -51,11 +51,12 @@ APART = 2.0
 #: for 8 speeds) jumped from a Stribeck drop's valley into the two-exponential map's degenerate one.
 RADIUS = 0.25
 EPS, TINY = float(np.finfo(float).eps), float(np.finfo(float).tiny)
-#: LAPACK's least squares (``dgelsd``) as numba's own ``np.linalg.lstsq`` calls it (its helper library), with
+#: LAPACK's least squares (``dgelsd``) and SVD (``dgesdd``) as numba's own ``np.linalg`` calls them (its helpers), with
 #: the kind code of float64 and LAPACK's integer type.
 _nla.ensure_lapack()
 _GELSD = _nla._LAPACK().numba_ez_gelsd(nt.float64)
-_KIND_D = ord("d")
+_GESDD = _nla._LAPACK().numba_ez_gesdd(nt.float64)
+_KIND_D, _JOBZ_S = ord("d"), ord("S")
 _F_INT = _nla.F_INT_nptype
 #: Relative tolerance of an active bound (scipy's ``find_active_constraints`` with ``ftol``).
 ACTIVE_RTOL = 1e-8
@@ -301,9 +302,9 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
     for j in range(L):
         for i in range(n):
             An[i, j] = A[i, j] / norms[j]
-    U, sv, Vt = np.linalg.svd(An, full_matrices=False)
+    U, sv, Vt = _svd_thin(An)
     cut = sv[0] * float(max(n, L)) * EPS
-    keep = np.flatnonzero(sv > cut)
+    keep = _above(sv, cut)
     k = keep.size
     Uk = _columns(U, keep)
     Vk = np.empty((k, L))
@@ -317,15 +318,15 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
     if not _within(b, lo, hi):  # the bounded solve (Projection.linear's other branch)
         x, on_bound = _bvls_nb(An, y, b * norms, lo * norms, hi * norms, 1e-10)
         b = _clip_nb(x / norms, lo, hi)
-        inside = np.flatnonzero((on_bound == 0) & (b > lo) & (b < hi))
+        inside = _inside(on_bound, b, lo, hi)
         for j in range(L):
             if on_bound[j] != 0:
                 b[j] = lo[j] if on_bound[j] < 0 else hi[j]
         Ai = _columns(A, inside)
         Uk = np.empty((0, n)).T  # (Fortran order, as every Uk here: BLAS sees one layout)
         if inside.size:
-            U, sv, _ = np.linalg.svd(Ai, full_matrices=False)
-            keep = np.flatnonzero(sv > sv[0] * float(max(n, L)) * EPS)
+            U, sv, _ = _svd_thin(Ai)
+            keep = _above(sv, sv[0] * float(max(n, L)) * EPS)
             Uk = _columns(U, keep)
     r = _mv(A, b) - y
     if all_lin:
@@ -356,6 +357,65 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
             for s_ in range(S):
                 out[i, s_] = Jn[i, s_] - P[i, s_]
     return b, r, out
+
+
+@njit(cache=True, error_model="numpy")
+def _svd_thin(a):
+    """``np.linalg.svd(a, full_matrices=False)`` as numba computes it: the same checks, the same copy and the
+    same LAPACK call (``gesdd``, through numba's helper), without the generic code that was a second of a
+    first run's compilation."""
+    m, n = a.shape
+    if n == 0 or m == 0:
+        raise np.linalg.LinAlgError("Arrays cannot be empty")
+    for j in range(n):
+        for i in range(m):
+            if not np.isfinite(a[i, j]):
+                raise np.linalg.LinAlgError("Array must not contain infs or NaNs.")
+    acpy = np.empty((n, m)).T
+    for j in range(n):
+        for i in range(m):
+            acpy[i, j] = a[i, j]
+    minmn = min(m, n)
+    u = np.empty((minmn, m))
+    s = np.empty(minmn)
+    vt = np.empty((n, minmn))
+    r = _GESDD(_KIND_D, _JOBZ_S, m, n, acpy.ctypes, m, s.ctypes, u.ctypes, m, vt.ctypes, minmn)
+    if r != 0:
+        raise ValueError("Internal algorithm failed to converge.")
+    return u.T, s, vt.T
+
+
+@njit(cache=True)
+def _above(v, cut):
+    """The indices where ``v > cut`` (``np.flatnonzero(v > cut)``)."""
+    n = 0
+    for j in range(v.shape[0]):
+        if v[j] > cut:
+            n += 1
+    out = np.empty(n, dtype=np.int64)
+    n = 0
+    for j in range(v.shape[0]):
+        if v[j] > cut:
+            out[n] = j
+            n += 1
+    return out
+
+
+@njit(cache=True)
+def _inside(on_bound, b, lo, hi):
+    """The indices of the free entries strictly within their bounds
+    (``np.flatnonzero((on_bound == 0) & (b > lo) & (b < hi))``)."""
+    n = 0
+    for j in range(b.shape[0]):
+        if on_bound[j] == 0 and b[j] > lo[j] and b[j] < hi[j]:
+            n += 1
+    out = np.empty(n, dtype=np.int64)
+    n = 0
+    for j in range(b.shape[0]):
+        if on_bound[j] == 0 and b[j] > lo[j] and b[j] < hi[j]:
+            out[n] = j
+            n += 1
+    return out
 
 
 @njit(cache=True)
