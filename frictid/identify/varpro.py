@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, types as nt
+from numba.extending import intrinsic
 from numba.np import linalg as _nla
 
 from frictid.models import static as sm
@@ -379,10 +380,20 @@ def _svd_thin(a):
     u = np.empty((minmn, m))
     s = np.empty(minmn)
     vt = np.empty((n, minmn))
-    r = _GESDD(_KIND_D, _JOBZ_S, m, n, acpy.ctypes, m, s.ctypes, u.ctypes, m, vt.ctypes, minmn)
-    if r != 0:
+    r = _GESDD(_KIND_D, _JOBZ_S, m, n, _data(acpy), m, _data(s), _data(u), m, _data(vt), minmn)
+    if r != 0 or acpy.size < 0:  # (acpy read after the call: alive until LAPACK is done)
         raise ValueError("Internal algorithm failed to converge.")
     return u.T, s, vt.T
+
+
+@intrinsic
+def _data(typingctx, a):
+    """The pointer to the first element of the contiguous array ``a``, as numba's own LAPACK wrappers pass
+    its arrays to its helper library (the caller keeps ``a`` alive over the call)."""
+    def codegen(context, builder, signature, args):
+        return context.make_array(signature.args[0])(context, builder, args[0]).data
+
+    return nt.CPointer(a.dtype)(a), codegen
 
 
 @njit(cache=True)
@@ -587,8 +598,8 @@ def _lstsq_fortran(a, b, rcond):
         bcpy[i] = b[i]
     s = np.empty(min(m, n))
     rank = np.empty(1, dtype=_F_INT)
-    r = _GELSD(_KIND_D, m, n, 1, a.ctypes, m, bcpy.ctypes, maxmn, s.ctypes, rcond, rank.ctypes)
-    if r != 0:
+    r = _GELSD(_KIND_D, m, n, 1, _data(a), m, _data(bcpy), maxmn, _data(s), rcond, _data(rank))
+    if r != 0 or s.size + rank.size < 0:  # (s and rank read after the call: alive until LAPACK is done)
         raise ValueError("Internal algorithm failed to converge.")
     return bcpy[:n].copy()
 
