@@ -22,8 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, types as nt
-from numba.extending import intrinsic
-from numba.np import linalg as _nla
 
 from frictid.models import static as sm
 from .smallsq import damped_step
@@ -52,13 +50,6 @@ APART = 2.0
 #: for 8 speeds) jumped from a Stribeck drop's valley into the two-exponential map's degenerate one.
 RADIUS = 0.25
 EPS, TINY = float(np.finfo(float).eps), float(np.finfo(float).tiny)
-#: LAPACK's least squares (``dgelsd``) and SVD (``dgesdd``) as numba's own ``np.linalg`` calls them (its helpers), with
-#: the kind code of float64 and LAPACK's integer type.
-_nla.ensure_lapack()
-_GELSD = _nla._LAPACK().numba_ez_gelsd(nt.float64)
-_GESDD = _nla._LAPACK().numba_ez_gesdd(nt.float64)
-_KIND_D, _JOBZ_S = ord("d"), ord("S")
-_F_INT = _nla.F_INT_nptype
 #: Relative tolerance of an active bound (scipy's ``find_active_constraints`` with ``ftol``).
 ACTIVE_RTOL = 1e-8
 #: Tolerances of the refinement (:func:`levenberg_marquardt`): relative cost decrease, relative step, and
@@ -362,38 +353,9 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
 
 @njit(cache=True, error_model="numpy")
 def _svd_thin(a):
-    """``np.linalg.svd(a, full_matrices=False)`` as numba computes it: the same checks, the same copy and the
-    same LAPACK call (``gesdd``, through numba's helper), without the generic code that was a second of a
-    first run's compilation."""
-    m, n = a.shape
-    if n == 0 or m == 0:
-        raise np.linalg.LinAlgError("Arrays cannot be empty")
-    for j in range(n):
-        for i in range(m):
-            if not np.isfinite(a[i, j]):
-                raise np.linalg.LinAlgError("Array must not contain infs or NaNs.")
-    acpy = np.empty((n, m)).T
-    for j in range(n):
-        for i in range(m):
-            acpy[i, j] = a[i, j]
-    minmn = min(m, n)
-    u = np.empty((minmn, m))
-    s = np.empty(minmn)
-    vt = np.empty((n, minmn))
-    r = _GESDD(_KIND_D, _JOBZ_S, m, n, _data(acpy), m, _data(s), _data(u), m, _data(vt), minmn)
-    if r != 0 or acpy.size < 0:  # (acpy read after the call: alive until LAPACK is done)
-        raise ValueError("Internal algorithm failed to converge.")
-    return u.T, s, vt.T
-
-
-@intrinsic
-def _data(typingctx, a):
-    """The pointer to the first element of the contiguous array ``a``, as numba's own LAPACK wrappers pass
-    its arrays to its helper library (the caller keeps ``a`` alive over the call)."""
-    def codegen(context, builder, signature, args):
-        return context.make_array(signature.args[0])(context, builder, args[0]).data
-
-    return nt.CPointer(a.dtype)(a), codegen
+    """``np.linalg.svd(a, full_matrices=False)`` (numba's, LAPACK's ``gesdd``) for the one signature the kernels
+    call it with, compiled once as its own function."""
+    return np.linalg.svd(a, full_matrices=False)
 
 
 @njit(cache=True)
@@ -576,32 +538,9 @@ def _lstsq_free(A, y, x, on_bound, free):
 
 @njit(cache=True, error_model="numpy")
 def _lstsq_fortran(a, b, rcond):
-    """``np.linalg.lstsq(a, b, rcond)[0]`` as numba computes it, for a Fortran-ordered ``a`` of this caller's
-    own (LAPACK overwrites it) and a 1-D ``b``: the same checks and the same LAPACK call (``gelsd``, through
-    numba's helper, as its ``lstsq`` makes it), without the residuals, rank and singular values nobody reads
-    here, whose generic code was most of the compilation of :func:`_bvls_nb` on a first run."""
-    m, n = a.shape
-    for j in range(n):
-        for i in range(m):
-            if not np.isfinite(a[i, j]):
-                raise np.linalg.LinAlgError("Array must not contain infs or NaNs.")
-    for i in range(m):
-        if not np.isfinite(b[i]):
-            raise np.linalg.LinAlgError("Array must not contain infs or NaNs.")
-    if m == 0 or n == 0 or b.shape[0] == 0:
-        raise np.linalg.LinAlgError("Arrays cannot be empty")
-    if b.shape[0] != m:
-        raise np.linalg.LinAlgError("Incompatible array sizes, system is not dimensionally valid.")
-    maxmn = max(m, n)
-    bcpy = np.empty(maxmn)
-    for i in range(m):  # (element by element: a slice assignment compiles numba's shape-mismatch message)
-        bcpy[i] = b[i]
-    s = np.empty(min(m, n))
-    rank = np.empty(1, dtype=_F_INT)
-    r = _GELSD(_KIND_D, m, n, 1, _data(a), m, _data(bcpy), maxmn, _data(s), rcond, _data(rank))
-    if r != 0 or s.size + rank.size < 0:  # (s and rank read after the call: alive until LAPACK is done)
-        raise ValueError("Internal algorithm failed to converge.")
-    return bcpy[:n].copy()
+    """``np.linalg.lstsq(a, b, rcond)[0]`` (numba's, LAPACK's ``gelsd``) for a Fortran-ordered ``a`` and a 1-D
+    ``b``, compiled once as its own function."""
+    return np.linalg.lstsq(a, b, rcond)[0]
 
 
 @njit(cache=True)
