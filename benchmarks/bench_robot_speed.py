@@ -1,6 +1,6 @@
 """Whole-robot identification of the UR10e harmonic run against AURT's recorded time (issue 24's speed line).
 
-    python benchmarks/bench_robot_speed.py [--rounds 3]
+    python benchmarks/bench_robot_speed.py [--rounds 3] [--cold-rounds 1]
 
 The job AURT did in the recorded run (benchmarks/recorded/aurt_ur10e.json: compile the rigid-body model,
 compile the robot model with friction, calibrate on the whole run), done by frictid: the whole of
@@ -11,7 +11,9 @@ on each joint's friction torque, and the guard that keeps a model only where it 
 the fitted log's own time blocks). Per round, CPU time (user + sys) and wall:
 
 1. ``frictid fit RUN --map MAP --robot ROBOT -o P`` in a fresh process (the command a user types: Python's
-   start, the imports, reading, both stages, writing the file);
+   start, the imports, reading, both stages, writing the file), with numba's cache warm, and (``--cold-rounds``,
+   first) with ``NUMBA_CACHE_DIR`` a new empty folder: the first run after installing, every kernel compiled
+   (CPU time of the child and of the worker processes it forks);
 2. ``frictid.robotfit.fit_robot`` in this process, its steps timed one by one as ``fit_robot`` runs them
    (reading; stage 1: ``identify_robot`` and ``fit_result``; stage 2's fits: ``predict``,
    ``friction_logs``, ``fit_joints`` with the diagnosis; the guard: ``guard_models``, four more
@@ -20,8 +22,10 @@ the fitted log's own time blocks). Per round, CPU time (user + sys) and wall:
 
 The ratio is frictid's median CPU time over AURT's recorded CPU time (compile-rbd + compile-rd +
 calibrate), and the same for wall time; the load average is printed with each (a shared machine: CPU time
-is the figure to compare). AURT is not re-run here. With FRICTID_SMOKE=1: the first quarter of the run,
-one round (the same code path in seconds; its ratio means nothing).
+is the figure to compare). AURT is not re-run here. Last, the README's first command (``frictid fit
+sample_logs/hydraulic_sweep.csv -o P --report R``, what every new user runs first), cold then warm, the same
+way. With FRICTID_SMOKE=1: the first quarter of the run, one round, no cold run (the same code path in
+seconds; its ratio means nothing).
 """
 from __future__ import annotations
 
@@ -51,6 +55,7 @@ RUN = ROOT.parent / "shared/realdata/ur10e_mamedov2020/identification_data/ur-20
 MAP = ROOT / "recipes/realdata/ur10e_harmonic.yaml"
 ROBOT = ROOT / "recipes/robots/ur10e.yaml"
 RECORDED = ROOT / "benchmarks/recorded/aurt_ur10e.json"
+SAMPLE = ROOT / "sample_logs/hydraulic_sweep.csv"
 STEPS = ("read", "stage 1", "stage 2 fits", "guard")
 
 
@@ -86,17 +91,30 @@ def whole_round(run: Path) -> tuple[np.ndarray, dict]:
     return spent, {j: (v["kept"], res[j].selected) for j, v in res.settings["robot"]["stage2"].items()}
 
 
-def cli_round(run: Path, tmp: str, cold: bool = False) -> np.ndarray:
-    """``frictid fit`` in a fresh process: [CPU (user + sys of the child), wall]. cold: with an empty numba
-    cache (``NUMBA_CACHE_DIR`` a new folder: every kernel compiled, as on the first run after installing)."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(tmp) / "numba_cold")) if cold else None
+def command_round(args: list[str], tmp: str, cold: bool = False) -> np.ndarray:
+    """``frictid ARGS`` in a fresh process: [CPU (user + sys of the child and the workers it forks), wall].
+    cold: with an empty numba cache (``NUMBA_CACHE_DIR`` a new folder: every kernel compiled, as on the first
+    run after installing)."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=tempfile.mkdtemp(prefix="numba_cold", dir=tmp)) if cold else None
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
-    subprocess.run([str(Path(sys.executable).parent / "frictid"), "fit", str(run), "--map", str(MAP), "--robot",
-                    str(ROBOT), "-o", str(Path(tmp) / "ur10e.yaml"), "-q"], check=True, cwd=tmp, env=env)
+    subprocess.run([str(Path(sys.executable).parent / "frictid"), *args], check=True, cwd=tmp, env=env)
     wall = time.perf_counter() - t
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return np.array([after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime, wall])
+
+
+def cli_round(run: Path, tmp: str, cold: bool = False) -> np.ndarray:
+    """``frictid fit RUN --map MAP --robot ROBOT`` in a fresh process (:func:`command_round`)."""
+    return command_round(["fit", str(run), "--map", str(MAP), "--robot", str(ROBOT), "-o",
+                          str(Path(tmp) / "ur10e.yaml"), "-q"], tmp, cold)
+
+
+def readme_round(tmp: str, cold: bool = False) -> np.ndarray:
+    """The README's first command, ``frictid fit sample_logs/hydraulic_sweep.csv -o P --report R``, in a fresh
+    process (:func:`command_round`)."""
+    return command_round(["fit", str(SAMPLE), "-o", str(Path(tmp) / "params.yaml"), "--report",
+                          str(Path(tmp) / "report.html"), "-q"], tmp, cold)
 
 
 def smoke_run(tmp: str) -> Path:
@@ -171,18 +189,19 @@ def rounds_of(run: Path, tmp: str, rounds: int, smoke: bool) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--cold-rounds", type=int, default=1, help="runs with numba's cache empty (each ~20 s CPU)")
     args = ap.parse_args(argv)
     smoke = os.environ.get("FRICTID_SMOKE") == "1"
     aurt = recorded()
     with tempfile.TemporaryDirectory() as tmp:
         run = smoke_run(tmp) if smoke else RUN
         load0 = os.getloadavg()[0]
-        cold = None if smoke else cli_round(run, tmp, cold=True)
+        cold = [] if smoke else [cli_round(run, tmp, cold=True) for _ in range(args.cold_rounds)]
         r = rounds_of(run, tmp, 1 if smoke else args.rounds, smoke)
         print(f"frictid on {run.name} ({'the first quarter, smoke' if smoke else 'the whole run'}), load average "
               f"{load0:.1f} -> {os.getloadavg()[0]:.1f}:")
-        if cold is not None:
-            report("frictid fit, fresh process, numba cache empty", [cold], aurt)
+        if cold:
+            report("frictid fit, fresh process, numba cache empty", cold, aurt)
             report("frictid fit (fresh process)", r["cli"], aurt)
         report("fit_robot (in process)", r["whole"], aurt)
         total = np.median(np.array([sum(r[k][i] for k in STEPS) for i in range(len(r["whole"]))]), axis=0)
@@ -192,6 +211,14 @@ def main(argv=None) -> int:
         print(f"  stage 1 alone, BLAS at one thread / as it runs: CPU {blas[0, 0]:.2f} / {blas[1, 0]:.2f} s, "
               f"wall {blas[0, 1]:.2f} / {blas[1, 1]:.2f} s (median of {len(r['blas'])}, alternating)")
         print("  kept per joint: " + ", ".join(f"{j} {m} ({k})" for j, (k, m) in r["kept"].items()))
+        if not smoke:
+            load0 = os.getloadavg()[0]
+            first = [readme_round(tmp, cold=True) for _ in range(args.cold_rounds)]
+            warm = [readme_round(tmp) for _ in range(args.rounds)]
+            print(f"the README's first command, frictid fit {SAMPLE.relative_to(ROOT)} -o P --report R, load average "
+                  f"{load0:.1f} -> {os.getloadavg()[0]:.1f}:")
+            report("fresh process, numba cache empty", first)
+            report("fresh process", warm)
     return 0
 
 

@@ -195,6 +195,8 @@ def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, unit
                                                   differentiate, diagnose=diagnose,
                                                   sources=[s.source for s in items]))
 
+    if workers > 1 and len(names) > 1:
+        compile_kernels()
     done = map_ordered(one, names, workers)  # in this process when workers <= 1
     bad = combined_log_error(p for _, _, probs in done for p in probs)  # every joint's, together
     if bad is not None:
@@ -205,6 +207,22 @@ def fit(paths_or_logs, joint: str | None = None, models=None, mapping=None, unit
     res.joints.update((j, jf) for j, (jf, _, _) in zip(names, done))
     res.settings["diagnose"] = bool(diagnose)
     return res
+
+
+def compile_kernels() -> None:
+    """Compile the kernels every joint's fit calls, each for its one signature, in this process (or load them
+    from numba's cache): the worker processes forked after it inherit them. Otherwise, on the first run after
+    installing, every worker compiled its own copy of each (the same tens of seconds of CPU, once per worker);
+    with the cache warm each loaded its own copy. A kernel called with other types still compiles where it is
+    called."""
+    from frictid.diagnose import samples
+    from frictid.identify import varpro
+    from frictid.models import replay_kernel
+    from frictid.segments import duty, runs
+
+    for kernel, signature in (*runs.KERNELS, *duty.KERNELS, *varpro.KERNELS, *replay_kernel.KERNELS,
+                              *samples.KERNELS):
+        kernel.compile(signature)
 
 
 def fit_joint(jlogs: list[JointLog], wanted: list[str], n_folds: int, segmenter: Callable,

@@ -27,7 +27,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
+from numba import njit, types as nt
 
 from ..data import finite
 from ..segments import noise_sigma
@@ -311,6 +311,10 @@ def _rise_nb(u, e, x0):  # pragma: no cover - compiled; twin: _rise(..., ref=Tru
         y[k] = x
         x = u[k] * c + x * e
     return y
+
+
+#: The kernel with its signature (numba types), for :func:`frictid.api.compile_kernels`.
+KERNELS = ((_rise_nb, (nt.float64[::1], nt.float64, nt.float64)),)
 
 
 def _sliding_rows(lg: DiagLog, w: np.ndarray, fin_w: np.ndarray, v_min: float, v_move: float, J: float,

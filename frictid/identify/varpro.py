@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, types as nt
 
 from frictid.models import static as sm
 from .smallsq import damped_step
@@ -294,37 +294,32 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
     for j in range(L):
         for i in range(n):
             An[i, j] = A[i, j] / norms[j]
-    U, sv, Vt = np.linalg.svd(An, full_matrices=False)
+    U, sv, Vt = _svd_thin(An)
     cut = sv[0] * float(max(n, L)) * EPS
-    keep = np.flatnonzero(sv > cut)
+    keep = _above(sv, cut)
     k = keep.size
-    Uk = np.empty((k, n)).T
-    for c in range(k):
-        Uk[:, c] = U[:, keep[c]]
+    Uk = _columns(U, keep)
     Vk = np.empty((k, L))
     svk = np.empty(k)
     for c in range(k):
-        Vk[c, :] = Vt[keep[c], :]
+        for j in range(L):
+            Vk[c, j] = Vt[keep[c], j]
         svk[c] = sv[keep[c]]
     t = _mv(Uk.T, y) / svk
     b = _mv(Vk.T, t) / norms
     if not _within(b, lo, hi):  # the bounded solve (Projection.linear's other branch)
         x, on_bound = _bvls_nb(An, y, b * norms, lo * norms, hi * norms, 1e-10)
         b = _clip_nb(x / norms, lo, hi)
-        inside = np.flatnonzero((on_bound == 0) & (b > lo) & (b < hi))
+        inside = _inside(on_bound, b, lo, hi)
         for j in range(L):
             if on_bound[j] != 0:
                 b[j] = lo[j] if on_bound[j] < 0 else hi[j]
-        Ai = np.empty((inside.size, n)).T
-        for c in range(inside.size):
-            Ai[:, c] = A[:, inside[c]]
+        Ai = _columns(A, inside)
         Uk = np.empty((0, n)).T  # (Fortran order, as every Uk here: BLAS sees one layout)
         if inside.size:
-            U, sv, _ = np.linalg.svd(Ai, full_matrices=False)
-            keep = np.flatnonzero(sv > sv[0] * float(max(n, L)) * EPS)
-            Uk = np.empty((keep.size, n)).T
-            for c in range(keep.size):
-                Uk[:, c] = U[:, keep[c]]
+            U, sv, _ = _svd_thin(Ai)
+            keep = _above(sv, sv[0] * float(max(n, L)) * EPS)
+            Uk = _columns(U, keep)
     r = _mv(A, b) - y
     if all_lin:
         b_all = b
@@ -335,7 +330,9 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
     S = dA.shape[0]
     JnT = np.empty((S, n))
     for s_ in range(S):
-        JnT[s_, :] = _mv(dA[s_], b_all)
+        col = _mv(dA[s_], b_all)
+        for i in range(n):
+            JnT[s_, i] = col[i]
     Jn = JnT.T
     out = np.empty((n, S))
     if Uk.shape[1] == 0:  # nothing to project off (every level at a bound)
@@ -352,6 +349,59 @@ def _project_nb(A, y, dA, norms, b_held, lin_cols, all_lin, lo, hi):
             for s_ in range(S):
                 out[i, s_] = Jn[i, s_] - P[i, s_]
     return b, r, out
+
+
+@njit(cache=True, error_model="numpy")
+def _svd_thin(a):
+    """``np.linalg.svd(a, full_matrices=False)`` (numba's, LAPACK's ``gesdd``) for the one signature the kernels
+    call it with, compiled once as its own function."""
+    return np.linalg.svd(a, full_matrices=False)
+
+
+@njit(cache=True)
+def _above(v, cut):
+    """The indices where ``v > cut`` (``np.flatnonzero(v > cut)``)."""
+    n = 0
+    for j in range(v.shape[0]):
+        if v[j] > cut:
+            n += 1
+    out = np.empty(n, dtype=np.int64)
+    n = 0
+    for j in range(v.shape[0]):
+        if v[j] > cut:
+            out[n] = j
+            n += 1
+    return out
+
+
+@njit(cache=True)
+def _inside(on_bound, b, lo, hi):
+    """The indices of the free entries strictly within their bounds
+    (``np.flatnonzero((on_bound == 0) & (b > lo) & (b < hi))``)."""
+    n = 0
+    for j in range(b.shape[0]):
+        if on_bound[j] == 0 and b[j] > lo[j] and b[j] < hi[j]:
+            n += 1
+    out = np.empty(n, dtype=np.int64)
+    n = 0
+    for j in range(b.shape[0]):
+        if on_bound[j] == 0 and b[j] > lo[j] and b[j] < hi[j]:
+            out[n] = j
+            n += 1
+    return out
+
+
+@njit(cache=True)
+def _columns(M, idx):
+    """The columns ``idx`` of ``M``, copied in Fortran order (element by element: a slice assignment compiles
+    numba's shape-mismatch message, a second of a first run)."""
+    n = M.shape[0]
+    out = np.empty((idx.size, n)).T
+    for c in range(idx.size):
+        j = idx[c]
+        for i in range(n):
+            out[i, c] = M[i, j]
+    return out
 
 
 @njit(cache=True)
@@ -376,29 +426,32 @@ def _within(b, lo, hi) -> bool:
 @njit(cache=True, error_model="numpy")
 def _bvls_nb(A, y, x_lsq, lo, hi, tol):
     """The work of :func:`bvls` (``A`` in Fortran order): scipy's bounded-variable least squares step for
-    step, with LAPACK's least squares (``gelsd`` at numpy's ``rcond``) on each free set."""
+    step, with LAPACK's least squares (``gelsd`` at numpy's ``rcond``) on each free set. The index sets are
+    built and applied element by element (the same arithmetic on each element as numpy's fancy indexing and
+    concatenation, whose generic code was most of this kernel's compilation on a first run)."""
     n, L = A.shape
     x = x_lsq.copy()
     on_bound = np.zeros(L)
     for j in range(L):
         on_bound[j] = -1.0 if x[j] <= lo[j] else (1.0 if x[j] >= hi[j] else 0.0)
     x = _clip_nb(x, lo, hi)
-    free = np.flatnonzero(on_bound == 0)
+    free = _free_of(on_bound)
     while free.size:  # initialisation: free variables whose solution is feasible
         z = _lstsq_free(A, y, x, on_bound, free)
-        any_out = False
-        keep = np.ones(free.size, dtype=np.bool_)
+        kept = 0
         for c in range(free.size):
             j = free[c]
             if z[c] < lo[j]:
-                x[j], on_bound[j], keep[c], any_out = lo[j], -1.0, False, True
+                x[j], on_bound[j] = lo[j], -1.0
             elif z[c] > hi[j]:
-                x[j], on_bound[j], keep[c], any_out = hi[j], 1.0, False, True
+                x[j], on_bound[j] = hi[j], 1.0
             else:
                 x[j] = z[c]
-        if not any_out:
+                free[kept] = j
+                kept += 1
+        if kept == free.size:
             break
-        free = free[keep]
+        free = free[:kept].copy()
     r = _mv(A, x) - y
     cost, g = 0.5 * np.dot(r, r), _mv(A.T, r)
     for _ in range(L):  # loop A: free the bound variable whose gradient points most into the box
@@ -406,19 +459,43 @@ def _bvls_nb(A, y, x_lsq, lo, hi, tol):
             break
         on_bound[np.argmax(g * on_bound)] = 0.0
         while True:  # loop B: solve on the free set, step back to the first bound crossed
-            free = np.flatnonzero(on_bound == 0)
-            xf = x[free]
+            free = _free_of(on_bound)
+            nf = free.size
+            xf = np.empty(nf)
+            for c in range(nf):
+                xf[c] = x[free[c]]
             z = _lstsq_free(A, y, x, on_bound, free)
-            lof, hif = lo[free], hi[free]
-            lbv, ubv = np.flatnonzero(z < lof), np.flatnonzero(z > hif)
-            v = np.concatenate((lbv, ubv))
-            if not v.size:
-                x[free] = z
+            n_lo = 0
+            n_hi = 0
+            for c in range(nf):
+                if z[c] < lo[free[c]]:
+                    n_lo += 1
+                elif z[c] > hi[free[c]]:
+                    n_hi += 1
+            if n_lo + n_hi == 0:
+                for c in range(nf):
+                    x[free[c]] = z[c]
                 break
-            alphas = np.concatenate((lof[lbv] - xf[lbv], hif[ubv] - xf[ubv])) / (z[v] - xf[v])
+            v = np.empty(n_lo + n_hi, dtype=np.int64)  # the free entries below their bound, then those above
+            alphas = np.empty(n_lo + n_hi)
+            k_lo = 0
+            k_hi = n_lo
+            for c in range(nf):
+                if z[c] < lo[free[c]]:
+                    v[k_lo] = c
+                    alphas[k_lo] = (lo[free[c]] - xf[c]) / (z[c] - xf[c])
+                    k_lo += 1
+            for c in range(nf):
+                if z[c] > hi[free[c]]:
+                    v[k_hi] = c
+                    alphas[k_hi] = (hi[free[c]] - xf[c]) / (z[c] - xf[c])
+                    k_hi += 1
             i = np.argmin(alphas)
-            x[free] = xf * (1 - alphas[i]) + alphas[i] * z
-            on_bound[free[v[i]]] = -1.0 if i < lbv.size else 1.0
+            a = alphas[i]
+            b = 1 - a
+            for c in range(nf):
+                x[free[c]] = xf[c] * b + a * z[c]
+            on_bound[free[v[i]]] = -1.0 if i < n_lo else 1.0
         r = _mv(A, x) - y
         cost_new = 0.5 * np.dot(r, r)
         stalled = cost - cost_new < tol * cost
@@ -428,6 +505,22 @@ def _bvls_nb(A, y, x_lsq, lo, hi, tol):
     return x, on_bound
 
 
+@njit(cache=True)
+def _free_of(on_bound):
+    """The indices where ``on_bound`` is 0 (``np.flatnonzero(on_bound == 0)``)."""
+    n = 0
+    for j in range(on_bound.shape[0]):
+        if on_bound[j] == 0:
+            n += 1
+    out = np.empty(n, dtype=np.int64)
+    n = 0
+    for j in range(on_bound.shape[0]):
+        if on_bound[j] == 0:
+            out[n] = j
+            n += 1
+    return out
+
+
 @njit(cache=True, error_model="numpy")
 def _lstsq_free(A, y, x, on_bound, free):
     """The least-squares solution on the free columns with the bound ones' part moved to the right-hand
@@ -435,12 +528,19 @@ def _lstsq_free(A, y, x, on_bound, free):
     n = A.shape[0]
     if free.size == 0:
         return np.zeros(0)
-    xb = np.where(on_bound != 0, x, 0.0)
+    xb = np.empty(x.shape[0])
+    for j in range(x.shape[0]):
+        xb[j] = x[j] if on_bound[j] != 0 else 0.0
     rhs = y - _mv(A, xb)
-    Af = np.empty((free.size, n)).T
-    for c in range(free.size):
-        Af[:, c] = A[:, free[c]]
-    return np.linalg.lstsq(Af, rhs, EPS * max(n, free.size))[0]
+    Af = _columns(A, free)
+    return _lstsq_fortran(Af, rhs, EPS * max(n, free.size))
+
+
+@njit(cache=True, error_model="numpy")
+def _lstsq_fortran(a, b, rcond):
+    """``np.linalg.lstsq(a, b, rcond)[0]`` (numba's, LAPACK's ``gelsd``) for a Fortran-ordered ``a`` and a 1-D
+    ``b``, compiled once as its own function."""
+    return np.linalg.lstsq(a, b, rcond)[0]
 
 
 @njit(cache=True)
@@ -466,6 +566,14 @@ def _kkt_nb(g, on_bound):
         if v > m or v != v:
             m = v
     return m
+
+
+_C1 = nt.float64[::1]
+#: The kernels with their signature (numba types), for :func:`frictid.api.compile_kernels`: the regressors in
+#: Fortran order (:meth:`Projection._projected` passes only those), every other array contiguous.
+KERNELS = ((_project_nb, (nt.Array(nt.float64, 2, "F"), _C1, nt.Array(nt.float64, 3, "C"), _C1, _C1, nt.int64[::1],
+                          nt.boolean, _C1, _C1)),
+           (_bvls_nb, (nt.Array(nt.float64, 2, "F"), _C1, _C1, _C1, _C1, nt.float64)))
 
 
 def levenberg_marquardt(resid, jac, x0, lo, hi, scale, budget: int, radius: float = 1.0

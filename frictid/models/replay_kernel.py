@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types as nt
 
 from .lugre import _FM, _pair, thermal_factors_nb
 from .static import canonical_level, canonical_viscous
@@ -70,7 +70,7 @@ def _clip(x, g):
     return x
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FM, inline="always")
+@njit(cache=True, error_model="numpy", fastmath=_FM)
 def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
           code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, hold, F, z, T, flat):
     """The replay loop. The map at joint temperature T is ``c0 s(T) + dc (T - T0)``
@@ -82,7 +82,9 @@ def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
     page faults when the kernel allocated them); z or T one value long holds a state that cannot change
     (the static law's z = 0, no thermal law's T), and F may be ``u_stick`` itself (each sample's
     ``u_stick`` is read before its F is written). ``flat`` (a compile-time constant, see
-    :func:`_kernel_flat`): the level is the constant a0 (no Stribeck or saturation term)."""
+    :func:`_kernel_flat`: numba compiles this loop once for each literal): the level is the constant a0 (no
+    Stribeck or saturation term). Not inlined into the kernels by numba (its copy of the inlined code was a
+    quarter of their compilation; LLVM's own inlining leaves the same numbers at the same speed)."""
     n = w.shape[0]
     sg = 1 if gmul.shape[0] > 1 else 0  # a multiplier of length 1 holds for every sample
     sf = 1 if fmul.shape[0] > 1 else 0
@@ -201,6 +203,23 @@ def _kernel_flat(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
     the time (measured: 33 against 21 ns per sample with LuGre and thermal6)."""
     return _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
                  code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, hold, F, z, T, True)
+
+
+_IN = nt.Array(nt.float64, 1, "C", readonly=True)
+#: The one signature of :func:`_kernel` and :func:`_kernel_flat` (numba types): every input array a read-only
+#: view, the outputs writeable (:func:`replay_friction` passes them so).
+SIGNATURE = ((_IN,) * 5 + (nt.float64,) * 5 + (nt.boolean, nt.int64, _IN, _IN, nt.float64, nt.float64, _IN,
+             nt.float64, _IN, nt.boolean, _IN, nt.float64, nt.Array(nt.boolean, 1, "C", readonly=True))
+             + (nt.float64[::1],) * 3)
+#: The kernels with their signature, for :func:`frictid.api.compile_kernels`.
+KERNELS = ((_kernel, SIGNATURE), (_kernel_flat, SIGNATURE))
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    """A read-only view of the contiguous array ``a`` (no copy)."""
+    v = a.view()
+    v.flags.writeable = False
+    return v
 
 
 def _pack(c_pos, c_neg):
@@ -374,9 +393,14 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
     # a thermal law): the replays of a report's diagnosis then allocate 29-58 MB fewer per joint-hour
     z = np.empty(n if dynamic else 1)
     T = np.empty(n if code != 0 else 1)
-    F, z, T = (_kernel_flat if flat else _kernel)(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, bool(dynamic),
-                   code, theta, np.concatenate([dc_pos, dc_neg]), C, K, Tenv,
-                   T_init, T_in, T_given, u_stick, w_stick, hold, np.empty(n) if out is None else out, z, T)
+    # every input as a read-only view (the caller's arrays, broadcasts and fresh ones alike) and every number as a
+    # float, an int or a bool: one compiled signature per kernel (:data:`SIGNATURE`), not one per combination of
+    # flags a caller's arrays happen to carry (each a second or more of compilation on a first run)
+    F, z, T = (_kernel_flat if flat else _kernel)(
+        *map(_readonly, (t, w, gmul, fmul, cc)), float(s0p), float(s0n), float(s1p), float(s1n), z0, bool(dynamic),
+        code, _readonly(theta), _readonly(np.concatenate([dc_pos, dc_neg])), float(C), float(K), _readonly(Tenv),
+        float(T_init), _readonly(T_in), bool(T_given), _readonly(u_stick), float(w_stick), _readonly(hold),
+        np.empty(n) if out is None else out, z, T)
     if n != 1:
         z = z if z.shape[0] == n else np.broadcast_to(z, (n,))
         T = T if T.shape[0] == n else np.broadcast_to(T, (n,))

@@ -21,7 +21,7 @@ and repeat the same velocity profile. The search works on onsets of motion, not 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, types as nt
 
 from .runs import count_prefix, fill_short, paint, runs
 
@@ -277,6 +277,11 @@ def _best_chain_nb(onsets, w, rests, moves, start, cands, p_min, tol_min):  # pr
         if best_P < 0 or cover > best_cover + 2 * tol or (cover >= best_cover - 2 * tol and P < best_P):
             best_cover, best_P, best_ch = cover, P, ch
     return best_cover, best_P, best_ch
+
+
+#: The kernel with its signature (numba types), for :func:`frictid.api.compile_kernels`.
+KERNELS = ((_best_chain_nb, (nt.int64[::1], nt.float64[::1], nt.int32[::1], nt.int32[::1], nt.int64, nt.int64[::1],
+                             nt.int64, nt.int64)),)
 
 
 def _settle(onsets: np.ndarray, w: _Signal, ch: list[int], P: int, tol_min: int, p_min: int) -> tuple[list[int], int]:

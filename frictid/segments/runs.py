@@ -8,7 +8,7 @@ same sums, bit for bit; :func:`prefix_sum_ref` is the numpy twin the tests compa
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, types as nt
 from scipy.ndimage import uniform_filter1d
 
 #: :func:`paint` slices run by run up to this many runs, or one run per this many samples (a slice costs
@@ -165,6 +165,10 @@ def _offset_cumsum(x, c):  # pragma: no cover - compiled
     for k in range(x.size):
         acc += x[k] - x0
         c[k + 1] = acc
+
+
+#: The kernel with its signature (numba types), for :func:`frictid.api.compile_kernels`.
+KERNELS = ((_offset_cumsum, (nt.float64[::1], nt.float64[::1])),)
 
 
 def box_slope(x: np.ndarray, h: int, dt: float, c: np.ndarray | None = None) -> np.ndarray:
