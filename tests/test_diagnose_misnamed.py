@@ -84,3 +84,44 @@ def test_a_position_term_yields_to_a_delay_that_explains_more_on_the_moving_samp
     more, less = delay(0.16), delay(0.04)
     assert chain._delay_before_dwell(pos, [pos, more], 2) is more
     assert chain._delay_before_dwell(pos, [pos, less], 2) is pos
+
+
+@pytest.mark.parametrize("seed", [23])
+def test_a_sub_sample_delay_against_a_differenced_velocity_is_resolved(seed):
+    """Foreign seed 343800 (a 3.76 ms delay at 177 Hz, 0.67 of a sample, ``qd`` the backward difference of
+    ``q``) was called unresolved: the backward difference is the velocity half a period late, so the shift
+    fitted against it (1.65 ms) is half a sample short of the torque's delay. On a plateau log whose logged
+    velocity is the backward difference of the true position: a torque 0.8 of a sample late is resolved
+    (counting the velocity's own lag, :func:`frictid.diagnose.chain.velocity_lag`), the same log without the
+    delay is not (its shift, the torque leading the late velocity by half a sample, is that lag)."""
+    from types import SimpleNamespace
+
+    from frictid.diagnose.chain import _unresolved_delay, velocity_lag
+    from frictid.diagnose.signals import delay_estimate
+    from test_diagnose import TRUE
+
+    dt = 2e-3
+    flat = dict(TRUE, Fs=TRUE["Fc"])
+
+    def drag(t, q, w, F):
+        return np.asarray(F) + 0.8 * w * np.abs(w)
+
+    def late(t, q, w, F):
+        return np.interp(t - 0.8 * dt, t, drag(t, q, w, F))
+
+    for effect, delayed in ((late, True), (drag, False)):
+        lg = plateau_log(effect, seed=seed, reps=2, dt=dt, noise=0.002, values=flat)
+        w_true = lg.w
+        q = np.concatenate([[0.0], np.cumsum(0.5 * (w_true[1:] + w_true[:-1]) * dt)])   # the true position
+        lg.q = q
+        lg.w = np.concatenate([[0.0], np.diff(q) / dt])    # the drive's backward difference, half a period late
+        lg.a = np.gradient(lg.w, dt)
+        S = build_samples([lg], 5)
+        assert velocity_lag(S) == pytest.approx(0.5 * dt)
+        shifts = [delay_estimate(S, [g for g in range(5) if g != f]) for f in range(5)]
+        tr = SimpleNamespace(fold_terms=[SimpleNamespace(settings={"shift": x}) for x in shifts])
+        why = _unresolved_delay(S, tr)
+        if delayed:
+            assert all(x < 0 for x in shifts) and why is None, (shifts, why)
+        else:
+            assert why is not None and "does not resolve it" in why, (shifts, why)

@@ -234,23 +234,33 @@ def qd_is_difference(log: JointLog) -> bool:
     ``R_DIFF_TOL`` of the position's resolution per period, on ``R_DIFF_SHARE`` of them."""
     if log.q is None or log.qd is None or log.n < 16:
         return False
-    q = np.asarray(log.q, dtype=float)
-    qd = np.asarray(log.qd, dtype=float)
-    t = np.asarray(log.t, dtype=float)
-    m = min(log.n, QUANTUM_SAMPLES)
+    return difference_lag(log.q, log.qd, log.t) != 0.0
+
+
+def difference_lag(q, qd, t) -> float:
+    """The lag [sample periods] of a velocity ``qd`` that is the difference of the position ``q`` over one
+    sample period (:func:`qd_is_difference`'s test): 0.5 for a backward difference (``qd[i] = (q[i] -
+    q[i-1]) / dt``, the velocity at the middle of the period before the sample), -0.5 for a forward one,
+    0 when ``qd`` is neither (measured, filtered, or a bad log)."""
+    q = np.asarray(q, dtype=float)
+    qd = np.asarray(qd, dtype=float)
+    t = np.asarray(t, dtype=float)
+    m = min(q.shape[0], QUANTUM_SAMPLES)
+    if m < 16:
+        return 0.0
     dq, dt = np.diff(q[:m]), np.diff(t[:m])
     if not (np.all(dt > 0) and np.all(np.isfinite(dq)) and np.all(np.isfinite(qd[:m]))):
-        return False  # a bad log: estimate_scales refuses it
+        return 0.0  # a bad log: estimate_scales refuses it
     moved = dq != 0
     if moved.sum() < 10:
-        return False
+        return 0.0
     res = max(quantum(q[:m]), noise_sigma(q[:m]), REL_FLOOR * max(_abs_max(q[:m]), 1e-300))
     d = dq / dt
     tol = R_DIFF_TOL * res / dt
-    for lo, hi in ((1, m), (0, m - 1)):  # backward: qd[i] = (q[i] - q[i-1]) / dt; forward: (q[i+1] - q[i])
+    for lo, hi, lag in ((1, m, 0.5), (0, m - 1, -0.5)):  # backward: qd[i] = (q[i] - q[i-1]) / dt; forward
         if np.mean(np.abs(qd[lo:hi] - d)[moved] <= tol[moved]) >= R_DIFF_SHARE:
-            return True
-    return False
+            return lag
+    return 0.0
 
 
 def _check(log: JointLog) -> np.ndarray:
