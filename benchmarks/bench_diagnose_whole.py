@@ -206,14 +206,12 @@ def budget_times(run) -> dict:
     import functools
     import importlib
 
+    from bench_fit_floor import resolve
+
     spent, depth, undo = collections.defaultdict(float), collections.Counter(), []
     api = importlib.import_module("frictid.api")
     for mod, attr in BUDGET_SPOTS:
-        owner = importlib.import_module(mod)
-        *path, name = attr.split(".")
-        for part in path:
-            owner = getattr(owner, part)
-        fn = getattr(owner, name)
+        owner, name, fn = resolve(mod, attr)
 
         @functools.wraps(fn)
         def timed(*a, _fn=fn, _k=name, **kw):

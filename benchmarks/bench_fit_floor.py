@@ -65,16 +65,22 @@ STAGES = [("read", "frictid.api", "read_logs"), ("derivatives", "frictid.segment
           ("diagnosis check", "frictid.api", "check_diagnosis"), ("finish", "frictid.api", "finish")]
 
 
+def resolve(mod_name: str, attr: str):
+    """The object that holds ``attr`` (a dotted name within the module ``mod_name``), the last name of it and
+    the function it names: what a timing wrapper replaces for one call."""
+    owner = importlib.import_module(mod_name)
+    *path, name = attr.split(".")
+    for part in path:
+        owner = getattr(owner, part)
+    return owner, name, getattr(owner, name)
+
+
 def stage_times(run) -> tuple[float, dict]:
     """CPU time of ``run()`` and of each step of :data:`STAGES` within it [s] (wrapped for the call only)."""
     spent: dict = collections.defaultdict(float)
     undo = []
     for label, mod_name, attr in STAGES:
-        owner = importlib.import_module(mod_name)
-        *path, name = attr.split(".")
-        for part in path:
-            owner = getattr(owner, part)
-        fn = getattr(owner, name)
+        owner, name, fn = resolve(mod_name, attr)
 
         @functools.wraps(fn)
         def timed(*a, _fn=fn, _label=label, **kw):
