@@ -285,25 +285,25 @@ def _damping(sigma0, zeta: float, J, c_pos, c_neg) -> tuple[float, float]:
 
 
 def _damped(data, c_pos, c_neg, g0, L, J, sse0, nn, n_folds: int, step: float = 0.0):
-    """The bristle length and the damping ratio chosen together by the held-out error of the time blocks: a
-    damped bristle turns the friction faster at a reversal (``sigma1 dz/dt`` acts at once), which stiffer
-    undamped bristles imitate (sigma0 5-9x high where the damping ratio is 0.8-0.9). The undamped row is tried
-    at every length; each further ratio of :data:`ZETAS` (none without a positive inertia) walks downhill from
-    the previous ratio's best length and then out to the lengths within one paired error of its best
-    (:func:`_row_walk`); where the undamped row's best is the shortest length (no transition longer than
-    the encoder resolves) no damping is tried: a damped bristle turns faster still, and a damping there
-    would only take up what the map misses near zero speed. The best cell's row gives the length and the verdict (:func:`_verdict` on that row's
-    contiguous lengths), and the cells of every ratio within one paired error of the best widen sigma0's error
-    (the length and the damping trade off along a ridge), such a cell at the grid's end making it not
-    identifiable; where a damped cell is best, the undamped row's best length joins them (the damping is a
-    nuisance the reversals may not resolve: on foreign logs whose bristles span few encoder steps a damped,
-    longer bristle won at 0.2-0.4x the truth's stiffness, trusted), and where the two lie more than
-    :data:`SPAN_MAX` apart the undamped cell is kept (the model as without the damping; UR10e joints 5 and 6,
-    whose held-out tail it predicts as before) with the error spanning the damped one. Returns (zeta, {length index: block equations}, {length index: held-out run} of the chosen
-    row, the length's index, sigma0's relative error, the reason it is not identifiable or '', the cells (block
-    equations, held-out run) :func:`_with_undamped` widens the rigid terms by: the undamped row's best where a
-    damped cell is chosen, and the best of the damping ratios either side of the chosen, and the lengths with
-    the chosen one between the grid's (:func:`_interpolated`))."""
+    """The bristle length and the damping ratio chosen together by the held-out error of the time blocks: a damped
+    bristle turns the friction faster at a reversal (``sigma1 dz/dt`` acts at once), which stiffer undamped bristles
+    imitate (sigma0 5-9x high where the damping ratio is 0.8-0.9). The undamped row is tried at every length; each
+    further ratio of :data:`ZETAS` (none without a positive inertia) walks downhill from the previous ratio's best
+    length and then out to the lengths within one paired error of its best (:func:`_row_walk`); where the undamped
+    row's best is the shortest length (no transition longer than the encoder resolves) no damping is tried: a damped
+    bristle turns faster still, and a damping there would only take up what the map misses near zero speed. The best
+    cell's row gives the length and the verdict (:func:`_verdict` on that row's contiguous lengths), and the cells
+    of every ratio within one paired error of the best widen sigma0's error (the length and the damping trade off
+    along a ridge), such a cell at the grid's end making it not identifiable; where a damped cell is best, the
+    undamped row's best length joins them (the damping is a nuisance the reversals may not resolve: on foreign logs
+    whose bristles span few encoder steps a damped, longer bristle won at 0.2-0.4x the truth's stiffness, trusted),
+    and where the two lie more than :data:`SPAN_MAX` apart the undamped cell is kept (the model as without the
+    damping; UR10e joints 5 and 6, whose held-out tail it predicts as before) with the error spanning the damped
+    one. Returns (zeta, {length index: block equations}, {length index: held-out run} of the chosen row, the
+    length's index, sigma0's relative error, the reason it is not identifiable or '', the cells (block equations,
+    held-out run) :func:`_with_undamped` widens the rigid terms by: the undamped row's best where a damped cell is
+    chosen, and the best of the damping ratios either side of the chosen, and the lengths with the chosen one
+    between the grid's (:func:`_interpolated`))."""
     zetas = ZETAS if J is not None and J > 0 else ZETAS[:1]
 
     def cell_at(z, length):
@@ -355,29 +355,28 @@ def _damped(data, c_pos, c_neg, g0, L, J, sse0, nn, n_folds: int, step: float = 
 
 
 def _interpolated(row, i: int, L: np.ndarray, nn, ridge: list, cell_at, step: float = 0.0, resolution=None):
-    """The bristle length between the grid's (session 24), and sigma0's relative error from the data instead of
-    the grid's spacing (half a step, +39 % at 4 lengths per decade, was its floor, and a neighbour within one
-    paired error put it at +78 %: median |z| 0.32 on the foreign card, honest 0.67). The lengths half a step
-    either side of the row's best ``L[i]`` are tried too; through the best of the five (spacing ``h`` in ``ln L``)
-    and its two neighbours the held-out error's parabola ``T(u) = T* + (c / 2) (u - d)^2`` (``u`` in steps of
-    ``h``, ``c`` the second difference of the mean-square held-out errors) gives the vertex, whose cell is kept
-    where it predicts the held-out blocks better (else the best of the five, a quarter step from the tip at
-    most: ``h / sqrt(12)`` joins the error). The noise of the paired block differences, ``s`` per step (the mean
-    of the two neighbours' paired standard errors), moves the slope ``T'`` by about ``s`` and so the vertex by
-    ``s / c`` steps: its standard error. The ``ridge`` also holds the adjacent damping ratios' lengths (their
-    rows' vertices, :func:`_row_vertex`): the reversals do not resolve the damping apart from the length, so the
-    ratio is taken as known to one step of :data:`ZETAS` and the length as moving along the ridge with it (the
-    hydraulic multisine: ratio 0 chosen, the plant's about 0.8, sigma0 13 % high where the noise's term is 4 %).
-    The position's step (the encoder's, else its noise) bounds how finely
-    a travel is read: ``step / sqrt(6)`` (two quantised positions) against the length joins it in quadrature
-    (the UR-like wrist of tests/test_fit_reversals.py, bristles of 4 encoder steps, gives sigma0 1.3x the truth
-    on four seeds, the noise's term 10 %), and so does the log's time resolution of the transition
-    (``resolution(length)``, :func:`_time_resolution`). The ``ridge`` (log-length offsets from ``L[i]`` of the other damping
-    ratios' cells within one paired error, a nuisance the reversals do not pin) adds in quadrature, on each side
-    (sigma0's error is its larger side: shorter lengths raise sigma0 by ``e^x - 1``, longer lower it by
-    ``1 - e^-x``, as the grid's span did). Returns (the length, sigma0's relative error, the cell's (block
-    equations, held-out run)), or None where a neighbour is missing or the errors are not convex (the grid's
-    length and error are then kept)."""
+    """The bristle length between the grid's (session 24), and sigma0's relative error from the data instead of the
+    grid's spacing (half a step, +39 % at 4 lengths per decade, was its floor, and a neighbour within one paired
+    error put it at +78 %: median |z| 0.32 on the foreign card, honest 0.67). The lengths half a step either side of
+    the row's best ``L[i]`` are tried too; through the best of the five (spacing ``h`` in ``ln L``) and its two
+    neighbours the held-out error's parabola ``T(u) = T* + (c / 2) (u - d)^2`` (``u`` in steps of ``h``, ``c`` the
+    second difference of the mean-square held-out errors) gives the vertex, whose cell is kept where it predicts the
+    held-out blocks better (else the best of the five, a quarter step from the tip at most: ``h / sqrt(12)`` joins
+    the error). The noise of the paired block differences, ``s`` per step (the mean of the two neighbours' paired
+    standard errors), moves the slope ``T'`` by about ``s`` and so the vertex by ``s / c`` steps: its standard
+    error. The ``ridge`` also holds the adjacent damping ratios' lengths (their rows' vertices,
+    :func:`_row_vertex`): the reversals do not resolve the damping apart from the length, so the ratio is taken as
+    known to one step of :data:`ZETAS` and the length as moving along the ridge with it (the hydraulic multisine:
+    ratio 0 chosen, the plant's about 0.8, sigma0 13 % high where the noise's term is 4 %). The position's step (the
+    encoder's, else its noise) bounds how finely a travel is read: ``step / sqrt(6)`` (two quantised positions)
+    against the length joins it in quadrature (the UR-like wrist of tests/test_fit_reversals.py, bristles of 4
+    encoder steps, gives sigma0 1.3x the truth on four seeds, the noise's term 10 %), and so does the log's time
+    resolution of the transition (``resolution(length)``, :func:`_time_resolution`). The ``ridge`` (log-length
+    offsets from ``L[i]`` of the other damping ratios' cells within one paired error, a nuisance the reversals do
+    not pin) adds in quadrature, on each side (sigma0's error is its larger side: shorter lengths raise sigma0 by
+    ``e^x - 1``, longer lower it by ``1 - e^-x``, as the grid's span did). Returns (the length, sigma0's relative
+    error, the cell's (block equations, held-out run)), or None where a neighbour is missing or the errors are not
+    convex (the grid's length and error are then kept)."""
     if i - 1 not in row or i + 1 not in row:
         return None
     H = math.log(L[i + 1] / L[i])
@@ -656,9 +655,9 @@ def _bristle_params(g0, L, i: int, rel: float, why: str, source: str, s1: ParamE
 
 
 def reversal_lugre(jd: JointData, base: ModelFit, c_pos, c_neg, n_folds: int = 5) -> tuple[dict, dict, str]:
-    """sigma0 (and sigma1 by a damping ratio chosen with it) from the stops and reversals of the moving samples, with the rigid terms
-    fitted again with the bristles; the map stays as fitted. Returns (the dynamic and refitted rigid
-    parameters, metrics, notes line); sigma0 says why it is not identifiable when it is not (module
+    """sigma0 (and sigma1 by a damping ratio chosen with it) from the stops and reversals of the moving samples,
+    with the rigid terms fitted again with the bristles; the map stays as fitted. Returns (the dynamic and refitted
+    rigid parameters, metrics, notes line); sigma0 says why it is not identifiable when it is not (module
     docstring)."""
     free, data, n_rev, stroke, step = _data(jd)
     axis = jd.axis
