@@ -386,11 +386,10 @@ def _interpolated(row, i: int, L: np.ndarray, nn, ridge: list, cell_at, step: fl
     tot = {u: c[1][0].sum() / float(nn.sum()) for u, c in cells.items()}
     b = min(tot, key=tot.get)
     t = [tot[b - 1], tot[b], tot[b + 1]]
-    c = t[0] - 2.0 * t[1] + t[2]
+    d, c = _vertex(*t)
     if not c > 0:
         return None
     h = 0.5 * H
-    d = 0.5 * (t[0] - t[2]) / c
     s = 0.5 * (_paired(cells[b - 1][1][0], cells[b][1][0], nn)[1] + _paired(cells[b + 1][1][0], cells[b][1][0], nn)[1])
     x = (b + d) * h  # the vertex's ln L - ln L[i]
     got = cell_at(float(L[i] * math.exp(x)))
@@ -410,9 +409,15 @@ def _row_vertex(row, L: np.ndarray) -> float:
     j = min(row, key=lambda m: row[m][1][0].sum())
     if j - 1 not in row or j + 1 not in row:
         return math.log(L[j])
-    t = [row[m][1][0].sum() for m in (j - 1, j, j + 1)]
-    c = t[0] - 2.0 * t[1] + t[2]
-    return math.log(L[j]) + (0.5 * (t[0] - t[2]) / c * math.log(L[j + 1] / L[j]) if c > 0 else 0.0)
+    d, _ = _vertex(*(row[m][1][0].sum() for m in (j - 1, j, j + 1)))
+    return math.log(L[j]) + d * math.log(L[j + 1] / L[j])
+
+
+def _vertex(t0: float, t1: float, t2: float) -> tuple[float, float]:
+    """The parabola through ``(-1, t0), (0, t1), (1, t2)``: its vertex's abscissa (0 where the three are not
+    convex) and its curvature ``t0 - 2 t1 + t2``."""
+    c = t0 - 2.0 * t1 + t2
+    return (0.5 * (t0 - t2) / c if c > 0 else 0.0), c
 
 
 def _time_resolution(data, length: float) -> float:
