@@ -76,6 +76,9 @@ TERM_FORMULAS = {
     "drift": "F scaled by 1 + drift_per_hour (t - drift_t0) / 3600",
     "offset": "F + tau_offset",
     "stribeck": "g + str_amp exp(-(|w|/str_vs)^str_delta)",
+    "low_speed_rise": "g + str_amp exp(-(|w|/str_vs)^str_delta), str_amp < 0: below the level at low speed",
+    "low_speed": "g + str_amp exp(-(|w|/str_vs)^str_delta), str_amp (w >= 0) and str_amp_neg (w < 0) of "
+                 "opposite signs",
 }
 
 #: Each term in words.
@@ -84,7 +87,10 @@ TERM_WORDS = {"asym": "its own parameters per velocity sign", "lugre": "LuGre br
               "thermal6": "coefficients linear in joint temperature (thermal6)",
               "exponential": "scaled exponentially with joint temperature", "position": "varies with position",
               "load": "grows with the transmitted load", "drift": "drifts with time",
-              "offset": "with a constant torque offset", "stribeck": "with an added Stribeck drop"}
+              "offset": "with a constant torque offset", "stribeck": "with an added Stribeck drop",
+              "low_speed_rise": "with a low-speed rise (friction below the sliding level at low speed, rising "
+                                "to it)",
+              "low_speed": "with a low-speed term (a drop on one velocity sign, a rise on the other)"}
 
 #: Relative margin beyond a validity range before an evaluation warns.
 VALIDITY_MARGIN = 0.05
@@ -413,7 +419,9 @@ class FrictionModel:
         checks = {"position": ("pos_amp", "pos_lin", "pos_quad"), "load": ("load_torque", "load_gravity",
                   "load_payload"), "drift": ("drift_per_hour",), "offset": ("tau_offset",),
                   "stribeck": ("str_amp", "str_amp_neg")}
-        return out + [t for t, keys in checks.items() if any(ext.get(k) for k in keys)]
+        # the low-speed term is named by its amplitudes' signs (sm.low_speed_name: a rise is no Stribeck drop)
+        low = sm.low_speed_name([ext[k] for k in checks["stribeck"] if k in ext])
+        return out + [low if t == "stribeck" else t for t, keys in checks.items() if any(ext.get(k) for k in keys)]
 
     def formula(self) -> dict:
         """The model in words and symbols: ``words``, ``friction`` (the map and each term), ``torque`` (the

@@ -321,6 +321,34 @@ def test_a_repair_of_the_fit_is_reported_apart_from_the_causes():
     assert any(w.startswith("repair of the fit's stribeck (not a cause found in the plant)") for w in jf.warnings)
 
 
+def test_a_low_speed_rise_is_no_stribeck_term():
+    """Friction below the sliding level at low speed that rises to it (a map with Fs < Fc: 1.4 against 2.0 N m)
+    on a Coulomb + viscous base: the diagnosis' low-speed term repairs the base with a negative amplitude, a
+    rise, not 003's Stribeck drop (issue 19: no ``stribeck`` with Fs < Fc). It is named ``low_speed_rise`` in
+    the finding, the repair, the step, the model's name and its extensions, the sentence says the friction lies
+    below the sliding level, and the model evaluates the rise it states. (Until session 25: ``stribeck`` with
+    ``str_amp`` -0.6, as UR10e joint 1's adopted repair of -5.05 N m.)"""
+    values = dict(Fc=2.0, Fs=1.4, vs=0.15, delta=2.0, sigma2=1.2)
+    jf, findings = _run([plateau_log(seed=5, values=values)], fake_fit({"Fc": 2.0, "sigma2": 1.2}, "coulomb_viscous"))
+    d = jf.selection["diagnosis"]
+    assert [(f["cause"], f["kind"], f["extension"]) for f in findings] == [("low_speed_rise", "repair",
+                                                                             "low_speed_rise")], d["steps"]
+    assert [r["repair"] for r in d["repairs"]] == ["low_speed_rise"]
+    assert d["steps"][0]["chosen"] == "low_speed_rise"
+    f = findings[0]
+    assert f["model"] == jf.selected == "coulomb_viscous+low_speed_rise"
+    assert "below the sliding level" in f["evidence"] and "Stribeck term" not in f["evidence"]
+    mf = jf.models[f["model"]]
+    assert mf.extra["extensions"] == ["low_speed_rise"]
+    assert mf.params["str_amp"].value == pytest.approx(-0.6, abs=0.1)
+    assert not [n for n in jf.models if "stribeck" in n.split("+")[1:]]
+    m = joint_model(jf, f["model"])
+    assert m.terms() == ["low_speed_rise"] and "low-speed rise" in m.formula()["words"]
+    w = np.array([0.01, 0.05, 2.0])
+    level = m.friction(w) - 1.2 * w
+    assert level[0] == pytest.approx(1.4, abs=0.1) and level[0] < level[1] < level[2]
+
+
 def test_position_dependence_is_found_with_its_period_and_replays():
     P = 0.83
     def eff(t, q, w, F):

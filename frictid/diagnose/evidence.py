@@ -7,7 +7,7 @@ import numpy as np
 
 from ..models.static import canonical_friction
 from .chain import Trial
-from .model import canonical_vectors
+from .model import canonical_vectors, low_speed_amps, term_name
 from .samples import Samples
 from .signals import REST_MIN, rests
 
@@ -52,8 +52,8 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
     st = step["structure"]
     i = len(st.terms) - 1
     g = np.atleast_1d(coef.gamma.get(i, np.zeros(0)))
-    tail = (f"{term.ext} cuts held-out RMS from {fmt(tr.rms_before)} to {fmt(tr.rms_after)} {F_u} "
-            f"({100 * tr.gain:.0f} %)")
+    tail = (f"{term_name(st, coef, term.ext)} cuts held-out RMS from {fmt(tr.rms_before)} to {fmt(tr.rms_after)} "
+            f"{F_u} ({100 * tr.gain:.0f} %)")
     ext = tr.ext
     if ext in ("thermal4", "thermal6"):
         return _thermal_evidence(S, nl, g if ext == "thermal4" else None, coef.dc, rb, r, F_u, tail)
@@ -83,8 +83,7 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
                 f"that for w > 0 at the same speeds (r = {r:.2f}); "
                 f"{ {'asym': 'per-sign parameters', 'asym_scale': 'the w < 0 branch scaled'}.get(ext, 'the w < 0 level scaled')}: {tail}")
     if ext == "stribeck":
-        return (f"the residual concentrates at low speed, below about {fmt(3 * nl['vs'])} {q_u}/s "
-                f"(r = {r:.2f}); a Stribeck term with vs = {fmt(nl['vs'])} {q_u}/s: {tail}")
+        return _low_speed_evidence(low_speed_amps(st, coef) or [0.0], nl["vs"], r, F_u, q_u, tail)
     if ext == "inertia":
         J0 = rigid.get("J", 0.0)
         return (f"the residual tracks the acceleration (r = {r:.2f}): inertia {fmt(J0)} -> "
@@ -104,6 +103,24 @@ def _evidence(tr: Trial, S: Samples, step: dict, units: dict, rigid: dict) -> st
                 f"the {_duration(span_h * 3600)} between the first and last recording; r = {r:.2f}); a drift "
                 f"term: {tail}")
     return f"r = {r:.2f}; {tail}"
+
+
+def _low_speed_evidence(amps: list, vs: float, r: float, F_u: str, q_u: str, tail: str) -> str:
+    """The sentence of a low-speed term by the sign of its amplitude on each branch: a Stribeck drop (the
+    friction at rest above the sliding level), a low-speed rise (below it, rising to it), or, per sign, one
+    of each (:func:`frictid.models.static.low_speed_name`)."""
+    head = f"the residual concentrates at low speed, below about {fmt(3 * vs)} {q_u}/s (r = {r:.2f}); "
+    if all(a >= 0 for a in amps):
+        return head + f"a Stribeck term with vs = {fmt(vs)} {q_u}/s: {tail}"
+    if all(a <= 0 for a in amps):
+        by = " and ".join(f"{fmt(-a)} {F_u}" + (f" for {s}" if len(amps) > 1 else "")
+                          for a, s in zip(amps, ("w > 0", "w < 0")))
+        return (head + f"the friction there lies below the sliding level and rises to it ({by} below at rest, vs "
+                f"= {fmt(vs)} {q_u}/s): a low-speed rise, not a Stribeck drop (its break-away level would be "
+                f"below the Coulomb level): {tail}")
+    parts = [f"{'a drop' if a > 0 else 'a rise'} of {fmt(abs(a))} {F_u} for {s}"
+             for a, s in zip(amps, ("w > 0", "w < 0"))]
+    return head + f"a low-speed term with vs = {fmt(vs)} {q_u}/s, {' and '.join(parts)}: {tail}"
 
 
 def _thermal_evidence(S: Samples, nl: dict, g4, dc, rb, r: float, F_u: str, tail: str) -> str:

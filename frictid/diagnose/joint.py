@@ -18,7 +18,8 @@ from ..result import JointFit, ModelFit, ParamEstimate
 from .causes import REPAIRS
 from .chain import ALPHA, EXPLAINED_MIN, GAIN_MIN, Chain, Trial
 from .evidence import evidence, fmt
-from .model import MAP_SLOTS, OUTSIDE_MODEL, Coef, Evaluator, Structure, Term, model_values
+from .model import (MAP_SLOTS, OUTSIDE_MODEL, Coef, Evaluator, Structure, Term, model_name, model_values,
+                    term_name)
 from .params import param_entries
 from .samples import DiagLog, Samples, build_samples
 from .structure import X_NOISE, torque_noise, unexplained
@@ -201,11 +202,12 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
         tr: Trial | None = step.get("chosen")
         if tr is None:
             continue
+        name = _named(rec["steps"][-1], step, tr)
         if tr.unresolved:   # it does not beat a competing explanation: its term and model kept, no cause named
             mf = _step_model(jf, step, tr, S, base, rigid)
             jf.models[mf.name] = mf
             rec["steps"][-1]["model"] = mf.name
-            _ambiguous(jf, rec, tr, evidence(tr, S, step, units, rigid), mf.name)
+            _ambiguous(jf, rec, tr, evidence(tr, S, step, units, rigid), mf.name, name)
             continue
         if tr.ext in OUTSIDE_MODEL:   # named with its numbers, never a friction model of the file
             text = evidence(tr, S, step, units, rigid)
@@ -231,15 +233,15 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
         rec["steps"][-1]["model"] = mf.name
         text = evidence(tr, S, step, units, rigid)
         if tr.cause in REPAIRS:
-            _repair(jf, rec, tr, text, mf.name)
+            _repair(jf, rec, tr, text, mf.name, name)
         findings.append({
-            "cause": tr.cause,
+            "cause": tr.cause if name == tr.ext else name,
             "kind": "repair" if tr.cause in REPAIRS else "effect",
             "evidence": text,
             "statistic": {"test": "one-sided paired t over held-out groups of sum(r_before^2 - r_after^2)",
                           "t": tr.t, "p": tr.p, "groups": tr.groups,
                           "threshold_p": ALPHA / max(step["m"], 1)},
-            "extension": tr.ext,
+            "extension": name,
             "model": mf.name,
             "rms_before": tr.rms_before,
             "rms_after": tr.rms_after,
@@ -249,30 +251,45 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
     return findings
 
 
-def _repair(jf: JointFit, rec: dict, tr: Trial, text: str, model: str) -> None:
+def _named(entry: dict, step: dict, tr: Trial) -> str:
+    """The name the chosen extension of a chain step is reported by (:func:`frictid.diagnose.model.term_name`:
+    the ``stribeck`` candidate by the sign of its fitted amplitude, ``low_speed_rise`` where the friction at
+    low speed lies below the sliding level); the step's record (``entry``: ``chosen`` and its ``tested``
+    line) says the same."""
+    name = term_name(step["structure"], step["coef"], tr.ext)
+    if name != tr.ext:
+        entry["chosen"] = name
+        entry["tested"] = [dict(t, extension=name, candidate=tr.ext) if t.get("extension") == tr.ext else t
+                           for t in entry["tested"]]
+    return name
+
+
+def _repair(jf: JointFit, rec: dict, tr: Trial, text: str, model: str, name: str | None = None) -> None:
     """A step that repairs the fit's own estimate (:data:`frictid.diagnose.causes.REPAIRS`: its inertia,
     gravity or base map): listed in ``rec['repairs']`` and the warnings apart from the causes found in the
     plant. Its model and finding stay (``kind: repair``), so the chain's later models and the fit's check
     are unchanged; what it says is that the fit's base should have carried the term."""
+    cause, ext = (tr.cause, tr.ext) if name in (None, tr.ext) else (name, name)
     rec.setdefault("repairs", []).append(
-        {"repair": tr.cause, "extension": tr.ext, "model": model, "evidence": text, "rms_before": tr.rms_before,
+        {"repair": cause, "extension": ext, "model": model, "evidence": text, "rms_before": tr.rms_before,
          "rms_after": tr.rms_after, "heldout_gain": tr.gain})
-    jf.warnings.append(f"repair of the fit's {tr.cause} (not a cause found in the plant): {text}")
+    jf.warnings.append(f"repair of the fit's {cause} (not a cause found in the plant): {text}")
 
 
-def _ambiguous(jf: JointFit, rec: dict, tr: Trial, text: str, model: str) -> None:
+def _ambiguous(jf: JointFit, rec: dict, tr: Trial, text: str, model: str, name: str | None = None) -> None:
     """A step whose best candidate does not beat a competing explanation of another cause on held-out data:
     recorded in ``rec['ambiguous']`` and the warnings with the causes the data cannot tell apart; no cause
     is named. Its term stays in the chain's model (the next steps search a clean residual) and its model in
     ``jf.models``: the correction is measured on held-out data and the model at the end of the chain carries
     it (an offset and a per-direction level make the same prediction on sliding samples); what is withheld
     is the name."""
-    causes = [tr.cause] + list(tr.unresolved)
+    ext = tr.ext if name is None else name
+    causes = [tr.cause if ext == tr.ext else ext] + list(tr.unresolved)
     rec.setdefault("ambiguous", []).append(
-        {"causes": causes, "extension": tr.ext, "model": model, "evidence": text, "rms_before": tr.rms_before,
+        {"causes": causes, "extension": ext, "model": model, "evidence": text, "rms_before": tr.rms_before,
          "rms_after": tr.rms_after, "heldout_gain": tr.gain})
     jf.warnings.append(f"ambiguous: {' or '.join(causes)} explain the residual about as well on held-out data "
-                       f"(held-out RMS {fmt(tr.rms_before)} -> {fmt(tr.rms_after)} with {tr.ext}, which does not "
+                       f"(held-out RMS {fmt(tr.rms_before)} -> {fmt(tr.rms_after)} with {ext}, which does not "
                        f"beat the others significantly): the data cannot tell them apart, no cause is named; "
                        f"the model {model} carries the correction")
 
@@ -284,11 +301,12 @@ def _step_model(jf: JointFit, step: dict, tr: Trial, S: Samples, base: str, rigi
     fold_vals = [model_values(step["before"].plus(t), c, S, rigid)[1]
                  for t, c in zip(tr.fold_terms, tr.fold_coefs)]
     params = param_entries(mapname, vals, fold_vals, jf.axis)
-    extra = {"base": base, "extensions": [t.ext for t in st.terms if not t.in_base and t.ext not in OUTSIDE_MODEL]}
+    extra = {"base": base, "extensions": [term_name(st, step["coef"], t.ext) for t in st.terms
+                                          if not t.in_base and t.ext not in OUTSIDE_MODEL]}
     th = next((t for t in st.terms if t.ext in ("thermal4", "thermal6")), None)
     if th is not None:
         extra["temperature"] = th.settings.get("source", "heat_balance")
-    return ModelFit(st.name, mapname, params,
+    return ModelFit(model_name(st, step["coef"]), mapname, params,
                     {"rms": step["coef"].rms, "rms_heldout": tr.rms_after, "n": int(S.n),
                      "k": int(sum(1 for p in params.values() if not p.fixed))},
                     method="diagnosis: base amplitudes and extension terms by least squares (Gauss-Newton) on "
@@ -300,8 +318,9 @@ def _structure(jf: JointFit, chain: Chain, S: Samples, rec: dict) -> None:
     """The residual structure tests after the chain's last model (:mod:`.structure`); a structure worth
     stating goes to ``rec['unexplained']`` and the joint's warnings."""
     units = {"F": jf.units.get("tau", "N m"), "q": jf.units.get("q", "rad"), "w": jf.units.get("qd", "rad/s")}
-    tests, text = unexplained(S, S.F - chain.pred, chain.F_rms, units, f"the diagnosis' model {chain.st.name}")
-    rec["structure"] = {"noise": torque_noise(S), "model": chain.st.name,
+    name = model_name(chain.st, chain.coef)
+    tests, text = unexplained(S, S.F - chain.pred, chain.F_rms, units, f"the diagnosis' model {name}")
+    rec["structure"] = {"noise": torque_noise(S), "model": name,
                         "rule": ("held-out bin means of the residual against each variable (training folds "
                                  f"only), one-sided paired t over held-out groups, alpha {ALPHA} split over the "
                                  f"variables; stated when the explained RMS is at least {100 * EXPLAINED_MIN:.0f} % "

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..identify.regression import NormalEquations, solve
+from ..models.static import low_speed_name
 from . import moments as mo
 from .binned import equal_count_bins
 from .samples import Samples
@@ -1201,6 +1202,32 @@ def canonical_vectors(st: Structure, c: Coef) -> tuple[np.ndarray, np.ndarray]:
             v[2], v[3] = strib.settings["vs"], strib.settings["delta"]
         out.append(v)
     return out[0], out[1]
+
+
+def low_speed_amps(st: Structure, c: Coef) -> list[float] | None:
+    """The amplitudes of the low-speed term the ``stribeck`` extension adds (canonical slot 1 of a map that has
+    none), as the parameter file stores them (``str_amp``; and ``str_amp_neg`` on a per-sign model), or None
+    without that term."""
+    if not any(t.role == "stribeck" for t in st.terms) or 1 in MAP_SLOTS[st.map]:
+        return None
+    cp, cn = canonical_vectors(st, c)
+    return [float(cp[1]), float(cn[1])] if st.per_sign else [float(cp[1])]
+
+
+def term_name(st: Structure, c: Coef, ext: str) -> str:
+    """The name an extension of a fitted structure is reported by: ``ext`` itself, except the ``stribeck``
+    candidate, a low-speed term of either sign, named by its fitted amplitudes
+    (:func:`frictid.models.static.low_speed_name`: ``low_speed_rise`` where the friction at low speed lies
+    below the sliding level; a ``stribeck`` term is a drop, ``Fs >= Fc``)."""
+    amps = low_speed_amps(st, c) if ext == "stribeck" else None
+    return ext if amps is None else low_speed_name(amps)
+
+
+def model_name(st: Structure, c: Coef) -> str:
+    """The parameter file's name of a fitted structure: :attr:`Structure.name` with its low-speed term named by
+    its amplitudes (:func:`term_name`)."""
+    head, *exts = st.name.split("+")
+    return "+".join([head] + [term_name(st, c, e) for e in exts])
 
 
 def named_static(mapname: str, cvec: np.ndarray) -> dict:

@@ -296,6 +296,26 @@ def map_names() -> list[str]:
     return [n for m in STATIC_MAPS for n in (m, m + "_asym")]
 
 
+#: The names of a low-speed term ``g + a exp(-(|w|/vs)^delta)`` added to a map that has none (the
+#: diagnosis' ``stribeck`` candidate; parameter file ``str_amp``, ``str_amp_neg``), by the sign of its
+#: amplitude ``a`` on each velocity branch. A Stribeck term is 003's drop: the friction at rest is above
+#: the sliding level (``Fs = Fc + a >= Fc``). A term of negative amplitude is the opposite shape, friction
+#: below the sliding level at low speed that rises to it (velocity strengthening at low speed: UR10e joint
+#: 1, a = -5.05 N m; the direct-drive sample's plant, whose two-exponential map rises from zero speed).
+LOW_SPEED_NAMES = {"drop": "stribeck", "rise": "low_speed_rise", "mixed": "low_speed"}
+
+
+def low_speed_name(amps) -> str:
+    """The name of a low-speed term from its amplitude on each branch it is fitted on (one for a symmetric
+    model, ``(w >= 0, w < 0)`` for a per-sign one): ``stribeck`` when none is negative (a drop, ``Fs >= Fc``),
+    ``low_speed_rise`` when none is positive and one is negative (a rise to the sliding level, ``Fs < Fc``),
+    ``low_speed`` when the branches differ (a drop on one, a rise on the other)."""
+    a = [float(x) for x in np.atleast_1d(amps) if np.isfinite(x)]
+    if all(x >= 0 for x in a):
+        return LOW_SPEED_NAMES["drop"]
+    return LOW_SPEED_NAMES["rise" if all(x <= 0 for x in a) else "mixed"]
+
+
 def split_asym(name: str) -> tuple[StaticMap, bool]:
     """The base map of a model name and whether it is the per-sign variant."""
     asym = name.endswith("_asym")

@@ -796,9 +796,9 @@ CAUSE_VARIABLES = (
     ("load_gravity", "gravity"), ("load_payload", "payload"), ("load_tau", "load"),
     ("temp", "temperature"), ("thermal", "temperature"), ("warm", "temperature"), ("drift", "time"),
     ("wear", "time"), ("time", "time"), ("position", "q"), ("gravity", "q"), ("payload", "payload"),
-    ("load", "load"), ("torque", "load"), ("asym", "w"), ("sign", "w"), ("stribeck", "w"), ("velocity", "w"),
-    ("offset", "w"), ("revers", "w"), ("presliding", "w"), ("stick", "w"), ("hyster", "w"), ("lag", "w"),
-    ("elastic", "a"), ("inertia", "a"), ("accel", "a"),
+    ("load", "load"), ("torque", "load"), ("asym", "w"), ("sign", "w"), ("stribeck", "w"), ("low_speed", "w"),
+    ("velocity", "w"), ("offset", "w"), ("revers", "w"), ("presliding", "w"), ("stick", "w"), ("hyster", "w"),
+    ("lag", "w"), ("elastic", "a"), ("inertia", "a"), ("accel", "a"),
 )
 
 
