@@ -1174,11 +1174,16 @@ def finding_rows(params: dict, logs: list, only_joint: str | None = None) -> lis
                                           rows=rows if rec["drawn"] else None) if datas else None)
             if res is not None:
                 rec.update(plot_before=res["rms_before"], plot_after=res["rms_after"], samples=res["samples"])
+            mv = (ct.diagnosis_residuals(datas, str(jn), jd, f, before=before) if datas and rec["drawn"] else res)
+            if mv is not None:   # the stored models on every moving sample (the fit's basis), drawn or not
+                rec.update(moving_before=mv["rms_before"], moving_after=mv["rms_after"])
             out.append(rec)
         for f in diag.get("outside_model") or []:
+            mv = f.get("moving_samples") or {}   # a delay judged on every moving sample too
             out.append({"joint": str(jn), "cause": f.get("cause"), "kind": "outside the friction model",
                         "extension": f.get("extension"), "before": f.get("rms_before"), "after": f.get("rms_after"),
-                        "gain": f.get("gain"), "adopted": False, "competitors": _competitors(diag, f), "drawn": False})
+                        "gain": f.get("gain"), "adopted": False, "competitors": _competitors(diag, f), "drawn": False,
+                        "moving_heldout": (mv.get("rms_before"), mv.get("rms_after")) if mv else None})
         for f in diag.get("ambiguous") or []:
             out.append({"joint": str(jn), "cause": " or ".join(f.get("causes") or []), "kind": "ambiguous, none named",
                         "extension": f.get("extension"), "model": f.get("model"), "before": f.get("rms_before"),
@@ -1193,15 +1198,34 @@ def finding_rows(params: dict, logs: list, only_joint: str | None = None) -> lis
 
 def _competitors(diag: dict, f: dict) -> list[tuple[str, float, str]]:
     """The other candidates of the chain step that chose ``f``'s extension: (extension, held-out gain, why
-    rejected or ""), best first."""
+    not chosen or ""), best first. Why: the rule that rejected it (the step's ``rejected``), else the chain's
+    bars read from its record (:func:`_short_of`)."""
     for step in diag.get("steps") or []:
         if step.get("chosen") == f.get("extension") and (f.get("model") is None
                                                          or step.get("model") in (None, f.get("model"))):
             rej = {r.get("extension"): str(r.get("reason", "")) for r in step.get("rejected") or []}
-            tested = [(t["extension"], float(t["gain"]), rej.get(t["extension"], ""))
+            tested = [(t["extension"], float(t["gain"]), rej.get(t["extension"]) or _short_of(diag, step, t))
                       for t in step.get("tested") or [] if t.get("extension") != f.get("extension")]
             return sorted(tested, key=lambda x: -x[1])
     return []
+
+
+def _short_of(diag: dict, step: dict, t: dict) -> str:
+    """Which bar of the chain a candidate that was not rejected by a rule fell short of, from its record:
+    significance at the step's level (``ALPHA`` over the step's candidates) or the RMS it explains on the
+    held-out sliding samples, ``sqrt(before^2 - after^2)``, under ``EXPLAINED_MIN`` of the friction RMS
+    (:meth:`frictid.diagnose.chain.Chain.worth_it`; a delay may pass on every moving sample instead); ""
+    when it passed both (it lost to the chosen one)."""
+    from frictid.diagnose.chain import ALPHA, EXPLAINED_MIN
+
+    F_rms, m = diag.get("friction_rms"), max(int(step.get("candidates") or 1), 1)
+    if t.get("p") is not None and float(t["p"]) >= ALPHA / m:
+        return f"{t['extension']}: not significant (p = {float(t['p']):.2g})"
+    expl = math.sqrt(max(float(t["rms_before"]) ** 2 - float(t["rms_after"]) ** 2, 0.0))
+    if F_rms and expl < EXPLAINED_MIN * F_rms and t.get("extension") != "delay":
+        return (f"{t['extension']}: under the bar, explains {100 * expl / F_rms:.1f} % of the friction RMS "
+                f"(bar {100 * EXPLAINED_MIN:.0f} %)")
+    return ""
 
 
 def agrees(rec: dict) -> bool | None:
@@ -1213,21 +1237,69 @@ def agrees(rec: dict) -> bool | None:
                 and abs(rec["plot_after"] / rec["after"] - 1) <= AGREE_TOL)
 
 
+def _why(e: str, r: str) -> str:
+    """A competitor's reason, shortened for the table."""
+    if not r:
+        return ""
+    r = r.removeprefix(e + ": ")
+    if r.startswith(("not significant", "under the bar")):
+        return f" ({r.split(' (bar')[0]})"
+    return " (rejected: " + r.split(" (")[0].split(":")[0][:70] + ")"
+
+
 def _finding_cell(rec: dict) -> list[str]:
     """The table cells of one record of :func:`finding_rows`."""
     g = rec.get("gain")
-    def why(e, r):
-        return " (rejected: " + r.removeprefix(e + ": ").split(" (")[0].split(":")[0][:70] + ")" if r else ""
-    comp = ", ".join(f"{e} {100 * x:.0f} %{why(e, r)}" for e, x, r in rec["competitors"][:3]) or "-"
+    comp = ", ".join(f"{e} {100 * x:.0f} %{_why(e, r)}" for e, x, r in rec["competitors"][:3]) or "-"
     pb, pa = rec.get("plot_before"), rec.get("plot_after")
     replay = ("-" if pb is None or pa is None else
               f"{pb:.3g} -> {pa:.3g} ({100 * (1 - pa / pb):.0f} %, {rec['samples']})")
+    mh = rec.get("moving_heldout")
+    if mh and None not in mh:
+        replay = f"every moving sample, held out: {mh[0]:.3g} -> {mh[1]:.3g} ({100 * (1 - mh[1] / mh[0]):.0f} %)"
+    mb, ma = rec.get("moving_before"), rec.get("moving_after")
+    if rec.get("drawn") and mb is not None and ma is not None:
+        replay += f"; moving {mb:.3g} -> {ma:.3g}"
     ag = agrees(rec)
-    worse = None if pb is None or pa is None else pa > pb
+    worse = worse_replay(rec)
     return [rec["cause"], rec["kind"], str(rec.get("extension")),
             f"{rec['before']:.3g} -> {rec['after']:.3g} ({100 * g:.0f} %)" if g is not None else "-",
-            "yes" if rec.get("adopted") else "no", comp, replay if rec.get("drawn") else f"not drawn; replay {replay}",
+            "yes" if rec.get("adopted") else "no", comp, replay if rec.get("drawn") else f"not drawn; {replay}",
             "-" if ag is None else ("ok" if ag else "DISAGREE"), "-" if worse is None else ("WORSE" if worse else "ok")]
+
+
+def worse_replay(rec: dict) -> bool | None:
+    """Whether a finding's stored extended model replays worse than the model it was judged against, on the
+    samples its figure draws or on every moving sample (None when neither is replayed)."""
+    pairs = [(rec.get(b), rec.get(a)) for b, a in (("plot_before", "plot_after"), ("moving_before", "moving_after"))]
+    pairs = [(b, a) for b, a in pairs if b is not None and a is not None]
+    return None if not pairs else any(a > b for b, a in pairs)
+
+
+def stribeck_rises(params: dict) -> list[str]:
+    """Every model of a parameter file (``frictid fit``'s, as a dict) named as a Stribeck drop whose friction
+    at rest is below its Coulomb level on a branch (issue 19: "no ``stribeck`` with Fs < Fc"): a ``stribeck``
+    map's ``Fs < Fc`` (``_pos``/``_neg`` per sign) or a ``+stribeck`` term's negative ``str_amp``
+    (``str_amp_neg``), each as "joint model (what; selected, identifiable or not)"."""
+    out = []
+    for jn, jd in (params.get("joints") or {}).items():
+        for name, md in (jd.get("models") or {}).items():
+            p = {k: (v.get("value") if isinstance(v, dict) else v) for k, v in (md.get("params") or {}).items()}
+            parts = str(name).split("+")
+            bad = []
+            if str(md.get("map", "")).split("_asym")[0] == "stribeck":
+                for suf in ("", "_pos", "_neg"):
+                    fs, fc = p.get("Fs" + suf), p.get("Fc" + suf)
+                    if fs is not None and fc is not None and fs < fc:
+                        bad.append(f"Fs{suf} {fs:.3g} < Fc{suf} {fc:.3g}")
+            if "stribeck" in parts[1:]:
+                bad += [f"{k} {p[k]:.3g}" for k in ("str_amp", "str_amp_neg") if p.get(k) is not None and p[k] < 0]
+            if bad and ("stribeck" in parts[1:] or str(parts[0]).startswith("stribeck")):
+                flagged = any(isinstance(v, dict) and v.get("identifiable") is False for k, v in
+                              (md.get("params") or {}).items() if k.split("_")[0] in ("Fs", "vs", "delta"))
+                sel = "selected" if jd.get("selected") == name else "not selected"
+                out.append(f"{jn} {name} ({', '.join(bad)}; {sel}{', flagged not identifiable' if flagged else ''})")
+    return out
 
 
 def findings_table(data: Path, tmp: str) -> list[str]:
@@ -1244,9 +1316,12 @@ def findings_table(data: Path, tmp: str) -> list[str]:
             "| data | joint | cause | kind | extension | held-out RMS before -> after (gain) | adopted | "
             "competitors of its step (held-out gain) | figure: RMS before -> after on its samples | figure agrees | "
             "extended model replayed |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
-    quiet, load = [], {}
+    quiet, load, rises, checks = [], {}, [], []
     for label, files, mp in findings_cases(data):
         P = fit(files, mp, Path(tmp) / f"findings_{label.replace(' ', '_').replace('+', '')}.yaml")
+        rises += [f"{label}: {r}" for r in stribeck_rises(P)]
+        checks += [f"| {label} | {jn} | " + " | ".join(_check_cells(jd)) + " |" for jn, jd in P["joints"].items()
+                   if (jd.get("selection") or {}).get("diagnosis_check")]
         recs = finding_rows(P, read_many([str(f) for f in files], str(mp)))
         for rec in recs:
             if rec["cause"] is None:
@@ -1261,9 +1336,23 @@ def findings_table(data: Path, tmp: str) -> list[str]:
              "Figure: the report's residual figure of the finding (content.diagnosis_residuals): the model the "
              "finding was judged against and its extended model replayed along the log, on the diagnosis' "
              "sliding samples (rebuilt as the fit handed them over) or, for a finding judged elsewhere, on the "
-             "moving samples (not drawn by the report; replayed here). Agrees: both RMS within "
+             "moving samples (not drawn by the report; replayed here); \"moving\": the same stored models on every "
+             "moving sample (the fit's basis); a delay (outside the friction model, never stored): its held-out "
+             "judgement on every moving sample. Agrees: both RMS within "
              f"{100 * AGREE_TOL:.0f} % of the stated held-out ones. Replayed: WORSE where the stored extended "
-             "model leaves more than the model before it on those samples.", "",
+             "model leaves more than the model before it on the figure's samples or on every moving sample. "
+             "Competitors: a rule's rejection, or the bar of the chain the candidate fell short of "
+             "(significance at the step's level; the RMS it explains on held-out sliding samples against 2 % of "
+             "the friction RMS).", "",
+             "Models named as a Stribeck drop whose friction at rest is below the Coulomb level (issue 19: no "
+             "`stribeck` with Fs < Fc; fit candidates are flagged not identifiable and never selected): "
+             + ("; ".join(rises) if rises else "none") + ".", "",
+             "The fit's check of the diagnosis' end model (`selection.diagnosis_check`: each model's static map "
+             "refitted without the held-out fold of the fit's basis, its other terms replayed; then the stored "
+             "parameters on the moving samples):", "",
+             "| data | joint | diagnosis' model | held-out RMS, refitted | the fit's choice | held-out RMS | "
+             "stored: diagnosis' / fit's choice | kept |", "| --- | --- | --- | --- | --- | --- | --- | --- |",
+             *checks, "",
              "| UR10e jointwise | load found | held-out RMS before -> after [N m] | adopted | the same with the torque "
              "low-passed at 20 Hz (AURT's basis) | adopted | issue's figures |",
              "| --- | --- | --- | --- | --- | --- | --- |"]
@@ -1276,6 +1365,16 @@ def findings_table(data: Path, tmp: str) -> list[str]:
         c, cl = cells(load.get(k)), cells(lp[k])
         rows.append(f"| joint {k} | {c[0]} | {c[1]} | {c[2]} | {cl[0]}: {cl[1]} | {cl[2]} | {b} -> {a} |")
     return rows + [""]
+
+
+def _check_cells(jd: dict) -> list[str]:
+    """The cells of the fit's check of one joint's diagnosis (``selection.diagnosis_check``)."""
+    c = jd["selection"]["diagnosis_check"]
+    def f3(x):
+        return "-" if x is None else f"{float(x):.3g}"
+    return [str(c.get("model")), f3(c.get("rms_heldout")), str(c.get("fit_choice")),
+            f3(c.get("rms_heldout_fit_choice")), f"{f3(c.get('rms_stored'))} / {f3(c.get('rms_stored_fit_choice'))}",
+            str(c.get("kept") or "the diagnosis'")]
 
 
 def _load_lowpassed(data: Path, tmp: str, k: int) -> dict | None:
