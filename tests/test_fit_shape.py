@@ -311,3 +311,29 @@ def test_a_free_exponent_s_profile_sets_the_break_away_error_by_hand():
         _free_delta_profile(w, F, se, {}, sc, 1.0, bf)
         assert np.isclose(bf.stderr["Fs"], want)
         assert (bf.stderr["Fs"] > 1.2 * jac) == widens
+
+
+def test_a_rising_stribeck_map_is_not_taken_when_no_model_is_identifiable():
+    """When no model is fully identifiable the choice falls back to every model with a held-out error (or
+    to AIC alone), and took a Stribeck map that rises there (session 25: Franka joint 2 selected
+    ``stribeck_asym`` with Fs_pos 0 against Fc_pos 171 N m, the best held-out error; joint 6's diagnosis
+    started from a ``stribeck`` of Fs 1.35 < Fc 8.66 by AIC). A rise is no Stribeck drop: the fallbacks
+    take the next model, and say which they left out; with nothing else left the rising map stays."""
+    from frictid.identify.select import choose, rises
+
+    def pe(n, v, ok=True):
+        return ParamEstimate(n, v, 0.1, "N m", ok)
+
+    def mf(name, params, rms, aic):
+        return ModelFit(name, name, params, {"rms_heldout": rms, "aic": aic, "k": len(params)})
+    models = {"stribeck": mf("stribeck", {"Fc": pe("Fc", 2.0), "Fs": pe("Fs", 1.4, False), "vs": pe("vs", 0.1, False),
+                                          "delta": pe("delta", 2.0), "sigma2": pe("sigma2", 1.0)}, 0.90, 10.0),
+              "coulomb_viscous": mf("coulomb_viscous", {"Fc": pe("Fc", 1.9), "sigma2": pe("sigma2", -0.1, False)},
+                                    0.93, 12.0)}
+    assert rises(models["stribeck"]) and not rises(models["coulomb_viscous"])
+    name, rec = choose(models)
+    assert name == "coulomb_viscous" and rec["not_taken"] == ["stribeck: Fs < Fc, a rise, no Stribeck drop"]
+    for m in models.values():   # AIC alone
+        m.metrics["rms_heldout"] = None
+    assert choose(models)[0] == "coulomb_viscous"
+    assert choose({"stribeck": models["stribeck"]})[0] == "stribeck"   # nothing else left

@@ -14,7 +14,8 @@ exponent is not pinned or the drop is not spanned by steady runs) still has a de
 data's speeds: it competes on the same terms (a user compensates with the map's values there), its shape
 staying marked not identifiable with the reason, recorded in the choice. A Stribeck map that rises (``Fs
 < Fc``) or shows no drop above the slowest plateau on any branch is not taken. When no model is fully
-identifiable or shape-only, the same rule runs over all models, with a warning. The held-out refits
+identifiable or shape-only, the same rule runs over all models, with a warning, but for the Stribeck maps
+that rise (:func:`rises`, unless nothing else is left: a rise is no Stribeck drop, whatever it predicts). The held-out refits
 therefore run for the models the rule can take (:func:`heldout_for_choice`): a model that is neither gets
 no held-out error, and a note saying so, unless no other model gets one.
 
@@ -110,6 +111,19 @@ def shape_only(mf) -> bool:
     return seen
 
 
+def rises(mf) -> bool:
+    """Whether ``mf`` is a Stribeck map (or LuGre on one) whose friction at rest lies below its Coulomb level
+    on a branch (``Fs < Fc``): a rise, which its name would call a drop (issue 19: no ``stribeck`` with
+    Fs < Fc). The fallbacks of :func:`choose` do not take it while another model remains."""
+    if mf.map not in DROP_MAPS:
+        return False
+    for suf in _branches(mf):
+        fs, fc = mf.params.get("Fs" + suf), mf.params.get("Fc" + suf)
+        if fs is not None and fc is not None and fs.value is not None and fc.value is not None and fs.value < fc.value:
+            return True
+    return False
+
+
 def _at_bound(pe) -> bool:
     """Whether the optimiser left ``pe`` at one of its bounds (within a millionth of their span)."""
     if pe.bounds is None or pe.value is None:
@@ -175,9 +189,10 @@ def choose(models: dict, candidates: list[str] | None = None, tolerance: float =
     rec: dict = {"rule": f"lowest AIC among identifiable models (or Stribeck maps whose drop's shape alone is "
                          f"not identifiable) whose held-out RMS is within {100 * tolerance:.0f} % of the best",
                  "tolerance": tolerance}
-    pool = _pool(ranked, rec)
+    rising = {n for n in names if rises(models[n])}
+    pool = _pool(ranked, rec, rising)
     if not pool:
-        pool = [r for r in ranked if r["aic"] is not None]
+        pool = _not_rising([r for r in ranked if r["aic"] is not None], rec, rising)
         if not pool:
             rec["reason"] = "no model could be fitted"
             rec["ranking"] = ranked
@@ -203,17 +218,28 @@ def choose(models: dict, candidates: list[str] | None = None, tolerance: float =
     return best["model"], rec
 
 
-def _pool(ranked: list[dict], rec: dict) -> list[dict]:
+def _pool(ranked: list[dict], rec: dict, rising: set = frozenset()) -> list[dict]:
     """The models the choice ranks: those with a held-out RMS whose parameters are all identifiable or
     whose drop's shape alone is not (:func:`shape_only`), or, when none of them has one, every model with
     one (with a warning in ``rec``)."""
     pool = [r for r in ranked if (r["identifiable"] or r["shape_only"]) and r["rms_heldout"] is not None
             and not r.get("one_map_for_both_signs")]
     if not pool:
-        pool = [r for r in ranked if r["rms_heldout"] is not None]
+        pool = _not_rising([r for r in ranked if r["rms_heldout"] is not None], rec, rising)
         if pool:
             rec["warning"] = "no model has all its parameters identifiable; chosen among all models"
     return pool
+
+
+def _not_rising(pool: list[dict], rec: dict, rising: set) -> list[dict]:
+    """A fallback's pool without the Stribeck maps that rise (:func:`rises`), recorded in ``rec['not_taken']``,
+    unless nothing else is left. (Session 25: Franka joint 2's file selected ``stribeck_asym`` with Fs_pos 0
+    against Fc_pos 171 N m when no model was fully identifiable; joint 6's diagnosis started from a
+    ``stribeck`` of Fs 1.35 < Fc 8.66 chosen by AIC alone.)"""
+    keep = [r for r in pool if r["model"] not in rising]
+    if keep and len(keep) < len(pool):
+        rec["not_taken"] = [f"{r['model']}: Fs < Fc, a rise, no Stribeck drop" for r in pool if r["model"] in rising]
+    return keep or pool
 
 
 def base_model_name(jf) -> str | None:
