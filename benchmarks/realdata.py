@@ -1345,8 +1345,7 @@ def findings_table(data: Path, tmp: str) -> list[str]:
              "(significance at the step's level; the RMS it explains on held-out sliding samples against 2 % of "
              "the friction RMS).", "",
              "Models named as a Stribeck drop whose friction at rest is below the Coulomb level (issue 19: no "
-             "`stribeck` with Fs < Fc; fit candidates are flagged not identifiable and never selected): "
-             + ("; ".join(rises) if rises else "none") + ".", "",
+             "`stribeck` with Fs < Fc): " + _rises_line(rises) + ".", "",
              "The fit's check of the diagnosis' end model (`selection.diagnosis_check`: each model's static map "
              "refitted without the held-out fold of the fit's basis, its other terms replayed; then the stored "
              "parameters on the moving samples):", "",
@@ -1365,6 +1364,16 @@ def findings_table(data: Path, tmp: str) -> list[str]:
         c, cl = cells(load.get(k)), cells(lp[k])
         rows.append(f"| joint {k} | {c[0]} | {c[1]} | {c[2]} | {cl[0]}: {cl[1]} | {cl[2]} | {b} -> {a} |")
     return rows + [""]
+
+
+def _rises_line(rises: list[str]) -> str:
+    """The fit's candidates flagged not identifiable and not selected, counted; every other one listed (a
+    selected one, an unflagged one, a diagnosis model's ``+stribeck`` term)."""
+    quiet = [r for r in rises if r.endswith("; not selected, flagged not identifiable)")]
+    loud = [r for r in rises if r not in quiet]
+    return (f"{len(quiet)} of the fit's candidates (`stribeck`, `stribeck_asym`), each flagged not identifiable "
+            "(\"the friction rises from zero speed\") and not selected; "
+            + ("; ".join(loud) if loud else "none selected, none in a diagnosis model"))
 
 
 def _check_cells(jd: dict) -> list[str]:
