@@ -1352,17 +1352,22 @@ def findings_table(data: Path, tmp: str) -> list[str]:
              "| data | joint | diagnosis' model | held-out RMS, refitted | the fit's choice | held-out RMS | "
              "stored: diagnosis' / fit's choice | kept |", "| --- | --- | --- | --- | --- | --- | --- | --- |",
              *checks, "",
-             "| UR10e jointwise | load found | held-out RMS before -> after [N m] | adopted | the same with the torque "
-             "low-passed at 20 Hz (AURT's basis) | adopted | issue's figures |",
-             "| --- | --- | --- | --- | --- | --- | --- |"]
+             "| UR10e jointwise | load found | held-out RMS before -> after [N m] | stored models, every moving "
+             "sample | adopted | the same with the torque low-passed at 20 Hz (AURT's basis) | stored models, "
+             "every moving sample | adopted | issue's figures |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
 
     def cells(r):
-        return (["no", "-", "-"] if r is None else
-                [r["extension"], f"{r['before']:.2f} -> {r['after']:.2f} ({100 * r['gain']:.0f} %)",
-                 "yes" if r["adopted"] else "no"])
+        if r is None:
+            return ["no", "-", "-", "-"]
+        mb, ma = r.get("moving_before"), r.get("moving_after")
+        return [r["extension"], f"{r['before']:.2f} -> {r['after']:.2f} ({100 * r['gain']:.0f} %)",
+                "-" if mb is None or ma is None else f"{mb:.2f} -> {ma:.2f} ({100 * (1 - ma / mb):.0f} %)",
+                "yes" if r["adopted"] else "no"]
     for k, (b, a) in UR_LOAD_ISSUE.items():
         c, cl = cells(load.get(k)), cells(lp[k])
-        rows.append(f"| joint {k} | {c[0]} | {c[1]} | {c[2]} | {cl[0]}: {cl[1]} | {cl[2]} | {b} -> {a} |")
+        rows.append(f"| joint {k} | {c[0]} | {c[1]} | {c[2]} | {c[3]} | {cl[0]}: {cl[1]} | {cl[2]} | {cl[3]} | "
+                    f"{b} -> {a} |")
     return rows + [""]
 
 
@@ -1388,21 +1393,18 @@ def _check_cells(jd: dict) -> list[str]:
 
 def _load_lowpassed(data: Path, tmp: str, k: int) -> dict | None:
     """The load finding of UR10e jointwise file ``k`` fitted with its motor current low-passed at 20 Hz
-    (zero phase, 4th order: the torque the issue's and AURT's figures use), or None when none is found."""
-    from frictid.report.content import diagnosis_adoption
-
+    (zero phase, 4th order: the torque the issue's and AURT's figures use), as a record of
+    :func:`finding_rows` (its stored models replayed on every moving sample too), or None when none is found."""
     raw = pd.read_csv(data / "ur10e_mamedov2020" / "jointwise_motion" / f"ur-20_01_22-joint_{k}.csv", header=None)
     dt = float(np.median(np.diff(raw[0].to_numpy())))
     raw[12 + k] = lowpass(raw[12 + k].to_numpy(), dt, 20.0)   # column i_k of the 31
     log = Path(tmp) / f"ur{k}_lp20.csv"
     raw.to_csv(log, header=False, index=False)
+    from frictid.io.logs import read_many
+
     P = fit(log, MAPS / f"ur10e_joint{k}.yaml", Path(tmp) / f"ur{k}_lp20.yaml")
-    j = next(iter(P["joints"].values()))
-    for f, adopted in zip(j.get("diagnosis") or [], diagnosis_adoption(j)[0]):
-        if f.get("cause") == "load":
-            return {"extension": f["extension"], "before": f["rms_before"], "after": f["rms_after"],
-                    "gain": f["gain"], "adopted": adopted}
-    return None
+    return next((r for r in finding_rows(P, read_many([str(log)], str(MAPS / f"ur10e_joint{k}.yaml")))
+                 if r.get("cause") == "load"), None)
 
 
 # ---------------------------------------------------------------------------------------------------
