@@ -349,6 +349,20 @@ def test_a_low_speed_rise_is_no_stribeck_term():
     assert level[0] == pytest.approx(1.4, abs=0.1) and level[0] < level[1] < level[2]
 
 
+def test_a_low_speed_term_is_named_by_the_sign_of_each_branch():
+    """``stribeck`` only where every branch drops (Fs >= Fc), ``low_speed_rise`` where every branch rises,
+    ``low_speed`` where one drops and the other rises; the model object's terms say the same."""
+    assert sm.low_speed_name([0.4]) == "stribeck" and sm.low_speed_name([0.4, 0.0]) == "stribeck"
+    assert sm.low_speed_name([-0.4]) == "low_speed_rise" and sm.low_speed_name([-0.4, -1.2]) == "low_speed_rise"
+    assert sm.low_speed_name([0.4, -0.2]) == "low_speed"
+    from frictid.model import FrictionModel
+    cp, cn = sm.canonical_pair("coulomb_viscous", {"Fc": 2.0, "sigma2": 1.0})
+    for ext, name in (({"str_amp": 0.3}, "stribeck"), ({"str_amp": -0.3}, "low_speed_rise"),
+                      ({"str_amp": 0.3, "str_amp_neg": -0.3}, "low_speed")):
+        m = FrictionModel("m", "coulomb_viscous", cp, cn, ext=dict(ext, str_vs=0.1, str_delta=2.0))
+        assert m.terms() == [name]
+
+
 def test_position_dependence_is_found_with_its_period_and_replays():
     P = 0.83
     def eff(t, q, w, F):
