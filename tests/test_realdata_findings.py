@@ -144,3 +144,16 @@ def test_ur10e_joint2_load_is_found_and_adopted(ur2):
     others = [t["gain"] for t in step["tested"] if not t["extension"].startswith("load_")]
     assert max(others) < f["gain"]
 
+
+
+def test_franka_joint2_selects_no_stribeck_map_that_rises():
+    """Franka joint 2 (the Fourier trajectory, every model with a parameter not identifiable): the choice's
+    fallback took ``stribeck_asym`` with Fs_pos 0 against Fc_pos 171 N m, a rise named as a Stribeck drop
+    (issue 19: no ``stribeck`` with Fs < Fc). It now passes such a map over and says so."""
+    from frictid.identify.select import rises
+
+    logs = read_logs(str(DATA / "franka_panda_gaz2019"), str(MAPS / "franka_panda.yaml"))
+    jf = frictid.fit([lg for lg in logs if lg.joint == "2"], diagnose=False)["2"]
+    assert rises(jf.models["stribeck_asym"])
+    assert not rises(jf.models[jf.selected]), jf.selected
+    assert any(n.startswith("stribeck_asym: Fs < Fc") for n in jf.selection.get("not_taken", [])), jf.selection
