@@ -1325,7 +1325,7 @@ def findings_table(data: Path, tmp: str) -> list[str]:
         recs = finding_rows(P, read_many([str(f) for f in files], str(mp)))
         for rec in recs:
             if rec["cause"] is None:
-                quiet.append(f"{label} {rec['joint']}"
+                quiet.append(label + ("" if len(P["joints"]) == 1 else f" {rec['joint']}")
                              + (f" (skipped: {rec['skipped']})" if rec.get("skipped") else ""))
                 continue
             rows.append("| " + " | ".join([label, rec["joint"]] + _finding_cell(rec)) + " |")
