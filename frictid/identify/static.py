@@ -12,7 +12,9 @@ Standard errors come from the Jacobian at the optimum, ``cov = s^2 (J^T J)^-1`` 
 reduced chi-square (the plateau standard errors weight the points, the scatter sets the scale). Each plateau
 is one segment, so this already is the segment-to-segment scatter; a sandwich (HC1/HC3) estimate was
 tried and not kept: on 14 plateaus per branch it put the near-collinear amplitudes of stribeck_2exp_asym
-above 100 % relative error and the choice fell back to a map with 2.4x the curve error.
+above 100 % relative error and the choice fell back to a map with 2.4x the curve error. The Stribeck
+drop's parameters, read from the few slowest plateaus, have an error no smaller than the delete-a-pair
+jackknife over the points (:func:`_pair_jackknife`: a pair of plateaus at one speed shares its bias).
 A parameter is marked ``identifiable: false`` with the reason when it sits at a bound, when its relative
 error exceeds 100 % and matters at the data scale, when the Jacobian is rank-deficient along it, or when
 there are no data for it (a per-sign branch without plateaus).
