@@ -44,7 +44,7 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
             continue
         sh = fr.odd_shifts if fr.odd_shifts is not None and not name.endswith("_asym") else fr.shifts
         _guarded(jf, name, lambda n=name, sh=sh: fit_static(n, plat.w, plat.F, plat.F_se, axis=jd.axis,
-                                                            shifts=sh))
+                                                            shifts=sh, jackknife=True))
     if "polynomial_ls" in wanted:
         if fr.basis == "samples":
             mf = _polynomial_ls_samples(jd, rb, fr)

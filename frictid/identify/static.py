@@ -12,7 +12,9 @@ Standard errors come from the Jacobian at the optimum, ``cov = s^2 (J^T J)^-1`` 
 reduced chi-square (the plateau standard errors weight the points, the scatter sets the scale). Each plateau
 is one segment, so this already is the segment-to-segment scatter; a sandwich (HC1/HC3) estimate was
 tried and not kept: on 14 plateaus per branch it put the near-collinear amplitudes of stribeck_2exp_asym
-above 100 % relative error and the choice fell back to a map with 2.4x the curve error.
+above 100 % relative error and the choice fell back to a map with 2.4x the curve error. The Stribeck
+drop's parameters, read from the few slowest plateaus, have an error no smaller than the delete-a-pair
+jackknife over the points (:func:`_pair_jackknife`: a pair of plateaus at one speed shares its bias).
 A parameter is marked ``identifiable: false`` with the reason when it sits at a bound, when its relative
 error exceeds 100 % and matters at the data scale, when the Jacobian is rank-deficient along it, or when
 there are no data for it (a per-sign branch without plateaus).
@@ -536,7 +538,7 @@ def predict(name: str, values: dict, w, formula: bool = False) -> np.ndarray:
 
 def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | float = "auto",
                fixed: dict | None = None, start: dict | None = None, var_inflation: float = 1.0,
-               shifts=None, profile: bool | None = None) -> ModelFit:
+               shifts=None, profile: bool | None = None, jackknife: bool = False) -> ModelFit:
     """Fit static map ``name`` (``stribeck``, ``polynomial_asym``, ...) to plateau points.
 
     w [q/s], F [F], F_se [F] : plateau means and standard errors. axis : "rotary" or "linear" (units).
@@ -550,6 +552,8 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
     whose errors are reported (:func:`.samples.fit_map`'s, warm-started) asks for them: without, the moving
     samples' fits lost the held exponent's spread (foreign 204552: delta held at 2, truth 1.53, Fs 13 % low
     at 9 errors and vs 85 % off at 8, trusted).
+    jackknife : the drop's errors no smaller than the delete-a-pair jackknife over the plateau points
+    (:func:`_pair_jackknife`; plateau points only, on a profiled fit).
     A per-sign model is fitted branch by branch (the branches share no parameter).
     """
     w = np.asarray(w, dtype=float)
@@ -585,7 +589,7 @@ def fit_static(name: str, w, F, F_se=None, axis: str = "rotary", delta: str | fl
             continue
         bf, shapeless = _fit_one_branch(smap.name, bw, bF, bse, bfixed, suf, start, delta, (F0, w0),
                                         var_inflation, notes, bshifts[suf],
-                                        start is None if profile is None else profile)
+                                        start is None if profile is None else profile, jackknife)
         success = success and bf.success
         k_total += len(bf.free)
         if bf.cov is not None:
@@ -678,8 +682,8 @@ def _missing_branch(smap, suf: str, bfixed: dict, why: str, axis: str) -> dict[s
 
 
 def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict | None, delta, scales,
-                    var_inflation: float, notes: list[str], shifts=None, profile: bool = True
-                    ) -> tuple[BranchFit, dict[str, str]]:
+                    var_inflation: float, notes: list[str], shifts=None, profile: bool = True,
+                    jackknife: bool = False) -> tuple[BranchFit, dict[str, str]]:
     """Fit one branch: from the warm start (its held parameters held again), then with the shape of a drop
     the data cannot tell from none held where it came out, then (delta "auto") with a Stribeck exponent
     the data do not pin held at 2 (:func:`_pinned_delta`). Returns the fit and the held shapes' reasons (suffixed names)."""
@@ -708,6 +712,8 @@ def _fit_one_branch(base: str, bw, bF, bse, bfixed: dict, suf: str, start: dict 
             _delta_profile(bw, bF, bse, bfixed, scales, var_inflation, bf)
         else:
             _free_delta_profile(bw, bF, bse, bfixed, scales, var_inflation, bf)
+    if base == "stribeck" and jackknife and profile and bf.cov is not None:
+        _pair_jackknife(bw, bF, bse, bfixed, scales, var_inflation, bf)
     if shifts and bf.cov is not None:
         _shift_profile(base, bw, bF, bse, bfixed, scales, var_inflation, bf, shifts)
     if base == "stribeck" and bf.cov is not None and _degenerate_drop(bf, bfixed, shapeless, suf, scales):
@@ -778,6 +784,77 @@ def _rival_spread(bf: BranchFit, rival: dict) -> None:
         if n not in bf.reasons and bf.stderr[n] > abs(v):
             bf.reasons[n] = (f"moves by {sp:.3g} to a rise (Fs below Fc) that fits the points as well as this drop: "
                              "the data cannot tell the drop from a rise")
+
+
+#: The parameters of a Stribeck drop whose error is no smaller than the delete-a-pair jackknife
+#: (:func:`_pair_jackknife`), and the fewest groups of points that jackknife is taken over.
+JACKKNIFE_PARAMS = ("Fs", "vs", "delta")
+JACKKNIFE_MIN_GROUPS = 5
+#: Two plateau points of opposite signs are a mirrored pair when their speeds differ by at most this share.
+MIRROR_TOL = 0.1
+
+
+def mirrored_groups(w) -> list[np.ndarray]:
+    """The plateau points grouped by the speed they ran at: each point with the point of the other sign at
+    its speed (within :data:`MIRROR_TOL`, nearest first, from the slowest), a point without one alone.
+    A sweep runs each speed both ways, and what biases a plateau's mean beyond its batch-means error (a
+    settling, the loop's transient after the move, the program around it) depends on the speed and the
+    program, not the sign: such a pair's errors are one error, not two."""
+    w = np.asarray(w, dtype=float)
+    neg = [int(j) for j in np.flatnonzero(w < 0)]
+    groups = []
+    for i in (int(k) for k in np.flatnonzero(w > 0)[np.argsort(w[w > 0])]):
+        j = min(neg, key=lambda j: abs(-w[j] - w[i])) if neg else None
+        if j is not None and abs(-w[j] - w[i]) <= MIRROR_TOL * w[i]:
+            groups.append(np.array([i, j]))
+            neg.remove(j)
+        else:
+            groups.append(np.array([i]))
+    return groups + [np.array([j]) for j in neg]
+
+
+def _pair_jackknife(bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: BranchFit) -> None:
+    """The Stribeck drop's parameters (:data:`JACKKNIFE_PARAMS`) with a standard error no smaller than the
+    delete-a-group jackknife over the plateau points' mirrored pairs (:func:`mirrored_groups`): the branch
+    refitted without each group from its optimum, the variance ``(G - 1) / G`` times the sum of squared
+    changes about their mean. The drop is read from the few slowest plateaus; the Jacobian's error takes
+    their batch-means errors as the whole of their error and the scatter of every point (``s^2``) as its
+    scale, so a slow pair biased beyond its own error (both signs alike) goes into Fs, vs and delta with a
+    leverage that neither measures. Foreign card (session 24): Fs outside two errors on 10 of 52 draws,
+    by 0.1-0.3 % at errors of 0.02-0.14 %; the slowest pairs there sat 1.5-3 of their own errors low on
+    both signs (244034, 244064). The same rule as the moving samples' jackknife floor
+    (:func:`.samples.jackknife_errors`). ``bf`` is changed in place (stderr, the covariance's rows)."""
+    names = [n for n in JACKKNIFE_PARAMS if n in bf.free and bf.stderr.get(n) is not None]
+    groups = mirrored_groups(bw)
+    if not names or len(groups) < JACKKNIFE_MIN_GROUPS:
+        return
+    th = []
+    for g in groups:
+        keep = np.ones(bw.shape[0], dtype=bool)
+        keep[g] = False
+        alt = fit_branch("stribeck", bw[keep], bF[keep], None if bse is None else bse[keep], dict(bfixed),
+                         scales=scales, start=dict(bf.values), var_inflation=var_inflation)
+        if not math.isfinite(alt.cost) or any(alt.values.get(n) is None for n in names):
+            return
+        th.append([alt.values[n] for n in names])
+    th = np.asarray(th, dtype=float)
+    G = th.shape[0]
+    jse = np.sqrt((G - 1) / G * np.sum((th - th.mean(axis=0)) ** 2, axis=0))
+    for n, js in zip(names, jse):
+        se = bf.stderr[n]
+        if not (js > se):
+            continue
+        j = bf.free.index(n)
+        if bf.cov is not None and bf.cov[j, j] > 0:
+            f = max(1.0, js / math.sqrt(bf.cov[j, j]))
+            bf.cov[j, :] *= f
+            bf.cov[:, j] *= f
+        bf.stderr[n] = float(js)
+        v = bf.values[n]
+        if n not in bf.reasons and js > abs(v):
+            bf.reasons[n] = (f"relative error {100 * js / abs(v):.0f} % (above 100 %) by the delete-a-pair "
+                             "jackknife over the plateaus" if v else "relative error above 100 % by the "
+                             "delete-a-pair jackknife over the plateaus")
 
 
 def _shift_profile(base: str, bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: BranchFit,
