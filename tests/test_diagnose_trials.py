@@ -97,3 +97,55 @@ def test_the_delay_search_s_sums_at_whole_shifts_are_those_of_the_shifted_torque
             want_yy[g] += y[m] @ y[m]
     np.testing.assert_allclose(XtY, want_y, rtol=1e-10, atol=1e-12 * np.abs(want_y).max())
     np.testing.assert_allclose(yty, want_yy, rtol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def S_encoder():
+    # the plateau logs' positions read by an encoder of 2e-3 rad: fewer distinct positions than half the samples
+    eff = lambda t, q, w, F: F * (1 + 0.1 * np.sin(2 * np.pi * q / 0.9)) + 0.05
+    logs = [plateau_log(eff, seed=8, dt=5e-3), plateau_log(eff, seed=9, t0=200.0, dt=5e-3)]
+    for lg in logs:
+        lg.q = np.round(lg.q / 2e-3) * 2e-3
+    return build_samples(logs, 5)
+
+
+def test_the_position_torque_s_columns_read_from_the_positions_table_give_the_same_numbers(S_encoder):
+    """A position torque's columns (sin and cos of a period; the smooth form 1, d, d^2) are read from a table of
+    the distinct positions where they are used (:class:`frictid.diagnose.gathered.Gathered`), never formed over
+    every sample: its values, each fold's sums of products with the current model's columns, the fits from
+    them, the held-out predictions and the columns' extremes are those of the whole columns (a context
+    without the tables)."""
+    from frictid.diagnose.gathered import Gathered
+    from frictid.diagnose.model import Evaluator, Term
+
+    S = S_encoder
+    assert 2 * np.unique(S.q).size <= S.n
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    st = Structure("stribeck", cp, ())
+    q0, qs = float(0.5 * (S.q.max() + S.q.min())), float(0.5 * np.ptp(S.q))
+    terms = [Term("position_torque", "position_torque", "additive", (("period", 0.9),)),
+             Term("position_torque", "position_torque", "additive", (("period", 0.0), ("q0", q0), ("qs", qs)))]
+    table, whole = Context(S), Context(S)
+    whole.TABLE_EXTS = ()
+    for term in terms:
+        vec = table.term_vectors(term)
+        assert all(isinstance(v, Gathered) for v in vec)
+        cols = whole.term_columns(term)
+        assert not any(k[0] == "term" for k in table._cache)   # no column over every sample
+        for j, v in enumerate(vec):
+            np.testing.assert_array_equal(v.at(), cols[:, j])
+        for j in range(cols.shape[1]):
+            np.testing.assert_array_equal(table.extremes(term, (j,)), whole.extremes(term, (j,)))
+        for ctx in (table, whole):
+            ctx.prefetch([st.plus(term)])
+        for f in (None, 0, 3):
+            tr = np.arange(S.n) if f is None else np.flatnonzero(S.fold != f)
+            te = np.flatnonzero(S.fold == (0 if f is None else f))
+            ca, cb = Evaluator(st.plus(term), table).fit(tr), Evaluator(st.plus(term), whole).fit(tr)
+            assert ca.rms == cb.rms and all(np.array_equal(ca.gamma[i], cb.gamma[i]) for i in cb.gamma)
+            np.testing.assert_array_equal(Evaluator(st.plus(term), table).predict(ca, te),
+                                          Evaluator(st.plus(term), whole).predict(cb, te))
+        items = [(k, v) for k, v, _ in Evaluator(st.plus(term), table)._linear_items()[0]]
+        ref = [(k, v) for k, v, _ in Evaluator(st.plus(term), whole)._linear_items()[0]]
+        np.testing.assert_array_equal(table.fold_products([v for _, v in items]),
+                                      whole.fold_products([v for _, v in ref]))
