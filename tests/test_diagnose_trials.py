@@ -149,3 +149,24 @@ def test_the_position_torque_s_columns_read_from_the_positions_table_give_the_sa
         ref = [(k, v) for k, v, _ in Evaluator(st.plus(term), whole)._linear_items()[0]]
         np.testing.assert_array_equal(table.fold_products([v for _, v in items]),
                                       whole.fold_products([v for _, v in ref]))
+
+
+def test_the_moving_samples_fold_order_is_sorted_once_and_gives_the_same_blocks(S):
+    """Every pass over a log's moving samples (the delay search's shifts, its judgement, the lag's) reads them
+    fold by fold: the order is kept while the rows live (:func:`signals._fold_order`), sorted once, and the
+    blocks are those of a stable sort by fold."""
+    km, fk = sg._moving_rows(S)[0]
+    assert km.size > 100 and np.unique(fk).size > 1
+    first = sg._fold_order(km, fk)
+    assert sg._fold_order(km, fk) is first   # kept, not sorted again
+    order = np.argsort(fk, kind="stable")
+    blocks = list(sg._fold_blocks(km, fk, 64))
+    want = []
+    for g in np.unique(fk):
+        ks = km[order][fk[order] == g]
+        want += [(int(g), ks[b:b + 64]) for b in range(0, ks.size, 64)]
+    assert [g for g, _ in blocks] == [g for g, _ in want]
+    for (_, a), (_, b) in zip(blocks, want):
+        np.testing.assert_array_equal(a, b)
+    other = fk.copy()   # another array of the same folds: its own entry
+    assert sg._fold_order(km, other) is not first
