@@ -170,3 +170,21 @@ def test_the_moving_samples_fold_order_is_sorted_once_and_gives_the_same_blocks(
         np.testing.assert_array_equal(a, b)
     other = fk.copy()   # another array of the same folds: its own entry
     assert sg._fold_order(km, other) is not first
+
+
+def test_a_vector_in_both_lists_of_a_bordered_sum_is_formed_once_with_the_same_sums(S_encoder):
+    """The sums of a system's rows against some of them (a bordered system's new columns: the same vectors,
+    gathers from a table among them) copy each shared vector's row within a block instead of forming it
+    again: the same sums as with distinct copies of those vectors (the same products, one call per block)."""
+    from frictid.diagnose.gathered import Gathered
+    from frictid.diagnose.model import Evaluator, Term
+
+    S = S_encoder
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    term = Term("position_torque", "position_torque", "additive", (("period", 0.7),))
+    ctx = Context(S)
+    vecs = [v for _, v, _ in Evaluator(Structure("stribeck", cp, ()).plus(term), ctx)._linear_items()[0]]
+    assert any(isinstance(v, Gathered) for v in vecs)
+    others = vecs[-3:]
+    apart = [Gathered(v.table, v.index) if isinstance(v, Gathered) else v.copy() for v in others]
+    np.testing.assert_array_equal(ctx.fold_products(vecs, others), ctx.fold_products(vecs, apart))

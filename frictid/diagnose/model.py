@@ -118,10 +118,13 @@ class Coef:
     excluded: list = field(default_factory=list)
 
 
-def _block(out: np.ndarray, vecs: list, s: int, e: int) -> np.ndarray:
-    """Rows ``vecs[j][s:e]`` of out (a tuple of vectors: their product), in place."""
+def _block(out: np.ndarray, vecs: list, s: int, e: int, rows_of=None, done=None) -> np.ndarray:
+    """Rows ``vecs[j][s:e]`` of out (a tuple of vectors: their product), in place. ``rows_of[j] >= 0``: the
+    vector is ``done``'s row of that index (the same vector, formed already in this block): copied from it."""
     for j, v in enumerate(vecs):
-        if isinstance(v, tuple):
+        if rows_of is not None and rows_of[j] >= 0:
+            out[j] = done[rows_of[j]]
+        elif isinstance(v, tuple):
             np.multiply(v[0][s:e], v[1][s:e], out=out[j])
             for x in v[2:]:
                 out[j] *= x[s:e]
@@ -253,11 +256,15 @@ class Context:
         out = np.zeros((self.S.n_folds, m, k))
         rows = min(BLOCK_ROWS, max(self.S.n, 1))
         V, W = np.empty((m, rows)), (None if same else np.empty((k, rows)))
+        # a vector among both lists (a bordered system's rows and its new columns) is formed once per block and
+        # copied (its product, a gather from its table): B stays its own array, so the product is the same call
+        ids = {id(v): i for i, v in enumerate(vecs)}
+        rows_of = None if same else [ids.get(id(o), -1) for o in others]
         for f in range(self.S.n_folds):
             for s in range(bounds[f], bounds[f + 1], BLOCK_ROWS):
                 e = min(s + BLOCK_ROWS, bounds[f + 1])
                 A = _block(V[:, :e - s], vecs, s, e)
-                B = A if same else _block(W[:, :e - s], others, s, e)
+                B = A if same else _block(W[:, :e - s], others, s, e, rows_of, A)
                 out[f] += A @ B.T
         return out
 
