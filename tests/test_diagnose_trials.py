@@ -97,3 +97,94 @@ def test_the_delay_search_s_sums_at_whole_shifts_are_those_of_the_shifted_torque
             want_yy[g] += y[m] @ y[m]
     np.testing.assert_allclose(XtY, want_y, rtol=1e-10, atol=1e-12 * np.abs(want_y).max())
     np.testing.assert_allclose(yty, want_yy, rtol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def S_encoder():
+    # the plateau logs' positions read by an encoder of 2e-3 rad: fewer distinct positions than half the samples
+    eff = lambda t, q, w, F: F * (1 + 0.1 * np.sin(2 * np.pi * q / 0.9)) + 0.05
+    logs = [plateau_log(eff, seed=8, dt=5e-3), plateau_log(eff, seed=9, t0=200.0, dt=5e-3)]
+    for lg in logs:
+        lg.q = np.round(lg.q / 2e-3) * 2e-3
+    return build_samples(logs, 5)
+
+
+def test_the_position_torque_s_columns_read_from_the_positions_table_give_the_same_numbers(S_encoder):
+    """A position torque's columns (sin and cos of a period; the smooth form 1, d, d^2) are read from a table of
+    the distinct positions where they are used (:class:`frictid.diagnose.gathered.Gathered`), never formed over
+    every sample: its values, each fold's sums of products with the current model's columns, the fits from
+    them, the held-out predictions and the columns' extremes are those of the whole columns (a context
+    without the tables)."""
+    from frictid.diagnose.gathered import Gathered
+    from frictid.diagnose.model import Evaluator, Term
+
+    S = S_encoder
+    assert 2 * np.unique(S.q).size <= S.n
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    st = Structure("stribeck", cp, ())
+    q0, qs = float(0.5 * (S.q.max() + S.q.min())), float(0.5 * np.ptp(S.q))
+    terms = [Term("position_torque", "position_torque", "additive", (("period", 0.9),)),
+             Term("position_torque", "position_torque", "additive", (("period", 0.0), ("q0", q0), ("qs", qs)))]
+    table, whole = Context(S), Context(S)
+    whole.TABLE_EXTS = ()
+    for term in terms:
+        vec = table.term_vectors(term)
+        assert all(isinstance(v, Gathered) for v in vec)
+        cols = whole.term_columns(term)
+        assert not any(k[0] == "term" for k in table._cache)   # no column over every sample
+        for j, v in enumerate(vec):
+            np.testing.assert_array_equal(v.at(), cols[:, j])
+        for j in range(cols.shape[1]):
+            np.testing.assert_array_equal(table.extremes(term, (j,)), whole.extremes(term, (j,)))
+        for ctx in (table, whole):
+            ctx.prefetch([st.plus(term)])
+        for f in (None, 0, 3):
+            tr = np.arange(S.n) if f is None else np.flatnonzero(S.fold != f)
+            te = np.flatnonzero(S.fold == (0 if f is None else f))
+            ca, cb = Evaluator(st.plus(term), table).fit(tr), Evaluator(st.plus(term), whole).fit(tr)
+            assert ca.rms == cb.rms and all(np.array_equal(ca.gamma[i], cb.gamma[i]) for i in cb.gamma)
+            np.testing.assert_array_equal(Evaluator(st.plus(term), table).predict(ca, te),
+                                          Evaluator(st.plus(term), whole).predict(cb, te))
+        items = [(k, v) for k, v, _ in Evaluator(st.plus(term), table)._linear_items()[0]]
+        ref = [(k, v) for k, v, _ in Evaluator(st.plus(term), whole)._linear_items()[0]]
+        np.testing.assert_array_equal(table.fold_products([v for _, v in items]),
+                                      whole.fold_products([v for _, v in ref]))
+
+
+def test_the_moving_samples_fold_order_is_sorted_once_and_gives_the_same_blocks(S):
+    """Every pass over a log's moving samples (the delay search's shifts, its judgement, the lag's) reads them
+    fold by fold: the order is kept while the rows live (:func:`signals._fold_order`), sorted once, and the
+    blocks are those of a stable sort by fold."""
+    km, fk = sg._moving_rows(S)[0]
+    assert km.size > 100 and np.unique(fk).size > 1
+    first = sg._fold_order(km, fk)
+    assert sg._fold_order(km, fk) is first   # kept, not sorted again
+    order = np.argsort(fk, kind="stable")
+    blocks = list(sg._fold_blocks(km, fk, 64))
+    want = []
+    for g in np.unique(fk):
+        ks = km[order][fk[order] == g]
+        want += [(int(g), ks[b:b + 64]) for b in range(0, ks.size, 64)]
+    assert [g for g, _ in blocks] == [g for g, _ in want]
+    for (_, a), (_, b) in zip(blocks, want):
+        np.testing.assert_array_equal(a, b)
+    other = fk.copy()   # another array of the same folds: its own entry
+    assert sg._fold_order(km, other) is not first
+
+
+def test_a_vector_in_both_lists_of_a_bordered_sum_is_formed_once_with_the_same_sums(S_encoder):
+    """The sums of a system's rows against some of them (a bordered system's new columns: the same vectors,
+    gathers from a table among them) copy each shared vector's row within a block instead of forming it
+    again: the same sums as with distinct copies of those vectors (the same products, one call per block)."""
+    from frictid.diagnose.gathered import Gathered
+    from frictid.diagnose.model import Evaluator, Term
+
+    S = S_encoder
+    cp, _ = sm.canonical_pair("stribeck", TRUE)
+    term = Term("position_torque", "position_torque", "additive", (("period", 0.7),))
+    ctx = Context(S)
+    vecs = [v for _, v, _ in Evaluator(Structure("stribeck", cp, ()).plus(term), ctx)._linear_items()[0]]
+    assert any(isinstance(v, Gathered) for v in vecs)
+    others = vecs[-3:]
+    apart = [Gathered(v.table, v.index) if isinstance(v, Gathered) else v.copy() for v in others]
+    np.testing.assert_array_equal(ctx.fold_products(vecs, others), ctx.fold_products(vecs, apart))

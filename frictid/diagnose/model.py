@@ -31,6 +31,7 @@ from ..identify.regression import NormalEquations, solve
 from ..models.static import low_speed_name
 from . import moments as mo
 from .binned import equal_count_bins
+from .gathered import Gathered
 from .samples import Samples
 from .previous import previous_columns
 from .signals import delay_column, dwell_state
@@ -118,13 +119,18 @@ class Coef:
     excluded: list = field(default_factory=list)
 
 
-def _block(out: np.ndarray, vecs: list, s: int, e: int) -> np.ndarray:
-    """Rows ``vecs[j][s:e]`` of out (a tuple of vectors: their product), in place."""
+def _block(out: np.ndarray, vecs: list, s: int, e: int, rows_of=None, done=None) -> np.ndarray:
+    """Rows ``vecs[j][s:e]`` of out (a tuple of vectors: their product), in place. ``rows_of[j] >= 0``: the
+    vector is ``done``'s row of that index (the same vector, formed already in this block): copied from it."""
     for j, v in enumerate(vecs):
-        if isinstance(v, tuple):
+        if rows_of is not None and rows_of[j] >= 0:
+            out[j] = done[rows_of[j]]
+        elif isinstance(v, tuple):
             np.multiply(v[0][s:e], v[1][s:e], out=out[j])
             for x in v[2:]:
                 out[j] *= x[s:e]
+        elif isinstance(v, Gathered):   # read from its table into the row (:mod:`.gathered`)
+            v.fill(out[j], s, e)
         else:
             out[j] = v[s:e]
     return out
@@ -251,11 +257,15 @@ class Context:
         out = np.zeros((self.S.n_folds, m, k))
         rows = min(BLOCK_ROWS, max(self.S.n, 1))
         V, W = np.empty((m, rows)), (None if same else np.empty((k, rows)))
+        # a vector among both lists (a bordered system's rows and its new columns) is formed once per block and
+        # copied (its product, a gather from its table): B stays its own array, so the product is the same call
+        ids = {id(v): i for i, v in enumerate(vecs)}
+        rows_of = None if same else [ids.get(id(o), -1) for o in others]
         for f in range(self.S.n_folds):
             for s in range(bounds[f], bounds[f + 1], BLOCK_ROWS):
                 e = min(s + BLOCK_ROWS, bounds[f + 1])
                 A = _block(V[:, :e - s], vecs, s, e)
-                B = A if same else _block(W[:, :e - s], others, s, e)
+                B = A if same else _block(W[:, :e - s], others, s, e, rows_of, A)
                 out[f] += A @ B.T
         return out
 
@@ -442,6 +452,9 @@ class Context:
                 X = _product(self.term_vectors(term)[cols[0]])[:, None]
             elif cols is None and _periodic(term) and self._cache.get("q2pi", (None, None))[1] is not None:
                 X = sin_cos(self._cache, None, term.settings["period"])   # one row per distinct position
+            elif self.position_table(term) is not None:   # the same values, one row per distinct position
+                X = self.position_table(term)
+                X = X if cols is None else X[:, list(cols)]
             else:
                 X = self.term_columns(term)
                 X = X if cols is None else X[:, list(cols)]
@@ -488,7 +501,7 @@ class Context:
 
         def stale(k) -> bool:
             kind = k[0]
-            if kind in ("term", "term_vectors", "extremes"):
+            if kind in ("term", "term_vectors", "extremes", "table"):
                 return (k[1], k[2]) not in terms
             if kind == "base":
                 return k[3] is not None and k[3] not in strib
@@ -627,9 +640,46 @@ class Context:
         if key not in self._cache:
             if term.ext == "thermal6":
                 self._cache[key] = self._thermal6_vectors(term)
+            elif self.position_table(term) is not None:   # read from the table where used (:mod:`.gathered`)
+                inv = self._cache["q2pi"][1]
+                self._cache[key] = [Gathered(x, inv) for x in self.position_table(term).T]
             else:   # views when F-ordered
                 self._cache[key] = [np.ascontiguousarray(x) for x in self.term_columns(term).T]
         return self._cache[key]
+
+    #: Extensions whose columns are read from a table of the distinct positions (:meth:`position_table`).
+    TABLE_EXTS = ("position_torque", "position_periodic")
+
+    def position_table(self, term: Term) -> np.ndarray | None:
+        """The columns of a position term (:data:`TABLE_EXTS`) at the distinct positions of the samples, one row
+        each, F-ordered (cached with the term's columns), or None: another term, or positions of which more
+        than half are distinct (:func:`sin_cos`). Each value is the one :meth:`term_columns` holds at every
+        sample of that position (the same operations on the same number): sin and cos of the period, or the
+        smooth form ``1, d, d^2``, ``d = (q - q0) / qs``."""
+        if term.ext not in self.TABLE_EXTS or self.S.q is None:
+            return None
+        key = ("table", term.ext, term.nl)
+        if key not in self._cache:
+            if _distinct(self._cache, self.S.q)[1] is None:
+                return None
+            nl = term.settings
+            if _periodic(term):
+                self._cache[key] = sin_cos(self._cache, None, nl["period"])
+            else:
+                d = (self._cache["q_distinct"] - nl["q0"]) / nl["qs"]
+                c = np.empty((3, d.size))
+                c[0] = 1.0
+                c[1] = d
+                np.multiply(d, d, out=c[2])
+                self._cache[key] = c.T
+        return self._cache[key]
+
+    def term_matrix(self, term: Term) -> np.ndarray:
+        """The term's columns (:meth:`term_columns`), or, for one read from a table (:meth:`position_table`), an
+        empty array of their width: a fit reads only the width, its sums and predictions the vectors
+        (:meth:`term_vectors`)."""
+        tab = self.position_table(term)
+        return self.term_columns(term) if tab is None else np.empty((0, tab.shape[1]))
 
     def _thermal6_vectors(self, term: Term) -> list:
         """thermal6's columns ``x sgn w, x w, x w |w|, x w^3`` as tuples of the vectors whose product they
@@ -680,6 +730,16 @@ def _periodic(term: Term) -> bool:
     return term.ext == "position_periodic" or (term.ext == "position_torque" and term.settings["period"] != 0)
 
 
+def _distinct(cache: dict, q: np.ndarray) -> tuple:
+    """``(2 pi u, inv)`` of the distinct positions u of q and each sample's row among them, or ``(2 pi q, None)``
+    when more than half of them are distinct (kept in ``cache``, with u: :meth:`Context.position_table`)."""
+    if "q2pi" not in cache:
+        u, inv = np.unique(q, return_inverse=True)
+        cache["q2pi"] = (2 * np.pi * u, inv) if 2 * u.size <= q.size else (2 * np.pi * q, None)
+        cache["q_distinct"] = u
+    return cache["q2pi"]
+
+
 def sin_cos(cache: dict, q: np.ndarray | None, period: float) -> np.ndarray:
     """``sin`` and ``cos`` of ``2 pi q / period`` as the columns of an F-ordered array (filled in place).
     An encoder's positions repeat (208 000 distinct among 1.16 M sliding samples on the one-hour bench
@@ -688,10 +748,7 @@ def sin_cos(cache: dict, q: np.ndarray | None, period: float) -> np.ndarray:
     ``cache``, a :class:`Context`'s: every period tried shares them). q None (after a first call that kept
     the distinct positions): one row per distinct position, the rows the samples read back
     (:meth:`Context.extremes`: every linear function of the columns takes its extremes among them)."""
-    if "q2pi" not in cache:
-        u, inv = np.unique(q, return_inverse=True)
-        cache["q2pi"] = (2 * np.pi * u, inv) if 2 * u.size <= q.size else (2 * np.pi * q, None)
-    q2pi, inv = cache["q2pi"]
+    q2pi, inv = _distinct(cache, q)
     ph = q2pi / period
     if q is None:
         c = np.empty((2, ph.size))
@@ -779,7 +836,10 @@ class _At:
             pass
         elif idx is not None and idx.size and idx[-1] - idx[0] + 1 == idx.size and np.all(np.diff(idx) == 1):
             idx = slice(int(idx[0]), int(idx[-1]) + 1)   # a fold's samples are consecutive: views, no gather
-        pick = (lambda x: x) if idx is None else (lambda x: x[idx])
+        def pick(x):
+            if isinstance(x, Gathered):   # a column read from its table (:mod:`.gathered`), a new array
+                return x.at(idx)
+            return x if idx is None else x[idx]
 
         def take(x):
             return _product(tuple(pick(v) for v in x)) if isinstance(x, tuple) else pick(x)
@@ -807,9 +867,9 @@ class Evaluator:
         self.base_cols = cols
         self.base_keys = bkeys
         self.pos = ctx.pos
-        self.lf = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "level_factor"]
-        self.af = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "whole_factor"]
-        self.add = [(i, t, ctx.term_columns(t)) for i, t in enumerate(st.terms) if t.role == "additive"]
+        self.lf = [(i, t, ctx.term_matrix(t)) for i, t in enumerate(st.terms) if t.role == "level_factor"]
+        self.af = [(i, t, ctx.term_matrix(t)) for i, t in enumerate(st.terms) if t.role == "whole_factor"]
+        self.add = [(i, t, ctx.term_matrix(t)) for i, t in enumerate(st.terms) if t.role == "additive"]
         # thermal6's columns are products formed where they are used (Context.term_vectors): none stored here
         self.t6 = next(((i, t, None) for i, t in enumerate(st.terms) if t.role == "thermal6"), None)
         #: each term's columns as contiguous vectors, by term index
