@@ -278,7 +278,8 @@ def build(logs, min_speed: float, n_folds: int, exclude: tuple[str, ...] = (),
         ls.append(np.full(int(m.sum()), li))
     if not ws:
         return None
-    w, F, blk, lg = (np.concatenate(x) for x in (ws, Fs, bs, ls))
+    # one log's arrays are its own gathers already: no copy of them (fresh pages, issue 20)
+    w, F, blk, lg = (x[0] if len(x) == 1 else np.concatenate(x) for x in (ws, Fs, bs, ls))
     n_moving = int(w.shape[0])
     if n_moving < MIN_SAMPLES:
         return None
