@@ -212,32 +212,21 @@ class Samples:
             sel, k, end = self._rows(i)
             if not k.size:
                 continue
-            # one log's samples fill ``out`` directly; else each log's are gathered and placed
-            x = out if k.size == self.n else np.empty(k.size)
             if measured:
-                np.take(np.asarray(lg.channels["temp_joint"], float), k, out=x)
-                x -= self.T0
+                x = np.asarray(lg.channels["temp_joint"], float)[k] - self.T0
             else:
                 # the filter is causal: the samples after the last one kept are not needed
                 if power is None:
                     u, x0 = self._heat_input(i, K)
                 else:
                     u, x0 = _heat_input(power[i], self._dTenv(i), K)
-                n = max(end, 2)
-                np.take(_rise(u[:n], self.dt(i), x0, tau_c, out=self._rise_buffer(n)), k, out=x)
-            if x is not out:
-                out[sel] = x
+                y = _rise(u[:max(end, 2)], self.dt(i), x0, tau_c)
+                if k.size == self.n:   # one log: its samples read into out (mode "clip": k is in range, and
+                    np.take(y, k, out=out, mode="clip")   # "raise" writes through a fresh copy of out)
+                    continue
+                x = y[k]
+            out[sel] = x
         return out
-
-    def _rise_buffer(self, n: int) -> np.ndarray:
-        """A work array of n values for :func:`_rise`'s whole-log recursion, kept for the samples' life: the
-        thermal states of every time constant tried (about 10 per diagnosis, each over every sample of the
-        logs, 29 MB for a joint-hour) are read at the samples only, so one buffer serves them all instead
-        of fresh pages per state (kernel time, issue 20)."""
-        buf = self._memo.get("rise_buffer")
-        if buf is None or buf.size < n:
-            buf = self._memo["rise_buffer"] = np.empty(max(n, max((lg.n for lg in self.logs), default=0)))
-        return buf[:n]
 
     def _dTenv(self, i: int) -> np.ndarray:
         lg = self.logs[i]
@@ -301,10 +290,9 @@ def _heat_input(P, dTenv, K: float = 1.0):
     return u, float(dTenv[0]) if dTenv.size else 0.0
 
 
-def _rise(u, h, x0, tau_c, ref: bool = False, out: np.ndarray | None = None) -> np.ndarray:
+def _rise(u, h, x0, tau_c, ref: bool = False) -> np.ndarray:
     """``x[k+1] = e x[k] + (1 - e) u[k]`` from ``x[0] = x0``, with ``e = exp(-h / tau_c)`` (h [s] the sample
-    period). ref : by :func:`scipy.signal.lfilter` (the twin of the compiled loop). out : an array of u's
-    size to write x into (the compiled loop; a fresh one when None)."""
+    period). ref : by :func:`scipy.signal.lfilter` (the twin of the compiled loop)."""
     if u.size < 2:
         return u.copy()
     e = math.exp(-h / tau_c)
@@ -312,26 +300,25 @@ def _rise(u, h, x0, tau_c, ref: bool = False, out: np.ndarray | None = None) -> 
         from scipy.signal import lfilter  # only the tests' twin: scipy.signal costs ~0.5 s to import
         y, _ = lfilter([0.0, 1.0 - e], [1.0, -e], u, zi=[x0])
         return y
-    y = np.empty(u.size) if out is None else out
-    _rise_nb(np.ascontiguousarray(u, dtype=float), e, float(x0), y)
-    return y
+    return _rise_nb(np.ascontiguousarray(u, dtype=float), e, float(x0))
 
 
 @njit(cache=True)
-def _rise_nb(u, e, x0, y):  # pragma: no cover - compiled; twin: _rise(..., ref=True)
-    """``y[0] = x0``, ``y[k+1] = e y[k] + (1 - e) u[k]`` for k < n - 1, written into y (u's size): a
-    sequential recursion, which numpy cannot vectorise; the same products and sums as lfilter's, so the
-    same values for a finite u."""
+def _rise_nb(u, e, x0):  # pragma: no cover - compiled; twin: _rise(..., ref=True)
+    """``y[0] = x0``, ``y[k+1] = e y[k] + (1 - e) u[k]`` for k < n - 1: a sequential recursion, which numpy
+    cannot vectorise; the same products and sums as lfilter's, so the same values for a finite u."""
     n = u.shape[0]
+    y = np.empty(n)
     x = x0
     c = 1.0 - e
     for k in range(n):
         y[k] = x
         x = u[k] * c + x * e
+    return y
 
 
 #: The kernel with its signature (numba types), for :func:`frictid.api.compile_kernels`.
-KERNELS = ((_rise_nb, (nt.float64[::1], nt.float64, nt.float64, nt.float64[::1])),)
+KERNELS = ((_rise_nb, (nt.float64[::1], nt.float64, nt.float64)),)
 
 
 def _sliding_rows(lg: DiagLog, w: np.ndarray, fin_w: np.ndarray, v_min: float, v_move: float, J: float,
