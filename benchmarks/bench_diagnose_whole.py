@@ -28,7 +28,8 @@ over as many random samples as the diagnosis slid, for 1-30 new columns.
 diagnosis), then the diagnosis (its samples, the chain's set-up, the candidates' lists, their trials on the
 stride and on all samples, the screen's bounds besides its trials, the choice and confound rules, the chosen
 term on all samples, the refits after a step, the findings and sentences, the structure tests) and the check
-(its replays, sample sets, map fits and held-out refits, stored RMS).
+(its replays, sample sets, map fits and held-out refits, stored RMS); each part's CPU time, of it system
+(kernel) time, and its minor page faults (``resource.getrusage``: the fresh pages its temporaries touch).
 
 ``FRICTID_SMOKE=1`` shrinks the log to one minute of cycles (a few seconds), the same code path.
 """
@@ -197,18 +198,31 @@ BUDGET_SPOTS = [("frictid.identify.prepare", "prepare"), ("frictid.identify.mech
 BUDGET_WITHIN = ("_screened", "run", "_choose_sound", "check_diagnosis")
 
 
+def _usage():
+    """CPU time [s], system (kernel) time [s] and minor page faults of this process so far (the faults count
+    the fresh pages its temporaries touch: the kernel zeroes and maps each)."""
+    import resource
+
+    import numpy as np
+
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return np.array([time.process_time(), r.ru_stime, float(r.ru_minflt)])
+
+
 def budget_times(run) -> dict:
-    """CPU time of ``run()`` (key ``total``) and of each :data:`BUDGET_SPOTS` function within it, on its
-    outermost call (key: the function's name), and apart where it runs inside a :data:`BUDGET_WITHIN` one
-    (key ``name@outer``). The functions are wrapped where they are defined and where ``frictid.api`` imported
-    them, for the call only."""
+    """CPU time, system time and minor page faults (:func:`_usage`) of ``run()`` (key ``total``) and of each
+    :data:`BUDGET_SPOTS` function within it, on its outermost call (key: the function's name), and apart
+    where it runs inside a :data:`BUDGET_WITHIN` one (key ``name@outer``). The functions are wrapped where
+    they are defined and where ``frictid.api`` imported them, for the call only."""
     import collections
     import functools
     import importlib
 
+    import numpy as np
+
     from bench_fit_floor import resolve
 
-    spent, depth, undo = collections.defaultdict(float), collections.Counter(), []
+    spent, depth, undo = collections.defaultdict(lambda: np.zeros(3)), collections.Counter(), []
     api = importlib.import_module("frictid.api")
     for mod, attr in BUDGET_SPOTS:
         owner, name, fn = resolve(mod, attr)
@@ -217,24 +231,24 @@ def budget_times(run) -> dict:
         def timed(*a, _fn=fn, _k=name, **kw):
             outer = [k for k in BUDGET_WITHIN if depth[k] and k != _k]
             depth[_k] += 1
-            t0 = time.process_time()
+            u0 = _usage()
             try:
                 return _fn(*a, **kw)
             finally:
                 depth[_k] -= 1
                 if depth[_k] == 0:
-                    dt = time.process_time() - t0
-                    spent[_k] += dt
+                    du = _usage() - u0
+                    spent[_k] += du
                     for k in outer:
-                        spent[f"{_k}@{k}"] += dt
+                        spent[f"{_k}@{k}"] += du
         for where in (owner, api):
             if getattr(where, name, None) is fn:
                 setattr(where, name, timed)
                 undo.append((where, name, fn))
     try:
-        t0 = time.process_time()
+        u0 = _usage()
         run()
-        spent["total"] = time.process_time() - t0
+        spent["total"] = _usage() - u0
     finally:
         for where, name, fn in reversed(undo):
             setattr(where, name, fn)
@@ -242,14 +256,19 @@ def budget_times(run) -> dict:
 
 
 def print_budget(without: dict, with_: dict) -> None:
-    """The budget of :func:`budget_times` of a fit without and one with the diagnosis, in exclusive parts."""
+    """The budget of :func:`budget_times` of a fit without and one with the diagnosis, in exclusive parts:
+    CPU, of it system time, and minor page faults (thousands) of each."""
+    import numpy as np
+
     for label, s in (("without", without), ("with", with_)):
-        g = lambda k, s=s: s.get(k, 0.0)  # noqa: E731
+        g = lambda k, s=s: s.get(k, np.zeros(3))  # noqa: E731
         fit = g("prepare") + g("rigid_body") + g("static_maps") + g("of_joint")
-        print(f"budget, fit {label} the diagnosis: CPU {g('total'):.2f} s; the fit's steps {fit:.2f} s (prepare "
-              f"{g('prepare'):.2f}, rigid body {g('rigid_body'):.2f}, static maps {g('static_maps'):.2f}, validity "
-              f"{g('of_joint'):.2f}), the rest {g('total') - fit - g('diagnose_fit') - g('check_diagnosis'):.2f} s")
-    g = lambda k: with_.get(k, 0.0)  # noqa: E731
+        rest = g("total") - fit - g("diagnose_fit") - g("check_diagnosis")
+        print(f"budget, fit {label} the diagnosis: CPU {g('total')[0]:.2f} s (system {g('total')[1]:.2f} s, "
+              f"{g('total')[2] / 1e3:.0f} k page faults); the fit's steps {fit[0]:.2f} s (system {fit[1]:.2f} s, "
+              f"{fit[2] / 1e3:.0f} k faults: prepare {g('prepare')[0]:.2f}, rigid body {g('rigid_body')[0]:.2f}, "
+              f"static maps {g('static_maps')[0]:.2f}, validity {g('of_joint')[0]:.2f}), the rest {rest[0]:.2f} s")
+    g = lambda k: with_.get(k, np.zeros(3))  # noqa: E731
     ev_stride = g("evaluate@_screened")
     # the fit builds sample sets and fits maps on them too (a joint's sample basis): the check's own only
     check_parts = (g("_static_targets") + g("build@check_diagnosis") + g("_same_samples")
@@ -272,9 +291,11 @@ def print_budget(without: dict, with_: dict) -> None:
              ("check: map fits and held-out refits (fit_map)", g("fit_map@check_diagnosis")),
              ("check: stored parameters' RMS (_stored_rms)", g("_stored_rms")),
              ("check: rest", g("check_diagnosis") - check_parts)]
-    print(f"  diagnosis {g('diagnose_fit'):.2f} s and its check {g('check_diagnosis'):.2f} s, of them (exclusive):")
+    d, c = g("diagnose_fit"), g("check_diagnosis")
+    print(f"  diagnosis {d[0]:.2f} s (system {d[1]:.2f} s, {d[2] / 1e3:.0f} k faults) and its check {c[0]:.2f} s "
+          f"(system {c[1]:.2f} s, {c[2] / 1e3:.0f} k faults), of them (exclusive; CPU, system, k faults):")
     for k, v in rows:
-        print(f"    {k:<56} {v:6.3f} s")
+        print(f"    {k:<56} {v[0]:6.3f} s  {v[1]:6.3f} s  {v[2] / 1e3:6.1f} k")
 
 
 def main(argv=None) -> int:

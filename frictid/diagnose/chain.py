@@ -226,8 +226,9 @@ class Chain:
         for f, (tr, te) in enumerate(folds):
             c = ev.fit(tr)
             pred[te] = ev.predict(c, _rows(te))
-            self.train_info.append((tr, te, S.F[tr] - _on_training(ev.predict, c, tr, te),
-                                    _on_training(ev.level, c, tr, te), c))
+            res = np.take(S.F, tr)   # the training residual formed in the gather's array (one fresh array)
+            res -= _on_training(ev.predict, c, tr, te)
+            self.train_info.append((tr, te, res, _on_training(ev.level, c, tr, te), c))
         self.pred = pred
         self.coef = ev.fit(self.idx_all)
         self.history.append((st, self.coef, pred))

@@ -220,7 +220,11 @@ class Samples:
                     u, x0 = self._heat_input(i, K)
                 else:
                     u, x0 = _heat_input(power[i], self._dTenv(i), K)
-                x = _rise(u[:max(end, 2)], self.dt(i), x0, tau_c)[k]
+                y = _rise(u[:max(end, 2)], self.dt(i), x0, tau_c)
+                if k.size == self.n:   # one log: its samples read into out (mode "clip": k is in range, and
+                    np.take(y, k, out=out, mode="clip")   # "raise" writes through a fresh copy of out)
+                    continue
+                x = y[k]
             out[sel] = x
         return out
 

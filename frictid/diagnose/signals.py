@@ -143,12 +143,30 @@ def shifted_torque(tau: np.ndarray, k: np.ndarray, shift: float) -> np.ndarray:
 def _nearest(k: np.ndarray, label: np.ndarray, at: np.ndarray) -> np.ndarray:
     """The ``label`` of the sample of ``k`` (sample indices, any order) nearest to each of ``at`` (the
     earlier one on a tie)."""
+    if k.size == 0:
+        return np.zeros(at.size, np.int64)
+    return label[_nearest_index(k, at)]
+
+
+def _nearest_index(k: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """The position in ``k`` (sample indices, any order, at least one) of the sample nearest to each of
+    ``at`` (the earlier one on a tie): :func:`_nearest`'s search, which every label of the same samples
+    shares (the moving samples' folds and groups: one sort and one search of them, not two)."""
     order = np.argsort(k)
-    ks, ls = k[order], label[order]
-    if ks.size < 2:
-        return np.broadcast_to(ls[:1], at.shape).copy() if ks.size else np.zeros(at.size, np.int64)
+    if k.size < 2:
+        return np.zeros(at.size, np.intp)
+    ks = k[order]
     j = np.clip(np.searchsorted(ks, at), 1, ks.size - 1)
-    return ls[np.where(np.abs(ks[j - 1] - at) <= np.abs(ks[j] - at), j - 1, j)]
+    return order[np.where(np.abs(ks[j - 1] - at) <= np.abs(ks[j] - at), j - 1, j)]
+
+
+def _labels_at(S: Samples, i: int, label: np.ndarray, km: np.ndarray, key) -> np.ndarray:
+    """``label`` (a per-sample array of S) of log i's sample nearest in time to each of log i's moving
+    samples ``km``, by the search of :func:`_nearest_index` kept under ``key`` for the next label asked."""
+    sel = S.li == i
+    one = bool(sel.all())
+    idx = S.cached(key, lambda: _nearest_index(S.k if one else S.k[sel], km))
+    return label[idx] if one else label[sel][idx]
 
 
 #: Bristle lengths of travel after a reversal within which the friction's presliding state still acts:
@@ -192,7 +210,7 @@ def _moving_rows(S: Samples, every: bool = False) -> list:
             if km.size < 8 or not sel.any() or lg.n < 3:
                 out.append((np.zeros(0, np.int64), np.zeros(0, np.int64)))
                 continue
-            out.append((km, _nearest(S.k[sel], S.fold[sel], km)))
+            out.append((km, _labels_at(S, i, S.fold, km, ("moving_nearest", every, i))))
         return out
     if every and (S.bristle is None or not S.bristle > 0):
         return _moving_rows(S)   # nothing left out: the same rows
@@ -644,11 +662,11 @@ def _moving_groups(S: Samples, every: bool = False) -> list:
     def compute():
         out = []
         for i, (km, _) in enumerate(_moving_rows(S, every)):
-            sel = S.li == i
             if not km.size:
                 out.append(np.zeros(0, np.int64))
                 continue
-            out.append(_nearest(S.k[sel], S.group[sel], km))
+            out.append(_labels_at(S, i, S.group, km, ("moving_nearest", every, i)))
+            S.forget(("moving_nearest", every, i))   # the folds and groups both formed
         return out
     if every and (S.bristle is None or not S.bristle > 0):
         return _moving_groups(S)

@@ -269,16 +269,17 @@ def build(logs, min_speed: float, n_folds: int, exclude: tuple[str, ...] = (),
                 m[s.i0:s.i1] = False
         src_w.append(p.w)
         src_m.append(m)
-        blk = np.empty(p.log.n, dtype=np.int64)
-        for i0, i1, b in rr:
-            blk[i0:i1] = b
         ws.append(p.w[m])
         Fs.append(p.F[m])
-        bs.append(blk[m])
+        # the kept samples' blocks: the ranges cover the log in order, so each block's value repeated for
+        # its kept samples (no block array over every sample of the log: fresh pages, issue 20)
+        bs.append(np.repeat(np.array([b for _, _, b in rr], dtype=np.int64),
+                            [np.count_nonzero(m[i0:i1]) for i0, i1, _ in rr]))
         ls.append(np.full(int(m.sum()), li))
     if not ws:
         return None
-    w, F, blk, lg = (np.concatenate(x) for x in (ws, Fs, bs, ls))
+    # one log's arrays are its own gathers already: no copy of them (fresh pages, issue 20)
+    w, F, blk, lg = (x[0] if len(x) == 1 else np.concatenate(x) for x in (ws, Fs, bs, ls))
     n_moving = int(w.shape[0])
     if n_moving < MIN_SAMPLES:
         return None
