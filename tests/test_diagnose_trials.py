@@ -188,3 +188,24 @@ def test_a_vector_in_both_lists_of_a_bordered_sum_is_formed_once_with_the_same_s
     others = vecs[-3:]
     apart = [Gathered(v.table, v.index) if isinstance(v, Gathered) else v.copy() for v in others]
     np.testing.assert_array_equal(ctx.fold_products(vecs, others), ctx.fold_products(vecs, apart))
+
+
+def test_the_delay_search_s_gravity_columns_are_kept_between_passes_with_the_same_sums(S, monkeypatch):
+    """cos q and sin q of a log's moving samples are formed once in fold order (:func:`signals._fold_trig`),
+    kept while the rows live, and read by every pass of the delay search: the sums X'X, X'y and y'y of its
+    shifts are those of the columns computed per block (bit for bit)."""
+    assert S.axis_rotary
+    km, fk = sg._moving_rows(S)[0]
+    trig = sg._fold_trig(S, 0, km, fk)
+    assert trig is not None and sg._fold_trig(S, 0, km, fk) is trig
+    ks = sg._fold_order(km, fk)[0]
+    np.testing.assert_array_equal(sg._delay_columns(S, 0, ks, trig), sg._delay_columns(S, 0, ks))
+    dt = S.dt(0)
+    shifts = [0.0, 3 * dt, -7 * dt, 2.5 * dt]
+    fresh = [build_samples(S.logs, 5) for _ in range(2)]
+    kept = [sg._delay_sums(fresh[0], s) for s in shifts]
+    monkeypatch.setattr(sg, "_fold_trig", lambda *a: None)
+    per_block = [sg._delay_sums(fresh[1], s) for s in shifts]
+    for a, b in zip(kept, per_block):
+        for x, y in zip(a, b):
+            np.testing.assert_array_equal(x, y)
