@@ -209,3 +209,24 @@ def test_the_delay_search_s_gravity_columns_are_kept_between_passes_with_the_sam
     for a, b in zip(kept, per_block):
         for x, y in zip(a, b):
             np.testing.assert_array_equal(x, y)
+
+
+def test_the_heat_input_without_a_logged_ambient_is_that_of_a_zero_column(S):
+    """Without ``temp_env`` the ambient's change is zero: the heat balance's input is ``P / K`` plus a scalar
+    zero in place, not a column of zeros of every sample, with the same numbers bit for bit (-0 made +0 as by
+    the column) and so the same thermal state."""
+    from frictid.diagnose.samples import _heat_input
+
+    P = np.array([1.5, -0.0, 0.0, -2.25, 1e-300, -3.0])
+    for K in (1.0, 0.37):
+        u, x0 = _heat_input(P, None, K)
+        v, y0 = _heat_input(P, np.zeros(P.size), K)
+        assert u.tobytes() == v.tobytes() and x0 == y0 == 0.0 and not np.signbit(u[1])
+    import copy
+
+    lg = copy.copy(S.logs[0])
+    lg.channels = {k: v for k, v in lg.channels.items() if k != "temp_env"}
+    T = build_samples([lg], 5)
+    u, x0 = T._heat_input(0)
+    v, y0 = _heat_input(T.power(0), T._dTenv(0))
+    assert u.tobytes() == v.tobytes() and x0 == y0

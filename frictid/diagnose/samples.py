@@ -233,7 +233,9 @@ class Samples:
     def _heat_input(self, i: int, K: float = 1.0):
         """(u, x0) of :func:`heat_balance_rise` for log i with the measured power (computed once per K)."""
         key = ("heat_input", i) if K == 1.0 else ("heat_input", i, K)
-        return self.cached(key, lambda: _heat_input(self.power(i), self._dTenv(i), K))
+        # without a logged ambient its change is zero (T0 - T0): not formed as a column of every sample
+        ambient = self.logs[i].channels.get("temp_env") is not None or not math.isfinite(self.T0)
+        return self.cached(key, lambda: _heat_input(self.power(i), self._dTenv(i) if ambient else None, K))
 
     def conductances(self) -> tuple[float, ...]:
         """The heat balance's conductances K [W/K] tried: 1 (the ambient's kelvin and the power's watt weigh
@@ -280,7 +282,13 @@ def heat_balance_rise(t, P, dTenv, tau_c, K: float = 1.0, ref: bool = False) -> 
 
 
 def _heat_input(P, dTenv, K: float = 1.0):
-    """The input ``u = dTenv + P / K`` [K] of the heat balance and its start ``x0 = dTenv[0]``."""
+    """The input ``u = dTenv + P / K`` [K] of the heat balance and its start ``x0 = dTenv[0]``. dTenv None: no
+    change of the ambient (zero), added as a scalar in place (the same numbers as a column of zeros: ``0 + x``
+    is x, and +0 for -0)."""
+    if dTenv is None:
+        u = np.asarray(P, float) / K
+        u += 0.0
+        return u, 0.0
     dTenv = np.asarray(dTenv, float)
     u = dTenv + np.asarray(P, float) / K
     return u, float(dTenv[0]) if dTenv.size else 0.0
