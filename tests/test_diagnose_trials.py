@@ -230,3 +230,15 @@ def test_the_heat_input_without_a_logged_ambient_is_that_of_a_zero_column(S):
     u, x0 = T._heat_input(0)
     v, y0 = _heat_input(T.power(0), T._dTenv(0))
     assert u.tobytes() == v.tobytes() and x0 == y0
+
+
+def test_the_heat_input_with_a_logged_ambient_is_summed_in_place_with_the_same_numbers():
+    """``dTenv + P / K`` formed in the quotient's array: the same sum bit for bit."""
+    from frictid.diagnose.samples import _heat_input
+
+    rng = np.random.default_rng(3)
+    P, dT = rng.standard_normal(1000) * 10.0 ** rng.integers(-8, 8, 1000), rng.standard_normal(1000)
+    P[::9] = -0.0
+    for K in (1.0, 0.37, 3e4):
+        u, x0 = _heat_input(P, dT, K)
+        assert u.tobytes() == (dT + P / K).tobytes() and x0 == dT[0]

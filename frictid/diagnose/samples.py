@@ -284,13 +284,15 @@ def heat_balance_rise(t, P, dTenv, tau_c, K: float = 1.0, ref: bool = False) -> 
 def _heat_input(P, dTenv, K: float = 1.0):
     """The input ``u = dTenv + P / K`` [K] of the heat balance and its start ``x0 = dTenv[0]``. dTenv None: no
     change of the ambient (zero), added as a scalar in place (the same numbers as a column of zeros: ``0 + x``
-    is x, and +0 for -0)."""
+    is x, and +0 for -0). The sum is formed in the quotient's array (the same sum: addition commutes)."""
+    u = np.asarray(P, float) / K
     if dTenv is None:
-        u = np.asarray(P, float) / K
         u += 0.0
         return u, 0.0
     dTenv = np.asarray(dTenv, float)
-    u = dTenv + np.asarray(P, float) / K
+    if u.shape != np.broadcast_shapes(u.shape, dTenv.shape):
+        return dTenv + u, float(dTenv[0]) if dTenv.size else 0.0
+    u += dTenv
     return u, float(dTenv[0]) if dTenv.size else 0.0
 
 
