@@ -242,3 +242,17 @@ def test_the_heat_input_with_a_logged_ambient_is_summed_in_place_with_the_same_n
     for K in (1.0, 0.37, 3e4):
         u, x0 = _heat_input(P, dT, K)
         assert u.tobytes() == (dT + P / K).tobytes() and x0 == dT[0]
+
+
+def test_the_ambient_s_spread_from_its_extremes_is_that_of_the_column():
+    """:meth:`Samples._ambient_spread` reads a finite ambient's extremes: the spread of ``finite(Tenv - T0)``
+    bit for bit, as before (and that column where Tenv holds NaN)."""
+    from frictid.data import finite
+    from frictid.diagnose.samples import Samples
+
+    rng = np.random.default_rng(5)
+    for T0, Tenv in ((25.0, 25.0 + np.cumsum(rng.standard_normal(5000)) * 1e-3),
+                     (23.1, rng.uniform(-40.0, 90.0, 777)), (0.1, np.array([0.3, np.nan, -0.2]))):
+        S = Samples.__new__(Samples)
+        S.T0, S.logs = T0, [type("L", (), {"channels": {"temp_env": Tenv}, "n": Tenv.size})()]
+        assert S._ambient_spread(0) == float(np.ptp(finite(Tenv - T0)))

@@ -237,6 +237,18 @@ class Samples:
         ambient = self.logs[i].channels.get("temp_env") is not None or not math.isfinite(self.T0)
         return self.cached(key, lambda: _heat_input(self.power(i), self._dTenv(i) if ambient else None, K))
 
+    def _ambient_spread(self, i: int) -> float:
+        """The largest change of log i's ambient, ``ptp(finite(Tenv - T0))``: of a finite Tenv from its extremes
+        alone (``x - T0`` rounds monotonically: its extremes are those of Tenv less T0, the same numbers),
+        without the column of every sample."""
+        Tenv = np.asarray(self.logs[i].channels["temp_env"], float)
+        if Tenv.size and math.isfinite(self.T0) and np.isfinite(Tenv).all():
+            lo, hi = float(Tenv.min()) - self.T0, float(Tenv.max()) - self.T0
+            if math.isfinite(lo) and math.isfinite(hi):
+                return hi - lo
+        d = finite(self._dTenv(i))
+        return float(np.ptp(d)) if d.size else 0.0
+
     def conductances(self) -> tuple[float, ...]:
         """The heat balance's conductances K [W/K] tried: 1 (the ambient's kelvin and the power's watt weigh
         alike, as the fit's own thermal law is written), and, where a logged ambient ``temp_env`` changes
@@ -251,8 +263,7 @@ class Samples:
             spread = 0.0
             for i, lg in enumerate(self.logs):
                 if "temp_env" in lg.channels and lg.n:
-                    d = finite(self._dTenv(i))
-                    spread = max(spread, float(np.ptp(d)) if d.size else 0.0)
+                    spread = max(spread, self._ambient_spread(i))
             if spread <= 0:
                 return (1.0,)
             p = np.concatenate([self.power(i) for i in range(len(self.logs))])
