@@ -256,3 +256,23 @@ def test_the_ambient_s_spread_from_its_extremes_is_that_of_the_column():
         S = Samples.__new__(Samples)
         S.T0, S.logs = T0, [type("L", (), {"channels": {"temp_env": Tenv}, "n": Tenv.size})()]
         assert S._ambient_spread(0) == float(np.ptp(finite(Tenv - T0)))
+
+
+def test_the_within_cell_line_in_the_speed_is_formed_once_with_the_same_numbers(S):
+    """What :func:`chain._within` takes out of a candidate's residual and correction depends on the cells and
+    the velocity only: formed once while they live (:func:`chain._cell_line`), with the numbers of the
+    formula written out."""
+    from frictid.diagnose import chain
+
+    cell = chain.speed_cells(S)
+    rng = np.random.default_rng(11)
+    first = chain._cell_line(cell, S.w)
+    assert chain._cell_line(cell, S.w) is first
+    for x in (S.F, rng.standard_normal(S.n)):
+        cnt = np.maximum(np.bincount(cell), 1)
+        xc = x - (np.bincount(cell, weights=x) / cnt)[cell]
+        wc = S.w - (np.bincount(cell, weights=S.w) / cnt)[cell]
+        sww = np.bincount(cell, weights=wc * wc)
+        want = xc - (np.bincount(cell, weights=wc * xc) / np.where(sww > 0, sww, np.inf))[cell] * wc
+        assert chain._within(cell, x, S.w).tobytes() == want.tobytes()
+    assert chain._cell_line(cell, S.w.copy()) is not first   # another velocity: its own
