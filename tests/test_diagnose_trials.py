@@ -188,3 +188,91 @@ def test_a_vector_in_both_lists_of_a_bordered_sum_is_formed_once_with_the_same_s
     others = vecs[-3:]
     apart = [Gathered(v.table, v.index) if isinstance(v, Gathered) else v.copy() for v in others]
     np.testing.assert_array_equal(ctx.fold_products(vecs, others), ctx.fold_products(vecs, apart))
+
+
+def test_the_delay_search_s_gravity_columns_are_kept_between_passes_with_the_same_sums(S, monkeypatch):
+    """cos q and sin q of a log's moving samples are formed once in fold order (:func:`signals._fold_trig`),
+    kept while the rows live, and read by every pass of the delay search: the sums X'X, X'y and y'y of its
+    shifts are those of the columns computed per block (bit for bit)."""
+    assert S.axis_rotary
+    km, fk = sg._moving_rows(S)[0]
+    trig = sg._fold_trig(S, 0, km, fk)
+    assert trig is not None and sg._fold_trig(S, 0, km, fk) is trig
+    ks = sg._fold_order(km, fk)[0]
+    np.testing.assert_array_equal(sg._delay_columns(S, 0, ks, trig), sg._delay_columns(S, 0, ks))
+    dt = S.dt(0)
+    shifts = [0.0, 3 * dt, -7 * dt, 2.5 * dt]
+    fresh = [build_samples(S.logs, 5) for _ in range(2)]
+    kept = [sg._delay_sums(fresh[0], s) for s in shifts]
+    monkeypatch.setattr(sg, "_fold_trig", lambda *a: None)
+    per_block = [sg._delay_sums(fresh[1], s) for s in shifts]
+    for a, b in zip(kept, per_block):
+        for x, y in zip(a, b):
+            np.testing.assert_array_equal(x, y)
+
+
+def test_the_heat_input_without_a_logged_ambient_is_that_of_a_zero_column(S):
+    """Without ``temp_env`` the ambient's change is zero: the heat balance's input is ``P / K`` plus a scalar
+    zero in place, not a column of zeros of every sample, with the same numbers bit for bit (-0 made +0 as by
+    the column) and so the same thermal state."""
+    from frictid.diagnose.samples import _heat_input
+
+    P = np.array([1.5, -0.0, 0.0, -2.25, 1e-300, -3.0])
+    for K in (1.0, 0.37):
+        u, x0 = _heat_input(P, None, K)
+        v, y0 = _heat_input(P, np.zeros(P.size), K)
+        assert u.tobytes() == v.tobytes() and x0 == y0 == 0.0 and not np.signbit(u[1])
+    import copy
+
+    lg = copy.copy(S.logs[0])
+    lg.channels = {k: v for k, v in lg.channels.items() if k != "temp_env"}
+    T = build_samples([lg], 5)
+    u, x0 = T._heat_input(0)
+    v, y0 = _heat_input(T.power(0), T._dTenv(0))
+    assert u.tobytes() == v.tobytes() and x0 == y0
+
+
+def test_the_heat_input_with_a_logged_ambient_is_summed_in_place_with_the_same_numbers():
+    """``dTenv + P / K`` formed in the quotient's array: the same sum bit for bit."""
+    from frictid.diagnose.samples import _heat_input
+
+    rng = np.random.default_rng(3)
+    P, dT = rng.standard_normal(1000) * 10.0 ** rng.integers(-8, 8, 1000), rng.standard_normal(1000)
+    P[::9] = -0.0
+    for K in (1.0, 0.37, 3e4):
+        u, x0 = _heat_input(P, dT, K)
+        assert u.tobytes() == (dT + P / K).tobytes() and x0 == dT[0]
+
+
+def test_the_ambient_s_spread_from_its_extremes_is_that_of_the_column():
+    """:meth:`Samples._ambient_spread` reads a finite ambient's extremes: the spread of ``finite(Tenv - T0)``
+    bit for bit, as before (and that column where Tenv holds NaN)."""
+    from frictid.data import finite
+    from frictid.diagnose.samples import Samples
+
+    rng = np.random.default_rng(5)
+    for T0, Tenv in ((25.0, 25.0 + np.cumsum(rng.standard_normal(5000)) * 1e-3),
+                     (23.1, rng.uniform(-40.0, 90.0, 777)), (0.1, np.array([0.3, np.nan, -0.2]))):
+        S = Samples.__new__(Samples)
+        S.T0, S.logs = T0, [type("L", (), {"channels": {"temp_env": Tenv}, "n": Tenv.size})()]
+        assert S._ambient_spread(0) == float(np.ptp(finite(Tenv - T0)))
+
+
+def test_the_within_cell_line_in_the_speed_is_formed_once_with_the_same_numbers(S):
+    """What :func:`chain._within` takes out of a candidate's residual and correction depends on the cells and
+    the velocity only: formed once while they live (:func:`chain._cell_line`), with the numbers of the
+    formula written out."""
+    from frictid.diagnose import chain
+
+    cell = chain.speed_cells(S)
+    rng = np.random.default_rng(11)
+    first = chain._cell_line(cell, S.w)
+    assert chain._cell_line(cell, S.w) is first
+    for x in (S.F, rng.standard_normal(S.n)):
+        cnt = np.maximum(np.bincount(cell), 1)
+        xc = x - (np.bincount(cell, weights=x) / cnt)[cell]
+        wc = S.w - (np.bincount(cell, weights=S.w) / cnt)[cell]
+        sww = np.bincount(cell, weights=wc * wc)
+        want = xc - (np.bincount(cell, weights=wc * xc) / np.where(sww > 0, sww, np.inf))[cell] * wc
+        assert chain._within(cell, x, S.w).tobytes() == want.tobytes()
+    assert chain._cell_line(cell, S.w.copy()) is not first   # another velocity: its own

@@ -30,6 +30,7 @@ candidates compete too (:data:`COMPETITORS`: a per-direction level for an offset
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -701,15 +702,37 @@ SPEED_BINS = 20
 
 def _within(cell: np.ndarray, x: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
     """x less its mean in each cell, and (w given) less its least-squares line in w within the cell: what
-    varies with the speed inside a cell (an accelerating stretch) is taken out with the mean."""
-    cnt = np.maximum(np.bincount(cell), 1)
-    xc = x - (np.bincount(cell, weights=x) / cnt)[cell]
+    varies with the speed inside a cell (an accelerating stretch) is taken out with the mean. What depends
+    on the cells and w only is formed once while they live (:func:`_cell_line`)."""
     if w is None:
-        return xc
-    wc = w - (np.bincount(cell, weights=w) / cnt)[cell]
-    sww = np.bincount(cell, weights=wc * wc)
+        cnt = np.maximum(np.bincount(cell), 1)
+        return x - (np.bincount(cell, weights=x) / cnt)[cell]
+    cnt, wc, sww = _cell_line(cell, w)
+    xc = x - (np.bincount(cell, weights=x) / cnt)[cell]
     beta = np.bincount(cell, weights=wc * xc) / np.where(sww > 0, sww, np.inf)
     return xc - beta[cell] * wc
+
+
+#: :func:`_cell_line` of the cells and velocities alive: (id of the cells, id of w) -> (weak references to
+#: both, the counts, w less its cell means, the sums of its squares).
+_CELL_LINES: dict = {}
+
+
+def _cell_line(cell: np.ndarray, w: np.ndarray) -> tuple:
+    """(samples per cell, at least 1; w less its mean in each cell; the sum of its squares per cell): the part
+    of :func:`_within` that its x does not change, the same for every candidate judged (and both the
+    residual and the correction of one) on the same cells, formed once while the cells and w live."""
+    key = (id(cell), id(w))
+    got = _CELL_LINES.get(key)
+    if got is not None and got[0]() is cell and got[1]() is w:
+        return got[2]
+    cnt = np.maximum(np.bincount(cell), 1)
+    wc = w - (np.bincount(cell, weights=w) / cnt)[cell]
+    out = (cnt, wc, np.bincount(cell, weights=wc * wc))
+    _CELL_LINES[key] = (weakref.ref(cell), weakref.ref(w), out)
+    for a in (cell, w):
+        weakref.finalize(a, _CELL_LINES.pop, key, None)
+    return out
 
 
 def _within_t(S: Samples, cell: np.ndarray, tr: Trial) -> tuple[np.ndarray, np.ndarray, float, float]:

@@ -237,7 +237,21 @@ class Samples:
     def _heat_input(self, i: int, K: float = 1.0):
         """(u, x0) of :func:`heat_balance_rise` for log i with the measured power (computed once per K)."""
         key = ("heat_input", i) if K == 1.0 else ("heat_input", i, K)
-        return self.cached(key, lambda: _heat_input(self.power(i), self._dTenv(i), K))
+        # without a logged ambient its change is zero (T0 - T0): not formed as a column of every sample
+        ambient = self.logs[i].channels.get("temp_env") is not None or not math.isfinite(self.T0)
+        return self.cached(key, lambda: _heat_input(self.power(i), self._dTenv(i) if ambient else None, K))
+
+    def _ambient_spread(self, i: int) -> float:
+        """The largest change of log i's ambient, ``ptp(finite(Tenv - T0))``: of a finite Tenv from its extremes
+        alone (``x - T0`` rounds monotonically: its extremes are those of Tenv less T0, the same numbers),
+        without the column of every sample."""
+        Tenv = np.asarray(self.logs[i].channels["temp_env"], float)
+        if Tenv.size and math.isfinite(self.T0) and np.isfinite(Tenv).all():
+            lo, hi = float(Tenv.min()) - self.T0, float(Tenv.max()) - self.T0
+            if math.isfinite(lo) and math.isfinite(hi):
+                return hi - lo
+        d = finite(self._dTenv(i))
+        return float(np.ptp(d)) if d.size else 0.0
 
     def conductances(self) -> tuple[float, ...]:
         """The heat balance's conductances K [W/K] tried: 1 (the ambient's kelvin and the power's watt weigh
@@ -253,8 +267,7 @@ class Samples:
             spread = 0.0
             for i, lg in enumerate(self.logs):
                 if "temp_env" in lg.channels and lg.n:
-                    d = finite(self._dTenv(i))
-                    spread = max(spread, float(np.ptp(d)) if d.size else 0.0)
+                    spread = max(spread, self._ambient_spread(i))
             if spread <= 0:
                 return (1.0,)
             p = np.concatenate([self.power(i) for i in range(len(self.logs))])
@@ -284,9 +297,17 @@ def heat_balance_rise(t, P, dTenv, tau_c, K: float = 1.0, ref: bool = False) -> 
 
 
 def _heat_input(P, dTenv, K: float = 1.0):
-    """The input ``u = dTenv + P / K`` [K] of the heat balance and its start ``x0 = dTenv[0]``."""
+    """The input ``u = dTenv + P / K`` [K] of the heat balance and its start ``x0 = dTenv[0]``. dTenv None: no
+    change of the ambient (zero), added as a scalar in place (the same numbers as a column of zeros: ``0 + x``
+    is x, and +0 for -0). The sum is formed in the quotient's array (the same sum: addition commutes)."""
+    u = np.asarray(P, float) / K
+    if dTenv is None:
+        u += 0.0
+        return u, 0.0
     dTenv = np.asarray(dTenv, float)
-    u = dTenv + np.asarray(P, float) / K
+    if u.shape != np.broadcast_shapes(u.shape, dTenv.shape):
+        return dTenv + u, float(dTenv[0]) if dTenv.size else 0.0
+    u += dTenv
     return u, float(dTenv[0]) if dTenv.size else 0.0
 
 

@@ -217,9 +217,10 @@ def _moving_rows(S: Samples, every: bool = False) -> list:
     return S.cached("moving_rows_every" if every else "moving_rows", compute)
 
 
-def _delay_columns(S: Samples, i: int, k: np.ndarray) -> np.ndarray:
+def _delay_columns(S: Samples, i: int, k: np.ndarray, trig: tuple | None = None) -> np.ndarray:
     """The velocity-only map and rigid-body corrections a delay must not stand in for, at samples k of log
-    i: per sign 1, sqrt|w|, |w|, w^2; the acceleration (an inertia error); cos q, sin q (a gravity error)."""
+    i: per sign 1, sqrt|w|, |w|, w^2; the acceleration (an inertia error); cos q, sin q (a gravity error).
+    trig : (cos q, sin q) at k when the pass has them (:func:`_fold_trig`), else computed here."""
     w = S.log_w(i)[k]
     v = np.abs(w)
     sv, v2 = np.sqrt(v), v * v
@@ -232,7 +233,9 @@ def _delay_columns(S: Samples, i: int, k: np.ndarray) -> np.ndarray:
         np.multiply(m, v, out=X[r + 2])
         np.multiply(m, v2, out=X[r + 3])
     X[8] = S.log_a(i)[k]
-    if rot:
+    if rot and trig is not None:
+        X[9], X[10] = trig
+    elif rot:
         qk = finite(q[k])
         np.cos(qk, out=X[9])
         np.sin(qk, out=X[10])
@@ -300,10 +303,44 @@ def _fold_order(km: np.ndarray, fk: np.ndarray) -> tuple:
 def _fold_blocks(km: np.ndarray, fk: np.ndarray, rows: int):
     """(fold, sample indices) of the moving samples km of one log, fold by fold, in blocks of at most
     ``rows`` (each fold's samples in their order in the log)."""
-    ks, fs, edges = _fold_order(km, fk)
+    ks = _fold_order(km, fk)[0]
+    for g, b, e in _fold_spans(km, fk, rows):
+        yield g, ks[b:e]
+
+
+def _fold_spans(km: np.ndarray, fk: np.ndarray, rows: int):
+    """(fold, start, end) of :func:`_fold_blocks`' blocks: their rows in the fold order of km
+    (:func:`_fold_order`)."""
+    _, fs, edges = _fold_order(km, fk)
     for s, e in zip(np.concatenate(([0], edges)), np.concatenate((edges, [fs.size]))):
         for b in range(s, e, rows):
-            yield int(fs[s]), ks[b:min(b + rows, e)]
+            yield int(fs[s]), b, min(b + rows, e)
+
+
+#: cos q and sin q of a log's moving samples in fold order (:func:`_fold_trig`), kept while their arrays
+#: live: id of the folds' array -> (weak references to it and to the samples' array, the two rows).
+_FOLD_TRIG: dict = {}
+
+
+def _fold_trig(S: Samples, i: int, km: np.ndarray, fk: np.ndarray) -> np.ndarray | None:
+    """cos q and sin q (two rows) at the moving samples km of log i in fold order (:func:`_fold_order`),
+    None off a rotary axis: the gravity columns of :func:`_delay_columns`, which do not depend on the shift,
+    formed once while the samples live, not on every pass of the delay search over them (two
+    transcendental functions of 1.7 M positions per pass on the one-hour bench log). The same values: the
+    same functions of the same positions."""
+    q = S.logs[i].q
+    if not (S.axis_rotary and q is not None):
+        return None
+    got = _FOLD_TRIG.get(id(fk))
+    if got is not None and got[0]() is fk and got[1]() is km:
+        return got[2]
+    qk = finite(q[_fold_order(km, fk)[0]])
+    out = np.empty((2, qk.size))
+    np.cos(qk, out=out[0])
+    np.sin(qk, out=out[1])
+    _FOLD_TRIG[id(fk)] = (weakref.ref(fk), weakref.ref(km), out)
+    weakref.finalize(fk, _FOLD_TRIG.pop, id(fk), None)
+    return out
 
 
 def _delay_prefetch(S: Samples, shifts) -> None:
@@ -330,8 +367,10 @@ def _delay_prefetch_pass(S: Samples, todo: list) -> None:
         sh = np.asarray(todo) / S.dt(i)
         # whole samples (up to the rounding of the shift in seconds): the torque read, not interpolated
         whole = bool(np.all(np.abs(sh - np.round(sh)) < 1e-6))
-        for g, k in _fold_blocks(km, fk, BATCH_ROWS):
-            X = _delay_columns(S, i, k)
+        ks, trig = _fold_order(km, fk)[0], _fold_trig(S, i, km, fk)
+        for g, b, e in _fold_spans(km, fk, BATCH_ROWS):
+            k = ks[b:e]
+            X = _delay_columns(S, i, k, None if trig is None else trig[:, b:e])
             if gram:
                 if XtX is None:
                     XtX = np.zeros((nf, X.shape[1], X.shape[1]))
