@@ -116,3 +116,7 @@ def test_the_log_velocity_views_say_stribeck_only_where_the_chosen_model_drops()
     assert fg._low_speed_title(curves, "pos") == "Stribeck region"
     assert fg._low_speed_title(curves, "neg") == "Low-speed region"
     assert fg._low_speed_title([{"selected": True, "pos": None, "neg": None}], "pos") == "Low-speed region"
+    # a rise at low speed whose negative viscous slope ends below the value at rest still rises first
+    v = np.geomspace(1e-3, 2.0, 80)
+    rise_then_fall = 9.16 - 1.41 * np.exp(-(v / 0.354) ** 2) - 0.94 * v
+    assert fg._low_speed_title([{"selected": True, "pos": rise_then_fall}], "pos") == "Low-speed region"

@@ -425,13 +425,15 @@ def timeline(t, q, w, tau, segments, units: dict, title: str, salt: str) -> Rend
 
 
 def _low_speed_title(curves: list[dict], key: str) -> str:
-    """The title of a branch's log-velocity view: "Stribeck region" where the selected model's |F| falls from
-    the lowest speed drawn by more than 1 % of its largest value there (a Stribeck drop), else "Low-speed
-    region" (a friction that rises from rest is no Stribeck drop: issue 19)."""
+    """The title of a branch's log-velocity view: "Stribeck region" where the selected model's |F| first moves
+    from its value at the lowest speed drawn downwards (by more than 1 % of its largest value there: a
+    Stribeck drop), else "Low-speed region" (a friction that rises from rest is no Stribeck drop, issue 19;
+    the direct-drive sample's low-speed rise, whose negative viscous slope brings |F| below its value at rest
+    at the top speed, rises first)."""
     sel = [np.asarray(c[key], dtype=float) for c in curves if c["selected"] and c.get(key) is not None]
     f = sel[0][np.isfinite(sel[0])] if sel else np.zeros(0)
-    drop = f.size > 1 and f[0] - f.min() > 0.01 * np.abs(f).max()
-    return "Stribeck region" if drop else "Low-speed region"
+    moved = np.flatnonzero(np.abs(f - f[0]) > 0.01 * np.abs(f).max()) if f.size > 1 else []
+    return "Stribeck region" if len(moved) and f[moved[0]] < f[0] else "Low-speed region"
 
 
 @_gc_paused
