@@ -82,8 +82,8 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
 
 #: Per map: (break-away level, level it drops to, the drop's shape parameters) of a Stribeck drop; the drop
 #: must be downwards (003: Fs >= Fc), else the model's name and its shape parameters describe nothing.
-#: (``stribeck_2exp`` is 001's free two-exponential form, whose published fits rise as well as drop: it
-#: makes no such claim and is not checked.)
+#: (``stribeck_2exp`` is 001's free two-exponential form, whose amplitudes can cancel: its shape is checked on
+#: the curve, :func:`two_exp_drop`.)
 DROPS = {"stribeck": ("Fs", "Fc", ("Fs", "vs", "delta"))}
 #: Per map: its viscous coefficient (dissipative only when >= 0), flagged when it is below zero by more
 #: than VISCOUS_Z standard errors (a slope the data cannot tell from zero is a well-determined zero).
