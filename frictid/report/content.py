@@ -982,10 +982,7 @@ def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dic
     vmin = min_speed(datas) if vmin is None else vmin
     ext = extension_model(jd, finding)
     before = before if before in (jd.get("models") or {}) else jd.get("selected")
-    # on the diagnosis' sliding samples the before is its base as it ran it (without the fit's offset); on the
-    # moving samples (the fit's basis) the model as the fit runs it, with its offset: against a base without
-    # it every offset looks like a gain (session 25: Franka joint 3's offset finding replayed at 5.51 N m
-    # against 13.2 for the base without the fit's offset, against 4.78 with it)
+    # moving samples: with the fit's offset (Franka joint 3's offset: 5.51 against 13.2 without it, 4.78 with)
     jd_before = as_diagnosis_base(jd, before) if rows is not None else jd
 
     def key(name, entry, k):   # the base run without the offset: its own tag (the copy is made per call)
