@@ -57,7 +57,7 @@ MAP_FORMULAS = {
     "coulomb_viscous": ("Coulomb level plus viscous friction", "F = Fc sgn(w) + sigma2 w"),
     "stribeck": ("Coulomb level with a Stribeck drop from the break-away level at low speed, plus viscous "
                  "friction", "F = (Fc + (Fs - Fc) exp(-|w/vs|^delta)) sgn(w) + sigma2 w"),
-    "stribeck_2exp": ("level with two exponential terms (Stribeck drop, second rise), plus viscous and "
+    "stribeck_2exp": ("level with two exponential terms (a Stribeck drop, then a second exponential), plus viscous and "
                       "quadratic friction", "F = (alpha0 + alpha1 exp(-|w|/ws1) + alpha2 (1 - exp(-|w|/ws2))) "
                       "sgn(w) + alpha3 w + alpha4 w|w|"),
     "polynomial": ("third-order polynomial in velocity", "F = c0 sgn(w) + c1 w + c2 w|w| + c3 w^3"),

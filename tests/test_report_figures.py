@@ -104,3 +104,19 @@ def test_figure_functions_leave_the_garbage_collector_as_they_found_it(enabled):
     finally:
         (gc.enable if was else gc.disable)()
     assert seen == [False, False]
+
+
+def test_the_log_velocity_views_say_stribeck_only_where_the_chosen_model_drops():
+    """The friction map's log-velocity views were titled "Stribeck region" whatever the chosen model did; a
+    friction that rises from rest is no Stribeck drop (issue 19): the title says "Low-speed region" there."""
+    v = np.geomspace(1e-3, 1.0, 50)
+    drop = 1.0 + 0.5 * np.exp(-v / 0.05) + 0.2 * v
+    rise = 1.5 - 0.5 * np.exp(-v / 0.05) + 0.2 * v
+    curves = [{"selected": True, "pos": drop, "neg": rise}, {"selected": False, "pos": rise, "neg": drop}]
+    assert fg._low_speed_title(curves, "pos") == "Stribeck region"
+    assert fg._low_speed_title(curves, "neg") == "Low-speed region"
+    assert fg._low_speed_title([{"selected": True, "pos": None, "neg": None}], "pos") == "Low-speed region"
+    # a rise at low speed whose negative viscous slope ends below the value at rest still rises first
+    v = np.geomspace(1e-3, 2.0, 80)
+    rise_then_fall = 9.16 - 1.41 * np.exp(-(v / 0.354) ** 2) - 0.94 * v
+    assert fg._low_speed_title([{"selected": True, "pos": rise_then_fall}], "pos") == "Low-speed region"

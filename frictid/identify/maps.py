@@ -59,6 +59,7 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
     for n in fitted + (["polynomial_ls"] if "polynomial_ls" in jf.models else []):
         level_in_range(jf.models[n], basis_w, jd.F0)
     for n in fitted:
+        two_exp_drop(jf.models[n], basis_w, jd.F0)
         physical_shape(jf.models[n], jd.w0, jd.F0)
         validity.drop_spanned(jf.models[n], fr.plat.w, jf.models.get(n.replace("stribeck", "coulomb_viscous")),
                               points=(fr.plat.w, fr.plat.F, fr.plat.F_se) if fr.basis == "plateaus" else None,
@@ -81,8 +82,8 @@ def static_maps(jd: JointData, rb: RigidBody, fr: Friction, wanted: list[str], n
 
 #: Per map: (break-away level, level it drops to, the drop's shape parameters) of a Stribeck drop; the drop
 #: must be downwards (003: Fs >= Fc), else the model's name and its shape parameters describe nothing.
-#: (``stribeck_2exp`` is 001's free two-exponential form, whose published fits rise as well as drop: it
-#: makes no such claim and is not checked.)
+#: (``stribeck_2exp`` is 001's free two-exponential form, whose amplitudes can cancel: its shape is checked on
+#: the curve, :func:`two_exp_drop`.)
 DROPS = {"stribeck": ("Fs", "Fc", ("Fs", "vs", "delta"))}
 #: Per map: its viscous coefficient (dissipative only when >= 0), flagged when it is below zero by more
 #: than VISCOUS_Z standard errors (a slope the data cannot tell from zero is a well-determined zero).
@@ -162,6 +163,37 @@ def level_in_range(mf, basis_w: np.ndarray, F0: float) -> None:
                f"[{rng[0]:.4g}, {rng[1]:.4g}]: the model the parameter file runs holds a level at zero (friction "
                "does not push the motion), so this formula is not the function the file describes")
         for n in LEVEL[base]:
+            _not_physical(mf.params.get(n + suf), why)
+        mf.notes = list(mf.notes) + [why]
+
+
+def two_exp_drop(mf, basis_w: np.ndarray, F0: float) -> None:
+    """A two-exponential map (``stribeck_2exp``, 001's Stribeck drop and second rise) whose level has no drop
+    from rest on a branch is named for a drop it does not have (issue 19: no ``stribeck`` with Fs < Fc; Franka
+    joint 3's `stribeck_2exp`: 1.56 N m at rest rising to 19.6, amplitudes 179 and 197 N m at nearly the same
+    speed). On each branch, from zero to the top of the fitted speeds, the level's shape
+    (:func:`frictid.models.static.low_speed_shape`, a dip or rise of up to :data:`~.static.NEGLIGIBLE` of the
+    torque scale ``F0`` counting as none): a ``rise`` marks the drop's amplitude and speed (alpha1, ws1) not
+    identifiable with the reason, so the choice takes a map whose name says what the data do."""
+    if mf.map.split("_asym")[0] != "stribeck_2exp" or any(v is None for v in mf.values().values()):
+        return
+    w = np.asarray(basis_w, dtype=float)
+    w = w[np.isfinite(w) & (w != 0)]
+    cp, cn = sm.canonical_pair(mf.map, mf.values())
+    sides = ((("_pos", w[w > 0], cp), ("_neg", -w[w < 0], cn)) if mf.map.endswith("_asym")
+             else (("", np.abs(w), cp),))
+    for suf, v, c in sides:
+        if v.size == 0:
+            continue
+        grid = np.concatenate([[0.0], np.linspace(0.0, v.max(), LEVEL_GRID)[1:], np.sort(v)])
+        grid.sort()
+        if sm.low_speed_shape(c, grid, NEGLIGIBLE * F0) != "rise":
+            continue
+        g = sm.canonical_level(grid, c)
+        why = (f"level{suf} {g[0]:.4g} at rest, {g.max():.4g} at most over the fitted speeds (up to {v.max():.4g} "
+               f"q/s): the friction {sm.TWO_EXP_RISE}, the drop the two-exponential map's first term is named for "
+               "(the polynomial map follows a rise)")
+        for n in ("alpha1", "ws1"):
             _not_physical(mf.params.get(n + suf), why)
         mf.notes = list(mf.notes) + [why]
 

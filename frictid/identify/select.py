@@ -115,6 +115,8 @@ def rises(mf) -> bool:
     """Whether ``mf`` is a Stribeck map (or LuGre on one) whose friction at rest lies below its Coulomb level
     on a branch (``Fs < Fc``): a rise, which its name would call a drop (issue 19: no ``stribeck`` with
     Fs < Fc). The fallbacks of :func:`choose` do not take it while another model remains."""
+    if mf.map.split("_asym")[0] == "stribeck_2exp":  # marked by the fit (maps.two_exp_drop)
+        return any(pe.reason and sm.TWO_EXP_RISE in pe.reason for pe in mf.params.values())
     if mf.map not in DROP_MAPS:
         return False
     for suf in _branches(mf):
@@ -238,7 +240,7 @@ def _not_rising(pool: list[dict], rec: dict, rising: set) -> list[dict]:
     ``stribeck`` of Fs 1.35 < Fc 8.66 chosen by AIC alone.)"""
     keep = [r for r in pool if r["model"] not in rising]
     if keep and len(keep) < len(pool):
-        rec["not_taken"] = [f"{r['model']}: Fs < Fc, a rise, no Stribeck drop" for r in pool if r["model"] in rising]
+        rec["not_taken"] = [f"{r['model']}: friction at rest below its sliding level (Fs < Fc), a rise, no Stribeck drop" for r in pool if r["model"] in rising]
     return keep or pool
 
 

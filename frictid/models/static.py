@@ -316,6 +316,25 @@ def low_speed_name(amps) -> str:
     return LOW_SPEED_NAMES["rise" if all(x <= 0 for x in a) else "mixed"]
 
 
+#: The reason the fit marks a two-exponential map whose level rises from rest with no drop
+#: (:func:`frictid.identify.maps.two_exp_drop`; :func:`frictid.identify.select.rises` reads it).
+TWO_EXP_RISE = "rises from rest with no Stribeck drop"
+
+
+def low_speed_shape(c, v, tol: float = 0.0) -> str:
+    """The shape of a map's level at low speed on one branch, from its canonical vector ``c`` over the speeds
+    ``v`` (>= 0, ascending, the first the lowest): ``drop`` when the level at the lowest speed lies above its
+    minimum over ``v`` (a Stribeck drop: friction at rest above a level it falls to), ``rise`` when it does
+    not and the level rises above it (friction at rest below the sliding level), ``flat`` otherwise. For the
+    single-exponential term this is the sign of its amplitude (``Fs`` against ``Fc``); for the two-exponential
+    map, whose amplitudes can cancel (near-equal speeds), it is the curve's, not the first amplitude's sign.
+    Differences up to ``tol`` [F] count as none (a dip or a rise the data cannot tell from flat)."""
+    g = _level(np.asarray(v, dtype=float), *(float(x) for x in np.asarray(c, dtype=float)[:6]))
+    if g[0] - g.min() > tol:
+        return "drop"
+    return "rise" if g.max() - g[0] > tol else "flat"
+
+
 def split_asym(name: str) -> tuple[StaticMap, bool]:
     """The base map of a model name and whether it is the per-sign variant."""
     asym = name.endswith("_asym")

@@ -967,7 +967,8 @@ def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dic
                         cache: dict | None = None, vmin: float | None = None,
                         keep: set[str] | None = None, rows: DiagnosisSamples | None = None) -> dict | None:
     """Residual ``tau - tau_model`` against the finding's cause variable, binned, before (model ``before``,
-    default the chosen one; the diagnosis' base as the diagnosis ran it, :func:`as_diagnosis_base`) and
+    default the chosen one; on the samples ``rows`` the diagnosis' base as the diagnosis ran it,
+    :func:`as_diagnosis_base`; on the moving samples the model as the fit runs it, with its offset) and
     after the extension (the finding's ``model``, or the chosen model with the extension's ``params``; else
     the finding's own ``binned: {x, after}``), on the samples ``rows`` (the diagnosis' sliding samples,
     :func:`diagnosis_samples`: where the finding's numbers were measured; there the diagnosis' base is its
@@ -981,7 +982,8 @@ def diagnosis_residuals(datas: list[LogData], jname: str, jd: dict, finding: dic
     vmin = min_speed(datas) if vmin is None else vmin
     ext = extension_model(jd, finding)
     before = before if before in (jd.get("models") or {}) else jd.get("selected")
-    jd_before = as_diagnosis_base(jd, before)
+    # moving samples: with the fit's offset (Franka joint 3's offset: 5.51 against 13.2 without it, 4.78 with)
+    jd_before = as_diagnosis_base(jd, before) if rows is not None else jd
 
     def key(name, entry, k):   # the base run without the offset: its own tag (the copy is made per call)
         return name, k, 0 if entry is jd else "base" if entry is jd_before else id(entry)

@@ -424,10 +424,23 @@ def timeline(t, q, w, tau, segments, units: dict, title: str, salt: str) -> Rend
         return render(fig, alt, salt, points)
 
 
+def _low_speed_title(curves: list[dict], key: str) -> str:
+    """The title of a branch's log-velocity view: "Stribeck region" where the selected model's |F| first moves
+    from its value at the lowest speed drawn downwards (by more than 1 % of its largest value there: a
+    Stribeck drop), else "Low-speed region" (a friction that rises from rest is no Stribeck drop, issue 19;
+    the direct-drive sample's low-speed rise, whose negative viscous slope brings |F| below its value at rest
+    at the top speed, rises first)."""
+    sel = [np.asarray(c[key], dtype=float) for c in curves if c["selected"] and c.get(key) is not None]
+    f = sel[0][np.isfinite(sel[0])] if sel else np.zeros(0)
+    moved = np.flatnonzero(np.abs(f - f[0]) > 0.01 * np.abs(f).max()) if f.size > 1 else []
+    return "Stribeck region" if len(moved) and f[moved[0]] < f[0] else "Low-speed region"
+
+
 @_gc_paused
 def friction_map(pl, curves: list[dict], grids: dict, units: dict, salt: str) -> Rendered:
     """Friction against velocity: plateau points with error bars and every static model (top, both
-    signs), and the Stribeck region on a logarithmic velocity axis for w > 0 and w < 0 (bottom)."""
+    signs), and the low speeds on a logarithmic velocity axis for w > 0 and w < 0 (bottom; titled "Stribeck
+    region" where the selected model's friction drops from the lowest speed, :func:`_low_speed_title`)."""
     F_u, w_u = units["tau"], units["qd"]
     with rc_context(salt):
         n_handles = sum(1 for c in curves if c["lin"] is not None) + (1 if len(pl) else 0)
@@ -480,13 +493,13 @@ def friction_map(pl, curves: list[dict], grids: dict, units: dict, salt: str) ->
         ax.set_xlabel(f"velocity w [{w_u}]")
         ax.set_ylabel(f"friction torque F [{F_u}]")
         ax.set_title("Friction-velocity map: plateau points and the fitted static models", loc="left")
-        for axs, side in ((axp, "w > 0"), (axn, "w < 0")):
+        for axs, side, key in ((axp, "w > 0", "pos"), (axn, "w < 0", "neg")):
             axs.set_xscale("log")
             axs.set_xlim(grids["log"][0], grids["log"][-1])
             log_ticks(axs.xaxis, grids["log"][0], grids["log"][-1])
             axs.set_xlabel(f"|w| [{w_u}], log scale")
             axs.set_ylabel(f"|F| [{F_u}]")
-            axs.set_title(f"Stribeck region, {side}", loc="left")
+            axs.set_title(f"{_low_speed_title(curves, key)}, {side}", loc="left")
         legend_below(fig, handles, min(3, len(handles)))
         alt = (f"Friction against velocity: {len(pl)} plateau points and {len(curves)} static models; "
                "log-velocity views of both signs")
