@@ -409,8 +409,12 @@ def _mv(M, v):
     """``M @ v`` as numpy's ``matmul`` computes it: a one-row matrix by a dot product, else by BLAS's
     matrix-vector product."""
     if M.shape[0] == 1:
+        m = M.shape[1]
+        row = np.empty(m)  # (a copy of the row, element by element: np.ascontiguousarray compiled its own code)
+        for j in range(m):
+            row[j] = M[0, j]
         out = np.empty(1)
-        out[0] = np.dot(np.ascontiguousarray(M[0]), v)  # (a copy only of a one-element row here)
+        out[0] = np.dot(row, v)
         return out
     return np.dot(M, v)
 
@@ -431,7 +435,7 @@ def _bvls_nb(A, y, x_lsq, lo, hi, tol):
     concatenation, whose generic code was most of this kernel's compilation on a first run)."""
     n, L = A.shape
     x = x_lsq.copy()
-    on_bound = np.zeros(L)
+    on_bound = np.empty(L)
     for j in range(L):
         on_bound[j] = -1.0 if x[j] <= lo[j] else (1.0 if x[j] >= hi[j] else 0.0)
     x = _clip_nb(x, lo, hi)
@@ -528,7 +532,7 @@ def _lstsq_free(A, y, x, on_bound, free):
     :func:`_svd_solve`)."""
     n = A.shape[0]
     if free.size == 0:
-        return np.zeros(0)
+        return np.empty(0)
     xb = np.empty(x.shape[0])
     for j in range(x.shape[0]):
         xb[j] = x[j] if on_bound[j] != 0 else 0.0
@@ -547,7 +551,9 @@ def _svd_solve(a, b, rcond):
     factorisation of the same 7-40 x 2-5 system)."""
     n, L = a.shape
     U, sv, Vt = _svd_thin(a)
-    x = np.zeros(L)
+    x = np.empty(L)
+    for j in range(L):
+        x[j] = 0.0
     cut = sv[0] * rcond if L else 0.0
     for c in range(sv.shape[0]):
         if not sv[c] > cut:
