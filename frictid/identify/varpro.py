@@ -528,43 +528,37 @@ def _free_of(on_bound):
 @njit(cache=True, error_model="numpy")
 def _lstsq_free(A, y, x, on_bound, free):
     """The least-squares solution on the free columns with the bound ones' part moved to the right-hand
-    side (numpy's ``lstsq(A[:, free], y - A @ where(on_bound != 0, x, 0), rcond=None)``, by
-    :func:`_svd_solve`)."""
+    side (numpy's ``lstsq(A[:, free], y - A @ where(on_bound != 0, x, 0), rcond=None)``): the minimum-norm
+    solution with singular values at or below ``rcond`` times the largest taken as zero (what LAPACK's
+    ``gelsd``, numpy's ``lstsq``, solves), from the thin SVD :func:`_svd_thin` the projection compiles
+    anyway: ``V diag(1/s) U^T rhs``. numba's ``np.linalg.lstsq`` was 3 s of a first run's compilation (its
+    residuals, its rank and a copy of ``b`` whose shape check compiles numba's error message); the answers
+    differ from ``gelsd``'s by rounding (a different factorisation of the same 7-40 x 2-5 system)."""
     n = A.shape[0]
-    if free.size == 0:
+    L = free.size
+    if L == 0:
         return np.empty(0)
     xb = np.empty(x.shape[0])
     for j in range(x.shape[0]):
         xb[j] = x[j] if on_bound[j] != 0 else 0.0
-    rhs = y - _mv(A, xb)
-    Af = _columns(A, free)
-    return _svd_solve(Af, rhs, EPS * max(n, free.size))
-
-
-@njit(cache=True, error_model="numpy")
-def _svd_solve(a, b, rcond):
-    """The minimum-norm least-squares solution of ``a x = b`` with singular values at or below ``rcond``
-    times the largest taken as zero (what LAPACK's ``gelsd``, numpy's ``lstsq``, solves), from the thin SVD
-    :func:`_svd_thin` the projection compiles anyway: ``x = V diag(1/s) U^T b``. numba's ``np.linalg.lstsq``
-    was 3 s of a first run's compilation (its residuals, its rank and a copy of ``b`` whose shape check
-    compiles numba's error message); the answers differ from ``gelsd``'s by rounding (a different
-    factorisation of the same 7-40 x 2-5 system)."""
-    n, L = a.shape
-    U, sv, Vt = _svd_thin(a)
-    x = np.empty(L)
+    rhs = _mv(A, xb)
+    for i in range(n):
+        rhs[i] = y[i] - rhs[i]
+    U, sv, Vt = _svd_thin(_columns(A, free))
+    z = np.empty(L)
     for j in range(L):
-        x[j] = 0.0
-    cut = sv[0] * rcond if L else 0.0
+        z[j] = 0.0
+    cut = sv[0] * (EPS * max(n, L))
     for c in range(sv.shape[0]):
         if not sv[c] > cut:
             break
         t = 0.0
         for i in range(n):
-            t += U[i, c] * b[i]
+            t += U[i, c] * rhs[i]
         t /= sv[c]
         for j in range(L):
-            x[j] += Vt[c, j] * t
-    return x
+            z[j] += Vt[c, j] * t
+    return z
 
 
 @njit(cache=True)
