@@ -430,9 +430,10 @@ def _within(b, lo, hi) -> bool:
 @njit(cache=True, error_model="numpy")
 def _bvls_nb(A, y, x_lsq, lo, hi, tol):
     """The work of :func:`bvls` (``A`` in Fortran order): scipy's bounded-variable least squares step for
-    step, with LAPACK's least squares (``gelsd`` at numpy's ``rcond``) on each free set. The index sets are
-    built and applied element by element (the same arithmetic on each element as numpy's fancy indexing and
-    concatenation, whose generic code was most of this kernel's compilation on a first run)."""
+    step, with the minimum-norm least squares at numpy's ``rcond`` on each free set (:func:`_lstsq_free`).
+    The index sets are built and applied element by element (the same arithmetic on each element as numpy's
+    fancy indexing and concatenation, whose generic code was most of this kernel's compilation on a first
+    run)."""
     n, L = A.shape
     x = x_lsq.copy()
     on_bound = np.empty(L)
