@@ -409,8 +409,12 @@ def _mv(M, v):
     """``M @ v`` as numpy's ``matmul`` computes it: a one-row matrix by a dot product, else by BLAS's
     matrix-vector product."""
     if M.shape[0] == 1:
+        m = M.shape[1]
+        row = np.empty(m)  # (a copy of the row, element by element: np.ascontiguousarray compiled its own code)
+        for j in range(m):
+            row[j] = M[0, j]
         out = np.empty(1)
-        out[0] = np.dot(np.ascontiguousarray(M[0]), v)  # (a copy only of a one-element row here)
+        out[0] = np.dot(row, v)
         return out
     return np.dot(M, v)
 
@@ -426,12 +430,13 @@ def _within(b, lo, hi) -> bool:
 @njit(cache=True, error_model="numpy")
 def _bvls_nb(A, y, x_lsq, lo, hi, tol):
     """The work of :func:`bvls` (``A`` in Fortran order): scipy's bounded-variable least squares step for
-    step, with LAPACK's least squares (``gelsd`` at numpy's ``rcond``) on each free set. The index sets are
-    built and applied element by element (the same arithmetic on each element as numpy's fancy indexing and
-    concatenation, whose generic code was most of this kernel's compilation on a first run)."""
+    step, with the minimum-norm least squares at numpy's ``rcond`` on each free set (:func:`_lstsq_free`).
+    The index sets are built and applied element by element (the same arithmetic on each element as numpy's
+    fancy indexing and concatenation, whose generic code was most of this kernel's compilation on a first
+    run)."""
     n, L = A.shape
     x = x_lsq.copy()
-    on_bound = np.zeros(L)
+    on_bound = np.empty(L)
     for j in range(L):
         on_bound[j] = -1.0 if x[j] <= lo[j] else (1.0 if x[j] >= hi[j] else 0.0)
     x = _clip_nb(x, lo, hi)
@@ -524,23 +529,37 @@ def _free_of(on_bound):
 @njit(cache=True, error_model="numpy")
 def _lstsq_free(A, y, x, on_bound, free):
     """The least-squares solution on the free columns with the bound ones' part moved to the right-hand
-    side (numpy's ``lstsq(A[:, free], y - A @ where(on_bound != 0, x, 0), rcond=None)``)."""
+    side (numpy's ``lstsq(A[:, free], y - A @ where(on_bound != 0, x, 0), rcond=None)``): the minimum-norm
+    solution with singular values at or below ``rcond`` times the largest taken as zero (what LAPACK's
+    ``gelsd``, numpy's ``lstsq``, solves), from the thin SVD :func:`_svd_thin` the projection compiles
+    anyway: ``V diag(1/s) U^T rhs``. numba's ``np.linalg.lstsq`` was 3 s of a first run's compilation (its
+    residuals, its rank and a copy of ``b`` whose shape check compiles numba's error message); the answers
+    differ from ``gelsd``'s by rounding (a different factorisation of the same 7-40 x 2-5 system)."""
     n = A.shape[0]
-    if free.size == 0:
-        return np.zeros(0)
+    L = free.size
+    if L == 0:
+        return np.empty(0)
     xb = np.empty(x.shape[0])
     for j in range(x.shape[0]):
         xb[j] = x[j] if on_bound[j] != 0 else 0.0
-    rhs = y - _mv(A, xb)
-    Af = _columns(A, free)
-    return _lstsq_fortran(Af, rhs, EPS * max(n, free.size))
-
-
-@njit(cache=True, error_model="numpy")
-def _lstsq_fortran(a, b, rcond):
-    """``np.linalg.lstsq(a, b, rcond)[0]`` (numba's, LAPACK's ``gelsd``) for a Fortran-ordered ``a`` and a 1-D
-    ``b``, compiled once as its own function."""
-    return np.linalg.lstsq(a, b, rcond)[0]
+    rhs = _mv(A, xb)
+    for i in range(n):
+        rhs[i] = y[i] - rhs[i]
+    U, sv, Vt = _svd_thin(_columns(A, free))
+    z = np.empty(L)
+    for j in range(L):
+        z[j] = 0.0
+    cut = sv[0] * (EPS * max(n, L))
+    for c in range(sv.shape[0]):
+        if not sv[c] > cut:
+            break
+        t = 0.0
+        for i in range(n):
+            t += U[i, c] * rhs[i]
+        t /= sv[c]
+        for j in range(L):
+            z[j] += Vt[c, j] * t
+    return z
 
 
 @njit(cache=True)

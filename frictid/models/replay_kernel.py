@@ -20,8 +20,8 @@ The temperature is the only state besides ``z`` that the prediction feeds back o
 runs as a sequential loop (numba, ``cache=True``, the plant kernel's fastmath flags). The map at ``T`` is
 evaluated as ``s(T) g0 + dT dc`` instead of rebuilding both canonical vectors every sample, the heat
 step's ``exp(-K h / C)`` is reused while the sample period is unchanged, the outputs are allocated by
-numpy (huge pages) and maps with a constant level (polynomial, Coulomb-viscous) run a copy of the loop
-compiled without the level's exponentials: about 45 M samples/s with LuGre and thermal6 (20 M/s with a
+numpy (huge pages) and maps with a constant level (polynomial, Coulomb-viscous) skip the level's
+exponentials: about 45 M samples/s with LuGre and thermal6 (20 M/s with a
 Stribeck level), 8x the per-sample rebuild it replaces, equal to it within 1e-14 relative
 (``benchmarks/bench_replay.py``). :func:`replay_friction_ref` is an independent plain python/numpy twin
 (static.py's vectorised maps, thermal.py's heat step); the tests check that they agree.
@@ -71,9 +71,9 @@ def _clip(x, g):
 
 
 @njit(cache=True, error_model="numpy", fastmath=_FM)
-def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
-          code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, hold, F, z, T, flat):
-    """The replay loop. The map at joint temperature T is ``c0 s(T) + dc (T - T0)``
+def _kernel(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
+            code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, hold, F, z, T, flat):
+    """The replay loop, for any canonical map. The map at joint temperature T is ``c0 s(T) + dc (T - T0)``
     (:func:`frictid.models.lugre.thermal_canon_nb`); the level is linear in the amplitudes (a0, a1, a2)
     and the viscous part in (b1, b2, b3), so it is evaluated as ``s g0(|w|) + dT dc_a0`` and
     ``s f0(w) + dT f_dc(w)`` (the plant kernel's algebra): no per-sample rebuild of the two canonical
@@ -81,10 +81,12 @@ def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
     are allocated by the caller (numpy maps large arrays on huge pages: a third of the time went into
     page faults when the kernel allocated them); z or T one value long holds a state that cannot change
     (the static law's z = 0, no thermal law's T), and F may be ``u_stick`` itself (each sample's
-    ``u_stick`` is read before its F is written). ``flat`` (a compile-time constant, see
-    :func:`_kernel_flat`: numba compiles this loop once for each literal): the level is the constant a0 (no
-    Stribeck or saturation term). Not inlined into the kernels by numba (its copy of the inlined code was a
-    quarter of their compilation; LLVM's own inlining leaves the same numbers at the same speed)."""
+    ``u_stick`` is read before its F is written). ``flat``: the level is the constant a0 (no Stribeck or
+    saturation term; :func:`replay_friction` sets it from the map). One compiled copy for both kinds of map
+    (session 25: a copy compiled per literal ``flat``, each behind its own kernel, was a second of a first
+    run's compilation; 1 M samples, both builds alternating in one run: 37.9/36.5, 21.4/21.5, 3.8/3.3 and
+    17.2/16.7 ns per sample for a Stribeck level with LuGre and thermal6, a flat one with them, a flat static
+    map and a Stribeck static map; the same numbers to the last bit)."""
     n = w.shape[0]
     sg = 1 if gmul.shape[0] > 1 else 0  # a multiplier of length 1 holds for every sample
     sf = 1 if fmul.shape[0] > 1 else 0
@@ -187,32 +189,14 @@ def _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
     return F, z, T
 
 
-@njit(cache=True, error_model="numpy", fastmath=_FM)
-def _kernel(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
-            code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, hold, F, z, T):
-    """The replay loop for any canonical map."""
-    return _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
-                 code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, hold, F, z, T, False)
-
-
-@njit(cache=True, error_model="numpy", fastmath=_FM)
-def _kernel_flat(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
-                 code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, hold, F, z, T):
-    """The replay loop for maps whose level is a constant (Coulomb-viscous, polynomial): the same loop
-    compiled without the level's exponential branches, which, although never taken, cost a third of
-    the time (measured: 33 against 21 ns per sample with LuGre and thermal6)."""
-    return _loop(t, w, gmul, fmul, cc, s0p, s0n, s1p, s1n, z0, dynamic,
-                 code, theta, dd, C, K, Tenv, T_init, T_in, T_given, u_stick, w_stick, hold, F, z, T, True)
-
-
 _IN = nt.Array(nt.float64, 1, "C", readonly=True)
-#: The one signature of :func:`_kernel` and :func:`_kernel_flat` (numba types): every input array a read-only
+#: The one signature of :func:`_kernel` (numba types): every input array a read-only
 #: view, the outputs writeable (:func:`replay_friction` passes them so).
 SIGNATURE = ((_IN,) * 5 + (nt.float64,) * 5 + (nt.boolean, nt.int64, _IN, _IN, nt.float64, nt.float64, _IN,
              nt.float64, _IN, nt.boolean, _IN, nt.float64, nt.Array(nt.boolean, 1, "C", readonly=True))
-             + (nt.float64[::1],) * 3)
+             + (nt.float64[::1],) * 3 + (nt.boolean,))
 #: The kernels with their signature, for :func:`frictid.api.compile_kernels`.
-KERNELS = ((_kernel, SIGNATURE), (_kernel_flat, SIGNATURE))
+KERNELS = ((_kernel, SIGNATURE),)
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -396,11 +380,11 @@ def replay_friction(t, w, c_pos, c_neg=None, *, gmul=None, fmul=None, sigma0=Non
     # every input as a read-only view (the caller's arrays, broadcasts and fresh ones alike) and every number as a
     # float, an int or a bool: one compiled signature per kernel (:data:`SIGNATURE`), not one per combination of
     # flags a caller's arrays happen to carry (each a second or more of compilation on a first run)
-    F, z, T = (_kernel_flat if flat else _kernel)(
+    F, z, T = _kernel(
         *map(_readonly, (t, w, gmul, fmul, cc)), float(s0p), float(s0n), float(s1p), float(s1n), z0, bool(dynamic),
         code, _readonly(theta), _readonly(np.concatenate([dc_pos, dc_neg])), float(C), float(K), _readonly(Tenv),
         float(T_init), _readonly(T_in), bool(T_given), _readonly(u_stick), float(w_stick), _readonly(hold),
-        np.empty(n) if out is None else out, z, T)
+        np.empty(n) if out is None else out, z, T, bool(flat))
     if n != 1:
         z = z if z.shape[0] == n else np.broadcast_to(z, (n,))
         T = T if T.shape[0] == n else np.broadcast_to(T, (n,))

@@ -155,7 +155,14 @@ def _next_start_nb(onsets, w, rests, moves, prev, target, P, tol, virtual):  # p
     best, best_d = -1, np.inf
     if virtual:
         best, best_d = target, _difference_nb(w, rests, moves, prev, target, P)
-    j = np.searchsorted(onsets, target - tol)
+    j = 0  # the first onset at or after target - tol (np.searchsorted by bisection)
+    hi = onsets.size
+    while j < hi:
+        mid = (j + hi) >> 1
+        if onsets[mid] < target - tol:
+            j = mid + 1
+        else:
+            hi = mid
     if j < onsets.size and abs(onsets[j] - target) <= tol and onsets[j] > prev:
         d = _difference_nb(w, rests, moves, prev, onsets[j], P)
         if best < 0 or d < best_d:
@@ -167,18 +174,31 @@ def _next_start_nb(onsets, w, rests, moves, prev, target, P, tol, virtual):  # p
 
 @njit(cache=True)
 def _chain_nb(onsets, w, rests, moves, start, P, tol, virtual):  # pragma: no cover - compiled
-    """Cycle starts of the chain from ``start`` with period ``P`` samples (see :func:`_chain`)."""
-    chain = [start]
+    """Cycle starts of the chain from ``start`` with period ``P`` samples (see :func:`_chain`). The starts
+    are kept in an array that doubles when full (a list compiled numba's reflected-list code, and
+    ``np.searchsorted`` its generic comparison code: half a second of a first run's compilation)."""
+    chain = np.empty(16, dtype=np.int64)
+    chain[0] = start
+    m = 1
     period = float(P)
     while True:
-        nxt = _next_start_nb(onsets, w, rests, moves, chain[-1], int(np.rint(chain[-1] + period)), P, tol,
+        nxt = _next_start_nb(onsets, w, rests, moves, chain[m - 1], int(np.rint(chain[m - 1] + period)), P, tol,
                              virtual)
         # a duty cycle repeats the same motion: every cycle moves as fast as the chain's first one (a
         # sweep's cycles drift, each a little faster than the one before)
         if nxt < 0 or _rms_ratio(w, chain[0], nxt, P) > 1.0 + R_SHAPE:
-            return np.array(chain, dtype=np.int64)
-        chain.append(nxt)
-        period = (chain[-1] - chain[0]) / (len(chain) - 1)
+            out = np.empty(m, dtype=np.int64)
+            for i in range(m):
+                out[i] = chain[i]
+            return out
+        if m == chain.size:
+            grown = np.empty(2 * m, dtype=np.int64)
+            for i in range(m):
+                grown[i] = chain[i]
+            chain = grown
+        chain[m] = nxt
+        m += 1
+        period = (chain[m - 1] - chain[0]) / (m - 1)
 
 
 def _chain(onsets: np.ndarray, w: _Signal, start: int, P: int, tol: int, virtual: bool) -> list[int]:
@@ -261,7 +281,14 @@ def _best_chain_nb(onsets, w, rests, moves, start, cands, p_min, tol_min):  # pr
         if P < p_min or start + MIN_CYCLES * P > w.size + tol_min:
             continue
         tol = max(tol_min, int(R_PERIOD * P))
-        j = np.searchsorted(tried[:nt], P - tol)
+        j = 0  # the first period tried at or above P - tol (np.searchsorted by bisection)
+        hi = nt
+        while j < hi:
+            mid = (j + hi) >> 1
+            if tried[mid] < P - tol:
+                j = mid + 1
+            else:
+                hi = mid
         if j < nt and tried[j] <= P + tol:  # a period within tol was tried already
             continue
         k = nt
