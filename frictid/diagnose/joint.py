@@ -300,7 +300,11 @@ def _structure(jf: JointFit, chain: Chain, S: Samples, rec: dict) -> None:
     """The residual structure tests after the chain's last model (:mod:`.structure`); a structure worth
     stating goes to ``rec['unexplained']`` and the joint's warnings."""
     units = {"F": jf.units.get("tau", "N m"), "q": jf.units.get("q", "rad"), "w": jf.units.get("qd", "rad/s")}
-    tests, text = unexplained(S, S.F - chain.pred, chain.F_rms, units, f"the diagnosis' model {chain.st.name}")
+    inertia = jf.inertia if jf.inertia is not None and jf.inertia.identifiable else None
+    J, J_err = (None, None) if inertia is None or any(t.ext == "inertia" for t in chain.st.terms) else (
+        inertia.value, inertia.stderr)
+    tests, text = unexplained(S, S.F - chain.pred, chain.F_rms, units, f"the diagnosis' model {chain.st.name}",
+                              J, J_err)
     rec["structure"] = {"noise": torque_noise(S), "model": chain.st.name,
                         "rule": ("held-out bin means of the residual against each variable (training folds "
                                  f"only), one-sided paired t over held-out groups, alpha {ALPHA} split over the "
