@@ -215,7 +215,9 @@ def _findings(jf: JointFit, steps: list[dict], S: Samples, base: str, n_folds: i
             if tr.moving:   # a delay, judged on every moving sample too (chain.Chain.worth_it)
                 text += (f"; on every moving sample (transients included) the shift cuts the held-out RMS from "
                          f"{fmt(tr.moving['rms_before'])} to {fmt(tr.moving['rms_after'])} {units['F']} "
-                         f"(t = {tr.moving['t']:.1f})")
+                         f"(t = {tr.moving['t']:.1f}"
+                         + (f"; a fraction of a period, judged against its mirror image about the velocity's own "
+                            f"lag: {fmt(tr.moving['mirror'])}" if "mirror" in tr.moving else "") + ")")
                 fast = tr.moving.get("at_speed")
                 if fast:
                     text += (f", on the faster half of them from {fmt(fast['rms_before'])} to "
@@ -353,7 +355,12 @@ def _structure(jf: JointFit, chain: Chain, S: Samples, rec: dict) -> None:
     stating goes to ``rec['unexplained']`` and the joint's warnings."""
     units = {"F": jf.units.get("tau", "N m"), "q": jf.units.get("q", "rad"), "w": jf.units.get("qd", "rad/s")}
     name = model_name(chain.st, chain.coef)
-    tests, text = unexplained(S, S.F - chain.pred, chain.F_rms, units, f"the diagnosis' model {name}")
+    # the fit's inertia and its error, also where it is flagged (its error then spans what flagged it: a
+    # low-pass filter's change, foreign seed 340025: 10.2 +- 0.88 for a change to 9.36)
+    inertia = jf.inertia if jf.inertia is not None and jf.inertia.value is not None else None
+    J, J_err = (None, None) if inertia is None or any(t.ext == "inertia" for t in chain.st.terms) else (
+        inertia.value, inertia.stderr)
+    tests, text = unexplained(S, S.F - chain.pred, chain.F_rms, units, f"the diagnosis' model {name}", J, J_err)
     rec["structure"] = {"noise": torque_noise(S), "model": name,
                         "rule": ("held-out bin means of the residual against each variable (training folds "
                                  f"only), one-sided paired t over held-out groups, alpha {ALPHA} split over the "

@@ -176,7 +176,7 @@ def _fast_blocks(S: Samples):
             yield lg, tau, km, gk, g, k, _delay_columns(S, i, k)
 
 
-def delay_at_speed(S: Samples, shifts: list[float]) -> dict | None:
+def delay_at_speed(S: Samples, shifts: list[float], centre: float | None = None) -> dict | None:
     """The delay judged on the faster half of the moving samples only (:func:`_fast_rows`), as
     :func:`frictid.diagnose.signals.delay_heldout` judges it on all of them: per fold the delay's map (per sign
     1, sqrt|w|, |w|, w^2, the acceleration, cos q, sin q) fitted on the other folds' faster samples with the
@@ -185,10 +185,17 @@ def delay_at_speed(S: Samples, shifts: list[float]) -> dict | None:
     too); the friction's own memory (presliding at the starts and reversals, a loop holding the joint in
     its static band while its integrator builds up the torque) lives at the lowest speeds of each move. Returns
     the held-out RMS without and with the shift and per held-out group the sums of ``r_before^2 - r_after^2``
-    (``d``); None without such samples."""
+    (``d``); None without such samples. ``centre`` [s] given: a fraction of a sample judged against its
+    mirror image about it instead of no shift, both interpolated
+    (:func:`frictid.diagnose.signals.delay_mirror`); ``d`` then sums ``r_mirror^2 - r_shift^2``."""
     dt = S.dt(0)
-    per_fold = [int(round(float(x) / dt)) for x in shifts]
-    whole = sorted(set([0] + per_fold))
+    if centre is None:
+        per_fold = [int(round(float(x) / dt)) for x in shifts]
+        base = [0] * len(per_fold)
+    else:
+        per_fold = [float(x) / dt for x in shifts]
+        base = [2.0 * centre / dt - x for x in per_fold]
+    whole = sorted(set(base + per_fold))
     XtX, XtY = _fast_sums(S, whole)
     if XtX is None:
         return None
@@ -197,7 +204,10 @@ def delay_at_speed(S: Samples, shifts: list[float]) -> dict | None:
     for f in range(nf):
         tr = [g for g in range(nf) if g != f]
         A = XtX[tr].sum(0)
-        fits.append((_solve(A, XtY[0, tr].sum(0)), _solve(A, XtY[whole.index(per_fold[f]), tr].sum(0))))
+        # the no-shift fit: the first row of sums as since session 20 (the smallest shift's when a fold's whole
+        # shift is negative: docs/diagnosis.md "A delay under half a sample period", left for a card of its own)
+        b0 = 0 if centre is None else whole.index(base[f])
+        fits.append((_solve(A, XtY[b0, tr].sum(0)), _solve(A, XtY[whole.index(per_fold[f]), tr].sum(0))))
     d = np.zeros(S.n_groups)
     ss0 = ss1 = 0.0
     n = 0
@@ -205,6 +215,8 @@ def delay_at_speed(S: Samples, shifts: list[float]) -> dict | None:
         grp = _nearest_group(km, gk, k)
         b0, b1 = fits[g]
         r0 = lg.F[k] - X @ b0
+        if centre is not None:
+            r0 = r0 - tau[k] + shifted_torque(tau, k.astype(float), base[g])
         r1 = lg.F[k] - tau[k] + shifted_torque(tau, k.astype(float), per_fold[g]) - X @ b1
         d += np.bincount(grp, weights=r0 * r0 - r1 * r1, minlength=S.n_groups)
         ss0 += float(r0 @ r0)
