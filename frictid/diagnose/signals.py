@@ -722,35 +722,7 @@ def delay_heldout(S: Samples, shifts: list) -> tuple[float, float, np.ndarray]:
     of clean logs, 0.3-0.6 sample periods, are mostly that). Returns the RMS of the held-out residuals
     without and with the shift and, per held-out group (that of the nearest sliding sample), the sum of
     ``r_before^2 - r_after^2``."""
-    nf = S.n_folds
-    _delay_prefetch(S, [0.0] + [float(x) for x in shifts])
-    fits = []
-    for f in range(nf):
-        train = [g for g in range(nf) if g != f]
-        fits.append((_delay_fit(S, 0.0, train, rss=False)[0],
-                     _delay_fit(S, float(shifts[f]), train, rss=False)[0]))
-    if any(b0 is None or b1 is None for b0, b1 in fits):
-        return math.nan, math.nan, np.zeros(S.n_groups)
-    d = np.zeros(S.n_groups)
-    ss0 = ss1 = 0.0
-    n = 0
-    for i, ((km, fk), gk) in enumerate(zip(_moving_rows(S, True), _moving_groups(S, True))):
-        lg = S.logs[i]
-        tau = finite(lg.tau)
-        for b in range(0, km.size, BLOCK):
-            k, f, g = km[b:b + BLOCK], fk[b:b + BLOCK], gk[b:b + BLOCK]
-            X = _delay_columns(S, i, k)
-            B0 = np.array([fits[x][0] for x in range(nf)])[f]
-            B1 = np.array([fits[x][1] for x in range(nf)])[f]
-            sh = np.round(np.asarray(shifts, float)[f] / S.dt(i))   # whole samples: no interpolation
-            y1 = lg.F[k] - tau[k] + shifted_torque(tau, k.astype(float), sh)
-            r0 = lg.F[k] - np.einsum("ij,ij->i", X, B0)
-            r1 = y1 - np.einsum("ij,ij->i", X, B1)
-            d += np.bincount(g, weights=r0 * r0 - r1 * r1, minlength=S.n_groups)
-            ss0 += float(r0 @ r0)
-            ss1 += float(r1 @ r1)
-            n += k.size
-    return math.sqrt(ss0 / max(n, 1)), math.sqrt(ss1 / max(n, 1)), d
+    return _judged(S, None, [float(x) for x in shifts], whole=True)
 
 
 def delay_mirror(S: Samples, shifts: list, centre: float) -> tuple[float, float, np.ndarray]:
@@ -763,14 +735,22 @@ def delay_mirror(S: Samples, shifts: list, centre: float) -> tuple[float, float,
     averaging gains, each gains, and only a torque late (or early) against the motion prefers one side.
     Returns the held-out RMS with the mirror and with the shift and, per held-out group, the sum of
     ``r_mirror^2 - r_shift^2``: against no delay at all a shift explains about a quarter of that."""
+    return _judged(S, [2.0 * centre - float(x) for x in shifts], [float(x) for x in shifts], whole=False)
+
+
+def _judged(S: Samples, before: list | None, after: list, whole: bool) -> tuple[float, float, np.ndarray]:
+    """Per fold the delay's map fitted on the other folds with the torque shifted by the fold's shift of
+    ``before`` (None: no shift) and of ``after`` [s], each predicting the held-out fold on every moving
+    sample; shifts rounded to whole samples where ``whole``, else interpolated. Returns the held-out RMS
+    before and after and, per held-out group, the sum of ``r_before^2 - r_after^2``
+    (:func:`delay_heldout`, :func:`delay_mirror`)."""
     nf = S.n_folds
-    mirrors = [2.0 * centre - float(x) for x in shifts]
-    _delay_prefetch(S, [float(x) for x in shifts] + mirrors)
+    _delay_prefetch(S, ([0.0] if before is None else before) + after)
     fits = []
     for f in range(nf):
         train = [g for g in range(nf) if g != f]
-        fits.append((_delay_fit(S, mirrors[f], train, rss=False)[0],
-                     _delay_fit(S, float(shifts[f]), train, rss=False)[0]))
+        fits.append((_delay_fit(S, 0.0 if before is None else before[f], train, rss=False)[0],
+                     _delay_fit(S, after[f], train, rss=False)[0]))
     if any(b0 is None or b1 is None for b0, b1 in fits):
         return math.nan, math.nan, np.zeros(S.n_groups)
     d = np.zeros(S.n_groups)
@@ -781,14 +761,16 @@ def delay_mirror(S: Samples, shifts: list, centre: float) -> tuple[float, float,
     for i, ((km, fk), gk) in enumerate(zip(_moving_rows(S, True), _moving_groups(S, True))):
         lg = S.logs[i]
         tau = finite(lg.tau)
-        s0 = np.asarray(mirrors, float) / S.dt(i)
-        s1 = np.asarray(shifts, float) / S.dt(i)
+        s0 = None if before is None else np.asarray(before, float) / S.dt(i)
+        s1 = np.asarray(after, float) / S.dt(i)
         for b in range(0, km.size, BLOCK):
             k, f, g = km[b:b + BLOCK], fk[b:b + BLOCK], gk[b:b + BLOCK]
             X = _delay_columns(S, i, k)
             base = lg.F[k] - tau[k]
-            r0 = base + shifted_torque(tau, k.astype(float), s0[f]) - np.einsum("ij,ij->i", X, B0[f])
-            r1 = base + shifted_torque(tau, k.astype(float), s1[f]) - np.einsum("ij,ij->i", X, B1[f])
+            r0 = (lg.F[k] if s0 is None else base + shifted_torque(tau, k.astype(float), s0[f])) \
+                - np.einsum("ij,ij->i", X, B0[f])
+            sh = np.round(s1[f]) if whole else s1[f]   # whole samples: no interpolation
+            r1 = base + shifted_torque(tau, k.astype(float), sh) - np.einsum("ij,ij->i", X, B1[f])
             d += np.bincount(g, weights=r0 * r0 - r1 * r1, minlength=S.n_groups)
             ss0 += float(r0 @ r0)
             ss1 += float(r1 @ r1)
