@@ -135,6 +135,9 @@ def test_thermal_state_is_the_heat_balance_of_the_whole_log_at_the_samples():
             sel = S.li == i
             assert sel.any()
             assert np.allclose(x[sel], full[S.k[sel]], rtol=1e-12, atol=1e-12)
+    # the friction power is formed where it is read, not kept beside the heat balance's input
+    assert S.has(("heat_input", 0)) and not any(isinstance(k, tuple) and k[0] == "power" for k in S._memo)
+    assert np.array_equal(S.power(1), np.nan_to_num(lg2.F * lg2.w))
 
 
 def test_cumulative_energy_in_place_equals_the_plain_formula():

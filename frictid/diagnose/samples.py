@@ -178,9 +178,12 @@ class Samples:
         return self.cached(("dt", i), lambda: float(np.median(np.diff(lg.t))) if lg.n > 1 else 1.0)
 
     def power(self, i: int) -> np.ndarray:
-        """The measured friction power ``F w`` [W] of every sample of log i (NaN as zero)."""
+        """The measured friction power ``F w`` [W] of every sample of log i (NaN as zero), formed at each call
+        and not kept: its few readers (the heat balance's input once per conductance, kept; the conductances;
+        the energy's evidence) each read it once, and a kept array of the log's length sat in the
+        diagnosis' peak (29 MB on a joint-hour, issue 20)."""
         lg = self.logs[i]
-        return self.cached(("power", i), lambda: finite(lg.F * lg.w))
+        return finite(lg.F * lg.w)
 
     def log_w(self, i: int) -> np.ndarray:
         """The velocity [q/s] of every sample of log i (NaN as zero)."""
