@@ -13,9 +13,8 @@ reduced chi-square (the plateau standard errors weight the points, the scatter s
 is one segment, so this already is the segment-to-segment scatter; a sandwich (HC1/HC3) estimate was
 tried and not kept: on 14 plateaus per branch it put the near-collinear amplitudes of stribeck_2exp_asym
 above 100 % relative error and the choice fell back to a map with 2.4x the curve error. The Stribeck
-map's parameters (the drop, read from the few slowest plateaus, and the level and slope, from the fast
-ones) have an error no smaller than the delete-a-pair jackknife over the points (:func:`_pair_jackknife`:
-a pair of plateaus at one speed shares its bias).
+drop's parameters, read from the few slowest plateaus, have an error no smaller than the delete-a-pair
+jackknife over the points (:func:`_pair_jackknife`: a pair of plateaus at one speed shares its bias).
 A parameter is marked ``identifiable: false`` with the reason when it sits at a bound, when its relative
 error exceeds 100 % and matters at the data scale, when the Jacobian is rank-deficient along it, or when
 there are no data for it (a per-sign branch without plateaus).
@@ -826,9 +825,7 @@ def _pair_jackknife(bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf:
     scale, so a slow pair biased beyond its own error (both signs alike) goes into Fs, vs and delta with a
     leverage that neither measures. Foreign card (session 24): Fs outside two errors on 10 of 52 draws,
     by 0.1-0.3 % at errors of 0.02-0.14 %; the slowest pairs there sat 1.5-3 of their own errors low on
-    both signs (244034, 244064). Fc and sigma2 alike (session 25's second card: 89 % and 88 % inside two
-    errors, 0.03-0.7 % off at 2.1-2.5 errors): the fast pairs hold the level and the slope, and a pair's
-    shared bias goes into them the same way. The same rule as the moving samples' jackknife floor
+    both signs (244034, 244064). The same rule as the moving samples' jackknife floor
     (:func:`.samples.jackknife_errors`). ``bf`` is changed in place (stderr, the covariance's rows)."""
     names = [n for n in JACKKNIFE_PARAMS if n in bf.free and bf.stderr.get(n) is not None]
     groups = mirrored_groups(bw)
