@@ -787,11 +787,8 @@ def _rival_spread(bf: BranchFit, rival: dict) -> None:
 
 
 #: The parameters of a Stribeck drop whose error is no smaller than the delete-a-pair jackknife
-#: (:func:`_pair_jackknife`), and the fewest groups of points that jackknife is taken over. Fc and sigma2
-#: too: a pair's shared bias at the fast end goes into the level and the slope as the slow pairs' goes into
-#: the drop (foreign card, session 25: Fc 89 %, sigma2 88 % inside two errors, values 0.03-0.7 % off at
-#: 2.1-2.5 errors).
-JACKKNIFE_PARAMS = ("Fc", "Fs", "vs", "delta", "sigma2")
+#: (:func:`_pair_jackknife`), and the fewest groups of points that jackknife is taken over.
+JACKKNIFE_PARAMS = ("Fs", "vs", "delta")
 JACKKNIFE_MIN_GROUPS = 5
 #: Two plateau points of opposite signs are a mirrored pair when their speeds differ by at most this share.
 MIRROR_TOL = 0.1
