@@ -788,7 +788,7 @@ def _rival_spread(bf: BranchFit, rival: dict) -> None:
 
 #: The parameters of a Stribeck drop whose error is no smaller than the delete-a-pair jackknife
 #: (:func:`_pair_jackknife`), and the fewest groups of points that jackknife is taken over.
-JACKKNIFE_PARAMS = ("Fc", "Fs", "vs", "delta", "sigma2")
+JACKKNIFE_PARAMS = ("Fs", "vs", "delta")
 JACKKNIFE_MIN_GROUPS = 5
 #: Two plateau points of opposite signs are a mirrored pair when their speeds differ by at most this share.
 MIRROR_TOL = 0.1
@@ -838,10 +838,6 @@ def _pair_jackknife(bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf:
             return
         th.append([alt.values[n] for n in names])
     th = np.asarray(th, dtype=float)
-    h = _group_leverage(bw, bse, bf, groups)
-    if h is not None:  # each group's change shrunk by (1 - h)^(1/2) (CR2): the jackknife's is 1 / (1 - h)
-        th0 = np.array([bf.values[n] for n in names])
-        th = th0 + (th - th0) * np.sqrt(np.clip(1.0 - h, 0.0, 1.0))[:, None]
     G = th.shape[0]
     jse = np.sqrt((G - 1) / G * np.sum((th - th.mean(axis=0)) ** 2, axis=0))
     for n, js in zip(names, jse):
@@ -859,28 +855,6 @@ def _pair_jackknife(bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf:
             bf.reasons[n] = (f"relative error {100 * js / abs(v):.0f} % (above 100 %) by the delete-a-pair "
                              "jackknife over the plateaus" if v else "relative error above 100 % by the "
                              "delete-a-pair jackknife over the plateaus")
-
-
-def _group_leverage(bw, bse, bf: BranchFit, groups) -> np.ndarray | None:
-    """Each group's leverage (the sum of its points' diagonal of the weighted hat matrix) at the branch's
-    optimum, from a central-difference Jacobian of the map in its free parameters; None when singular."""
-    wts = np.ones(bw.shape[0]) if bse is None else 1.0 / np.maximum(np.asarray(bse, float), 1e-300) ** 2
-    cols = []
-    for n in bf.free:
-        v = bf.values[n]
-        d = 1e-6 * max(abs(v), 1e-9)
-        hi, lo = dict(bf.values), dict(bf.values)
-        hi[n], lo[n] = v + d, v - d
-        cols.append((predict("stribeck", hi, bw) - predict("stribeck", lo, bw)) / (2 * d))
-    J = np.column_stack(cols)
-    try:
-        A = np.linalg.inv(J.T @ (J * wts[:, None]))
-    except np.linalg.LinAlgError:
-        return None
-    hp = wts * np.einsum("ij,jk,ik->i", J, A, J)
-    if not np.all(np.isfinite(hp)):
-        return None
-    return np.array([hp[g].sum() for g in groups])
 
 
 def _shift_profile(base: str, bw, bF, bse, bfixed: dict, scales, var_inflation: float, bf: BranchFit,
