@@ -470,8 +470,7 @@ def _bvls_nb(A, y, x_lsq, lo, hi, tol):
             for c in range(nf):
                 xf[c] = x[free[c]]
             z = _lstsq_free(A, y, x, on_bound, free)
-            n_lo = 0
-            n_hi = 0
+            n_lo = n_hi = 0
             for c in range(nf):
                 if z[c] < lo[free[c]]:
                     n_lo += 1
@@ -483,8 +482,7 @@ def _bvls_nb(A, y, x_lsq, lo, hi, tol):
                 break
             v = np.empty(n_lo + n_hi, dtype=np.int64)  # the free entries below their bound, then those above
             alphas = np.empty(n_lo + n_hi)
-            k_lo = 0
-            k_hi = n_lo
+            k_lo, k_hi = 0, n_lo
             for c in range(nf):
                 if z[c] < lo[free[c]]:
                     v[k_lo] = c
