@@ -40,8 +40,3 @@ class Gathered:
     def fill(self, out: np.ndarray, s: int, e: int) -> np.ndarray:
         """Samples ``s:e`` of the column written into ``out`` (no temporary)."""
         return np.take(self.table, self.index[s:e], out=out, mode="wrap")
-
-
-def materialized(x):
-    """x as an array (a :class:`Gathered` column read at every sample)."""
-    return x.at() if isinstance(x, Gathered) else x

@@ -15,8 +15,8 @@ data's speeds: it competes on the same terms (a user compensates with the map's 
 staying marked not identifiable with the reason, recorded in the choice. A Stribeck map that rises (``Fs
 < Fc``) or shows no drop above the slowest plateau on any branch is not taken. When no model is fully
 identifiable or shape-only, the same rule runs over all models, with a warning, but for the Stribeck maps
-that rise (:func:`rises`, unless nothing else is left: a rise is no Stribeck drop, whatever it predicts). The held-out refits
-therefore run for the models the rule can take (:func:`heldout_for_choice`): a model that is neither gets
+that rise (:func:`rises`, unless nothing else is left: a rise is no Stribeck drop, whatever it predicts).
+The held-out refits therefore run for the models the rule can take (:func:`heldout_for_choice`): a model that is neither gets
 no held-out error, and a note saying so, unless no other model gets one.
 
 Shared with the diagnosis: :data:`BASE_MODELS` and :func:`base_model_name` (the base of its chain, by this
@@ -240,7 +240,8 @@ def _not_rising(pool: list[dict], rec: dict, rising: set) -> list[dict]:
     ``stribeck`` of Fs 1.35 < Fc 8.66 chosen by AIC alone.)"""
     keep = [r for r in pool if r["model"] not in rising]
     if keep and len(keep) < len(pool):
-        rec["not_taken"] = [f"{r['model']}: friction at rest below its sliding level (Fs < Fc), a rise, no Stribeck drop" for r in pool if r["model"] in rising]
+        rec["not_taken"] = [f"{r['model']}: friction at rest below its sliding level (Fs < Fc), a rise, no "
+                            "Stribeck drop" for r in pool if r["model"] in rising]
     return keep or pool
 
 
